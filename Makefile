@@ -1,0 +1,42 @@
+# rbsim: the README's set-up is `make demo` then `make test`.
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+SCENES := $(wildcard scenes/*.yaml)
+OUTS   := $(patsubst scenes/%.yaml,out/%.h5,$(SCENES))
+DEMO   := scenes/pyramid.yaml
+
+.PHONY: install test lint demo batch bench clean
+
+install: $(STAMP)
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+lint: $(STAMP)
+	$(BIN)/ruff check rbsim tests bench
+	$(BIN)/ruff format --check rbsim tests bench
+
+test: $(STAMP) lint
+	$(BIN)/pytest -q
+
+demo: $(STAMP)
+	@mkdir -p out
+	$(BIN)/rbsim run $(DEMO) -o out/demo.h5
+	@echo "trajectory written to out/demo.h5 (inspect it with: $(BIN)/rbsim info out/demo.h5)"
+
+batch: $(OUTS)
+
+out/%.h5: scenes/%.yaml $(STAMP)
+	@mkdir -p out
+	$(BIN)/rbsim run $< -o $@ --quiet
+
+bench: $(STAMP)
+	$(BIN)/python -m bench
+
+clean:
+	rm -rf out .pytest_cache build *.egg-info rbsim/__pycache__ tests/__pycache__ bench/__pycache__

@@ -1,0 +1,1 @@
+"""Benchmarks: rbsim against pymunk on the same scenes, in the same process."""

@@ -1,0 +1,41 @@
+"""Tuning constants, each with its unit, a typical value and what changing it does.
+
+The solver follows the "soft step" design (sub-stepping, soft contact constraints,
+a relax pass, restitution applied last). Values are SI: metres, seconds, radians.
+"""
+
+# Shape kinds as stored in Model.shape_kind. A box is stored as a polygon.
+SHAPE_CIRCLE = 0
+SHAPE_POLYGON = 1
+SHAPE_SEGMENT = 2  # a segment with a radius is a capsule
+
+BODY_DYNAMIC = 0
+BODY_STATIC = 1
+BODY_KINEMATIC = 2
+
+# Contacts closer than this are created before the shapes touch, so that the solver
+# can stop an approaching body exactly at the surface (no tunneling within one step).
+# m; typically 4 * LINEAR_SLOP. Larger values create more contacts (slower).
+SPECULATIVE_DISTANCE = 0.02
+
+# Allowed overlap before position correction pushes shapes apart. m; normally 0.5 cm.
+# Smaller makes stacks jitter; larger leaves visible overlap.
+LINEAR_SLOP = 0.005
+
+# AABB margin for the broadphase, m. Must be >= SPECULATIVE_DISTANCE.
+AABB_MARGIN = 0.02
+
+# Soft contact stiffness, Hz; capped at a quarter of the substep rate. 30 Hz is stiff
+# enough for stacks; higher values approach a rigid constraint and lose the softness
+# that keeps large mass ratios stable.
+CONTACT_HERTZ = 30.0
+
+# Soft contact damping ratio, dimensionless. 10 = heavily over-damped: overlaps are
+# removed without bounce.
+CONTACT_DAMPING_RATIO = 10.0
+
+# Joint-free maximum speed at which overlap is pushed out, m/s (bounded push-out).
+CONTACT_PUSH_MAX_VELOCITY = 3.0
+
+# Speeds are clamped to this to keep a bad scene from producing inf, m/s.
+MAX_LINEAR_SPEED = 4.0e3

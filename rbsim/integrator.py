@@ -1,0 +1,86 @@
+"""Integration stages: velocities from forces, positions from velocities.
+
+Symplectic (semi-implicit) Euler integrates velocities first and moves bodies with
+the new velocity; explicit Euler moves bodies with the old velocity first. Both are
+first order: a projectile's height error after time t is ∓ g h t / 2 for step h.
+
+Rotation is a unit complex number q = (cos θ, sin θ). `normalize` applies the
+derived update q <- normalize(q + h ω×q), which rotates by atan(h ω) per step (a lag
+of h ω − atan(h ω)); `exact` rotates by h ω. The accumulated angle `body_angle`
+advances by the same amount, so it stays equal to the angle of q, unwrapped.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from . import constants as C
+
+
+@njit(cache=True)
+def integrate_velocities(model, state, h):
+    """v += h (g + F/m), ω += h τ/I for dynamic bodies, then damping 1/(1 + h c).
+
+    h: step length in s. F is the constant world-frame force, applied at its arm
+    (body frame, from the COM), so it adds the torque r × F with r = R(q) arm.
+    """
+    gx, gy = model.gravity[0], model.gravity[1]
+    lin = 1.0 / (1.0 + h * model.linear_damping)
+    ang = 1.0 / (1.0 + h * model.angular_damping)
+    v, w = state.body_v, state.body_w
+    for i in range(v.shape[0]):
+        if model.body_type[i] != C.BODY_DYNAMIC:
+            continue
+        ax, ay, alpha = gx, gy, 0.0
+        if model.has_forces:
+            fx, fy = model.body_force[i, 0], model.body_force[i, 1]
+            c, s = state.body_q[i, 0], state.body_q[i, 1]
+            rx = c * model.body_force_arm[i, 0] - s * model.body_force_arm[i, 1]
+            ry = s * model.body_force_arm[i, 0] + c * model.body_force_arm[i, 1]
+            im = model.body_inv_mass[i]
+            ax += im * fx
+            ay += im * fy
+            alpha = model.body_inv_inertia[i] * (model.body_torque[i] + rx * fy - ry * fx)
+        v[i, 0] = (v[i, 0] + h * ax) * lin
+        v[i, 1] = (v[i, 1] + h * ay) * lin
+        w[i] = (w[i] + h * alpha) * ang
+
+
+@njit(cache=True)
+def integrate_positions(model, state, delta, h, exact):
+    """x += h v and rotate q by ω h (exact) or by atan(h ω) (normalize) for moving bodies.
+
+    delta (N,4): per-body displacement (dx, dy) and rotation (cos, sin) accumulated
+    since the start of the step, which the contact solver uses to track separations.
+    """
+    x, q, angle, v, w = state.body_x, state.body_q, state.body_angle, state.body_v, state.body_w
+    for i in range(x.shape[0]):
+        if model.body_type[i] == C.BODY_STATIC:
+            continue
+        dx, dy = h * v[i, 0], h * v[i, 1]
+        x[i, 0] += dx
+        x[i, 1] += dy
+        hw = h * w[i]
+        c, s = q[i, 0], q[i, 1]
+        if exact:
+            rc, rs = math.cos(hw), math.sin(hw)
+            angle[i] += hw
+            nc, ns = rc * c - rs * s, rs * c + rc * s
+            # renormalise: rounding drift is kept at the 1e-16 level over any run
+            inv = 1.0 / math.sqrt(nc * nc + ns * ns)
+            nc *= inv
+            ns *= inv
+        else:
+            nc, ns = c - hw * s, s + hw * c
+            inv = 1.0 / math.sqrt(nc * nc + ns * ns)
+            nc *= inv
+            ns *= inv
+            rc, rs = inv, hw * inv  # the rotation applied: by atan(h ω)
+            angle[i] += math.atan(hw)
+        q[i, 0], q[i, 1] = nc, ns
+        delta[i, 0] += dx
+        delta[i, 1] += dy
+        dc, ds = delta[i, 2], delta[i, 3]
+        delta[i, 2], delta[i, 3] = rc * dc - rs * ds, rs * dc + rc * ds

@@ -1,0 +1,741 @@
+"""Scene files: YAML text -> a validated, fully resolved :class:`Scene`.
+
+The format is version 1 of ../shared/DESIGN.md. Everything downstream (model,
+world, pymunk bridge) reads only the dataclasses below: no defaults are applied
+after this module, every generator (`pyramid`, `stack`, `grid`) is expanded into
+plain bodies, every material is resolved onto each shape, and every shape is
+expressed in its body's frame (metres, radians).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from rbsim import schema
+from rbsim.schema import INVALID, Checked, did_you_mean
+from rbsim.yamlsrc import BROKEN, Mark, Problem, YList, YMap, format_path, load_yaml
+
+Vec2 = tuple[float, float]
+
+SHAPE_KINDS = ("circle", "box", "polygon", "segment")
+BODY_TYPES = ("dynamic", "static", "kinematic")
+
+
+@dataclass(frozen=True)
+class Material:
+    """Surface and bulk properties: density kg/m², friction (Coulomb μ), restitution e."""
+
+    density: float = 1.0
+    friction: float = 0.6
+    restitution: float = 0.0
+
+
+@dataclass(frozen=True)
+class Shape:
+    """One shape of a body, in the body frame (metres about the body origin).
+
+    kind: the kind as written in the scene ("circle", "box", "polygon", "segment").
+    vertices: circle -> ((cx, cy),), its centre; segment -> (a, b);
+        box and polygon -> convex counter-clockwise vertices (a box is turned
+        into its four corners with `offset` and `angle` applied).
+    radius: circle radius; segment radius (a capsule when > 0); 0 for polygons.
+    size, offset, angle: the box as written (for output and the pymunk bridge);
+        size is (0, 0) for other kinds.
+    material: resolved material of this shape.
+    """
+
+    kind: str
+    vertices: tuple[Vec2, ...]
+    radius: float
+    material: Material
+    size: Vec2 = (0.0, 0.0)
+    offset: Vec2 = (0.0, 0.0)
+    angle: float = 0.0
+
+
+@dataclass(frozen=True)
+class Body:
+    """A body as placed in the scene.
+
+    position: the body origin in the world (m); angle (rad); velocity of the
+    centre of mass (m/s); angular_velocity (rad/s). mass (kg) overrides the
+    density-derived mass when not None (inertia scales with it). force (N) is a
+    constant world-frame force applied at force_point (body frame, m) or at the
+    centre of mass when force_point is None; torque (N·m) is constant.
+    """
+
+    name: str
+    type: str
+    position: Vec2
+    angle: float
+    velocity: Vec2
+    angular_velocity: float
+    shapes: tuple[Shape, ...]
+    mass: float | None = None
+    force: Vec2 = (0.0, 0.0)
+    force_point: Vec2 | None = None
+    torque: float = 0.0
+
+
+@dataclass(frozen=True)
+class World:
+    """gravity (m/s²), dt (s), steps (count; `duration` resolved to round(duration/dt)),
+    linear and angular damping (1/s), mixing rules for friction and restitution."""
+
+    gravity: Vec2 = (0.0, -9.81)
+    dt: float = 1.0 / 60.0
+    steps: int = 600
+    linear_damping: float = 0.0
+    angular_damping: float = 0.0
+    friction_mixing: str = "sqrt"  # sqrt | multiply | min | max
+    restitution_mixing: str = "max"  # max | multiply | min
+
+
+@dataclass(frozen=True)
+class Solver:
+    """Solver settings; see rbsim.constants for what each one trades."""
+
+    substeps: int = 4
+    iterations: int = 1
+    integrator: str = "symplectic_euler"  # or explicit_euler
+    rotation: str = "normalize"  # or exact
+    restitution_threshold: float = 1.0  # m/s
+
+
+@dataclass(frozen=True)
+class Output:
+    """every: write every k-th step (step 0 and the last step are always written)."""
+
+    every: int = 1
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A resolved scene. `source` is the YAML text as given (for /parameters);
+    `path` the file it came from (or "<string>")."""
+
+    name: str
+    world: World
+    solver: Solver
+    output: Output
+    bodies: tuple[Body, ...]
+    materials: dict[str, Material] = field(default_factory=dict)
+    compare: dict[str, float] = field(default_factory=dict)
+    source: str = ""
+    path: str = "<string>"
+
+
+# ---------------------------------------------------------------------------------------
+# Errors
+# ---------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class SceneIssue:
+    """One problem in a scene: where (file, 1-based line and column), which key
+    (`bodies[3].shape.circle.radius`, empty when the problem is not about one key) and
+    what. A problem in a command-line override has no line and column; ``override`` is
+    then the key of the ``--set`` it came from."""
+
+    file: str
+    line: int | None
+    column: int | None
+    key_path: str
+    message: str
+    override: str | None = None
+
+    def __str__(self) -> str:
+        if self.override is not None:
+            where = f"{self.file}: --set {self.override}"
+            same = self.key_path == format_path(_override_path(self.override))
+            key_path = "" if same else self.key_path  # do not say world.dt twice
+        else:
+            where = f"{self.file}:{self.line}:{self.column}"
+            key_path = self.key_path
+        return f"{where}: {key_path}: {self.message}" if key_path else f"{where}: {self.message}"
+
+
+class SceneError(Exception):
+    """An invalid scene; ``errors`` lists every problem found, in file order."""
+
+    def __init__(self, errors: Sequence[SceneIssue]) -> None:
+        self.errors: list[SceneIssue] = list(errors)
+        super().__init__(str(self))
+
+    def __str__(self) -> str:
+        return "\n".join(str(issue) for issue in self.errors)
+
+
+def _issues(file: str, problems: Iterable[Problem]) -> list[SceneIssue]:
+    out: dict[SceneIssue, None] = {}  # ordered and without repeats
+    for p in problems:
+        path = format_path(p.path)
+        if p.mark.origin is not None:
+            override = p.mark.origin.removeprefix("--set ")
+            issue = SceneIssue(file, None, None, path, p.message, override)
+        else:
+            issue = SceneIssue(file, p.mark.line, p.mark.column, path, p.message)
+        out[issue] = None
+    return sorted(out, key=lambda i: (i.override is not None, i.line or 0, i.column or 0))
+
+
+# ---------------------------------------------------------------------------------------
+# Loading
+# ---------------------------------------------------------------------------------------
+
+DEFAULT_MATERIAL = Material(**schema.DEFAULT_MATERIAL)
+
+# Guards against typos such as `pyramid: {base: 100000}` or `dt: 1e-12`.
+MAX_BODIES = 1_000_000
+MAX_STEPS = 1_000_000_000
+
+
+def load_scene(path: str | Path, overrides: Sequence[str] = ()) -> Scene:
+    """Read, validate and resolve the scene file at ``path``.
+
+    ``overrides`` are ``key.path=value`` strings (``--set``), applied before validation.
+    Raises SceneError listing every problem found (including an unreadable file).
+    """
+    file = str(path)
+
+    def fail(line: int, column: int, message: str) -> SceneError:
+        return SceneError([SceneIssue(file, line, column, "", message)])
+
+    try:
+        data = Path(path).read_bytes()
+    except FileNotFoundError:
+        raise fail(1, 1, "file not found") from None
+    except IsADirectoryError:
+        raise fail(1, 1, "is a directory, not a scene file") from None
+    except PermissionError:
+        raise fail(1, 1, "permission denied") from None
+    except OSError as err:
+        raise fail(1, 1, f"cannot read the file: {err.strerror or err}") from None
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as err:
+        line = data.count(b"\n", 0, err.start) + 1
+        line_start = data.rfind(b"\n", 0, err.start) + 1
+        column = len(data[line_start : err.start].decode("utf-8", "replace")) + 1
+        message = f"not valid UTF-8 (byte 0x{data[err.start]:02x}); save the file as UTF-8"
+        raise fail(line, column, message) from None
+    return load_scene_text(text, path=file, overrides=overrides)
+
+
+def load_scene_text(text: str, path: str = "<string>", overrides: Sequence[str] = ()) -> Scene:
+    """Validate and resolve a scene given as YAML text; ``path`` is used in messages
+    and for the default name. Raises SceneError listing every problem found."""
+    root, mark, problems = load_yaml(text)
+    if isinstance(root, YMap):
+        problems += apply_overrides(root, overrides)
+    scene = None
+    if root is not None or not problems:  # a syntax error leaves nothing to check
+        checked, found = schema.check_scene(root, mark)
+        problems += found
+        if checked is not INVALID:
+            resolver = _Resolver()
+            scene = resolver.scene(checked, text, path)
+            problems += resolver.problems
+    if problems or scene is None:
+        raise SceneError(_issues(path, problems))
+    return scene
+
+
+# ---------------------------------------------------------------------------------------
+# --set overrides
+# ---------------------------------------------------------------------------------------
+
+
+def _split_key(key: str) -> list[str]:
+    """'bodies[2].velocity' or 'bodies.2.velocity' -> ['bodies', '2', 'velocity']."""
+    return key.replace("[", ".").replace("]", "").split(".")
+
+
+def _override_path(key: str) -> tuple[str | int, ...]:
+    """'bodies.2.velocity' -> ('bodies', 2, 'velocity')."""
+    return tuple(int(p) if p.isdigit() else p for p in _split_key(key))
+
+
+def apply_overrides(root: YMap, overrides: Sequence[str]) -> list[Problem]:
+    """Apply ``key.path=value`` overrides to a parsed tree in place.
+
+    Values are parsed as YAML with the same number rules as files; every value set
+    remembers its override (for messages). Lists are indexed by position
+    (``bodies.1``) or by the ``name`` of a mapping item (``bodies.ball``). Setting a key
+    removes the keys it excludes (``world.steps`` removes ``world.duration``).
+    Returns the problems found (malformed overrides, paths that do not exist).
+    """
+    problems: list[Problem] = []
+    for raw in overrides:
+        key, eq, value_text = raw.partition("=")
+        key = key.strip()
+        origin = f"--set {key or raw}"
+        here = Mark(0, 0, origin)
+        parts = _split_key(key)
+        if not eq or not key or not all(parts):
+            message = f"expected key.path=value (such as world.dt=0.01), got {raw!r}"
+            problems.append(Problem(here, (), message))
+            continue
+        value, _, found = load_yaml(value_text, origin=origin)
+        if found and (value is None or value is BROKEN):  # unreadable: leave the file's value
+            problems += [Problem(p.mark, tuple(parts), p.message) for p in found]
+            continue
+        node: Any = root
+        path: tuple[str | int, ...] = ()
+        for depth, part in enumerate(parts):
+            last = depth == len(parts) - 1
+            if isinstance(node, YMap):
+                if last or node.get(part) is None:  # set, or create a missing mapping
+                    for group in schema.EXCLUSIVE_GROUPS:
+                        if part in group:
+                            for other in group:
+                                if other != part:
+                                    node.remove(other)
+                    node.put(part, value if last else YMap(here), here, here)
+                node, path = node[part], path + (part,)
+            elif isinstance(node, YList):
+                index = _list_index(node, part)
+                if isinstance(index, str):
+                    problems.append(Problem(here, path, index))
+                    break
+                if last:
+                    node[index] = value
+                    node.item_marks[index] = here
+                node, path = node[index], path + (index,)
+            else:
+                message = f"cannot set {key}: {format_path(path)} is {schema.describe(node)}"
+                problems.append(Problem(here, (), message))
+                break
+        else:
+            problems += [Problem(p.mark, path + p.path, p.message) for p in found]
+    return problems
+
+
+def _list_index(items: YList, part: str) -> int | str:
+    """The index that ``part`` names in ``items``, or a message saying why there is none."""
+    if part.lstrip("-").isdigit():
+        index = int(part)
+        if 0 <= index < len(items):
+            return index
+        return f"index {index} is out of range (the list has {len(items)} items)"
+    names = [item.get("name") for item in items if isinstance(item, YMap)]
+    for index, item in enumerate(items):
+        if isinstance(item, YMap) and item.get("name") == part:
+            return index
+    close = did_you_mean(part, [n for n in names if isinstance(n, str)])
+    hint = f"; did you mean {close}?" if close else ""
+    return f"no item named {part!r}{hint} (use a name or an index)"
+
+
+# ---------------------------------------------------------------------------------------
+# Resolution: checked tree -> dataclasses, with the rules that tie keys together
+# ---------------------------------------------------------------------------------------
+
+
+def _ok(*values: Any) -> bool:
+    return all(v is not INVALID for v in values)
+
+
+def box_corners(size: Vec2, offset: Vec2 = (0.0, 0.0), angle: float = 0.0) -> tuple[Vec2, ...]:
+    """The four counter-clockwise corners of a box of full ``size`` rotated by ``angle``
+    about its centre and moved to ``offset``."""
+    hw, hh = size[0] / 2, size[1] / 2
+    c, s = math.cos(angle), math.sin(angle)
+    ox, oy = offset
+    return tuple(
+        (ox + c * x - s * y, oy + s * x + c * y)
+        for x, y in ((-hw, -hh), (hw, -hh), (hw, hh), (-hw, hh))
+    )
+
+
+def convex_ccw(points: Sequence[Vec2]) -> tuple[tuple[Vec2, ...], str | None]:
+    """(points in counter-clockwise order, None), or (points, why they are not a
+    convex polygon). Clockwise input is reversed; repeated, collinear neighbouring
+    or self-intersecting vertices are rejected."""
+    pts = tuple(points)
+    n = len(pts)
+    seen: dict[Vec2, int] = {}
+    for i, p in enumerate(pts):
+        if p in seen:
+            return pts, f"vertices {seen[p]} and {i} are the same point"
+        seen[p] = i
+    area2 = sum(pts[i - 1][0] * p[1] - p[0] * pts[i - 1][1] for i, p in enumerate(pts))
+    if abs(area2) / 2 <= 1e-12:
+        return pts, "the vertices enclose no area (all on one line?)"
+    clockwise = area2 < 0
+    if clockwise:
+        pts = pts[:1] + pts[:0:-1]  # same first vertex, the others reversed
+    turning = 0.0
+    for k in range(n):
+        (ax, ay), (bx, by), (cx, cy) = pts[k - 1], pts[k], pts[(k + 1) % n]
+        e1x, e1y, e2x, e2y = bx - ax, by - ay, cx - bx, cy - by
+        cross = e1x * e2y - e1y * e2x
+        dot = e1x * e2x + e1y * e2y
+        tol = 1e-9 * math.hypot(e1x, e1y) * math.hypot(e2x, e2y)
+        written = (n - k) % n if clockwise else k  # the index as written in the file
+        if cross < -tol:
+            return pts, (
+                f"not convex: the polygon turns inwards at vertex {written}; "
+                "split it into convex parts with `shapes:`"
+            )
+        if cross <= tol:
+            return pts, f"vertex {written} lies on the line through its neighbours; remove it"
+        turning += math.atan2(cross, dot)
+    if turning > 2 * math.pi + 1e-6:
+        return pts, "the edges cross each other (the polygon winds more than once)"
+    return pts, None
+
+
+class _Resolver:
+    """Checked tree -> Scene. Checks the rules that tie several keys together and
+    collects problems; a part that holds an INVALID value (already reported) is skipped."""
+
+    def __init__(self) -> None:
+        self.problems: list[Problem] = []
+        self.materials: dict[str, Material | None] = {}  # None: invalid, already reported
+        self.names: dict[str, tuple[str, Mark]] = {}  # body name -> (who, where)
+        self.count = 0
+
+    def error(self, mark: Mark, path: tuple[str | int, ...], message: str) -> None:
+        self.problems.append(Problem(mark, path, message))
+
+    # scene -------------------------------------------------------------------------------
+
+    def scene(self, c: Checked, text: str, path: str) -> Scene | None:
+        for name, m in c["materials"].items() if _ok(c["materials"]) else ():
+            self.materials[name] = Material(**m) if _ok(m) and _ok(*m.values()) else None
+        bodies: list[Body] = []
+        if _ok(c.get("bodies", INVALID)):
+            for index, entry in enumerate(c["bodies"]):
+                if not _ok(entry):
+                    continue
+                if entry.tag is None:
+                    body = self.body(entry, index)
+                    if body is not None:
+                        bodies.append(body)
+                else:
+                    bodies += self.generator(entry)
+        world, solver, output = self.world(c["world"]), c["solver"], c["output"]
+        compare = c["compare"]
+        parts = (world, solver, output, compare, c.get("version", INVALID), c.get("name"))
+        if not _ok(*parts) or not _ok(*solver.values(), *output.values(), *compare.values()):
+            return None
+        stem = Path(path).stem if path != "<string>" else "scene"
+        return Scene(
+            name=c.get("name") or stem,
+            world=world,
+            solver=Solver(**solver),
+            output=Output(**output),
+            bodies=tuple(bodies),
+            materials={k: v for k, v in self.materials.items() if v is not None},
+            compare=dict(compare),
+            source=text,
+            path=path,
+        )
+
+    def world(self, w: Checked) -> World | Any:
+        if not _ok(w) or not _ok(*w.values()):
+            return INVALID
+        damping, mixing = w["damping"], w["mixing"]
+        if not _ok(*damping.values(), *mixing.values()):
+            return INVALID
+        dt = w["dt"]
+        key = "steps" if "steps" in w else "duration" if "duration" in w else "dt"
+        steps = w["steps"] if "steps" in w else w.get("duration", 10.0) / dt
+        if steps > MAX_STEPS:
+            self.error(w.mark_of(key), w.path_of(key), f"more than {MAX_STEPS} steps")
+            return INVALID
+        steps = max(1, round(steps))
+        return World(
+            gravity=w["gravity"],
+            dt=dt,
+            steps=steps,
+            linear_damping=damping["linear"],
+            angular_damping=damping["angular"],
+            friction_mixing=mixing["friction"],
+            restitution_mixing=mixing["restitution"],
+        )
+
+    # materials and shapes ----------------------------------------------------------------
+
+    def material(self, c: Checked, base: Material) -> Material | Any:
+        """``base``, or the named material of ``c``, with ``c``'s inline keys on top."""
+        if "material" in c:
+            name = c["material"]
+            if not _ok(name):
+                return INVALID
+            if name not in self.materials:
+                close = did_you_mean(name, self.materials)
+                if close:
+                    hint = f"; did you mean {close}?"
+                elif self.materials:
+                    hint = f"; defined: {', '.join(self.materials)}"
+                else:
+                    hint = " (no `materials:` are defined)"
+                self.error(
+                    c.mark_of("material"), c.path_of("material"), f"unknown material {name!r}{hint}"
+                )
+                return INVALID
+            base = self.materials[name]
+            if base is None:
+                return INVALID
+        inline = {k: c[k] for k in ("density", "friction", "restitution") if k in c}
+        if not _ok(*inline.values()):
+            return INVALID
+        return replace(base, **inline) if inline else base
+
+    def shape(self, c: Checked, body_material: Material | Any) -> Shape | Any:
+        """One resolved shape entry, or INVALID."""
+        if not _ok(c):
+            return INVALID
+        kinds = [k for k in SHAPE_KINDS if k in c]
+        material = self.material(c, body_material) if _ok(body_material) else INVALID
+        if len(kinds) != 1 or not _ok(c[kinds[0]]) or not _ok(*c[kinds[0]].values()):
+            return INVALID
+        kind = kinds[0]
+        spec = c[kind]
+        if kind == "circle":
+            offset = spec["offset"]
+            shape = Shape(kind, (offset,), spec["radius"], material, offset=offset)
+        elif kind == "box":
+            size, offset, angle = spec["size"], spec["offset"], spec["angle"]
+            corners = box_corners(size, offset, angle)
+            shape = Shape(kind, corners, 0.0, material, size=size, offset=offset, angle=angle)
+        elif kind == "polygon":
+            vertices, problem = convex_ccw(spec["vertices"])
+            if problem:
+                self.error(spec.mark_of("vertices"), spec.path_of("vertices"), problem)
+                return INVALID
+            shape = Shape(kind, vertices, 0.0, material)
+        else:
+            a, b = spec["a"], spec["b"]
+            if a == b:
+                message = "a segment needs two different ends a and b"
+                self.error(spec.mark_of("b"), spec.path_of("b"), message)
+                return INVALID
+            shape = Shape(kind, (a, b), spec["radius"], material)
+        return shape if _ok(material) else INVALID
+
+    # bodies ------------------------------------------------------------------------------
+
+    def taken(self, name: str) -> str | None:
+        """Who already uses body name ``name`` (with the line), or None."""
+        first = self.names.get(name)
+        if first is None:
+            return None
+        owner, where = first
+        return f"{owner} at line {where.line}" if where.line else owner
+
+    def body(self, c: Checked, index: int) -> Body | None:
+        path = c.path
+        name = c.get("name", f"body[{index}]")
+        if _ok(name):
+            owner = self.taken(name)
+            if owner:
+                message = f"duplicate body name {name!r} (already used by {owner})"
+                self.error(c.mark_of("name"), path + ("name",), message)
+            else:
+                self.names[name] = (format_path(path), c.mark_of("name"))
+        self.count += 1
+        kind = c["type"]
+        material = self.material(c, DEFAULT_MATERIAL)
+        entries = [c["shape"]] if "shape" in c else c.get("shapes", INVALID)
+        shapes = [self.shape(s, material) for s in entries] if _ok(entries) else [INVALID]
+        if not _ok(kind, name, *c.values()):
+            return None
+        if "mass" in c and kind != "dynamic":
+            self.error(
+                c.mark_of("mass"),
+                c.path_of("mass"),
+                f"mass is only for dynamic bodies; this one is {kind}",
+            )
+        if kind == "static":
+            for key in ("velocity", "angular_velocity", "force", "torque"):
+                if c[key] not in (0.0, (0.0, 0.0)):
+                    self.error(
+                        c.mark_of(key),
+                        c.path_of(key),
+                        f"a static body cannot have a {key.replace('_', ' ')} "
+                        "(use type: kinematic for a body that moves on its own)",
+                    )
+        if not _ok(*shapes):
+            return None
+        if (
+            kind == "dynamic"
+            and "mass" not in c
+            and all(s.kind == "segment" and s.radius == 0 for s in shapes)
+        ):
+            where = "shape" if "shape" in c else "shapes"
+            self.error(
+                c.mark_of(where),
+                c.path_of(where),
+                "a dynamic body needs a shape with area (a segment with radius 0 has none)",
+            )
+            return None
+        return Body(
+            name=name,
+            type=kind,
+            position=c["position"],
+            angle=c["angle"],
+            velocity=c["velocity"],
+            angular_velocity=c["angular_velocity"],
+            shapes=tuple(shapes),
+            mass=c.get("mass"),
+            force=c["force"],
+            force_point=c.get("force_point"),
+            torque=c["torque"],
+        )
+
+    def generator(self, c: Checked) -> list[Body]:
+        """Expand a pyramid, stack or grid entry into bodies."""
+        if not _ok(*c.values()):
+            return []
+        tag, prefix = c.tag, c["name"]
+        if tag == "grid":
+            nx, ny = c["count"]
+            total = nx * ny
+        elif tag == "pyramid":
+            total = c["base"] * (c["base"] + 1) // 2
+        else:
+            total = c["count"]
+        self.count += total
+        if self.count > MAX_BODIES:
+            key = "base" if tag == "pyramid" else "count"
+            self.error(
+                c.mark_of(key),
+                c.path_of(key),
+                f"the scene would have more than {MAX_BODIES} bodies",
+            )
+            return []
+        material = self.material(c, DEFAULT_MATERIAL)
+        if tag == "grid":
+            shape = self.shape(c["shape"], material)
+        else:
+            shape = (
+                Shape("box", box_corners(c["size"]), 0.0, material, size=c["size"])
+                if _ok(material)
+                else INVALID
+            )
+        if not _ok(shape):
+            return []
+        placed = list(getattr(self, "_" + tag)(c))  # [(name, position)]
+        mark = c.mark_of("name") if "name" in c.src else c.mark
+        for name, _ in placed:
+            owner = self.taken(name)
+            if owner:
+                self.error(
+                    mark,
+                    c.path_of("name"),
+                    f"this {tag} would name a body {name!r}, already used by {owner}; "
+                    f"give it a different `name:` prefix than {prefix!r}",
+                )
+                return []
+        who = f"{tag} {format_path(c.path[:-1])}"
+        for name, _ in placed:
+            self.names[name] = (who, mark)
+        velocity = c.get("velocity", (0.0, 0.0))
+        shapes = (shape,)
+        return [Body(name, "dynamic", xy, 0.0, velocity, 0.0, shapes) for name, xy in placed]
+
+    # Generator layouts: (name, position of the body origin) for each body, in order.
+
+    @staticmethod
+    def _pyramid(c: Checked) -> Iterable[tuple[str, Vec2]]:
+        (w, h), gap, base, prefix = c["size"], c["spacing"], c["base"], c["name"]
+        ox, oy = c.get("origin", (0.0, h / 2))
+        for r in range(base):
+            n = base - r  # boxes in row r, centred on ox
+            for i in range(n):
+                yield f"{prefix}[{r},{i}]", (ox + (i - (n - 1) / 2) * (w + gap), oy + r * (h + gap))
+
+    @staticmethod
+    def _stack(c: Checked) -> Iterable[tuple[str, Vec2]]:
+        h, gap, prefix = c["size"][1], c["spacing"], c["name"]
+        ox, oy = c.get("origin", (0.0, h / 2))
+        for i in range(c["count"]):
+            yield f"{prefix}[{i}]", (ox, oy + i * (h + gap))
+
+    @staticmethod
+    def _grid(c: Checked) -> Iterable[tuple[str, Vec2]]:
+        (nx, ny), (dx, dy), (ox, oy), prefix = c["count"], c["spacing"], c["origin"], c["name"]
+        for i in range(nx):
+            for j in range(ny):
+                yield f"{prefix}[{i},{j}]", (ox + i * dx, oy + j * dy)
+
+
+# ---------------------------------------------------------------------------------------
+# Resolved scene -> plain data
+# ---------------------------------------------------------------------------------------
+
+
+def _shape_to_dict(shape: Shape) -> dict[str, Any]:
+    if shape.kind == "circle":
+        spec: dict[str, Any] = {"radius": shape.radius, "offset": list(shape.offset)}
+    elif shape.kind == "box":
+        spec = {"size": list(shape.size), "offset": list(shape.offset), "angle": shape.angle}
+    elif shape.kind == "polygon":
+        spec = {"vertices": [list(v) for v in shape.vertices]}
+    else:
+        spec = {"a": list(shape.vertices[0]), "b": list(shape.vertices[1]), "radius": shape.radius}
+    m = shape.material
+    return {
+        shape.kind: spec,
+        "density": m.density,
+        "friction": m.friction,
+        "restitution": m.restitution,
+    }
+
+
+def _body_to_dict(body: Body) -> dict[str, Any]:
+    out: dict[str, Any] = {
+        "name": body.name,
+        "type": body.type,
+        "position": list(body.position),
+        "angle": body.angle,
+        "velocity": list(body.velocity),
+        "angular_velocity": body.angular_velocity,
+    }
+    if body.mass is not None:
+        out["mass"] = body.mass
+    out["force"] = list(body.force)
+    if body.force_point is not None:
+        out["force_point"] = list(body.force_point)
+    out["torque"] = body.torque
+    out["shapes"] = [_shape_to_dict(s) for s in body.shapes]
+    return out
+
+
+def scene_to_dict(scene: Scene) -> dict[str, Any]:
+    """The resolved scene as plain data (dicts, lists, str, int, float): every default
+    filled in, generators expanded, materials inlined on each shape, `steps` instead of
+    `duration`. It is itself a valid version-1 scene that loads to an equal Scene."""
+    w, s = scene.world, scene.solver
+    return {
+        "version": schema.SCENE_VERSION,
+        "name": scene.name,
+        "world": {
+            "gravity": list(w.gravity),
+            "dt": w.dt,
+            "steps": w.steps,
+            "damping": {"linear": w.linear_damping, "angular": w.angular_damping},
+            "mixing": {"friction": w.friction_mixing, "restitution": w.restitution_mixing},
+        },
+        "solver": {
+            "substeps": s.substeps,
+            "iterations": s.iterations,
+            "integrator": s.integrator,
+            "rotation": s.rotation,
+            "restitution_threshold": s.restitution_threshold,
+        },
+        "output": {"every": scene.output.every},
+        "materials": {
+            name: {"density": m.density, "friction": m.friction, "restitution": m.restitution}
+            for name, m in scene.materials.items()
+        },
+        "bodies": [_body_to_dict(b) for b in scene.bodies],
+        "compare": dict(scene.compare),
+    }

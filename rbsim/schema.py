@@ -1,0 +1,712 @@
+"""The scene format, version 1, written down once as data.
+
+Every key of a scene file is a :class:`Key`: its kind, default, allowed values, range
+and description. Two things are driven from the table:
+
+- :func:`check_scene` validates a parsed tree (see rbsim.yamlsrc) against it, fills
+  defaults and reports every problem with its location and key path;
+- :func:`json_schema` turns it into a JSON Schema (draft 2020-12) for editors
+  (yaml-language-server: ``# yaml-language-server: $schema=rbsim-schema.json``).
+
+Rules that tie several keys together (polygon convexity, unique body names, material
+names that exist, static bodies that do not move) are checked by rbsim.scene.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+from rbsim.yamlsrc import BROKEN, Mark, Path, Problem, YList, YMap
+
+SCENE_VERSION = 1
+
+
+class _Required:
+    def __repr__(self) -> str:
+        return "REQUIRED"
+
+
+class _NoDefault:
+    def __repr__(self) -> str:
+        return "NO_DEFAULT"
+
+
+REQUIRED: Any = _Required()  # the key must be given
+NO_DEFAULT: Any = _NoDefault()  # optional; absent from the checked result when not given
+
+
+class _Invalid:
+    def __repr__(self) -> str:
+        return "INVALID"
+
+
+INVALID: Any = _Invalid()  # stands for a value that failed its check (already reported)
+
+
+@dataclass(frozen=True)
+class Key:
+    """One key of the format.
+
+    kind: number | integer | string | enum | fraction (a number or "a/b") | vec2 (two
+        numbers) | int2 (two integers) | points (a list of vec2) | object (fixed keys) |
+        map_of (names -> item) | list_of (items) | entry (a body or a one-key generator).
+    gt, ge, le: bounds on numbers (for vec2/int2/points: on every component).
+    fields: an object's keys. exactly_one / at_most_one: groups of an object's keys.
+    item: the value of a map_of, the item of a list_of, the plain body of an entry.
+    variants: an entry's one-key alternatives (the generators).
+    min_items: fewest items of a list_of or points.
+    ref: name under ``$defs`` in the JSON Schema (for keys used in several places).
+    """
+
+    kind: str
+    description: str
+    default: Any = NO_DEFAULT
+    choices: tuple[Any, ...] = ()
+    gt: float | None = None
+    ge: float | None = None
+    le: float | None = None
+    fields: Mapping[str, Key] = field(default_factory=dict)
+    exactly_one: tuple[tuple[str, ...], ...] = ()
+    at_most_one: tuple[tuple[str, ...], ...] = ()
+    item: Key | None = None
+    variants: Mapping[str, Key] = field(default_factory=dict)
+    min_items: int = 0
+    ref: str | None = None
+
+
+# ---------------------------------------------------------------------------------------
+# The table
+# ---------------------------------------------------------------------------------------
+
+DEFAULT_MATERIAL = {"density": 1.0, "friction": 0.6, "restitution": 0.0}
+
+_density = Key("number", "Density per area, kg/m².", gt=0)
+_friction = Key("number", "Coulomb friction coefficient μ.", ge=0)
+_restitution = Key("number", "Coefficient of restitution e (0: no bounce, 1: elastic).", ge=0, le=1)
+
+# Material keys that a body, a shape or a generator may carry inline. No defaults here:
+# they override the named material (or the body's material for a shape).
+INLINE_MATERIAL = {
+    "material": Key("string", "Name of a material from `materials`."),
+    "density": _density,
+    "friction": _friction,
+    "restitution": _restitution,
+}
+
+MATERIAL = Key(
+    "object",
+    "A named material; each key is optional.",
+    fields={
+        "density": replace(_density, default=DEFAULT_MATERIAL["density"]),
+        "friction": replace(_friction, default=DEFAULT_MATERIAL["friction"]),
+        "restitution": replace(_restitution, default=DEFAULT_MATERIAL["restitution"]),
+    },
+    ref="material",
+)
+
+SHAPE_KINDS = {
+    "circle": Key(
+        "object",
+        "A circle (disc).",
+        fields={
+            "radius": Key("number", "Radius, m.", REQUIRED, gt=0),
+            "offset": Key("vec2", "Centre of the circle in the body frame, m.", (0.0, 0.0)),
+        },
+    ),
+    "box": Key(
+        "object",
+        "A rectangle.",
+        fields={
+            "size": Key("vec2", "Full width and height, m.", REQUIRED, gt=0),
+            "offset": Key("vec2", "Centre of the box in the body frame, m.", (0.0, 0.0)),
+            "angle": Key("number", "Rotation of the box in the body frame, rad.", 0.0),
+        },
+    ),
+    "polygon": Key(
+        "object",
+        "A convex polygon; clockwise vertices are reordered counter-clockwise.",
+        fields={
+            "vertices": Key(
+                "points", "Vertices [x, y] in the body frame, m.", REQUIRED, min_items=3
+            ),
+        },
+    ),
+    "segment": Key(
+        "object",
+        "A line segment from a to b; with a radius > 0, a capsule.",
+        fields={
+            "a": Key("vec2", "First end in the body frame, m.", REQUIRED),
+            "b": Key("vec2", "Second end in the body frame, m.", REQUIRED),
+            "radius": Key("number", "Radius around the segment, m.", 0.0, ge=0),
+        },
+    ),
+}
+
+SHAPE = Key(
+    "object",
+    "One shape: exactly one of circle, box, polygon, segment, optionally with material "
+    "keys that override the body's for this shape.",
+    fields={**SHAPE_KINDS, **INLINE_MATERIAL},
+    exactly_one=(tuple(SHAPE_KINDS),),
+    ref="shape",
+)
+
+BODY_TYPES = ("dynamic", "static", "kinematic")
+
+BODY = Key(
+    "object",
+    "A rigid body with one shape (`shape`) or several (`shapes`, a compound body).",
+    fields={
+        "name": Key("string", "Unique name; default body[i] with i the index in `bodies`."),
+        "type": Key("enum", "How the body moves.", "dynamic", choices=BODY_TYPES),
+        "position": Key("vec2", "Body origin in the world, m.", (0.0, 0.0)),
+        "angle": Key("number", "Orientation, rad.", 0.0),
+        "velocity": Key("vec2", "Velocity of the centre of mass, m/s.", (0.0, 0.0)),
+        "angular_velocity": Key("number", "Angular velocity, rad/s.", 0.0),
+        **INLINE_MATERIAL,
+        "mass": Key("number", "Mass, kg: overrides the density (inertia scales).", gt=0),
+        "force": Key("vec2", "Constant force in the world frame, N.", (0.0, 0.0)),
+        "force_point": Key("vec2", "Where the force acts, body frame, m; default: the COM."),
+        "torque": Key("number", "Constant torque, N·m.", 0.0),
+        "shape": SHAPE,
+        "shapes": Key("list_of", "Shapes of a compound body.", item=SHAPE, min_items=1),
+    },
+    exactly_one=(("shape", "shapes"),),
+    ref="body",
+)
+
+_size = Key("vec2", "Full width and height of each box, m.", (1.0, 1.0), gt=0)
+_spacing = Key("number", "Gap between neighbouring boxes, m.", 0.0, ge=0)
+
+GENERATORS = {
+    "pyramid": Key(
+        "object",
+        "Boxes in rows: row r (from 0 at the bottom) holds base - r boxes, named name[r,i].",
+        fields={
+            "base": Key("integer", "Number of boxes in the bottom row.", REQUIRED, ge=1),
+            "size": _size,
+            "origin": Key("vec2", "Centre of the bottom row's middle, m; default [0, h/2]."),
+            "spacing": _spacing,
+            "name": Key("string", "Name prefix.", "pyramid"),
+            **INLINE_MATERIAL,
+        },
+    ),
+    "stack": Key(
+        "object",
+        "A vertical column of boxes, named name[i] from the bottom.",
+        fields={
+            "count": Key("integer", "Number of boxes.", REQUIRED, ge=1),
+            "size": _size,
+            "origin": Key("vec2", "Centre of the bottom box, m; default [0, h/2]."),
+            "spacing": _spacing,
+            "name": Key("string", "Name prefix.", "stack"),
+            **INLINE_MATERIAL,
+        },
+    ),
+    "grid": Key(
+        "object",
+        "nx by ny copies of one shape, body [i, j] at origin + (i dx, j dy), named name[i,j].",
+        fields={
+            "count": Key("int2", "[nx, ny], number of bodies along x and y.", REQUIRED, ge=1),
+            "spacing": Key("vec2", "[dx, dy], distance between body origins, m.", REQUIRED),
+            "origin": Key("vec2", "Position of body [0, 0], m.", (0.0, 0.0)),
+            "shape": replace(SHAPE, default=REQUIRED),
+            "velocity": Key("vec2", "Initial velocity of every body, m/s.", (0.0, 0.0)),
+            "name": Key("string", "Name prefix.", "grid"),
+            **INLINE_MATERIAL,
+        },
+    ),
+}
+WORLD = Key(
+    "object",
+    "Gravity, time step and length of the run, damping, mixing rules.",
+    {},
+    fields={
+        "gravity": Key("vec2", "Gravity, m/s².", (0.0, -9.81)),
+        "dt": Key("fraction", 'Time step, s; a fraction such as "1/60" is accepted.', 1 / 60, gt=0),
+        "duration": Key("number", "Length of the run, s (default 10 when steps is absent).", gt=0),
+        "steps": Key("integer", "Number of steps (instead of duration).", ge=1),
+        "damping": Key(
+            "object",
+            "Velocity damping, 1/s.",
+            {},
+            fields={
+                "linear": Key("number", "Linear damping, 1/s.", 0.0, ge=0),
+                "angular": Key("number", "Angular damping, 1/s.", 0.0, ge=0),
+            },
+        ),
+        "mixing": Key(
+            "object",
+            "How the two materials of a contact combine.",
+            {},
+            fields={
+                "friction": Key(
+                    "enum",
+                    "Friction of a contact from the two shapes'.",
+                    "sqrt",
+                    choices=("sqrt", "multiply", "min", "max"),
+                ),
+                "restitution": Key(
+                    "enum",
+                    "Restitution of a contact from the two shapes'.",
+                    "max",
+                    choices=("max", "multiply", "min"),
+                ),
+            },
+        ),
+    },
+    at_most_one=(("duration", "steps"),),
+)
+
+SOLVER = Key(
+    "object",
+    "Solver settings; every key is optional.",
+    {},
+    fields={
+        "substeps": Key("integer", "Substeps per step.", 4, ge=1),
+        "iterations": Key("integer", "Velocity iterations per substep.", 1, ge=1),
+        "integrator": Key(
+            "enum",
+            "Time integrator.",
+            "symplectic_euler",
+            choices=("symplectic_euler", "explicit_euler"),
+        ),
+        "rotation": Key(
+            "enum",
+            "Orientation update: normalize(q + h ω×q), or the exact rotation by h ω.",
+            "normalize",
+            choices=("normalize", "exact"),
+        ),
+        "restitution_threshold": Key(
+            "number", "Approach speed below which contacts do not bounce, m/s.", 1.0, ge=0
+        ),
+    },
+)
+
+OUTPUT = Key(
+    "object",
+    "What the trajectory file holds.",
+    {},
+    fields={"every": Key("integer", "Write every k-th step (step 0 always).", 1, ge=1)},
+)
+
+COMPARE = Key(
+    "object",
+    "Largest differences allowed between rbsim and pymunk (`rbsim compare`).",
+    {},
+    fields={
+        "position": Key("number", "Position, m.", ge=0),
+        "angle": Key("number", "Angle, rad.", ge=0),
+        "velocity": Key("number", "Velocity, m/s.", ge=0),
+    },
+)
+
+SCENE = Key(
+    "object",
+    "An rbsim scene, format version 1.",
+    fields={
+        "version": Key("integer", "Scene format version.", REQUIRED, choices=(SCENE_VERSION,)),
+        "name": Key("string", "Scene name; default: the file name without extension."),
+        "world": WORLD,
+        "solver": SOLVER,
+        "output": OUTPUT,
+        "materials": Key("map_of", "Named materials.", {}, item=MATERIAL),
+        "bodies": Key(
+            "list_of",
+            "Bodies, and generators (pyramid, stack, grid) that expand into bodies.",
+            REQUIRED,
+            item=Key("entry", "A body or a generator.", item=BODY, variants=GENERATORS),
+        ),
+        "compare": COMPARE,
+    },
+)
+
+# Every group of keys that exclude each other (a --set of one removes the others).
+EXCLUSIVE_GROUPS: tuple[tuple[str, ...], ...] = (
+    *WORLD.at_most_one,
+    *BODY.exactly_one,
+    *SHAPE.exactly_one,
+)
+
+
+# ---------------------------------------------------------------------------------------
+# Checking a parsed tree against the table
+# ---------------------------------------------------------------------------------------
+
+_NUMBER = r"[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?"
+FRACTION_PATTERN = rf"^\s*{_NUMBER}\s*/\s*{_NUMBER}\s*$"
+_FRACTION_RE = re.compile(rf"^\s*({_NUMBER})\s*/\s*({_NUMBER})\s*$")
+
+
+class Checked(dict):
+    """A checked mapping: converted values, defaults filled in, and where it came from.
+
+    ``tag`` is the generator name for a generator entry of `bodies`, else None.
+    """
+
+    __slots__ = ("src", "path", "mark", "tag")
+
+    def __init__(self, src: YMap, path: Path, mark: Mark) -> None:
+        super().__init__()
+        self.src = src
+        self.path = path
+        self.mark = mark
+        self.tag: str | None = None
+
+    def mark_of(self, key: str) -> Mark:
+        """Where the value of ``key`` is written (the mapping itself if it is not)."""
+        return self.src.value_marks.get(key, self.mark)
+
+    def path_of(self, key: str | int) -> Path:
+        """Key path of ``key`` below this mapping."""
+        return self.path + (key,)
+
+
+def describe(value: Any) -> str:
+    """A short description of a parsed value for error messages."""
+    if value is None:
+        return "nothing (null)"
+    if isinstance(value, bool):
+        return f"the boolean {str(value).lower()}"
+    if isinstance(value, str):
+        return f"the string {value!r}"
+    if isinstance(value, int):
+        return f"the integer {value}"
+    if isinstance(value, float):
+        return f"the number {value!r}"
+    if isinstance(value, dict):
+        return "a mapping"
+    if isinstance(value, list):
+        return f"a list of {len(value)} item{'' if len(value) == 1 else 's'}"
+    return f"a {type(value).__name__}"
+
+
+def _show(x: float) -> str:
+    """A number as a user would write it: -1.0 -> '-1', 0.25 -> '0.25'."""
+    return str(int(x)) if isinstance(x, float) and x.is_integer() and abs(x) < 1e15 else repr(x)
+
+
+def did_you_mean(word: str, candidates: Any) -> str | None:
+    """The closest of ``candidates`` to ``word``, if any is close enough."""
+    close = difflib.get_close_matches(word, [str(c) for c in candidates], n=1, cutoff=0.6)
+    return close[0] if close else None
+
+
+class Checker:
+    """Checks values against :class:`Key` entries, collecting :class:`Problem` s."""
+
+    def __init__(self) -> None:
+        self.problems: list[Problem] = []
+
+    def error(self, mark: Mark, path: Path, message: str) -> Any:
+        """Record a problem; returns INVALID so that callers can ``return self.error(...)``."""
+        self.problems.append(Problem(mark, path, message))
+        return INVALID
+
+    def check(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
+        """The checked, converted value, or INVALID after recording why not."""
+        if value is BROKEN:  # unreadable YAML, already reported
+            return INVALID
+        return getattr(self, "_" + key.kind)(value, key, path, mark)
+
+    # scalars -----------------------------------------------------------------------------
+
+    def _number(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            return self.error(mark, path, f"expected a number, got {describe(value)}")
+        return self._bounded(float(value), key, path, mark)
+
+    def _integer(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
+        if isinstance(value, bool) or not isinstance(value, int):
+            return self.error(mark, path, f"expected an integer, got {describe(value)}")
+        if key.choices and value not in key.choices:
+            allowed = " or ".join(str(c) for c in key.choices)
+            return self.error(mark, path, f"must be {allowed}, got {value}")
+        return self._bounded(value, key, path, mark)
+
+    def _bounded(self, x: float, key: Key, path: Path, mark: Mark) -> Any:
+        if not math.isfinite(x):
+            return self.error(mark, path, f"must be a finite number, got {x}")
+        shown = _show(x)
+        if key.ge is not None and key.le is not None and not key.ge <= x <= key.le:
+            return self.error(mark, path, f"must be between {key.ge:g} and {key.le:g}, got {shown}")
+        if key.gt is not None and not x > key.gt:
+            return self.error(mark, path, f"must be > {key.gt:g}, got {shown}")
+        if key.ge is not None and not x >= key.ge:
+            return self.error(mark, path, f"must be >= {key.ge:g}, got {shown}")
+        if key.le is not None and not x <= key.le:
+            return self.error(mark, path, f"must be <= {key.le:g}, got {shown}")
+        return x
+
+    def _fraction(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
+        if isinstance(value, str):
+            match = _FRACTION_RE.match(value)
+            if not match:
+                return self.error(
+                    mark, path, f'expected a number or a fraction such as "1/60", got {value!r}'
+                )
+            numerator, denominator = float(match[1]), float(match[2])
+            if denominator == 0:
+                return self.error(mark, path, f"{value!r} divides by zero")
+            value = numerator / denominator
+        return self._number(value, key, path, mark)
+
+    def _string(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
+        if not isinstance(value, str):
+            return self.error(mark, path, f"expected a string, got {describe(value)}")
+        if not value.strip():
+            return self.error(mark, path, "must not be empty")
+        return value
+
+    def _enum(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
+        if isinstance(value, str) and value in key.choices:
+            return value
+        message = f"expected one of {', '.join(key.choices)}, got {describe(value)}"
+        close = did_you_mean(value, key.choices) if isinstance(value, str) else None
+        if close:
+            message += f"; did you mean {close}?"
+        return self.error(mark, path, message)
+
+    # lists of numbers --------------------------------------------------------------------
+
+    def _vec2(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
+        return self._pair(value, key, path, mark, self._number, "numbers")
+
+    def _int2(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
+        return self._pair(value, key, path, mark, self._integer, "integers")
+
+    def _pair(self, value: Any, key: Key, path: Path, mark: Mark, item: Any, what: str) -> Any:
+        if not isinstance(value, YList) or len(value) != 2:
+            return self.error(mark, path, f"expected [x, y], 2 {what}, got {describe(value)}")
+        pair = tuple(item(v, key, path + (i,), value.item_marks[i]) for i, v in enumerate(value))
+        return INVALID if INVALID in pair else pair
+
+    def _points(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
+        if not isinstance(value, YList):
+            return self.error(
+                mark, path, f"expected a list of [x, y] points, got {describe(value)}"
+            )
+        if len(value) < key.min_items:
+            return self.error(
+                mark, path, f"needs at least {key.min_items} points, got {len(value)}"
+            )
+        points = tuple(
+            self._vec2(v, key, path + (i,), value.item_marks[i]) for i, v in enumerate(value)
+        )
+        return INVALID if INVALID in points else points
+
+    # containers --------------------------------------------------------------------------
+
+    def _object(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
+        if value is None:
+            value = YMap(mark)  # `solver:` with everything commented out
+        if not isinstance(value, YMap):
+            return self.error(mark, path, f"expected a mapping (key: value), got {describe(value)}")
+        out = Checked(value, path, mark)
+        for name, item in value.items():
+            field_key = key.fields.get(name)
+            if field_key is None:
+                self.error(value.key_marks[name], path + (name,), _unknown_key(name, key))
+            else:
+                out[name] = self.check(item, field_key, path + (name,), value.value_marks[name])
+        for group in key.exactly_one:
+            given = [name for name in group if name in value]
+            if not given:
+                self.error(mark, path, f"needs one of {', '.join(group)}")
+            elif len(given) > 1:
+                self.error(mark, path, f"give only one of {', '.join(given)}")
+        for group in key.at_most_one:
+            given = [name for name in group if name in value]
+            if len(given) > 1:
+                self.error(mark, path, f"give {' or '.join(given)}, not both")
+        for name, field_key in key.fields.items():
+            if name in value or field_key.default is NO_DEFAULT:
+                continue
+            if field_key.default is REQUIRED:
+                out[name] = self.error(mark, path, f"missing required key {name!r}")
+            elif field_key.kind in ("object", "map_of"):
+                out[name] = self.check(None, field_key, path + (name,), mark)
+            else:
+                out[name] = field_key.default
+        return out
+
+    def _map_of(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
+        if value is None:
+            value = YMap(mark)
+        if not isinstance(value, YMap):
+            return self.error(mark, path, f"expected a mapping of names, got {describe(value)}")
+        return {
+            name: self.check(item, key.item, path + (name,), value.value_marks[name])
+            for name, item in value.items()
+        }
+
+    def _list_of(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
+        if not isinstance(value, YList):
+            return self.error(mark, path, f"expected a list, got {describe(value)}")
+        if len(value) < key.min_items:
+            n = key.min_items
+            return self.error(mark, path, f"needs at least {n} item{'s' if n > 1 else ''}")
+        return [
+            self.check(item, key.item, path + (i,), value.item_marks[i])
+            for i, item in enumerate(value)
+        ]
+
+    def _entry(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
+        if not isinstance(value, YMap):
+            return self.error(
+                mark,
+                path,
+                f"expected a body (a mapping) or a generator ({', '.join(key.variants)}), "
+                f"got {describe(value)}",
+            )
+        generators = [name for name in value if name in key.variants]
+        if not generators:
+            return self.check(value, key.item, path, mark)
+        if len(generators) > 1:
+            return self.error(mark, path, f"one generator per entry, got {', '.join(generators)}")
+        tag = generators[0]
+        for name in value:
+            if name != tag:
+                self.error(
+                    value.key_marks[name],
+                    path + (name,),
+                    f"unexpected key {name!r} next to {tag!r}: a generator entry has one key, "
+                    f"put its options inside {tag}: {{...}}",
+                )
+        out = self.check(value[tag], key.variants[tag], path + (tag,), value.value_marks[tag])
+        if isinstance(out, Checked):
+            out.tag = tag
+        return out
+
+
+def _unknown_key(name: str, key: Key) -> str:
+    close = did_you_mean(name, key.fields)
+    if close:
+        return f"unknown key {name!r}; did you mean {close}?"
+    for parent, child in key.fields.items():  # a key written one level too high
+        if child.kind == "object" and name in child.fields:
+            return f"unknown key {name!r}; did you mean {parent}.{name}?"
+    return f"unknown key {name!r}; allowed keys: {', '.join(key.fields)}"
+
+
+def check_scene(root: Any, mark: Mark) -> tuple[Any, list[Problem]]:
+    """Check a parsed scene tree against :data:`SCENE`.
+
+    Returns (checked tree or INVALID, problems). The checked tree has every default of
+    the table filled in; keys whose value is wrong hold INVALID.
+    """
+    checker = Checker()
+    if root is BROKEN:
+        return INVALID, checker.problems
+    if root is None:
+        checker.error(mark, (), "the file is empty; a scene starts with `version: 1`")
+        return INVALID, checker.problems
+    if not isinstance(root, YMap):
+        message = f"the top level must be a mapping (version: 1, bodies: ...), got {describe(root)}"
+        checker.error(mark, (), message)
+        return INVALID, checker.problems
+    return checker.check(root, SCENE, (), mark), checker.problems
+
+
+# ---------------------------------------------------------------------------------------
+# JSON Schema
+# ---------------------------------------------------------------------------------------
+
+
+def json_schema() -> dict:
+    """The scene format as a JSON Schema (draft 2020-12) document."""
+    defs: dict[str, Any] = {}
+    root = _json(SCENE, defs)
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "title": f"rbsim scene, format version {SCENE_VERSION}",
+        **root,
+        "$defs": dict(sorted(defs.items())),
+    }
+
+
+def _json(key: Key, defs: dict[str, Any]) -> dict[str, Any]:
+    if key.ref is None:
+        return _json_body(key, defs)
+    if key.ref not in defs:
+        defs[key.ref] = {}  # reserve the name first (no cycles today, but cheap insurance)
+        defs[key.ref] = _json_body(key, defs)
+    return {"$ref": f"#/$defs/{key.ref}"}
+
+
+def _json_bounds(key: Key, kind: str) -> dict[str, Any]:
+    out: dict[str, Any] = {"type": kind}
+    if key.gt is not None:
+        out["exclusiveMinimum"] = key.gt
+    if key.ge is not None:
+        out["minimum"] = key.ge
+    if key.le is not None:
+        out["maximum"] = key.le
+    return out
+
+
+def _json_body(key: Key, defs: dict[str, Any]) -> dict[str, Any]:
+    kind = key.kind
+    out: dict[str, Any] = {"description": key.description}
+    if kind == "number":
+        out |= _json_bounds(key, "number")
+    elif kind == "integer":
+        out |= _json_bounds(key, "integer")
+        if key.choices:
+            out["enum"] = list(key.choices)
+    elif kind == "string":
+        out |= {"type": "string", "minLength": 1}
+    elif kind == "enum":
+        out |= {"type": "string", "enum": list(key.choices)}
+    elif kind == "fraction":
+        out["anyOf"] = [
+            _json_bounds(key, "number"),
+            {"type": "string", "pattern": FRACTION_PATTERN},
+        ]
+    elif kind in ("vec2", "int2"):
+        item = _json_bounds(key, "number" if kind == "vec2" else "integer")
+        out |= {"type": "array", "items": item, "minItems": 2, "maxItems": 2}
+    elif kind == "points":
+        point = {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2}
+        out |= {"type": "array", "items": point, "minItems": key.min_items}
+    elif kind == "object":
+        out |= {
+            "type": "object",
+            "properties": {name: _json(f, defs) for name, f in key.fields.items()},
+            "additionalProperties": False,
+        }
+        required = [name for name, f in key.fields.items() if f.default is REQUIRED]
+        if required:
+            out["required"] = required
+        rules = [{"oneOf": [{"required": [name]} for name in g]} for g in key.exactly_one]
+        rules += [{"not": {"required": list(g)}} for g in key.at_most_one]
+        if rules:
+            out["allOf"] = rules
+    elif kind == "map_of":
+        out |= {"type": "object", "additionalProperties": _json(key.item, defs)}
+    elif kind == "list_of":
+        out |= {"type": "array", "items": _json(key.item, defs)}
+        if key.min_items:
+            out["minItems"] = key.min_items
+    elif kind == "entry":
+        generators = [
+            {
+                "type": "object",
+                "properties": {name: _json(variant, defs)},
+                "required": [name],
+                "additionalProperties": False,
+            }
+            for name, variant in key.variants.items()
+        ]
+        out["anyOf"] = [_json(key.item, defs), *generators]
+    else:
+        raise ValueError(f"unknown kind {kind!r}")
+    default = key.default
+    if default not in (REQUIRED, NO_DEFAULT) and kind not in ("object", "map_of"):
+        out["default"] = list(default) if isinstance(default, tuple) else default
+    return out

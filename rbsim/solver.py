@@ -1,0 +1,264 @@
+"""Contact solver: sequential impulses on soft contacts (the "soft step").
+
+For a contact with normal n (from b towards a) and anchors r_a, r_b from the centres
+of mass, the normal velocity is v_n = n · (v_a + ω_a × r_a − v_b − ω_b × r_b), and an
+impulse λ n on a (−λ n on b) changes it by λ / m_eff with
+
+    1 / m_eff = 1/m_a + 1/m_b + (r_a × n)²/I_a + (r_b × n)²/I_b.
+
+Each substep warm-starts with the accumulated impulses, solves with a soft position
+bias (a damped spring of CONTACT_HERTZ that pushes overlap out at no more than
+CONTACT_PUSH_MAX_VELOCITY), moves the bodies, then relaxes without the bias so that
+the push-out does not turn into velocity. A speculative point (separation s > 0)
+lets the bodies approach by s in the substep and no further. Accumulated impulses
+are clamped: λ_n >= 0 and |λ_t| <= μ λ_n (Coulomb). After the substeps, restitution
+sets v_n⁺ = −e v_n⁻ at points that were approaching faster than the threshold
+when they engaged (the restitution hypothesis), so one isolated contact receives
+exactly γ = −(1 + e) m_eff v_n⁻. The approach speed is the one at impact, measured
+in the substep where the point first pushes, not at the start of the step: a ball
+falling under gravity would otherwise lose g·dt of speed at every bounce (see
+apply_restitution for the rest of that story).
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from . import constants as C
+
+
+def soft_parameters(hertz: float, damping_ratio: float, h: float) -> tuple[float, float, float]:
+    """(mass scale, impulse scale, bias rate 1/s) of a soft constraint for substep h (s).
+
+    An implicit damped spring of frequency `hertz` and the given damping ratio,
+    integrated with step h, expressed as scalings of the rigid impulse.
+    """
+    if hertz == 0.0:
+        return 1.0, 0.0, 0.0
+    omega = 2.0 * math.pi * hertz
+    a1 = 2.0 * damping_ratio + h * omega
+    a2 = h * omega * a1
+    a3 = 1.0 / (1.0 + a2)
+    return a2 * a3, a3, omega / a1
+
+
+@njit(cache=True)
+def prepare_contacts(model, state, contacts, soft, soft_static):
+    """Effective masses, approach velocities and softness of every contact point.
+
+    soft, soft_static: (mass scale, impulse scale, bias rate) for contacts between two
+    dynamic bodies and for contacts with a static or kinematic body (stiffer).
+    """
+    im, ii = model.body_inv_mass, model.body_inv_inertia
+    v, w = state.body_v, state.body_w
+    for m in range(contacts.count[0]):
+        a, b = contacts.body_a[m], contacts.body_b[m]
+        ma, mb, ia, ib = im[a], im[b], ii[a], ii[b]
+        nx, ny = contacts.normal[m, 0], contacts.normal[m, 1]
+        tx, ty = ny, -nx
+        sft = soft_static if (ma == 0.0 or mb == 0.0) else soft
+        contacts.softness[m, 0], contacts.softness[m, 1] = sft[0], sft[1]
+        contacts.softness[m, 2] = sft[2]
+        for k in range(contacts.points[m]):
+            rax, ray = contacts.anchor_a[m, k, 0], contacts.anchor_a[m, k, 1]
+            rbx, rby = contacts.anchor_b[m, k, 0], contacts.anchor_b[m, k, 1]
+            rna = rax * ny - ray * nx
+            rnb = rbx * ny - rby * nx
+            kn = ma + mb + ia * rna * rna + ib * rnb * rnb
+            contacts.normal_mass[m, k] = 1.0 / kn if kn > 0.0 else 0.0
+            rta = rax * ty - ray * tx
+            rtb = rbx * ty - rby * tx
+            kt = ma + mb + ia * rta * rta + ib * rtb * rtb
+            contacts.tangent_mass[m, k] = 1.0 / kt if kt > 0.0 else 0.0
+            dvx = v[a, 0] - w[a] * ray - v[b, 0] + w[b] * rby
+            dvy = v[a, 1] + w[a] * rax - v[b, 1] - w[b] * rbx
+            contacts.approach_velocity[m, k] = dvx * nx + dvy * ny
+            contacts.approach_separation[m, k] = contacts.base_separation[m, k] + (
+                nx * (rax - rbx) + ny * (ray - rby)
+            )
+
+
+@njit(cache=True)
+def warm_start(model, state, contacts):
+    """Apply last substep's accumulated impulses again (they are impulses per substep)."""
+    im, ii = model.body_inv_mass, model.body_inv_inertia
+    v, w = state.body_v, state.body_w
+    for m in range(contacts.count[0]):
+        a, b = contacts.body_a[m], contacts.body_b[m]
+        nx, ny = contacts.normal[m, 0], contacts.normal[m, 1]
+        tx, ty = ny, -nx
+        for k in range(contacts.points[m]):
+            jn, jt = contacts.normal_impulse[m, k], contacts.tangent_impulse[m, k]
+            px, py = jn * nx + jt * tx, jn * ny + jt * ty
+            rax, ray = contacts.anchor_a[m, k, 0], contacts.anchor_a[m, k, 1]
+            rbx, rby = contacts.anchor_b[m, k, 0], contacts.anchor_b[m, k, 1]
+            v[a, 0] += im[a] * px
+            v[a, 1] += im[a] * py
+            w[a] += ii[a] * (rax * py - ray * px)
+            v[b, 0] -= im[b] * px
+            v[b, 1] -= im[b] * py
+            w[b] -= ii[b] * (rbx * py - rby * px)
+
+
+@njit(cache=True)
+def solve_contacts(model, state, contacts, inv_h, use_bias):
+    """One sequential-impulse pass over every contact (normal, then friction).
+
+    inv_h: 1 / substep length (1/s). use_bias: True in the solve stage (soft position
+    correction), False in the relax stage (rigid, no push-out).
+    """
+    im, ii = model.body_inv_mass, model.body_inv_inertia
+    v, w = state.body_v, state.body_w
+    delta = contacts.body_delta
+    max_push = -C.CONTACT_PUSH_MAX_VELOCITY
+    for m in range(contacts.count[0]):
+        a, b = contacts.body_a[m], contacts.body_b[m]
+        ma, mb, ia, ib = im[a], im[b], ii[a], ii[b]
+        vax, vay, wa = v[a, 0], v[a, 1], w[a]
+        vbx, vby, wb = v[b, 0], v[b, 1], w[b]
+        nx, ny = contacts.normal[m, 0], contacts.normal[m, 1]
+        tx, ty = ny, -nx
+        # body motion since the start of the step, for the current separation
+        dax, day, ca, sa = delta[a, 0], delta[a, 1], delta[a, 2], delta[a, 3]
+        dbx, dby, cb, sb = delta[b, 0], delta[b, 1], delta[b, 2], delta[b, 3]
+        mass_scale0, impulse_scale0, bias_rate = (
+            contacts.softness[m, 0],
+            contacts.softness[m, 1],
+            contacts.softness[m, 2],
+        )
+        npts = contacts.points[m]
+        for k in range(npts):
+            rax, ray = contacts.anchor_a[m, k, 0], contacts.anchor_a[m, k, 1]
+            rbx, rby = contacts.anchor_b[m, k, 0], contacts.anchor_b[m, k, 1]
+            # anchors turned with their bodies: the current separation
+            pax, pay = ca * rax - sa * ray, sa * rax + ca * ray
+            pbx, pby = cb * rbx - sb * rby, sb * rbx + cb * rby
+            dx = dax - dbx + pax - pbx
+            dy = day - dby + pay - pby
+            s = dx * nx + dy * ny + contacts.base_separation[m, k]
+            bias, mass_scale, impulse_scale = 0.0, 1.0, 0.0
+            if s > 0.0:
+                if not use_bias:
+                    # a speculative point is enforced by the solve stage before every
+                    # position update; relaxing it too would catch an impact one
+                    # substep early, before gravity has finished accelerating the body
+                    continue
+                bias = s * inv_h  # speculative: may close the gap, no more
+            elif use_bias:
+                bias = max(bias_rate * s, max_push)
+                mass_scale, impulse_scale = mass_scale0, impulse_scale0
+            dvx = vax - wa * ray - vbx + wb * rby
+            dvy = vay + wa * rax - vby - wb * rbx
+            vn = dvx * nx + dvy * ny
+            lam = contacts.normal_impulse[m, k]
+            impulse = -contacts.normal_mass[m, k] * mass_scale * (vn + bias)
+            impulse -= impulse_scale * lam
+            if use_bias and impulse > 0.0 and vn < contacts.approach_velocity[m, k]:
+                # the point engages in this substep: its approach speed at impact,
+                # which gravity may have raised since the start of the step
+                contacts.approach_velocity[m, k] = vn
+                contacts.approach_separation[m, k] = s
+            new = max(lam + impulse, 0.0)  # clamp the accumulated impulse
+            impulse = new - lam
+            contacts.normal_impulse[m, k] = new
+            if impulse > contacts.max_normal_impulse[m, k]:
+                contacts.max_normal_impulse[m, k] = impulse
+            px, py = impulse * nx, impulse * ny
+            vax += ma * px
+            vay += ma * py
+            wa += ia * (rax * py - ray * px)
+            vbx -= mb * px
+            vby -= mb * py
+            wb -= ib * (rbx * py - rby * px)
+        mu = contacts.friction[m]
+        if mu > 0.0:
+            for k in range(npts):
+                rax, ray = contacts.anchor_a[m, k, 0], contacts.anchor_a[m, k, 1]
+                rbx, rby = contacts.anchor_b[m, k, 0], contacts.anchor_b[m, k, 1]
+                dvx = vax - wa * ray - vbx + wb * rby
+                dvy = vay + wa * rax - vby - wb * rbx
+                vt = dvx * tx + dvy * ty
+                lam = contacts.tangent_impulse[m, k]
+                limit = mu * contacts.normal_impulse[m, k]
+                new = min(max(lam - contacts.tangent_mass[m, k] * vt, -limit), limit)
+                impulse = new - lam
+                contacts.tangent_impulse[m, k] = new
+                px, py = impulse * tx, impulse * ty
+                vax += ma * px
+                vay += ma * py
+                wa += ia * (rax * py - ray * px)
+                vbx -= mb * px
+                vby -= mb * py
+                wb -= ib * (rbx * py - rby * px)
+        v[a, 0], v[a, 1], w[a] = vax, vay, wa
+        v[b, 0], v[b, 1], w[b] = vbx, vby, wb
+
+
+@njit(cache=True)
+def apply_restitution(model, state, contacts, threshold, h, sign):
+    """Bounce: v_n⁺ from v_n⁻ by the restitution hypothesis, at points that approached
+    faster than `threshold` (m/s) and pushed.
+
+    Without forces the target is exactly v_n⁺ = −e v_n⁻. Under a constant relative
+    normal acceleration a (gravity, constant forces) the target is taken on the
+    discrete trajectory instead: Euler with substep h (s) conserves not the energy but
+    I = v²/2 − a s + sign (a h / 2) v (sign +1 symplectic, −1 explicit Euler), and
+    reversing v alone would lose or gain about |a| h |v| per bounce. So v_n⁺ makes
+    I after the bounce (at the current separation) equal e² times I where the point
+    engaged (approach velocity and separation recorded by the solve stage). For
+    e = 1 a ball then keeps its apex bounce after bounce, to round-off.
+    """
+    im, ii = model.body_inv_mass, model.body_inv_inertia
+    v, w = state.body_v, state.body_w
+    delta = contacts.body_delta
+    gx, gy = model.gravity[0], model.gravity[1]
+    for m in range(contacts.count[0]):
+        e = contacts.restitution[m]
+        if e == 0.0:
+            continue
+        a, b = contacts.body_a[m], contacts.body_b[m]
+        nx, ny = contacts.normal[m, 0], contacts.normal[m, 1]
+        # relative normal acceleration of the two bodies from gravity and forces
+        acc = 0.0
+        if model.body_type[a] == C.BODY_DYNAMIC:
+            acc += (gx + im[a] * model.body_force[a, 0]) * nx
+            acc += (gy + im[a] * model.body_force[a, 1]) * ny
+        if model.body_type[b] == C.BODY_DYNAMIC:
+            acc -= (gx + im[b] * model.body_force[b, 0]) * nx
+            acc -= (gy + im[b] * model.body_force[b, 1]) * ny
+        dax, day, ca, sa = delta[a, 0], delta[a, 1], delta[a, 2], delta[a, 3]
+        dbx, dby, cb, sb = delta[b, 0], delta[b, 1], delta[b, 2], delta[b, 3]
+        for k in range(contacts.points[m]):
+            vn0 = contacts.approach_velocity[m, k]
+            if vn0 > -threshold or contacts.max_normal_impulse[m, k] == 0.0:
+                continue
+            rax, ray = contacts.anchor_a[m, k, 0], contacts.anchor_a[m, k, 1]
+            rbx, rby = contacts.anchor_b[m, k, 0], contacts.anchor_b[m, k, 1]
+            pax, pay = ca * rax - sa * ray, sa * rax + ca * ray
+            pbx, pby = cb * rbx - sb * rby, sb * rbx + cb * rby
+            s_now = (dax - dbx + pax - pbx) * nx + (day - dby + pay - pby) * ny
+            s_now += contacts.base_separation[m, k]
+            s0 = contacts.approach_separation[m, k]
+            invariant = 0.5 * vn0 * vn0 - 0.5 * acc * h * vn0 - acc * s0
+            rhs = e * e * invariant + acc * s_now
+            ah = sign * acc * h
+            target = 0.5 * (-ah + math.sqrt(max(ah * ah + 8.0 * rhs, 0.0)))
+            dvx = v[a, 0] - w[a] * ray - v[b, 0] + w[b] * rby
+            dvy = v[a, 1] + w[a] * rax - v[b, 1] - w[b] * rbx
+            vn = dvx * nx + dvy * ny
+            lam = contacts.normal_impulse[m, k]
+            impulse = -contacts.normal_mass[m, k] * (vn - target)
+            new = max(lam + impulse, 0.0)
+            impulse = new - lam
+            contacts.normal_impulse[m, k] = new
+            if impulse > contacts.max_normal_impulse[m, k]:
+                contacts.max_normal_impulse[m, k] = impulse
+            px, py = impulse * nx, impulse * ny
+            v[a, 0] += im[a] * px
+            v[a, 1] += im[a] * py
+            w[a] += ii[a] * (rax * py - ray * px)
+            v[b, 0] -= im[b] * px
+            v[b, 1] -= im[b] * py
+            w[b] -= ii[b] * (rbx * py - rby * px)

@@ -1,0 +1,238 @@
+"""The time step, as the list of its stages, and the loop that runs a scene.
+
+    find_pairs -> collide (manifolds) -> prepare ->
+    [per substep: integrate_velocities -> warm_start -> solve (biased)
+                  -> integrate_positions -> relax] -> restitution -> store_impulses
+
+`step` is one numba kernel that calls each stage in turn, so a step costs one call
+from Python; `advance` runs many steps. A scene without shapes skips the contact
+stages entirely, and one without forces skips their evaluation.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from . import constants as C
+from .broadphase import Grid, find_pairs, make_grid
+from .contacts import (
+    MIXING,
+    Contacts,
+    grow_contacts,
+    make_contacts,
+    store_impulses,
+    transform_shapes,
+    update_manifolds,
+)
+from .integrator import integrate_positions, integrate_velocities
+from .model import Model, State, build
+from .scene import Scene
+from .solver import (
+    apply_restitution,
+    prepare_contacts,
+    soft_parameters,
+    solve_contacts,
+    warm_start,
+)
+
+# advance() status codes
+OK = 0
+NEED_CAPACITY = 1
+NON_FINITE = 2
+
+
+class Config(NamedTuple):
+    """Per-run numbers for the kernels: dt (s), substeps, iterations per substep,
+    explicit (explicit Euler), exact (exact rotation), restitution_threshold (m/s),
+    friction_rule and restitution_rule (contacts.MIX_*), soft and soft_static
+    (mass scale, impulse scale, bias rate 1/s) for the substep length."""
+
+    dt: float
+    substeps: int
+    iterations: int
+    explicit: bool
+    exact: bool
+    restitution_threshold: float
+    friction_rule: int
+    restitution_rule: int
+    soft: tuple[float, float, float]
+    soft_static: tuple[float, float, float]
+
+
+def make_config(scene: Scene) -> Config:
+    """Kernel settings from the scene's world and solver blocks."""
+    sol = scene.solver
+    h = scene.world.dt / sol.substeps
+    hertz = min(C.CONTACT_HERTZ, 0.25 / h)
+    return Config(
+        dt=float(scene.world.dt),
+        substeps=int(sol.substeps),
+        iterations=int(sol.iterations),
+        explicit=sol.integrator == "explicit_euler",
+        exact=sol.rotation == "exact",
+        restitution_threshold=float(sol.restitution_threshold),
+        friction_rule=MIXING[scene.world.friction_mixing],
+        restitution_rule=MIXING[scene.world.restitution_mixing],
+        soft=soft_parameters(hertz, C.CONTACT_DAMPING_RATIO, h),
+        soft_static=soft_parameters(2.0 * hertz, C.CONTACT_DAMPING_RATIO, h),
+    )
+
+
+@njit(cache=True)
+def collide(model, state, grid, contacts, cfg):
+    """Broadphase, narrowphase and contact preparation. Returns False when the contact
+    storage is too small (nothing has moved yet; the caller grows it and retries)."""
+    transform_shapes(model, state, contacts, cfg.dt)
+    n_pairs = find_pairs(model, grid, contacts.vert_world, contacts.shape_margin, contacts.pairs)
+    contacts.count[2] = n_pairs
+    if n_pairs > contacts.pairs.shape[0]:
+        return False
+    update_manifolds(model, state, contacts, n_pairs, cfg.friction_rule, cfg.restitution_rule)
+    prepare_contacts(model, state, contacts, cfg.soft, cfg.soft_static)
+    return True
+
+
+@njit(cache=True)
+def step(model, state, grid, contacts, cfg):
+    """Advance the state by one time step cfg.dt. Returns False when contact storage is
+    too small (the state is then unchanged)."""
+    contacts_on = model.has_shapes
+    if contacts_on and not collide(model, state, grid, contacts, cfg):
+        return False
+    delta = contacts.body_delta
+    delta[:, 0] = 0.0
+    delta[:, 1] = 0.0
+    delta[:, 2] = 1.0
+    delta[:, 3] = 0.0
+    h = cfg.dt / cfg.substeps
+    inv_h = 1.0 / h
+    for _ in range(cfg.substeps):
+        if cfg.explicit:
+            integrate_positions(model, state, delta, h, cfg.exact)
+            integrate_velocities(model, state, h)
+        else:
+            integrate_velocities(model, state, h)
+        if contacts_on:
+            warm_start(model, state, contacts)
+            for _ in range(cfg.iterations):
+                solve_contacts(model, state, contacts, inv_h, True)
+        if not cfg.explicit:
+            integrate_positions(model, state, delta, h, cfg.exact)
+        if contacts_on:
+            for _ in range(cfg.iterations):
+                solve_contacts(model, state, contacts, inv_h, False)  # relax
+    if contacts_on:
+        sign = -1.0 if cfg.explicit else 1.0
+        apply_restitution(model, state, contacts, cfg.restitution_threshold, h, sign)
+        store_impulses(contacts)
+    return True
+
+
+@njit(cache=True)
+def _first_non_finite(state):
+    for i in range(state.body_x.shape[0]):
+        if not (
+            math.isfinite(state.body_x[i, 0])
+            and math.isfinite(state.body_x[i, 1])
+            and math.isfinite(state.body_v[i, 0])
+            and math.isfinite(state.body_v[i, 1])
+            and math.isfinite(state.body_w[i])
+            and math.isfinite(state.body_q[i, 0])
+        ):
+            return i
+    return -1
+
+
+@njit(cache=True)
+def advance(model, state, grid, contacts, cfg, n_steps, result):
+    """Take up to n_steps steps. result[0] = steps taken; returns OK, NEED_CAPACITY
+    (grow contacts, call again) or NON_FINITE (result[1] = the body index)."""
+    for k in range(n_steps):
+        if not step(model, state, grid, contacts, cfg):
+            result[0] = k
+            return NEED_CAPACITY
+        bad = _first_non_finite(state)
+        if bad >= 0:
+            result[0] = k + 1
+            result[1] = bad
+            return NON_FINITE
+    result[0] = n_steps
+    return OK
+
+
+class NonFiniteState(RuntimeError):
+    """The state became NaN or infinite: `body` (index) at `step`."""
+
+    def __init__(self, body: int, step: int) -> None:
+        super().__init__(f"state of body {body} became non-finite at step {step}")
+        self.body = body
+        self.step = step
+
+
+@dataclass
+class World:
+    """A scene ready to step: model, state and preallocated stage storage."""
+
+    scene: Scene
+    model: Model
+    state: State
+    config: Config
+    grid: Grid
+    contacts: Contacts
+    step_index: int = 0
+
+    @classmethod
+    def from_scene(cls, scene: Scene) -> World:
+        """Build the model, state and storage for a resolved scene."""
+        model, state = build(scene)
+        n_shapes = model.shape_body.shape[0]
+        extent = shape_extent(model)
+        dynamic = model.body_type[model.shape_body] == C.BODY_DYNAMIC
+        grid = make_grid(extent, dynamic)
+        contacts = make_contacts(
+            model.body_mass.shape[0], n_shapes, model.vertex_local.shape[0], 4 * n_shapes + 16
+        )
+        return cls(scene, model, state, make_config(scene), grid, contacts)
+
+    @property
+    def time(self) -> float:
+        """Simulated time (s) of the current state."""
+        return self.step_index * self.config.dt
+
+    def advance(self, n_steps: int) -> None:
+        """Take n_steps steps; raises NonFiniteState if the state blows up."""
+        result = np.zeros(2, np.int64)
+        remaining = n_steps
+        while remaining > 0:
+            status = advance(
+                self.model, self.state, self.grid, self.contacts, self.config, remaining, result
+            )
+            taken = int(result[0])
+            self.step_index += taken
+            remaining -= taken
+            if status == NEED_CAPACITY:
+                need = int(self.contacts.count[2])
+                self.contacts = grow_contacts(self.contacts, max(need * 3 // 2, 2 * need))
+            elif status == NON_FINITE:
+                raise NonFiniteState(int(result[1]), self.step_index)
+
+    @property
+    def contact_count(self) -> int:
+        """Contact points that pushed in the last step."""
+        return int(self.contacts.count[3]) if self.model.has_shapes else 0
+
+
+def shape_extent(model: Model) -> np.ndarray:
+    """Half the diagonal (m) of each shape's own bounding box, radius included."""
+    ext = np.zeros(model.shape_body.shape[0])
+    for s in range(ext.shape[0]):
+        start = model.shape_vstart[s]
+        v = model.vertex_local[start : start + model.shape_vcount[s]]
+        span = v.max(axis=0) - v.min(axis=0)
+        ext[s] = 0.5 * float(np.hypot(span[0], span[1])) + model.shape_radius[s]
+    return ext

@@ -1,0 +1,32 @@
+"""Shared helpers: scenes from inline YAML, run to a trajectory in a temp folder."""
+
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from rbsim.scene import Scene, load_scene_text
+from rbsim.trajectory import Trajectory, load_trajectory
+
+
+def scene_from(text: str, overrides: tuple[str, ...] = ()) -> Scene:
+    """A resolved scene from inline YAML (dedented)."""
+    return load_scene_text(textwrap.dedent(text), "inline.yaml", overrides)
+
+
+@pytest.fixture
+def run_text(tmp_path: Path):
+    """Run an inline scene with rbsim and return its loaded trajectory."""
+    from rbsim.run import run_scene
+
+    counter = iter(range(10**6))
+
+    def _run(text: str, overrides: tuple[str, ...] = ()) -> Trajectory:
+        scene = scene_from(text, overrides)
+        out = tmp_path / f"run{next(counter)}.h5"
+        run_scene(scene, out)
+        return load_trajectory(out)
+
+    return _run
