@@ -1,13 +1,18 @@
 """Broadphase: candidate shape pairs whose bounding boxes overlap, in O(N).
 
-A uniform grid hashed into a table. Each shape is entered in every cell its box
-touches (at most MAX_CELLS); a pair sharing several cells is reported only from the
-cell that holds the corner max(min_a, min_b), so no pair is found twice. Shapes whose
-box spans more cells than that (a long ground, a very fast body) are "big": they
-are tested against every other shape directly, which is cheap while they are few.
+Every shape has a tight box (its geometry, radius and speculative reach) and a fat box
+that contains it with AABB_MARGIN to spare. Pairs are found between fat boxes and kept
+from step to step; only a shape whose tight box has left its fat box ("moved") is
+queried again. A resting stack therefore costs one containment test per shape.
 
-Pairs come out sorted by (shape a, shape b) with a < b, so the order is deterministic
-and the contact stage can match them against the previous step in one merge pass.
+Queries use a uniform grid hashed into a table. Each shape is entered in every cell
+its fat box touches (at most MAX_CELLS); a pair sharing several cells is reported only
+from the cell that holds the corner max(min_a, min_b), so no pair is found twice.
+Shapes whose box spans more cells than that (a long ground, a very fast body) are
+"big": they are tested against every other shape directly, cheap while they are few.
+
+Pairs are kept sorted by (shape a, shape b) with a < b, so the order is deterministic
+and the contact stage matches them against the previous step in one merge pass.
 Pairs within one body, and pairs where neither body is dynamic, are skipped.
 """
 
@@ -25,17 +30,21 @@ MAX_CELLS = 16  # cells a shape may touch before it is treated as big
 
 
 class Grid(NamedTuple):
-    """Scratch for the grid; S shapes, E = MAX_CELLS·S entries, T table buckets.
+    """Broadphase storage; S shapes, E = MAX_CELLS·S entries, T table buckets, P pairs.
 
-    inv_cell: 1 / cell size (1/m). shape_aabb (S,4) min x, min y, max x, max y (m);
-    shape_cells (S,4) int64 cell range ix0, iy0, ix1, iy1; shape_big (S,) bool;
-    entry_shape, entry_ix, entry_iy (E,) sorted by bucket; bucket_start (T+1,);
-    entry_bucket (E,) scratch; candidates (S,) scratch for one shape's partners;
-    big_list (S,) the big shapes in index order, big_count (1,) how many.
+    inv_cell: 1 / cell size (1/m). shape_aabb (S,4) tight boxes min x, min y, max x,
+    max y (m); shape_fat (S,4) fat boxes; shape_moved (S,) bool; shape_cells (S,4)
+    int64 cell range of the fat box ix0, iy0, ix1, iy1; shape_big (S,) bool;
+    entry_shape, entry_ix, entry_iy (E,) sorted by bucket; entry_bucket (E,) scratch;
+    bucket_start (T+1,); big_list (S,) the big shapes in index order; meta (2,) int64:
+    [big shape count, 1 once the pairs are valid]; new_keys (P,) int64 and
+    kept (P,2) int32: scratch for the pair update.
     """
 
     inv_cell: float
     shape_aabb: np.ndarray
+    shape_fat: np.ndarray
+    shape_moved: np.ndarray
     shape_cells: np.ndarray
     shape_big: np.ndarray
     entry_shape: np.ndarray
@@ -43,28 +52,32 @@ class Grid(NamedTuple):
     entry_iy: np.ndarray
     entry_bucket: np.ndarray
     bucket_start: np.ndarray
-    candidates: np.ndarray
     big_list: np.ndarray
-    big_count: np.ndarray
+    meta: np.ndarray
+    new_keys: np.ndarray
+    kept: np.ndarray
 
 
-def make_grid(shape_extent: np.ndarray, shape_is_dynamic: np.ndarray) -> Grid:
-    """Preallocate a grid sized for the scene's shapes.
+def make_grid(shape_size: np.ndarray, shape_is_dynamic: np.ndarray, capacity: int) -> Grid:
+    """Preallocate the broadphase for S shapes and `capacity` pairs.
 
-    The cell size is twice the median extent (m, COM to farthest point) of the
-    dynamic shapes plus the AABB margin, so a typical shape touches 1 to 4 cells.
+    The cell size is twice the median half-diagonal (m) of the dynamic shapes plus the
+    fat margin, so a typical shape touches 1 to 4 cells.
     """
-    s = shape_extent.shape[0]
-    dyn = shape_extent[shape_is_dynamic]
+    s = shape_size.shape[0]
+    dyn = shape_size[shape_is_dynamic]
     size = 2.0 * float(np.median(dyn)) if dyn.size else 1.0
     cell = max(size, 1e-3) + 2.0 * C.AABB_MARGIN
     table = 64
     while table < 4 * s:
         table *= 2
     e = MAX_CELLS * max(s, 1)
+    p = max(capacity, 1)
     return Grid(
         inv_cell=1.0 / cell,
         shape_aabb=np.zeros((s, 4)),
+        shape_fat=np.zeros((s, 4)),
+        shape_moved=np.zeros(s, np.bool_),
         shape_cells=np.zeros((s, 4), np.int64),
         shape_big=np.zeros(s, np.bool_),
         entry_shape=np.zeros(e, np.int32),
@@ -72,81 +85,113 @@ def make_grid(shape_extent: np.ndarray, shape_is_dynamic: np.ndarray) -> Grid:
         entry_iy=np.zeros(e, np.int64),
         entry_bucket=np.zeros(e, np.int64),
         bucket_start=np.zeros(table + 1, np.int64),
-        candidates=np.zeros(max(s, 1), np.int32),
         big_list=np.zeros(max(s, 1), np.int32),
-        big_count=np.zeros(1, np.int64),
+        meta=np.zeros(2, np.int64),
+        new_keys=np.zeros(p, np.int64),
+        kept=np.zeros((p, 2), np.int32),
     )
 
 
-@njit(cache=True, inline="always")
-def _bucket(ix, iy, mask):
-    return ((ix * 73856093) ^ (iy * 19349663)) & mask
+def grow_grid(old: Grid, capacity: int) -> Grid:
+    """The same grid with room for `capacity` pairs; the pairs are found anew."""
+    p = max(capacity, 1)
+    grid = old._replace(new_keys=np.zeros(p, np.int64), kept=np.zeros((p, 2), np.int32))
+    grid.meta[1] = 0
+    return grid
 
 
 @njit(cache=True)
 def update_aabbs(model, grid, vert_world, shape_margin):
-    """Boxes of every shape from its world vertices, radius and margin (m)."""
-    for s in range(model.shape_body.shape[0]):
-        start, count = model.shape_vstart[s], model.shape_vcount[s]
+    """Tight boxes from world vertices, radius and speculative reach (m); fat boxes for
+    the shapes whose tight box left theirs. Returns how many shapes moved."""
+    m_shape_body = model.shape_body
+    m_shape_radius = model.shape_radius
+    m_shape_vcount = model.shape_vcount
+    m_shape_vstart = model.shape_vstart
+    g_meta = grid.meta
+    g_shape_aabb = grid.shape_aabb
+    g_shape_fat = grid.shape_fat
+    g_shape_moved = grid.shape_moved
+    reach = 0.5 * C.SPECULATIVE_DISTANCE
+    fresh = g_meta[1] == 0
+    box, fat = g_shape_aabb, g_shape_fat
+    moved = 0
+    for s in range(m_shape_body.shape[0]):
+        start, count = m_shape_vstart[s], m_shape_vcount[s]
         x0, y0 = vert_world[start, 0], vert_world[start, 1]
         x1, y1 = x0, y0
         for k in range(start + 1, start + count):
             px, py = vert_world[k, 0], vert_world[k, 1]
             x0, y0, x1, y1 = min(x0, px), min(y0, py), max(x1, px), max(y1, py)
-        r = model.shape_radius[s] + shape_margin[s]
-        grid.shape_aabb[s, 0] = x0 - r
-        grid.shape_aabb[s, 1] = y0 - r
-        grid.shape_aabb[s, 2] = x1 + r
-        grid.shape_aabb[s, 3] = y1 + r
+        r = m_shape_radius[s] + shape_margin[s] + reach
+        x0, y0, x1, y1 = x0 - r, y0 - r, x1 + r, y1 + r
+        box[s, 0], box[s, 1], box[s, 2], box[s, 3] = x0, y0, x1, y1
+        out = fresh or x0 < fat[s, 0] or y0 < fat[s, 1] or x1 > fat[s, 2] or y1 > fat[s, 3]
+        g_shape_moved[s] = out
+        if out:
+            m = C.AABB_MARGIN
+            fat[s, 0], fat[s, 1], fat[s, 2], fat[s, 3] = x0 - m, y0 - m, x1 + m, y1 + m
+            moved += 1
+    return moved
 
 
 @njit(cache=True)
 def _fill_grid(grid):
-    """Enter every small shape into the cells it touches (counting sort by bucket)."""
-    n = grid.shape_aabb.shape[0]
-    mask = grid.bucket_start.shape[0] - 2  # table size - 1 (a power of two minus one)
-    inv = grid.inv_cell
-    starts = grid.bucket_start
+    """Enter every small shape's fat box into the cells it touches (counting sort)."""
+    g_big_list = grid.big_list
+    g_bucket_start = grid.bucket_start
+    g_entry_bucket = grid.entry_bucket
+    g_entry_ix = grid.entry_ix
+    g_entry_iy = grid.entry_iy
+    g_entry_shape = grid.entry_shape
+    g_inv_cell = grid.inv_cell
+    g_meta = grid.meta
+    g_shape_big = grid.shape_big
+    g_shape_cells = grid.shape_cells
+    g_shape_fat = grid.shape_fat
+    n = g_shape_fat.shape[0]
+    mask = g_bucket_start.shape[0] - 2  # table size - 1 (a power of two minus one)
+    inv = g_inv_cell
+    starts = g_bucket_start
     starts[:] = 0
     e = 0
     nbig = 0
     for s in range(n):
-        box = grid.shape_aabb[s]
-        ix0 = math.floor(box[0] * inv)
-        iy0 = math.floor(box[1] * inv)
-        ix1 = math.floor(box[2] * inv)
-        iy1 = math.floor(box[3] * inv)
+        ix0 = math.floor(g_shape_fat[s, 0] * inv)
+        iy0 = math.floor(g_shape_fat[s, 1] * inv)
+        ix1 = math.floor(g_shape_fat[s, 2] * inv)
+        iy1 = math.floor(g_shape_fat[s, 3] * inv)
         big = (ix1 - ix0 + 1) * (iy1 - iy0 + 1) > MAX_CELLS
-        grid.shape_big[s] = big
-        grid.shape_cells[s, 0], grid.shape_cells[s, 1] = ix0, iy0
-        grid.shape_cells[s, 2], grid.shape_cells[s, 3] = ix1, iy1
+        g_shape_big[s] = big
+        g_shape_cells[s, 0], g_shape_cells[s, 1] = ix0, iy0
+        g_shape_cells[s, 2], g_shape_cells[s, 3] = ix1, iy1
         if big:
-            grid.big_list[nbig] = s
+            g_big_list[nbig] = s
             nbig += 1
             continue
         for ix in range(ix0, ix1 + 1):
             for iy in range(iy0, iy1 + 1):
-                b = _bucket(ix, iy, mask)
-                grid.entry_bucket[e] = b
+                b = ((ix * 73856093) ^ (iy * 19349663)) & mask
+                g_entry_bucket[e] = b
                 starts[b + 1] += 1
                 e += 1
-    grid.big_count[0] = nbig
+    g_meta[0] = nbig
     for b in range(mask + 1):
         starts[b + 1] += starts[b]
     # place entries; `starts[b]` walks forward and is restored afterwards
     e = 0
     for s in range(n):
-        if grid.shape_big[s]:
+        if g_shape_big[s]:
             continue
-        ix0, iy0 = grid.shape_cells[s, 0], grid.shape_cells[s, 1]
-        ix1, iy1 = grid.shape_cells[s, 2], grid.shape_cells[s, 3]
+        ix0, iy0 = g_shape_cells[s, 0], g_shape_cells[s, 1]
+        ix1, iy1 = g_shape_cells[s, 2], g_shape_cells[s, 3]
         for ix in range(ix0, ix1 + 1):
             for iy in range(iy0, iy1 + 1):
-                b = grid.entry_bucket[e]
+                b = g_entry_bucket[e]
                 k = starts[b]
-                grid.entry_shape[k] = s
-                grid.entry_ix[k] = ix
-                grid.entry_iy[k] = iy
+                g_entry_shape[k] = s
+                g_entry_ix[k] = ix
+                g_entry_iy[k] = iy
                 starts[b] = k + 1
                 e += 1
     for b in range(mask, 0, -1):
@@ -154,75 +199,113 @@ def _fill_grid(grid):
     starts[0] = 0
 
 
-@njit(cache=True, inline="always")
-def _may_collide(model, a, b):
-    ba, bb = model.shape_body[a], model.shape_body[b]
-    if ba == bb:
-        return False
-    return model.body_type[ba] == C.BODY_DYNAMIC or model.body_type[bb] == C.BODY_DYNAMIC
+@njit(cache=True)
+def _query_moved(model, grid):
+    """Keys a·S + b of the pairs that involve a moved shape, unsorted; returns the count
+    (which may exceed the key storage: the caller then grows it).
 
-
-@njit(cache=True, inline="always")
-def _overlap(grid, a, b):
-    p, q = grid.shape_aabb[a], grid.shape_aabb[b]
-    return p[0] <= q[2] and q[0] <= p[2] and p[1] <= q[3] and q[1] <= p[3]
+    A pair is recorded by a's query, except when b moved too and comes first (then b's
+    query records it). The tests are written out in the loops: this is the hottest
+    loop of a falling pile.
+    """
+    shape_body, body_type = model.shape_body, model.body_type
+    bucket_start, entry_shape = grid.bucket_start, grid.entry_shape
+    entry_ix, entry_iy = grid.entry_ix, grid.entry_iy
+    fat, moved, big = grid.shape_fat, grid.shape_moved, grid.shape_big
+    cells, big_list, keys = grid.shape_cells, grid.big_list, grid.new_keys
+    n_big = grid.meta[0]
+    n = fat.shape[0]
+    capacity = keys.shape[0]
+    mask = bucket_start.shape[0] - 2
+    count = 0
+    for a in range(n):
+        if not moved[a]:
+            continue
+        body_a = shape_body[a]
+        dyn_a = body_type[body_a] == C.BODY_DYNAMIC
+        ax0, ay0, ax1, ay1 = fat[a, 0], fat[a, 1], fat[a, 2], fat[a, 3]
+        ix0, iy0, ix1, iy1 = cells[a, 0], cells[a, 1], cells[a, 2], cells[a, 3]
+        # candidates: every shape for a big shape; else the grid cells, then big shapes
+        n_cand = n if big[a] else n_big
+        for ix in range(ix0, ix1 + 1):
+            if big[a]:
+                break
+            for iy in range(iy0, iy1 + 1):
+                bk = ((ix * 73856093) ^ (iy * 19349663)) & mask
+                for k in range(bucket_start[bk], bucket_start[bk + 1]):
+                    if entry_ix[k] != ix or entry_iy[k] != iy:
+                        continue
+                    b = entry_shape[k]
+                    # report the pair only from the cell at max(min_a, min_b)
+                    if ix != max(ix0, cells[b, 0]) or iy != max(iy0, cells[b, 1]):
+                        continue
+                    if b == a or (moved[b] and b < a):
+                        continue
+                    if fat[b, 0] > ax1 or ax0 > fat[b, 2] or fat[b, 1] > ay1 or ay0 > fat[b, 3]:
+                        continue
+                    body_b = shape_body[b]
+                    if body_b == body_a or not (dyn_a or body_type[body_b] == C.BODY_DYNAMIC):
+                        continue
+                    if count < capacity:
+                        keys[count] = np.int64(min(a, b)) * n + max(a, b)
+                    count += 1
+        for g in range(n_cand):
+            b = g if big[a] else big_list[g]
+            if b == a or (moved[b] and b < a):
+                continue
+            if fat[b, 0] > ax1 or ax0 > fat[b, 2] or fat[b, 1] > ay1 or ay0 > fat[b, 3]:
+                continue
+            body_b = shape_body[b]
+            if body_b == body_a or not (dyn_a or body_type[body_b] == C.BODY_DYNAMIC):
+                continue
+            if count < capacity:
+                keys[count] = np.int64(min(a, b)) * n + max(a, b)
+            count += 1
+    return count
 
 
 @njit(cache=True)
-def find_pairs(model, grid, vert_world, shape_margin, pairs):
-    """Fill `pairs` (P,2) int32 with overlapping shape pairs, sorted; return their count.
+def find_pairs(model, grid, vert_world, shape_margin, pairs, n_pairs):
+    """Update the sorted pair list `pairs` (P,2) int32 holding n_pairs; return the new count.
 
-    When more than P pairs exist, the count returned is the number needed and
-    `pairs` holds only the first P: the caller grows the array and calls again.
+    When more than P pairs exist, the count returned is the number needed (> P) and the
+    list is invalid: the caller grows the storage and calls again.
     """
-    update_aabbs(model, grid, vert_world, shape_margin)
+    g_kept = grid.kept
+    g_meta = grid.meta
+    g_new_keys = grid.new_keys
+    g_shape_fat = grid.shape_fat
+    g_shape_moved = grid.shape_moved
+    if update_aabbs(model, grid, vert_world, shape_margin) == 0:
+        return n_pairs
+    fresh = g_meta[1] == 0
+    g_meta[1] = 0  # invalid until this update completes
     _fill_grid(grid)
-    n = grid.shape_aabb.shape[0]
-    mask = grid.bucket_start.shape[0] - 2
-    cand = grid.candidates
+    n = g_shape_fat.shape[0]
     capacity = pairs.shape[0]
-    count = 0
-    for a in range(n):
-        nc = 0
-        if grid.shape_big[a]:
-            for b in range(a + 1, n):
-                if _overlap(grid, a, b) and _may_collide(model, a, b):
-                    cand[nc] = b
-                    nc += 1
+    # keep the old pairs between shapes that did not move (already sorted)
+    kept = 0
+    if not fresh:
+        for p in range(n_pairs):
+            a, b = pairs[p, 0], pairs[p, 1]
+            if not (g_shape_moved[a] or g_shape_moved[b]):
+                g_kept[kept, 0], g_kept[kept, 1] = a, b
+                kept += 1
+    n_new = _query_moved(model, grid)
+    if kept + n_new > capacity:
+        return kept + n_new
+    keys = g_new_keys[:n_new]
+    keys.sort()
+    # merge the two sorted lists
+    i = j = out = 0
+    while i < kept or j < n_new:
+        take_kept = j >= n_new or (i < kept and np.int64(g_kept[i, 0]) * n + g_kept[i, 1] < keys[j])
+        if take_kept:
+            pairs[out, 0], pairs[out, 1] = g_kept[i, 0], g_kept[i, 1]
+            i += 1
         else:
-            ix0, iy0 = grid.shape_cells[a, 0], grid.shape_cells[a, 1]
-            ix1, iy1 = grid.shape_cells[a, 2], grid.shape_cells[a, 3]
-            for ix in range(ix0, ix1 + 1):
-                for iy in range(iy0, iy1 + 1):
-                    bk = _bucket(ix, iy, mask)
-                    for k in range(grid.bucket_start[bk], grid.bucket_start[bk + 1]):
-                        b = grid.entry_shape[k]
-                        if b <= a or grid.entry_ix[k] != ix or grid.entry_iy[k] != iy:
-                            continue
-                        # report the pair only from the cell at max(min_a, min_b)
-                        if ix != max(ix0, grid.shape_cells[b, 0]):
-                            continue
-                        if iy != max(iy0, grid.shape_cells[b, 1]):
-                            continue
-                        if _overlap(grid, a, b) and _may_collide(model, a, b):
-                            cand[nc] = b
-                            nc += 1
-            for g in range(grid.big_count[0]):
-                b = grid.big_list[g]
-                if b > a and _overlap(grid, a, b) and _may_collide(model, a, b):
-                    cand[nc] = b
-                    nc += 1
-        # insertion sort of this shape's partners (a handful): deterministic order
-        for i in range(1, nc):
-            key = cand[i]
-            j = i - 1
-            while j >= 0 and cand[j] > key:
-                cand[j + 1] = cand[j]
-                j -= 1
-            cand[j + 1] = key
-        for i in range(nc):
-            if count < capacity:
-                pairs[count, 0] = a
-                pairs[count, 1] = cand[i]
-            count += 1
-    return count
+            pairs[out, 0], pairs[out, 1] = keys[j] // n, keys[j] % n
+            j += 1
+        out += 1
+    g_meta[1] = 1
+    return out

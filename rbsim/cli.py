@@ -7,14 +7,20 @@ Exit codes (DESIGN.md): 0 ok; 1 runtime failure; 2 usage error; 3 invalid scene;
 from __future__ import annotations
 
 import json
+import os
 import signal
 import sys
+import threading
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING, NoReturn
 
 import click
 
 from . import __version__
+
+if TYPE_CHECKING:
+    from .run import RunSummary
 
 EXIT_RUNTIME = 1
 EXIT_SCENE = 3
@@ -28,8 +34,7 @@ def _load(path: str, overrides: tuple[str, ...] = ()):
     try:
         return load_scene(path, overrides)
     except SceneError as err:
-        click.echo(str(err), err=True)
-        sys.exit(EXIT_SCENE)
+        _fail(EXIT_SCENE, str(err))
 
 
 def _raise_interrupt(signum, frame):  # noqa: ARG001 - signal handler signature
@@ -37,34 +42,66 @@ def _raise_interrupt(signum, frame):  # noqa: ARG001 - signal handler signature
 
 
 class _Progress:
-    """A progress line on stderr, shown only on a terminal and after the first second."""
+    """A progress line on stderr, shown only when stderr is a terminal and only once the
+    run has taken a second (short runs print nothing); redrawn at most every 0.1 s."""
+
+    DELAY = 1.0  # s before the line first appears
+    INTERVAL = 0.1  # s between redraws
 
     def __init__(self, enabled: bool) -> None:
-        self.enabled = enabled and sys.stderr.isatty()
+        try:
+            self.enabled = enabled and sys.stderr is not None and sys.stderr.isatty()
+        except (AttributeError, ValueError):  # stderr replaced or closed
+            self.enabled = False
         self.t0 = time.perf_counter()
+        self.last = 0.0
         self.shown = False
 
     def __call__(self, step: int, total: int) -> None:
         if not self.enabled:
             return
-        elapsed = time.perf_counter() - self.t0
-        if elapsed < 1.0:
+        now = time.perf_counter()
+        elapsed = now - self.t0
+        if elapsed < self.DELAY or (now - self.last < self.INTERVAL and step < total):
             return
+        self.last = now
         width = 30
         filled = int(width * step / max(total, 1))
         rate = step / elapsed
         eta = (total - step) / rate if rate > 0 else 0.0
-        sys.stderr.write(
-            f"\r[{'#' * filled}{'.' * (width - filled)}] {step}/{total} steps "
-            f"{rate:,.0f}/s eta {eta:.0f} s "
-        )
-        sys.stderr.flush()
+        try:
+            sys.stderr.write(
+                f"\r[{'#' * filled}{'.' * (width - filled)}] {step}/{total} steps "
+                f"{rate:,.0f}/s eta {eta:.0f} s "
+            )
+            sys.stderr.flush()
+        except (OSError, ValueError):  # the terminal went away: stop drawing
+            self.enabled = False
+            return
         self.shown = True
 
     def finish(self) -> None:
+        """End the progress line (if one was drawn) so that messages start on a new line."""
         if self.shown:
-            sys.stderr.write("\n")
-            sys.stderr.flush()
+            self.shown = False
+            try:
+                sys.stderr.write("\n")
+                sys.stderr.flush()
+            except (OSError, ValueError):
+                pass
+
+
+def _fail(code: int, message: str, progress: _Progress | None = None) -> NoReturn:
+    """End the progress line, print `message` on stderr and exit with `code`."""
+    if progress is not None:
+        progress.finish()
+    click.echo(message, err=True)
+    sys.exit(code)
+
+
+def _reason(err: OSError) -> str:
+    """The system's short reason for an OSError ("Permission denied"), else its text."""
+    return os.strerror(err.errno) if err.errno else str(err)
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -92,35 +129,47 @@ def main() -> None:
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 def run(scene: str, output: str | None, overrides: tuple[str, ...], quiet: bool) -> None:
     """Step SCENE with rbsim's solver and write its trajectory."""
+    main_thread = threading.current_thread() is threading.main_thread()
+    if main_thread:  # SIGTERM ends a run like Ctrl-C (only the main thread may set it)
+        previous = signal.signal(signal.SIGTERM, _raise_interrupt)
+    progress = _Progress(not quiet)
+    try:
+        summary = _run(scene, output, overrides, progress)
+    except KeyboardInterrupt as err:
+        # run.RunInterrupted once the file exists: it says how many frames it kept
+        if getattr(err, "frames", None) is not None:
+            message = str(err)
+        else:
+            message = "interrupted before the trajectory file was created"
+        _fail(EXIT_INTERRUPTED, message, progress)
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGTERM, previous)
+    progress.finish()
+    if not quiet:
+        click.echo(summary.line())
+
+
+def _run(
+    scene: str, output: str | None, overrides: tuple[str, ...], progress: _Progress
+) -> RunSummary:
+    """Load and run SCENE; every expected failure becomes a message and an exit code."""
     from .model import ModelError
     from .run import RunFailed, run_scene
 
     sc = _load(scene, overrides)
     out = Path(output) if output else Path("out") / f"{sc.name}.h5"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    signal.signal(signal.SIGTERM, _raise_interrupt)
-    progress = _Progress(not quiet)
     try:
-        summary = run_scene(sc, out, progress=progress)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        return run_scene(sc, out, progress=progress)
     except ModelError as err:
-        progress.finish()
-        click.echo(f"{scene}: {err}", err=True)
-        sys.exit(EXIT_SCENE)
+        _fail(EXIT_SCENE, f"{scene}: {err}", progress)
     except RunFailed as err:
-        progress.finish()
-        click.echo(f"error: {err}", err=True)
-        sys.exit(EXIT_RUNTIME)
-    except KeyboardInterrupt:
-        progress.finish()
-        click.echo(f"interrupted: frames so far kept in {out}", err=True)
-        sys.exit(EXIT_INTERRUPTED)
+        _fail(EXIT_RUNTIME, f"error: {err}", progress)
+    except FileExistsError:  # from mkdir: a file where a folder should be
+        _fail(EXIT_RUNTIME, f"error: cannot write {out}: {out.parent} is not a folder", progress)
     except OSError as err:
-        progress.finish()
-        click.echo(f"error: cannot write {out}: {err}", err=True)
-        sys.exit(EXIT_RUNTIME)
-    progress.finish()
-    if not quiet:
-        click.echo(summary.line())
+        _fail(EXIT_RUNTIME, f"error: cannot write {out}: {_reason(err)}", progress)
 
 
 @main.command()
@@ -138,20 +187,27 @@ def validate(scene: str, resolved: bool, overrides: tuple[str, ...]) -> None:
         click.echo(yaml.safe_dump(scene_to_dict(sc), sort_keys=False), nl=False)
     else:
         n = len(sc.bodies)
-        click.echo(f"{scene}: ok ({n} bodies, {sc.world.steps} steps of {sc.world.dt:g} s)")
+        bodies = "1 body" if n == 1 else f"{n} bodies"
+        click.echo(f"{scene}: ok ({bodies}, {sc.world.steps} steps of {sc.world.dt:g} s)")
 
 
 @main.command()
 @click.argument("trajectory", type=click.Path(exists=True, dir_okay=False))
 def info(trajectory: str) -> None:
     """Summarise a trajectory file written by rbsim (either engine)."""
+    import h5py
+
     from .trajectory import summarize
 
     try:
-        click.echo(summarize(trajectory))
-    except (OSError, KeyError, ValueError) as err:
-        click.echo(f"{trajectory}: not a readable rbsim trajectory ({err})", err=True)
-        sys.exit(EXIT_RUNTIME)
+        if not h5py.is_hdf5(trajectory):
+            _fail(EXIT_RUNTIME, f"{trajectory}: not an HDF5 file (rbsim writes .h5 trajectories)")
+        text = summarize(trajectory)
+    except PermissionError as err:
+        _fail(EXIT_RUNTIME, f"{trajectory}: cannot read: {_reason(err)}")
+    except (OSError, KeyError, ValueError, TypeError) as err:
+        _fail(EXIT_RUNTIME, f"{trajectory}: not an rbsim trajectory ({err})")
+    click.echo(text)
 
 
 @main.command()

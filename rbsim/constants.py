@@ -39,3 +39,11 @@ CONTACT_PUSH_MAX_VELOCITY = 3.0
 
 # Speeds are clamped to this to keep a bad scene from producing inf, m/s.
 MAX_LINEAR_SPEED = 4.0e3
+
+# A body that has moved less than this since its contacts were computed keeps them:
+# the narrowphase is skipped for pairs of such bodies and their manifolds are carried
+# forward (separations updated from the motion). m and rad; the geometry error this
+# allows (1e-4 m in a lever arm, 1e-4 rad in a normal) is far below LINEAR_SLOP.
+# Zero turns the reuse off.
+STILL_DISTANCE = 1.0e-4
+STILL_ANGLE = 1.0e-4

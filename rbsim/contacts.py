@@ -34,9 +34,13 @@ class Contacts(NamedTuple):
     anchor_a, anchor_b (M,2,2) m, from each COM at the start of the step;
     base_separation (M,2) m, the separation minus the anchors' contribution;
     feature (M,2) int64; normal_impulse, tangent_impulse (M,2) N·s (per substep);
+    ref_separation (M,2) m: the separation with both bodies at their reference poses;
     normal_mass, tangent_mass (M,2) kg; approach_velocity (M,2) m/s and
     approach_separation (M,2) m where the point engaged (for restitution);
-    max_normal_impulse (M,2) N·s; prev_* the same from last step for matching.
+    max_normal_impulse (M,2) N·s; prev_* the same from last step for matching and
+    for carrying a manifold forward. body_ref (N,3): each body's reference pose
+    (x, y, angle), re-taken when it moves by more than STILL_DISTANCE or STILL_ANGLE;
+    body_still (N,) bool: the body is within that reach of its reference pose.
     scratch_*: one narrowphase result. body_delta (N,4): displacement and rotation
     of each body since the start of the step. vert_world, norm_world (V,2): shape
     geometry in the world this step. shape_margin (S,) m: speculative reach.
@@ -57,6 +61,7 @@ class Contacts(NamedTuple):
     anchor_a: np.ndarray
     anchor_b: np.ndarray
     base_separation: np.ndarray
+    ref_separation: np.ndarray
     feature: np.ndarray
     normal_impulse: np.ndarray
     tangent_impulse: np.ndarray
@@ -70,6 +75,12 @@ class Contacts(NamedTuple):
     prev_feature: np.ndarray
     prev_normal_impulse: np.ndarray
     prev_tangent_impulse: np.ndarray
+    prev_normal: np.ndarray
+    prev_anchor_a: np.ndarray
+    prev_anchor_b: np.ndarray
+    prev_ref_separation: np.ndarray
+    body_ref: np.ndarray
+    body_still: np.ndarray
     scratch_normal: np.ndarray
     scratch_point: np.ndarray
     scratch_separation: np.ndarray
@@ -99,6 +110,7 @@ def make_contacts(n_bodies: int, n_shapes: int, n_vertices: int, capacity: int) 
         anchor_a=np.zeros((m, 2, 2)),
         anchor_b=np.zeros((m, 2, 2)),
         base_separation=np.zeros((m, 2)),
+        ref_separation=np.zeros((m, 2)),
         feature=np.zeros((m, 2), np.int64),
         normal_impulse=np.zeros((m, 2)),
         tangent_impulse=np.zeros((m, 2)),
@@ -112,6 +124,12 @@ def make_contacts(n_bodies: int, n_shapes: int, n_vertices: int, capacity: int) 
         prev_feature=np.zeros((m, 2), np.int64),
         prev_normal_impulse=np.zeros((m, 2)),
         prev_tangent_impulse=np.zeros((m, 2)),
+        prev_normal=np.zeros((m, 2)),
+        prev_anchor_a=np.zeros((m, 2, 2)),
+        prev_anchor_b=np.zeros((m, 2, 2)),
+        prev_ref_separation=np.zeros((m, 2)),
+        body_ref=np.full((max(n_bodies, 1), 3), np.nan),
+        body_still=np.zeros(max(n_bodies, 1), np.bool_),
         scratch_normal=np.zeros(2),
         scratch_point=np.zeros((2, 2)),
         scratch_separation=np.zeros(2),
@@ -130,10 +148,21 @@ def grow_contacts(old: Contacts, capacity: int) -> Contacts:
     )
     n = int(old.count[1])
     new.count[:] = old.count
-    for name in ("prev_key", "prev_points", "prev_feature"):
+    new.count[2] = 0  # the pair list is found anew
+    for name in (
+        "prev_key",
+        "prev_points",
+        "prev_feature",
+        "prev_normal_impulse",
+        "prev_tangent_impulse",
+        "prev_normal",
+        "prev_anchor_a",
+        "prev_anchor_b",
+        "prev_ref_separation",
+    ):
         getattr(new, name)[:n] = getattr(old, name)[:n]
-    new.prev_normal_impulse[:n] = old.prev_normal_impulse[:n]
-    new.prev_tangent_impulse[:n] = old.prev_tangent_impulse[:n]
+    new.body_ref[:] = old.body_ref
+    new.body_still[:] = old.body_still
     return new
 
 
@@ -144,26 +173,48 @@ def transform_shapes(model, state, contacts, dt):
     The reach (m) is how far the shape's surface can move in one step, dt (|v| + |ω| r),
     so that contacts are created before a fast body can pass through another.
     """
-    vw, nw = contacts.vert_world, contacts.norm_world
-    for s in range(model.shape_body.shape[0]):
-        i = model.shape_body[s]
-        c, sn = state.body_q[i, 0], state.body_q[i, 1]
-        x, y = state.body_x[i, 0], state.body_x[i, 1]
+    c_norm_world = contacts.norm_world
+    c_shape_margin = contacts.shape_margin
+    c_vert_world = contacts.vert_world
+    m_body_type = model.body_type
+    m_normal_local = model.normal_local
+    m_shape_body = model.shape_body
+    m_shape_radius = model.shape_radius
+    m_shape_vcount = model.shape_vcount
+    m_shape_vstart = model.shape_vstart
+    m_vertex_local = model.vertex_local
+    s_body_q = state.body_q
+    s_body_v = state.body_v
+    s_body_w = state.body_w
+    s_body_x = state.body_x
+    ref, still = contacts.body_ref, contacts.body_still
+    angle = state.body_angle
+    for i in range(ref.shape[0]):
+        dx, dy = s_body_x[i, 0] - ref[i, 0], s_body_x[i, 1] - ref[i, 1]
+        near = dx * dx + dy * dy < C.STILL_DISTANCE**2 and abs(angle[i] - ref[i, 2]) < C.STILL_ANGLE
+        still[i] = near
+        if not near:  # re-take the reference pose: this body's contacts are recomputed
+            ref[i, 0], ref[i, 1], ref[i, 2] = s_body_x[i, 0], s_body_x[i, 1], angle[i]
+    vw, nw = c_vert_world, c_norm_world
+    for s in range(m_shape_body.shape[0]):
+        i = m_shape_body[s]
+        c, sn = s_body_q[i, 0], s_body_q[i, 1]
+        x, y = s_body_x[i, 0], s_body_x[i, 1]
         reach = 0.0
-        for k in range(model.shape_vstart[s], model.shape_vstart[s] + model.shape_vcount[s]):
-            lx, ly = model.vertex_local[k, 0], model.vertex_local[k, 1]
+        for k in range(m_shape_vstart[s], m_shape_vstart[s] + m_shape_vcount[s]):
+            lx, ly = m_vertex_local[k, 0], m_vertex_local[k, 1]
             vw[k, 0] = x + c * lx - sn * ly
             vw[k, 1] = y + sn * lx + c * ly
-            nx, ny = model.normal_local[k, 0], model.normal_local[k, 1]
+            nx, ny = m_normal_local[k, 0], m_normal_local[k, 1]
             nw[k, 0] = c * nx - sn * ny
             nw[k, 1] = sn * nx + c * ny
             reach = max(reach, math.sqrt(lx * lx + ly * ly))
-        if model.body_type[i] == C.BODY_STATIC:
-            contacts.shape_margin[s] = 0.0
+        if m_body_type[i] == C.BODY_STATIC:
+            c_shape_margin[s] = 0.0
         else:
-            speed = math.sqrt(state.body_v[i, 0] ** 2 + state.body_v[i, 1] ** 2)
-            reach += model.shape_radius[s]
-            contacts.shape_margin[s] = dt * (speed + abs(state.body_w[i]) * reach)
+            speed = math.sqrt(s_body_v[i, 0] ** 2 + s_body_v[i, 1] ** 2)
+            reach += m_shape_radius[s]
+            c_shape_margin[s] = dt * (speed + abs(s_body_w[i]) * reach)
 
 
 @njit(cache=True, inline="always")
@@ -179,93 +230,184 @@ def mix(a, b, rule):
 
 
 @njit(cache=True)
-def update_manifolds(model, state, contacts, n_pairs, friction_rule, restitution_rule):
-    """Run the narrowphase on every pair and keep the manifolds with points.
+def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restitution_rule):
+    """Run the narrowphase on every pair whose tight boxes `box` (S,4) overlap, and keep
+    the manifolds with points.
 
     A point whose feature id matches one of last step's points in the same pair takes
     over that point's accumulated impulses (warm start). Returns the manifold count.
     """
-    n_shapes = model.shape_body.shape[0]
-    vw, nw = contacts.vert_world, contacts.norm_world
-    out_n, out_p = contacts.scratch_normal, contacts.scratch_point
-    out_s, out_f = contacts.scratch_separation, contacts.scratch_feature
-    n_prev = contacts.count[1]
+    c_anchor_a = contacts.anchor_a
+    c_anchor_b = contacts.anchor_b
+    c_base_separation = contacts.base_separation
+    c_body_a = contacts.body_a
+    c_body_b = contacts.body_b
+    c_count = contacts.count
+    c_feature = contacts.feature
+    c_friction = contacts.friction
+    c_key = contacts.key
+    c_max_normal_impulse = contacts.max_normal_impulse
+    c_norm_world = contacts.norm_world
+    c_normal = contacts.normal
+    c_normal_impulse = contacts.normal_impulse
+    c_pairs = contacts.pairs
+    c_points = contacts.points
+    c_prev_feature = contacts.prev_feature
+    c_prev_key = contacts.prev_key
+    c_prev_normal_impulse = contacts.prev_normal_impulse
+    c_prev_points = contacts.prev_points
+    c_prev_tangent_impulse = contacts.prev_tangent_impulse
+    c_restitution = contacts.restitution
+    c_scratch_feature = contacts.scratch_feature
+    c_scratch_normal = contacts.scratch_normal
+    c_scratch_point = contacts.scratch_point
+    c_scratch_separation = contacts.scratch_separation
+    c_shape_a = contacts.shape_a
+    c_shape_b = contacts.shape_b
+    c_shape_margin = contacts.shape_margin
+    c_tangent_impulse = contacts.tangent_impulse
+    c_vert_world = contacts.vert_world
+    m_shape_body = model.shape_body
+    m_shape_friction = model.shape_friction
+    m_shape_kind = model.shape_kind
+    m_shape_radius = model.shape_radius
+    m_shape_restitution = model.shape_restitution
+    m_shape_vcount = model.shape_vcount
+    m_shape_vstart = model.shape_vstart
+    s_body_x = state.body_x
+    c_ref_separation = contacts.ref_separation
+    c_prev_normal = contacts.prev_normal
+    c_prev_anchor_a, c_prev_anchor_b = contacts.prev_anchor_a, contacts.prev_anchor_b
+    c_prev_ref_separation = contacts.prev_ref_separation
+    ref, still = contacts.body_ref, contacts.body_still
+    n_shapes = m_shape_body.shape[0]
+    vw, nw = c_vert_world, c_norm_world
+    out_n, out_p = c_scratch_normal, c_scratch_point
+    out_s, out_f = c_scratch_separation, c_scratch_feature
+    n_prev = c_count[1]
     j = 0  # merge pointer into last step's manifolds (both sorted by key)
     m = 0
     for p in range(n_pairs):
-        a, b = contacts.pairs[p, 0], contacts.pairs[p, 1]
-        spec = C.SPECULATIVE_DISTANCE + contacts.shape_margin[a] + contacts.shape_margin[b]
-        npts = collide(
-            model.shape_kind[a],
-            model.shape_vstart[a],
-            model.shape_vcount[a],
-            model.shape_radius[a],
-            model.shape_kind[b],
-            model.shape_vstart[b],
-            model.shape_vcount[b],
-            model.shape_radius[b],
-            vw,
-            nw,
-            spec,
-            out_n,
-            out_p,
-            out_s,
-            out_f,
-        )
-        if npts == 0:
-            continue
-        ba, bb = model.shape_body[a], model.shape_body[b]
+        a, b = c_pairs[p, 0], c_pairs[p, 1]
+        if (
+            box[a, 0] > box[b, 2]
+            or box[b, 0] > box[a, 2]
+            or box[a, 1] > box[b, 3]
+            or box[b, 1] > box[a, 3]
+        ):
+            continue  # near in the fat boxes only: out of reach this step
+        ba, bb = m_shape_body[a], m_shape_body[b]
         key = np.int64(a) * n_shapes + b
-        contacts.shape_a[m], contacts.shape_b[m] = a, b
-        contacts.body_a[m], contacts.body_b[m] = ba, bb
-        contacts.key[m] = key
-        nx, ny = out_n[0], out_n[1]
-        contacts.normal[m, 0], contacts.normal[m, 1] = nx, ny
-        contacts.points[m] = npts
-        contacts.friction[m] = mix(model.shape_friction[a], model.shape_friction[b], friction_rule)
-        contacts.restitution[m] = mix(
-            model.shape_restitution[a], model.shape_restitution[b], restitution_rule
-        )
-        while j < n_prev and contacts.prev_key[j] < key:
+        while j < n_prev and c_prev_key[j] < key:
             j += 1
-        matched = j < n_prev and contacts.prev_key[j] == key
-        for k in range(npts):
-            rax = out_p[k, 0] - state.body_x[ba, 0]
-            ray = out_p[k, 1] - state.body_x[ba, 1]
-            rbx = out_p[k, 0] - state.body_x[bb, 0]
-            rby = out_p[k, 1] - state.body_x[bb, 1]
-            contacts.anchor_a[m, k, 0], contacts.anchor_a[m, k, 1] = rax, ray
-            contacts.anchor_b[m, k, 0], contacts.anchor_b[m, k, 1] = rbx, rby
-            # separation = base + n · ((x_a + r_a) - (x_b + r_b)) as the bodies move
-            contacts.base_separation[m, k] = out_s[k] - (nx * (rax - rbx) + ny * (ray - rby))
-            contacts.feature[m, k] = out_f[k]
-            jn, jt = 0.0, 0.0
-            if matched:
-                for kk in range(contacts.prev_points[j]):
-                    if contacts.prev_feature[j, kk] == out_f[k]:
-                        jn = contacts.prev_normal_impulse[j, kk]
-                        jt = contacts.prev_tangent_impulse[j, kk]
-            contacts.normal_impulse[m, k] = jn
-            contacts.tangent_impulse[m, k] = jt
-            contacts.max_normal_impulse[m, k] = 0.0
+        matched = j < n_prev and c_prev_key[j] == key
+        # motion of the two bodies since their reference poses
+        ddx = (s_body_x[ba, 0] - ref[ba, 0]) - (s_body_x[bb, 0] - ref[bb, 0])
+        ddy = (s_body_x[ba, 1] - ref[ba, 1]) - (s_body_x[bb, 1] - ref[bb, 1])
+        if matched and still[ba] and still[bb]:
+            # neither body has moved: carry last step's manifold forward
+            nx, ny = c_prev_normal[j, 0], c_prev_normal[j, 1]
+            npts = c_prev_points[j]
+            for k in range(npts):
+                rax, ray = c_prev_anchor_a[j, k, 0], c_prev_anchor_a[j, k, 1]
+                rbx, rby = c_prev_anchor_b[j, k, 0], c_prev_anchor_b[j, k, 1]
+                c_anchor_a[m, k, 0], c_anchor_a[m, k, 1] = rax, ray
+                c_anchor_b[m, k, 0], c_anchor_b[m, k, 1] = rbx, rby
+                ref_sep = c_prev_ref_separation[j, k]
+                c_ref_separation[m, k] = ref_sep
+                sep = ref_sep + nx * ddx + ny * ddy
+                c_base_separation[m, k] = sep - (nx * (rax - rbx) + ny * (ray - rby))
+                c_feature[m, k] = c_prev_feature[j, k]
+                c_normal_impulse[m, k] = c_prev_normal_impulse[j, k]
+                c_tangent_impulse[m, k] = c_prev_tangent_impulse[j, k]
+                c_max_normal_impulse[m, k] = 0.0
+        else:
+            spec = C.SPECULATIVE_DISTANCE + c_shape_margin[a] + c_shape_margin[b]
+            npts = collide(
+                m_shape_kind[a],
+                m_shape_vstart[a],
+                m_shape_vcount[a],
+                m_shape_radius[a],
+                m_shape_kind[b],
+                m_shape_vstart[b],
+                m_shape_vcount[b],
+                m_shape_radius[b],
+                vw,
+                nw,
+                spec,
+                out_n,
+                out_p,
+                out_s,
+                out_f,
+            )
+            if npts == 0:
+                continue
+            nx, ny = out_n[0], out_n[1]
+            for k in range(npts):
+                rax = out_p[k, 0] - s_body_x[ba, 0]
+                ray = out_p[k, 1] - s_body_x[ba, 1]
+                rbx = out_p[k, 0] - s_body_x[bb, 0]
+                rby = out_p[k, 1] - s_body_x[bb, 1]
+                c_anchor_a[m, k, 0], c_anchor_a[m, k, 1] = rax, ray
+                c_anchor_b[m, k, 0], c_anchor_b[m, k, 1] = rbx, rby
+                # separation = base + n · ((x_a + r_a) - (x_b + r_b)) as the bodies move
+                c_base_separation[m, k] = out_s[k] - (nx * (rax - rbx) + ny * (ray - rby))
+                c_ref_separation[m, k] = out_s[k] - (nx * ddx + ny * ddy)
+                c_feature[m, k] = out_f[k]
+                jn, jt = 0.0, 0.0
+                if matched:
+                    for kk in range(c_prev_points[j]):
+                        if c_prev_feature[j, kk] == out_f[k]:
+                            jn = c_prev_normal_impulse[j, kk]
+                            jt = c_prev_tangent_impulse[j, kk]
+                c_normal_impulse[m, k] = jn
+                c_tangent_impulse[m, k] = jt
+                c_max_normal_impulse[m, k] = 0.0
+        c_shape_a[m], c_shape_b[m] = a, b
+        c_body_a[m], c_body_b[m] = ba, bb
+        c_key[m] = key
+        c_normal[m, 0], c_normal[m, 1] = nx, ny
+        c_points[m] = npts
+        c_friction[m] = mix(m_shape_friction[a], m_shape_friction[b], friction_rule)
+        c_restitution[m] = mix(m_shape_restitution[a], m_shape_restitution[b], restitution_rule)
         m += 1
-    contacts.count[0] = m
+    c_count[0] = m
     return m
 
 
 @njit(cache=True)
 def store_impulses(contacts):
     """Keep this step's manifolds as next step's warm-start source; count touching points."""
-    m = contacts.count[0]
+    c_count = contacts.count
+    c_feature = contacts.feature
+    c_key = contacts.key
+    c_max_normal_impulse = contacts.max_normal_impulse
+    c_normal_impulse = contacts.normal_impulse
+    c_points = contacts.points
+    c_prev_feature = contacts.prev_feature
+    c_prev_key = contacts.prev_key
+    c_prev_normal_impulse = contacts.prev_normal_impulse
+    c_prev_points = contacts.prev_points
+    c_prev_tangent_impulse = contacts.prev_tangent_impulse
+    c_tangent_impulse = contacts.tangent_impulse
+    normal, prev_normal = contacts.normal, contacts.prev_normal
+    anchor_a, prev_anchor_a = contacts.anchor_a, contacts.prev_anchor_a
+    anchor_b, prev_anchor_b = contacts.anchor_b, contacts.prev_anchor_b
+    ref_sep, prev_ref_sep = contacts.ref_separation, contacts.prev_ref_separation
+    m = c_count[0]
     touching = 0
     for i in range(m):
-        contacts.prev_key[i] = contacts.key[i]
-        contacts.prev_points[i] = contacts.points[i]
-        for k in range(contacts.points[i]):
-            contacts.prev_feature[i, k] = contacts.feature[i, k]
-            contacts.prev_normal_impulse[i, k] = contacts.normal_impulse[i, k]
-            contacts.prev_tangent_impulse[i, k] = contacts.tangent_impulse[i, k]
-            if contacts.max_normal_impulse[i, k] > 0.0:
+        c_prev_key[i] = c_key[i]
+        c_prev_points[i] = c_points[i]
+        prev_normal[i, 0], prev_normal[i, 1] = normal[i, 0], normal[i, 1]
+        for k in range(c_points[i]):
+            prev_anchor_a[i, k, 0], prev_anchor_a[i, k, 1] = anchor_a[i, k, 0], anchor_a[i, k, 1]
+            prev_anchor_b[i, k, 0], prev_anchor_b[i, k, 1] = anchor_b[i, k, 0], anchor_b[i, k, 1]
+            prev_ref_sep[i, k] = ref_sep[i, k]
+            c_prev_feature[i, k] = c_feature[i, k]
+            c_prev_normal_impulse[i, k] = c_normal_impulse[i, k]
+            c_prev_tangent_impulse[i, k] = c_tangent_impulse[i, k]
+            if c_max_normal_impulse[i, k] > 0.0:
                 touching += 1
-    contacts.count[1] = m
-    contacts.count[3] = touching
+    c_count[1] = m
+    c_count[3] = touching

@@ -26,23 +26,36 @@ def integrate_velocities(model, state, h):
     h: step length in s. F is the constant world-frame force, applied at its arm
     (body frame, from the COM), so it adds the torque r × F with r = R(q) arm.
     """
-    gx, gy = model.gravity[0], model.gravity[1]
-    lin = 1.0 / (1.0 + h * model.linear_damping)
-    ang = 1.0 / (1.0 + h * model.angular_damping)
-    v, w = state.body_v, state.body_w
+    m_angular_damping = model.angular_damping
+    m_body_force = model.body_force
+    m_body_force_arm = model.body_force_arm
+    m_body_inv_inertia = model.body_inv_inertia
+    m_body_inv_mass = model.body_inv_mass
+    m_body_torque = model.body_torque
+    m_body_type = model.body_type
+    m_gravity = model.gravity
+    m_has_forces = model.has_forces
+    m_linear_damping = model.linear_damping
+    s_body_q = state.body_q
+    s_body_v = state.body_v
+    s_body_w = state.body_w
+    gx, gy = m_gravity[0], m_gravity[1]
+    lin = 1.0 / (1.0 + h * m_linear_damping)
+    ang = 1.0 / (1.0 + h * m_angular_damping)
+    v, w = s_body_v, s_body_w
     for i in range(v.shape[0]):
-        if model.body_type[i] != C.BODY_DYNAMIC:
+        if m_body_type[i] != C.BODY_DYNAMIC:
             continue
         ax, ay, alpha = gx, gy, 0.0
-        if model.has_forces:
-            fx, fy = model.body_force[i, 0], model.body_force[i, 1]
-            c, s = state.body_q[i, 0], state.body_q[i, 1]
-            rx = c * model.body_force_arm[i, 0] - s * model.body_force_arm[i, 1]
-            ry = s * model.body_force_arm[i, 0] + c * model.body_force_arm[i, 1]
-            im = model.body_inv_mass[i]
+        if m_has_forces:
+            fx, fy = m_body_force[i, 0], m_body_force[i, 1]
+            c, s = s_body_q[i, 0], s_body_q[i, 1]
+            rx = c * m_body_force_arm[i, 0] - s * m_body_force_arm[i, 1]
+            ry = s * m_body_force_arm[i, 0] + c * m_body_force_arm[i, 1]
+            im = m_body_inv_mass[i]
             ax += im * fx
             ay += im * fy
-            alpha = model.body_inv_inertia[i] * (model.body_torque[i] + rx * fy - ry * fx)
+            alpha = m_body_inv_inertia[i] * (m_body_torque[i] + rx * fy - ry * fx)
         v[i, 0] = (v[i, 0] + h * ax) * lin
         v[i, 1] = (v[i, 1] + h * ay) * lin
         w[i] = (w[i] + h * alpha) * ang
@@ -55,9 +68,15 @@ def integrate_positions(model, state, delta, h, exact):
     delta (N,4): per-body displacement (dx, dy) and rotation (cos, sin) accumulated
     since the start of the step, which the contact solver uses to track separations.
     """
-    x, q, angle, v, w = state.body_x, state.body_q, state.body_angle, state.body_v, state.body_w
+    m_body_type = model.body_type
+    s_body_angle = state.body_angle
+    s_body_q = state.body_q
+    s_body_v = state.body_v
+    s_body_w = state.body_w
+    s_body_x = state.body_x
+    x, q, angle, v, w = s_body_x, s_body_q, s_body_angle, s_body_v, s_body_w
     for i in range(x.shape[0]):
-        if model.body_type[i] == C.BODY_STATIC:
+        if m_body_type[i] == C.BODY_STATIC:
             continue
         dx, dy = h * v[i, 0], h * v[i, 1]
         x[i, 0] += dx

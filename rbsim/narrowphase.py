@@ -56,7 +56,7 @@ _ID_SHIFT = 1 << 16
 _ID_VERTEX_VERTEX = 3
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _single_point(
     ax, ay, radius_a, bx, by, radius_b, nx, ny,
     fid, speculative, out_normal, out_point, out_sep, out_id,
@@ -75,13 +75,13 @@ def _single_point(
     return 1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _flip_normal(out_normal):
     out_normal[0] = -out_normal[0]
     out_normal[1] = -out_normal[1]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def collide_circle_circle(
     start_a: int, count_a: int, radius_a: float, start_b: int, count_b: int, radius_b: float,
     verts: np.ndarray, norms: np.ndarray, speculative: float,
@@ -104,7 +104,7 @@ def collide_circle_circle(
     )  # fmt: skip
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def collide_circle_polygon(
     start_a: int, count_a: int, radius_a: float, start_b: int, count_b: int, radius_b: float,
     verts: np.ndarray, norms: np.ndarray, speculative: float,
@@ -155,7 +155,7 @@ def collide_circle_polygon(
     )  # fmt: skip
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def collide_circle_segment(
     start_a: int, count_a: int, radius_a: float, start_b: int, count_b: int, radius_b: float,
     verts: np.ndarray, norms: np.ndarray, speculative: float,
@@ -184,7 +184,7 @@ def collide_circle_segment(
     )  # fmt: skip
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _max_separation(start1, count1, start2, count2, verts, norms):
     """The edge of core 1 whose normal separates core 2 most: (separation m, local edge)."""
     best = -np.inf
@@ -204,7 +204,7 @@ def _max_separation(start1, count1, start2, count2, verts, norms):
     return best, best_edge
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _segment_closest_fractions(p1x, p1y, q1x, q1y, p2x, p2y, q2x, q2y):
     """Fractions (s, t) of the closest points p1 + s (q1 - p1) and p2 + t (q2 - p2).
 
@@ -240,7 +240,7 @@ def _segment_closest_fractions(p1x, p1y, q1x, q1y, p2x, p2y, q2x, q2y):
     return s, t
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _clip_incident_edge(
     ref_is_b, ref_start, ref_count, ref_edge, ref_radius, inc_start, inc_count, inc_edge,
     inc_radius, verts, norms, speculative, out_normal, out_point, out_sep, out_id,
@@ -307,7 +307,7 @@ def _clip_incident_edge(
     return n_points
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _collide_cores(
     start_a, count_a, radius_a, start_b, count_b, radius_b,
     verts, norms, speculative, out_normal, out_point, out_sep, out_id,
@@ -421,7 +421,7 @@ def collide_segment_segment(
     )  # fmt: skip
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def collide(
     kind_a: int,
     start_a: int,
@@ -447,60 +447,38 @@ def collide(
     out_normal (2,) b -> a, out_point (2,2) m, out_sep (2,) m, out_id (2,) int64; only
     the first `count` rows are written. Unknown kinds give 0 points.
     """
-    if kind_a == SHAPE_CIRCLE:
-        if kind_b == SHAPE_CIRCLE:
-            return collide_circle_circle(
-                start_a, count_a, radius_a, start_b, count_b, radius_b,
-                verts, norms, speculative, out_normal, out_point, out_sep, out_id,
-            )  # fmt: skip
-        if kind_b == SHAPE_POLYGON:
-            return collide_circle_polygon(
-                start_a, count_a, radius_a, start_b, count_b, radius_b,
-                verts, norms, speculative, out_normal, out_point, out_sep, out_id,
-            )  # fmt: skip
-        if kind_b == SHAPE_SEGMENT:
-            return collide_circle_segment(
-                start_a, count_a, radius_a, start_b, count_b, radius_b,
-                verts, norms, speculative, out_normal, out_point, out_sep, out_id,
-            )  # fmt: skip
+    if kind_a != SHAPE_CIRCLE and kind_b != SHAPE_CIRCLE:
+        # polygons and segments alike: one core routine, so one call site to inline
+        if kind_a > SHAPE_SEGMENT or kind_b > SHAPE_SEGMENT:
+            return 0
+        return _collide_cores(
+            start_a, count_a, radius_a, start_b, count_b, radius_b,
+            verts, norms, speculative, out_normal, out_point, out_sep, out_id,
+        )  # fmt: skip
+    # at least one circle: put it first as shape a, flipping the normal back if swapped
+    swap = kind_a != SHAPE_CIRCLE
+    if swap:
+        kind_a, kind_b = kind_b, kind_a
+        start_a, start_b = start_b, start_a
+        count_a, count_b = count_b, count_a
+        radius_a, radius_b = radius_b, radius_a
+    if kind_b == SHAPE_CIRCLE:
+        n = collide_circle_circle(
+            start_a, count_a, radius_a, start_b, count_b, radius_b,
+            verts, norms, speculative, out_normal, out_point, out_sep, out_id,
+        )  # fmt: skip
+    elif kind_b == SHAPE_POLYGON:
+        n = collide_circle_polygon(
+            start_a, count_a, radius_a, start_b, count_b, radius_b,
+            verts, norms, speculative, out_normal, out_point, out_sep, out_id,
+        )  # fmt: skip
+    elif kind_b == SHAPE_SEGMENT:
+        n = collide_circle_segment(
+            start_a, count_a, radius_a, start_b, count_b, radius_b,
+            verts, norms, speculative, out_normal, out_point, out_sep, out_id,
+        )  # fmt: skip
+    else:
         return 0
-    if kind_a == SHAPE_POLYGON:
-        if kind_b == SHAPE_CIRCLE:
-            n = collide_circle_polygon(
-                start_b, count_b, radius_b, start_a, count_a, radius_a,
-                verts, norms, speculative, out_normal, out_point, out_sep, out_id,
-            )  # fmt: skip
-            _flip_normal(out_normal)
-            return n
-        if kind_b == SHAPE_POLYGON:
-            return collide_polygon_polygon(
-                start_a, count_a, radius_a, start_b, count_b, radius_b,
-                verts, norms, speculative, out_normal, out_point, out_sep, out_id,
-            )  # fmt: skip
-        if kind_b == SHAPE_SEGMENT:
-            return collide_polygon_segment(
-                start_a, count_a, radius_a, start_b, count_b, radius_b,
-                verts, norms, speculative, out_normal, out_point, out_sep, out_id,
-            )  # fmt: skip
-        return 0
-    if kind_a == SHAPE_SEGMENT:
-        if kind_b == SHAPE_CIRCLE:
-            n = collide_circle_segment(
-                start_b, count_b, radius_b, start_a, count_a, radius_a,
-                verts, norms, speculative, out_normal, out_point, out_sep, out_id,
-            )  # fmt: skip
-            _flip_normal(out_normal)
-            return n
-        if kind_b == SHAPE_POLYGON:
-            n = collide_polygon_segment(
-                start_b, count_b, radius_b, start_a, count_a, radius_a,
-                verts, norms, speculative, out_normal, out_point, out_sep, out_id,
-            )  # fmt: skip
-            _flip_normal(out_normal)
-            return n
-        if kind_b == SHAPE_SEGMENT:
-            return collide_segment_segment(
-                start_a, count_a, radius_a, start_b, count_b, radius_b,
-                verts, norms, speculative, out_normal, out_point, out_sep, out_id,
-            )  # fmt: skip
-    return 0
+    if swap:
+        _flip_normal(out_normal)
+    return n

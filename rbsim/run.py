@@ -2,14 +2,18 @@
 
 An interruption (KeyboardInterrupt, which the CLI also raises on SIGTERM) closes the
 file with every frame so far and status "interrupted"; a non-finite state closes it
-with status "failed" and names the body and step.
+with status "failed", keeps the (finite) frames before it and names the body and step.
+Frames are written with SIGINT and SIGTERM held back, so an interruption lands between
+two frames, never inside one.
 """
 
 from __future__ import annotations
 
 import json
+import signal
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -26,8 +30,42 @@ from .world import NonFiniteState, World
 MAX_CHUNK = 256
 
 
+def _frames(n: int) -> str:
+    return f"{n} frame" if n == 1 else f"{n} frames"
+
+
 class RunFailed(RuntimeError):
     """The state turned non-finite; the message names the body and the step."""
+
+
+class RunInterrupted(KeyboardInterrupt):
+    """Ctrl-C (or SIGTERM, through the CLI) during a run. The trajectory at `path` is
+    closed with status "interrupted" and holds `frames` frames, the last at `step`."""
+
+    def __init__(self, path: str, frames: int, step: int) -> None:
+        super().__init__(f"interrupted: {_frames(frames)} kept in {path}, the last at step {step}")
+        self.path = path
+        self.frames = frames
+        self.step = step
+
+
+# Held back while a frame or the final status is written (POSIX only).
+_DEFERRED_SIGNALS = {signal.SIGINT, signal.SIGTERM}
+
+
+@contextmanager
+def signals_deferred() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM back inside the block; one that arrived meanwhile is
+    handled (KeyboardInterrupt raised) as the block ends. A no-op where the platform
+    has no pthread_sigmask."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, _DEFERRED_SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 @dataclass
@@ -45,8 +83,9 @@ class RunSummary:
     def line(self) -> str:
         """The one-line summary `rbsim run` prints."""
         rate = self.steps / self.wall_time if self.wall_time > 0 else float("inf")
+        bodies = "1 body" if self.bodies == 1 else f"{self.bodies} bodies"
         return (
-            f"{self.steps} steps, {self.bodies} bodies, {self.frames} frames in "
+            f"{self.steps} steps, {bodies}, {_frames(self.frames)} in "
             f"{self.wall_time:.2f} s ({rate:,.0f} steps/s) -> {self.path}"
         )
 
@@ -91,8 +130,11 @@ def parameters(scene: Scene, engine: str, settings: dict | None = None) -> dict[
 
 
 def write_frame(writer: TrajectoryWriter, world: World) -> None:
-    """Append the world's current state as one frame."""
+    """Append the world's current state as one frame. Observables that overflow (a
+    state racing towards infinity) are stored as inf without a numpy warning."""
     model, state = world.model, world.state
+    with np.errstate(over="ignore", invalid="ignore"):
+        obs = observables(model, state, world.contact_count)
     writer.append(
         world.step_index,
         world.time,
@@ -101,7 +143,7 @@ def write_frame(writer: TrajectoryWriter, world: World) -> None:
         state.body_angle,
         state.body_v,
         state.body_w,
-        observables(model, state, world.contact_count),
+        obs,
     )
 
 
@@ -113,20 +155,27 @@ def run_scene(
     """Step `scene` for world.steps steps, writing frames to `out` (HDF5, H5MD layout).
 
     Step 0 and every output.every-th step are written, and the last step always.
-    progress(step, total) is called after each chunk of steps. Raises RunFailed on a
-    non-finite state and re-raises KeyboardInterrupt; the file is valid either way.
+    progress(step, total) is called after each chunk of steps. The file is closed and
+    valid however the run ends: on a non-finite state it keeps the frames before that
+    step, with status "failed: ...", and RunFailed is raised; on KeyboardInterrupt it
+    keeps every frame so far, with status "interrupted", and RunInterrupted (a
+    KeyboardInterrupt) is raised. A KeyboardInterrupt before the file is created (while
+    the model is built) propagates as it is.
     """
     t0 = time.perf_counter()
     world = World.from_scene(scene)
     total = scene.world.steps
     every = scene.output.every
     step_time = 0.0
-    writer = TrajectoryWriter(
-        out, bodies=body_table(scene, world.model), parameters=parameters(scene, "rbsim")
-    )
-    status = "interrupted"
+    with signals_deferred():
+        writer = TrajectoryWriter(
+            out, bodies=body_table(scene, world.model), parameters=parameters(scene, "rbsim")
+        )
+    status = "failed"  # made precise below
+    last_step = 0
     try:
-        write_frame(writer, world)
+        with signals_deferred():
+            write_frame(writer, world)
         while world.step_index < total:
             to_frame = every - world.step_index % every
             n = min(to_frame, total - world.step_index, MAX_CHUNK)
@@ -136,20 +185,29 @@ def run_scene(
             except NonFiniteState as err:
                 name = scene.bodies[err.body].name
                 status = f"failed: body {name!r} became non-finite at step {err.step}"
-                write_frame(writer, world)
                 raise RunFailed(
                     f"{scene.path}: the state of body {name!r} became non-finite at step "
                     f"{err.step} (t = {err.step * scene.world.dt:g} s); "
-                    f"{writer.frames_written} frames kept in {out}"
+                    f"{_frames(writer.frames_written)} before it kept in {out}"
                 ) from None
             step_time += time.perf_counter() - ts
             if world.step_index % every == 0 or world.step_index == total:
-                write_frame(writer, world)
+                with signals_deferred():
+                    write_frame(writer, world)
+                    last_step = world.step_index
             if progress is not None:
                 progress(world.step_index, total)
         status = "complete"
+    except KeyboardInterrupt:
+        status = "interrupted"
+        raise RunInterrupted(str(out), writer.frames_written, last_step) from None
+    except Exception as err:
+        if status == "failed":  # not the non-finite state: an error writing, or a bug
+            status = f"failed: {type(err).__name__}: {err}"
+        raise
     finally:
-        writer.close(status=status, wall_time=time.perf_counter() - t0)
+        with signals_deferred():
+            writer.close(status=status, wall_time=time.perf_counter() - t0)
     return RunSummary(
         steps=world.step_index,
         bodies=len(scene.bodies),

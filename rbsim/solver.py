@@ -51,31 +51,48 @@ def prepare_contacts(model, state, contacts, soft, soft_static):
     soft, soft_static: (mass scale, impulse scale, bias rate) for contacts between two
     dynamic bodies and for contacts with a static or kinematic body (stiffer).
     """
-    im, ii = model.body_inv_mass, model.body_inv_inertia
-    v, w = state.body_v, state.body_w
-    for m in range(contacts.count[0]):
-        a, b = contacts.body_a[m], contacts.body_b[m]
+    c_anchor_a = contacts.anchor_a
+    c_anchor_b = contacts.anchor_b
+    c_approach_separation = contacts.approach_separation
+    c_approach_velocity = contacts.approach_velocity
+    c_base_separation = contacts.base_separation
+    c_body_a = contacts.body_a
+    c_body_b = contacts.body_b
+    c_count = contacts.count
+    c_normal = contacts.normal
+    c_normal_mass = contacts.normal_mass
+    c_points = contacts.points
+    c_softness = contacts.softness
+    c_tangent_mass = contacts.tangent_mass
+    m_body_inv_inertia = model.body_inv_inertia
+    m_body_inv_mass = model.body_inv_mass
+    s_body_v = state.body_v
+    s_body_w = state.body_w
+    im, ii = m_body_inv_mass, m_body_inv_inertia
+    v, w = s_body_v, s_body_w
+    for m in range(c_count[0]):
+        a, b = c_body_a[m], c_body_b[m]
         ma, mb, ia, ib = im[a], im[b], ii[a], ii[b]
-        nx, ny = contacts.normal[m, 0], contacts.normal[m, 1]
+        nx, ny = c_normal[m, 0], c_normal[m, 1]
         tx, ty = ny, -nx
         sft = soft_static if (ma == 0.0 or mb == 0.0) else soft
-        contacts.softness[m, 0], contacts.softness[m, 1] = sft[0], sft[1]
-        contacts.softness[m, 2] = sft[2]
-        for k in range(contacts.points[m]):
-            rax, ray = contacts.anchor_a[m, k, 0], contacts.anchor_a[m, k, 1]
-            rbx, rby = contacts.anchor_b[m, k, 0], contacts.anchor_b[m, k, 1]
+        c_softness[m, 0], c_softness[m, 1] = sft[0], sft[1]
+        c_softness[m, 2] = sft[2]
+        for k in range(c_points[m]):
+            rax, ray = c_anchor_a[m, k, 0], c_anchor_a[m, k, 1]
+            rbx, rby = c_anchor_b[m, k, 0], c_anchor_b[m, k, 1]
             rna = rax * ny - ray * nx
             rnb = rbx * ny - rby * nx
             kn = ma + mb + ia * rna * rna + ib * rnb * rnb
-            contacts.normal_mass[m, k] = 1.0 / kn if kn > 0.0 else 0.0
+            c_normal_mass[m, k] = 1.0 / kn if kn > 0.0 else 0.0
             rta = rax * ty - ray * tx
             rtb = rbx * ty - rby * tx
             kt = ma + mb + ia * rta * rta + ib * rtb * rtb
-            contacts.tangent_mass[m, k] = 1.0 / kt if kt > 0.0 else 0.0
+            c_tangent_mass[m, k] = 1.0 / kt if kt > 0.0 else 0.0
             dvx = v[a, 0] - w[a] * ray - v[b, 0] + w[b] * rby
             dvy = v[a, 1] + w[a] * rax - v[b, 1] - w[b] * rbx
-            contacts.approach_velocity[m, k] = dvx * nx + dvy * ny
-            contacts.approach_separation[m, k] = contacts.base_separation[m, k] + (
+            c_approach_velocity[m, k] = dvx * nx + dvy * ny
+            c_approach_separation[m, k] = c_base_separation[m, k] + (
                 nx * (rax - rbx) + ny * (ray - rby)
             )
 
@@ -83,17 +100,30 @@ def prepare_contacts(model, state, contacts, soft, soft_static):
 @njit(cache=True)
 def warm_start(model, state, contacts):
     """Apply last substep's accumulated impulses again (they are impulses per substep)."""
-    im, ii = model.body_inv_mass, model.body_inv_inertia
-    v, w = state.body_v, state.body_w
-    for m in range(contacts.count[0]):
-        a, b = contacts.body_a[m], contacts.body_b[m]
-        nx, ny = contacts.normal[m, 0], contacts.normal[m, 1]
+    c_anchor_a = contacts.anchor_a
+    c_anchor_b = contacts.anchor_b
+    c_body_a = contacts.body_a
+    c_body_b = contacts.body_b
+    c_count = contacts.count
+    c_normal = contacts.normal
+    c_normal_impulse = contacts.normal_impulse
+    c_points = contacts.points
+    c_tangent_impulse = contacts.tangent_impulse
+    m_body_inv_inertia = model.body_inv_inertia
+    m_body_inv_mass = model.body_inv_mass
+    s_body_v = state.body_v
+    s_body_w = state.body_w
+    im, ii = m_body_inv_mass, m_body_inv_inertia
+    v, w = s_body_v, s_body_w
+    for m in range(c_count[0]):
+        a, b = c_body_a[m], c_body_b[m]
+        nx, ny = c_normal[m, 0], c_normal[m, 1]
         tx, ty = ny, -nx
-        for k in range(contacts.points[m]):
-            jn, jt = contacts.normal_impulse[m, k], contacts.tangent_impulse[m, k]
+        for k in range(c_points[m]):
+            jn, jt = c_normal_impulse[m, k], c_tangent_impulse[m, k]
             px, py = jn * nx + jt * tx, jn * ny + jt * ty
-            rax, ray = contacts.anchor_a[m, k, 0], contacts.anchor_a[m, k, 1]
-            rbx, rby = contacts.anchor_b[m, k, 0], contacts.anchor_b[m, k, 1]
+            rax, ray = c_anchor_a[m, k, 0], c_anchor_a[m, k, 1]
+            rbx, rby = c_anchor_b[m, k, 0], c_anchor_b[m, k, 1]
             v[a, 0] += im[a] * px
             v[a, 1] += im[a] * py
             w[a] += ii[a] * (rax * py - ray * px)
@@ -109,35 +139,57 @@ def solve_contacts(model, state, contacts, inv_h, use_bias):
     inv_h: 1 / substep length (1/s). use_bias: True in the solve stage (soft position
     correction), False in the relax stage (rigid, no push-out).
     """
-    im, ii = model.body_inv_mass, model.body_inv_inertia
-    v, w = state.body_v, state.body_w
-    delta = contacts.body_delta
+    c_anchor_a = contacts.anchor_a
+    c_anchor_b = contacts.anchor_b
+    c_approach_separation = contacts.approach_separation
+    c_approach_velocity = contacts.approach_velocity
+    c_base_separation = contacts.base_separation
+    c_body_a = contacts.body_a
+    c_body_b = contacts.body_b
+    c_body_delta = contacts.body_delta
+    c_count = contacts.count
+    c_friction = contacts.friction
+    c_max_normal_impulse = contacts.max_normal_impulse
+    c_normal = contacts.normal
+    c_normal_impulse = contacts.normal_impulse
+    c_normal_mass = contacts.normal_mass
+    c_points = contacts.points
+    c_softness = contacts.softness
+    c_tangent_impulse = contacts.tangent_impulse
+    c_tangent_mass = contacts.tangent_mass
+    m_body_inv_inertia = model.body_inv_inertia
+    m_body_inv_mass = model.body_inv_mass
+    s_body_v = state.body_v
+    s_body_w = state.body_w
+    im, ii = m_body_inv_mass, m_body_inv_inertia
+    v, w = s_body_v, s_body_w
+    delta = c_body_delta
     max_push = -C.CONTACT_PUSH_MAX_VELOCITY
-    for m in range(contacts.count[0]):
-        a, b = contacts.body_a[m], contacts.body_b[m]
+    for m in range(c_count[0]):
+        a, b = c_body_a[m], c_body_b[m]
         ma, mb, ia, ib = im[a], im[b], ii[a], ii[b]
         vax, vay, wa = v[a, 0], v[a, 1], w[a]
         vbx, vby, wb = v[b, 0], v[b, 1], w[b]
-        nx, ny = contacts.normal[m, 0], contacts.normal[m, 1]
+        nx, ny = c_normal[m, 0], c_normal[m, 1]
         tx, ty = ny, -nx
         # body motion since the start of the step, for the current separation
         dax, day, ca, sa = delta[a, 0], delta[a, 1], delta[a, 2], delta[a, 3]
         dbx, dby, cb, sb = delta[b, 0], delta[b, 1], delta[b, 2], delta[b, 3]
         mass_scale0, impulse_scale0, bias_rate = (
-            contacts.softness[m, 0],
-            contacts.softness[m, 1],
-            contacts.softness[m, 2],
+            c_softness[m, 0],
+            c_softness[m, 1],
+            c_softness[m, 2],
         )
-        npts = contacts.points[m]
+        npts = c_points[m]
         for k in range(npts):
-            rax, ray = contacts.anchor_a[m, k, 0], contacts.anchor_a[m, k, 1]
-            rbx, rby = contacts.anchor_b[m, k, 0], contacts.anchor_b[m, k, 1]
+            rax, ray = c_anchor_a[m, k, 0], c_anchor_a[m, k, 1]
+            rbx, rby = c_anchor_b[m, k, 0], c_anchor_b[m, k, 1]
             # anchors turned with their bodies: the current separation
             pax, pay = ca * rax - sa * ray, sa * rax + ca * ray
             pbx, pby = cb * rbx - sb * rby, sb * rbx + cb * rby
             dx = dax - dbx + pax - pbx
             dy = day - dby + pay - pby
-            s = dx * nx + dy * ny + contacts.base_separation[m, k]
+            s = dx * nx + dy * ny + c_base_separation[m, k]
             bias, mass_scale, impulse_scale = 0.0, 1.0, 0.0
             if s > 0.0:
                 if not use_bias:
@@ -152,19 +204,19 @@ def solve_contacts(model, state, contacts, inv_h, use_bias):
             dvx = vax - wa * ray - vbx + wb * rby
             dvy = vay + wa * rax - vby - wb * rbx
             vn = dvx * nx + dvy * ny
-            lam = contacts.normal_impulse[m, k]
-            impulse = -contacts.normal_mass[m, k] * mass_scale * (vn + bias)
+            lam = c_normal_impulse[m, k]
+            impulse = -c_normal_mass[m, k] * mass_scale * (vn + bias)
             impulse -= impulse_scale * lam
-            if use_bias and impulse > 0.0 and vn < contacts.approach_velocity[m, k]:
+            if use_bias and impulse > 0.0 and vn < c_approach_velocity[m, k]:
                 # the point engages in this substep: its approach speed at impact,
                 # which gravity may have raised since the start of the step
-                contacts.approach_velocity[m, k] = vn
-                contacts.approach_separation[m, k] = s
+                c_approach_velocity[m, k] = vn
+                c_approach_separation[m, k] = s
             new = max(lam + impulse, 0.0)  # clamp the accumulated impulse
             impulse = new - lam
-            contacts.normal_impulse[m, k] = new
-            if impulse > contacts.max_normal_impulse[m, k]:
-                contacts.max_normal_impulse[m, k] = impulse
+            c_normal_impulse[m, k] = new
+            if impulse > c_max_normal_impulse[m, k]:
+                c_max_normal_impulse[m, k] = impulse
             px, py = impulse * nx, impulse * ny
             vax += ma * px
             vay += ma * py
@@ -172,19 +224,21 @@ def solve_contacts(model, state, contacts, inv_h, use_bias):
             vbx -= mb * px
             vby -= mb * py
             wb -= ib * (rbx * py - rby * px)
-        mu = contacts.friction[m]
+        mu = c_friction[m]
         if mu > 0.0:
             for k in range(npts):
-                rax, ray = contacts.anchor_a[m, k, 0], contacts.anchor_a[m, k, 1]
-                rbx, rby = contacts.anchor_b[m, k, 0], contacts.anchor_b[m, k, 1]
+                rax, ray = c_anchor_a[m, k, 0], c_anchor_a[m, k, 1]
+                rbx, rby = c_anchor_b[m, k, 0], c_anchor_b[m, k, 1]
                 dvx = vax - wa * ray - vbx + wb * rby
                 dvy = vay + wa * rax - vby - wb * rbx
                 vt = dvx * tx + dvy * ty
-                lam = contacts.tangent_impulse[m, k]
-                limit = mu * contacts.normal_impulse[m, k]
-                new = min(max(lam - contacts.tangent_mass[m, k] * vt, -limit), limit)
+                lam = c_tangent_impulse[m, k]
+                limit = mu * c_normal_impulse[m, k]
+                if limit == 0.0 and lam == 0.0:
+                    continue  # no normal force, no friction: nothing to do
+                new = min(max(lam - c_tangent_mass[m, k] * vt, -limit), limit)
                 impulse = new - lam
-                contacts.tangent_impulse[m, k] = new
+                c_tangent_impulse[m, k] = new
                 px, py = impulse * tx, impulse * ty
                 vax += ma * px
                 vay += ma * py
@@ -210,37 +264,59 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
     engaged (approach velocity and separation recorded by the solve stage). For
     e = 1 a ball then keeps its apex bounce after bounce, to round-off.
     """
-    im, ii = model.body_inv_mass, model.body_inv_inertia
-    v, w = state.body_v, state.body_w
-    delta = contacts.body_delta
-    gx, gy = model.gravity[0], model.gravity[1]
-    for m in range(contacts.count[0]):
-        e = contacts.restitution[m]
+    c_anchor_a = contacts.anchor_a
+    c_anchor_b = contacts.anchor_b
+    c_approach_separation = contacts.approach_separation
+    c_approach_velocity = contacts.approach_velocity
+    c_base_separation = contacts.base_separation
+    c_body_a = contacts.body_a
+    c_body_b = contacts.body_b
+    c_body_delta = contacts.body_delta
+    c_count = contacts.count
+    c_max_normal_impulse = contacts.max_normal_impulse
+    c_normal = contacts.normal
+    c_normal_impulse = contacts.normal_impulse
+    c_normal_mass = contacts.normal_mass
+    c_points = contacts.points
+    c_restitution = contacts.restitution
+    m_body_force = model.body_force
+    m_body_inv_inertia = model.body_inv_inertia
+    m_body_inv_mass = model.body_inv_mass
+    m_body_type = model.body_type
+    m_gravity = model.gravity
+    s_body_v = state.body_v
+    s_body_w = state.body_w
+    im, ii = m_body_inv_mass, m_body_inv_inertia
+    v, w = s_body_v, s_body_w
+    delta = c_body_delta
+    gx, gy = m_gravity[0], m_gravity[1]
+    for m in range(c_count[0]):
+        e = c_restitution[m]
         if e == 0.0:
             continue
-        a, b = contacts.body_a[m], contacts.body_b[m]
-        nx, ny = contacts.normal[m, 0], contacts.normal[m, 1]
+        a, b = c_body_a[m], c_body_b[m]
+        nx, ny = c_normal[m, 0], c_normal[m, 1]
         # relative normal acceleration of the two bodies from gravity and forces
         acc = 0.0
-        if model.body_type[a] == C.BODY_DYNAMIC:
-            acc += (gx + im[a] * model.body_force[a, 0]) * nx
-            acc += (gy + im[a] * model.body_force[a, 1]) * ny
-        if model.body_type[b] == C.BODY_DYNAMIC:
-            acc -= (gx + im[b] * model.body_force[b, 0]) * nx
-            acc -= (gy + im[b] * model.body_force[b, 1]) * ny
+        if m_body_type[a] == C.BODY_DYNAMIC:
+            acc += (gx + im[a] * m_body_force[a, 0]) * nx
+            acc += (gy + im[a] * m_body_force[a, 1]) * ny
+        if m_body_type[b] == C.BODY_DYNAMIC:
+            acc -= (gx + im[b] * m_body_force[b, 0]) * nx
+            acc -= (gy + im[b] * m_body_force[b, 1]) * ny
         dax, day, ca, sa = delta[a, 0], delta[a, 1], delta[a, 2], delta[a, 3]
         dbx, dby, cb, sb = delta[b, 0], delta[b, 1], delta[b, 2], delta[b, 3]
-        for k in range(contacts.points[m]):
-            vn0 = contacts.approach_velocity[m, k]
-            if vn0 > -threshold or contacts.max_normal_impulse[m, k] == 0.0:
+        for k in range(c_points[m]):
+            vn0 = c_approach_velocity[m, k]
+            if vn0 > -threshold or c_max_normal_impulse[m, k] == 0.0:
                 continue
-            rax, ray = contacts.anchor_a[m, k, 0], contacts.anchor_a[m, k, 1]
-            rbx, rby = contacts.anchor_b[m, k, 0], contacts.anchor_b[m, k, 1]
+            rax, ray = c_anchor_a[m, k, 0], c_anchor_a[m, k, 1]
+            rbx, rby = c_anchor_b[m, k, 0], c_anchor_b[m, k, 1]
             pax, pay = ca * rax - sa * ray, sa * rax + ca * ray
             pbx, pby = cb * rbx - sb * rby, sb * rbx + cb * rby
             s_now = (dax - dbx + pax - pbx) * nx + (day - dby + pay - pby) * ny
-            s_now += contacts.base_separation[m, k]
-            s0 = contacts.approach_separation[m, k]
+            s_now += c_base_separation[m, k]
+            s0 = c_approach_separation[m, k]
             invariant = 0.5 * vn0 * vn0 - 0.5 * acc * h * vn0 - acc * s0
             rhs = e * e * invariant + acc * s_now
             ah = sign * acc * h
@@ -248,13 +324,13 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
             dvx = v[a, 0] - w[a] * ray - v[b, 0] + w[b] * rby
             dvy = v[a, 1] + w[a] * rax - v[b, 1] - w[b] * rbx
             vn = dvx * nx + dvy * ny
-            lam = contacts.normal_impulse[m, k]
-            impulse = -contacts.normal_mass[m, k] * (vn - target)
+            lam = c_normal_impulse[m, k]
+            impulse = -c_normal_mass[m, k] * (vn - target)
             new = max(lam + impulse, 0.0)
             impulse = new - lam
-            contacts.normal_impulse[m, k] = new
-            if impulse > contacts.max_normal_impulse[m, k]:
-                contacts.max_normal_impulse[m, k] = impulse
+            c_normal_impulse[m, k] = new
+            if impulse > c_max_normal_impulse[m, k]:
+                c_max_normal_impulse[m, k] = impulse
             px, py = impulse * nx, impulse * ny
             v[a, 0] += im[a] * px
             v[a, 1] += im[a] * py

@@ -19,7 +19,7 @@ import numpy as np
 from numba import njit
 
 from . import constants as C
-from .broadphase import Grid, find_pairs, make_grid
+from .broadphase import Grid, find_pairs, grow_grid, make_grid
 from .contacts import (
     MIXING,
     Contacts,
@@ -88,11 +88,16 @@ def collide(model, state, grid, contacts, cfg):
     """Broadphase, narrowphase and contact preparation. Returns False when the contact
     storage is too small (nothing has moved yet; the caller grows it and retries)."""
     transform_shapes(model, state, contacts, cfg.dt)
-    n_pairs = find_pairs(model, grid, contacts.vert_world, contacts.shape_margin, contacts.pairs)
-    contacts.count[2] = n_pairs
+    n_pairs = find_pairs(
+        model, grid, contacts.vert_world, contacts.shape_margin, contacts.pairs, contacts.count[2]
+    )
     if n_pairs > contacts.pairs.shape[0]:
+        contacts.count[2] = n_pairs
         return False
-    update_manifolds(model, state, contacts, n_pairs, cfg.friction_rule, cfg.restitution_rule)
+    contacts.count[2] = n_pairs
+    update_manifolds(
+        model, state, contacts, grid.shape_aabb, n_pairs, cfg.friction_rule, cfg.restitution_rule
+    )
     prepare_contacts(model, state, contacts, cfg.soft, cfg.soft_static)
     return True
 
@@ -135,14 +140,15 @@ def step(model, state, grid, contacts, cfg):
 
 @njit(cache=True)
 def _first_non_finite(state):
-    for i in range(state.body_x.shape[0]):
+    x, v, w, q = state.body_x, state.body_v, state.body_w, state.body_q
+    for i in range(x.shape[0]):
         if not (
-            math.isfinite(state.body_x[i, 0])
-            and math.isfinite(state.body_x[i, 1])
-            and math.isfinite(state.body_v[i, 0])
-            and math.isfinite(state.body_v[i, 1])
-            and math.isfinite(state.body_w[i])
-            and math.isfinite(state.body_q[i, 0])
+            math.isfinite(x[i, 0])
+            and math.isfinite(x[i, 1])
+            and math.isfinite(v[i, 0])
+            and math.isfinite(v[i, 1])
+            and math.isfinite(w[i])
+            and math.isfinite(q[i, 0])
         ):
             return i
     return -1
@@ -191,11 +197,11 @@ class World:
         """Build the model, state and storage for a resolved scene."""
         model, state = build(scene)
         n_shapes = model.shape_body.shape[0]
-        extent = shape_extent(model)
+        capacity = 4 * n_shapes + 16
         dynamic = model.body_type[model.shape_body] == C.BODY_DYNAMIC
-        grid = make_grid(extent, dynamic)
+        grid = make_grid(shape_extent(model), dynamic, capacity)
         contacts = make_contacts(
-            model.body_mass.shape[0], n_shapes, model.vertex_local.shape[0], 4 * n_shapes + 16
+            model.body_mass.shape[0], n_shapes, model.vertex_local.shape[0], capacity
         )
         return cls(scene, model, state, make_config(scene), grid, contacts)
 
@@ -216,8 +222,9 @@ class World:
             self.step_index += taken
             remaining -= taken
             if status == NEED_CAPACITY:
-                need = int(self.contacts.count[2])
-                self.contacts = grow_contacts(self.contacts, max(need * 3 // 2, 2 * need))
+                capacity = 2 * int(self.contacts.count[2])
+                self.contacts = grow_contacts(self.contacts, capacity)
+                self.grid = grow_grid(self.grid, capacity)
             elif status == NON_FINITE:
                 raise NonFiniteState(int(result[1]), self.step_index)
 
