@@ -31,7 +31,7 @@ demo: $(STAMP)
 
 batch: $(OUTS)
 
-out/%.h5: scenes/%.yaml $(STAMP)
+out/%.h5: scenes/%.yaml $(STAMP) $(wildcard rbsim/*.py)
 	@mkdir -p out
 	$(BIN)/rbsim run $< -o $@ --quiet
 

@@ -11,15 +11,29 @@ from pathlib import Path as _Path
 __version__ = "0.1.0"
 
 
+# the modules that define numba kernels or the data they compile against
+_KERNEL_MODULES = (
+    "broadphase.py",
+    "constants.py",
+    "contacts.py",
+    "integrator.py",
+    "model.py",
+    "narrowphase.py",
+    "solver.py",
+    "world.py",
+)
+
+
 def _kernel_cache_dir() -> str:
     """A numba cache folder keyed by a hash of rbsim's own source.
 
     numba invalidates a cached kernel only when the kernel's own file changes, not
     when a kernel it calls (in another module) does; keying the whole cache on the
-    source of every module makes a stale compiled step impossible.
+    source of every kernel module makes a stale compiled step impossible.
     """
     digest = _hashlib.sha256()
-    for path in sorted(_Path(__file__).parent.glob("*.py")):
+    for name in _KERNEL_MODULES:
+        path = _Path(__file__).parent / name
         digest.update(path.name.encode())
         digest.update(path.read_bytes())
     base = _os.environ.get("XDG_CACHE_HOME") or _os.path.join(_os.path.expanduser("~"), ".cache")

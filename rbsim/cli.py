@@ -161,7 +161,7 @@ def _run(
     out = Path(output) if output else Path("out") / f"{sc.name}.h5"
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
-        return run_scene(sc, out, progress=progress)
+        return run_scene(sc, out, progress=progress, signals=(signal.SIGINT, signal.SIGTERM))
     except ModelError as err:
         _fail(EXIT_SCENE, f"{scene}: {err}", progress)
     except RunFailed as err:

@@ -20,6 +20,12 @@ from . import constants as C
 from .narrowphase import collide
 
 MIX_SQRT, MIX_MULTIPLY, MIX_MIN, MIX_MAX = 0, 1, 2, 3
+
+# Time of impact by conservative advancement: stop when the gap is below this (m) or
+# after this many advancements (each costs one narrowphase call, for approaching
+# speculative pairs only). The gap shrinks by a large factor per advancement.
+TOI_TOLERANCE = 1.0e-9
+TOI_ITERATIONS = 12
 MIXING = {"sqrt": MIX_SQRT, "multiply": MIX_MULTIPLY, "min": MIX_MIN, "max": MIX_MAX}
 
 
@@ -34,6 +40,7 @@ class Contacts(NamedTuple):
     anchor_a, anchor_b (M,2,2) m, from each COM at the start of the step;
     base_separation (M,2) m, the separation minus the anchors' contribution;
     feature (M,2) int64; normal_impulse, tangent_impulse (M,2) N·s (per substep);
+    start_impulse (M,2) N·s: the normal impulse carried over into this step;
     ref_separation (M,2) m: the separation with both bodies at their reference poses;
     normal_mass, tangent_mass (M,2) kg; approach_velocity (M,2) m/s and
     approach_separation (M,2) m where the point engaged (for restitution);
@@ -41,6 +48,7 @@ class Contacts(NamedTuple):
     for carrying a manifold forward. body_ref (N,3): each body's reference pose
     (x, y, angle), re-taken when it moves by more than STILL_DISTANCE or STILL_ANGLE;
     body_still (N,) bool: the body is within that reach of its reference pose.
+    toi_verts, toi_norms (V,2): two shapes moved to their time of impact.
     scratch_*: one narrowphase result. body_delta (N,4): displacement and rotation
     of each body since the start of the step. vert_world, norm_world (V,2): shape
     geometry in the world this step. shape_margin (S,) m: speculative reach.
@@ -64,6 +72,7 @@ class Contacts(NamedTuple):
     ref_separation: np.ndarray
     feature: np.ndarray
     normal_impulse: np.ndarray
+    start_impulse: np.ndarray
     tangent_impulse: np.ndarray
     normal_mass: np.ndarray
     tangent_mass: np.ndarray
@@ -81,6 +90,8 @@ class Contacts(NamedTuple):
     prev_ref_separation: np.ndarray
     body_ref: np.ndarray
     body_still: np.ndarray
+    toi_verts: np.ndarray
+    toi_norms: np.ndarray
     scratch_normal: np.ndarray
     scratch_point: np.ndarray
     scratch_separation: np.ndarray
@@ -113,6 +124,7 @@ def make_contacts(n_bodies: int, n_shapes: int, n_vertices: int, capacity: int) 
         ref_separation=np.zeros((m, 2)),
         feature=np.zeros((m, 2), np.int64),
         normal_impulse=np.zeros((m, 2)),
+        start_impulse=np.zeros((m, 2)),
         tangent_impulse=np.zeros((m, 2)),
         normal_mass=np.zeros((m, 2)),
         tangent_mass=np.zeros((m, 2)),
@@ -130,6 +142,8 @@ def make_contacts(n_bodies: int, n_shapes: int, n_vertices: int, capacity: int) 
         prev_ref_separation=np.zeros((m, 2)),
         body_ref=np.full((max(n_bodies, 1), 3), np.nan),
         body_still=np.zeros(max(n_bodies, 1), np.bool_),
+        toi_verts=np.zeros((max(n_vertices, 2), 2)),
+        toi_norms=np.zeros((max(n_vertices, 2), 2)),
         scratch_normal=np.zeros(2),
         scratch_point=np.zeros((2, 2)),
         scratch_separation=np.zeros(2),
@@ -230,7 +244,75 @@ def mix(a, b, rule):
 
 
 @njit(cache=True)
-def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restitution_rule):
+def _place(model, state, s, t, start, verts, norms):
+    """Write shape s's vertices and normals, as its body will be after t seconds of
+    free motion, into rows start.. of verts and norms."""
+    i = model.shape_body[s]
+    angle = t * state.body_w[i]
+    c0, s0 = state.body_q[i, 0], state.body_q[i, 1]
+    cr, sr = math.cos(angle), math.sin(angle)
+    c, sn = cr * c0 - sr * s0, sr * c0 + cr * s0
+    x = state.body_x[i, 0] + t * state.body_v[i, 0]
+    y = state.body_x[i, 1] + t * state.body_v[i, 1]
+    v0 = model.shape_vstart[s]
+    for k in range(model.shape_vcount[s]):
+        lx, ly = model.vertex_local[v0 + k, 0], model.vertex_local[v0 + k, 1]
+        verts[start + k, 0] = x + c * lx - sn * ly
+        verts[start + k, 1] = y + sn * lx + c * ly
+        nx, ny = model.normal_local[v0 + k, 0], model.normal_local[v0 + k, 1]
+        norms[start + k, 0] = c * nx - sn * ny
+        norms[start + k, 1] = sn * nx + c * ny
+
+
+@njit(cache=True)
+def _time_of_impact(model, state, contacts, a, b, npts, dt, spec):
+    """Move a speculative manifold to the moment of impact.
+
+    A manifold found before the shapes touch has the normal and points of the start
+    of the step; for a glancing approach (two balls off centre) those are not the
+    normal and points of the impact. Conservative advancement: move both bodies
+    freely by t = separation / approach speed, collide again, repeat; the manifold
+    at the last t replaces the scratch one. Returns (points, t) with t in s (0 when
+    the pair is touching, separating, or does not meet within dt).
+    """
+    out_n, out_p = contacts.scratch_normal, contacts.scratch_point
+    out_s, out_f = contacts.scratch_separation, contacts.scratch_feature
+    v, w, x = state.body_v, state.body_w, state.body_x
+    ba, bb = model.shape_body[a], model.shape_body[b]
+    tv, tn = contacts.toi_verts, contacts.toi_norms
+    t = 0.0
+    for _ in range(TOI_ITERATIONS):
+        sep = min(out_s[0], out_s[1]) if npts == 2 else out_s[0]
+        if sep <= TOI_TOLERANCE:
+            break
+        # approach speed of the nearest point along the normal
+        k = 0 if npts == 1 or out_s[0] <= out_s[1] else 1
+        rax, ray = out_p[k, 0] - x[ba, 0] - t * v[ba, 0], out_p[k, 1] - x[ba, 1] - t * v[ba, 1]
+        rbx, rby = out_p[k, 0] - x[bb, 0] - t * v[bb, 0], out_p[k, 1] - x[bb, 1] - t * v[bb, 1]
+        dvx = v[ba, 0] - w[ba] * ray - v[bb, 0] + w[bb] * rby
+        dvy = v[ba, 1] + w[ba] * rax - v[bb, 1] - w[bb] * rbx
+        vn = dvx * out_n[0] + dvy * out_n[1]
+        if vn >= 0.0:
+            break
+        step = sep / -vn
+        if t + step > dt:
+            break
+        t += step
+        na, nb = model.shape_vcount[a], model.shape_vcount[b]
+        _place(model, state, a, t, 0, tv, tn)
+        _place(model, state, b, t, na, tv, tn)
+        npts = collide(
+            model.shape_kind[a], 0, na, model.shape_radius[a],
+            model.shape_kind[b], na, nb, model.shape_radius[b],
+            tv, tn, spec, out_n, out_p, out_s, out_f,
+        )  # fmt: skip
+        if npts == 0:  # passed by after all
+            return 0, t
+    return npts, t
+
+
+@njit(cache=True)
+def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restitution_rule, dt):
     """Run the narrowphase on every pair whose tight boxes `box` (S,4) overlap, and keep
     the manifolds with points.
 
@@ -275,7 +357,9 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
     m_shape_vcount = model.shape_vcount
     m_shape_vstart = model.shape_vstart
     s_body_x = state.body_x
+    s_body_v, s_body_w = state.body_v, state.body_w
     c_ref_separation = contacts.ref_separation
+    c_start_impulse = contacts.start_impulse
     c_prev_normal = contacts.prev_normal
     c_prev_anchor_a, c_prev_anchor_b = contacts.prev_anchor_a, contacts.prev_anchor_b
     c_prev_ref_separation = contacts.prev_ref_separation
@@ -319,6 +403,7 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
                 c_base_separation[m, k] = sep - (nx * (rax - rbx) + ny * (ray - rby))
                 c_feature[m, k] = c_prev_feature[j, k]
                 c_normal_impulse[m, k] = c_prev_normal_impulse[j, k]
+                c_start_impulse[m, k] = c_prev_normal_impulse[j, k]
                 c_tangent_impulse[m, k] = c_prev_tangent_impulse[j, k]
                 c_max_normal_impulse[m, k] = 0.0
         else:
@@ -340,19 +425,35 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
                 out_s,
                 out_f,
             )
+            t = 0.0
+            if npts > 0:
+                npts, t = _time_of_impact(model, state, contacts, a, b, npts, dt, spec)
             if npts == 0:
                 continue
             nx, ny = out_n[0], out_n[1]
+            # the bodies' free motion to the impact (t = 0 unless it was moved there)
+            vax, vay = t * s_body_v[ba, 0], t * s_body_v[ba, 1]
+            vbx, vby = t * s_body_v[bb, 0], t * s_body_v[bb, 1]
+            ca, sa = math.cos(t * s_body_w[ba]), math.sin(t * s_body_w[ba])
+            cb, sb = math.cos(t * s_body_w[bb]), math.sin(t * s_body_w[bb])
             for k in range(npts):
-                rax = out_p[k, 0] - s_body_x[ba, 0]
-                ray = out_p[k, 1] - s_body_x[ba, 1]
-                rbx = out_p[k, 0] - s_body_x[bb, 0]
-                rby = out_p[k, 1] - s_body_x[bb, 1]
+                # lever arms at the impact
+                rax = out_p[k, 0] - s_body_x[ba, 0] - vax
+                ray = out_p[k, 1] - s_body_x[ba, 1] - vay
+                rbx = out_p[k, 0] - s_body_x[bb, 0] - vbx
+                rby = out_p[k, 1] - s_body_x[bb, 1] - vby
                 c_anchor_a[m, k, 0], c_anchor_a[m, k, 1] = rax, ray
                 c_anchor_b[m, k, 0], c_anchor_b[m, k, 1] = rbx, rby
-                # separation = base + n · ((x_a + r_a) - (x_b + r_b)) as the bodies move
-                c_base_separation[m, k] = out_s[k] - (nx * (rax - rbx) + ny * (ray - rby))
-                c_ref_separation[m, k] = out_s[k] - (nx * ddx + ny * ddy)
+                # separation = base + n · (d_a + R(Δθ_a) r_a - d_b - R(Δθ_b) r_b) as the
+                # bodies move (d, Δθ: motion since the step's start); at the impact
+                # (d = v t, Δθ = ω t) it equals the separation found there
+                qax, qay = ca * rax - sa * ray, sa * rax + ca * ray
+                qbx, qby = cb * rbx - sb * rby, sb * rbx + cb * rby
+                moved = nx * (vax + qax - vbx - qbx) + ny * (vay + qay - vby - qby)
+                base = out_s[k] - moved
+                c_base_separation[m, k] = base
+                start = base + nx * (rax - rbx) + ny * (ray - rby)
+                c_ref_separation[m, k] = start - (nx * ddx + ny * ddy)
                 c_feature[m, k] = out_f[k]
                 jn, jt = 0.0, 0.0
                 if matched:
@@ -361,6 +462,7 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
                             jn = c_prev_normal_impulse[j, kk]
                             jt = c_prev_tangent_impulse[j, kk]
                 c_normal_impulse[m, k] = jn
+                c_start_impulse[m, k] = jn
                 c_tangent_impulse[m, k] = jt
                 c_max_normal_impulse[m, k] = 0.0
         c_shape_a[m], c_shape_b[m] = a, b

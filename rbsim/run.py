@@ -1,21 +1,22 @@
 """Run a scene: step the world and append frames to a trajectory as they are computed.
 
-An interruption (KeyboardInterrupt, which the CLI also raises on SIGTERM) closes the
-file with every frame so far and status "interrupted"; a non-finite state closes it
-with status "failed", keeps the (finite) frames before it and names the body and step.
-Frames are written with SIGINT and SIGTERM held back, so an interruption lands between
-two frames, never inside one.
+An interruption (SIGINT, i.e. Ctrl-C, and any other signal the caller names, such as
+SIGTERM) closes the file with every frame so far and status "interrupted", and lands
+between two frames, never inside one; a non-finite state closes it with status
+"failed", keeps the (finite) frames before it and names the body and step.
 """
 
 from __future__ import annotations
 
 import json
 import signal
+import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Collection, Iterator
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from types import FrameType
 
 import numpy as np
 
@@ -39,8 +40,9 @@ class RunFailed(RuntimeError):
 
 
 class RunInterrupted(KeyboardInterrupt):
-    """Ctrl-C (or SIGTERM, through the CLI) during a run. The trajectory at `path` is
-    closed with status "interrupted" and holds `frames` frames, the last at `step`."""
+    """Ctrl-C (or another of run_scene's `signals`, such as SIGTERM) during a run. The
+    trajectory at `path` is closed with status "interrupted" and holds `frames` frames,
+    the last at `step`."""
 
     def __init__(self, path: str, frames: int, step: int) -> None:
         super().__init__(f"interrupted: {_frames(frames)} kept in {path}, the last at step {step}")
@@ -49,23 +51,65 @@ class RunInterrupted(KeyboardInterrupt):
         self.step = step
 
 
-# Held back while a frame or the final status is written (POSIX only).
-_DEFERRED_SIGNALS = {signal.SIGINT, signal.SIGTERM}
+class _Interrupts:
+    """Turns `signals` that arrive during a run into a KeyboardInterrupt at a point where
+    the trajectory file is consistent.
 
+    A KeyboardInterrupt raised straight from a signal handler can land anywhere: inside
+    a frame being written, or inside a weakref callback or __del__, where Python prints
+    "Exception ignored" and carries on as if nothing happened (the run would then go on
+    to the end). So once the first steps have been taken, a signal only sets a flag that
+    `check` turns into a KeyboardInterrupt; the run checks after every chunk of steps
+    (at most MAX_CHUNK). Before that (building the model, compiling or loading the
+    kernels: seconds without a check), and for a second signal, the handler raises at
+    once, except inside `held` (writing a frame or closing the file).
 
-@contextmanager
-def signals_deferred() -> Iterator[None]:
-    """Hold SIGINT and SIGTERM back inside the block; one that arrived meanwhile is
-    handled (KeyboardInterrupt raised) as the block ends. A no-op where the platform
-    has no pthread_sigmask."""
-    if not hasattr(signal, "pthread_sigmask"):
-        yield
-        return
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, _DEFERRED_SIGNALS)
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+    Handlers are installed only from the main thread, and only for signals whose current
+    handler was set from Python and is not SIG_IGN (a run started with Ctrl-C ignored,
+    as `nohup` and background jobs of scripts do, keeps ignoring it).
+    """
+
+    def __init__(self, signals: Collection[signal.Signals]) -> None:
+        self.signals = signals
+        self.received = 0  # signals received so far
+        self.stepping = False  # True once the first steps are done
+        self.holding = False
+
+    def _handle(self, signum: int, frame: FrameType | None) -> None:
+        self.received += 1
+        if not self.holding and (not self.stepping or self.received > 1):
+            raise KeyboardInterrupt
+
+    def check(self) -> None:
+        """Raise KeyboardInterrupt if a signal has arrived. Called after each chunk of
+        steps; from the first call on, a first signal waits for the next call."""
+        self.stepping = True
+        if self.received:
+            raise KeyboardInterrupt
+
+    @contextmanager
+    def held(self) -> Iterator[None]:
+        """No KeyboardInterrupt from a signal inside the block (it is still counted)."""
+        self.holding = True
+        try:
+            yield
+        finally:
+            self.holding = False
+
+    @contextmanager
+    def installed(self) -> Iterator[None]:
+        """Handle `signals` inside the block; the previous handlers are restored after."""
+        previous = {}
+        if threading.current_thread() is threading.main_thread():
+            for signum in self.signals:
+                handler = signal.getsignal(signum)
+                if handler is not None and handler != signal.SIG_IGN:
+                    previous[signum] = signal.signal(signum, self._handle)
+        try:
+            yield
+        finally:
+            for signum, handler in previous.items():
+                signal.signal(signum, handler)
 
 
 @dataclass
@@ -151,63 +195,68 @@ def run_scene(
     scene: Scene,
     out: str | Path,
     progress: Callable[[int, int], None] | None = None,
+    signals: Collection[signal.Signals] = (signal.SIGINT,),
 ) -> RunSummary:
     """Step `scene` for world.steps steps, writing frames to `out` (HDF5, H5MD layout).
 
     Step 0 and every output.every-th step are written, and the last step always.
     progress(step, total) is called after each chunk of steps. The file is closed and
     valid however the run ends: on a non-finite state it keeps the frames before that
-    step, with status "failed: ...", and RunFailed is raised; on KeyboardInterrupt it
-    keeps every frame so far, with status "interrupted", and RunInterrupted (a
-    KeyboardInterrupt) is raised. A KeyboardInterrupt before the file is created (while
-    the model is built) propagates as it is.
+    step, with status "failed: ...", and RunFailed is raised; when one of `signals`
+    (or a KeyboardInterrupt) stops the run it keeps every frame so far, with status
+    "interrupted", and RunInterrupted (a KeyboardInterrupt) is raised. Interrupted
+    before the file is created (while the model is built), KeyboardInterrupt propagates
+    as it is. See _Interrupts for when a signal takes effect.
     """
     t0 = time.perf_counter()
-    world = World.from_scene(scene)
-    total = scene.world.steps
-    every = scene.output.every
-    step_time = 0.0
-    with signals_deferred():
-        writer = TrajectoryWriter(
-            out, bodies=body_table(scene, world.model), parameters=parameters(scene, "rbsim")
-        )
-    status = "failed"  # made precise below
-    last_step = 0
-    try:
-        with signals_deferred():
-            write_frame(writer, world)
-        while world.step_index < total:
-            to_frame = every - world.step_index % every
-            n = min(to_frame, total - world.step_index, MAX_CHUNK)
-            ts = time.perf_counter()
-            try:
-                world.advance(n)
-            except NonFiniteState as err:
-                name = scene.bodies[err.body].name
-                status = f"failed: body {name!r} became non-finite at step {err.step}"
-                raise RunFailed(
-                    f"{scene.path}: the state of body {name!r} became non-finite at step "
-                    f"{err.step} (t = {err.step * scene.world.dt:g} s); "
-                    f"{_frames(writer.frames_written)} before it kept in {out}"
-                ) from None
-            step_time += time.perf_counter() - ts
-            if world.step_index % every == 0 or world.step_index == total:
-                with signals_deferred():
-                    write_frame(writer, world)
-                    last_step = world.step_index
-            if progress is not None:
-                progress(world.step_index, total)
-        status = "complete"
-    except KeyboardInterrupt:
-        status = "interrupted"
-        raise RunInterrupted(str(out), writer.frames_written, last_step) from None
-    except Exception as err:
-        if status == "failed":  # not the non-finite state: an error writing, or a bug
-            status = f"failed: {type(err).__name__}: {err}"
-        raise
-    finally:
-        with signals_deferred():
-            writer.close(status=status, wall_time=time.perf_counter() - t0)
+    interrupts = _Interrupts(signals)
+    with interrupts.installed():
+        world = World.from_scene(scene)
+        total = scene.world.steps
+        every = scene.output.every
+        step_time = 0.0
+        with interrupts.held():
+            writer = TrajectoryWriter(
+                out, bodies=body_table(scene, world.model), parameters=parameters(scene, "rbsim")
+            )
+        status = "failed"  # made precise below
+        last_step = 0
+        try:
+            with interrupts.held():
+                write_frame(writer, world)
+            while world.step_index < total:
+                to_frame = every - world.step_index % every
+                n = min(to_frame, total - world.step_index, MAX_CHUNK)
+                ts = time.perf_counter()
+                try:
+                    world.advance(n)
+                except NonFiniteState as err:
+                    name = scene.bodies[err.body].name
+                    status = f"failed: body {name!r} became non-finite at step {err.step}"
+                    raise RunFailed(
+                        f"{scene.path}: the state of body {name!r} became non-finite at step "
+                        f"{err.step} (t = {err.step * scene.world.dt:g} s); "
+                        f"{_frames(writer.frames_written)} before it kept in {out}"
+                    ) from None
+                step_time += time.perf_counter() - ts
+                interrupts.check()
+                if world.step_index % every == 0 or world.step_index == total:
+                    with interrupts.held():
+                        write_frame(writer, world)
+                        last_step = world.step_index
+                if progress is not None:
+                    progress(world.step_index, total)
+            status = "complete"
+        except KeyboardInterrupt:
+            status = "interrupted"
+            raise RunInterrupted(str(out), writer.frames_written, last_step) from None
+        except Exception as err:
+            if status == "failed":  # not the non-finite state: an error writing, or a bug
+                status = f"failed: {type(err).__name__}: {err}"
+            raise
+        finally:
+            with interrupts.held():
+                writer.close(status=status, wall_time=time.perf_counter() - t0)
     return RunSummary(
         steps=world.step_index,
         bodies=len(scene.bodies),

@@ -133,11 +133,14 @@ def warm_start(model, state, contacts):
 
 
 @njit(cache=True)
-def solve_contacts(model, state, contacts, inv_h, use_bias):
+def solve_contacts(model, state, contacts, inv_h, use_bias, shift):
     """One sequential-impulse pass over every contact (normal, then friction).
 
     inv_h: 1 / substep length (1/s). use_bias: True in the solve stage (soft position
-    correction), False in the relax stage (rigid, no push-out).
+    correction), False in the relax stage (rigid, no push-out). shift (s): how far
+    back the separation is to be taken when a point engages, so that the recorded
+    (separation, velocity) is the state before this substep's position update: the
+    substep length in the relax stage of symplectic Euler, else 0.
     """
     c_anchor_a = contacts.anchor_a
     c_anchor_b = contacts.anchor_b
@@ -192,11 +195,6 @@ def solve_contacts(model, state, contacts, inv_h, use_bias):
             s = dx * nx + dy * ny + c_base_separation[m, k]
             bias, mass_scale, impulse_scale = 0.0, 1.0, 0.0
             if s > 0.0:
-                if not use_bias:
-                    # a speculative point is enforced by the solve stage before every
-                    # position update; relaxing it too would catch an impact one
-                    # substep early, before gravity has finished accelerating the body
-                    continue
                 bias = s * inv_h  # speculative: may close the gap, no more
             elif use_bias:
                 bias = max(bias_rate * s, max_push)
@@ -207,11 +205,15 @@ def solve_contacts(model, state, contacts, inv_h, use_bias):
             lam = c_normal_impulse[m, k]
             impulse = -c_normal_mass[m, k] * mass_scale * (vn + bias)
             impulse -= impulse_scale * lam
-            if use_bias and impulse > 0.0 and vn < c_approach_velocity[m, k]:
-                # the point engages in this substep: its approach speed at impact,
-                # which gravity may have raised since the start of the step
+            engaged = c_max_normal_impulse[m, k] > 0.0
+            if impulse > 0.0 and (not engaged or c_approach_velocity[m, k] == math.inf):
+                # the point engages (its first push this step): its approach speed at
+                # impact, which gravity may have raised since the start of the step.
+                # Later approaches of an engaged point are the solver's own doing
+                # (a warm start re-applying an impact impulse) and are not recorded;
+                # after a bounce (approach set to inf) a new impact is.
                 c_approach_velocity[m, k] = vn
-                c_approach_separation[m, k] = s
+                c_approach_separation[m, k] = s - shift * vn
             new = max(lam + impulse, 0.0)  # clamp the accumulated impulse
             impulse = new - lam
             c_normal_impulse[m, k] = new
@@ -252,8 +254,13 @@ def solve_contacts(model, state, contacts, inv_h, use_bias):
 
 @njit(cache=True)
 def apply_restitution(model, state, contacts, threshold, h, sign):
-    """Bounce: v_n⁺ from v_n⁻ by the restitution hypothesis, at points that approached
-    faster than `threshold` (m/s) and pushed.
+    """Bounce: v_n⁺ from v_n⁻ by the restitution hypothesis, at points that engaged in
+    this substep approaching faster than `threshold` (m/s). Run after every substep,
+    so that impacts follow each other in order: a ball struck while it is about to
+    hit a third one carries its new speed into that second impact. With e = 0 this
+    ends the impact exactly (v_n⁺ = 0), which the soft substeps alone leave a little
+    short of when the bodies turn during the step. The point's accumulated impulse is
+    then dropped, so that later substeps do not warm-start the bounce a second time.
 
     Without forces the target is exactly v_n⁺ = −e v_n⁻. Under a constant relative
     normal acceleration a (gravity, constant forces) the target is taken on the
@@ -267,6 +274,7 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
     c_anchor_a = contacts.anchor_a
     c_anchor_b = contacts.anchor_b
     c_approach_separation = contacts.approach_separation
+    c_start_impulse = contacts.start_impulse
     c_approach_velocity = contacts.approach_velocity
     c_base_separation = contacts.base_separation
     c_body_a = contacts.body_a
@@ -292,8 +300,6 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
     gx, gy = m_gravity[0], m_gravity[1]
     for m in range(c_count[0]):
         e = c_restitution[m]
-        if e == 0.0:
-            continue
         a, b = c_body_a[m], c_body_b[m]
         nx, ny = c_normal[m, 0], c_normal[m, 1]
         # relative normal acceleration of the two bodies from gravity and forces
@@ -306,10 +312,16 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
             acc -= (gy + im[b] * m_body_force[b, 1]) * ny
         dax, day, ca, sa = delta[a, 0], delta[a, 1], delta[a, 2], delta[a, 3]
         dbx, dby, cb, sb = delta[b, 0], delta[b, 1], delta[b, 2], delta[b, 3]
+        # targets of the points that bounce now
+        t0 = t1 = 0.0
+        bounce0 = bounce1 = False
         for k in range(c_points[m]):
             vn0 = c_approach_velocity[m, k]
-            if vn0 > -threshold or c_max_normal_impulse[m, k] == 0.0:
+            if vn0 >= -threshold or c_max_normal_impulse[m, k] == 0.0:
                 continue
+            # one bounce per impact; should the bodies meet again within the step, the
+            # point engages afresh (see solve_contacts) and records its new approach
+            c_approach_velocity[m, k] = math.inf
             rax, ray = c_anchor_a[m, k, 0], c_anchor_a[m, k, 1]
             rbx, rby = c_anchor_b[m, k, 0], c_anchor_b[m, k, 1]
             pax, pay = ca * rax - sa * ray, sa * rax + ca * ray
@@ -321,6 +333,55 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
             rhs = e * e * invariant + acc * s_now
             ah = sign * acc * h
             target = 0.5 * (-ah + math.sqrt(max(ah * ah + 8.0 * rhs, 0.0)))
+            if k == 0:
+                bounce0, t0 = True, target
+            else:
+                bounce1, t1 = True, target
+        if not (bounce0 or bounce1):
+            continue
+        # both points of a face hit at once: solve them as one 2x2 block, so that a box
+        # landing flat gets mirror-image impulses (one after the other would tip it)
+        if bounce0 and bounce1:
+            r0ax, r0ay = c_anchor_a[m, 0, 0], c_anchor_a[m, 0, 1]
+            r0bx, r0by = c_anchor_b[m, 0, 0], c_anchor_b[m, 0, 1]
+            r1ax, r1ay = c_anchor_a[m, 1, 0], c_anchor_a[m, 1, 1]
+            r1bx, r1by = c_anchor_b[m, 1, 0], c_anchor_b[m, 1, 1]
+            ca0, cb0 = r0ax * ny - r0ay * nx, r0bx * ny - r0by * nx
+            ca1, cb1 = r1ax * ny - r1ay * nx, r1bx * ny - r1by * nx
+            k11 = im[a] + im[b] + ii[a] * ca0 * ca0 + ii[b] * cb0 * cb0
+            k22 = im[a] + im[b] + ii[a] * ca1 * ca1 + ii[b] * cb1 * cb1
+            k12 = im[a] + im[b] + ii[a] * ca0 * ca1 + ii[b] * cb0 * cb1
+            det = k11 * k22 - k12 * k12
+            if det > 1.0e-9 * k11 * k22:
+                vn_0 = (v[a, 0] - w[a] * r0ay - v[b, 0] + w[b] * r0by) * nx + (
+                    v[a, 1] + w[a] * r0ax - v[b, 1] - w[b] * r0bx
+                ) * ny
+                vn_1 = (v[a, 0] - w[a] * r1ay - v[b, 0] + w[b] * r1by) * nx + (
+                    v[a, 1] + w[a] * r1ax - v[b, 1] - w[b] * r1bx
+                ) * ny
+                d0, d1 = t0 - vn_0, t1 - vn_1
+                j0 = (k22 * d0 - k12 * d1) / det
+                j1 = (k11 * d1 - k12 * d0) / det
+                l0, l1 = c_normal_impulse[m, 0], c_normal_impulse[m, 1]
+                if l0 + j0 >= 0.0 and l1 + j1 >= 0.0:
+                    c_normal_impulse[m, 0] = min(l0 + j0, c_start_impulse[m, 0])
+                    c_normal_impulse[m, 1] = min(l1 + j1, c_start_impulse[m, 1])
+                    c_max_normal_impulse[m, 0] = max(c_max_normal_impulse[m, 0], j0)
+                    c_max_normal_impulse[m, 1] = max(c_max_normal_impulse[m, 1], j1)
+                    px, py = (j0 + j1) * nx, (j0 + j1) * ny
+                    v[a, 0] += im[a] * px
+                    v[a, 1] += im[a] * py
+                    w[a] += ii[a] * (j0 * ca0 + j1 * ca1)
+                    v[b, 0] -= im[b] * px
+                    v[b, 1] -= im[b] * py
+                    w[b] -= ii[b] * (j0 * cb0 + j1 * cb1)
+                    continue
+        for k in range(c_points[m]):
+            if not (bounce0 if k == 0 else bounce1):
+                continue
+            target = t0 if k == 0 else t1
+            rax, ray = c_anchor_a[m, k, 0], c_anchor_a[m, k, 1]
+            rbx, rby = c_anchor_b[m, k, 0], c_anchor_b[m, k, 1]
             dvx = v[a, 0] - w[a] * ray - v[b, 0] + w[b] * rby
             dvy = v[a, 1] + w[a] * rax - v[b, 1] - w[b] * rbx
             vn = dvx * nx + dvy * ny
@@ -328,7 +389,9 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
             impulse = -c_normal_mass[m, k] * (vn - target)
             new = max(lam + impulse, 0.0)
             impulse = new - lam
-            c_normal_impulse[m, k] = new
+            # the bounce is done: the next substeps must not warm-start it again; what
+            # the point carried into the step (a resting load) it keeps
+            c_normal_impulse[m, k] = min(new, c_start_impulse[m, k])
             if impulse > c_max_normal_impulse[m, k]:
                 c_max_normal_impulse[m, k] = impulse
             px, py = impulse * nx, impulse * ny

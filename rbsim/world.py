@@ -2,7 +2,7 @@
 
     find_pairs -> collide (manifolds) -> prepare ->
     [per substep: integrate_velocities -> warm_start -> solve (biased)
-                  -> integrate_positions -> relax] -> restitution -> store_impulses
+                  -> integrate_positions -> relax -> restitution] -> store_impulses
 
 `step` is one numba kernel that calls each stage in turn, so a step costs one call
 from Python; `advance` runs many steps. A scene without shapes skips the contact
@@ -96,7 +96,14 @@ def collide(model, state, grid, contacts, cfg):
         return False
     contacts.count[2] = n_pairs
     update_manifolds(
-        model, state, contacts, grid.shape_aabb, n_pairs, cfg.friction_rule, cfg.restitution_rule
+        model,
+        state,
+        contacts,
+        grid.shape_aabb,
+        n_pairs,
+        cfg.friction_rule,
+        cfg.restitution_rule,
+        cfg.dt,
     )
     prepare_contacts(model, state, contacts, cfg.soft, cfg.soft_static)
     return True
@@ -116,6 +123,8 @@ def step(model, state, grid, contacts, cfg):
     delta[:, 3] = 0.0
     h = cfg.dt / cfg.substeps
     inv_h = 1.0 / h
+    shift = 0.0 if cfg.explicit else h
+    sign = -1.0 if cfg.explicit else 1.0
     for _ in range(cfg.substeps):
         if cfg.explicit:
             integrate_positions(model, state, delta, h, cfg.exact)
@@ -125,15 +134,14 @@ def step(model, state, grid, contacts, cfg):
         if contacts_on:
             warm_start(model, state, contacts)
             for _ in range(cfg.iterations):
-                solve_contacts(model, state, contacts, inv_h, True)
+                solve_contacts(model, state, contacts, inv_h, True, 0.0)
         if not cfg.explicit:
             integrate_positions(model, state, delta, h, cfg.exact)
         if contacts_on:
             for _ in range(cfg.iterations):
-                solve_contacts(model, state, contacts, inv_h, False)  # relax
+                solve_contacts(model, state, contacts, inv_h, False, shift)  # relax
+            apply_restitution(model, state, contacts, cfg.restitution_threshold, h, sign)
     if contacts_on:
-        sign = -1.0 if cfg.explicit else 1.0
-        apply_restitution(model, state, contacts, cfg.restitution_threshold, h, sign)
         store_impulses(contacts)
     return True
 

@@ -1,0 +1,405 @@
+"""The `rbsim` command line (cli.md): run, validate, info, schema, exit codes.
+
+Most tests call the click commands in this process (CliRunner); the interruption tests
+run `python -m rbsim.cli` in a subprocess and send it a real signal.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+import warnings
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+import yaml
+from click.testing import CliRunner
+
+from rbsim import cli
+from rbsim.scene import load_scene_text, scene_to_dict
+from rbsim.schema import json_schema
+from rbsim.trajectory import load_trajectory
+
+REPO = Path(__file__).resolve().parents[1]
+SCENES = sorted((REPO / "scenes").glob("*.yaml"))
+MODELINE = "# yaml-language-server: $schema=../rbsim-schema.json"
+
+# A ball thrown upwards, no contacts: the cheapest scene to run.
+BALL = """\
+version: 1
+name: ball
+world: {dt: 0.01, steps: 10}
+bodies:
+  - name: ball
+    position: [0, 10]
+    velocity: [3, 10]
+    shape: {circle: {radius: 0.5}}
+"""
+
+# Boxes resting on a ground line: exercises every contact stage.
+CONTACT = """\
+version: 1
+name: contact
+world: {dt: 1/60, steps: 5}
+bodies:
+  - name: ground
+    type: static
+    shape: {segment: {a: [-5, 0], b: [5, 0]}}
+  - stack: {count: 2, size: [1, 1], origin: [0, 0.5]}
+"""
+
+# 211 bodies for a million steps: minutes of work, still running when signalled.
+LONG = """\
+version: 1
+name: long
+world: {dt: 1/60, steps: 1000000}
+output: {every: 7}
+bodies:
+  - name: ground
+    type: static
+    shape: {segment: {a: [-40, 0], b: [40, 0]}}
+  - pyramid: {base: 20, size: [1, 1], origin: [0, 0.5]}
+"""
+
+# A constant force of 3.9e306 N on a 0.785 kg disc (dt = 1 s): the position passes
+# 1.6e308 m at step 8 and overflows to inf at step 9. Every value is valid.
+BLOWUP = """\
+version: 1
+name: blowup
+world: {gravity: [0, 0], dt: 1, steps: 50}
+bodies:
+  - name: rocket
+    force: [3.9e+306, 0]
+    shape: {circle: {radius: 0.5}}
+"""
+
+SUMMARY = re.compile(
+    r"^(\d+) steps, (\d+) bod(?:y|ies), (\d+) frames? in \d+\.\d\d s "
+    r"\([\d,]+ steps/s\) -> (.+)$"
+)
+
+
+def write(folder: Path, name: str, text: str) -> Path:
+    path = folder / name
+    path.write_text(textwrap.dedent(text))
+    return path
+
+
+def rbsim(*args: str | Path) -> tuple[int, str, str]:
+    """Run the CLI in this process: (exit code, stdout, stderr). An exception that the
+    CLI did not turn into an exit code (it would print a traceback) fails the test."""
+    try:
+        runner = CliRunner(mix_stderr=False)  # click < 8.2 mixes the streams otherwise
+    except TypeError:
+        runner = CliRunner()
+    result = runner.invoke(cli.main, [str(a) for a in args])
+    if result.exception is not None and not isinstance(result.exception, SystemExit):
+        raise result.exception
+    return result.exit_code, result.stdout, result.stderr
+
+
+@pytest.fixture(scope="module")
+def kernels_compiled(tmp_path_factory: pytest.TempPathFactory) -> None:
+    """Compile (or load from the cache) every kernel a scene with contacts uses, so that
+    subprocesses started later find them in the numba cache."""
+    folder = tmp_path_factory.mktemp("warm")
+    code, _, err = rbsim("run", write(folder, "c.yaml", CONTACT), "-o", folder / "c.h5", "-q")
+    assert code == 0, err
+
+
+# run --------------------------------------------------------------------------------------
+
+
+def test_run_writes_the_trajectory_and_prints_the_summary_line(tmp_path: Path) -> None:
+    out = tmp_path / "sub" / "ball.h5"
+    code, stdout, stderr = rbsim("run", write(tmp_path, "ball.yaml", BALL), "-o", out)
+    assert code == 0, stderr
+    assert stderr == ""  # stderr is not a terminal: no progress bar
+    match = SUMMARY.match(stdout.strip())
+    assert match, stdout
+    assert match.groups() == ("10", "1", "11", str(out))
+    tr = load_trajectory(out)
+    assert tr.status == "complete"
+    assert tr.step.tolist() == list(range(11))
+    assert tr.bodies.name == ["ball"]
+
+
+def test_quiet_run_prints_nothing(tmp_path: Path) -> None:
+    out = tmp_path / "ball.h5"
+    code, stdout, stderr = rbsim("run", write(tmp_path, "ball.yaml", BALL), "-o", out, "--quiet")
+    assert (code, stdout, stderr) == (0, "", "")
+    assert len(load_trajectory(out).step) == 11
+
+
+def test_default_output_is_out_slash_scene_name(tmp_path: Path, monkeypatch) -> None:
+    scene = write(tmp_path, "file_stem.yaml", BALL)
+    monkeypatch.chdir(tmp_path)
+    code, stdout, stderr = rbsim("run", scene)
+    assert code == 0, stderr
+    assert stdout.strip().endswith(f"-> {Path('out', 'ball.h5')}")
+    assert load_trajectory(tmp_path / "out" / "ball.h5").status == "complete"
+    # without `name:` the scene is named after its file
+    unnamed = write(tmp_path, "file_stem.yaml", BALL.replace("name: ball\nworld", "world"))
+    assert rbsim("run", unnamed, "-q")[0] == 0
+    assert (tmp_path / "out" / "file_stem.h5").is_file()
+
+
+def test_set_world_dt_and_steps(tmp_path: Path) -> None:
+    out = tmp_path / "ball.h5"
+    scene = write(tmp_path, "ball.yaml", BALL.replace("steps: 10", "duration: 5"))
+    args = ("--set", "world.dt=0.005", "--set", "world.steps=10")
+    code, _, stderr = rbsim("run", scene, "-o", out, "-q", *args)
+    assert code == 0, stderr
+    tr = load_trajectory(out)
+    assert tr.step.tolist() == list(range(11))
+    np.testing.assert_allclose(np.diff(tr.time), 0.005, rtol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "override",
+    ["world.dt=abc", "world.dt", "solver.substep=8", "bodies.nobody.position=[0, 0]"],
+)
+def test_bad_set_exits_3_and_names_the_set(tmp_path: Path, override: str) -> None:
+    out = tmp_path / "ball.h5"
+    code, stdout, stderr = rbsim(
+        "run", write(tmp_path, "b.yaml", BALL), "-o", out, "--set", override
+    )
+    assert code == 3
+    assert "--set" in stderr
+    assert stdout == ""
+    assert not out.exists()
+
+
+def test_output_every_writes_every_kth_step_and_the_last(tmp_path: Path) -> None:
+    out = tmp_path / "ball.h5"
+    scene = write(tmp_path, "ball.yaml", BALL + "output: {every: 3}\n")
+    code, stdout, stderr = rbsim("run", scene, "-o", out)
+    assert code == 0, stderr
+    assert SUMMARY.match(stdout.strip()).groups()[:3] == ("10", "1", "5")
+    tr = load_trajectory(out)
+    assert tr.step.tolist() == [0, 3, 6, 9, 10]
+    np.testing.assert_allclose(tr.time, [0, 0.03, 0.06, 0.09, 0.1])
+
+
+@pytest.mark.parametrize("scene", SCENES, ids=[p.stem for p in SCENES])
+def test_every_shipped_scene_runs(tmp_path: Path, scene: Path) -> None:
+    out = tmp_path / f"{scene.stem}.h5"
+    code, _, stderr = rbsim("run", scene, "--set", "world.steps=5", "-o", out, "-q")
+    assert code == 0, stderr
+    assert load_trajectory(out).step.tolist() == [0, 1, 2, 3, 4, 5]
+
+
+# failures -----------------------------------------------------------------------------------
+
+
+def test_non_finite_state_exits_1_naming_body_and_step(tmp_path: Path) -> None:
+    out = tmp_path / "blowup.h5"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # no numpy overflow warnings either
+        code, stdout, stderr = rbsim("run", write(tmp_path, "blowup.yaml", BLOWUP), "-o", out)
+    assert code == 1
+    assert stdout == ""
+    assert "'rocket'" in stderr and "step 9" in stderr, stderr
+    tr = load_trajectory(out)
+    assert tr.status.startswith("failed")
+    assert "'rocket'" in tr.status and "step 9" in tr.status
+    assert tr.step.tolist() == list(range(9))  # every frame before the failure
+    assert np.isfinite(tr.position).all() and np.isfinite(tr.velocity).all()
+
+
+@pytest.mark.parametrize("where", ["directory", "file_as_folder", "missing_proc_folder"])
+def test_unwritable_output_exits_nonzero_with_a_message(tmp_path: Path, where: str) -> None:
+    if where == "directory":
+        out, expected = tmp_path, "is a directory"
+    elif where == "file_as_folder":
+        (tmp_path / "plain").write_text("")
+        out, expected = tmp_path / "plain" / "x.h5", "is not a folder"
+    else:
+        if not Path("/proc/self").is_dir():
+            pytest.skip("no /proc")
+        out, expected = Path("/proc/nope/x.h5"), "No such file or directory"
+    code, stdout, stderr = rbsim("run", write(tmp_path, "ball.yaml", BALL), "-o", out)
+    assert code != 0
+    assert stdout == ""
+    assert str(out) in stderr and expected in stderr, stderr
+
+
+def test_missing_scene_exits_3(tmp_path: Path) -> None:
+    code, _, stderr = rbsim("run", tmp_path / "nope.yaml")
+    assert code == 3
+    assert "nope.yaml:1:1: file not found" in stderr
+
+
+# interruption (real signals, in a subprocess) -------------------------------------------------
+
+
+def frames_on_disk(path: Path) -> int:
+    """Frames the running writer has flushed so far (0 if it cannot be read yet). Opens
+    without a file lock: a locking reader could stop the writer from reopening it."""
+    try:
+        with h5py.File(path, "r", swmr=True, locking=False) as f:
+            return int(f["particles/bodies/position/step"].shape[0])
+    except (OSError, KeyError, ValueError):
+        return 0
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_signal_exits_130_and_keeps_a_valid_trajectory(
+    tmp_path: Path, signum: signal.Signals, kernels_compiled: None
+) -> None:
+    out = tmp_path / "long.h5"
+    scene = write(tmp_path, "long.yaml", LONG)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "rbsim.cli", "run", str(scene), "-o", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        # a shell running us in the background may ignore SIGINT; Python then ignores it too
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        env={**os.environ, "PYTHONFAULTHANDLER": "1"},  # SIGABRT dumps the Python stack
+    )
+    started = time.monotonic()
+    try:
+        deadline = started + 60.0  # the kernels may need compiling after all
+        # frames on disk, and past the first second (when a terminal would get a progress bar)
+        while frames_on_disk(out) < 2 or time.monotonic() - started < 1.5:
+            assert proc.poll() is None, f"rbsim ended early: {proc.communicate()}"
+            assert time.monotonic() < deadline, "no frames on disk after 60 s"
+            time.sleep(0.1)
+        proc.send_signal(signum)
+        try:
+            stdout, stderr = proc.communicate(timeout=60)
+        except subprocess.TimeoutExpired:
+            proc.send_signal(signal.SIGABRT)
+            pytest.fail(f"still running 60 s after {signum.name}:\n{proc.communicate()[1][-3000:]}")
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 130, stderr
+    assert "Traceback" not in stderr
+    assert "\r" not in stderr  # no progress bar: stderr is not a terminal
+    assert stdout == ""
+    tr = load_trajectory(out)
+    assert tr.status == "interrupted"
+    frames = len(tr.step)
+    assert frames >= 2
+    assert f"interrupted: {frames} frames kept in {out}" in stderr
+    assert tr.step.tolist() == [7 * i for i in range(frames)]
+    assert np.isfinite(tr.position).all() and np.isfinite(tr.angular_velocity).all()
+
+
+# info, validate, schema ---------------------------------------------------------------------
+
+
+def test_info_prints_engine_bodies_and_frames(tmp_path: Path) -> None:
+    out = tmp_path / "ball.h5"
+    assert rbsim("run", write(tmp_path, "ball.yaml", BALL), "-o", out, "-q")[0] == 0
+    code, stdout, stderr = rbsim("info", out)
+    assert code == 0, stderr
+    assert re.search(r"^\s+engine\s+rbsim\b", stdout, re.M)
+    assert re.search(r"^\s+status\s+complete$", stdout, re.M)
+    assert re.search(r"^\s+bodies\s+1 \(1 dynamic\)$", stdout, re.M)
+    assert re.search(r"^\s+frames\s+11 \(steps 0\.\.10,", stdout, re.M)
+
+
+@pytest.mark.parametrize(
+    ("content", "expected"),
+    [
+        (b"hello\n", "not an HDF5 file"),
+        (b"", "not an HDF5 file"),
+        (None, "not an rbsim trajectory"),
+    ],
+    ids=["text", "empty", "other_hdf5"],
+)
+def test_info_on_other_files_fails_with_a_message(
+    tmp_path: Path, content: bytes | None, expected: str
+) -> None:
+    path = tmp_path / "x.h5"
+    if content is None:
+        h5py.File(path, "w").close()
+    else:
+        path.write_bytes(content)
+    code, stdout, stderr = rbsim("info", path)
+    assert code == 1
+    assert stdout == ""
+    assert stderr.startswith(f"{path}: {expected}"), stderr
+
+
+def test_validate_prints_ok_or_the_resolved_scene(tmp_path: Path) -> None:
+    scene = write(tmp_path, "ball.yaml", BALL)
+    code, stdout, _ = rbsim("validate", scene)
+    assert (code, stdout) == (0, f"{scene}: ok (1 body, 10 steps of 0.01 s)\n")
+    code, stdout, stderr = rbsim("validate", scene, "--resolved", "--set", "world.dt=1/50")
+    assert code == 0, stderr
+    resolved = yaml.safe_load(stdout)
+    assert resolved["world"]["dt"] == 0.02
+    assert resolved["world"]["steps"] == 10
+    # the resolved scene is itself a scene, and resolves to the same thing
+    assert scene_to_dict(load_scene_text(stdout, "resolved.yaml")) == resolved
+
+
+def test_validate_invalid_scene_exits_3(tmp_path: Path) -> None:
+    scene = write(tmp_path, "bad.yaml", BALL.replace("radius: 0.5", "radius: -1"))
+    code, _, stderr = rbsim("validate", scene)
+    assert code == 3
+    assert f"{scene}:8:" in stderr and "radius" in stderr
+
+
+def test_schema_prints_the_json_schema() -> None:
+    code, stdout, _ = rbsim("schema")
+    assert code == 0
+    assert json.loads(stdout) == json.loads(json.dumps(json_schema()))
+
+
+def test_committed_schema_file_is_up_to_date() -> None:
+    committed = json.loads((REPO / "rbsim-schema.json").read_text())
+    assert committed == json.loads(json.dumps(json_schema())), (
+        "rbsim-schema.json is stale: regenerate it with `rbsim schema > rbsim-schema.json`"
+    )
+
+
+@pytest.mark.parametrize("scene", SCENES, ids=[p.stem for p in SCENES])
+def test_scene_files_name_the_schema_on_their_first_line(scene: Path) -> None:
+    assert scene.read_text().splitlines()[0] == MODELINE
+
+
+# progress bar -----------------------------------------------------------------------------
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_progress_bar_only_on_a_terminal_and_after_one_second(monkeypatch) -> None:
+    monkeypatch.setattr(sys, "stderr", io.StringIO())
+    off = cli._Progress(enabled=True)
+    off.t0 -= 5.0
+    off(10, 100)
+    off.finish()
+    assert sys.stderr.getvalue() == ""
+
+    monkeypatch.setattr(sys, "stderr", _Terminal())
+    bar = cli._Progress(enabled=True)
+    bar(10, 100)  # within the first second: nothing yet
+    assert sys.stderr.getvalue() == ""
+    bar.t0 -= 2.0
+    bar(50, 100)
+    assert sys.stderr.getvalue().startswith("\r[") and "50/100 steps" in sys.stderr.getvalue()
+    bar.finish()
+    assert sys.stderr.getvalue().endswith("\n")
+
+    quiet = cli._Progress(enabled=False)
+    quiet.t0 -= 5.0
+    quiet(10, 100)
+    assert sys.stderr.getvalue().count("\r") == 1

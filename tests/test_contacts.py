@@ -1,0 +1,622 @@
+"""Contacts against the physics: the isolated-collision formula, conservation laws,
+bouncing, stacking, tunneling, Coulomb friction, resting contact, determinism, and the
+example scenes that show them.
+
+Most tests step a `World` directly and read `state.body_v` / `state.body_w` after each
+step (the same numbers the trajectory would hold, without the file); the bouncing ball
+and the resting box go through `run_scene` and read the trajectory.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rbsim.constants import BODY_DYNAMIC
+from rbsim.scene import load_scene
+from rbsim.world import World
+
+from .conftest import scene_from
+
+G = 9.81
+DT = 1 / 60
+SCENES = Path(__file__).resolve().parent.parent / "scenes"
+
+
+def make_world(text: str) -> World:
+    return World.from_scene(scene_from(text))
+
+
+def record(world: World, steps: int) -> dict[str, np.ndarray]:
+    """Step `world` one step at a time; every body's state at every frame (step 0 too):
+    x (T,N,2) centre of mass, q (T,N,2), v (T,N,2), w (T,N), contacts (T,) points."""
+    frames: dict[str, list] = {"x": [], "q": [], "v": [], "w": [], "contacts": []}
+
+    def keep() -> None:
+        s = world.state
+        frames["x"].append(s.body_x.copy())
+        frames["q"].append(s.body_q.copy())
+        frames["v"].append(s.body_v.copy())
+        frames["w"].append(s.body_w.copy())
+        frames["contacts"].append(world.contact_count)
+
+    keep()
+    for _ in range(steps):
+        world.advance(1)
+        keep()
+    return {k: np.array(v) for k, v in frames.items()}
+
+
+def cross(r: np.ndarray, n: np.ndarray) -> float:
+    return float(r[0] * n[1] - r[1] * n[0])
+
+
+def perp(r: np.ndarray) -> np.ndarray:
+    """ω × r for a unit ω out of the plane."""
+    return np.array([-r[1], r[0]])
+
+
+def restitution_formula(m, inertia, v, w, x, p, n, e):
+    """Velocities after one frictionless collision of bodies 0 (a) and 1 (b) at point p
+    with normal n (from b towards a): γ = −(1 + e) m_eff v_n⁻, +γn on a, −γn on b."""
+    ra, rb = p - x[0], p - x[1]
+    vn = float(n @ (v[0] + w[0] * perp(ra) - v[1] - w[1] * perp(rb)))
+    inv_meff = 1 / m[0] + 1 / m[1] + cross(ra, n) ** 2 / inertia[0] + cross(rb, n) ** 2 / inertia[1]
+    gamma = -(1 + e) * vn / inv_meff
+    v_after, w_after = v.copy(), w.copy()
+    v_after[0] += gamma * n / m[0]
+    v_after[1] -= gamma * n / m[1]
+    w_after[0] += cross(ra, n) * gamma / inertia[0]
+    w_after[1] -= cross(rb, n) * gamma / inertia[1]
+    return v_after, w_after, vn
+
+
+def circle_impact(xa, xb, va, vb, reach):
+    """Time until two circles in straight-line motion touch (centres `reach` apart), and
+    the normal (b towards a) at that moment."""
+    d, u = xa - xb, va - vb
+    qa, qb, qc = u @ u, 2 * d @ u, d @ d - reach * reach
+    t = (-qb - math.sqrt(qb * qb - 4 * qa * qc)) / (2 * qa)
+    dc = d + u * t
+    return t, dc / np.hypot(*dc)
+
+
+# ---------------------------------------------------------------------------------------
+# 1. One isolated collision: γ = −(1 + e) m_eff v_n⁻
+# ---------------------------------------------------------------------------------------
+
+# Each geometry starts its bodies so that they touch at t = (IMPACT_STEP + f) dt: f is
+# the landing, the fraction of the step at which the impact falls. Zero gravity, no
+# friction; a is listed first (normal from b towards a).
+IMPACT_STEP = 10
+LANDINGS = {
+    # just after a frame: the surfaces are 1e-13 m apart at frame IMPACT_STEP
+    "on_frame": 1e-12,
+    "inside_substep": 0.37,  # inside the 2nd of the 4 substeps
+    "in_last_substep": 0.9,
+}
+BOX_CORNER_ANGLE = 0.5  # rad: box a hits b's top face with one corner only
+
+
+def collision_scene(geometry: str, e: float, landing: float) -> str:
+    t = (IMPACT_STEP + landing) * DT
+    if geometry == "circles_head_on":
+        # a (r 0.5) moves at +3, b (r 0.3) at -1 along the line of centres
+        xa = 1.0 - t - 0.8 - 3.0 * t
+        bodies = [
+            f"{{name: a, position: [{xa!r}, 0], velocity: [3, 0], density: 1,"
+            " shape: {circle: {radius: 0.5}}}",
+            "{name: b, position: [1, 0], velocity: [-1, 0], density: 2,"
+            " shape: {circle: {radius: 0.3}}}",
+        ]
+    elif geometry == "circles_off_centre":
+        # impact parameter 0.4 of a contact distance 0.8: the normal is 30° off the motion
+        xa = 1.0 - t - math.sqrt(0.8**2 - 0.4**2) - 3.0 * t
+        bodies = [
+            f"{{name: a, position: [{xa!r}, 0.4], velocity: [3, 0], density: 1,"
+            " shape: {circle: {radius: 0.5}}}",
+            "{name: b, position: [1, 0], velocity: [-1, 0], density: 2,"
+            " shape: {circle: {radius: 0.3}}}",
+        ]
+    elif geometry == "circle_box_off_centre":
+        # the circle hits the box's left face 0.35 m above the box's centre
+        xa = 0.1 - 0.6 - 0.25 - 5.0 * t
+        bodies = [
+            f"{{name: a, position: [{xa!r}, 0.35], velocity: [5, 0], density: 3,"
+            " shape: {circle: {radius: 0.25}}}",
+            "{name: b, position: [0.1, 0], density: 1, shape: {box: {size: [1.2, 1.0]}}}",
+        ]
+    else:  # box_corner_on_box_face
+        # a (1 x 0.6, turned 0.5 rad) falls at 4 m/s onto b's top face, b rises at 1 m/s
+        th = BOX_CORNER_ANGLE
+        corner_depth = 0.5 * math.sin(th) + 0.3 * math.cos(th)
+        ya = 0.5 + 1.0 * t + corner_depth + 4.0 * t
+        bodies = [
+            f"{{name: a, position: [0.3, {ya!r}], angle: {th}, velocity: [0, -4], density: 2,"
+            " shape: {box: {size: [1.0, 0.6]}}}",
+            "{name: b, position: [0, 0], velocity: [0, 1], density: 1,"
+            " shape: {box: {size: [3, 1.0]}}}",
+        ]
+    lines = "\n".join(f"  - {b[:-1]}, friction: 0, restitution: {e}}}" for b in bodies)
+    return f"version: 1\nworld: {{gravity: [0, 0], dt: {DT!r}, steps: 30}}\nbodies:\n{lines}\n"
+
+
+def contact_geometry(geometry: str, x: np.ndarray, q: np.ndarray, v: np.ndarray):
+    """Contact point, normal (b towards a) and centres of mass at the impact, from the
+    state at the last frame before it: the bodies move in straight lines until they
+    touch (moving along the normal does not change r × n, so the boxes keep x)."""
+    if geometry.startswith("circles"):
+        # lever arms are taken at the impact, where the centres have moved by v t
+        t, n = circle_impact(x[0], x[1], v[0], v[1], 0.8)
+        return x[1] + v[1] * t + 0.3 * n, n, x + v * t
+    if geometry == "circle_box_off_centre":
+        # the circle moves along the normal: the point is where its centre line meets
+        # the face, whenever the impact falls
+        return np.array([0.1 - 0.6, x[0, 1]]), np.array([-1.0, 0.0]), x
+    # the box falls along the normal without turning: its lowest corner, whenever it lands
+    c, s = q[0]
+    local = np.array([[sx * 0.5, sy * 0.3] for sx in (-1, 1) for sy in (-1, 1)])
+    corners = x[0] + local @ np.array([[c, s], [-s, c]])
+    return corners[np.argmin(corners[:, 1])], np.array([0.0, 1.0]), x
+
+
+GEOMETRIES = (
+    "circles_head_on",
+    "circles_off_centre",
+    "circle_box_off_centre",
+    "box_corner_on_box_face",
+)
+
+
+def _collision_cases():
+    for geometry in GEOMETRIES:
+        for landing in LANDINGS:
+            marks = ()
+            if geometry == "circles_off_centre" and landing == "on_frame":
+                # Known, not yet understood: an oblique impact that starts exactly on a
+                # frame comes out 3e-7 (relative) off the formula, where the same impact
+                # inside a step is exact to 1e-15. strict: an accidental fix is noticed.
+                marks = pytest.mark.xfail(strict=True, reason="3e-7 off when on a frame")
+            yield pytest.param(geometry, landing, marks=marks, id=f"{geometry}-{landing}")
+
+
+@pytest.mark.parametrize("e", [0.0, 0.5, 1.0])
+@pytest.mark.parametrize("geometry, landing", list(_collision_cases()))
+def test_isolated_collision_matches_restitution_formula(geometry, landing, e):
+    world = make_world(collision_scene(geometry, e, LANDINGS[landing]))
+    m, inertia = world.model.body_mass, world.model.body_inertia
+    tr = record(world, IMPACT_STEP + 1)
+    # the collision step: the first whose velocities differ from the initial ones
+    changed = np.any(tr["v"] != tr["v"][0], axis=(1, 2)) | np.any(tr["w"] != tr["w"][0], axis=1)
+    assert changed.any()
+    after = int(np.argmax(changed))
+    before = after - 1
+    x, q, v, w = tr["x"][before], tr["q"][before], tr["v"][before], tr["w"][before]
+    p, n, x_impact = contact_geometry(geometry, x, q, v)
+    v_exp, w_exp, vn = restitution_formula(m, inertia, v, w, x_impact, p, n, e)
+    assert vn < -3.0  # a real impact, far above the 1 m/s restitution threshold
+    assert tr["contacts"][after] == 1  # at one point
+    # One contact point: the formula is exact, and a solver that applies every impulse of
+    # the step along the contact's Jacobian reproduces it to rounding (1e-15); 1e-9 also
+    # covers the 1e-13 m gap that the "on_frame" landing leaves at the frame before.
+    scale = np.abs(v_exp).max()
+    np.testing.assert_allclose(tr["v"][after], v_exp, rtol=1e-9, atol=1e-9 * scale)
+    if geometry.startswith("circles"):
+        # r × n = 0 for circles: no spin (rounding of the contact point only)
+        assert np.abs(tr["w"][after]).max() < 1e-12
+    else:
+        assert abs(w_exp[1]) > 1e-3  # the struck box really spins
+        w_scale = np.abs(w_exp).max()
+        np.testing.assert_allclose(tr["w"][after], w_exp, rtol=1e-9, atol=1e-9 * w_scale)
+
+
+THRESHOLD_SCENE = """
+version: 1
+world: {{gravity: [0, 0], dt: {dt!r}, steps: 30}}
+solver: {{restitution_threshold: {threshold}}}
+bodies:
+  - {{name: a, position: [{xa!r}, 0], velocity: [{va!r}, 0], density: 1, friction: 0,
+     restitution: 1, shape: {{circle: {{radius: 0.5}}}}}}
+  - {{name: b, position: [1, 0], density: 2, friction: 0, restitution: 1,
+     shape: {{circle: {{radius: 0.3}}}}}}
+"""
+
+
+@pytest.mark.parametrize("threshold", [1.0, 2.0])
+@pytest.mark.parametrize("fraction, bounces", [(0.8, False), (1.2, True)])
+def test_restitution_threshold_stops_slow_approaches_from_bouncing(threshold, fraction, bounces):
+    # a head-on collision with e = 1 at 0.8 or 1.2 times the threshold: only the faster one
+    # bounces; the slower one ends with v_n⁺ = 0 (both move on with the centre of mass)
+    va = fraction * threshold
+    t = (IMPACT_STEP + 0.37) * DT
+    xa = 1.0 - 0.8 - va * t
+    text = THRESHOLD_SCENE.format(dt=DT, threshold=threshold, xa=xa, va=va)
+    world = make_world(text)
+    m = world.model.body_mass
+    tr = record(world, 30)
+    vx = tr["v"][:, :, 0]
+    vn = -(vx[:, 0] - vx[:, 1])  # the normal (b towards a) is -x
+    assert vn[0] == -va
+    e = 1.0 if bounces else 0.0  # below the threshold, e is ignored
+    # 1e-12 m/s: one contact along the line of centres, the formula to rounding
+    np.testing.assert_allclose(vn[IMPACT_STEP + 2 :], e * va, atol=1e-12)
+    p = m[0] * vx[:, 0] + m[1] * vx[:, 1]
+    np.testing.assert_allclose(p, m[0] * va, rtol=1e-12)  # momentum, to rounding
+
+
+# ---------------------------------------------------------------------------------------
+# 2. Conservation: an elastic, frictionless gas of circles in open space
+# ---------------------------------------------------------------------------------------
+
+
+def gas_scene(n: int = 50, seed: int = 20240601) -> str:
+    rng = np.random.default_rng(seed)
+    placed: list[tuple[float, float, float]] = []
+    while len(placed) < n:
+        x, y = rng.uniform(-3.5, 3.5, 2)
+        r = rng.uniform(0.2, 0.4)
+        if all(math.hypot(x - px, y - py) > r + pr + 0.02 for px, py, pr in placed):
+            placed.append((float(x), float(y), float(r)))
+    # random velocities plus a drift, so the total momentum is far from zero
+    vel = rng.normal(0.0, 3.0, (n, 2)) + [1.0, -0.5]
+    lines = [
+        f"  - {{name: c{i}, position: [{x!r}, {y!r}], velocity: [{vx!r}, {vy!r}],"
+        f" material: elastic, shape: {{circle: {{radius: {r!r}}}}}}}"
+        for i, ((x, y, r), (vx, vy)) in enumerate(zip(placed, vel.tolist(), strict=True))
+    ]
+    return (
+        "version: 1\n"
+        f"world: {{gravity: [0, 0], dt: {DT!r}, duration: 10}}\n"
+        # every approach bounces: the default 1 m/s threshold would make grazing
+        # impacts inelastic by design
+        "solver: {restitution_threshold: 0.0}\n"
+        "materials: {elastic: {density: 1.0, friction: 0.0, restitution: 1.0}}\n"
+        "bodies:\n" + "\n".join(lines) + "\n"
+    )
+
+
+def test_elastic_gas_conserves_momentum_and_kinetic_energy():
+    world = make_world(gas_scene())
+    m = world.model.body_mass
+    tr = record(world, world.scene.world.steps)
+    momentum = np.einsum("n,tnk->tk", m, tr["v"])
+    kinetic = 0.5 * np.einsum("n,tnk->t", m, tr["v"] ** 2)
+    kinetic += 0.5 * np.einsum("n,tn->t", world.model.body_inertia, tr["w"] ** 2)
+    # the gas really collides: most circles change velocity at least once
+    collided = np.any(tr["v"] != tr["v"][0], axis=(0, 2))
+    assert collided.sum() >= 25
+    # momentum: every impulse acts in equal and opposite pairs; 1e-9 relative allows the
+    # rounding of ~10⁴ impulse applications
+    p0 = np.hypot(*momentum[0])
+    assert np.abs(momentum - momentum[0]).max() <= 1e-9 * p0
+    # e = 1: an isolated impact restores −v_n exactly (test above); 1% as asked, for
+    # the impacts that fall within one step of each other
+    np.testing.assert_allclose(kinetic, kinetic[0], rtol=0.01)
+
+
+# ---------------------------------------------------------------------------------------
+# 3. A ball bouncing on the ground
+# ---------------------------------------------------------------------------------------
+
+BALL_DROP = """
+version: 1
+world: {{dt: {dt!r}, duration: {duration}}}
+solver: {{restitution_threshold: 1.0}}
+bodies:
+  - {{name: ground, type: static, restitution: {e},
+     shape: {{segment: {{a: [-10, 0], b: [10, 0]}}}}}}
+  - {{name: ball, position: [0, {y0!r}], restitution: {e},
+     shape: {{circle: {{radius: {r}}}}}}}
+"""
+RADIUS = 0.25
+
+
+def drop_ball(run_text, e: float, height: float, duration: float):
+    """Height of the ball above its rest height (ground + radius) and its velocity at
+    every step."""
+    text = BALL_DROP.format(dt=DT, duration=duration, e=e, y0=RADIUS + height, r=RADIUS)
+    tr = run_text(text)
+    ball = tr.body("ball")
+    return tr.position[:, ball, 1] - RADIUS, tr.velocity[:, ball]
+
+
+def apexes(y: np.ndarray, vy: np.ndarray) -> np.ndarray:
+    """Heights where the ball turns from rising to falling (the higher of the two
+    frames around the turn: off the true apex by at most g dt²/8 = 0.03 mm). Turns
+    below 1 mm are the ball settling into the soft contact at rest, not bounces (the
+    smallest bounce, at the 1 m/s threshold with e = 0.5, rises 1.3 cm)."""
+    turn = np.nonzero((vy[:-1] > 0) & (vy[1:] <= 0))[0]
+    tops = np.maximum(y[turn], y[turn + 1])
+    return tops[tops > 1e-3]
+
+
+def test_elastic_ball_keeps_its_apex_for_ten_bounces(run_text):
+    height = 2.0
+    y, v = drop_ball(run_text, e=1.0, height=height, duration=14.0)
+    tops = apexes(y, v[:, 1])
+    assert len(tops) >= 10
+    # e = 1 on both: the restitution stage keeps the discrete trajectory's energy, so the
+    # apex is lost only to frame sampling; 2% as asked of any e = 1 scheme
+    np.testing.assert_allclose(tops[:10], height, rtol=0.02)
+
+
+def test_half_restitution_ball_apex_ratio_is_e_squared(run_text):
+    height = 4.0
+    y, v = drop_ball(run_text, e=0.5, height=height, duration=6.0)
+    tops = np.concatenate([[height], apexes(y, v[:, 1])])
+    ratios = tops[1:] / tops[:-1]
+    # impact speeds 8.9, 4.4, 2.2, 1.1 m/s bounce (threshold 1 m/s); the next, 0.55 m/s,
+    # does not: four bounces, each rising e² = 0.25 of the fall
+    assert len(ratios) == 4, tops
+    # ±0.02 as asked: sampling is 0.03 mm of the 1.5 cm last apex
+    np.testing.assert_allclose(ratios, 0.25, atol=0.02)
+
+
+def test_ball_slower_than_threshold_comes_to_rest_on_the_ground(run_text):
+    # dropped from 3 cm: impact at 0.77 m/s, below the 1 m/s threshold, so e = 1 is ignored
+    height = 0.03
+    assert math.sqrt(2 * G * height) < 1.0
+    y, v = drop_ball(run_text, e=1.0, height=height, duration=2.0)
+    landed = np.argmax(y < 1e-3)
+    assert landed > 0
+    # no bounce: an e = 1 bounce would rise 3 cm; 0.1 mm allows the soft contact's settling
+    assert y[landed:].max() < 1e-4
+    # no penetration beyond the linear slop (0.005 m)
+    assert y.min() > -0.005
+    # at rest: 1e-6 m/s is far below one step of gravity (0.16 m/s)
+    assert np.hypot(*v[-1]) < 1e-6
+
+
+# ---------------------------------------------------------------------------------------
+# 4. A pyramid of boxes stands
+# ---------------------------------------------------------------------------------------
+
+
+def test_pyramid_of_base_20_stands_for_ten_seconds():
+    world = make_world(
+        f"""
+        version: 1
+        world: {{dt: {DT!r}, duration: 10}}
+        bodies:
+          - {{name: ground, type: static, friction: 0.6,
+             shape: {{segment: {{a: [-30, 0], b: [30, 0]}}}}}}
+          - pyramid: {{base: 20, size: [1, 1], origin: [0, 0.5], friction: 0.6}}
+        """
+    )
+    boxes = world.model.body_type == BODY_DYNAMIC
+    assert boxes.sum() == 210
+    x0 = world.state.body_x.copy()
+    world.advance(world.scene.world.steps)
+    moved = np.hypot(*(world.state.body_x - x0)[boxes].T)
+    # a standing pyramid only settles into its soft contacts: 5 cm as asked
+    assert moved.max() < 0.05
+    # near zero kinetic energy: mean speed below 1 cm/s, and no box turning at 0.01 rad/s
+    speed = np.hypot(*world.state.body_v[boxes].T)
+    assert speed.mean() < 0.01
+    assert np.abs(world.state.body_w[boxes]).max() < 0.01
+
+
+# ---------------------------------------------------------------------------------------
+# 5. Determinism
+# ---------------------------------------------------------------------------------------
+
+PILE = """
+version: 1
+world: {dt: 1/60, steps: 300}
+materials: {stuff: {density: 1.0, friction: 0.5, restitution: 0.3}}
+bodies:
+  - {name: floor, type: static, shape: {segment: {a: [-6, 0], b: [6, 0]}}}
+  - {name: left, type: static, shape: {segment: {a: [-6, 0], b: [-6, 8]}}}
+  - {name: right, type: static, shape: {segment: {a: [6, 0], b: [6, 8]}}}
+  - grid: {name: balls, count: [8, 5], spacing: [1.1, 1.1], origin: [-4.1, 2.0],
+           velocity: [0.7, 0], material: stuff, shape: {circle: {radius: 0.4}}}
+  - grid: {name: crates, count: [7, 5], spacing: [1.1, 1.1], origin: [-3.55, 2.55],
+           velocity: [-0.5, -1], material: stuff, shape: {box: {size: [0.6, 0.4], angle: 0.3}}}
+"""
+
+
+def state_digests(world: World, steps: int) -> list[str]:
+    """sha256 of every body's position, orientation, velocity and spin after each step."""
+    out = []
+    for _ in range(steps):
+        world.advance(1)
+        s = world.state
+        h = hashlib.sha256()
+        for a in (s.body_x, s.body_q, s.body_angle, s.body_v, s.body_w):
+            h.update(np.ascontiguousarray(a).tobytes())
+        out.append(h.hexdigest())
+    return out
+
+
+def test_same_scene_twice_gives_bit_identical_trajectories():
+    first = state_digests(make_world(PILE), 300)
+    make_world(gas_scene(n=10)).advance(50)  # an unrelated run in between
+    second = state_digests(make_world(PILE), 300)
+    assert first == second
+    # and the pile really is chaotic: the boxes and balls have hit each other
+    world = make_world(PILE)
+    world.advance(300)
+    assert world.contact_count > 40
+
+
+# ---------------------------------------------------------------------------------------
+# 6. No tunneling
+# ---------------------------------------------------------------------------------------
+
+LINEAR_SLOP = 0.005  # m, the overlap the solver allows before pushing out
+
+
+@pytest.mark.parametrize("e", [0.0, 1.0])
+def test_fast_small_ball_never_passes_a_thin_wall(e):
+    # 300 m/s is 5 m per step, 50 ball radii and 50 wall thicknesses
+    world = make_world(
+        f"""
+        version: 1
+        world: {{gravity: [0, 0], dt: {DT!r}, steps: 30}}
+        bodies:
+          - {{name: wall, type: static, position: [10.05, 0], restitution: {e},
+             shape: {{box: {{size: [0.1, 4]}}}}}}
+          - {{name: bullet, position: [0, 0.3], velocity: [300, 0], restitution: {e},
+             shape: {{circle: {{radius: 0.05}}}}}}
+        """
+    )
+    tr = record(world, 30)
+    x = tr["x"][:, 1, 0]
+    assert np.all(x < 10.1)  # never on the far side
+    assert np.all(x + 0.05 <= 10.0 + LINEAR_SLOP)  # never through the near face
+    assert tr["v"][-1, 1, 0] == pytest.approx(-300 * e, abs=1e-6 * 300)  # stopped or back
+
+
+@pytest.mark.parametrize("spin", [0.0, 30.0])
+def test_fast_box_never_passes_a_segment_wall(spin):
+    # 200 m/s is 3.3 m per step, 17 box lengths; spinning, it turns 0.5 rad per step
+    world = make_world(
+        f"""
+        version: 1
+        world: {{gravity: [0, 0], dt: {DT!r}, steps: 30}}
+        bodies:
+          - {{name: wall, type: static, shape: {{segment: {{a: [10, -5], b: [10, 5]}}}}}}
+          - {{name: brick, position: [0, 0.2], velocity: [200, 10], angular_velocity: {spin},
+             shape: {{box: {{size: [0.2, 0.1]}}}}}}
+        """
+    )
+    tr = record(world, 30)
+    c, s = tr["q"][:, 1, 0], tr["q"][:, 1, 1]
+    for lx, ly in ((0.1, 0.05), (-0.1, 0.05), (-0.1, -0.05), (0.1, -0.05)):
+        corner_x = tr["x"][:, 1, 0] + c * lx - s * ly
+        assert np.all(corner_x <= 10.0 + LINEAR_SLOP)
+    assert tr["contacts"].max() > 0  # it did reach the wall
+
+
+# ---------------------------------------------------------------------------------------
+# 7. Coulomb friction on a slope
+# ---------------------------------------------------------------------------------------
+
+SLOPE_ANGLE = 0.25  # rad; tan = 0.2553
+
+
+def slope_scene(mu: float, duration: float) -> str:
+    th = SLOPE_ANGLE
+    normal = np.array([-math.sin(th), math.cos(th)])
+    # a 1 m thick slope centred on the origin, the 0.5 m tall block resting on it
+    bx, by = ((0.5 + 0.25) * normal).tolist()
+    return f"""
+version: 1
+world: {{dt: {DT!r}, duration: {duration}}}
+bodies:
+  - {{name: slope, type: static, angle: {th}, friction: {mu},
+     shape: {{box: {{size: [40, 1]}}}}}}
+  - {{name: block, position: [{bx!r}, {by!r}], angle: {th}, friction: {mu},
+     shape: {{box: {{size: [1, 0.5]}}}}}}
+"""
+
+
+def along_slope(tr: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Displacement (m) and velocity (m/s) of the block along the slope, downhill > 0."""
+    down = -np.array([math.cos(SLOPE_ANGLE), math.sin(SLOPE_ANGLE)])
+    return (tr["x"][:, 1] - tr["x"][0, 1]) @ down, tr["v"][:, 1] @ down
+
+
+def test_block_on_slope_sticks_when_mu_exceeds_tan_theta():
+    mu = 0.4
+    assert mu > math.tan(SLOPE_ANGLE)
+    world = make_world(slope_scene(mu, duration=5.0))
+    s, _ = along_slope(record(world, world.scene.world.steps))
+    assert np.abs(s).max() < 0.01  # static friction holds: slip below 1 cm in 5 s
+
+
+def test_block_on_slope_slides_at_g_sin_minus_mu_cos_when_mu_below_tan_theta():
+    mu = 0.1
+    assert mu < math.tan(SLOPE_ANGLE)
+    world = make_world(slope_scene(mu, duration=3.0))
+    tr = record(world, world.scene.world.steps)
+    _, v = along_slope(tr)
+    t = np.arange(len(v)) * DT
+    late = t >= 0.5  # past the first contact's settling
+    accel = np.polyfit(t[late], v[late], 1)[0]
+    expected = G * (math.sin(SLOPE_ANGLE) - mu * math.cos(SLOPE_ANGLE))
+    assert accel == pytest.approx(expected, rel=0.05)  # 5% as asked
+    # and the block stays on the slope without tipping
+    assert np.abs(tr["w"][:, 1]).max() < 1e-3
+
+
+# ---------------------------------------------------------------------------------------
+# 8. Resting contact
+# ---------------------------------------------------------------------------------------
+
+
+def test_box_resting_on_ground_has_two_contacts_and_does_not_drift(run_text):
+    tr = run_text(
+        f"""
+        version: 1
+        world: {{dt: {DT!r}, duration: 4}}
+        bodies:
+          - {{name: ground, type: static, shape: {{segment: {{a: [-5, 0], b: [5, 0]}}}}}}
+          - {{name: box, position: [0.3, 0.5], density: 2, shape: {{box: {{size: [1, 1]}}}}}}
+        """
+    )
+    box = tr.body("box")
+    count = tr.observables["contact_count"]
+    assert np.all(count[1:] == 2)  # both bottom corners push at every step
+    last = tr.time >= tr.time[-1] - 2.0
+    speed = np.hypot(*tr.velocity[last, box].T)
+    assert speed.max() < 1e-3  # no jitter: below 1 mm/s over the last 2 s
+    # no drift: the box stays within 1 mm of where it was put
+    assert np.abs(tr.position[:, box] - tr.position[0, box]).max() < 1e-3
+    # the contact carries the weight: with no acceleration, N = m (g + dv/dt) = m g
+    mass = tr.bodies.mass[box]
+    dvdt = (tr.velocity[-1, box, 1] - tr.velocity[last, box, 1][0]) / 2.0
+    normal_force = mass * (G + dvdt)
+    assert normal_force == pytest.approx(mass * G, rel=1e-3)
+
+
+# ---------------------------------------------------------------------------------------
+# Example scenes
+# ---------------------------------------------------------------------------------------
+
+# The top of the ground (or, for the billiards table seen from above, the cushions)
+# that every body must stay inside of: xmin, xmax, ymin, ymax (m).
+EXAMPLES = {
+    "bounce": (-math.inf, math.inf, 0.0, math.inf),
+    "billiards": (-1.27, 1.27, -0.635, 0.635),
+    "balls_in_box": (-5.0, 5.0, 0.0, math.inf),
+    "stairs": (-math.inf, math.inf, 0.0, math.inf),
+}
+MARGIN = 0.05  # m: a little overlap is allowed, a body through the ground is not
+
+
+def body_extents(world: World) -> np.ndarray:
+    """(N,4) xmin, xmax, ymin, ymax of every body's shapes, radius included."""
+    model, state = world.model, world.state
+    ext = np.tile([np.inf, -np.inf, np.inf, -np.inf], (len(model.body_mass), 1))
+    for shape, body in enumerate(model.shape_body):
+        start, count = model.shape_vstart[shape], model.shape_vcount[shape]
+        local = model.vertex_local[start : start + count]
+        c, s = state.body_q[body]
+        world_v = state.body_x[body] + local @ np.array([[c, s], [-s, c]])
+        r = model.shape_radius[shape]
+        ext[body, 0] = min(ext[body, 0], world_v[:, 0].min() - r)
+        ext[body, 1] = max(ext[body, 1], world_v[:, 0].max() + r)
+        ext[body, 2] = min(ext[body, 2], world_v[:, 1].min() - r)
+        ext[body, 3] = max(ext[body, 3], world_v[:, 1].max() + r)
+    return ext
+
+
+@pytest.mark.parametrize("name", sorted(EXAMPLES))
+def test_example_scene_runs_and_keeps_bodies_above_ground(name):
+    path = SCENES / f"{name}.yaml"
+    assert path.read_text().startswith("# yaml-language-server: $schema=../rbsim-schema.json\n")
+    world = World.from_scene(load_scene(path))
+    dynamic = world.model.body_type == BODY_DYNAMIC
+    xmin, xmax, ymin, ymax = EXAMPLES[name]
+    for _ in range(120):
+        world.advance(1)  # raises NonFiniteState on a NaN or infinite state
+        ext = body_extents(world)[dynamic]
+        assert np.all(ext[:, 0] > xmin - MARGIN) and np.all(ext[:, 1] < xmax + MARGIN)
+        assert np.all(ext[:, 2] > ymin - MARGIN) and np.all(ext[:, 3] < ymax + MARGIN)
+    for a in world.state:
+        assert np.all(np.isfinite(a))
