@@ -244,42 +244,40 @@ def mix(a, b, rule):
 
 
 @njit(cache=True)
-def _place(model, state, s, t, start, verts, norms):
+def _place(g, s, t, start, x, q, v, w, verts, norms):
     """Write shape s's vertices and normals, as its body will be after t seconds of
-    free motion, into rows start.. of verts and norms."""
-    i = model.shape_body[s]
-    angle = t * state.body_w[i]
-    c0, s0 = state.body_q[i, 0], state.body_q[i, 1]
-    cr, sr = math.cos(angle), math.sin(angle)
-    c, sn = cr * c0 - sr * s0, sr * c0 + cr * s0
-    x = state.body_x[i, 0] + t * state.body_v[i, 0]
-    y = state.body_x[i, 1] + t * state.body_v[i, 1]
-    v0 = model.shape_vstart[s]
-    for k in range(model.shape_vcount[s]):
-        lx, ly = model.vertex_local[v0 + k, 0], model.vertex_local[v0 + k, 1]
-        verts[start + k, 0] = x + c * lx - sn * ly
-        verts[start + k, 1] = y + sn * lx + c * ly
-        nx, ny = model.normal_local[v0 + k, 0], model.normal_local[v0 + k, 1]
+    free motion, into rows start.. of verts and norms. g: (shape_body, shape_vstart,
+    shape_vcount, vertex_local, normal_local) of the model."""
+    shape_body, shape_vstart, shape_vcount, vertex_local, normal_local = g
+    i = shape_body[s]
+    cr, sr = math.cos(t * w[i]), math.sin(t * w[i])
+    c, sn = cr * q[i, 0] - sr * q[i, 1], sr * q[i, 0] + cr * q[i, 1]
+    px, py = x[i, 0] + t * v[i, 0], x[i, 1] + t * v[i, 1]
+    v0 = shape_vstart[s]
+    for k in range(shape_vcount[s]):
+        lx, ly = vertex_local[v0 + k, 0], vertex_local[v0 + k, 1]
+        verts[start + k, 0] = px + c * lx - sn * ly
+        verts[start + k, 1] = py + sn * lx + c * ly
+        nx, ny = normal_local[v0 + k, 0], normal_local[v0 + k, 1]
         norms[start + k, 0] = c * nx - sn * ny
         norms[start + k, 1] = sn * nx + c * ny
 
 
 @njit(cache=True)
-def _time_of_impact(model, state, contacts, a, b, npts, dt, spec):
+def _time_of_impact(g, kinds, radii, a, b, npts, dt, spec, x, q, v, w, tv, tn, out):
     """Move a speculative manifold to the moment of impact.
 
     A manifold found before the shapes touch has the normal and points of the start
     of the step; for a glancing approach (two balls off centre) those are not the
     normal and points of the impact. Conservative advancement: move both bodies
     freely by t = separation / approach speed, collide again, repeat; the manifold
-    at the last t replaces the scratch one. Returns (points, t) with t in s (0 when
-    the pair is touching, separating, or does not meet within dt).
+    at the last t replaces the scratch one `out` (normal, points, separations, ids).
+    Returns (points, t) with t in s (0 when the pair is separating or does not meet
+    within dt). g as for _place; kinds, radii: the model's shape arrays.
     """
-    out_n, out_p = contacts.scratch_normal, contacts.scratch_point
-    out_s, out_f = contacts.scratch_separation, contacts.scratch_feature
-    v, w, x = state.body_v, state.body_w, state.body_x
-    ba, bb = model.shape_body[a], model.shape_body[b]
-    tv, tn = contacts.toi_verts, contacts.toi_norms
+    out_n, out_p, out_s, out_f = out
+    shape_body, shape_vcount = g[0], g[2]
+    ba, bb = shape_body[a], shape_body[b]
     t = 0.0
     for _ in range(TOI_ITERATIONS):
         sep = min(out_s[0], out_s[1]) if npts == 2 else out_s[0]
@@ -298,12 +296,11 @@ def _time_of_impact(model, state, contacts, a, b, npts, dt, spec):
         if t + step > dt:
             break
         t += step
-        na, nb = model.shape_vcount[a], model.shape_vcount[b]
-        _place(model, state, a, t, 0, tv, tn)
-        _place(model, state, b, t, na, tv, tn)
+        na, nb = shape_vcount[a], shape_vcount[b]
+        _place(g, a, t, 0, x, q, v, w, tv, tn)
+        _place(g, b, t, na, x, q, v, w, tv, tn)
         npts = collide(
-            model.shape_kind[a], 0, na, model.shape_radius[a],
-            model.shape_kind[b], na, nb, model.shape_radius[b],
+            kinds[a], 0, na, radii[a], kinds[b], na, nb, radii[b],
             tv, tn, spec, out_n, out_p, out_s, out_f,
         )  # fmt: skip
         if npts == 0:  # passed by after all
@@ -360,6 +357,15 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
     s_body_v, s_body_w = state.body_v, state.body_w
     c_ref_separation = contacts.ref_separation
     c_start_impulse = contacts.start_impulse
+    s_body_q = state.body_q
+    toi_verts, toi_norms = contacts.toi_verts, contacts.toi_norms
+    geometry = (
+        model.shape_body,
+        model.shape_vstart,
+        model.shape_vcount,
+        model.vertex_local,
+        model.normal_local,
+    )
     c_prev_normal = contacts.prev_normal
     c_prev_anchor_a, c_prev_anchor_b = contacts.prev_anchor_a, contacts.prev_anchor_b
     c_prev_ref_separation = contacts.prev_ref_separation
@@ -368,6 +374,7 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
     vw, nw = c_vert_world, c_norm_world
     out_n, out_p = c_scratch_normal, c_scratch_point
     out_s, out_f = c_scratch_separation, c_scratch_feature
+    out = (out_n, out_p, out_s, out_f)
     n_prev = c_count[1]
     j = 0  # merge pointer into last step's manifolds (both sorted by key)
     m = 0
@@ -426,8 +433,13 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
                 out_f,
             )
             t = 0.0
-            if npts > 0:
-                npts, t = _time_of_impact(model, state, contacts, a, b, npts, dt, spec)
+            # only a pair that is clearly apart can turn its normal before the impact
+            # (the call is kept off the common path: it takes the whole model)
+            if npts > 0 and min(out_s[0], out_s[npts - 1]) > C.LINEAR_SLOP:
+                npts, t = _time_of_impact(
+                    geometry, m_shape_kind, m_shape_radius, a, b, npts, dt, spec,
+                    s_body_x, s_body_q, s_body_v, s_body_w, toi_verts, toi_norms, out,
+                )  # fmt: skip
             if npts == 0:
                 continue
             nx, ny = out_n[0], out_n[1]

@@ -299,6 +299,13 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
     delta = c_body_delta
     gx, gy = m_gravity[0], m_gravity[1]
     for m in range(c_count[0]):
+        # most manifolds have no point that just hit: skip them before any work
+        hit = False
+        for k in range(c_points[m]):
+            if c_approach_velocity[m, k] < -threshold and c_max_normal_impulse[m, k] > 0.0:
+                hit = True
+        if not hit:
+            continue
         e = c_restitution[m]
         a, b = c_body_a[m], c_body_b[m]
         nx, ny = c_normal[m, 0], c_normal[m, 1]
