@@ -11,13 +11,12 @@ bias (a damped spring of CONTACT_HERTZ that pushes overlap out at no more than
 CONTACT_PUSH_MAX_VELOCITY), moves the bodies, then relaxes without the bias so that
 the push-out does not turn into velocity. A speculative point (separation s > 0)
 lets the bodies approach by s in the substep and no further. Accumulated impulses
-are clamped: λ_n >= 0 and |λ_t| <= μ λ_n (Coulomb). After the substeps, restitution
-sets v_n⁺ = −e v_n⁻ at points that were approaching faster than the threshold
-when they engaged (the restitution hypothesis), so one isolated contact receives
-exactly γ = −(1 + e) m_eff v_n⁻. The approach speed is the one at impact, measured
-in the substep where the point first pushes, not at the start of the step: a ball
-falling under gravity would otherwise lose g·dt of speed at every bounce (see
-apply_restitution for the rest of that story).
+are clamped: λ_n >= 0 and |λ_t| <= μ λ_n (Coulomb). At the end of the substep in
+which a point first pushes, restitution sets v_n⁺ = −e v_n⁻ if it was approaching
+faster than the threshold (the restitution hypothesis), so one isolated contact
+receives exactly γ = −(1 + e) m_eff v_n⁻. The approach speed is the one at impact,
+not at the start of the step: a ball falling under gravity would otherwise lose
+g·dt of speed at every bounce (see apply_restitution for the rest of that story).
 """
 
 from __future__ import annotations
