@@ -22,7 +22,9 @@ SPECULATIVE_DISTANCE = 0.02
 # Smaller makes stacks jitter; larger leaves visible overlap.
 LINEAR_SLOP = 0.005
 
-# AABB margin for the broadphase, m. Must be >= SPECULATIVE_DISTANCE.
+# How far a shape's fat box reaches beyond its tight box, m. A shape is queried in
+# the broadphase again only once it has moved this far; larger keeps more candidate
+# pairs (each costs a box test per step), smaller re-queries moving shapes more often.
 AABB_MARGIN = 0.02
 
 # Soft contact stiffness, Hz; capped at a quarter of the substep rate. 30 Hz is stiff
