@@ -35,6 +35,15 @@ out/%.h5: scenes/%.yaml $(STAMP) $(wildcard rbsim/*.py)
 	@mkdir -p out
 	$(BIN)/rbsim run $< -o $@ --quiet
 
+COMPARE_SCENES := $(wildcard scenes/compare/*.yaml)
+
+# rbsim against pymunk on every scene of scenes/compare/; fails if any exits non-zero.
+.PHONY: compare
+compare: $(STAMP)
+	@status=0; for s in $(COMPARE_SCENES); do \
+		$(BIN)/rbsim compare $$s -o out/compare || status=1; \
+	done; exit $$status
+
 bench: $(STAMP)
 	$(BIN)/python -m bench
 

@@ -24,6 +24,7 @@ if TYPE_CHECKING:
 
 EXIT_RUNTIME = 1
 EXIT_SCENE = 3
+EXIT_COMPARE = 4
 EXIT_INTERRUPTED = 130
 
 
@@ -208,6 +209,71 @@ def info(trajectory: str) -> None:
     except (OSError, KeyError, ValueError, TypeError) as err:
         _fail(EXIT_RUNTIME, f"{trajectory}: not an rbsim trajectory ({err})")
     click.echo(text)
+
+
+@main.command()
+@click.argument("scene", type=click.Path(dir_okay=False))
+@click.option(
+    "-o",
+    "--output",
+    "out_dir",
+    type=click.Path(file_okay=False),
+    default="out/compare",
+    show_default=True,
+    help="Folder for <name>.rbsim.h5 and <name>.pymunk.h5.",
+)
+@click.option("--set", "overrides", multiple=True, metavar="KEY.PATH=VALUE", help="As for run.")
+@click.option("--json", "as_json", is_flag=True, help="Print a JSON dict instead of the table.")
+@click.option("--position", type=click.FloatRange(min=0), help="Position tolerance, m.")
+@click.option("--angle", type=click.FloatRange(min=0), help="Angle tolerance, rad.")
+@click.option("--velocity", type=click.FloatRange(min=0), help="Velocity tolerance, m/s.")
+@click.option(
+    "--iterations",
+    type=click.IntRange(min=1),
+    help="pymunk solver iterations per pymunk step [default: 10].",
+)
+def compare(
+    scene: str,
+    out_dir: str,
+    overrides: tuple[str, ...],
+    as_json: bool,
+    position: float | None,
+    angle: float | None,
+    velocity: float | None,
+    iterations: int | None,
+) -> None:
+    """Run SCENE in rbsim and in pymunk and report their differences (exit 4 when a
+    difference exceeds its tolerance)."""
+    from .compare import compare_scene
+    from .model import ModelError
+    from .pymunk_bridge import UnsupportedScene
+    from .run import RunFailed
+
+    sc = _load(scene, overrides)
+    out = Path(out_dir)
+    try:
+        result = compare_scene(
+            sc, out, position=position, angle=angle, velocity=velocity, iterations=iterations
+        )
+    except UnsupportedScene as err:
+        _fail(EXIT_SCENE, f"{scene}: pymunk cannot express this scene: {err}")
+    except ModelError as err:
+        _fail(EXIT_SCENE, f"{scene}: {err}")
+    except RunFailed as err:
+        _fail(EXIT_RUNTIME, f"error: {err}")
+    except KeyboardInterrupt:
+        _fail(EXIT_INTERRUPTED, "interrupted")
+    except FileExistsError:
+        _fail(EXIT_RUNTIME, f"error: cannot write to {out}: it is not a folder")
+    except OSError as err:
+        _fail(EXIT_RUNTIME, f"error: cannot write to {out}: {_reason(err)}")
+    if as_json:
+        click.echo(json.dumps(result.to_dict(), indent=2))
+    else:
+        click.echo(result.table())
+    if not result.ok:
+        lines = [f"{scene}: outside tolerance: {v}" for v in result.violations]
+        _fail(EXIT_COMPARE, "\n".join(lines))
 
 
 @main.command()
