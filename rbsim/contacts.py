@@ -42,8 +42,10 @@ class Contacts(NamedTuple):
     feature (M,2) int64; normal_impulse, tangent_impulse (M,2) N·s (per substep);
     start_impulse (M,2) N·s: the normal impulse carried over into this step;
     ref_separation (M,2) m: the separation with both bodies at their reference poses;
-    normal_mass, tangent_mass (M,2) kg; approach_velocity (M,2) m/s and
-    approach_separation (M,2) m where the point engaged (for restitution);
+    normal_mass, tangent_mass (M,2) kg; arms (M,2,4) m: r_a × n, r_b × n, r_a × t,
+    r_b × t of each point, the lever arms of its normal and friction impulses;
+    approach_velocity (M,2) m/s and approach_separation (M,2) m where the point
+    engaged (for restitution);
     max_normal_impulse (M,2) N·s; prev_* the same from last step for matching and
     for carrying a manifold forward. body_ref (N,3): each body's reference pose
     (x, y, angle), re-taken when it moves by more than STILL_DISTANCE or STILL_ANGLE;
@@ -76,6 +78,7 @@ class Contacts(NamedTuple):
     tangent_impulse: np.ndarray
     normal_mass: np.ndarray
     tangent_mass: np.ndarray
+    arms: np.ndarray
     approach_velocity: np.ndarray
     approach_separation: np.ndarray
     max_normal_impulse: np.ndarray
@@ -128,6 +131,7 @@ def make_contacts(n_bodies: int, n_shapes: int, n_vertices: int, capacity: int) 
         tangent_impulse=np.zeros((m, 2)),
         normal_mass=np.zeros((m, 2)),
         tangent_mass=np.zeros((m, 2)),
+        arms=np.zeros((m, 2, 4)),
         approach_velocity=np.zeros((m, 2)),
         approach_separation=np.zeros((m, 2)),
         max_normal_impulse=np.zeros((m, 2)),

@@ -69,6 +69,7 @@ def prepare_contacts(model, state, contacts, soft, soft_static):
     s_body_w = state.body_w
     im, ii = m_body_inv_mass, m_body_inv_inertia
     v, w = s_body_v, s_body_w
+    arms = contacts.arms
     for m in range(c_count[0]):
         a, b = c_body_a[m], c_body_b[m]
         ma, mb, ia, ib = im[a], im[b], ii[a], ii[b]
@@ -86,6 +87,8 @@ def prepare_contacts(model, state, contacts, soft, soft_static):
             c_normal_mass[m, k] = 1.0 / kn if kn > 0.0 else 0.0
             rta = rax * ty - ray * tx
             rtb = rbx * ty - rby * tx
+            arms[m, k, 0], arms[m, k, 1] = rna, rnb
+            arms[m, k, 2], arms[m, k, 3] = rta, rtb
             kt = ma + mb + ia * rta * rta + ib * rtb * rtb
             c_tangent_mass[m, k] = 1.0 / kt if kt > 0.0 else 0.0
             dvx = v[a, 0] - w[a] * ray - v[b, 0] + w[b] * rby
@@ -99,8 +102,6 @@ def prepare_contacts(model, state, contacts, soft, soft_static):
 @njit(cache=True)
 def warm_start(model, state, contacts):
     """Apply last substep's accumulated impulses again (they are impulses per substep)."""
-    c_anchor_a = contacts.anchor_a
-    c_anchor_b = contacts.anchor_b
     c_body_a = contacts.body_a
     c_body_b = contacts.body_b
     c_count = contacts.count
@@ -114,21 +115,24 @@ def warm_start(model, state, contacts):
     s_body_w = state.body_w
     im, ii = m_body_inv_mass, m_body_inv_inertia
     v, w = s_body_v, s_body_w
+    arms = contacts.arms
     for m in range(c_count[0]):
         a, b = c_body_a[m], c_body_b[m]
         nx, ny = c_normal[m, 0], c_normal[m, 1]
         tx, ty = ny, -nx
+        px = py = ta = tb = 0.0
         for k in range(c_points[m]):
             jn, jt = c_normal_impulse[m, k], c_tangent_impulse[m, k]
-            px, py = jn * nx + jt * tx, jn * ny + jt * ty
-            rax, ray = c_anchor_a[m, k, 0], c_anchor_a[m, k, 1]
-            rbx, rby = c_anchor_b[m, k, 0], c_anchor_b[m, k, 1]
-            v[a, 0] += im[a] * px
-            v[a, 1] += im[a] * py
-            w[a] += ii[a] * (rax * py - ray * px)
-            v[b, 0] -= im[b] * px
-            v[b, 1] -= im[b] * py
-            w[b] -= ii[b] * (rbx * py - rby * px)
+            px += jn * nx + jt * tx
+            py += jn * ny + jt * ty
+            ta += jn * arms[m, k, 0] + jt * arms[m, k, 2]
+            tb += jn * arms[m, k, 1] + jt * arms[m, k, 3]
+        v[a, 0] += im[a] * px
+        v[a, 1] += im[a] * py
+        w[a] += ii[a] * ta
+        v[b, 0] -= im[b] * px
+        v[b, 1] -= im[b] * py
+        w[b] -= ii[b] * tb
 
 
 @njit(cache=True)
@@ -167,6 +171,7 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift):
     v, w = s_body_v, s_body_w
     delta = c_body_delta
     max_push = -C.CONTACT_PUSH_MAX_VELOCITY
+    arms = contacts.arms
     for m in range(c_count[0]):
         a, b = c_body_a[m], c_body_b[m]
         ma, mb, ia, ib = im[a], im[b], ii[a], ii[b]
@@ -198,9 +203,8 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift):
             elif use_bias:
                 bias = max(bias_rate * s, max_push)
                 mass_scale, impulse_scale = mass_scale0, impulse_scale0
-            dvx = vax - wa * ray - vbx + wb * rby
-            dvy = vay + wa * rax - vby - wb * rbx
-            vn = dvx * nx + dvy * ny
+            rna, rnb = arms[m, k, 0], arms[m, k, 1]
+            vn = (vax - vbx) * nx + (vay - vby) * ny + wa * rna - wb * rnb
             lam = c_normal_impulse[m, k]
             impulse = -c_normal_mass[m, k] * mass_scale * (vn + bias)
             impulse -= impulse_scale * lam
@@ -221,18 +225,15 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift):
             px, py = impulse * nx, impulse * ny
             vax += ma * px
             vay += ma * py
-            wa += ia * (rax * py - ray * px)
+            wa += ia * impulse * rna
             vbx -= mb * px
             vby -= mb * py
-            wb -= ib * (rbx * py - rby * px)
+            wb -= ib * impulse * rnb
         mu = c_friction[m]
         if mu > 0.0:
             for k in range(npts):
-                rax, ray = c_anchor_a[m, k, 0], c_anchor_a[m, k, 1]
-                rbx, rby = c_anchor_b[m, k, 0], c_anchor_b[m, k, 1]
-                dvx = vax - wa * ray - vbx + wb * rby
-                dvy = vay + wa * rax - vby - wb * rbx
-                vt = dvx * tx + dvy * ty
+                rta, rtb = arms[m, k, 2], arms[m, k, 3]
+                vt = (vax - vbx) * tx + (vay - vby) * ty + wa * rta - wb * rtb
                 lam = c_tangent_impulse[m, k]
                 limit = mu * c_normal_impulse[m, k]
                 if limit == 0.0 and lam == 0.0:
@@ -243,10 +244,10 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift):
                 px, py = impulse * tx, impulse * ty
                 vax += ma * px
                 vay += ma * py
-                wa += ia * (rax * py - ray * px)
+                wa += ia * impulse * rta
                 vbx -= mb * px
                 vby -= mb * py
-                wb -= ib * (rbx * py - rby * px)
+                wb -= ib * impulse * rtb
         v[a, 0], v[a, 1], w[a] = vax, vay, wa
         v[b, 0], v[b, 1], w[b] = vbx, vby, wb
 
