@@ -188,15 +188,15 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift):
             c_softness[m, 2],
         )
         npts = c_points[m]
+        # the current separation: n · (d_a − d_b + R_a r_a − R_b r_b) + base, with the
+        # normal turned back into each body's start frame instead of each anchor forward
+        moved = nx * (dax - dbx) + ny * (day - dby)
+        nax, nay = ca * nx + sa * ny, ca * ny - sa * nx
+        nbx, nby = cb * nx + sb * ny, cb * ny - sb * nx
         for k in range(npts):
-            rax, ray = c_anchor_a[m, k, 0], c_anchor_a[m, k, 1]
-            rbx, rby = c_anchor_b[m, k, 0], c_anchor_b[m, k, 1]
-            # anchors turned with their bodies: the current separation
-            pax, pay = ca * rax - sa * ray, sa * rax + ca * ray
-            pbx, pby = cb * rbx - sb * rby, sb * rbx + cb * rby
-            dx = dax - dbx + pax - pbx
-            dy = day - dby + pay - pby
-            s = dx * nx + dy * ny + c_base_separation[m, k]
+            s = moved + c_base_separation[m, k]
+            s += nax * c_anchor_a[m, k, 0] + nay * c_anchor_a[m, k, 1]
+            s -= nbx * c_anchor_b[m, k, 0] + nby * c_anchor_b[m, k, 1]
             bias, mass_scale, impulse_scale = 0.0, 1.0, 0.0
             if s > 0.0:
                 bias = s * inv_h  # speculative: may close the gap, no more
