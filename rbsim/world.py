@@ -10,8 +10,10 @@ from Python; `advance` runs many steps.
 Two rules keep the kernels fast. A kernel binds the NamedTuple fields it uses to
 locals before its loops (numba updates a reference count on every field read, which
 made the broadphase 30 times slower). And a function called per pair or per contact
-takes arrays, not the Model/State/Contacts tuples (each call would pay the same). A scene without shapes skips the contact
-stages entirely, and one without forces skips their evaluation.
+takes arrays, not the Model/State/Contacts tuples (each call would pay the same).
+
+A scene without shapes skips the contact stages entirely, and one without forces
+skips their evaluation.
 """
 
 from __future__ import annotations
