@@ -49,6 +49,10 @@ from .constants import LINEAR_SLOP, SHAPE_CIRCLE, SHAPE_POLYGON, SHAPE_SEGMENT
 # reference, the points and their ids from one step to the next. m.
 REFERENCE_FACE_TOLERANCE = 0.1 * LINEAR_SLOP
 
+# Least combined radius of two colliding segments, m: thin segments rest this far
+# apart. About the linear slop; smaller lets a thin rod fall through a thin ground.
+SEGMENT_SKIN = LINEAR_SLOP
+
 # Lengths below this are treated as zero (directions are not normalised from them). m.
 LINEAR_EPSILON = 1.0e-9
 
@@ -451,6 +455,13 @@ def collide(
         # polygons and segments alike: one core routine, so one call site to inline
         if kind_a > SHAPE_SEGMENT or kind_b > SHAPE_SEGMENT:
             return 0
+        if kind_a == SHAPE_SEGMENT and kind_b == SHAPE_SEGMENT:
+            # two thin segments have no inside: once one dips below the other by a
+            # rounding error the normal flips and it falls through. A skin keeps them
+            # apart by SEGMENT_SKIN instead (as polygon radii did in Box2D v2).
+            skin = 0.5 * max(SEGMENT_SKIN - radius_a - radius_b, 0.0)
+            radius_a += skin
+            radius_b += skin
         return _collide_cores(
             start_a, count_a, radius_a, start_b, count_b, radius_b,
             verts, norms, speculative, out_normal, out_point, out_sep, out_id,

@@ -19,7 +19,7 @@ from rbsim.constants import (
     SHAPE_SEGMENT,
     SPECULATIVE_DISTANCE,
 )
-from rbsim.narrowphase import REFERENCE_FACE_TOLERANCE, collide
+from rbsim.narrowphase import REFERENCE_FACE_TOLERANCE, SEGMENT_SKIN, collide
 
 SPEC = SPECULATIVE_DISTANCE
 TOL = 1e-9
@@ -641,7 +641,10 @@ def test_separated_shapes_report_the_true_distance_as_their_closest_point(kinds)
         pa, pb = shape_verts(w, a), shape_verts(w, b)
         if sat_depth(pa, pb) <= 1e-6:
             continue  # cores overlap or touch
-        gap = core_distance(pa, pb) - a.radius - b.radius
+        radius = a.radius + b.radius
+        if kinds == "segment-segment":  # two segments keep at least SEGMENT_SKIN between cores
+            radius = max(radius, SEGMENT_SKIN)
+        gap = core_distance(pa, pb) - radius
         m = w.collide(a, b, speculative=10.0)
         assert m.count >= 1
         # the closest point is the true gap, up to the reference face tolerance
