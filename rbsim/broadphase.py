@@ -109,12 +109,10 @@ def update_aabbs(model, grid, vert_world, shape_margin):
     m_shape_vcount = model.shape_vcount
     m_shape_vstart = model.shape_vstart
     g_meta = grid.meta
-    g_shape_aabb = grid.shape_aabb
-    g_shape_fat = grid.shape_fat
     g_shape_moved = grid.shape_moved
     reach = 0.5 * C.SPECULATIVE_DISTANCE
     fresh = g_meta[1] == 0
-    box, fat = g_shape_aabb, g_shape_fat
+    box, fat = grid.shape_aabb, grid.shape_fat
     moved = 0
     for s in range(m_shape_body.shape[0]):
         start, count = m_shape_vstart[s], m_shape_vcount[s]
@@ -144,14 +142,13 @@ def _fill_grid(grid):
     g_entry_ix = grid.entry_ix
     g_entry_iy = grid.entry_iy
     g_entry_shape = grid.entry_shape
-    g_inv_cell = grid.inv_cell
     g_meta = grid.meta
     g_shape_big = grid.shape_big
     g_shape_cells = grid.shape_cells
     g_shape_fat = grid.shape_fat
     n = g_shape_fat.shape[0]
     mask = g_bucket_start.shape[0] - 2  # table size - 1 (a power of two minus one)
-    inv = g_inv_cell
+    inv = grid.inv_cell
     starts = g_bucket_start
     starts[:] = 0
     e = 0

@@ -18,8 +18,10 @@ BODY_KINEMATIC = 2
 # m; typically 4 * LINEAR_SLOP. Larger values create more contacts (slower).
 SPECULATIVE_DISTANCE = 0.02
 
-# Allowed overlap before position correction pushes shapes apart. m; normally 0.5 cm.
-# Smaller makes stacks jitter; larger leaves visible overlap.
+# The collision tolerance, m; normally 0.5 cm. Gaps below it count as touching (no
+# time-of-impact search), the narrowphase's face tolerance and the thin-segment skin
+# scale with it, and pymunk gets it as its collision_slop. rbsim's soft contacts push
+# every overlap out; they allow none.
 LINEAR_SLOP = 0.005
 
 # How far a shape's fat box reaches beyond its tight box, m. A shape is queried in
@@ -36,11 +38,8 @@ CONTACT_HERTZ = 30.0
 # removed without bounce.
 CONTACT_DAMPING_RATIO = 10.0
 
-# Joint-free maximum speed at which overlap is pushed out, m/s (bounded push-out).
+# Fastest speed at which the soft contacts push an overlap out, m/s (bounded push-out).
 CONTACT_PUSH_MAX_VELOCITY = 3.0
-
-# Speeds are clamped to this to keep a bad scene from producing inf, m/s.
-MAX_LINEAR_SPEED = 4.0e3
 
 # A body that has moved less than this since its contacts were computed keeps them:
 # the narrowphase is skipped for pairs of such bodies and their manifolds are carried

@@ -191,9 +191,7 @@ def transform_shapes(model, state, contacts, dt):
     The reach (m) is how far the shape's surface can move in one step, dt (|v| + |ω| r),
     so that contacts are created before a fast body can pass through another.
     """
-    c_norm_world = contacts.norm_world
     c_shape_margin = contacts.shape_margin
-    c_vert_world = contacts.vert_world
     m_body_type = model.body_type
     m_normal_local = model.normal_local
     m_shape_body = model.shape_body
@@ -213,7 +211,7 @@ def transform_shapes(model, state, contacts, dt):
         still[i] = near
         if not near:  # re-take the reference pose: this body's contacts are recomputed
             ref[i, 0], ref[i, 1], ref[i, 2] = s_body_x[i, 0], s_body_x[i, 1], angle[i]
-    vw, nw = c_vert_world, c_norm_world
+    vw, nw = contacts.vert_world, contacts.norm_world
     for s in range(m_shape_body.shape[0]):
         i = m_shape_body[s]
         c, sn = s_body_q[i, 0], s_body_q[i, 1]
@@ -330,7 +328,6 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
     c_friction = contacts.friction
     c_key = contacts.key
     c_max_normal_impulse = contacts.max_normal_impulse
-    c_norm_world = contacts.norm_world
     c_normal = contacts.normal
     c_normal_impulse = contacts.normal_impulse
     c_pairs = contacts.pairs
@@ -341,15 +338,10 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
     c_prev_points = contacts.prev_points
     c_prev_tangent_impulse = contacts.prev_tangent_impulse
     c_restitution = contacts.restitution
-    c_scratch_feature = contacts.scratch_feature
-    c_scratch_normal = contacts.scratch_normal
-    c_scratch_point = contacts.scratch_point
-    c_scratch_separation = contacts.scratch_separation
     c_shape_a = contacts.shape_a
     c_shape_b = contacts.shape_b
     c_shape_margin = contacts.shape_margin
     c_tangent_impulse = contacts.tangent_impulse
-    c_vert_world = contacts.vert_world
     m_shape_body = model.shape_body
     m_shape_friction = model.shape_friction
     m_shape_kind = model.shape_kind
@@ -375,9 +367,9 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
     c_prev_ref_separation = contacts.prev_ref_separation
     ref, still = contacts.body_ref, contacts.body_still
     n_shapes = m_shape_body.shape[0]
-    vw, nw = c_vert_world, c_norm_world
-    out_n, out_p = c_scratch_normal, c_scratch_point
-    out_s, out_f = c_scratch_separation, c_scratch_feature
+    vw, nw = contacts.vert_world, contacts.norm_world
+    out_n, out_p = contacts.scratch_normal, contacts.scratch_point
+    out_s, out_f = contacts.scratch_separation, contacts.scratch_feature
     out = (out_n, out_p, out_s, out_f)
     n_prev = c_count[1]
     j = 0  # merge pointer into last step's manifolds (both sorted by key)

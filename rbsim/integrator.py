@@ -37,12 +37,10 @@ def integrate_velocities(model, state, h):
     m_has_forces = model.has_forces
     m_linear_damping = model.linear_damping
     s_body_q = state.body_q
-    s_body_v = state.body_v
-    s_body_w = state.body_w
     gx, gy = m_gravity[0], m_gravity[1]
     lin = 1.0 / (1.0 + h * m_linear_damping)
     ang = 1.0 / (1.0 + h * m_angular_damping)
-    v, w = s_body_v, s_body_w
+    v, w = state.body_v, state.body_w
     for i in range(v.shape[0]):
         if m_body_type[i] != C.BODY_DYNAMIC:
             continue
@@ -69,12 +67,7 @@ def integrate_positions(model, state, delta, h, exact):
     since the start of the step, which the contact solver uses to track separations.
     """
     m_body_type = model.body_type
-    s_body_angle = state.body_angle
-    s_body_q = state.body_q
-    s_body_v = state.body_v
-    s_body_w = state.body_w
-    s_body_x = state.body_x
-    x, q, angle, v, w = s_body_x, s_body_q, s_body_angle, s_body_v, s_body_w
+    x, q, angle, v, w = state.body_x, state.body_q, state.body_angle, state.body_v, state.body_w
     for i in range(x.shape[0]):
         if m_body_type[i] == C.BODY_STATIC:
             continue

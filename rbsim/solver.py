@@ -63,12 +63,8 @@ def prepare_contacts(model, state, contacts, soft, soft_static):
     c_points = contacts.points
     c_softness = contacts.softness
     c_tangent_mass = contacts.tangent_mass
-    m_body_inv_inertia = model.body_inv_inertia
-    m_body_inv_mass = model.body_inv_mass
-    s_body_v = state.body_v
-    s_body_w = state.body_w
-    im, ii = m_body_inv_mass, m_body_inv_inertia
-    v, w = s_body_v, s_body_w
+    im, ii = model.body_inv_mass, model.body_inv_inertia
+    v, w = state.body_v, state.body_w
     arms = contacts.arms
     for m in range(c_count[0]):
         a, b = c_body_a[m], c_body_b[m]
@@ -109,12 +105,8 @@ def warm_start(model, state, contacts):
     c_normal_impulse = contacts.normal_impulse
     c_points = contacts.points
     c_tangent_impulse = contacts.tangent_impulse
-    m_body_inv_inertia = model.body_inv_inertia
-    m_body_inv_mass = model.body_inv_mass
-    s_body_v = state.body_v
-    s_body_w = state.body_w
-    im, ii = m_body_inv_mass, m_body_inv_inertia
-    v, w = s_body_v, s_body_w
+    im, ii = model.body_inv_mass, model.body_inv_inertia
+    v, w = state.body_v, state.body_w
     arms = contacts.arms
     for m in range(c_count[0]):
         a, b = c_body_a[m], c_body_b[m]
@@ -152,7 +144,6 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift):
     c_base_separation = contacts.base_separation
     c_body_a = contacts.body_a
     c_body_b = contacts.body_b
-    c_body_delta = contacts.body_delta
     c_count = contacts.count
     c_friction = contacts.friction
     c_max_normal_impulse = contacts.max_normal_impulse
@@ -163,13 +154,9 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift):
     c_softness = contacts.softness
     c_tangent_impulse = contacts.tangent_impulse
     c_tangent_mass = contacts.tangent_mass
-    m_body_inv_inertia = model.body_inv_inertia
-    m_body_inv_mass = model.body_inv_mass
-    s_body_v = state.body_v
-    s_body_w = state.body_w
-    im, ii = m_body_inv_mass, m_body_inv_inertia
-    v, w = s_body_v, s_body_w
-    delta = c_body_delta
+    im, ii = model.body_inv_mass, model.body_inv_inertia
+    v, w = state.body_v, state.body_w
+    delta = contacts.body_delta
     max_push = -C.CONTACT_PUSH_MAX_VELOCITY
     arms = contacts.arms
     for m in range(c_count[0]):
@@ -279,7 +266,6 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
     c_base_separation = contacts.base_separation
     c_body_a = contacts.body_a
     c_body_b = contacts.body_b
-    c_body_delta = contacts.body_delta
     c_count = contacts.count
     c_max_normal_impulse = contacts.max_normal_impulse
     c_normal = contacts.normal
@@ -288,15 +274,11 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
     c_points = contacts.points
     c_restitution = contacts.restitution
     m_body_force = model.body_force
-    m_body_inv_inertia = model.body_inv_inertia
-    m_body_inv_mass = model.body_inv_mass
     m_body_type = model.body_type
     m_gravity = model.gravity
-    s_body_v = state.body_v
-    s_body_w = state.body_w
-    im, ii = m_body_inv_mass, m_body_inv_inertia
-    v, w = s_body_v, s_body_w
-    delta = c_body_delta
+    im, ii = model.body_inv_mass, model.body_inv_inertia
+    v, w = state.body_v, state.body_w
+    delta = contacts.body_delta
     gx, gy = m_gravity[0], m_gravity[1]
     for m in range(c_count[0]):
         # most manifolds have no point that just hit: skip them before any work

@@ -6,7 +6,9 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from click.testing import CliRunner
 
+from rbsim import cli
 from rbsim.scene import Scene, load_scene_text
 from rbsim.trajectory import Trajectory, load_trajectory
 
@@ -30,3 +32,16 @@ def run_text(tmp_path: Path):
         return load_trajectory(out)
 
     return _run
+
+
+def rbsim(*args: str | Path) -> tuple[int, str, str]:
+    """Run the CLI in this process: (exit code, stdout, stderr). An exception that the
+    CLI did not turn into an exit code (it would print a traceback) fails the test."""
+    try:
+        runner = CliRunner(mix_stderr=False)  # click < 8.2 mixes the streams otherwise
+    except TypeError:
+        runner = CliRunner()
+    result = runner.invoke(cli.main, [str(a) for a in args])
+    if result.exception is not None and not isinstance(result.exception, SystemExit):
+        raise result.exception
+    return result.exit_code, result.stdout, result.stderr

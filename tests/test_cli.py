@@ -22,12 +22,13 @@ import h5py
 import numpy as np
 import pytest
 import yaml
-from click.testing import CliRunner
 
 from rbsim import cli
 from rbsim.scene import load_scene_text, scene_to_dict
 from rbsim.schema import json_schema
 from rbsim.trajectory import load_trajectory
+
+from .conftest import rbsim
 
 REPO = Path(__file__).resolve().parents[1]
 SCENES = sorted((REPO / "scenes").glob("*.yaml"))
@@ -92,19 +93,6 @@ def write(folder: Path, name: str, text: str) -> Path:
     path = folder / name
     path.write_text(textwrap.dedent(text))
     return path
-
-
-def rbsim(*args: str | Path) -> tuple[int, str, str]:
-    """Run the CLI in this process: (exit code, stdout, stderr). An exception that the
-    CLI did not turn into an exit code (it would print a traceback) fails the test."""
-    try:
-        runner = CliRunner(mix_stderr=False)  # click < 8.2 mixes the streams otherwise
-    except TypeError:
-        runner = CliRunner()
-    result = runner.invoke(cli.main, [str(a) for a in args])
-    if result.exception is not None and not isinstance(result.exception, SystemExit):
-        raise result.exception
-    return result.exit_code, result.stdout, result.stderr
 
 
 @pytest.fixture(scope="module")

@@ -14,31 +14,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from rbsim import cli
 from rbsim.compare import BodyDiff, CompareResult, compare_scene
 from rbsim.scene import load_scene
 from rbsim.trajectory import load_trajectory
+
+from .conftest import rbsim
 
 REPO = Path(__file__).resolve().parents[1]
 COMPARE = REPO / "scenes" / "compare"
 SCENES = sorted(COMPARE.glob("*.yaml"))
 G = 9.81  # m/s², the gravity of projectile.yaml
 H = (1 / 60) / 4  # s, one step of either engine (dt / substeps) in every compare scene
-
-
-def rbsim(*args: str | Path) -> tuple[int, str, str]:
-    """Run the CLI in this process: (exit code, stdout, stderr); an exception the CLI did
-    not turn into an exit code fails the test."""
-    try:
-        runner = CliRunner(mix_stderr=False)  # click < 8.2 mixes the streams otherwise
-    except TypeError:
-        runner = CliRunner()
-    result = runner.invoke(cli.main, [str(a) for a in args])
-    if result.exception is not None and not isinstance(result.exception, SystemExit):
-        raise result.exception
-    return result.exit_code, result.stdout, result.stderr
 
 
 def test_the_matching_scenes_exist():
