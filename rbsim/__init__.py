@@ -19,6 +19,7 @@ _KERNEL_MODULES = (
     "integrator.py",
     "model.py",
     "narrowphase.py",
+    "shock.py",
     "solver.py",
     "world.py",
 )

@@ -32,7 +32,8 @@ MIXING = {"sqrt": MIX_SQRT, "multiply": MIX_MULTIPLY, "min": MIX_MIN, "max": MIX
 class Contacts(NamedTuple):
     """Preallocated contact storage with capacity M manifolds (2 points each).
 
-    count (4,) int64: [manifolds now, manifolds last step, pairs found, points touching].
+    count (5,) int64: [manifolds now, manifolds last step, pairs found, points touching,
+    manifolds in the shock pass].
     pairs (M,2) int32: broadphase output. shape_a, shape_b, body_a, body_b (M,) int32;
     key (M,) int64 = shape_a · S + shape_b; normal (M,2); points (M,) int32;
     friction, restitution (M,) mixed coefficients; softness (M,3) mass scale, impulse
@@ -42,7 +43,9 @@ class Contacts(NamedTuple):
     feature (M,2) int64; normal_impulse, tangent_impulse (M,2) N·s (per substep);
     start_impulse (M,2) N·s: the normal impulse carried over into this step;
     ref_separation (M,2) m: the separation with both bodies at their reference poses;
-    normal_mass, tangent_mass (M,2) kg; arms (M,2,4) m: r_a × n, r_b × n, r_a × t,
+    normal_mass, tangent_mass (M,2) kg;
+    normal_k (M,3) 1/kg: K00, K11, K01 of the normal rows (the 2x2 block);
+    arms (M,2,4) m: r_a × n, r_b × n, r_a × t,
     r_b × t of each point, the lever arms of its normal and friction impulses;
     approach_velocity (M,2) m/s and approach_separation (M,2) m where the point
     engaged (for restitution);
@@ -54,6 +57,8 @@ class Contacts(NamedTuple):
     scratch_*: one narrowphase result. body_delta (N,4): displacement and rotation
     of each body since the start of the step. vert_world, norm_world (V,2): shape
     geometry in the world this step. shape_margin (S,) m: speculative reach.
+    body_level (N,), shock_side, shock_order (M,): the shock pass (shock.py);
+    adj_start (N+1,), adj (2M,), queue (N+2,): its scratch.
     """
 
     count: np.ndarray
@@ -77,6 +82,7 @@ class Contacts(NamedTuple):
     start_impulse: np.ndarray
     tangent_impulse: np.ndarray
     normal_mass: np.ndarray
+    normal_k: np.ndarray
     tangent_mass: np.ndarray
     arms: np.ndarray
     approach_velocity: np.ndarray
@@ -103,13 +109,19 @@ class Contacts(NamedTuple):
     vert_world: np.ndarray
     norm_world: np.ndarray
     shape_margin: np.ndarray
+    body_level: np.ndarray
+    shock_side: np.ndarray
+    shock_order: np.ndarray
+    adj_start: np.ndarray
+    adj: np.ndarray
+    queue: np.ndarray
 
 
 def make_contacts(n_bodies: int, n_shapes: int, n_vertices: int, capacity: int) -> Contacts:
     """Allocate contact storage for `capacity` manifolds."""
     m = max(capacity, 1)
     return Contacts(
-        count=np.zeros(4, np.int64),
+        count=np.zeros(5, np.int64),
         pairs=np.zeros((m, 2), np.int32),
         shape_a=np.zeros(m, np.int32),
         shape_b=np.zeros(m, np.int32),
@@ -130,6 +142,7 @@ def make_contacts(n_bodies: int, n_shapes: int, n_vertices: int, capacity: int) 
         start_impulse=np.zeros((m, 2)),
         tangent_impulse=np.zeros((m, 2)),
         normal_mass=np.zeros((m, 2)),
+        normal_k=np.zeros((m, 3)),
         tangent_mass=np.zeros((m, 2)),
         arms=np.zeros((m, 2, 4)),
         approach_velocity=np.zeros((m, 2)),
@@ -156,6 +169,12 @@ def make_contacts(n_bodies: int, n_shapes: int, n_vertices: int, capacity: int) 
         vert_world=np.zeros((max(n_vertices, 1), 2)),
         norm_world=np.zeros((max(n_vertices, 1), 2)),
         shape_margin=np.zeros(max(n_shapes, 1)),
+        body_level=np.zeros(max(n_bodies, 1), np.int64),
+        shock_side=np.zeros(m, np.int8),
+        shock_order=np.zeros(m, np.int32),
+        adj_start=np.zeros(max(n_bodies, 1) + 1, np.int64),
+        adj=np.zeros(2 * m, np.int32),
+        queue=np.zeros(max(n_bodies, 1) + 2, np.int64),
     )
 
 

@@ -60,6 +60,7 @@ def prepare_contacts(model, state, contacts, soft, soft_static):
     c_count = contacts.count
     c_normal = contacts.normal
     c_normal_mass = contacts.normal_mass
+    c_normal_k = contacts.normal_k
     c_points = contacts.points
     c_softness = contacts.softness
     c_tangent_mass = contacts.tangent_mass
@@ -81,12 +82,16 @@ def prepare_contacts(model, state, contacts, soft, soft_static):
             rnb = rbx * ny - rby * nx
             kn = ma + mb + ia * rna * rna + ib * rnb * rnb
             c_normal_mass[m, k] = 1.0 / kn if kn > 0.0 else 0.0
+            c_normal_k[m, k] = kn
             rta = rax * ty - ray * tx
             rtb = rbx * ty - rby * tx
             arms[m, k, 0], arms[m, k, 1] = rna, rnb
             arms[m, k, 2], arms[m, k, 3] = rta, rtb
             kt = ma + mb + ia * rta * rta + ib * rtb * rtb
             c_tangent_mass[m, k] = 1.0 / kt if kt > 0.0 else 0.0
+        if c_points[m] == 2:
+            c_normal_k[m, 2] = ma + mb + ia * arms[m, 0, 0] * arms[m, 1, 0]
+            c_normal_k[m, 2] += ib * arms[m, 0, 1] * arms[m, 1, 1]
             dvx = v[a, 0] - w[a] * ray - v[b, 0] + w[b] * rby
             dvy = v[a, 1] + w[a] * rax - v[b, 1] - w[b] * rbx
             c_approach_velocity[m, k] = dvx * nx + dvy * ny
@@ -149,7 +154,7 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift):
     c_max_normal_impulse = contacts.max_normal_impulse
     c_normal = contacts.normal
     c_normal_impulse = contacts.normal_impulse
-    c_normal_mass = contacts.normal_mass
+    c_normal_k = contacts.normal_k
     c_points = contacts.points
     c_softness = contacts.softness
     c_tangent_impulse = contacts.tangent_impulse
@@ -174,27 +179,61 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift):
             c_softness[m, 1],
             c_softness[m, 2],
         )
+        # γ/K of the soft constraint: mass scale K/(K+γ), impulse scale γ/(K+γ)
+        soft_gamma = impulse_scale0 / mass_scale0 if mass_scale0 > 0.0 else 0.0
         npts = c_points[m]
+        s0 = s1 = 0.0
         # the current separation: n · (d_a − d_b + R_a r_a − R_b r_b) + base, with the
         # normal turned back into each body's start frame instead of each anchor forward
         moved = nx * (dax - dbx) + ny * (day - dby)
         nax, nay = ca * nx + sa * ny, ca * ny - sa * nx
         nbx, nby = cb * nx + sb * ny, cb * ny - sb * nx
+        # each point's separation now, its target (bias) and softness
+        lam0 = c_normal_impulse[m, 0]
+        lam1 = c_normal_impulse[m, 1]
+        vn0 = vn1 = b0 = b1 = g0 = g1 = 0.0
         for k in range(npts):
             s = moved + c_base_separation[m, k]
             s += nax * c_anchor_a[m, k, 0] + nay * c_anchor_a[m, k, 1]
             s -= nbx * c_anchor_b[m, k, 0] + nby * c_anchor_b[m, k, 1]
-            bias, mass_scale, impulse_scale = 0.0, 1.0, 0.0
+            bias, gamma = 0.0, 0.0
             if s > 0.0:
                 bias = s * inv_h  # speculative: may close the gap, no more
             elif use_bias:
                 bias = max(bias_rate * s, max_push)
-                mass_scale, impulse_scale = mass_scale0, impulse_scale0
+                # the soft constraint as a regularised one: (K + γ) Δλ = −(vn + b) − γλ
+                gamma = c_normal_k[m, k] * soft_gamma
+            vn = (vax - vbx) * nx + (vay - vby) * ny + wa * arms[m, k, 0] - wb * arms[m, k, 1]
+            if k == 0:
+                vn0, b0, g0, s0 = vn, bias, gamma, s
+            else:
+                vn1, b1, g1, s1 = vn, bias, gamma, s
+        # both points as one 2x2 block, so that a face held at two points gets
+        # mirror-image impulses (solved one after the other they would leave a spin that
+        # friction turns into a sideways drift); one point at a time if a clamp is hit
+        block = False
+        if npts == 2:
+            k00 = c_normal_k[m, 0] + g0
+            k11 = c_normal_k[m, 1] + g1
+            k01 = c_normal_k[m, 2]
+            det = k00 * k11 - k01 * k01
+            if det > 1.0e-9 * k00 * k11:
+                r0 = -(vn0 + b0) - g0 * lam0
+                r1 = -(vn1 + b1) - g1 * lam1
+                d0 = (k11 * r0 - k01 * r1) / det
+                d1 = (k00 * r1 - k01 * r0) / det
+                block = lam0 + d0 >= 0.0 and lam1 + d1 >= 0.0
+        for k in range(npts):
             rna, rnb = arms[m, k, 0], arms[m, k, 1]
-            vn = (vax - vbx) * nx + (vay - vby) * ny + wa * rna - wb * rnb
-            lam = c_normal_impulse[m, k]
-            impulse = -c_normal_mass[m, k] * mass_scale * (vn + bias)
-            impulse -= impulse_scale * lam
+            lam = lam0 if k == 0 else lam1
+            if block:
+                impulse = d0 if k == 0 else d1
+                vn = vn0 if k == 0 else vn1
+            else:
+                vn = (vax - vbx) * nx + (vay - vby) * ny + wa * rna - wb * rnb
+                gamma = g0 if k == 0 else g1
+                bias = b0 if k == 0 else b1
+                impulse = (-(vn + bias) - gamma * lam) / (c_normal_k[m, k] + gamma)
             engaged = c_max_normal_impulse[m, k] > 0.0
             if impulse > 0.0 and (not engaged or c_approach_velocity[m, k] == math.inf):
                 # the point engages (its first push this step): its approach speed at
@@ -203,7 +242,7 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift):
                 # (a warm start re-applying an impact impulse) and are not recorded;
                 # after a bounce (approach set to inf) a new impact is.
                 c_approach_velocity[m, k] = vn
-                c_approach_separation[m, k] = s - shift * vn
+                c_approach_separation[m, k] = (s0 if k == 0 else s1) - shift * vn
             new = max(lam + impulse, 0.0)  # clamp the accumulated impulse
             impulse = new - lam
             c_normal_impulse[m, k] = new

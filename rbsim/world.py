@@ -39,6 +39,7 @@ from .contacts import (
 from .integrator import integrate_positions, integrate_velocities
 from .model import Model, State, build
 from .scene import Scene
+from .shock import propagate_shock, support_order
 from .solver import (
     apply_restitution,
     prepare_contacts,
@@ -113,6 +114,7 @@ def collide(model, state, grid, contacts, cfg):
         cfg.dt,
     )
     prepare_contacts(model, state, contacts, cfg.soft, cfg.soft_static)
+    contacts.count[4] = support_order(model, contacts)
     return True
 
 
@@ -147,6 +149,7 @@ def step(model, state, grid, contacts, cfg):
         if contacts_on:
             for _ in range(cfg.iterations):
                 solve_contacts(model, state, contacts, inv_h, False, shift)  # relax
+            propagate_shock(model, state, contacts, contacts.count[4], inv_h)
             apply_restitution(model, state, contacts, cfg.restitution_threshold, h, sign)
     if contacts_on:
         store_impulses(contacts)

@@ -1,0 +1,216 @@
+"""Shock propagation: contacts solved from the ground up, the supporting body held still.
+
+Sequential impulses converge slowly when a heavy body presses on light ones: each pass
+over a slab resting on a small box hands the box the slab's whole approach speed and
+takes back only a mass ratio's worth of it from the slab, so a 400 kg slab falling on
+1 kg boxes needs hundreds of passes to stop and, in a few, crushes them into the ground.
+After the relax pass of every substep this stage makes one more pass over the contacts,
+ordered by how far each body is from a static or kinematic body through the contact
+graph (its support level, found once per step), and solves each contact between a
+supporting body (lower level, underneath with respect to gravity) and a supported one
+(higher level) as if the supporter had infinite mass: only the supported body's approach
+is removed. A rigidly supported body cannot be pushed into what holds it, so for
+vertical support this is what the converged solve would give; the impulse goes into
+the ground through the chain, as it physically does.
+
+The pass only removes approach velocity (it never pushes apart and never adds energy)
+and keeps no accumulated impulse, so warm starting and the resting equilibrium of the
+soft contacts are unchanged. It needs gravity to say what is underneath: a scene
+without gravity, or a contact whose normal is closer to horizontal than SHOCK_COS,
+is left to the ordinary solve. (Guendelman, Bridson and Fedkiw 2003 introduced shock
+propagation for stacking; this is a velocity-level variant of it.)
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+# A contact counts as support when its normal is within this cosine of the vertical
+# (about 45 degrees). Steeper faces (a box leaning on a wall) are solved normally.
+SHOCK_COS = 0.7071
+
+UNREACHED = 1 << 30
+
+
+@njit(cache=True)
+def support_order(model, contacts):
+    """Support level of every body and the order and side of the shock pass.
+
+    Writes contacts.body_level (N,) (0 for static and kinematic bodies, 1 for bodies
+    they touch, ...; UNREACHED otherwise), contacts.shock_order (the manifolds with a
+    supporter, lowest supporter first) and contacts.shock_side (M,): 1 when body a
+    supports body b, 2 when body b supports body a, 0 when neither. Returns the number
+    of manifolds in shock_order. Uses contacts.adj_start, adj and queue as scratch.
+    """
+    c_body_a = contacts.body_a
+    c_body_b = contacts.body_b
+    c_normal = contacts.normal
+    c_points = contacts.points
+    level = contacts.body_level
+    adj_start = contacts.adj_start
+    adj = contacts.adj
+    queue = contacts.queue
+    side = contacts.shock_side
+    order = contacts.shock_order
+    body_type = model.body_type
+    n_bodies = level.shape[0]
+    n_man = contacts.count[0]
+    gx, gy = model.gravity[0], model.gravity[1]
+    g = math.sqrt(gx * gx + gy * gy)
+    for m in range(n_man):
+        side[m] = 0
+    if g == 0.0 or n_man == 0:
+        return 0
+    upx, upy = -gx / g, -gy / g
+    # adjacency of the contact graph (compressed rows, manifolds with points only)
+    for i in range(n_bodies + 1):
+        adj_start[i] = 0
+    for m in range(n_man):
+        if c_points[m] > 0:
+            adj_start[c_body_a[m] + 1] += 1
+            adj_start[c_body_b[m] + 1] += 1
+    for i in range(n_bodies):
+        adj_start[i + 1] += adj_start[i]
+    for i in range(n_bodies):
+        queue[i] = adj_start[i]  # fill cursor
+    for m in range(n_man):
+        if c_points[m] > 0:
+            a, b = c_body_a[m], c_body_b[m]
+            adj[queue[a]] = b
+            queue[a] += 1
+            adj[queue[b]] = a
+            queue[b] += 1
+    # breadth-first levels from every static or kinematic body
+    head = tail = 0
+    for i in range(n_bodies):
+        if body_type[i] != 0:
+            level[i] = 0
+            queue[tail] = i
+            tail += 1
+        else:
+            level[i] = UNREACHED
+    while head < tail:
+        i = queue[head]
+        head += 1
+        for e in range(adj_start[i], adj_start[i + 1]):
+            j = adj[e]
+            if level[j] == UNREACHED:
+                level[j] = level[i] + 1
+                queue[tail] = j
+                tail += 1
+    # which side supports, and a counting sort by the supporter's level
+    max_level = 0
+    for m in range(n_man):
+        if c_points[m] == 0:
+            continue
+        a, b = c_body_a[m], c_body_b[m]
+        up = c_normal[m, 0] * upx + c_normal[m, 1] * upy  # normal points from b to a
+        if level[b] < level[a] and up >= SHOCK_COS and body_type[a] == 0:
+            side[m] = 2
+            max_level = max(max_level, level[b])
+        elif level[a] < level[b] and up <= -SHOCK_COS and body_type[b] == 0:
+            side[m] = 1
+            max_level = max(max_level, level[a])
+    count = queue  # reuse as bucket counts (the levels are known now)
+    for k in range(max_level + 2):
+        count[k] = 0
+    for m in range(n_man):
+        if side[m] == 2:
+            count[level[c_body_b[m]] + 1] += 1
+        elif side[m] == 1:
+            count[level[c_body_a[m]] + 1] += 1
+    for k in range(max_level + 1):
+        count[k + 1] += count[k]
+    total = count[max_level + 1]
+    for m in range(n_man):
+        if side[m] == 2:
+            lv = level[c_body_b[m]]
+        elif side[m] == 1:
+            lv = level[c_body_a[m]]
+        else:
+            continue
+        order[count[lv]] = m
+        count[lv] += 1
+    return total
+
+
+@njit(cache=True)
+def propagate_shock(model, state, contacts, n_order, inv_h):
+    """One pass over the supported contacts, lowest first, that removes each supported
+    body's approach towards its supporter (the supporter taken as infinitely heavy).
+    A point with a gap (m) may still close it within the substep (1/inv_h s)."""
+    c_anchor_a = contacts.anchor_a
+    c_anchor_b = contacts.anchor_b
+    c_base_separation = contacts.base_separation
+    c_body_a = contacts.body_a
+    c_body_b = contacts.body_b
+    c_normal = contacts.normal
+    c_points = contacts.points
+    arms = contacts.arms
+    side = contacts.shock_side
+    order = contacts.shock_order
+    delta = contacts.body_delta
+    im, ii = model.body_inv_mass, model.body_inv_inertia
+    v, w = state.body_v, state.body_w
+    need = np.zeros(2)
+    r = np.zeros(2)
+    for o in range(n_order):
+        m = order[o]
+        a, b = c_body_a[m], c_body_b[m]
+        nx, ny = c_normal[m, 0], c_normal[m, 1]
+        dax, day, ca, sa = delta[a, 0], delta[a, 1], delta[a, 2], delta[a, 3]
+        dbx, dby, cb, sb = delta[b, 0], delta[b, 1], delta[b, 2], delta[b, 3]
+        moved = nx * (dax - dbx) + ny * (day - dby)
+        nax, nay = ca * nx + sa * ny, ca * ny - sa * nx
+        nbx, nby = cb * nx + sb * ny, cb * ny - sb * nx
+        # the supported body moves; the sign turns its push along +n (a) or -n (b)
+        u, sgn, k_arm = (a, 1.0, 0) if side[m] == 2 else (b, -1.0, 1)
+        mu, iu = im[u], ii[u]
+        npts = c_points[m]
+        for k in range(npts):
+            sep = moved + c_base_separation[m, k]
+            sep += nax * c_anchor_a[m, k, 0] + nay * c_anchor_a[m, k, 1]
+            sep -= nbx * c_anchor_b[m, k, 0] + nby * c_anchor_b[m, k, 1]
+            rna, rnb = arms[m, k, 0], arms[m, k, 1]
+            vn = (v[a, 0] - v[b, 0]) * nx + (v[a, 1] - v[b, 1]) * ny + w[a] * rna - w[b] * rnb
+            # how far the point is from allowed: a gap may close within the substep
+            need[k] = (-sep * inv_h if sep > 0.0 else 0.0) - vn
+            r[k] = arms[m, k, k_arm]
+        # impulses along the supported body's push direction, λ >= 0, that bring every
+        # point to at least its target: the two-point case is a 2x2 complementarity
+        # problem, solved by trying both points, then each alone
+        l0 = l1 = 0.0
+        k00 = mu + iu * r[0] * r[0]
+        if npts == 1:
+            if need[0] > 0.0 and k00 > 0.0:
+                l0 = need[0] / k00
+        else:
+            k11 = mu + iu * r[1] * r[1]
+            k01 = mu + iu * r[0] * r[1]
+            det = k00 * k11 - k01 * k01
+            done = False
+            if det > 1e-12 * k00 * k11:
+                l0 = (k11 * need[0] - k01 * need[1]) / det
+                l1 = (k00 * need[1] - k01 * need[0]) / det
+                done = l0 >= 0.0 and l1 >= 0.0
+            if not done:
+                l0 = l1 = 0.0
+                if need[0] > 0.0 and k00 > 0.0 and k01 * need[0] / k00 >= need[1]:
+                    l0 = need[0] / k00
+                elif need[1] > 0.0 and k11 > 0.0 and k01 * need[1] / k11 >= need[0]:
+                    l1 = need[1] / k11
+                elif need[0] > 0.0 or need[1] > 0.0:
+                    # parallel arms (singular K): one impulse at the neediest point
+                    if need[0] >= need[1] and k00 > 0.0:
+                        l0 = need[0] / k00
+                    elif k11 > 0.0:
+                        l1 = need[1] / k11
+        impulse = l0 + l1
+        if impulse == 0.0:
+            continue
+        v[u, 0] += sgn * mu * impulse * nx
+        v[u, 1] += sgn * mu * impulse * ny
+        w[u] += sgn * iu * (l0 * r[0] + l1 * r[1])
