@@ -14,7 +14,7 @@ install: $(STAMP)
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[test]'
+	$(BIN)/pip install --quiet -e '.[test,plot]'
 	touch $(STAMP)
 
 lint: $(STAMP)
@@ -27,7 +27,10 @@ test: $(STAMP) lint
 demo: $(STAMP)
 	@mkdir -p out
 	$(BIN)/rbsim run $(DEMO) -o out/demo.h5
+	$(BIN)/rbsim render out/demo.h5 -o out/demo.gif
+	$(BIN)/rbsim render out/demo.h5 -o out/demo.html
 	@echo "trajectory written to out/demo.h5 (inspect it with: $(BIN)/rbsim info out/demo.h5)"
+	@echo "watch it: out/demo.gif, or open out/demo.html in a browser"
 
 batch: $(OUTS)
 
@@ -46,6 +49,18 @@ compare: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python -m bench
+
+# The hard cases of scenes/hard/ in rbsim and pymunk: prints the table and rewrites the
+# README's hard-case block (about 2 min; pymunk's base-100 pyramid is half of it).
+.PHONY: hard
+hard: $(STAMP)
+	$(BIN)/python -m rbsim.hard --readme README.md
+
+# Speed against error on scenes/reference/ and cost against bodies, both engines:
+# regenerates reports/work-precision.md, its plots and reports/data/ (about 10 min).
+.PHONY: report
+report: $(STAMP)
+	$(BIN)/python -m rbsim.report -o reports
 
 clean:
 	rm -rf out .pytest_cache build *.egg-info rbsim/__pycache__ tests/__pycache__ bench/__pycache__

@@ -49,7 +49,8 @@ class _Progress:
     DELAY = 1.0  # s before the line first appears
     INTERVAL = 0.1  # s between redraws
 
-    def __init__(self, enabled: bool) -> None:
+    def __init__(self, enabled: bool, unit: str = "steps") -> None:
+        self.unit = unit
         try:
             self.enabled = enabled and sys.stderr is not None and sys.stderr.isatty()
         except (AttributeError, ValueError):  # stderr replaced or closed
@@ -72,7 +73,7 @@ class _Progress:
         eta = (total - step) / rate if rate > 0 else 0.0
         try:
             sys.stderr.write(
-                f"\r[{'#' * filled}{'.' * (width - filled)}] {step}/{total} steps "
+                f"\r[{'#' * filled}{'.' * (width - filled)}] {step}/{total} {self.unit} "
                 f"{rate:,.0f}/s eta {eta:.0f} s "
             )
             sys.stderr.flush()
@@ -230,7 +231,20 @@ def info(trajectory: str) -> None:
 @click.option(
     "--iterations",
     type=click.IntRange(min=1),
-    help="pymunk solver iterations per pymunk step [default: 10].",
+    help="pymunk solver iterations per pymunk step [default: compare.iterations, else 10].",
+)
+@click.option(
+    "--statistics",
+    "with_statistics",
+    is_flag=True,
+    help="Also compare statistics of the runs (for chaotic scenes).",
+)
+@click.option(
+    "--pymunk-set",
+    "pymunk_overrides",
+    multiple=True,
+    metavar="KEY.PATH=VALUE",
+    help="Override a scene value for pymunk only (after --set).",
 )
 def compare(
     scene: str,
@@ -241,6 +255,8 @@ def compare(
     angle: float | None,
     velocity: float | None,
     iterations: int | None,
+    with_statistics: bool,
+    pymunk_overrides: tuple[str, ...],
 ) -> None:
     """Run SCENE in rbsim and in pymunk and report their differences (exit 4 when a
     difference exceeds its tolerance)."""
@@ -250,10 +266,18 @@ def compare(
     from .run import RunFailed
 
     sc = _load(scene, overrides)
+    pm_sc = _load(scene, overrides + pymunk_overrides) if pymunk_overrides else None
     out = Path(out_dir)
     try:
         result = compare_scene(
-            sc, out, position=position, angle=angle, velocity=velocity, iterations=iterations
+            sc,
+            out,
+            position=position,
+            angle=angle,
+            velocity=velocity,
+            iterations=iterations,
+            with_statistics=with_statistics,
+            pymunk_scene=pm_sc,
         )
     except UnsupportedScene as err:
         _fail(EXIT_SCENE, f"{scene}: pymunk cannot express this scene: {err}")
@@ -274,6 +298,245 @@ def compare(
     if not result.ok:
         lines = [f"{scene}: outside tolerance: {v}" for v in result.violations]
         _fail(EXIT_COMPARE, "\n".join(lines))
+
+
+@main.command()
+@click.argument("trajectory", type=click.Path(exists=True, dir_okay=False))
+@click.option(
+    "-o",
+    "--output",
+    "output",
+    type=click.Path(dir_okay=False),
+    help="movie.gif or page.html [default: TRAJECTORY with .gif].",
+)
+@click.option(
+    "--fps",
+    type=click.FloatRange(min=0, min_open=True),
+    default=30.0,
+    show_default=True,
+    help="Frames per second of simulated time (GIF: at most 50).",
+)
+@click.option(
+    "--view",
+    nargs=4,
+    type=float,
+    metavar="X0 Y0 X1 Y1",
+    help="World rectangle to show, m [default: fitted to the moving bodies].",
+)
+@click.option(
+    "--size",
+    nargs=2,
+    type=click.IntRange(min=16, max=4096),
+    default=(640, 480),
+    show_default=True,
+    metavar="W H",
+    help="GIF size in pixels.",
+)
+@click.option(
+    "--overlay",
+    type=click.Path(exists=True, dir_okay=False),
+    help="A second trajectory drawn over the first in its own colour.",
+)
+@click.option("--start", type=float, metavar="SECONDS", help="Show from this time on, s.")
+@click.option("--end", type=float, metavar="SECONDS", help="Show up to this time, s.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+def render(
+    trajectory: str,
+    output: str | None,
+    fps: float,
+    view: tuple[float, float, float, float] | None,
+    size: tuple[int, int],
+    overlay: str | None,
+    start: float | None,
+    end: float | None,
+    quiet: bool,
+) -> None:
+    """Draw TRAJECTORY into an animated GIF or a self-contained HTML player."""
+    from .render import GIF_MAX_FPS, RenderError, View, render_gif
+
+    out = Path(output) if output else Path(trajectory).with_suffix(".gif")
+    kind = out.suffix.lower()
+    if kind not in (".gif", ".html", ".htm"):
+        raise click.BadParameter(
+            f"{out}: the output must end in .gif or .html", param_hint="'-o' / '--output'"
+        )
+    if kind == ".gif" and fps > GIF_MAX_FPS:
+        raise click.BadParameter(
+            f"{fps:g}: a GIF plays at most {GIF_MAX_FPS:g} frames per second "
+            "(viewers slow shorter delays down)",
+            param_hint="'--fps'",
+        )
+    if view and not (view[0] < view[2] and view[1] < view[3]):
+        raise click.BadParameter(
+            f"{' '.join(f'{v:g}' for v in view)}: expected X0 < X1 and Y0 < Y1",
+            param_hint="'--view'",
+        )
+    if start is not None and end is not None and end < start:
+        raise click.BadParameter(f"--end {end:g} is before --start {start:g}")
+    chosen = View(*view) if view else None
+    progress = _Progress(not quiet, unit="frames")
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        if kind == ".gif":
+            result = render_gif(
+                trajectory, out, fps=fps, size=size, view=chosen, overlay=overlay,
+                start=start, end=end, progress=progress,
+            )  # fmt: skip
+            line = f"{result.frames} frames, {result.width}x{result.height} px"
+        else:
+            from .player import render_html
+
+            page = render_html(
+                trajectory, out, fps=fps, view=chosen, overlay=overlay, start=start, end=end,
+                progress=progress,
+            )  # fmt: skip
+            line = f"{page.frames} frames of {page.bodies} bodies, {page.size / 2**20:.1f} MiB"
+    except RenderError as err:
+        _fail(EXIT_RUNTIME, f"error: {err}", progress)
+    except KeyboardInterrupt:
+        _fail(EXIT_INTERRUPTED, f"interrupted: {out} not written", progress)
+    except FileExistsError:
+        _fail(EXIT_RUNTIME, f"error: cannot write {out}: {out.parent} is not a folder", progress)
+    except OSError as err:
+        _fail(EXIT_RUNTIME, f"error: cannot write {out}: {_reason(err)}", progress)
+    progress.finish()
+    if not quiet:
+        click.echo(f"{line} -> {out}")
+
+
+@main.command()
+@click.argument(
+    "trajectories", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False)
+)
+@click.option(
+    "-o",
+    "--output",
+    "output",
+    type=click.Path(dir_okay=False),
+    help="Image to write, .png, .pdf or .svg [default: the first TRAJECTORY with .energy.png].",
+)
+def plot(trajectories: tuple[str, ...], output: str | None) -> None:
+    """Plot energy and momentum over time for one or several trajectories."""
+    from .plot import plot_observables
+    from .render import RenderError
+
+    first = Path(trajectories[0])
+    out = Path(output) if output else first.with_name(first.stem + ".energy.png")
+    if out.suffix.lower() not in (".png", ".pdf", ".svg"):
+        raise click.BadParameter(
+            f"{out}: the output must end in .png, .pdf or .svg", param_hint="'-o' / '--output'"
+        )
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        plot_observables(list(trajectories), out)
+    except RenderError as err:
+        _fail(EXIT_RUNTIME, f"error: {err}")
+    except FileExistsError:
+        _fail(EXIT_RUNTIME, f"error: cannot write {out}: {out.parent} is not a folder")
+    except OSError as err:
+        _fail(EXIT_RUNTIME, f"error: cannot write {out}: {_reason(err)}")
+    click.echo(
+        f"{len(trajectories)} trajectories -> {out}" if len(trajectories) > 1 else f"-> {out}"
+    )
+
+
+@main.command()
+@click.argument("scene", type=click.Path(dir_okay=False))
+@click.option(
+    "-o",
+    "--output",
+    "out_dir",
+    type=click.Path(file_okay=False),
+    default="out/sweep",
+    show_default=True,
+    help="Folder for <name>.csv, <name>.json and <name>.png.",
+)
+@click.option("--set", "overrides", multiple=True, metavar="KEY.PATH=VALUE", help="As for run.")
+@click.option("--dt", "dts", metavar="LIST", help="Time steps, s [default: 1/30,...,1/960].")
+@click.option("--substeps", metavar="LIST", help="rbsim substeps [default: 1,4].")
+@click.option("--iterations", metavar="LIST", help="rbsim iterations per substep [default: 1,4].")
+@click.option("--integrator", metavar="LIST", help="rbsim integrators [default: symplectic_euler].")
+@click.option(
+    "--rotation", metavar="LIST", help="rbsim rotation updates [default: normalize,exact]."
+)
+@click.option("--pymunk-iterations", metavar="LIST", help="pymunk iterations [default: 5,10,30].")
+@click.option("--no-pymunk", is_flag=True, help="Sweep rbsim only.")
+@click.option("--duration", type=click.FloatRange(min=0, min_open=True), help="Simulated s.")
+@click.option(
+    "--repeats",
+    type=click.IntRange(min=1),
+    default=3,
+    show_default=True,
+    help="Timed runs per setting (at least; short runs are repeated more).",
+)
+@click.option("--no-plot", is_flag=True, help="Write the table, CSV and JSON only.")
+def sweep(
+    scene: str,
+    out_dir: str,
+    overrides: tuple[str, ...],
+    dts: str | None,
+    substeps: str | None,
+    iterations: str | None,
+    integrator: str | None,
+    rotation: str | None,
+    pymunk_iterations: str | None,
+    no_pymunk: bool,
+    duration: float | None,
+    repeats: int,
+    no_plot: bool,
+) -> None:
+    """Speed against error: run SCENE over a grid of settings in rbsim and pymunk, print
+    the table and write CSV, JSON and a log-log plot with each engine's Pareto front."""
+    from .model import ModelError
+    from .pymunk_bridge import UnsupportedScene
+    from .reference import ReferenceError
+    from .sweep import Grid, PlotUnavailable, SweepError, parse_list, run_sweep
+
+    lists = {
+        "--dt": (dts, "dts", "dt"),
+        "--substeps": (substeps, "substeps", "int"),
+        "--iterations": (iterations, "iterations", "int"),
+        "--integrator": (integrator, "integrators", ("symplectic_euler", "explicit_euler")),
+        "--rotation": (rotation, "rotations", ("normalize", "exact")),
+        "--pymunk-iterations": (pymunk_iterations, "pymunk_iterations", "int"),
+    }
+    grid_args = {}
+    for option, (text, name, kind) in lists.items():
+        if text is not None:
+            try:
+                grid_args[name] = parse_list(text, kind)
+            except SweepError as err:
+                raise click.BadParameter(str(err), param_hint=option) from None
+    if no_pymunk:
+        grid_args["pymunk_iterations"] = ()
+    sc = _load(scene, overrides)
+    progress = _Progress(True, unit="runs")
+
+    def step(k: int, total: int, setting) -> None:
+        progress(k, total)
+
+    try:
+        result = run_sweep(sc, Grid(**grid_args), repeats=repeats, duration=duration, progress=step)
+    except SweepError as err:
+        _fail(2, f"Error: {err}", progress)
+    except ReferenceError as err:
+        _fail(EXIT_SCENE, f"{scene}: reference: {err}", progress)
+    except (UnsupportedScene, ModelError) as err:
+        _fail(EXIT_SCENE, f"{scene}: {err}", progress)
+    except KeyboardInterrupt:
+        _fail(EXIT_INTERRUPTED, "interrupted", progress)
+    progress.finish()
+    click.echo(result.table())
+    try:
+        paths = result.write(out_dir, plot=not no_plot)
+    except PlotUnavailable as err:
+        click.echo(f"plot skipped: {err}", err=True)
+        paths = {k: Path(out_dir) / f"{result.scene}.{k}" for k in ("csv", "json")}
+    except FileExistsError:
+        _fail(EXIT_RUNTIME, f"error: cannot write to {out_dir}: it is not a folder")
+    except OSError as err:
+        _fail(EXIT_RUNTIME, f"error: cannot write to {out_dir}: {_reason(err)}")
+    click.echo("  files: " + ", ".join(str(p) for p in paths.values()))
 
 
 @main.command()

@@ -16,6 +16,12 @@ rbsim -> pymunk mapping (see ../shared/DESIGN.md for rbsim's side):
   `arbiter.friction` and `arbiter.restitution` to the mixed values of the shapes' own
   material values (measured with pymunk 7.3.1: both take effect when set in pre_solve;
   `arbiter.elasticity` does not exist in pymunk 7 and setting it does nothing).
+- Restitution threshold: rbsim does not bounce a contact point approaching slower than
+  `solver.restitution_threshold`; Chipmunk has no threshold. When some shape has e > 0
+  and the threshold is > 0, the pre_solve handler sets `arbiter.restitution` to 0 for a
+  contact whose fastest-approaching point is slower than the threshold (the relative
+  normal velocity at the points before the step, which is the velocity Chipmunk
+  computes its bounce from).
 - Damping: Chipmunk applies v <- v * damping**h + h * a each step of length h; rbsim
   (Box2D form) applies the factor 1/(1 + h c). `space.damping` is set so that
   damping**h == 1/(1 + h c) for pymunk's step h = dt / substeps. Chipmunk damps linear
@@ -35,7 +41,7 @@ import numpy as np
 import pymunk
 
 from .constants import LINEAR_SLOP
-from .scene import Body, Scene, Shape
+from .scene import Body, Scene, Shape, World
 
 try:  # pymunk's batch readback (experimental in pymunk 7); a per-body loop otherwise
     import pymunk.batch as _batch
@@ -90,7 +96,8 @@ class PymunkSettings:
     mixing_handler: "auto" uses per-shape friction/elasticity values when their products
         reproduce the scene's mixing rules exactly and a pre_solve handler otherwise;
         "always" always mixes in the pre_solve handler; "never" never installs it and
-        raises UnsupportedScene when per-shape values cannot reproduce a rule.
+        raises UnsupportedScene when per-shape values cannot reproduce a rule, or when
+        the scene needs the restitution threshold (some e > 0 and a threshold > 0).
     """
 
     iterations: int = 10
@@ -266,6 +273,42 @@ def _product_values(
     return None, (first_shape[i][b1], first_shape[j][b2])
 
 
+def _pre_solve_handler(
+    world: World, mix: bool, threshold: float
+) -> Callable[[pymunk.Arbiter, pymunk.Space, object], None]:
+    """A pre_solve callback that sets the arbiter's friction and restitution to the
+    scene's mixing of the two shapes' own values (when `mix`; else the shapes carry
+    values whose product is already the mixed one) and drops the restitution of a
+    contact approaching slower than `threshold` (m/s; 0: never)."""
+    fmix = MIXING_RULES[world.friction_mixing]
+    rmix = MIXING_RULES[world.restitution_mixing]
+
+    def pre_solve(arbiter: pymunk.Arbiter, space: pymunk.Space, data: object) -> None:
+        if mix:
+            a, b = arbiter.shapes
+            arbiter.friction = fmix(a.friction, b.friction)
+            arbiter.restitution = rmix(a.elasticity, b.elasticity)
+        if threshold > 0.0 and arbiter.restitution > 0.0:
+            # relative normal velocity of b against a at each point; < 0 approaches
+            points = arbiter.contact_point_set
+            n = points.normal
+            body_a, body_b = arbiter.bodies
+            approach = min(
+                (
+                    (
+                        body_b.velocity_at_world_point(p.point_b)
+                        - body_a.velocity_at_world_point(p.point_a)
+                    ).dot(n)
+                    for p in points.points
+                ),
+                default=0.0,
+            )
+            if approach > -threshold:
+                arbiter.restitution = 0.0
+
+    return pre_solve
+
+
 # --------------------------------------------------------------------------------------
 
 
@@ -275,6 +318,8 @@ class PymunkWorld:
     space: the pymunk Space; bodies: one pymunk Body per scene body, in scene order.
     wall_time: seconds spent inside space.step calls so far (time.perf_counter).
     mixing_handler_installed: whether a pre_solve handler mixes friction/restitution.
+    pre_solve_installed: whether a pre_solve handler runs at all (mixing, or the
+    restitution threshold; restitution_threshold, m/s, is 0 when it is not applied).
     """
 
     def __init__(self, scene: Scene, settings: PymunkSettings | None = None) -> None:
@@ -345,6 +390,7 @@ class PymunkWorld:
                 self._loads.append((pb, (float(sb.force[0]), float(sb.force[1])), point, sb.torque))
 
         self.mixing_handler_installed = False
+        self.pre_solve_installed = False
         self._setup_mixing(scene, shapes, shape_body)
         self._setup_readback()
 
@@ -379,7 +425,8 @@ class PymunkWorld:
         self, scene: Scene, shapes: list[pymunk.Shape], shape_body: list[int]
     ) -> None:
         """Per-shape friction/elasticity whose products give the scene's mixing rules, or
-        the raw material values and a pre_solve handler that mixes them."""
+        the raw material values and a pre_solve handler that mixes them. The handler
+        also applies rbsim's restitution threshold when the scene needs it."""
         world = scene.world
         rules = {"friction": world.friction_mixing, "restitution": world.restitution_mixing}
         for what, rule in rules.items():
@@ -416,18 +463,22 @@ class PymunkWorld:
         if mode != "always":
             shape_u = assign("friction", friction, world.friction_mixing)
             shape_e = assign("restitution", restitution, world.restitution_mixing)
-        if shape_u is None or shape_e is None:
+        threshold = float(scene.solver.restitution_threshold)
+        if not (threshold > 0.0 and any(e > 0.0 for e in restitution)):
+            threshold = 0.0  # nothing can bounce, or everything may: no threshold to apply
+        elif mode == "never":
+            raise UnsupportedScene(
+                f"solver: restitution_threshold {threshold} m/s needs a pre_solve handler "
+                "in pymunk, which has no threshold (mixing_handler='never')"
+            )
+        self.restitution_threshold = threshold  # m/s, applied by the handler; 0: not
+        mix = shape_u is None or shape_e is None
+        if mix:
             shape_u, shape_e = friction, restitution
-            fmix = MIXING_RULES[world.friction_mixing]
-            rmix = MIXING_RULES[world.restitution_mixing]
-
-            def pre_solve(arbiter: pymunk.Arbiter, space: pymunk.Space, data: object) -> None:
-                a, b = arbiter.shapes
-                arbiter.friction = fmix(a.friction, b.friction)
-                arbiter.restitution = rmix(a.elasticity, b.elasticity)
-
-            self.space.on_collision(pre_solve=pre_solve)
-            self.mixing_handler_installed = True
+        if mix or threshold > 0.0:
+            self.space.on_collision(pre_solve=_pre_solve_handler(world, mix, threshold))
+            self.pre_solve_installed = True
+        self.mixing_handler_installed = mix
         for shape, u, e in zip(shapes, shape_u, shape_e, strict=True):
             shape.friction = u
             shape.elasticity = e

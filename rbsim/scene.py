@@ -124,7 +124,8 @@ class Scene:
     output: Output
     bodies: tuple[Body, ...]
     materials: dict[str, Material] = field(default_factory=dict)
-    compare: dict[str, float] = field(default_factory=dict)
+    compare: dict[str, Any] = field(default_factory=dict)  # tolerances; `statistics` a dict
+    reference: dict[str, Any] = field(default_factory=dict)  # `rbsim sweep`; {} = converged
     source: str = ""
     path: str = "<string>"
 
@@ -424,6 +425,11 @@ class _Resolver:
         parts = (world, solver, output, compare, c.get("version", INVALID), c.get("name"))
         if not _ok(*parts) or not _ok(*solver.values(), *output.values(), *compare.values()):
             return None
+        if not _ok(*compare.get("statistics", {}).values()):
+            return None
+        reference = self.reference(c.get("reference"), bodies)
+        if not _ok(reference):
+            return None
         stem = Path(path).stem if path != "<string>" else "scene"
         return Scene(
             name=c.get("name") or stem,
@@ -432,10 +438,49 @@ class _Resolver:
             output=Output(**output),
             bodies=tuple(bodies),
             materials={k: v for k, v in self.materials.items() if v is not None},
-            compare=dict(compare),
+            compare={k: dict(v) if isinstance(v, dict) else v for k, v in compare.items()},
+            reference=reference,
             source=text,
             path=path,
         )
+
+    # Keys of `reference:` and the kinds they apply to.
+    REFERENCE_KEYS = {
+        "body": ("projectile", "free_spin", "slide", "bounce"),
+        "support": ("slide", "bounce"),
+        "dt": ("converged",),
+        "substeps": ("converged",),
+        "iterations": ("converged",),
+    }
+
+    def reference(self, r: Checked | None, bodies: list[Body]) -> dict[str, Any] | Any:
+        """The `reference:` block of `rbsim sweep` ({} when absent), its keys checked
+        against its kind and its body names against the bodies."""
+        if r is None:
+            return {}
+        if not _ok(r) or not _ok(*r.values()):
+            return INVALID
+        kind = r["kind"]
+        for key, kinds in self.REFERENCE_KEYS.items():
+            if key in r and kind not in kinds:
+                self.error(
+                    r.mark_of(key),
+                    r.path_of(key),
+                    f"only for reference kind {' or '.join(kinds)}, not {kind}",
+                )
+        by_name = {b.name: b for b in bodies}
+        for key, wanted in (("body", "dynamic"), ("support", "static")):
+            if key not in r or kind not in self.REFERENCE_KEYS[key] or self.problems:
+                continue
+            body = by_name.get(r[key])
+            if body is None:
+                close = did_you_mean(r[key], by_name)
+                hint = f"; did you mean {close}?" if close else ""
+                self.error(r.mark_of(key), r.path_of(key), f"no body named {r[key]!r}{hint}")
+            elif body.type != wanted:
+                message = f"body {r[key]!r} is {body.type}; the {key} must be {wanted}"
+                self.error(r.mark_of(key), r.path_of(key), message)
+        return dict(r)
 
     def world(self, w: Checked) -> World | Any:
         if not _ok(w) or not _ok(*w.values()):
@@ -737,5 +782,6 @@ def scene_to_dict(scene: Scene) -> dict[str, Any]:
             for name, m in scene.materials.items()
         },
         "bodies": [_body_to_dict(b) for b in scene.bodies],
-        "compare": dict(scene.compare),
+        "compare": {k: dict(v) if isinstance(v, dict) else v for k, v in scene.compare.items()},
+        **({"reference": dict(scene.reference)} if scene.reference else {}),
     }

@@ -303,6 +303,61 @@ COMPARE = Key(
         "position": Key("number", "Position, m.", ge=0),
         "angle": Key("number", "Angle, rad.", ge=0),
         "velocity": Key("number", "Velocity, m/s.", ge=0),
+        "iterations": Key(
+            "integer", "pymunk solver iterations per pymunk step (default 10).", ge=1
+        ),
+        "statistics": Key(
+            "object",
+            "Compare the two runs statistically (for chaotic scenes): the largest "
+            "differences allowed at the last frame; a missing key is reported, not checked.",
+            fields={
+                "kinetic_energy": Key("number", "Total kinetic energy, J.", ge=0),
+                "mean_height": Key("number", "Mean height of the dynamic bodies, m.", ge=0),
+                "heights": Key(
+                    "number",
+                    "Distance between the distributions of the dynamic bodies' heights "
+                    "(mean gap between the sorted heights), m.",
+                    ge=0,
+                ),
+                "penetration": Key(
+                    "number", "Largest overlap of two shapes in either run (a bound), m.", ge=0
+                ),
+            },
+        ),
+    },
+)
+
+# `rbsim sweep` references (rbsim.reference): analytic solutions, then the generic ones.
+REFERENCE_KINDS = (
+    "projectile",
+    "free_spin",
+    "slide",
+    "bounce",
+    "collision",
+    "converged",
+    "invariants",
+)
+
+REFERENCE = Key(
+    "object",
+    "What `rbsim sweep` measures errors against; without this block, a converged run.",
+    fields={
+        "kind": Key(
+            "enum",
+            "projectile, free_spin (one free body), slide (a block on a flat support with "
+            "friction), bounce (a ball on a flat support), collision (two bodies, one "
+            "impact): analytic; converged: a run with a much smaller dt; invariants: bodies "
+            "placed at rest (error = drift from the rest pose).",
+            REQUIRED,
+            choices=REFERENCE_KINDS,
+        ),
+        "body": Key("string", "The dynamic body followed; default: the only dynamic body."),
+        "support": Key(
+            "string", "slide, bounce: the static body below; default: the only static body."
+        ),
+        "dt": Key("fraction", "converged: the reference run's time step, s.", gt=0),
+        "substeps": Key("integer", "converged: the reference run's substeps.", ge=1),
+        "iterations": Key("integer", "converged: the reference run's iterations.", ge=1),
     },
 )
 
@@ -323,6 +378,7 @@ SCENE = Key(
             item=Key("entry", "A body or a generator.", item=BODY, variants=GENERATORS),
         ),
         "compare": COMPARE,
+        "reference": REFERENCE,
     },
 )
 

@@ -19,7 +19,7 @@ from rbsim.compare import BodyDiff, CompareResult, compare_scene
 from rbsim.scene import load_scene
 from rbsim.trajectory import load_trajectory
 
-from .conftest import rbsim
+from .conftest import rbsim, scene_from
 
 REPO = Path(__file__).resolve().parents[1]
 COMPARE = REPO / "scenes" / "compare"
@@ -83,21 +83,12 @@ def test_head_on_swaps_velocities_in_both(tmp_path: Path):
         assert 0 < b.max_position <= 2 * 2.0 * H
 
 
-def test_rbsim_only_setting_differs_and_exits_4(tmp_path: Path):
-    """A restitution threshold of 5 m/s (rbsim only) stops the 4 m/s approach from
-    bouncing in rbsim; pymunk still bounces: velocities differ by 2 m/s per body."""
-    code, out, err = rbsim(
-        "compare",
-        COMPARE / "head_on.yaml",
-        "-o",
-        tmp_path,
-        "--set",
-        "solver.restitution_threshold=5",
-    )
-    assert code == 4
-    assert "body 'left'" in err and "velocity" in err
-    assert "body 'right'" in err
-    assert "OUTSIDE TOLERANCE" in out
+def test_explicit_euler_is_chipmunks_update_order(tmp_path: Path):
+    """Chipmunk moves x with the old v, then updates v: rbsim's explicit Euler does the
+    same, so the g h t difference of projectile.yaml vanishes."""
+    scene = load_scene(COMPARE / "projectile.yaml", ["solver.integrator=explicit_euler"])
+    (ball,) = compare_scene(scene, tmp_path).bodies
+    assert ball.max_position < 1e-9  # round-off, against g h t = 0.08 m
 
 
 def test_option_overrides_scene_tolerance(tmp_path: Path):
@@ -194,3 +185,161 @@ def test_table_shows_ten_worst():
     assert "b11" in text and " b0 " not in text and " b1 " not in text
     assert "10 worst of 12" in text
     assert len(result.to_dict()["bodies"]) == 12
+
+
+# -- the matching scenes added for issue 4, and statistics -------------------------------
+
+
+def test_every_matching_scene_of_the_issue_is_there():
+    names = {p.stem for p in SCENES}
+    assert {"slope_rest", "slope_slide", "bounce", "off_centre", "stack"} <= names
+    assert load_scene(COMPARE / "stack.yaml").compare["iterations"] == 100
+
+
+def test_different_restitution_in_pymunk_alone_exits_4(tmp_path: Path):
+    """e = 0.5 instead of 1 in pymunk only: the head-on pair no longer swaps velocities."""
+    code, out, err = rbsim(
+        "compare",
+        COMPARE / "head_on.yaml",
+        "-o",
+        tmp_path,
+        "--pymunk-set",
+        "materials.elastic.restitution=0.5",
+    )
+    assert code == 4
+    assert "body 'left'" in err and "velocity" in err
+    pm = load_trajectory(tmp_path / "head_on.pymunk.h5")
+    # e = 0.5, equal masses: each leaves at (1 - e)/2 × 2 - (1 + e)/2 × 2 = -1 m/s
+    np.testing.assert_allclose(pm.velocity[-1, :, 0], [-1.0, 1.0], atol=1e-9)  # round-off
+
+
+def test_bounce_scene_fails_with_restitution_0_4_in_pymunk(tmp_path: Path):
+    code, _out, err = rbsim(
+        "compare",
+        COMPARE / "bounce.yaml",
+        "-o",
+        tmp_path,
+        "--pymunk-set",
+        "materials.rubber.restitution=0.4",
+    )
+    assert code == 4 and "body 'ball'" in err and "position" in err
+
+
+def test_restitution_threshold_applies_in_both_engines(tmp_path: Path):
+    """A 5 m/s threshold stops the 4 m/s head-on approach from bouncing in both engines
+    (pymunk through the bridge's pre_solve handler): both end at rest together."""
+    code, _out, err = rbsim(
+        "compare",
+        COMPARE / "head_on.yaml",
+        "-o",
+        tmp_path,
+        "--set",
+        "solver.restitution_threshold=5",
+        "--position",
+        "1",
+    )
+    assert code == 0, err
+    for engine in ("rbsim", "pymunk"):
+        tr = load_trajectory(tmp_path / f"head_on.{engine}.h5")
+        np.testing.assert_allclose(tr.velocity[-1, :, 0], [0.0, 0.0], atol=1e-9)  # round-off
+
+
+def test_pymunk_set_must_keep_the_same_frames(tmp_path: Path):
+    code, _out, err = rbsim(
+        "compare", COMPARE / "head_on.yaml", "-o", tmp_path, "--pymunk-set", "world.steps=3"
+    )
+    assert code == 3 and "steps or dt differ" in err
+
+
+def test_compare_iterations_key_sets_pymunk_iterations(tmp_path: Path):
+    scene = load_scene(COMPARE / "stack.yaml")
+    result = compare_scene(scene, tmp_path)
+    assert result.pymunk_settings["iterations"] == 100
+    # with Chipmunk's default 10 iterations the stack creeps beyond the slop bound
+    assert not compare_scene(scene, tmp_path, iterations=10).ok
+
+
+def test_statistics_of_a_resting_stack(tmp_path: Path):
+    scene = load_scene(COMPARE / "stack.yaml")
+    result = compare_scene(scene, tmp_path, with_statistics=True)
+    st = result.statistics
+    assert st is not None and result.statistics_tolerances == {}
+    for engine in ("rbsim", "pymunk"):
+        # heights 0.5 .. 4.5 m: mean 2.5, spread sqrt(2); each sags by less than 5 slops
+        assert st["mean_height"][engine] == pytest.approx(2.5, abs=0.025)
+        assert st["heights"][engine] == pytest.approx(math.sqrt(2), abs=0.025)
+        assert 0.0 < st["penetration"][engine] < 0.005  # within the collision slop
+    tr = load_trajectory(result.files["pymunk"])
+    assert st["kinetic_energy"]["pymunk"] == tr.observables["kinetic_energy"][-1]
+    assert st["heights"]["difference"] >= st["mean_height"]["difference"]
+
+
+def test_max_penetration_measures_a_known_overlap(tmp_path: Path):
+    from rbsim.compare import max_penetration
+
+    scene = scene_from(
+        """
+        version: 1
+        world: {gravity: [0, 0], steps: 1}
+        bodies:
+          - {name: a, shape: {circle: {radius: 0.5}}}
+          - {name: b, position: [0.9, 0], shape: {circle: {radius: 0.5}}}
+        """
+    )
+    scene.compare["statistics"] = {}
+    out = tmp_path / "two.h5"
+    from rbsim.run import run_scene
+
+    run_scene(scene, out)
+    tr = load_trajectory(out)
+    tr.position[:] = [[0.0, 0.0], [0.9, 0.0]]  # 0.1 m overlap at every frame
+    assert max_penetration(tr, scene) == pytest.approx(0.1, abs=1e-12)  # round-off
+    tr.position[:, 1, 0] = 1.2
+    assert max_penetration(tr, scene) == 0.0
+
+
+def test_statistics_tolerance_from_set_exits_4_and_is_in_json(tmp_path: Path):
+    code, out, err = rbsim(
+        "compare",
+        COMPARE / "stack.yaml",
+        "-o",
+        tmp_path,
+        "--json",
+        "--set",
+        "compare.statistics={mean_height: 1.0e-12, penetration: 1}",
+    )
+    assert code == 4
+    assert "statistics: final mean height" in err and "mean_height tolerance" in err
+    data = json.loads(out)
+    assert data["statistics_tolerances"] == {"mean_height": 1e-12, "penetration": 1.0}
+    assert set(data["statistics"]) == {"kinetic_energy", "mean_height", "heights", "penetration"}
+
+
+def test_statistics_flag_prints_the_table(tmp_path: Path):
+    code, out, _err = rbsim("compare", COMPARE / "projectile.yaml", "-o", tmp_path, "--statistics")
+    assert code == 0
+    assert "final kinetic energy J" in out and "max penetration" in out
+
+
+@pytest.mark.parametrize(
+    ("setting", "message"),
+    [
+        ("compare.statistics.kinetic_energy=-1", "must be >= 0"),
+        ("compare.statistics.heigths=1", "did you mean heights?"),
+        ("compare.iterations=0", "must be >= 1"),
+    ],
+)
+def test_bad_compare_keys_exit_3_naming_the_key(tmp_path: Path, setting: str, message: str):
+    code, _out, err = rbsim("compare", COMPARE / "stack.yaml", "-o", tmp_path, "--set", setting)
+    assert code == 3 and message in err and setting.split("=")[0].split(".")[0] in err
+
+
+def test_bad_statistics_key_in_a_file_names_line_and_key(tmp_path: Path):
+    scene = tmp_path / "bad.yaml"
+    scene.write_text(
+        "version: 1\nbodies:\n  - {name: ball, shape: {circle: {radius: 0.5}}}\n"
+        "compare:\n  statistics: {mean_height: fast}\n"
+    )
+    code, _out, err = rbsim("compare", scene, "-o", tmp_path)
+    assert code == 3
+    assert f"{scene}:5:" in err and "compare.statistics.mean_height" in err

@@ -8,6 +8,7 @@ velocity, then updates velocities).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -371,10 +372,10 @@ def test_unreproducible_mixing_within_a_compound_body_names_the_other_body():
     b = body("b", [circle(0.2, material=Material(restitution=0.0))], position=(5.0, 0.0))
     with pytest.raises(UnsupportedScene, match="'a' and 'b'|'b' and 'a'"):
         PymunkWorld(scene(a, b), PymunkSettings(mixing_handler="never"))
-    # alone, the compound body has no pair to reproduce
-    assert not PymunkWorld(
-        scene(a), PymunkSettings(mixing_handler="never")
-    ).mixing_handler_installed
+    # alone, the compound body has no pair to reproduce (and with no threshold to apply,
+    # no handler is needed at all)
+    alone = dataclasses.replace(scene(a), solver=Solver(restitution_threshold=0.0))
+    assert not PymunkWorld(alone, PymunkSettings(mixing_handler="never")).pre_solve_installed
 
 
 def test_unreproducible_mixing_falls_back_to_the_pre_solve_handler_by_default():
@@ -504,3 +505,67 @@ def test_run_pymunk_calls_on_frame_at_start_every_kth_and_last_step():
     assert [s for s, _ in frames] == [0, 4, 8, 10]
     assert frames[-1][1] == pytest.approx(10 * sc.world.dt)
     assert wall > 0.0
+
+
+# -- restitution: the bounce pymunk gives is the one the scene means --------------------
+
+MIX = {"max": max, "min": min, "multiply": lambda a, b: a * b}
+
+
+@pytest.mark.parametrize("rule", sorted(MIX))
+@pytest.mark.parametrize("handler", ["auto", "always"])
+def test_first_bounce_ratio_is_the_mixed_restitution_for_every_rule(rule, handler):
+    """Chipmunk bounces to v⁺ = −e v⁻ with v⁻ the velocity before the step (gravity of
+    the step is absorbed by the contact), so the measured ratio is e to round-off, by
+    per-shape values (auto) and by arbiter.restitution set in pre_solve (always)."""
+    for e_ground, e_ball in [(0.3, 0.8), (0.8, 0.3), (0.0, 0.6)]:
+        w = ball_on_ground(e_ground, [e_ball], rule, PymunkSettings(mixing_handler=handler))
+        assert w.mixing_handler_installed is (handler == "always")
+        # 1e-12: the ratio of two velocities of a few m/s, exact up to round-off
+        assert first_bounce_ratio(w, 1) == pytest.approx(MIX[rule](e_ground, e_ball), abs=1e-12)
+
+
+@pytest.mark.parametrize("rule", sorted(MIX))
+def test_mixing_no_product_can_reproduce_still_gives_each_pair_its_bounce(rule):
+    # three balls of different e on a ground of e = 0.5, every pair of bodies can meet:
+    # under max no set of per-shape products fits every pair and the handler mixes;
+    # min and multiply have products that fit (found by the bridge)
+    e_balls = [1.0, 0.4, 0.0]
+    for i, e in enumerate(e_balls, start=1):
+        w = ball_on_ground(0.5, e_balls, rule)
+        assert w.mixing_handler_installed is (rule == "max")
+        # 1e-12: as above, round-off only
+        assert first_bounce_ratio(w, i) == pytest.approx(MIX[rule](0.5, e), abs=1e-12)
+
+
+def test_restitution_threshold_is_applied_in_pymunk_too():
+    """rbsim does not bounce approaches slower than solver.restitution_threshold;
+    pymunk has no threshold, so the handler drops the restitution of such contacts."""
+
+    def ratio(threshold: float, drop: float) -> float:
+        # a ball dropped from `drop` m above the ground hits at sqrt(2 g drop)
+        ground = body(
+            "ground", [segment((-5, 0), (5, 0), 0.0, Material(restitution=1.0))], "static"
+        )
+        ball = body(
+            "ball", [circle(0.25, material=Material(restitution=1.0))], position=(0, 0.25 + drop)
+        )
+        sc = dataclasses.replace(
+            scene(ground, ball, dt=1.0 / 240.0), solver=Solver(restitution_threshold=threshold)
+        )
+        w = PymunkWorld(sc)
+        assert w.pre_solve_installed is (threshold > 0)
+        return first_bounce_ratio(w, 1)
+
+    slow = 0.03  # m: hits at 0.77 m/s
+    assert ratio(0.0, slow) == pytest.approx(1.0, abs=1e-12)  # 1e-12: round-off
+    assert ratio(1.0, slow) == pytest.approx(0.0, abs=1e-12)  # below the threshold
+    assert ratio(1.0, 0.2) == pytest.approx(1.0, abs=1e-12)  # 1.98 m/s: above it
+
+
+def test_restitution_threshold_without_a_handler_is_unsupported():
+    ground = body("ground", [segment((-5, 0), (5, 0), 0.0, Material(restitution=0.5))], "static")
+    with pytest.raises(UnsupportedScene, match="restitution_threshold"):
+        PymunkWorld(
+            scene(ground, body("ball", [circle(0.25)])), PymunkSettings(mixing_handler="never")
+        )

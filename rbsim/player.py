@@ -1,0 +1,193 @@
+"""The self-contained HTML player: one file that plays a trajectory on a canvas.
+
+The page (template `rbsim/player.html`) draws from the stored numbers, not from
+pictures: for each shown frame and body, x and y (m) and the angle (rad) as
+little-endian float32, base64-encoded (16 bytes per body and frame), plus each body's
+shapes once. Its size therefore grows with frames x bodies, not with pixels: 1000 bodies
+x 600 frames make a page of about 10 MB. No script, font or style is loaded from
+anywhere else, so it works offline.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import os
+from dataclasses import dataclass
+from importlib import resources
+
+import numpy as np
+
+from .render import (
+    COLOURS,
+    FrameReader,
+    Progress,
+    RenderError,
+    View,
+    _no_frames_message,
+    fit_view,
+    match_frames,
+    sample_frames,
+    shape_outline,
+    shape_vertices,
+)
+
+__all__ = ["HtmlResult", "render_html"]
+
+TEMPLATE = "player.html"
+# Frames per second above which a page only grows: browsers draw at most 60 per second
+# on common screens, and the player shows the latest frame due.
+HTML_MAX_FPS = 240.0
+
+
+@dataclass
+class HtmlResult:
+    """What render_html wrote: path, frames, bodies (of the main trajectory), bytes."""
+
+    path: str
+    frames: int
+    bodies: int
+    size: int
+
+
+def _round(values: np.ndarray) -> list[float]:
+    """Body-frame coordinates for the page, m, to 1e-6 m (the page draws in float64)."""
+    return [round(float(v), 6) for v in np.asarray(values).reshape(-1)]
+
+
+def _shapes(reader: FrameReader) -> dict[str, list]:
+    """The page's shape lists for one trajectory, in body frames (m): polys
+    [[body, [x0, y0, x1, y1, ...]], ...], circles [[body, cx, cy, r]], lines
+    [[body, ax, ay, bx, by]] (segments of zero radius)."""
+    bodies = reader.bodies
+    polys: list = []
+    circles: list = []
+    lines: list = []
+    for s, kind in enumerate(bodies.shape_kind):
+        b = int(bodies.shape_body[s])
+        verts = shape_vertices(bodies, s)
+        r = float(bodies.shape_radius[s])
+        if kind == "circle":
+            circles.append([b, *_round(verts[0]), round(r, 6)])
+            continue
+        what, outline = shape_outline(kind, verts, r)
+        if what == "line":
+            lines.append([b, *_round(outline)])
+        else:
+            polys.append([b, _round(outline)])
+    return {"polys": polys, "circles": circles, "lines": lines}
+
+
+def _frames_b64(reader: FrameReader, idx: np.ndarray, progress: Progress | None) -> str:
+    """Frames idx (increasing, distinct) as base64 of float32 (frame, body, [x, y, θ])."""
+    n = len(reader.bodies)
+    out = np.empty((len(idx), n, 3), dtype="<f4")
+    done = 0
+    for part, pos, rot in reader.batches(idx):
+        k = len(part)
+        out[done : done + k, :, :2] = pos
+        out[done : done + k, :, 2] = np.arctan2(rot[..., 1], rot[..., 0])
+        done += k
+        if progress is not None:
+            progress(done, len(idx))
+    return base64.b64encode(out.tobytes()).decode("ascii")
+
+
+def _track(
+    reader: FrameReader, idx: np.ndarray, overlay: bool, progress: Progress | None
+) -> dict[str, object]:
+    """One trajectory for the page; idx: the track frame shown at each player frame
+    (non-decreasing, repeats allowed; only the distinct frames are stored)."""
+    uniq, inverse = np.unique(idx, return_inverse=True)
+    return {
+        "label": reader.label,
+        "overlay": overlay,
+        "names": list(reader.bodies.name),
+        "types": list(reader.bodies.type),
+        **_shapes(reader),
+        "frame_index": [int(i) for i in inverse],
+        "frames": _frames_b64(reader, uniq, progress),
+    }
+
+
+def page_text(data: dict[str, object], title: str) -> str:
+    """The player page with `data` (the JSON the page reads) and `title` filled in."""
+    template = resources.files("rbsim").joinpath(TEMPLATE).read_text(encoding="utf-8")
+    # "</" could end the <script> element early (a body named "</script>"): escape it.
+    payload = json.dumps(data, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
+    return template.replace("{{TITLE}}", html.escape(title)).replace("{{DATA}}", payload)
+
+
+def render_html(
+    path: str | os.PathLike,
+    output: str | os.PathLike,
+    *,
+    fps: float = 30.0,
+    view: View | None = None,
+    overlay: str | os.PathLike | None = None,
+    start: float | None = None,
+    end: float | None = None,
+    progress: Progress | None = None,
+) -> HtmlResult:
+    """Write the player page for the trajectory `path` to `output`.
+
+    fps: frames per second of simulated time stored in the page (the page plays in
+    real time, at a speed the viewer picks). view: the world rectangle shown first (m);
+    default: fitted to the moving bodies. overlay: a second trajectory drawn over the
+    first in its own colour, at the frames nearest in time. start, end: s, the part of
+    the run to store. progress(done, total) is called as frames are read. Raises
+    RenderError (unreadable input) or ValueError (bad argument).
+    """
+    if not 0 < fps <= HTML_MAX_FPS:
+        raise ValueError(f"frames per second must lie in (0, {HTML_MAX_FPS:g}], got {fps:g}")
+    output = os.fspath(output)
+    with FrameReader(path) as main:
+        idx = sample_frames(main.time, fps, start, end)
+        if not len(idx):
+            raise RenderError(_no_frames_message(main, start, end))
+        times = main.time[idx]
+        other = FrameReader(overlay) if overlay is not None else None
+        try:
+            if other is not None and not len(other.time):
+                raise RenderError(f"{other.path}: no frames to overlay")
+            other_idx = match_frames(other.time, times) if other is not None else None
+            if view is None:
+                pairs = [(main, idx)]
+                if other is not None and other_idx is not None:
+                    pairs.append((other, np.unique(other_idx)))
+                view = fit_view(pairs)
+            total = len(idx) + (len(np.unique(other_idx)) if other_idx is not None else 0)
+
+            def step(offset: int) -> Progress | None:
+                if progress is None:
+                    return None
+                return lambda done, _n: progress(offset + done, total)
+
+            tracks = [_track(main, idx, False, step(0))]
+            if other is not None and other_idx is not None:
+                tracks.append(_track(other, other_idx, True, step(len(idx))))
+        finally:
+            if other is not None:
+                other.close()
+        data = {
+            "version": 1,
+            "scene": main.scene,
+            "time": [float(t) for t in times],
+            "view": [view.x0, view.y0, view.x1, view.y1],
+            "colours": COLOURS,
+            "tracks": tracks,
+        }
+        title = f"rbsim: {main.scene}"
+        n = len(main.bodies)
+    text = page_text(data, title)
+    tmp = output + ".part"
+    try:
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, output)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise
+    return HtmlResult(output, len(idx), n, len(text.encode("utf-8")))

@@ -1,0 +1,858 @@
+"""`rbsim sweep`: speed against error over a grid of settings, rbsim and pymunk.
+
+Each setting runs the scene twice over: once for its error, sampling the poses of the
+tracked bodies every `sample_dt` (the largest dt of the grid, which every dt of the grid
+divides, so that all runs are compared at the same instants), and several times for its
+cost, timing `World.advance` (rbsim, kernels compiled and loaded beforehand) or the
+loop of `space.step` calls (pymunk) with the process's CPU clock. The cost is the
+median CPU time per simulated second; building the world is not timed. The runs are
+deterministic, so the timed runs follow the same motion as the sampled one.
+
+The error is the reference's (rbsim.reference): the largest over the samples and the
+tracked bodies of the RMS distance between the body's material points and the
+reference's, in metres. Each engine's Pareto front is the set of its points that no
+other point of the same engine beats in both cost and error.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import statistics
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from .reference import Poses, Reference, make_reference, penetration, pose_error, touching_pairs
+from .scene import Scene
+
+__all__ = [
+    "DEFAULT_DTS",
+    "Grid",
+    "PlotUnavailable",
+    "Point",
+    "Setting",
+    "SweepError",
+    "SweepResult",
+    "pareto_front",
+    "run_sweep",
+]
+
+DEFAULT_DTS = (1 / 30, 1 / 60, 1 / 120, 1 / 240, 1 / 480, 1 / 960)
+
+# Errors below this are rounding, not method (m): positions of order 10 m carry about
+# 1e-15 m of rounding per operation, times up to 1e5 steps; they count as equal.
+ERROR_FLOOR = 1e-9
+
+# "Dominates": at least as accurate and at most this fraction of the CPU time.
+DOMINANCE_TIME_RATIO = 0.5
+
+# Timing: at least `repeats` runs, and more (up to MAX_REPEATS) until they add up to
+# MIN_TIMED seconds, so that runs of a few milliseconds are not timer noise.
+MIN_TIMED = 0.2
+MAX_REPEATS = 100
+
+# Converged reference: by default dt is the grid's smallest over this factor.
+CONVERGED_DT_FACTOR = 4
+CONVERGED_SUBSTEPS = 4
+CONVERGED_ITERATIONS = 8
+
+# Shapes within this distance at the start are checked for penetration (invariants), m.
+PAIR_MARGIN = 0.05
+
+
+class SweepError(ValueError):
+    """A sweep that cannot run as asked (grid, reference); the message says why."""
+
+
+class PlotUnavailable(RuntimeError):
+    """matplotlib is not installed (the `plot` extra)."""
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One run's settings: engine "rbsim" or "pymunk"; dt (s); substeps; iterations (per
+    substep for rbsim, per step for pymunk); integrator and rotation (rbsim only)."""
+
+    engine: str
+    dt: float
+    substeps: int = 1
+    iterations: int = 10
+    integrator: str = ""
+    rotation: str = ""
+
+    @property
+    def family(self) -> str:
+        """The curve this setting belongs to (everything but dt)."""
+        if self.engine == "pymunk":
+            return f"pymunk it{self.iterations}"
+        integ = {"symplectic_euler": "symp", "explicit_euler": "expl"}.get(
+            self.integrator, self.integrator
+        )
+        rot = {"normalize": "norm", "exact": "exact"}.get(self.rotation, self.rotation)
+        return f"rbsim s{self.substeps} it{self.iterations} {integ} {rot}"
+
+
+def parse_list(text: str, kind: str) -> tuple:
+    """A comma-separated option value: kind "dt" (seconds, numbers or fractions such as
+    1/60), "int" (positive integers), or a tuple of allowed words. Raises SweepError."""
+    items = [t.strip() for t in text.split(",") if t.strip()]
+    if not items:
+        raise SweepError(f"expected a comma-separated list, got {text!r}")
+    out = []
+    for item in items:
+        if kind == "dt":
+            try:
+                num, _, den = item.partition("/")
+                value = float(num) / float(den) if den else float(num)
+            except (ValueError, ZeroDivisionError):
+                raise SweepError(f"{item!r} is not a time step (such as 1/60 or 0.01)") from None
+            if not (value > 0 and math.isfinite(value)):
+                raise SweepError(f"a time step must be a positive number of seconds, got {item!r}")
+        elif kind == "int":
+            if not item.isdigit() or int(item) < 1:
+                raise SweepError(f"expected a positive integer, got {item!r}")
+            value = int(item)
+        else:
+            if item not in kind:
+                raise SweepError(f"expected one of {', '.join(kind)}, got {item!r}")
+            value = item
+        out.append(value)
+    return tuple(dict.fromkeys(out))  # without repeats, in order
+
+
+def dt_text(dt: float) -> str:
+    """1/60 for a dt whose inverse is a whole number, else %g (s)."""
+    inv = 1.0 / dt
+    return f"1/{round(inv)}" if abs(inv - round(inv)) < 1e-9 * inv else f"{dt:g}"
+
+
+@dataclass(frozen=True)
+class Grid:
+    """The settings to sweep: every combination of dts with rbsim's substeps,
+    iterations, integrators and rotations, and of dts with pymunk's iterations (none: no
+    pymunk runs)."""
+
+    dts: tuple[float, ...] = DEFAULT_DTS
+    substeps: tuple[int, ...] = (1, 4)
+    iterations: tuple[int, ...] = (1, 4)
+    integrators: tuple[str, ...] = ("symplectic_euler",)
+    rotations: tuple[str, ...] = ("normalize", "exact")
+    pymunk_iterations: tuple[int, ...] = (5, 10, 30)
+
+    def settings(self) -> list[Setting]:
+        """Every setting of the grid, rbsim first, each family ordered by dt."""
+        out = []
+        for sub in self.substeps:
+            for it in self.iterations:
+                for integ in self.integrators:
+                    for rot in self.rotations:
+                        for dt in sorted(self.dts, reverse=True):
+                            out.append(Setting("rbsim", dt, sub, it, integ, rot))
+        for it in self.pymunk_iterations:
+            for dt in sorted(self.dts, reverse=True):
+                out.append(Setting("pymunk", dt, 1, it))
+        return out
+
+    def sample_dt(self) -> float:
+        """The largest dt (s), after checking that every dt divides it."""
+        if not self.dts:
+            raise SweepError("the grid has no dt")
+        big = max(self.dts)
+        for dt in self.dts:
+            ratio = big / dt
+            if abs(ratio - round(ratio)) > 1e-9 * ratio:
+                raise SweepError(
+                    f"dt {dt_text(dt)} s does not divide the largest dt {dt_text(big)} s; "
+                    "errors are compared at multiples of the largest dt (use 1/30, 1/60, ...)"
+                )
+        return big
+
+
+@dataclass
+class Point:
+    """One run of the sweep: its setting; cpu (median CPU s per simulated s) and
+    us_per_step (µs); error (m, see rbsim.reference) with its parts position_error (m)
+    and angle_error (rad); penetration (m) and energy_drift (J) for invariants
+    references; status "ok" or why the run failed; front: on its engine's Pareto front."""
+
+    setting: Setting
+    cpu: float = math.nan
+    us_per_step: float = math.nan
+    error: float = math.inf
+    position_error: float = math.inf
+    angle_error: float = math.inf
+    penetration: float | None = None
+    energy_drift: float | None = None
+    timed_runs: int = 0
+    status: str = "ok"
+    front: bool = False
+
+    def row(self) -> dict:
+        """A flat dict for CSV and JSON (units in the keys)."""
+        s = self.setting
+        return {
+            "engine": s.engine,
+            "family": s.family,
+            "dt_s": s.dt,
+            "substeps": s.substeps,
+            "iterations": s.iterations,
+            "integrator": s.integrator,
+            "rotation": s.rotation,
+            "cpu_s_per_sim_s": self.cpu,
+            "us_per_step": self.us_per_step,
+            "error_m": self.error,
+            "position_error_m": self.position_error,
+            "angle_error_rad": self.angle_error,
+            "penetration_m": self.penetration,
+            "energy_drift_J": self.energy_drift,
+            "timed_runs": self.timed_runs,
+            "status": self.status,
+            "pareto_front": self.front,
+        }
+
+
+@dataclass
+class SweepResult:
+    """A whole sweep: the scene, what the error means, the points and the verdict."""
+
+    scene: str
+    path: str
+    reference_kind: str
+    reference: str
+    metric: str
+    duration: float
+    sample_dt: float
+    points: list[Point]
+    reference_uncertainty: float | None = None
+    notes: list[str] = field(default_factory=list)
+
+    def engine_points(self, engine: str) -> list[Point]:
+        return [p for p in self.points if p.setting.engine == engine]
+
+    def verdict(self) -> dict:
+        """Does rbsim dominate pymunk's front? For each pymunk front point, the fastest
+        rbsim point at least as accurate, and whether it takes at most half the time."""
+        rb = [p for p in self.engine_points("rbsim") if _finite(p)]
+        rows = []
+        for p in sorted(self.engine_points("pymunk"), key=lambda q: q.cpu):
+            if not p.front:
+                continue
+            better = [r for r in rb if _floor(r.error) <= _floor(p.error)]
+            best = min(better, key=lambda r: r.cpu) if better else None
+            rows.append(
+                {
+                    "pymunk": p.setting.family + " dt " + dt_text(p.setting.dt),
+                    "pymunk_cpu": p.cpu,
+                    "pymunk_error_m": p.error,
+                    "rbsim": (best.setting.family + " dt " + dt_text(best.setting.dt))
+                    if best
+                    else None,
+                    "rbsim_cpu": best.cpu if best else None,
+                    "rbsim_error_m": best.error if best else None,
+                    "time_ratio": best.cpu / p.cpu if best else None,
+                    "dominated": bool(best and best.cpu <= DOMINANCE_TIME_RATIO * p.cpu),
+                }
+            )
+        return {
+            "pymunk_front_points": len(rows),
+            "dominated": sum(r["dominated"] for r in rows),
+            "rbsim_dominates": bool(rows) and all(r["dominated"] for r in rows),
+            "rows": rows,
+        }
+
+    def to_dict(self) -> dict:
+        """JSON-ready: the header, every point and the verdict."""
+        return {
+            "scene": self.scene,
+            "path": self.path,
+            "reference_kind": self.reference_kind,
+            "reference": self.reference,
+            "reference_uncertainty_m": self.reference_uncertainty,
+            "metric": self.metric,
+            "duration_s": self.duration,
+            "sample_dt_s": self.sample_dt,
+            "cost": "median CPU time (s) per simulated second, compile and setup excluded",
+            "notes": list(self.notes),
+            "points": [p.row() for p in self.points],
+            "verdict": self.verdict(),
+        }
+
+    def verdict_line(self) -> str:
+        v = self.verdict()
+        if not v["pymunk_front_points"]:
+            return "verdict: no pymunk points"
+        head = "rbsim dominates" if v["rbsim_dominates"] else "rbsim does NOT dominate"
+        return (
+            f"verdict: {head} pymunk's front: {v['dominated']} of {v['pymunk_front_points']} "
+            f"pymunk front points have an rbsim point at least as accurate in at most "
+            f"{DOMINANCE_TIME_RATIO:g} of the time"
+        )
+
+    def table(self) -> str:
+        """The human-readable table."""
+        lines = [
+            f"{self.scene}: speed against error, {self.duration:g} s simulated, "
+            f"errors sampled every {dt_text(self.sample_dt)} s",
+            f"  reference: {self.reference}",
+            f"  error: {self.metric}",
+            "  cost: median CPU time per simulated second, compile and setup excluded",
+        ]
+        lines += [f"  note: {n}" for n in self.notes]
+        width = max([6, *(len(p.setting.family) for p in self.points)])
+        lines.append(
+            f"  {'family':<{width}}  {'dt s':>7}  {'cpu ms/s':>10}  {'us/step':>9}  "
+            f"{'error m':>9}  {'pos m':>9}  {'ang rad':>9}  front"
+        )
+        for p in self.points:
+            s = p.setting
+            mark = "*" if p.front else ""
+            if p.status != "ok":
+                mark = p.status
+            elif self.reference_uncertainty is not None and p.error <= 2 * (
+                self.reference_uncertainty
+            ):
+                mark += " (at the reference's uncertainty)"
+            lines.append(
+                f"  {s.family:<{width}}  {dt_text(s.dt):>7}  {1e3 * p.cpu:>10.4g}  "
+                f"{p.us_per_step:>9.4g}  {p.error:>9.3g}  {p.position_error:>9.3g}  "
+                f"{p.angle_error:>9.3g}  {mark}"
+            )
+        lines.append("  " + self.verdict_line())
+        return "\n".join(lines)
+
+    def write(self, out_dir: str | Path, plot: bool = True) -> dict[str, Path]:
+        """Write <scene>.csv, <scene>.json and (plot=True) <scene>.png into out_dir;
+        returns the paths written. Raises PlotUnavailable after writing CSV and JSON when
+        matplotlib is missing."""
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        paths = {"csv": out / f"{self.scene}.csv", "json": out / f"{self.scene}.json"}
+        rows = [p.row() for p in self.points]
+        with open(paths["csv"], "w", newline="", encoding="utf-8") as f:
+            writer = csv.DictWriter(f, fieldnames=list(rows[0]) if rows else ["engine"])
+            writer.writeheader()
+            writer.writerows(rows)
+        paths["json"].write_text(json.dumps(_jsonable(self.to_dict()), indent=2) + "\n")
+        if plot:
+            paths["png"] = out / f"{self.scene}.png"
+            plot_sweep(self, paths["png"])
+        return paths
+
+
+def _finite(p: Point) -> bool:
+    return p.status == "ok" and math.isfinite(p.error) and math.isfinite(p.cpu)
+
+
+def _floor(error: float) -> float:
+    return max(error, ERROR_FLOOR)
+
+
+def _jsonable(x):
+    """NaN and infinity as null (JSON has neither)."""
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if isinstance(x, dict):
+        return {k: _jsonable(v) for k, v in x.items()}
+    if isinstance(x, list):
+        return [_jsonable(v) for v in x]
+    return x
+
+
+def pareto_front(points: Sequence[Point]) -> list[Point]:
+    """The points no other point beats: faster and at least as accurate, or as fast and
+    more accurate (errors below ERROR_FLOOR count as equal). Sorted by cost."""
+    ok = sorted((p for p in points if _finite(p)), key=lambda p: (p.cpu, _floor(p.error)))
+    front, best = [], math.inf
+    for p in ok:
+        if _floor(p.error) < best:
+            front.append(p)
+            best = _floor(p.error)
+    return front
+
+
+# --------------------------------------------------------------------------------------
+# Running one setting
+
+
+def scene_for(scene: Scene, s: Setting, steps: int) -> Scene:
+    """The scene with the setting's dt, substeps, iterations, integrator and rotation."""
+    solver = scene.solver
+    if s.engine == "rbsim":
+        solver = replace(
+            solver,
+            substeps=s.substeps,
+            iterations=s.iterations,
+            integrator=s.integrator or solver.integrator,
+            rotation=s.rotation or solver.rotation,
+        )
+    else:
+        solver = replace(solver, substeps=1)
+    return replace(scene, world=replace(scene.world, dt=s.dt, steps=steps), solver=solver)
+
+
+@dataclass
+class _Sampled:
+    poses: Poses
+    penetration: float | None
+    energy_drift: float | None
+    status: str
+
+
+class _Probe:
+    """Reads what the error needs from a state given as centres of mass x (N,2) m, angles
+    (N,) rad, velocities v (N,2) m/s and w (N,) rad/s."""
+
+    def __init__(self, scene: Scene, ref: Reference) -> None:
+        from .model import build
+
+        self.model, state = build(scene)
+        self.bodies = np.array(ref.bodies, dtype=np.int64)
+        self.invariants = ref.family == "invariants"
+        self.pairs = (
+            touching_pairs(self.model, state.body_x, state.body_angle, PAIR_MARGIN)
+            if self.invariants
+            else None
+        )
+        dyn = self.model.body_type == 0
+        self.dyn = dyn
+        self.g = np.asarray(scene.world.gravity, dtype=float)
+        self.e0 = self.energy(state.body_x, state.body_v, state.body_w)
+        self.x, self.th, self.v, self.w = [], [], [], []
+        self.pen, self.drift = 0.0, 0.0
+
+    def energy(self, x, v, w) -> float:
+        m, inertia = self.model.body_mass[self.dyn], self.model.body_inertia[self.dyn]
+        xd, vd, wd = x[self.dyn], v[self.dyn], w[self.dyn]
+        return float(
+            0.5 * (m * (vd * vd).sum(axis=1)).sum()
+            + 0.5 * (inertia * wd * wd).sum()
+            - (m * (xd @ self.g)).sum()
+        )
+
+    def take(self, x, th, v, w) -> None:
+        b = self.bodies
+        self.x.append(x[b].copy())
+        self.th.append(th[b].copy())
+        self.v.append(v[b].copy())
+        self.w.append(w[b].copy())
+        if self.invariants:
+            self.pen = max(self.pen, penetration(self.model, self.pairs, x, th))
+            self.drift = max(self.drift, abs(self.energy(x, v, w) - self.e0))
+
+    def result(self, t: np.ndarray, status: str) -> _Sampled:
+        k = len(self.x)
+        nb = self.bodies.shape[0]
+        x = np.full((t.shape[0], nb, 2), np.nan)
+        th = np.full((t.shape[0], nb), np.nan)
+        v, w = np.full_like(x, np.nan), np.full_like(th, np.nan)
+        if k:
+            x[:k], th[:k], v[:k], w[:k] = self.x, self.th, self.v, self.w
+        return _Sampled(
+            Poses(t, x, th, v, w),
+            self.pen if self.invariants else None,
+            self.drift if self.invariants else None,
+            status,
+        )
+
+
+def sample_rbsim(scene: Scene, ref: Reference, per_sample: int, samples: int) -> _Sampled:
+    """Run rbsim, reading the tracked bodies every `per_sample` steps."""
+    from .world import NonFiniteState, World
+
+    probe = _Probe(scene, ref)
+    world = World.from_scene(scene)
+    t = np.arange(samples + 1) * per_sample * scene.world.dt
+    st = world.state
+    status = "ok"
+    probe.take(st.body_x, st.body_angle, st.body_v, st.body_w)
+    for _ in range(samples):
+        try:
+            world.advance(per_sample)
+        except NonFiniteState as err:
+            status = f"non-finite at step {err.step}"
+            break
+        st = world.state
+        probe.take(st.body_x, st.body_angle, st.body_v, st.body_w)
+    return probe.result(t, status)
+
+
+def _pymunk_state(pw) -> tuple[np.ndarray, ...]:
+    st = pw.read_state()
+    th = st["angle"]
+    c, s = np.cos(th), np.sin(th)
+    com = pw.body_com
+    x = st["position"] + np.stack(
+        [c * com[:, 0] - s * com[:, 1], s * com[:, 0] + c * com[:, 1]], axis=1
+    )
+    return x, th, st["velocity"], st["angular_velocity"]
+
+
+def sample_pymunk(scene: Scene, ref: Reference, s: Setting, per_sample: int, samples: int):
+    """Run pymunk, reading the tracked bodies every `per_sample` steps."""
+    from .pymunk_bridge import PymunkSettings, PymunkWorld
+
+    probe = _Probe(scene, ref)
+    pw = PymunkWorld(scene, PymunkSettings(iterations=s.iterations, substeps=1))
+    t = np.arange(samples + 1) * per_sample * scene.world.dt
+    status = "ok"
+    probe.take(*_pymunk_state(pw))
+    for _ in range(samples):
+        for _ in range(per_sample):
+            pw.step()
+        x, th, v, w = _pymunk_state(pw)
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(v))):
+            status = f"non-finite at step {pw.step_count}"
+            break
+        probe.take(x, th, v, w)
+    return probe.result(t, status)
+
+
+def _median_time(run_once: Callable[[], float], repeats: int) -> tuple[float, int]:
+    samples: list[float] = []
+    while len(samples) < repeats or (sum(samples) < MIN_TIMED and len(samples) < MAX_REPEATS):
+        samples.append(run_once())
+    return statistics.median(samples), len(samples)
+
+
+def time_rbsim(scene: Scene, repeats: int) -> tuple[float, int]:
+    """Median CPU seconds of `advance(steps)` on fresh worlds (kernels loaded first)."""
+    from .world import World
+
+    World.from_scene(scene).advance(1)  # compile or load the kernels, outside the timing
+
+    def once() -> float:
+        world = World.from_scene(scene)
+        t0 = time.process_time()
+        world.advance(scene.world.steps)
+        return time.process_time() - t0
+
+    return _median_time(once, repeats)
+
+
+def time_pymunk(scene: Scene, s: Setting, repeats: int) -> tuple[float, int]:
+    """Median CPU seconds of the loop of `steps` pymunk steps on fresh spaces."""
+    from .pymunk_bridge import PymunkSettings, PymunkWorld
+
+    settings = PymunkSettings(iterations=s.iterations, substeps=1)
+
+    def once() -> float:
+        pw = PymunkWorld(scene, settings)
+        step = pw.step
+        t0 = time.process_time()
+        for _ in range(scene.world.steps):
+            step()
+        return time.process_time() - t0
+
+    return _median_time(once, repeats)
+
+
+# --------------------------------------------------------------------------------------
+# The sweep
+
+
+def run_sweep(
+    scene: Scene,
+    grid: Grid | None = None,
+    *,
+    repeats: int = 3,
+    duration: float | None = None,
+    progress: Callable[[int, int, Setting], None] | None = None,
+) -> SweepResult:
+    """Run every setting of `grid` on `scene` and measure its cost and error.
+
+    duration (s): simulated time, default the scene's; rounded to whole multiples of the
+    grid's largest dt. Raises SweepError for a grid that cannot be compared, and
+    rbsim.reference.ReferenceError when the scene does not fit its reference."""
+    grid = grid or Grid()
+    if repeats < 1:
+        raise SweepError("repeats must be at least 1")
+    sample_dt = grid.sample_dt()
+    total = scene.world.steps * scene.world.dt if duration is None else float(duration)
+    samples = max(1, round(total / sample_dt))
+    duration = samples * sample_dt
+    ref = make_reference(scene)
+    notes: list[str] = []
+    uncertainty = None
+    settings = grid.settings()
+    if ref.family == "converged":
+        ref_poses, statement, uncertainty = _converged(scene, ref, grid, sample_dt, samples)
+        ref.statement = statement
+    else:
+        ref_poses = ref.poses(np.arange(samples + 1) * sample_dt)
+    points = []
+    for k, s in enumerate(settings):
+        if progress is not None:
+            progress(k, len(settings), s)
+        points.append(_measure(scene, ref, ref_poses, s, sample_dt, samples, repeats))
+    for engine in ("rbsim", "pymunk"):
+        for p in pareto_front([p for p in points if p.setting.engine == engine]):
+            p.front = True
+    metric = (
+        "max over samples and tracked bodies of the RMS distance between the body's "
+        "material points and the reference's, sqrt(|dx|^2 + 2 r_g^2 (1 - cos dθ)), m"
+    )
+    if ref.family == "invariants":
+        metric = (
+            "max over samples and bodies of the RMS distance of the body's material points "
+            "from their rest pose, m (drift)"
+        )
+        notes.append("penetration_m and energy_drift_J in the CSV/JSON: max over samples")
+    return SweepResult(
+        scene=scene.name,
+        path=scene.path,
+        reference_kind=ref.kind,
+        reference=ref.statement,
+        metric=metric,
+        duration=duration,
+        sample_dt=sample_dt,
+        points=points,
+        reference_uncertainty=uncertainty,
+        notes=notes,
+    )
+
+
+def _steps(s_dt: float, sample_dt: float) -> int:
+    return round(sample_dt / s_dt)
+
+
+def _measure(
+    scene: Scene,
+    ref: Reference,
+    ref_poses: Poses,
+    s: Setting,
+    sample_dt: float,
+    samples: int,
+    repeats: int,
+) -> Point:
+    per = _steps(s.dt, sample_dt)
+    sc = scene_for(scene, s, per * samples)
+    if s.engine == "rbsim":
+        got = sample_rbsim(sc, ref, per, samples)
+    else:
+        got = sample_pymunk(sc, ref, s, per, samples)
+    point = Point(s, penetration=got.penetration, energy_drift=got.energy_drift, status=got.status)
+    if got.status != "ok":
+        return point
+    point.error, point.position_error, point.angle_error = pose_error(
+        got.poses, ref_poses, ref.gyration
+    )
+    if s.engine == "rbsim":
+        seconds, n = time_rbsim(sc, repeats)
+    else:
+        seconds, n = time_pymunk(sc, s, repeats)
+    point.cpu = seconds / (sc.world.steps * sc.world.dt)
+    point.us_per_step = 1e6 * seconds / sc.world.steps
+    point.timed_runs = n
+    return point
+
+
+def _converged(
+    scene: Scene, ref: Reference, grid: Grid, sample_dt: float, samples: int
+) -> tuple[Poses, str, float]:
+    """The converged reference's poses, its statement and its uncertainty (m): the error
+    of a run at twice its dt measured against it."""
+    opts = ref.options
+    dt = float(opts.get("dt", min(grid.dts) / CONVERGED_DT_FACTOR))
+    per = sample_dt / dt
+    if abs(per - round(per)) > 1e-9 * per or round(per) % 2:
+        raise SweepError(
+            f"reference.dt {dt_text(dt)} s must divide the largest dt of the grid "
+            f"({dt_text(sample_dt)} s) an even number of times"
+        )
+    sub = int(opts.get("substeps", CONVERGED_SUBSTEPS))
+    it = int(opts.get("iterations", CONVERGED_ITERATIONS))
+    fine = Setting("rbsim", dt, sub, it, "symplectic_euler", "exact")
+    coarse = replace(fine, dt=2 * dt)
+    per = round(per)
+    runs = []
+    for s, n in ((fine, per), (coarse, per // 2)):
+        got = sample_rbsim(scene_for(scene, s, n * samples), ref, n, samples)
+        if got.status != "ok":
+            raise SweepError(f"the converged reference run ({s.family}) failed: {got.status}")
+        runs.append(got.poses)
+    uncertainty = pose_error(runs[1], runs[0], ref.gyration)[0]
+    statement = (
+        f"converged rbsim run (dt {dt_text(dt)} s, {sub} substeps, {it} iterations, "
+        f"symplectic Euler, exact rotation); a run at twice its dt differs from it by "
+        f"{uncertainty:.3g} m"
+    )
+    return runs[0], statement, uncertainty
+
+
+# --------------------------------------------------------------------------------------
+# Plot
+
+
+ENGINE_COLORS = {"rbsim": "tab:blue", "pymunk": "tab:red"}
+
+
+def plot_sweep(result: SweepResult, path: str | Path) -> None:
+    """A log-log plot of error (m) against CPU time per simulated second: one curve per
+    family (dt varies along it), each engine's Pareto front drawn over it."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(8, 5.5))
+    families: dict[str, list[Point]] = {}
+    for p in result.points:
+        if _finite(p):
+            families.setdefault(p.setting.family, []).append(p)
+    markers = "osD^v<>ph*XP"
+    shade = {"rbsim": 0, "pymunk": 0}
+    for fam, pts in families.items():
+        engine = pts[0].setting.engine
+        cmap = plt.get_cmap("Blues" if engine == "rbsim" else "Reds")
+        n_eng = sum(1 for f in families.values() if f[0].setting.engine == engine)
+        color = cmap(0.35 + 0.6 * shade[engine] / max(1, n_eng - 1))
+        marker = markers[shade[engine] % len(markers)]
+        shade[engine] += 1
+        pts = sorted(pts, key=lambda q: q.setting.dt, reverse=True)
+        ax.plot(
+            [1e3 * q.cpu for q in pts],
+            [_floor(q.error) for q in pts],
+            marker=marker,
+            color=color,
+            lw=1,
+            ms=4,
+            label=fam,
+        )
+    for engine, color in ENGINE_COLORS.items():
+        front = [p for p in result.points if p.front and p.setting.engine == engine]
+        front.sort(key=lambda q: q.cpu)
+        if front:
+            ax.step(
+                [1e3 * q.cpu for q in front],
+                [_floor(q.error) for q in front],
+                where="post",
+                color=color,
+                lw=2.5,
+                alpha=0.5,
+                label=f"{engine} Pareto front",
+            )
+            ax.scatter(
+                [1e3 * q.cpu for q in front],
+                [_floor(q.error) for q in front],
+                s=70,
+                facecolors="none",
+                edgecolors=color,
+                linewidths=1.5,
+            )
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("CPU time per simulated second, ms (median, compile excluded)")
+    ax.set_ylabel(f"error, m (floor {ERROR_FLOOR:g})")
+    ax.set_title(f"{result.scene}: {result.reference_kind} reference", fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=6, ncol=2, loc="best")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _pyplot():
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        raise PlotUnavailable(
+            "matplotlib is not installed; install the plot extra "
+            "(pip install 'rbsim[plot]', or make install)"
+        ) from None
+    return plt
+
+
+# --------------------------------------------------------------------------------------
+# Scaling: cost per step against the number of bodies
+
+
+@dataclass
+class ScalingPoint:
+    """Median µs per step of each engine on a pile of `bodies` bodies."""
+
+    bodies: int
+    rbsim_us: float
+    pymunk_us: float
+
+
+def pile_scene(base: int) -> Scene:
+    """A pyramid of 1 m boxes with `base` boxes in its bottom row, on a static ground."""
+    from .scene import load_scene_text
+
+    half = base + 5
+    text = f"""
+version: 1
+name: pile{base}
+world: {{gravity: [0, -9.81], dt: 1/60, steps: 100000}}
+materials:
+  wood: {{density: 1.0, friction: 0.6, restitution: 0.0}}
+bodies:
+  - name: ground
+    type: static
+    material: wood
+    shape: {{segment: {{a: [{-half}, 0], b: [{half}, 0]}}}}
+  - pyramid: {{base: {base}, size: [1, 1], origin: [0, 0.5], material: wood}}
+"""
+    return load_scene_text(text, f"pile{base}.yaml")
+
+
+def measure_scaling(
+    bases: Sequence[int], warmup: int = 20, block: int = 10, repeats: int = 3
+) -> list[ScalingPoint]:
+    """µs per step of rbsim (its default settings) and pymunk (10 iterations), dt 1/60,
+    on pyramids of the given bases: median of `repeats` timed blocks of `block` steps
+    after `warmup` steps, CPU time."""
+    from .pymunk_bridge import PymunkSettings, PymunkWorld
+    from .world import World
+
+    out = []
+    for base in bases:
+        scene = pile_scene(base)
+        world = World.from_scene(scene)
+        world.advance(warmup)
+        rb = []
+        for _ in range(repeats):
+            t0 = time.process_time()
+            world.advance(block)
+            rb.append((time.process_time() - t0) / block * 1e6)
+        pw = PymunkWorld(scene, PymunkSettings(iterations=10))
+        for _ in range(warmup):
+            pw.step()
+        pm = []
+        for _ in range(repeats):
+            t0 = time.process_time()
+            for _ in range(block):
+                pw.step()
+            pm.append((time.process_time() - t0) / block * 1e6)
+        out.append(ScalingPoint(len(scene.bodies), statistics.median(rb), statistics.median(pm)))
+    return out
+
+
+def fitted_slope(n: Sequence[float], cost: Sequence[float]) -> float:
+    """Least-squares slope of log(cost) against log(n)."""
+    x, y = np.log(np.asarray(n, float)), np.log(np.asarray(cost, float))
+    return float(np.polyfit(x, y, 1)[0])
+
+
+def plot_scaling(points: Sequence[ScalingPoint], path: str | Path) -> None:
+    """Log-log µs per step against bodies, both engines, with the fitted slopes."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    n = [p.bodies for p in points]
+    for engine, attr in (("rbsim", "rbsim_us"), ("pymunk", "pymunk_us")):
+        cost = [getattr(p, attr) for p in points]
+        slope = fitted_slope(n, cost)
+        ax.plot(n, cost, "o-", color=ENGINE_COLORS[engine], label=f"{engine} (slope {slope:.2f})")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("bodies (pyramid of boxes on the ground)")
+    ax.set_ylabel("CPU µs per step (median, dt 1/60)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,209 @@
+"""`rbsim sweep`: the machinery on tiny grids, the analytic references, the output files."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rbsim.reference import ReferenceError, make_reference
+from rbsim.scene import SceneError, load_scene
+from rbsim.sweep import Grid, Point, Setting, fitted_slope, pareto_front, run_sweep
+from tests.conftest import rbsim, scene_from
+
+ROOT = Path(__file__).parent.parent
+REFERENCE_SCENES = ROOT / "scenes" / "reference"
+
+PROJECTILE = """
+version: 1
+name: throw
+world: {gravity: [0, -9.81], dt: 1/60, duration: 1}
+bodies:
+  - {name: ball, position: [0, 10], velocity: [3, 10], shape: {circle: {radius: 0.25}}}
+reference: {kind: projectile}
+"""
+
+TINY = {"substeps": (1,), "iterations": (1,), "rotations": ("normalize",)}
+
+
+def rbsim_points(result, **match) -> list[Point]:
+    """rbsim points of a sweep, ordered from the largest dt down."""
+    pts = [p for p in result.points if p.setting.engine == "rbsim"]
+    for key, value in match.items():
+        pts = [p for p in pts if getattr(p.setting, key) == value]
+    return sorted(pts, key=lambda p: p.setting.dt, reverse=True)
+
+
+def test_projectile_error_shrinks_at_first_order_in_dt():
+    scene = scene_from(PROJECTILE)
+    grid = Grid(dts=(1 / 30, 1 / 60, 1 / 120), pymunk_iterations=(), **TINY)
+    result = run_sweep(scene, grid, repeats=1)
+    pts = rbsim_points(result)
+    errors = [p.error for p in pts]
+    orders = [math.log2(a / b) for a, b in zip(errors, errors[1:], strict=False)]
+    # symplectic Euler's projectile error is exactly g h t / 2: order 1 up to rounding
+    assert orders == pytest.approx([1.0, 1.0], abs=1e-6)
+    for p in pts:  # largest at the end of the run, t = 1 s
+        # the same closed form; rounding of positions of ~10 m over <= 120 steps
+        assert p.error == pytest.approx(9.81 * p.setting.dt * 1.0 / 2, rel=1e-9)
+        assert p.cpu > 0 and p.timed_runs >= 1
+
+
+def test_free_spin_exact_rotation_is_exact_and_normalize_is_second_order():
+    scene = load_scene(REFERENCE_SCENES / "free_spin.yaml")
+    grid = Grid(
+        dts=(1 / 30, 1 / 60, 1 / 120),
+        substeps=(1,),
+        iterations=(1,),
+        rotations=("normalize", "exact"),
+        pymunk_iterations=(),
+    )
+    result = run_sweep(scene, grid, repeats=1, duration=1.0)
+    for p in rbsim_points(result, rotation="exact"):
+        # the exact update turns by ω h each step: only rounding of the angle remains
+        assert p.error < 1e-12
+    errors = [p.error for p in rbsim_points(result, rotation="normalize")]
+    orders = [math.log2(a / b) for a, b in zip(errors, errors[1:], strict=False)]
+    # per step the angle is short by ω h - atan(ω h) ≈ (ω h)³/3, so by t (ω h)²ω/3 at t:
+    # order 2, approached as ω h -> 0 (ω h = 0.23 at 1/30 s; the next term is 5 % of it)
+    assert orders == pytest.approx([2.0, 2.0], abs=0.1)
+
+
+def test_output_files_parse(tmp_path: Path):
+    scene = scene_from(PROJECTILE)
+    grid = Grid(dts=(1 / 30, 1 / 60), pymunk_iterations=(10,), **TINY)
+    result = run_sweep(scene, grid, repeats=1, duration=0.5)
+    paths = result.write(tmp_path, plot=True)
+    with open(paths["csv"], newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == len(grid.settings()) == 4
+    assert {r["engine"] for r in rows} == {"rbsim", "pymunk"}
+    assert all(float(r["error_m"]) > 0 and float(r["cpu_s_per_sim_s"]) > 0 for r in rows)
+    data = json.loads(paths["json"].read_text())
+    assert data["reference_kind"] == "projectile"
+    assert len(data["points"]) == 4
+    assert any(p["pareto_front"] for p in data["points"] if p["engine"] == "pymunk")
+    assert set(data["verdict"]) >= {"rbsim_dominates", "rows", "pymunk_front_points"}
+    assert paths["png"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_missing_matplotlib_still_writes_table_and_csv(tmp_path: Path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib fails
+    path = tmp_path / "throw.yaml"
+    path.write_text(PROJECTILE)
+    code, out, err = rbsim(
+        "sweep", path, "-o", tmp_path, "--dt", "1/30", "--substeps", "1", "--iterations", "1",
+        "--rotation", "normalize", "--no-pymunk", "--repeats", "1",
+    )  # fmt: skip
+    assert code == 0, err
+    assert "matplotlib is not installed" in err
+    assert "throw: speed against error" in out
+    assert (tmp_path / "throw.csv").exists() and (tmp_path / "throw.json").exists()
+    assert not (tmp_path / "throw.png").exists()
+
+
+def test_pareto_front_keeps_only_undominated_points():
+    def pt(cpu: float, error: float) -> Point:
+        return Point(Setting("rbsim", 0.01), cpu=cpu, error=error)
+
+    points = [pt(1, 10), pt(2, 5), pt(3, 6), pt(4, 1), pt(2.5, 5), pt(5, math.inf)]
+    front = pareto_front(points)
+    assert [(p.cpu, p.error) for p in front] == [(1, 10), (2, 5), (4, 1)]
+
+
+def test_collision_reference_follows_the_restitution_formula():
+    scene = load_scene(REFERENCE_SCENES / "collision.yaml")
+    ref = make_reference(scene)
+    t = np.array([0.0, 0.1, 1.0, 1.1])  # two samples before the impact (0.3125 s), two after
+    poses = ref.poses(t)
+    v = (poses.x[[1, 3]] - poses.x[[0, 2]]) / 0.1  # (2 flights, 2 bodies, 2): free flight
+    w = (poses.theta[[1, 3]] - poses.theta[[0, 2]]) / 0.1
+    m = np.array([math.pi * 0.25**2, 1.0])  # density 1: ball π r², box 1 m²
+    inertia = np.array([0.5 * m[0] * 0.25**2, m[1] * 2 / 12])
+    p_before, p_after = [(m[:, None] * v[k]).sum(axis=0) for k in (0, 1)]
+    # momentum conservation holds to rounding (finite differences of linear motion)
+    assert p_after == pytest.approx(p_before, abs=1e-12)
+    # normal (x) relative velocity at the contact point (x = -0.5, y = 0.3): -e times
+    r_box = np.array([-0.5, 0.3])
+    rel = [v[k][1][0] - w[k][1] * r_box[1] - v[k][0][0] for k in (0, 1)]  # ball is a point
+    assert rel[1] == pytest.approx(-0.5 * rel[0], rel=1e-9)  # e = 0.5, rounding only
+    e_before = (0.5 * m * (v[0] ** 2).sum(axis=1) + 0.5 * inertia * w[0] ** 2).sum()
+    e_after = (0.5 * m * (v[1] ** 2).sum(axis=1) + 0.5 * inertia * w[1] ** 2).sum()
+    assert e_after < e_before  # e < 1 loses energy
+
+
+def test_converged_reference_agrees_with_the_analytic_error():
+    scene = scene_from(PROJECTILE.replace("reference: {kind: projectile}", ""))
+    grid = Grid(dts=(1 / 30,), pymunk_iterations=(), **TINY)
+    result = run_sweep(scene, grid, repeats=1, duration=0.5)
+    assert result.reference_kind == "converged"
+    assert "converged rbsim run" in result.reference
+    (point,) = result.points
+    # the reference (dt 1/120 s, 4 substeps) is itself off by g h t / 2 with h = 1/480 s
+    analytic = 9.81 * (1 / 30) * 0.5 / 2
+    assert point.error == pytest.approx(analytic, abs=2 * result.reference_uncertainty)
+
+
+def test_invariants_of_a_resting_stack_report_penetration_and_energy():
+    scene = load_scene(REFERENCE_SCENES / "stack.yaml", ["bodies.1.stack.count=3"])
+    grid = Grid(dts=(1 / 60,), substeps=(4,), iterations=(1,), rotations=("normalize",))
+    result = run_sweep(
+        scene, Grid(**{**grid.__dict__, "pymunk_iterations": (10,)}), repeats=1, duration=0.5
+    )
+    for p in result.points:
+        assert p.status == "ok"
+        assert p.penetration is not None and 0.0 <= p.penetration < 0.05  # resting, not sunk
+        assert p.energy_drift is not None and p.energy_drift >= 0.0
+        assert p.error < 0.05  # three boxes stay within a few slops of their rest pose
+
+
+def test_fitted_slope_of_a_power_law():
+    n = [100, 1000, 10000]
+    assert fitted_slope(n, [3.0 * x**1.2 for x in n]) == pytest.approx(1.2, abs=1e-12)
+
+
+def test_reference_scenes_all_build_their_reference():
+    for path in sorted(REFERENCE_SCENES.glob("*.yaml")):
+        ref = make_reference(load_scene(path))
+        assert ref.kind == load_scene(path).reference["kind"]
+
+
+def test_reference_that_does_not_fit_the_scene_exits_3(tmp_path: Path):
+    path = tmp_path / "two.yaml"
+    path.write_text(PROJECTILE.replace("bodies:", "bodies:\n  - {shape: {circle: {radius: 1}}}"))
+    with pytest.raises(ReferenceError, match="2 dynamic bodies"):
+        make_reference(load_scene(path))
+    code, _, err = rbsim("sweep", path, "--dt", "1/30", "--no-pymunk", "-o", tmp_path)
+    assert code == 3
+    assert f"{path}: reference: the scene has 2 dynamic bodies" in err
+
+
+@pytest.mark.parametrize(
+    ("option", "value"), [("--dt", "1/30,fast"), ("--substeps", "0"), ("--rotation", "exactly")]
+)
+def test_bad_grid_option_is_a_usage_error(tmp_path: Path, option: str, value: str):
+    path = tmp_path / "throw.yaml"
+    path.write_text(PROJECTILE)
+    code, _, err = rbsim("sweep", path, option, value)
+    assert code == 2
+    assert option in err and "Traceback" not in err
+
+
+def test_dts_that_do_not_divide_the_largest_are_a_usage_error(tmp_path: Path):
+    path = tmp_path / "throw.yaml"
+    path.write_text(PROJECTILE)
+    code, _, err = rbsim("sweep", path, "--dt", "1/30,1/45", "--no-pymunk")
+    assert code == 2
+    assert "does not divide the largest dt 1/30" in err
+
+
+def test_reference_body_name_is_checked_with_its_location():
+    with pytest.raises(SceneError) as info:
+        scene_from(PROJECTILE.replace("{kind: projectile}", "{kind: projectile, body: bal}"))
+    assert "inline.yaml:7:37: " in str(info.value)  # the line of `reference:`, the column of `bal`
+    assert "reference.body: no body named 'bal'; did you mean ball?" in str(info.value)
