@@ -32,6 +32,11 @@ from numba import njit
 # (about 45 degrees). Steeper faces (a box leaning on a wall) are solved normally.
 SHOCK_COS = 0.7071
 
+# Approach speeds below this are left to the ordinary solve, m/s: the relax pass
+# leaves such residues at most resting contacts, and removing them changes nothing
+# visible (1 mm/s closes 4 µm in a substep) but costs a full pass.
+SHOCK_MIN_APPROACH = 1.0e-3
+
 UNREACHED = 1 << 30
 
 
@@ -156,11 +161,23 @@ def propagate_shock(model, state, contacts, n_order, inv_h):
     im, ii = model.body_inv_mass, model.body_inv_inertia
     v, w = state.body_v, state.body_w
     need = np.zeros(2)
+    vel = np.zeros(2)
     r = np.zeros(2)
     for o in range(n_order):
         m = order[o]
         a, b = c_body_a[m], c_body_b[m]
         nx, ny = c_normal[m, 0], c_normal[m, 1]
+        npts = c_points[m]
+        # most supported points are not approaching: skip them before any other work
+        dvx, dvy = v[a, 0] - v[b, 0], v[a, 1] - v[b, 1]
+        approaching = False
+        for k in range(npts):
+            vn = dvx * nx + dvy * ny + w[a] * arms[m, k, 0] - w[b] * arms[m, k, 1]
+            vel[k] = vn
+            if vn < -SHOCK_MIN_APPROACH:
+                approaching = True
+        if not approaching:
+            continue
         dax, day, ca, sa = delta[a, 0], delta[a, 1], delta[a, 2], delta[a, 3]
         dbx, dby, cb, sb = delta[b, 0], delta[b, 1], delta[b, 2], delta[b, 3]
         moved = nx * (dax - dbx) + ny * (day - dby)
@@ -169,15 +186,12 @@ def propagate_shock(model, state, contacts, n_order, inv_h):
         # the supported body moves; the sign turns its push along +n (a) or -n (b)
         u, sgn, k_arm = (a, 1.0, 0) if side[m] == 2 else (b, -1.0, 1)
         mu, iu = im[u], ii[u]
-        npts = c_points[m]
         for k in range(npts):
             sep = moved + c_base_separation[m, k]
             sep += nax * c_anchor_a[m, k, 0] + nay * c_anchor_a[m, k, 1]
             sep -= nbx * c_anchor_b[m, k, 0] + nby * c_anchor_b[m, k, 1]
-            rna, rnb = arms[m, k, 0], arms[m, k, 1]
-            vn = (v[a, 0] - v[b, 0]) * nx + (v[a, 1] - v[b, 1]) * ny + w[a] * rna - w[b] * rnb
             # how far the point is from allowed: a gap may close within the substep
-            need[k] = (-sep * inv_h if sep > 0.0 else 0.0) - vn
+            need[k] = (-sep * inv_h if sep > 0.0 else 0.0) - vel[k]
             r[k] = arms[m, k, k_arm]
         # impulses along the supported body's push direction, λ >= 0, that bring every
         # point to at least its target: the two-point case is a 2x2 complementarity

@@ -133,14 +133,16 @@ def warm_start(model, state, contacts):
 
 
 @njit(cache=True)
-def solve_contacts(model, state, contacts, inv_h, use_bias, shift):
+def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
     """One sequential-impulse pass over every contact (normal, then friction).
 
     inv_h: 1 / substep length (1/s). use_bias: True in the solve stage (soft position
     correction), False in the relax stage (rigid, no push-out). shift (s): how far
     back the separation is to be taken when a point engages, so that the recorded
     (separation, velocity) is the state before this substep's position update: the
-    substep length in the relax stage of symplectic Euler, else 0.
+    substep length in the relax stage of symplectic Euler, else 0. threshold (m/s): the
+    restitution threshold; a point that engages faster than it marks count[5], so that
+    the restitution stage has something to do.
     """
     c_anchor_a = contacts.anchor_a
     c_anchor_b = contacts.anchor_b
@@ -243,6 +245,8 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift):
                 # after a bounce (approach set to inf) a new impact is.
                 c_approach_velocity[m, k] = vn
                 c_approach_separation[m, k] = (s0 if k == 0 else s1) - shift * vn
+                if vn < -threshold:
+                    c_count[5] = 1
             new = max(lam + impulse, 0.0)  # clamp the accumulated impulse
             impulse = new - lam
             c_normal_impulse[m, k] = new
@@ -319,6 +323,9 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
     v, w = state.body_v, state.body_w
     delta = contacts.body_delta
     gx, gy = m_gravity[0], m_gravity[1]
+    if c_count[5] == 0:
+        return  # no point engaged faster than the threshold since the last call
+    c_count[5] = 0
     for m in range(c_count[0]):
         # most manifolds have no point that just hit: skip them before any work
         hit = False

@@ -134,6 +134,7 @@ def step(model, state, grid, contacts, cfg):
     inv_h = 1.0 / h
     shift = 0.0 if cfg.explicit else h
     sign = -1.0 if cfg.explicit else 1.0
+    threshold = cfg.restitution_threshold
     for _ in range(cfg.substeps):
         if cfg.explicit:
             integrate_positions(model, state, delta, h, cfg.exact)
@@ -143,14 +144,14 @@ def step(model, state, grid, contacts, cfg):
         if contacts_on:
             warm_start(model, state, contacts)
             for _ in range(cfg.iterations):
-                solve_contacts(model, state, contacts, inv_h, True, 0.0)
+                solve_contacts(model, state, contacts, inv_h, True, 0.0, threshold)
         if not cfg.explicit:
             integrate_positions(model, state, delta, h, cfg.exact)
         if contacts_on:
             for _ in range(cfg.iterations):
-                solve_contacts(model, state, contacts, inv_h, False, shift)  # relax
+                solve_contacts(model, state, contacts, inv_h, False, shift, threshold)
             propagate_shock(model, state, contacts, contacts.count[4], inv_h)
-            apply_restitution(model, state, contacts, cfg.restitution_threshold, h, sign)
+            apply_restitution(model, state, contacts, threshold, h, sign)
     if contacts_on:
         store_impulses(contacts)
     return True
