@@ -44,6 +44,12 @@ CONTACT_DAMPING_RATIO = 10.0
 # Fastest speed at which the soft contacts push an overlap out, m/s (bounded push-out).
 CONTACT_PUSH_MAX_VELOCITY = 3.0
 
+# Deepest overlap with a static or kinematic body that is left to the soft contacts, m;
+# beyond it the body is moved out directly (solver.limit_static_overlap). Bodies resting
+# on static ground overlap it by well under a millimetre; 4 * LINEAR_SLOP acts only when
+# a pile under pressure outruns the bounded push-out speed.
+STATIC_OVERLAP_LIMIT = 0.02
+
 # A body that has moved less than this since its contacts were computed keeps them:
 # the narrowphase is skipped for pairs of such bodies and their manifolds are carried
 # forward (separations updated from the motion). m and rad; the geometry error this

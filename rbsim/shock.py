@@ -35,20 +35,22 @@ SHOCK_COS = 0.7071
 # Approach speeds below this are left to the ordinary solve, m/s: the relax pass
 # leaves such residues at most resting contacts, and removing them changes nothing
 # visible (1 mm/s closes 4 µm in a substep) but costs a full pass.
-SHOCK_MIN_APPROACH = 1.0e-3
+SHOCK_MIN_APPROACH = 1.0e-4
 
 UNREACHED = 1 << 30
 
 
 @njit(cache=True)
 def support_order(model, contacts):
-    """Support level of every body and the order and side of the shock pass.
+    """Support level of every body, and the orders of the solver's and the shock pass.
 
-    Writes contacts.body_level (N,) (0 for static and kinematic bodies, 1 for bodies
-    they touch, ...; UNREACHED otherwise), contacts.shock_order (the manifolds with a
-    supporter, lowest supporter first) and contacts.shock_side (M,): 1 when body a
-    supports body b, 2 when body b supports body a, 0 when neither. Returns the number
-    of manifolds in shock_order. Uses contacts.adj_start, adj and queue as scratch.
+    Writes contacts.solve_order (M,): every manifold, lowest supporter level first (the
+    order of the solver's passes; the manifolds' own order without gravity);
+    contacts.body_level (N,): 0 for static and kinematic bodies, 1 for bodies they
+    touch, ...; UNREACHED otherwise; contacts.shock_order: the manifolds with a
+    supporter, lowest supporter first; contacts.shock_side (M,): 1 when body a supports
+    body b, 2 when body b supports body a, 0 when neither. Returns the number of
+    manifolds in shock_order. Uses contacts.adj_start, adj and queue as scratch.
     """
     c_body_a = contacts.body_a
     c_body_b = contacts.body_b
@@ -65,8 +67,10 @@ def support_order(model, contacts):
     n_man = contacts.count[0]
     gx, gy = model.gravity[0], model.gravity[1]
     g = math.sqrt(gx * gx + gy * gy)
+    solve_order = contacts.solve_order
     for m in range(n_man):
         side[m] = 0
+        solve_order[m] = m
     if g == 0.0 or n_man == 0:
         return 0
     upx, upy = -gx / g, -gy / g
@@ -119,7 +123,25 @@ def support_order(model, contacts):
         elif level[a] < level[b] and up <= -SHOCK_COS and body_type[b] == 0:
             side[m] = 1
             max_level = max(max_level, level[a])
+    # every manifold, ordered by the lower of its two bodies' levels (ground first,
+    # bodies not connected to the ground last): the order of the solver's passes, in
+    # which a pass carries a push or a correction up a stack within one sweep
     count = queue  # reuse as bucket counts (the levels are known now)
+    top = 0
+    for i in range(n_bodies):
+        if level[i] != UNREACHED and level[i] > top:
+            top = level[i]
+    for k in range(top + 3):
+        count[k] = 0
+    for m in range(n_man):
+        lv = min(min(level[c_body_a[m]], level[c_body_b[m]]), top + 1)
+        count[lv + 1] += 1
+    for k in range(top + 2):
+        count[k + 1] += count[k]
+    for m in range(n_man):
+        lv = min(min(level[c_body_a[m]], level[c_body_b[m]]), top + 1)
+        solve_order[count[lv]] = m
+        count[lv] += 1
     for k in range(max_level + 2):
         count[k] = 0
     for m in range(n_man):

@@ -64,6 +64,9 @@ def prepare_contacts(model, state, contacts, soft, soft_static):
     c_points = contacts.points
     c_softness = contacts.softness
     c_tangent_mass = contacts.tangent_mass
+    c_carry_velocity = contacts.carry_velocity
+    c_carry_separation = contacts.carry_separation
+    c_max_normal_impulse = contacts.max_normal_impulse
     im, ii = model.body_inv_mass, model.body_inv_inertia
     v, w = state.body_v, state.body_w
     arms = contacts.arms
@@ -89,15 +92,24 @@ def prepare_contacts(model, state, contacts, soft, soft_static):
             arms[m, k, 2], arms[m, k, 3] = rta, rtb
             kt = ma + mb + ia * rta * rta + ib * rtb * rtb
             c_tangent_mass[m, k] = 1.0 / kt if kt > 0.0 else 0.0
-        if c_points[m] == 2:
-            c_normal_k[m, 2] = ma + mb + ia * arms[m, 0, 0] * arms[m, 1, 0]
-            c_normal_k[m, 2] += ib * arms[m, 0, 1] * arms[m, 1, 1]
             dvx = v[a, 0] - w[a] * ray - v[b, 0] + w[b] * rby
             dvy = v[a, 1] + w[a] * rax - v[b, 1] - w[b] * rbx
-            c_approach_velocity[m, k] = dvx * nx + dvy * ny
+            vn = dvx * nx + dvy * ny
+            c_approach_velocity[m, k] = vn
             c_approach_separation[m, k] = c_base_separation[m, k] + (
                 nx * (rax - rbx) + ny * (ray - rby)
             )
+            if c_carry_velocity[m, k] < 0.0 and vn < 0.0:
+                # a bounce that waited through the end of last step for the bodies to
+                # meet: it keeps the approach of its impact, not the speed that the
+                # speculative push left
+                c_approach_velocity[m, k] = c_carry_velocity[m, k]
+                c_approach_separation[m, k] = c_carry_separation[m, k]
+                c_max_normal_impulse[m, k] = 1.0e-300  # engaged
+                c_count[5] = 1
+        if c_points[m] == 2:
+            c_normal_k[m, 2] = ma + mb + ia * arms[m, 0, 0] * arms[m, 1, 0]
+            c_normal_k[m, 2] += ib * arms[m, 0, 1] * arms[m, 1, 1]
 
 
 @njit(cache=True)
@@ -165,8 +177,10 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
     v, w = state.body_v, state.body_w
     delta = contacts.body_delta
     max_push = -C.CONTACT_PUSH_MAX_VELOCITY
+    c_order = contacts.solve_order  # ground first (shock.support_order)
     arms = contacts.arms
-    for m in range(c_count[0]):
+    for o in range(c_count[0]):
+        m = c_order[o]
         a, b = c_body_a[m], c_body_b[m]
         ma, mb, ia, ib = im[a], im[b], ii[a], ii[b]
         vax, vay, wa = v[a, 0], v[a, 1], w[a]
@@ -316,6 +330,7 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
     c_normal_mass = contacts.normal_mass
     c_points = contacts.points
     c_restitution = contacts.restitution
+    c_pending = contacts.pending
     m_body_force = model.body_force
     m_body_type = model.body_type
     m_gravity = model.gravity
@@ -354,15 +369,23 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
             vn0 = c_approach_velocity[m, k]
             if vn0 >= -threshold or c_max_normal_impulse[m, k] == 0.0:
                 continue
-            # one bounce per impact; should the bodies meet again within the step, the
-            # point engages afresh (see solve_contacts) and records its new approach
-            c_approach_velocity[m, k] = math.inf
             rax, ray = c_anchor_a[m, k, 0], c_anchor_a[m, k, 1]
             rbx, rby = c_anchor_b[m, k, 0], c_anchor_b[m, k, 1]
             pax, pay = ca * rax - sa * ray, sa * rax + ca * ray
             pbx, pby = cb * rbx - sb * rby, sb * rbx + cb * rby
             s_now = (dax - dbx + pax - pbx) * nx + (day - dby + pay - pby) * ny
             s_now += c_base_separation[m, k]
+            if s_now > C.LINEAR_SLOP:
+                # engaged by a speculative push that lets the gap close in the next
+                # substep (or step): the bodies have not met yet; bounce when they
+                # do, with the approach speed they had before that push
+                c_count[5] = 1
+                c_pending[m, k] = True
+                continue
+            c_pending[m, k] = False
+            # one bounce per impact; should the bodies meet again within the step, the
+            # point engages afresh (see solve_contacts) and records its new approach
+            c_approach_velocity[m, k] = math.inf
             s0 = c_approach_separation[m, k]
             invariant = 0.5 * vn0 * vn0 - 0.5 * acc * h * vn0 - acc * s0
             rhs = e * e * invariant + acc * s_now
@@ -436,3 +459,59 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
             v[b, 0] -= im[b] * px
             v[b, 1] -= im[b] * py
             w[b] -= ii[b] * (rbx * py - rby * px)
+
+
+@njit(cache=True)
+def limit_static_overlap(model, state, contacts, max_overlap):
+    """Move a dynamic body out of a static or kinematic one where it overlaps by more
+    than max_overlap (m), along the contact normal, without touching its velocity.
+
+    The soft contacts push overlaps out at a bounded speed, which a pile under
+    permanent pressure (more bodies than fit in their box) can outrun: bodies were
+    squeezed into the walls until the wall's normal flipped and they left the box.
+    A surface that cannot move is rigid, so here the overlap is taken off the
+    position directly. Resting contacts overlap far less than max_overlap (a fraction
+    of a millimetre on static ground), so this acts only in such overload.
+    """
+    c_anchor_a = contacts.anchor_a
+    c_anchor_b = contacts.anchor_b
+    c_base_separation = contacts.base_separation
+    c_body_a = contacts.body_a
+    c_body_b = contacts.body_b
+    c_count = contacts.count
+    c_normal = contacts.normal
+    c_points = contacts.points
+    body_type = model.body_type
+    x = state.body_x
+    delta = contacts.body_delta
+    for m in range(c_count[0]):
+        a, b = c_body_a[m], c_body_b[m]
+        a_fixed = body_type[a] != C.BODY_DYNAMIC
+        b_fixed = body_type[b] != C.BODY_DYNAMIC
+        if a_fixed == b_fixed:
+            continue  # two dynamic bodies (left to the solver) or two fixed ones
+        nx, ny = c_normal[m, 0], c_normal[m, 1]
+        dax, day, ca, sa = delta[a, 0], delta[a, 1], delta[a, 2], delta[a, 3]
+        dbx, dby, cb, sb = delta[b, 0], delta[b, 1], delta[b, 2], delta[b, 3]
+        deepest = 0.0
+        for k in range(c_points[m]):
+            rax, ray = c_anchor_a[m, k, 0], c_anchor_a[m, k, 1]
+            rbx, rby = c_anchor_b[m, k, 0], c_anchor_b[m, k, 1]
+            pax, pay = ca * rax - sa * ray, sa * rax + ca * ray
+            pbx, pby = cb * rbx - sb * rby, sb * rbx + cb * rby
+            s = (dax - dbx + pax - pbx) * nx + (day - dby + pay - pby) * ny
+            s += c_base_separation[m, k]
+            deepest = min(deepest, s)
+        push = -deepest - max_overlap
+        if push <= 0.0:
+            continue
+        if b_fixed:  # the normal points from b to a: a moves along +n
+            x[a, 0] += push * nx
+            x[a, 1] += push * ny
+            delta[a, 0] += push * nx
+            delta[a, 1] += push * ny
+        else:
+            x[b, 0] -= push * nx
+            x[b, 1] -= push * ny
+            delta[b, 0] -= push * nx
+            delta[b, 1] -= push * ny

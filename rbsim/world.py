@@ -42,6 +42,7 @@ from .scene import Scene
 from .shock import propagate_shock, support_order
 from .solver import (
     apply_restitution,
+    limit_static_overlap,
     prepare_contacts,
     soft_parameters,
     solve_contacts,
@@ -153,6 +154,7 @@ def step(model, state, grid, contacts, cfg):
             propagate_shock(model, state, contacts, contacts.count[4], inv_h)
             apply_restitution(model, state, contacts, threshold, h, sign)
     if contacts_on:
+        limit_static_overlap(model, state, contacts, C.STATIC_OVERLAP_LIMIT)
         store_impulses(contacts)
     return True
 
