@@ -49,10 +49,7 @@ class Contacts(NamedTuple):
     r_b × t of each point, the lever arms of its normal and friction impulses;
     approach_velocity (M,2) m/s and approach_separation (M,2) m where the point
     engaged (for restitution);
-    max_normal_impulse (M,2) N·s; pending (M,2) bool: the point engaged fast but its
-    bodies have not met yet, so its bounce waits (solver.apply_restitution);
-    carry_velocity, carry_separation (M,2): such a point's approach carried over from
-    last step (velocity 0 if none); prev_* the same from last step for matching and
+    max_normal_impulse (M,2) N·s; prev_* the same from last step for matching and
     for carrying a manifold forward. body_ref (N,3): each body's reference pose
     (x, y, angle), re-taken when it moves by more than STILL_DISTANCE or STILL_ANGLE;
     body_still (N,) bool: the body is within that reach of its reference pose.
@@ -92,11 +89,6 @@ class Contacts(NamedTuple):
     approach_velocity: np.ndarray
     approach_separation: np.ndarray
     max_normal_impulse: np.ndarray
-    pending: np.ndarray
-    carry_velocity: np.ndarray
-    carry_separation: np.ndarray
-    prev_carry_velocity: np.ndarray
-    prev_carry_separation: np.ndarray
     prev_key: np.ndarray
     prev_points: np.ndarray
     prev_feature: np.ndarray
@@ -158,11 +150,6 @@ def make_contacts(n_bodies: int, n_shapes: int, n_vertices: int, capacity: int) 
         approach_velocity=np.zeros((m, 2)),
         approach_separation=np.zeros((m, 2)),
         max_normal_impulse=np.zeros((m, 2)),
-        pending=np.zeros((m, 2), np.bool_),
-        carry_velocity=np.zeros((m, 2)),
-        carry_separation=np.zeros((m, 2)),
-        prev_carry_velocity=np.zeros((m, 2)),
-        prev_carry_separation=np.zeros((m, 2)),
         prev_key=np.zeros(m, np.int64),
         prev_points=np.zeros(m, np.int32),
         prev_feature=np.zeros((m, 2), np.int64),
@@ -212,8 +199,6 @@ def grow_contacts(old: Contacts, capacity: int) -> Contacts:
         "prev_anchor_a",
         "prev_anchor_b",
         "prev_ref_separation",
-        "prev_carry_velocity",
-        "prev_carry_separation",
     ):
         getattr(new, name)[:n] = getattr(old, name)[:n]
     new.body_ref[:] = old.body_ref
@@ -402,10 +387,6 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
     c_prev_normal = contacts.prev_normal
     c_prev_anchor_a, c_prev_anchor_b = contacts.prev_anchor_a, contacts.prev_anchor_b
     c_prev_ref_separation = contacts.prev_ref_separation
-    c_pending = contacts.pending
-    c_carry_velocity, c_carry_separation = contacts.carry_velocity, contacts.carry_separation
-    c_prev_carry_velocity = contacts.prev_carry_velocity
-    c_prev_carry_separation = contacts.prev_carry_separation
     ref, still = contacts.body_ref, contacts.body_still
     n_shapes = m_shape_body.shape[0]
     vw, nw = contacts.vert_world, contacts.norm_world
@@ -450,9 +431,6 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
                 c_start_impulse[m, k] = c_prev_normal_impulse[j, k]
                 c_tangent_impulse[m, k] = c_prev_tangent_impulse[j, k]
                 c_max_normal_impulse[m, k] = 0.0
-                c_pending[m, k] = False
-                c_carry_velocity[m, k] = c_prev_carry_velocity[j, k]
-                c_carry_separation[m, k] = c_prev_carry_separation[j, k]
         else:
             spec = C.SPECULATIVE_DISTANCE + c_shape_margin[a] + c_shape_margin[b]
             npts = collide(
@@ -507,17 +485,12 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
                 start = base + nx * (rax - rbx) + ny * (ray - rby)
                 c_ref_separation[m, k] = start - (nx * ddx + ny * ddy)
                 c_feature[m, k] = out_f[k]
-                jn, jt, cv, cs = 0.0, 0.0, 0.0, 0.0
+                jn, jt = 0.0, 0.0
                 if matched:
                     for kk in range(c_prev_points[j]):
                         if c_prev_feature[j, kk] == out_f[k]:
                             jn = c_prev_normal_impulse[j, kk]
                             jt = c_prev_tangent_impulse[j, kk]
-                            cv = c_prev_carry_velocity[j, kk]
-                            cs = c_prev_carry_separation[j, kk]
-                c_pending[m, k] = False
-                c_carry_velocity[m, k] = cv
-                c_carry_separation[m, k] = cs
                 c_normal_impulse[m, k] = jn
                 c_start_impulse[m, k] = jn
                 c_tangent_impulse[m, k] = jt
@@ -553,9 +526,6 @@ def store_impulses(contacts):
     anchor_a, prev_anchor_a = contacts.anchor_a, contacts.prev_anchor_a
     anchor_b, prev_anchor_b = contacts.anchor_b, contacts.prev_anchor_b
     ref_sep, prev_ref_sep = contacts.ref_separation, contacts.prev_ref_separation
-    pending = contacts.pending
-    approach_v, approach_s = contacts.approach_velocity, contacts.approach_separation
-    carry_v, carry_s = contacts.prev_carry_velocity, contacts.prev_carry_separation
     m = c_count[0]
     touching = 0
     for i in range(m):
@@ -569,9 +539,6 @@ def store_impulses(contacts):
             c_prev_feature[i, k] = c_feature[i, k]
             c_prev_normal_impulse[i, k] = c_normal_impulse[i, k]
             c_prev_tangent_impulse[i, k] = c_tangent_impulse[i, k]
-            # a bounce still waiting for its bodies to meet keeps its approach
-            carry_v[i, k] = approach_v[i, k] if pending[i, k] else 0.0
-            carry_s[i, k] = approach_s[i, k] if pending[i, k] else 0.0
             if c_max_normal_impulse[i, k] > 0.0:
                 touching += 1
     c_count[1] = m

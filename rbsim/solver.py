@@ -64,9 +64,6 @@ def prepare_contacts(model, state, contacts, soft, soft_static):
     c_points = contacts.points
     c_softness = contacts.softness
     c_tangent_mass = contacts.tangent_mass
-    c_carry_velocity = contacts.carry_velocity
-    c_carry_separation = contacts.carry_separation
-    c_max_normal_impulse = contacts.max_normal_impulse
     im, ii = model.body_inv_mass, model.body_inv_inertia
     v, w = state.body_v, state.body_w
     arms = contacts.arms
@@ -94,19 +91,10 @@ def prepare_contacts(model, state, contacts, soft, soft_static):
             c_tangent_mass[m, k] = 1.0 / kt if kt > 0.0 else 0.0
             dvx = v[a, 0] - w[a] * ray - v[b, 0] + w[b] * rby
             dvy = v[a, 1] + w[a] * rax - v[b, 1] - w[b] * rbx
-            vn = dvx * nx + dvy * ny
-            c_approach_velocity[m, k] = vn
+            c_approach_velocity[m, k] = dvx * nx + dvy * ny
             c_approach_separation[m, k] = c_base_separation[m, k] + (
                 nx * (rax - rbx) + ny * (ray - rby)
             )
-            if c_carry_velocity[m, k] < 0.0 and vn < 0.0:
-                # a bounce that waited through the end of last step for the bodies to
-                # meet: it keeps the approach of its impact, not the speed that the
-                # speculative push left
-                c_approach_velocity[m, k] = c_carry_velocity[m, k]
-                c_approach_separation[m, k] = c_carry_separation[m, k]
-                c_max_normal_impulse[m, k] = 1.0e-300  # engaged
-                c_count[5] = 1
         if c_points[m] == 2:
             c_normal_k[m, 2] = ma + mb + ia * arms[m, 0, 0] * arms[m, 1, 0]
             c_normal_k[m, 2] += ib * arms[m, 0, 1] * arms[m, 1, 1]
@@ -330,7 +318,6 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
     c_normal_mass = contacts.normal_mass
     c_points = contacts.points
     c_restitution = contacts.restitution
-    c_pending = contacts.pending
     m_body_force = model.body_force
     m_body_type = model.body_type
     m_gravity = model.gravity
@@ -375,14 +362,21 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
             pbx, pby = cb * rbx - sb * rby, sb * rbx + cb * rby
             s_now = (dax - dbx + pax - pbx) * nx + (day - dby + pay - pby) * ny
             s_now += c_base_separation[m, k]
-            if s_now > C.LINEAR_SLOP:
-                # engaged by a speculative push that lets the gap close in the next
-                # substep (or step): the bodies have not met yet; bounce when they
-                # do, with the approach speed they had before that push
-                c_count[5] = 1
-                c_pending[m, k] = True
-                continue
-            c_pending[m, k] = False
+            if s_now > C.SPECULATIVE_DISTANCE and e == 0.0:
+                # engaged through a speculative push while still far apart (a fast
+                # body one substep from a wall). With e = 0, ending the approach now
+                # would stop it short by up to a substep's travel: leave it to the
+                # solver, which stops it where the bodies meet, if the speculative
+                # separation can be trusted that far: it is linear in the motion, so
+                # a turning body's arc leaves it by about |r| (ω h)² / 2 per substep.
+                # Closer, or turning faster, the impact is ended here, exactly by the
+                # formula above. (With e > 0 the bounce is taken now, a little early,
+                # so that the energy it returns is exact.)
+                ta, tb = w[a] * h, w[b] * h
+                arc = ta * ta * math.sqrt(rax * rax + ray * ray)
+                arc += tb * tb * math.sqrt(rbx * rbx + rby * rby)
+                if 0.5 * arc < C.LINEAR_SLOP:
+                    continue
             # one bounce per impact; should the bodies meet again within the step, the
             # point engages afresh (see solve_contacts) and records its new approach
             c_approach_velocity[m, k] = math.inf

@@ -189,11 +189,6 @@ def test_spinning_plank_reaches_the_wall():
     must("tunnel_plank", "short", "<", LINEAR_SLOP)  # it hits the wall, not stops before
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="the 300 m/s ball stops dead at x = 8.75 in step 2, 1.2 m short of the wall, "
-    "and then falls straight down in the air",
-)
 def test_fast_ball_reaches_the_wall():
     must("tunnel_ball", "short", "<", LINEAR_SLOP)  # it hits the wall, not stops before
 
@@ -262,11 +257,6 @@ def test_arch_stands():
 # ---------------------------------------------------------------------------------------
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="up to 10 circles at a time have their centre inside a wall (as far as 0.45 m "
-    "past its face): the pile keeps 550-750 J of kinetic energy and pushes through",
-)
 def test_confined_circles_never_escape():
     must("confined", "escaped", "<", 0.5)  # none: no centre beyond the walls' faces
 
