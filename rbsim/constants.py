@@ -44,6 +44,14 @@ CONTACT_DAMPING_RATIO = 10.0
 # Fastest speed at which the soft contacts push an overlap out, m/s (bounded push-out).
 CONTACT_PUSH_MAX_VELOCITY = 3.0
 
+# An overlap deeper than this (m, 4 * LINEAR_SLOP) is being pushed out, not resting:
+# while one exists the relax stage makes DEEP_RELAX_FACTOR times as many passes, so that
+# the velocity of the push-out (at most CONTACT_PUSH_MAX_VELOCITY per contact) is taken
+# back through a whole stack instead of adding up from row to row. Resting contacts
+# overlap by millimetres and never pay for it.
+DEEP_OVERLAP = 0.02
+DEEP_RELAX_FACTOR = 4
+
 # Deepest overlap with a static or kinematic body that is left to the soft contacts, m;
 # beyond it the body is moved out directly (solver.limit_static_overlap). Bodies resting
 # on static ground overlap it by well under a millimetre; 4 * LINEAR_SLOP acts only when

@@ -32,8 +32,9 @@ MIXING = {"sqrt": MIX_SQRT, "multiply": MIX_MULTIPLY, "min": MIX_MIN, "max": MIX
 class Contacts(NamedTuple):
     """Preallocated contact storage with capacity M manifolds (2 points each).
 
-    count (6,) int64: [manifolds now, manifolds last step, pairs found, points touching,
-    manifolds in the shock pass, a point engaged faster than the restitution threshold].
+    count (7,) int64: [manifolds now, manifolds last step, pairs found, points touching,
+    manifolds in the shock pass, a point engaged faster than the restitution threshold,
+    a point overlaps by more than DEEP_OVERLAP].
     pairs (M,2) int32: broadphase output. shape_a, shape_b, body_a, body_b (M,) int32;
     key (M,) int64 = shape_a · S + shape_b; normal (M,2); points (M,) int32;
     friction, restitution (M,) mixed coefficients; softness (M,3) mass scale, impulse
@@ -123,7 +124,7 @@ def make_contacts(n_bodies: int, n_shapes: int, n_vertices: int, capacity: int) 
     """Allocate contact storage for `capacity` manifolds."""
     m = max(capacity, 1)
     return Contacts(
-        count=np.zeros(6, np.int64),
+        count=np.zeros(7, np.int64),
         pairs=np.zeros((m, 2), np.int32),
         shape_a=np.zeros(m, np.int32),
         shape_b=np.zeros(m, np.int32),

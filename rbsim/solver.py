@@ -165,6 +165,7 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
     v, w = state.body_v, state.body_w
     delta = contacts.body_delta
     max_push = -C.CONTACT_PUSH_MAX_VELOCITY
+    deep = -C.DEEP_OVERLAP
     c_order = contacts.solve_order  # ground first (shock.support_order)
     arms = contacts.arms
     for o in range(c_count[0]):
@@ -205,6 +206,8 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
                 bias = s * inv_h  # speculative: may close the gap, no more
             elif use_bias:
                 bias = max(bias_rate * s, max_push)
+                if s < deep:
+                    c_count[6] = 1
                 # the soft constraint as a regularised one: (K + γ) Δλ = −(vn + b) − γλ
                 gamma = c_normal_k[m, k] * soft_gamma
             vn = (vax - vbx) * nx + (vay - vby) * ny + wa * arms[m, k, 0] - wb * arms[m, k, 1]

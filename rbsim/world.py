@@ -144,12 +144,16 @@ def step(model, state, grid, contacts, cfg):
             integrate_velocities(model, state, h)
         if contacts_on:
             warm_start(model, state, contacts)
+            contacts.count[6] = 0
             for _ in range(cfg.iterations):
                 solve_contacts(model, state, contacts, inv_h, True, 0.0, threshold)
         if not cfg.explicit:
             integrate_positions(model, state, delta, h, cfg.exact)
         if contacts_on:
-            for _ in range(cfg.iterations):
+            # relax; while a deep overlap is being pushed out it gets more passes, so
+            # that the push's velocity is taken back all the way up a stack
+            n_relax = cfg.iterations * (C.DEEP_RELAX_FACTOR if contacts.count[6] else 1)
+            for _ in range(n_relax):
                 solve_contacts(model, state, contacts, inv_h, False, shift, threshold)
             propagate_shock(model, state, contacts, contacts.count[4], inv_h)
             apply_restitution(model, state, contacts, threshold, h, sign)

@@ -166,11 +166,6 @@ def test_overlapping_pyramid_recovers_within_one_second():
     must("overlap_recovery", "overlap", "<", LINEAR_SLOP)  # issue 6: below the tolerance
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="the top box [3,0] is launched at 5.62 m/s in the first step (push-outs of the "
-    "rows below add up) and jumps 1.6 m",
-)
 def test_overlap_recovery_pushes_out_slower_than_3_m_per_s():
     must("overlap_recovery", "speed", "<", 3.0)  # issue 6: the push-out speed bound
 
