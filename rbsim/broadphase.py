@@ -100,7 +100,7 @@ def grow_grid(old: Grid, capacity: int) -> Grid:
     return grid
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def update_aabbs(model, grid, vert_world, shape_margin):
     """Tight boxes from world vertices, radius and speculative reach (m); fat boxes for
     the shapes whose tight box left theirs. Returns how many shapes moved."""
@@ -133,7 +133,7 @@ def update_aabbs(model, grid, vert_world, shape_margin):
     return moved
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _fill_grid(grid):
     """Enter every small shape's fat box into the cells it touches (counting sort)."""
     g_big_list = grid.big_list
@@ -196,7 +196,7 @@ def _fill_grid(grid):
     starts[0] = 0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _query_moved(model, grid):
     """Keys a·S + b of the pairs that involve a moved shape, unsorted; returns the count
     (which may exceed the key storage: the caller then grows it).
@@ -261,7 +261,34 @@ def _query_moved(model, grid):
     return count
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
+def _sort_prefix(keys, n):
+    """Sort keys[:n] in place (heapsort: no scratch memory; numba's own array sort
+    needs its reference counting, which these kernels are compiled without). The keys
+    are distinct, so any correct sort gives the same order."""
+    for root in range(n // 2 - 1, -1, -1):
+        _sift_down(keys, root, n)
+    for end in range(n - 1, 0, -1):
+        keys[0], keys[end] = keys[end], keys[0]
+        _sift_down(keys, 0, end)
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _sift_down(keys, root, n):
+    """Restore the max-heap order of keys[:n] below `root`."""
+    while True:
+        child = 2 * root + 1
+        if child >= n:
+            return
+        if child + 1 < n and keys[child + 1] > keys[child]:
+            child += 1
+        if keys[root] >= keys[child]:
+            return
+        keys[root], keys[child] = keys[child], keys[root]
+        root = child
+
+
+@njit(cache=True, _nrt=False)
 def find_pairs(model, grid, vert_world, shape_margin, pairs, n_pairs):
     """Update the sorted pair list `pairs` (P,2) int32 holding n_pairs; return the new count.
 
@@ -291,8 +318,8 @@ def find_pairs(model, grid, vert_world, shape_margin, pairs, n_pairs):
     n_new = _query_moved(model, grid)
     if kept + n_new > capacity:
         return kept + n_new
-    keys = g_new_keys[:n_new]
-    keys.sort()
+    _sort_prefix(g_new_keys, n_new)
+    keys = g_new_keys
     # merge the two sorted lists
     i = j = out = 0
     while i < kept or j < n_new:

@@ -206,7 +206,7 @@ def grow_contacts(old: Contacts, capacity: int) -> Contacts:
     return new
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def transform_shapes(model, state, contacts, dt):
     """World vertices and normals of every shape, and each shape's speculative reach.
 
@@ -255,7 +255,7 @@ def transform_shapes(model, state, contacts, dt):
             c_shape_margin[s] = dt * (speed + abs(s_body_w[i]) * reach)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def mix(a, b, rule):
     """Combine two shapes' coefficients by the scene's mixing rule."""
     if rule == MIX_SQRT:
@@ -267,7 +267,7 @@ def mix(a, b, rule):
     return max(a, b)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _place(g, s, t, start, x, q, v, w, verts, norms):
     """Write shape s's vertices and normals, as its body will be after t seconds of
     free motion, into rows start.. of verts and norms. g: (shape_body, shape_vstart,
@@ -287,7 +287,7 @@ def _place(g, s, t, start, x, q, v, w, verts, norms):
         norms[start + k, 1] = sn * nx + c * ny
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _time_of_impact(g, kinds, radii, a, b, npts, dt, spec, x, q, v, w, tv, tn, out):
     """Move a speculative manifold to the moment of impact.
 
@@ -332,7 +332,7 @@ def _time_of_impact(g, kinds, radii, a, b, npts, dt, spec, x, q, v, w, tv, tn, o
     return npts, t
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restitution_rule, dt):
     """Run the narrowphase on every pair whose tight boxes `box` (S,4) overlap, and keep
     the manifolds with points.
@@ -507,7 +507,7 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
     return m
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def store_impulses(contacts):
     """Keep this step's manifolds as next step's warm-start source; count touching points."""
     c_count = contacts.count
