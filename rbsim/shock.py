@@ -39,7 +39,7 @@ SHOCK_MIN_APPROACH = 1.0e-4
 UNREACHED = 1 << 30
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
 def support_order(model, contacts):
     """Support level of every body, and the orders of the solver's and the shock pass.
 
@@ -163,7 +163,7 @@ def support_order(model, contacts):
     return total
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
 def propagate_shock(model, state, contacts, n_order, inv_h):
     """One pass over the supported contacts, lowest first, that removes each supported
     body's approach towards its supporter (the supporter taken as infinitely heavy).

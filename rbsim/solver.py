@@ -43,7 +43,7 @@ def soft_parameters(hertz: float, damping_ratio: float, h: float) -> tuple[float
     return a2 * a3, a3, omega / a1
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
 def prepare_contacts(model, state, contacts, soft, soft_static):
     """Effective masses, approach velocities and softness of every contact point.
 
@@ -100,7 +100,7 @@ def prepare_contacts(model, state, contacts, soft, soft_static):
             c_normal_k[m, 2] += ib * arms[m, 0, 1] * arms[m, 1, 1]
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
 def warm_start(model, state, contacts):
     """Apply last substep's accumulated impulses again (they are impulses per substep)."""
     c_body_a = contacts.body_a
@@ -132,7 +132,7 @@ def warm_start(model, state, contacts):
         w[b] -= ii[b] * tb
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
 def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
     """One sequential-impulse pass over every contact (normal, then friction).
 
@@ -284,7 +284,7 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
         v[b, 0], v[b, 1], w[b] = vbx, vby, wb
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
 def apply_restitution(model, state, contacts, threshold, h, sign):
     """Bounce: v_n⁺ from v_n⁻ by the restitution hypothesis, at points that engaged in
     this substep approaching faster than `threshold` (m/s). Run after every substep,
@@ -455,7 +455,7 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
             w[b] -= ii[b] * (rbx * py - rby * px)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
 def limit_static_overlap(model, state, contacts, max_overlap):
     """Move a dynamic body out of a static or kinematic one where it overlaps by more
     than max_overlap (m), along the contact normal, without touching its velocity.
