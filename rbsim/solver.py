@@ -207,7 +207,9 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
                 bias = max(bias_rate * s, max_push)
                 # the soft constraint as a regularised one: (K + γ) Δλ = −(vn + b) − γλ
                 gamma = c_normal_k[m, k] * soft_gamma
-            vn = (vax - vbx) * nx + (vay - vby) * ny + wa * arms[m, k, 0] - wb * arms[m, k, 1]
+            # sums grouped as two halves: each pass is one long chain of dependent
+            # arithmetic through the body velocities, and a shallow sum shortens it
+            vn = ((vax - vbx) * nx + (vay - vby) * ny) + (wa * arms[m, k, 0] - wb * arms[m, k, 1])
             if k == 0:
                 vn0, b0, g0, s0 = vn, bias, gamma, s
             else:
@@ -222,10 +224,11 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
             k01 = c_normal_k[m, 2]
             det = k00 * k11 - k01 * k01
             if det > 1.0e-9 * k00 * k11:
-                r0 = -(vn0 + b0) - g0 * lam0
-                r1 = -(vn1 + b1) - g1 * lam1
-                d0 = (k11 * r0 - k01 * r1) / det
-                d1 = (k00 * r1 - k01 * r0) / det
+                r0 = -vn0 - (b0 + g0 * lam0)  # the bracket is off the chain
+                r1 = -vn1 - (b1 + g1 * lam1)
+                inv_det = 1.0 / det  # known before the velocities: a product on the chain
+                d0 = (k11 * r0 - k01 * r1) * inv_det
+                d1 = (k00 * r1 - k01 * r0) * inv_det
                 block = lam0 + d0 >= 0.0 and lam1 + d1 >= 0.0
         for k in range(npts):
             rna, rnb = arms[m, k, 0], arms[m, k, 1]
@@ -234,7 +237,7 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
                 impulse = d0 if k == 0 else d1
                 vn = vn0 if k == 0 else vn1
             else:
-                vn = (vax - vbx) * nx + (vay - vby) * ny + wa * rna - wb * rnb
+                vn = ((vax - vbx) * nx + (vay - vby) * ny) + (wa * rna - wb * rnb)
                 gamma = g0 if k == 0 else g1
                 bias = b0 if k == 0 else b1
                 impulse = (-(vn + bias) - gamma * lam) / (c_normal_k[m, k] + gamma)
@@ -265,7 +268,7 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
         if mu > 0.0:
             for k in range(npts):
                 rta, rtb = arms[m, k, 2], arms[m, k, 3]
-                vt = (vax - vbx) * tx + (vay - vby) * ty + wa * rta - wb * rtb
+                vt = ((vax - vbx) * tx + (vay - vby) * ty) + (wa * rta - wb * rtb)
                 lam = c_tangent_impulse[m, k]
                 limit = mu * c_normal_impulse[m, k]
                 if limit == 0.0 and lam == 0.0:
