@@ -240,7 +240,8 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
                 vn = ((vax - vbx) * nx + (vay - vby) * ny) + (wa * rna - wb * rnb)
                 gamma = g0 if k == 0 else g1
                 bias = b0 if k == 0 else b1
-                impulse = (-(vn + bias) - gamma * lam) / (c_normal_k[m, k] + gamma)
+                # 1 / (K + γ) does not wait for the velocities: a product on the chain
+                impulse = (-vn - (bias + gamma * lam)) * (1.0 / (c_normal_k[m, k] + gamma))
             engaged = c_max_normal_impulse[m, k] > 0.0
             if impulse > 0.0 and (not engaged or c_approach_velocity[m, k] == math.inf):
                 # the point engages (its first push this step): its approach speed at
