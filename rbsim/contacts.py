@@ -464,8 +464,10 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
             # the bodies' free motion to the impact (t = 0 unless it was moved there)
             vax, vay = t * s_body_v[ba, 0], t * s_body_v[ba, 1]
             vbx, vby = t * s_body_v[bb, 0], t * s_body_v[bb, 1]
-            ca, sa = math.cos(t * s_body_w[ba]), math.sin(t * s_body_w[ba])
-            cb, sb = math.cos(t * s_body_w[bb]), math.sin(t * s_body_w[bb])
+            ca, sa, cb, sb = 1.0, 0.0, 1.0, 0.0  # the rotations by ω t; t = 0 is the
+            if t != 0.0:  # common case, and then costs no trigonometry
+                ca, sa = math.cos(t * s_body_w[ba]), math.sin(t * s_body_w[ba])
+                cb, sb = math.cos(t * s_body_w[bb]), math.sin(t * s_body_w[bb])
             for k in range(npts):
                 # lever arms at the impact
                 rax = out_p[k, 0] - s_body_x[ba, 0] - vax
