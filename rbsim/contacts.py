@@ -207,7 +207,7 @@ def grow_contacts(old: Contacts, capacity: int) -> Contacts:
     return new
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def transform_shapes(model, state, contacts, dt):
     """World vertices and normals of every shape, and each shape's speculative reach.
 
@@ -256,7 +256,7 @@ def transform_shapes(model, state, contacts, dt):
             c_shape_margin[s] = dt * (speed + abs(s_body_w[i]) * reach)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def mix(a, b, rule):
     """Combine two shapes' coefficients by the scene's mixing rule."""
     if rule == MIX_SQRT:
@@ -268,7 +268,7 @@ def mix(a, b, rule):
     return max(a, b)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _place(g, s, t, start, x, q, v, w, verts, norms):
     """Write shape s's vertices and normals, as its body will be after t seconds of
     free motion, into rows start.. of verts and norms. g: (shape_body, shape_vstart,
@@ -288,7 +288,7 @@ def _place(g, s, t, start, x, q, v, w, verts, norms):
         norms[start + k, 1] = sn * nx + c * ny
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _time_of_impact(g, kinds, radii, a, b, npts, dt, spec, x, q, v, w, tv, tn, out):
     """Move a speculative manifold to the moment of impact.
 
@@ -333,7 +333,7 @@ def _time_of_impact(g, kinds, radii, a, b, npts, dt, spec, x, q, v, w, tv, tn, o
     return npts, t
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restitution_rule, dt):
     """Run the narrowphase on every pair whose tight boxes `box` (S,4) overlap, and keep
     the manifolds with points.
@@ -465,8 +465,10 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
             # the bodies' free motion to the impact (t = 0 unless it was moved there)
             vax, vay = t * s_body_v[ba, 0], t * s_body_v[ba, 1]
             vbx, vby = t * s_body_v[bb, 0], t * s_body_v[bb, 1]
-            ca, sa = math.cos(t * s_body_w[ba]), math.sin(t * s_body_w[ba])
-            cb, sb = math.cos(t * s_body_w[bb]), math.sin(t * s_body_w[bb])
+            ca, sa, cb, sb = 1.0, 0.0, 1.0, 0.0  # the rotations by ω t; t = 0 is the
+            if t != 0.0:  # common case, and then costs no trigonometry
+                ca, sa = math.cos(t * s_body_w[ba]), math.sin(t * s_body_w[ba])
+                cb, sb = math.cos(t * s_body_w[bb]), math.sin(t * s_body_w[bb])
             for k in range(npts):
                 # lever arms at the impact
                 rax = out_p[k, 0] - s_body_x[ba, 0] - vax
@@ -508,7 +510,7 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
     return m
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def store_impulses(contacts):
     """Keep this step's manifolds as next step's warm-start source; count touching points."""
     c_count = contacts.count

@@ -19,7 +19,7 @@ from numba import njit
 from . import constants as C
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def integrate_velocities(model, state, h):
     """v += h (g + F/m), ω += h τ/I for dynamic bodies, then damping 1/(1 + h c).
 
@@ -59,7 +59,7 @@ def integrate_velocities(model, state, h):
         w[i] = (w[i] + h * alpha) * ang
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def integrate_positions(model, state, delta, h, exact):
     """x += h v and rotate q by ω h (exact) or by atan(h ω) (normalize) for moving bodies.
 

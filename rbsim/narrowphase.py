@@ -60,7 +60,7 @@ _ID_SHIFT = 1 << 16
 _ID_VERTEX_VERTEX = 3
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _single_point(
     ax, ay, radius_a, bx, by, radius_b, nx, ny,
     fid, speculative, out_normal, out_point, out_sep, out_id,
@@ -79,13 +79,13 @@ def _single_point(
     return 1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _flip_normal(out_normal):
     out_normal[0] = -out_normal[0]
     out_normal[1] = -out_normal[1]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def collide_circle_circle(
     start_a: int, count_a: int, radius_a: float, start_b: int, count_b: int, radius_b: float,
     verts: np.ndarray, norms: np.ndarray, speculative: float,
@@ -108,7 +108,7 @@ def collide_circle_circle(
     )  # fmt: skip
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def collide_circle_polygon(
     start_a: int, count_a: int, radius_a: float, start_b: int, count_b: int, radius_b: float,
     verts: np.ndarray, norms: np.ndarray, speculative: float,
@@ -159,7 +159,7 @@ def collide_circle_polygon(
     )  # fmt: skip
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def collide_circle_segment(
     start_a: int, count_a: int, radius_a: float, start_b: int, count_b: int, radius_b: float,
     verts: np.ndarray, norms: np.ndarray, speculative: float,
@@ -188,7 +188,7 @@ def collide_circle_segment(
     )  # fmt: skip
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _max_separation(start1, count1, start2, count2, verts, norms):
     """The edge of core 1 whose normal separates core 2 most: (separation m, local edge)."""
     best = -np.inf
@@ -208,7 +208,7 @@ def _max_separation(start1, count1, start2, count2, verts, norms):
     return best, best_edge
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _segment_closest_fractions(p1x, p1y, q1x, q1y, p2x, p2y, q2x, q2y):
     """Fractions (s, t) of the closest points p1 + s (q1 - p1) and p2 + t (q2 - p2).
 
@@ -244,7 +244,7 @@ def _segment_closest_fractions(p1x, p1y, q1x, q1y, p2x, p2y, q2x, q2y):
     return s, t
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _clip_incident_edge(
     ref_is_b, ref_start, ref_count, ref_edge, ref_radius, inc_start, inc_count, inc_edge,
     inc_radius, verts, norms, speculative, out_normal, out_point, out_sep, out_id,
@@ -311,7 +311,7 @@ def _clip_incident_edge(
     return n_points
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _collide_cores(
     start_a, count_a, radius_a, start_b, count_b, radius_b,
     verts, norms, speculative, out_normal, out_point, out_sep, out_id,
@@ -386,7 +386,7 @@ def _collide_cores(
     )  # fmt: skip
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def collide_polygon_polygon(
     start_a: int, count_a: int, radius_a: float, start_b: int, count_b: int, radius_b: float,
     verts: np.ndarray, norms: np.ndarray, speculative: float,
@@ -399,7 +399,7 @@ def collide_polygon_polygon(
     )  # fmt: skip
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def collide_polygon_segment(
     start_a: int, count_a: int, radius_a: float, start_b: int, count_b: int, radius_b: float,
     verts: np.ndarray, norms: np.ndarray, speculative: float,
@@ -412,7 +412,7 @@ def collide_polygon_segment(
     )  # fmt: skip
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def collide_segment_segment(
     start_a: int, count_a: int, radius_a: float, start_b: int, count_b: int, radius_b: float,
     verts: np.ndarray, norms: np.ndarray, speculative: float,
@@ -425,7 +425,7 @@ def collide_segment_segment(
     )  # fmt: skip
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def collide(
     kind_a: int,
     start_a: int,

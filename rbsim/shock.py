@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
 # A contact counts as support when its normal is within this cosine of the vertical
@@ -40,7 +39,7 @@ SHOCK_MIN_APPROACH = 1.0e-4
 UNREACHED = 1 << 30
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
 def support_order(model, contacts):
     """Support level of every body, and the orders of the solver's and the shock pass.
 
@@ -164,7 +163,7 @@ def support_order(model, contacts):
     return total
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
 def propagate_shock(model, state, contacts, n_order, inv_h):
     """One pass over the supported contacts, lowest first, that removes each supported
     body's approach towards its supporter (the supporter taken as infinitely heavy).
@@ -182,9 +181,6 @@ def propagate_shock(model, state, contacts, n_order, inv_h):
     delta = contacts.body_delta
     im, ii = model.body_inv_mass, model.body_inv_inertia
     v, w = state.body_v, state.body_w
-    need = np.zeros(2)
-    vel = np.zeros(2)
-    r = np.zeros(2)
     for o in range(n_order):
         m = order[o]
         a, b = c_body_a[m], c_body_b[m]
@@ -192,12 +188,13 @@ def propagate_shock(model, state, contacts, n_order, inv_h):
         npts = c_points[m]
         # most supported points are not approaching: skip them before any other work
         dvx, dvy = v[a, 0] - v[b, 0], v[a, 1] - v[b, 1]
-        approaching = False
-        for k in range(npts):
-            vn = dvx * nx + dvy * ny + w[a] * arms[m, k, 0] - w[b] * arms[m, k, 1]
-            vel[k] = vn
-            if vn < -SHOCK_MIN_APPROACH:
-                approaching = True
+        # (the two points in scalars: a kernel allocates nothing, not even scratch)
+        vel0 = dvx * nx + dvy * ny + w[a] * arms[m, 0, 0] - w[b] * arms[m, 0, 1]
+        vel1 = 0.0
+        approaching = vel0 < -SHOCK_MIN_APPROACH
+        if npts == 2:
+            vel1 = dvx * nx + dvy * ny + w[a] * arms[m, 1, 0] - w[b] * arms[m, 1, 1]
+            approaching = approaching or vel1 < -SHOCK_MIN_APPROACH
         if not approaching:
             continue
         dax, day, ca, sa = delta[a, 0], delta[a, 1], delta[a, 2], delta[a, 3]
@@ -208,45 +205,50 @@ def propagate_shock(model, state, contacts, n_order, inv_h):
         # the supported body moves; the sign turns its push along +n (a) or -n (b)
         u, sgn, k_arm = (a, 1.0, 0) if side[m] == 2 else (b, -1.0, 1)
         mu, iu = im[u], ii[u]
+        need0 = need1 = r0 = r1 = 0.0
         for k in range(npts):
             sep = moved + c_base_separation[m, k]
             sep += nax * c_anchor_a[m, k, 0] + nay * c_anchor_a[m, k, 1]
             sep -= nbx * c_anchor_b[m, k, 0] + nby * c_anchor_b[m, k, 1]
             # how far the point is from allowed: a gap may close within the substep
-            need[k] = (-sep * inv_h if sep > 0.0 else 0.0) - vel[k]
-            r[k] = arms[m, k, k_arm]
+            if k == 0:
+                need0 = (-sep * inv_h if sep > 0.0 else 0.0) - vel0
+                r0 = arms[m, k, k_arm]
+            else:
+                need1 = (-sep * inv_h if sep > 0.0 else 0.0) - vel1
+                r1 = arms[m, k, k_arm]
         # impulses along the supported body's push direction, λ >= 0, that bring every
         # point to at least its target: the two-point case is a 2x2 complementarity
         # problem, solved by trying both points, then each alone
         l0 = l1 = 0.0
-        k00 = mu + iu * r[0] * r[0]
+        k00 = mu + iu * r0 * r0
         if npts == 1:
-            if need[0] > 0.0 and k00 > 0.0:
-                l0 = need[0] / k00
+            if need0 > 0.0 and k00 > 0.0:
+                l0 = need0 / k00
         else:
-            k11 = mu + iu * r[1] * r[1]
-            k01 = mu + iu * r[0] * r[1]
+            k11 = mu + iu * r1 * r1
+            k01 = mu + iu * r0 * r1
             det = k00 * k11 - k01 * k01
             done = False
             if det > 1e-12 * k00 * k11:
-                l0 = (k11 * need[0] - k01 * need[1]) / det
-                l1 = (k00 * need[1] - k01 * need[0]) / det
+                l0 = (k11 * need0 - k01 * need1) / det
+                l1 = (k00 * need1 - k01 * need0) / det
                 done = l0 >= 0.0 and l1 >= 0.0
             if not done:
                 l0 = l1 = 0.0
-                if need[0] > 0.0 and k00 > 0.0 and k01 * need[0] / k00 >= need[1]:
-                    l0 = need[0] / k00
-                elif need[1] > 0.0 and k11 > 0.0 and k01 * need[1] / k11 >= need[0]:
-                    l1 = need[1] / k11
-                elif need[0] > 0.0 or need[1] > 0.0:
+                if need0 > 0.0 and k00 > 0.0 and k01 * need0 / k00 >= need1:
+                    l0 = need0 / k00
+                elif need1 > 0.0 and k11 > 0.0 and k01 * need1 / k11 >= need0:
+                    l1 = need1 / k11
+                elif need0 > 0.0 or need1 > 0.0:
                     # parallel arms (singular K): one impulse at the neediest point
-                    if need[0] >= need[1] and k00 > 0.0:
-                        l0 = need[0] / k00
+                    if need0 >= need1 and k00 > 0.0:
+                        l0 = need0 / k00
                     elif k11 > 0.0:
-                        l1 = need[1] / k11
+                        l1 = need1 / k11
         impulse = l0 + l1
         if impulse == 0.0:
             continue
         v[u, 0] += sgn * mu * impulse * nx
         v[u, 1] += sgn * mu * impulse * ny
-        w[u] += sgn * iu * (l0 * r[0] + l1 * r[1])
+        w[u] += sgn * iu * (l0 * r0 + l1 * r1)

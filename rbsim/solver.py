@@ -43,7 +43,7 @@ def soft_parameters(hertz: float, damping_ratio: float, h: float) -> tuple[float
     return a2 * a3, a3, omega / a1
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
 def prepare_contacts(model, state, contacts, soft, soft_static):
     """Effective masses, approach velocities and softness of every contact point.
 
@@ -100,7 +100,7 @@ def prepare_contacts(model, state, contacts, soft, soft_static):
             c_normal_k[m, 2] += ib * arms[m, 0, 1] * arms[m, 1, 1]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
 def warm_start(model, state, contacts):
     """Apply last substep's accumulated impulses again (they are impulses per substep)."""
     c_body_a = contacts.body_a
@@ -132,7 +132,7 @@ def warm_start(model, state, contacts):
         w[b] -= ii[b] * tb
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
 def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
     """One sequential-impulse pass over every contact (normal, then friction).
 
@@ -210,7 +210,9 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
                     c_count[6] = 1
                 # the soft constraint as a regularised one: (K + γ) Δλ = −(vn + b) − γλ
                 gamma = c_normal_k[m, k] * soft_gamma
-            vn = (vax - vbx) * nx + (vay - vby) * ny + wa * arms[m, k, 0] - wb * arms[m, k, 1]
+            # sums grouped as two halves: each pass is one long chain of dependent
+            # arithmetic through the body velocities, and a shallow sum shortens it
+            vn = ((vax - vbx) * nx + (vay - vby) * ny) + (wa * arms[m, k, 0] - wb * arms[m, k, 1])
             if k == 0:
                 vn0, b0, g0, s0 = vn, bias, gamma, s
             else:
@@ -225,10 +227,11 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
             k01 = c_normal_k[m, 2]
             det = k00 * k11 - k01 * k01
             if det > 1.0e-9 * k00 * k11:
-                r0 = -(vn0 + b0) - g0 * lam0
-                r1 = -(vn1 + b1) - g1 * lam1
-                d0 = (k11 * r0 - k01 * r1) / det
-                d1 = (k00 * r1 - k01 * r0) / det
+                r0 = -vn0 - (b0 + g0 * lam0)  # the bracket is off the chain
+                r1 = -vn1 - (b1 + g1 * lam1)
+                inv_det = 1.0 / det  # known before the velocities: a product on the chain
+                d0 = (k11 * r0 - k01 * r1) * inv_det
+                d1 = (k00 * r1 - k01 * r0) * inv_det
                 block = lam0 + d0 >= 0.0 and lam1 + d1 >= 0.0
         for k in range(npts):
             rna, rnb = arms[m, k, 0], arms[m, k, 1]
@@ -237,10 +240,11 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
                 impulse = d0 if k == 0 else d1
                 vn = vn0 if k == 0 else vn1
             else:
-                vn = (vax - vbx) * nx + (vay - vby) * ny + wa * rna - wb * rnb
+                vn = ((vax - vbx) * nx + (vay - vby) * ny) + (wa * rna - wb * rnb)
                 gamma = g0 if k == 0 else g1
                 bias = b0 if k == 0 else b1
-                impulse = (-(vn + bias) - gamma * lam) / (c_normal_k[m, k] + gamma)
+                # 1 / (K + γ) does not wait for the velocities: a product on the chain
+                impulse = (-vn - (bias + gamma * lam)) * (1.0 / (c_normal_k[m, k] + gamma))
             engaged = c_max_normal_impulse[m, k] > 0.0
             if impulse > 0.0 and (not engaged or c_approach_velocity[m, k] == math.inf):
                 # the point engages (its first push this step): its approach speed at
@@ -268,7 +272,7 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
         if mu > 0.0:
             for k in range(npts):
                 rta, rtb = arms[m, k, 2], arms[m, k, 3]
-                vt = (vax - vbx) * tx + (vay - vby) * ty + wa * rta - wb * rtb
+                vt = ((vax - vbx) * tx + (vay - vby) * ty) + (wa * rta - wb * rtb)
                 lam = c_tangent_impulse[m, k]
                 limit = mu * c_normal_impulse[m, k]
                 if limit == 0.0 and lam == 0.0:
@@ -287,7 +291,7 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
         v[b, 0], v[b, 1], w[b] = vbx, vby, wb
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
 def apply_restitution(model, state, contacts, threshold, h, sign):
     """Bounce: v_n⁺ from v_n⁻ by the restitution hypothesis, at points that engaged in
     this substep approaching faster than `threshold` (m/s). Run after every substep,
@@ -458,7 +462,7 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
             w[b] -= ii[b] * (rbx * py - rby * px)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
 def limit_static_overlap(model, state, contacts, max_overlap):
     """Move a dynamic body out of a static or kinematic one where it overlaps by more
     than max_overlap (m), along the contact normal, without touching its velocity.
