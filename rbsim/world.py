@@ -1,8 +1,13 @@
 """The time step, as the list of its stages, and the loop that runs a scene.
 
-    find_pairs -> collide (manifolds) -> prepare ->
+    find_pairs -> collide (manifolds) -> prepare -> support_order ->
     [per substep: integrate_velocities -> warm_start -> solve (biased)
-                  -> integrate_positions -> relax -> restitution] -> store_impulses
+                  -> integrate_positions -> relax -> shock -> restitution]
+    -> limit_static_overlap -> store_impulses
+
+(DESIGN.md lists the core of this; support_order and the shock pass (shock.py) carry
+pushes up stacks and stop heavy bodies on light ones, and limit_static_overlap keeps
+piles from squeezing bodies through walls.)
 
 `step` is one numba kernel that calls each stage in turn, so a step costs one call
 from Python; `advance` runs many steps.
