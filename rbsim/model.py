@@ -41,7 +41,8 @@ class Model(NamedTuple):
     shape_friction, shape_restitution (S,); vertex_local (V,2) m, body frame about
     the COM; normal_local (V,2) outward edge normals (polygons, segments);
     gravity (2,) m/s²; linear_damping, angular_damping 1/s; has_forces: any body
-    carries a constant force or torque; has_shapes: the contact pipeline is needed.
+    carries a constant force or torque; has_shapes: the contact pipeline is needed
+    (two bodies have shapes and one of them is dynamic; a lone ball pays nothing for it).
     """
 
     body_type: np.ndarray
@@ -184,9 +185,15 @@ def build(scene: Scene) -> tuple[Model, State]:
         linear_damping=float(world.linear_damping),
         angular_damping=float(world.angular_damping),
         has_forces=bool(np.any(force != 0.0) or np.any(torque != 0.0)),
-        has_shapes=len(shape_body) > 0,
+        has_shapes=_contacts_possible(shape_body, body_type),
     )
     return model, State(x, q, angle, v, w)
+
+
+def _contacts_possible(shape_body: list[int], body_type: np.ndarray) -> bool:
+    """True when two bodies with shapes can touch and one of them can respond."""
+    shaped = np.unique(np.asarray(shape_body, np.int64))
+    return len(shaped) >= 2 and bool(np.any(body_type[shaped] == C.BODY_DYNAMIC))
 
 
 def body_origin(model: Model, state: State) -> np.ndarray:
