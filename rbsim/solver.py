@@ -292,6 +292,20 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
 
 
 @njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
+def point_separation(anchor_a, anchor_b, base_separation, delta, m, k, a, b, nx, ny):
+    """Separation (m) now of point k of manifold m between bodies a and b with normal
+    (nx, ny): its anchors moved by delta (each body's motion since the step began).
+    Takes arrays, not the tuples (world.py's rule for helpers called per point)."""
+    ca, sa, cb, sb = delta[a, 2], delta[a, 3], delta[b, 2], delta[b, 3]
+    rax, ray = anchor_a[m, k, 0], anchor_a[m, k, 1]
+    rbx, rby = anchor_b[m, k, 0], anchor_b[m, k, 1]
+    pax, pay = ca * rax - sa * ray, sa * rax + ca * ray
+    pbx, pby = cb * rbx - sb * rby, sb * rbx + cb * rby
+    s = (delta[a, 0] - delta[b, 0] + pax - pbx) * nx + (delta[a, 1] - delta[b, 1] + pay - pby) * ny
+    return s + base_separation[m, k]
+
+
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
 def apply_restitution(model, state, contacts, threshold, h, sign):
     """Bounce: v_n⁺ from v_n⁻ by the restitution hypothesis, at points that engaged in
     this substep approaching faster than `threshold` (m/s). Run after every substep,
@@ -354,8 +368,6 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
         if m_body_type[b] == C.BODY_DYNAMIC:
             acc -= (gx + im[b] * m_body_force[b, 0]) * nx
             acc -= (gy + im[b] * m_body_force[b, 1]) * ny
-        dax, day, ca, sa = delta[a, 0], delta[a, 1], delta[a, 2], delta[a, 3]
-        dbx, dby, cb, sb = delta[b, 0], delta[b, 1], delta[b, 2], delta[b, 3]
         # targets of the points that bounce now
         t0 = t1 = 0.0
         bounce0 = bounce1 = False
@@ -363,12 +375,9 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
             vn0 = c_approach_velocity[m, k]
             if vn0 >= -threshold or c_max_normal_impulse[m, k] == 0.0:
                 continue
-            rax, ray = c_anchor_a[m, k, 0], c_anchor_a[m, k, 1]
-            rbx, rby = c_anchor_b[m, k, 0], c_anchor_b[m, k, 1]
-            pax, pay = ca * rax - sa * ray, sa * rax + ca * ray
-            pbx, pby = cb * rbx - sb * rby, sb * rbx + cb * rby
-            s_now = (dax - dbx + pax - pbx) * nx + (day - dby + pay - pby) * ny
-            s_now += c_base_separation[m, k]
+            s_now = point_separation(
+                c_anchor_a, c_anchor_b, c_base_separation, delta, m, k, a, b, nx, ny
+            )
             if s_now > C.SPECULATIVE_DISTANCE and e == 0.0:
                 # engaged through a speculative push while still far apart (a fast
                 # body one substep from a wall). With e = 0, ending the approach now
@@ -380,6 +389,8 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
                 # formula above. (With e > 0 the bounce is taken now, a little early,
                 # so that the energy it returns is exact.)
                 ta, tb = w[a] * h, w[b] * h
+                rax, ray = c_anchor_a[m, k, 0], c_anchor_a[m, k, 1]
+                rbx, rby = c_anchor_b[m, k, 0], c_anchor_b[m, k, 1]
                 arc = ta * ta * math.sqrt(rax * rax + ray * ray)
                 arc += tb * tb * math.sqrt(rbx * rbx + rby * rby)
                 if 0.5 * arc < C.LINEAR_SLOP:
@@ -492,16 +503,11 @@ def limit_static_overlap(model, state, contacts, max_overlap):
         if a_fixed == b_fixed:
             continue  # two dynamic bodies (left to the solver) or two fixed ones
         nx, ny = c_normal[m, 0], c_normal[m, 1]
-        dax, day, ca, sa = delta[a, 0], delta[a, 1], delta[a, 2], delta[a, 3]
-        dbx, dby, cb, sb = delta[b, 0], delta[b, 1], delta[b, 2], delta[b, 3]
         deepest = 0.0
         for k in range(c_points[m]):
-            rax, ray = c_anchor_a[m, k, 0], c_anchor_a[m, k, 1]
-            rbx, rby = c_anchor_b[m, k, 0], c_anchor_b[m, k, 1]
-            pax, pay = ca * rax - sa * ray, sa * rax + ca * ray
-            pbx, pby = cb * rbx - sb * rby, sb * rbx + cb * rby
-            s = (dax - dbx + pax - pbx) * nx + (day - dby + pay - pby) * ny
-            s += c_base_separation[m, k]
+            s = point_separation(
+                c_anchor_a, c_anchor_b, c_base_separation, delta, m, k, a, b, nx, ny
+            )
             deepest = min(deepest, s)
         push = -deepest - max_overlap
         if push <= 0.0:
