@@ -38,9 +38,10 @@ out/%.h5: scenes/%.yaml $(STAMP) $(wildcard rbsim/*.py)
 	@mkdir -p out
 	$(BIN)/rbsim run $< -o $@ --quiet
 
-COMPARE_SCENES := $(wildcard scenes/compare/*.yaml)
+COMPARE_SCENES := $(wildcard scenes/compare/*.yaml scenes/compare/statistics/*.yaml)
 
-# rbsim against pymunk on every scene of scenes/compare/; fails if any exits non-zero.
+# rbsim against pymunk on every scene of scenes/compare/ (and its statistics/); fails if
+# any exits non-zero.
 .PHONY: compare
 compare: $(STAMP)
 	@status=0; for s in $(COMPARE_SCENES); do \

@@ -65,3 +65,10 @@ STATIC_OVERLAP_LIMIT = 0.02
 # Zero turns the reuse off.
 STILL_DISTANCE = 1.0e-4
 STILL_ANGLE = 1.0e-4
+
+# Passes of the restitution stage over a cluster of bounces that share bodies (solver.
+# apply_restitution): each pass bounces every pair that still approaches. A row of n
+# touching balls struck at one end needs up to n - 1; a ball wedged between two walls
+# would bounce back and forth for ever, and after this many passes its approach is left
+# to the next substep's solve.
+RESTITUTION_PASSES = 16

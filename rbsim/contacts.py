@@ -60,7 +60,8 @@ class Contacts(NamedTuple):
     geometry in the world this step. shape_margin (S,) m: speculative reach.
     body_level (N,), shock_side, shock_order (M,): the shock pass (shock.py);
     solve_order (M,): the order of the solver's passes over the manifolds;
-    adj_start (N+1,), adj (2M,), queue (N+2,): its scratch.
+    adj_start (N+1,), adj (2M,), queue (N+2,): its scratch. bounce_kind (M,),
+    body_mark (N,): the restitution stage's scratch (solver.apply_restitution).
     """
 
     count: np.ndarray
@@ -118,6 +119,8 @@ class Contacts(NamedTuple):
     adj_start: np.ndarray
     adj: np.ndarray
     queue: np.ndarray
+    bounce_kind: np.ndarray
+    body_mark: np.ndarray
 
 
 def make_contacts(n_bodies: int, n_shapes: int, n_vertices: int, capacity: int) -> Contacts:
@@ -179,6 +182,8 @@ def make_contacts(n_bodies: int, n_shapes: int, n_vertices: int, capacity: int) 
         adj_start=np.zeros(max(n_bodies, 1) + 1, np.int64),
         adj=np.zeros(2 * m, np.int32),
         queue=np.zeros(max(n_bodies, 1) + 2, np.int64),
+        bounce_kind=np.zeros(m, np.int8),
+        body_mark=np.zeros(max(n_bodies, 1), np.int8),
     )
 
 

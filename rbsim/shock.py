@@ -164,10 +164,13 @@ def support_order(model, contacts):
 
 
 @njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
-def propagate_shock(model, state, contacts, n_order, inv_h):
+def propagate_shock(model, state, contacts, n_order, inv_h, threshold):
     """One pass over the supported contacts, lowest first, that removes each supported
     body's approach towards its supporter (the supporter taken as infinitely heavy).
-    A point with a gap (m) may still close it within the substep (1/inv_h s)."""
+    A point with a gap (m) may still close it within the substep (1/inv_h s). An
+    elastic contact (restitution > 0) approaching faster than `threshold` (m/s) is an
+    impact, not a load: it is left to the next substep's solve and bounce (taken here,
+    its energy would be lost: a ball struck down onto the floor stopped dead)."""
     c_anchor_a = contacts.anchor_a
     c_anchor_b = contacts.anchor_b
     c_base_separation = contacts.base_separation
@@ -175,6 +178,7 @@ def propagate_shock(model, state, contacts, n_order, inv_h):
     c_body_b = contacts.body_b
     c_normal = contacts.normal
     c_points = contacts.points
+    c_restitution = contacts.restitution
     arms = contacts.arms
     side = contacts.shock_side
     order = contacts.shock_order
@@ -196,6 +200,8 @@ def propagate_shock(model, state, contacts, n_order, inv_h):
             vel1 = dvx * nx + dvy * ny + w[a] * arms[m, 1, 0] - w[b] * arms[m, 1, 1]
             approaching = approaching or vel1 < -SHOCK_MIN_APPROACH
         if not approaching:
+            continue
+        if c_restitution[m] > 0.0 and min(vel0, vel1) < -threshold:
             continue
         dax, day, ca, sa = delta[a, 0], delta[a, 1], delta[a, 2], delta[a, 3]
         dbx, dby, cb, sb = delta[b, 0], delta[b, 1], delta[b, 2], delta[b, 3]

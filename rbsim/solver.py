@@ -305,15 +305,106 @@ def point_separation(anchor_a, anchor_b, base_separation, delta, m, k, a, b, nx,
     return s + base_separation[m, k]
 
 
+# bounce_kind of a manifold in the restitution stage
+_QUIET = 0  # no point pushes or bounces
+_ALONE = 1  # bounces, e > 0, and touches no body that anything else pushes: redone exactly
+_JOINED = 2  # bounces within a cluster that also has resting or inelastic contacts
+_PUSHING = 3  # pushes without bouncing (a resting or slow contact)
+_PASSIVE = 4  # elastic, pushed slowly, no load carried in: joins a lone cluster it touches
+
+
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
+def normal_velocity(v, w, a, b, rax, ray, rbx, rby, nx, ny):
+    """Relative normal velocity (m/s) of a's point at arm (rax, ray) against b's point
+    at arm (rbx, rby), along the normal (nx, ny) from b towards a; < 0 approaching."""
+    dvx = v[a, 0] - w[a] * ray - v[b, 0] + w[b] * rby
+    dvy = v[a, 1] + w[a] * rax - v[b, 1] - w[b] * rbx
+    return dvx * nx + dvy * ny
+
+
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
+def bounce_target(invariant, s_now, acc, e, h, sign):
+    """The normal velocity (m/s) after a bounce of coefficient e: the one that makes
+    the discrete trajectory's invariant at separation s_now (m) e² times `invariant`
+    (m²/s², see apply_restitution), with relative normal acceleration acc (m/s²),
+    substep h (s), sign +1 for symplectic and -1 for explicit Euler."""
+    ah = sign * acc * h
+    rhs = e * e * invariant + acc * s_now
+    return 0.5 * (-ah + math.sqrt(max(ah * ah + 8.0 * rhs, 0.0)))
+
+
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
+def push_targets(bodies, rows, m, a, b, need0, t0, need1, t1):
+    """Raise the normal velocity of manifold m's points to their targets t0, t1 (m/s)
+    where need0, need1, by impulses added to normal_impulse (kept >= 0). bodies is
+    (v, w, inverse mass, inverse inertia), rows (anchor_a, anchor_b, normal,
+    normal_mass, normal_impulse), all arrays (world.py's rule for per-manifold
+    helpers). Both points at once are one 2x2 block (a box landing flat gets
+    mirror-image impulses; one after the other would tip it); one point at a time when
+    the block would pull. Returns the
+    impulses (N·s) applied at the two points."""
+    v, w, im, ii = bodies
+    anchor_a, anchor_b, normal, normal_mass, normal_impulse = rows
+    nx, ny = normal[m, 0], normal[m, 1]
+    if need0 and need1:
+        r0ax, r0ay = anchor_a[m, 0, 0], anchor_a[m, 0, 1]
+        r0bx, r0by = anchor_b[m, 0, 0], anchor_b[m, 0, 1]
+        r1ax, r1ay = anchor_a[m, 1, 0], anchor_a[m, 1, 1]
+        r1bx, r1by = anchor_b[m, 1, 0], anchor_b[m, 1, 1]
+        ca0, cb0 = r0ax * ny - r0ay * nx, r0bx * ny - r0by * nx
+        ca1, cb1 = r1ax * ny - r1ay * nx, r1bx * ny - r1by * nx
+        k11 = im[a] + im[b] + ii[a] * ca0 * ca0 + ii[b] * cb0 * cb0
+        k22 = im[a] + im[b] + ii[a] * ca1 * ca1 + ii[b] * cb1 * cb1
+        k12 = im[a] + im[b] + ii[a] * ca0 * ca1 + ii[b] * cb0 * cb1
+        det = k11 * k22 - k12 * k12
+        if det > 1.0e-9 * k11 * k22:
+            d0 = t0 - normal_velocity(v, w, a, b, r0ax, r0ay, r0bx, r0by, nx, ny)
+            d1 = t1 - normal_velocity(v, w, a, b, r1ax, r1ay, r1bx, r1by, nx, ny)
+            j0 = (k22 * d0 - k12 * d1) / det
+            j1 = (k11 * d1 - k12 * d0) / det
+            if normal_impulse[m, 0] + j0 >= 0.0 and normal_impulse[m, 1] + j1 >= 0.0:
+                normal_impulse[m, 0] += j0
+                normal_impulse[m, 1] += j1
+                px, py = (j0 + j1) * nx, (j0 + j1) * ny
+                v[a, 0] += im[a] * px
+                v[a, 1] += im[a] * py
+                w[a] += ii[a] * (j0 * ca0 + j1 * ca1)
+                v[b, 0] -= im[b] * px
+                v[b, 1] -= im[b] * py
+                w[b] -= ii[b] * (j0 * cb0 + j1 * cb1)
+                return j0, j1
+    j0 = j1 = 0.0
+    for k in range(2):
+        if not (need0 if k == 0 else need1):
+            continue
+        rax, ray = anchor_a[m, k, 0], anchor_a[m, k, 1]
+        rbx, rby = anchor_b[m, k, 0], anchor_b[m, k, 1]
+        vn = normal_velocity(v, w, a, b, rax, ray, rbx, rby, nx, ny)
+        lam = normal_impulse[m, k]
+        new = max(lam - normal_mass[m, k] * (vn - (t0 if k == 0 else t1)), 0.0)
+        impulse = new - lam
+        normal_impulse[m, k] = new
+        px, py = impulse * nx, impulse * ny
+        v[a, 0] += im[a] * px
+        v[a, 1] += im[a] * py
+        w[a] += ii[a] * (rax * py - ray * px)
+        v[b, 0] -= im[b] * px
+        v[b, 1] -= im[b] * py
+        w[b] -= ii[b] * (rbx * py - rby * px)
+        if k == 0:
+            j0 = impulse
+        else:
+            j1 = impulse
+    return j0, j1
+
+
 @njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
 def apply_restitution(model, state, contacts, threshold, h, sign):
     """Bounce: v_n⁺ from v_n⁻ by the restitution hypothesis, at points that engaged in
     this substep approaching faster than `threshold` (m/s). Run after every substep,
-    so that impacts follow each other in order: a ball struck while it is about to
-    hit a third one carries its new speed into that second impact. With e = 0 this
-    ends the impact exactly (v_n⁺ = 0), which the soft substeps alone leave a little
-    short of when the bodies turn during the step. The point's accumulated impulse is
-    then dropped, so that later substeps do not warm-start the bounce a second time.
+    so that impacts follow each other in order. A bouncing point's accumulated impulse
+    is dropped afterwards (what it carried into the step, a resting load, it keeps), so
+    that later substeps do not warm-start the bounce a second time.
 
     Without forces the target is exactly v_n⁺ = −e v_n⁻. Under a constant relative
     normal acceleration a (gravity, constant forces) the target is taken on the
@@ -321,8 +412,25 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
     I = v²/2 − a s + sign (a h / 2) v (sign +1 symplectic, −1 explicit Euler), and
     reversing v alone would lose or gain about |a| h |v| per bounce. So v_n⁺ makes
     I after the bounce (at the current separation) equal e² times I where the point
-    engaged (approach velocity and separation recorded by the solve stage). For
-    e = 1 a ball then keeps its apex bounce after bounce, to round-off.
+    engaged. For e = 1 a ball then keeps its apex bounce after bounce, to round-off.
+
+    Impacts that share a body within a substep (a ball struck by two others, a ball
+    hitting a wall while another hits it, a row of touching balls struck at one end)
+    are where energy went: the solve treats them as one inelastic impact, and each
+    point's approach was recorded mid-pass, after its neighbours had pushed. So a
+    cluster of bouncing points (e > 0) whose bodies nothing else pushes is done again
+    exactly: the substep's impulses at its points are taken back, which leaves each
+    point's true approach velocity, and the impacts are then resolved one pair at a
+    time, in passes, each a bounce against the point's velocity at that moment, until
+    no point of the cluster approaches (a point struck again within the substep, as
+    in the row of balls, bounces again; one that approaches slower than the threshold
+    is only stopped). The cluster also takes in elastic points that pushed slower than
+    the threshold and carried no load into the step: in a touching row struck at one
+    end, the solve's joint push engages them at a fraction of the striker's speed. A
+    pair's bounce with e = 1 keeps the kinetic energy exactly, so the cluster does.
+    After RESTITUTION_PASSES passes what still approaches is left to the next
+    substep's solve. Clusters that also hold resting contacts (a ball landing on a
+    stack) keep the solve's impulses and get the targets from the recorded approach.
     """
     c_anchor_a = contacts.anchor_a
     c_anchor_b = contacts.anchor_b
@@ -339,6 +447,9 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
     c_normal_mass = contacts.normal_mass
     c_points = contacts.points
     c_restitution = contacts.restitution
+    c_order = contacts.solve_order
+    kind = contacts.bounce_kind
+    mark = contacts.body_mark
     m_body_force = model.body_force
     m_body_type = model.body_type
     m_gravity = model.gravity
@@ -346,29 +457,97 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
     v, w = state.body_v, state.body_w
     delta = contacts.body_delta
     gx, gy = m_gravity[0], m_gravity[1]
+    bodies = (v, w, im, ii)
+    rows = (c_anchor_a, c_anchor_b, c_normal, c_normal_mass, c_normal_impulse)
     if c_count[5] == 0:
         return  # no point engaged faster than the threshold since the last call
     c_count[5] = 0
-    for m in range(c_count[0]):
-        # most manifolds have no point that just hit: skip them before any work
-        hit = False
+    n_man = c_count[0]
+    # which manifolds bounce, and which bodies something else pushes (mark bit 1)
+    mark[:] = 0
+    n_alone = 0
+    for m in range(n_man):
+        bouncing = joining = pushing = 0
+        elastic = c_restitution[m] > 0.0
         for k in range(c_points[m]):
             if c_approach_velocity[m, k] < -threshold and c_max_normal_impulse[m, k] > 0.0:
-                hit = True
-        if not hit:
+                bouncing += 1
+            elif c_normal_impulse[m, k] > 0.0:
+                # pushed, slower than the threshold: in an elastic contact that carried
+                # no load into the step, it may be a passive part of an impact (a ball
+                # of a touching row, engaged only by its neighbour's push)
+                if elastic and c_start_impulse[m, k] == 0.0:
+                    joining += 1
+                else:
+                    pushing += 1
+        if pushing == 0 and (bouncing > 0 or joining > 0) and elastic:
+            kind[m] = _ALONE if bouncing > 0 else _PASSIVE
+            n_alone += 1
             continue
-        e = c_restitution[m]
+        if bouncing > 0:
+            kind[m] = _JOINED
+        else:
+            kind[m] = _PUSHING if pushing + joining > 0 else _QUIET
+        if kind[m] != _QUIET:
+            mark[c_body_a[m]] |= 1
+            mark[c_body_b[m]] |= 1
+    # a cluster that touches a pushed body joins it (until nothing changes)
+    changed = n_alone > 0
+    while changed:
+        changed = False
+        for m in range(n_man):
+            if kind[m] != _ALONE and kind[m] != _PASSIVE:
+                continue
+            a, b = c_body_a[m], c_body_b[m]
+            if (mark[a] & 1 and im[a] > 0.0) or (mark[b] & 1 and im[b] > 0.0):
+                kind[m] = _JOINED if kind[m] == _ALONE else _PUSHING
+                mark[a] |= 1
+                mark[b] |= 1
+                n_alone -= 1
+                changed = True
+    # passive points take part only in a cluster that holds a bounce (mark bit 2: the
+    # body is reached from one); the others stay as the solve left them
+    if n_alone > 0:
+        for m in range(n_man):
+            if kind[m] == _ALONE:
+                mark[c_body_a[m]] |= 2
+                mark[c_body_b[m]] |= 2
+        changed = True
+        while changed:
+            changed = False
+            for m in range(n_man):
+                if kind[m] != _PASSIVE:
+                    continue
+                a, b = c_body_a[m], c_body_b[m]
+                if (mark[a] & 2 and im[a] > 0.0) or (mark[b] & 2 and im[b] > 0.0):
+                    kind[m] = _ALONE
+                    mark[a] |= 2
+                    mark[b] |= 2
+                    changed = True
+    for m in range(n_man):
+        if kind[m] == _ALONE:
+            # take back this substep's impulses at the cluster's points
+            a, b = c_body_a[m], c_body_b[m]
+            nx, ny = c_normal[m, 0], c_normal[m, 1]
+            for k in range(c_points[m]):
+                j = c_normal_impulse[m, k]
+                c_normal_impulse[m, k] = 0.0
+                rax, ray = c_anchor_a[m, k, 0], c_anchor_a[m, k, 1]
+                rbx, rby = c_anchor_b[m, k, 0], c_anchor_b[m, k, 1]
+                px, py = -j * nx, -j * ny
+                v[a, 0] += im[a] * px
+                v[a, 1] += im[a] * py
+                w[a] += ii[a] * (rax * py - ray * px)
+                v[b, 0] -= im[b] * px
+                v[b, 1] -= im[b] * py
+                w[b] -= ii[b] * (rbx * py - rby * px)
+            continue
+        if kind[m] != _JOINED:
+            continue
         a, b = c_body_a[m], c_body_b[m]
+        e = c_restitution[m]
         nx, ny = c_normal[m, 0], c_normal[m, 1]
-        # relative normal acceleration of the two bodies from gravity and forces
-        acc = 0.0
-        if m_body_type[a] == C.BODY_DYNAMIC:
-            acc += (gx + im[a] * m_body_force[a, 0]) * nx
-            acc += (gy + im[a] * m_body_force[a, 1]) * ny
-        if m_body_type[b] == C.BODY_DYNAMIC:
-            acc -= (gx + im[b] * m_body_force[b, 0]) * nx
-            acc -= (gy + im[b] * m_body_force[b, 1]) * ny
-        # targets of the points that bounce now
+        acc = _relative_acceleration(m_body_type, m_body_force, im, gx, gy, a, b, nx, ny)
         t0 = t1 = 0.0
         bounce0 = bounce1 = False
         for k in range(c_points[m]):
@@ -400,77 +579,87 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
             c_approach_velocity[m, k] = math.inf
             s0 = c_approach_separation[m, k]
             invariant = 0.5 * vn0 * vn0 - 0.5 * acc * h * vn0 - acc * s0
-            rhs = e * e * invariant + acc * s_now
-            ah = sign * acc * h
-            target = 0.5 * (-ah + math.sqrt(max(ah * ah + 8.0 * rhs, 0.0)))
+            target = bounce_target(invariant, s_now, acc, e, h, sign)
             if k == 0:
                 bounce0, t0 = True, target
             else:
                 bounce1, t1 = True, target
         if not (bounce0 or bounce1):
             continue
-        # both points of a face hit at once: solve them as one 2x2 block, so that a box
-        # landing flat gets mirror-image impulses (one after the other would tip it)
-        if bounce0 and bounce1:
-            r0ax, r0ay = c_anchor_a[m, 0, 0], c_anchor_a[m, 0, 1]
-            r0bx, r0by = c_anchor_b[m, 0, 0], c_anchor_b[m, 0, 1]
-            r1ax, r1ay = c_anchor_a[m, 1, 0], c_anchor_a[m, 1, 1]
-            r1bx, r1by = c_anchor_b[m, 1, 0], c_anchor_b[m, 1, 1]
-            ca0, cb0 = r0ax * ny - r0ay * nx, r0bx * ny - r0by * nx
-            ca1, cb1 = r1ax * ny - r1ay * nx, r1bx * ny - r1by * nx
-            k11 = im[a] + im[b] + ii[a] * ca0 * ca0 + ii[b] * cb0 * cb0
-            k22 = im[a] + im[b] + ii[a] * ca1 * ca1 + ii[b] * cb1 * cb1
-            k12 = im[a] + im[b] + ii[a] * ca0 * ca1 + ii[b] * cb0 * cb1
-            det = k11 * k22 - k12 * k12
-            if det > 1.0e-9 * k11 * k22:
-                vn_0 = (v[a, 0] - w[a] * r0ay - v[b, 0] + w[b] * r0by) * nx + (
-                    v[a, 1] + w[a] * r0ax - v[b, 1] - w[b] * r0bx
-                ) * ny
-                vn_1 = (v[a, 0] - w[a] * r1ay - v[b, 0] + w[b] * r1by) * nx + (
-                    v[a, 1] + w[a] * r1ax - v[b, 1] - w[b] * r1bx
-                ) * ny
-                d0, d1 = t0 - vn_0, t1 - vn_1
-                j0 = (k22 * d0 - k12 * d1) / det
-                j1 = (k11 * d1 - k12 * d0) / det
-                l0, l1 = c_normal_impulse[m, 0], c_normal_impulse[m, 1]
-                if l0 + j0 >= 0.0 and l1 + j1 >= 0.0:
-                    c_normal_impulse[m, 0] = min(l0 + j0, c_start_impulse[m, 0])
-                    c_normal_impulse[m, 1] = min(l1 + j1, c_start_impulse[m, 1])
-                    c_max_normal_impulse[m, 0] = max(c_max_normal_impulse[m, 0], j0)
-                    c_max_normal_impulse[m, 1] = max(c_max_normal_impulse[m, 1], j1)
-                    px, py = (j0 + j1) * nx, (j0 + j1) * ny
-                    v[a, 0] += im[a] * px
-                    v[a, 1] += im[a] * py
-                    w[a] += ii[a] * (j0 * ca0 + j1 * ca1)
-                    v[b, 0] -= im[b] * px
-                    v[b, 1] -= im[b] * py
-                    w[b] -= ii[b] * (j0 * cb0 + j1 * cb1)
-                    continue
+        j0, j1 = push_targets(bodies, rows, m, a, b, bounce0, t0, bounce1, t1)
         for k in range(c_points[m]):
-            if not (bounce0 if k == 0 else bounce1):
+            jk = j0 if k == 0 else j1
+            c_max_normal_impulse[m, k] = max(c_max_normal_impulse[m, k], jk)
+            if bounce0 if k == 0 else bounce1:
+                c_normal_impulse[m, k] = min(c_normal_impulse[m, k], c_start_impulse[m, k])
+    if n_alone == 0:
+        return
+    # the lone clusters, one pair's impact at a time
+    for _ in range(C.RESTITUTION_PASSES):
+        struck = False
+        for o in range(n_man):
+            m = c_order[o]
+            if kind[m] != _ALONE:
                 continue
-            target = t0 if k == 0 else t1
-            rax, ray = c_anchor_a[m, k, 0], c_anchor_a[m, k, 1]
-            rbx, rby = c_anchor_b[m, k, 0], c_anchor_b[m, k, 1]
-            dvx = v[a, 0] - w[a] * ray - v[b, 0] + w[b] * rby
-            dvy = v[a, 1] + w[a] * rax - v[b, 1] - w[b] * rbx
-            vn = dvx * nx + dvy * ny
-            lam = c_normal_impulse[m, k]
-            impulse = -c_normal_mass[m, k] * (vn - target)
-            new = max(lam + impulse, 0.0)
-            impulse = new - lam
-            # the bounce is done: the next substeps must not warm-start it again; what
-            # the point carried into the step (a resting load) it keeps
-            c_normal_impulse[m, k] = min(new, c_start_impulse[m, k])
-            if impulse > c_max_normal_impulse[m, k]:
-                c_max_normal_impulse[m, k] = impulse
-            px, py = impulse * nx, impulse * ny
-            v[a, 0] += im[a] * px
-            v[a, 1] += im[a] * py
-            w[a] += ii[a] * (rax * py - ray * px)
-            v[b, 0] -= im[b] * px
-            v[b, 1] -= im[b] * py
-            w[b] -= ii[b] * (rbx * py - rby * px)
+            a, b = c_body_a[m], c_body_b[m]
+            e = c_restitution[m]
+            nx, ny = c_normal[m, 0], c_normal[m, 1]
+            t0 = t1 = 0.0
+            need0 = need1 = False
+            for k in range(c_points[m]):
+                rax, ray = c_anchor_a[m, k, 0], c_anchor_a[m, k, 1]
+                rbx, rby = c_anchor_b[m, k, 0], c_anchor_b[m, k, 1]
+                vn = normal_velocity(v, w, a, b, rax, ray, rbx, rby, nx, ny)
+                if vn >= 0.0:
+                    continue
+                first = c_approach_velocity[m, k] < -threshold
+                if first or vn < -threshold:
+                    c_approach_velocity[m, k] = math.inf  # bounced (see the end)
+                    acc = _relative_acceleration(
+                        m_body_type, m_body_force, im, gx, gy, a, b, nx, ny
+                    )
+                    s_now = point_separation(
+                        c_anchor_a, c_anchor_b, c_base_separation, delta, m, k, a, b, nx, ny
+                    )
+                    if first:  # its first impact: where it engaged, before this substep
+                        s0 = c_approach_separation[m, k]
+                        invariant = 0.5 * vn * vn - 0.5 * acc * h * vn - acc * s0
+                    else:  # struck again within the substep: here and now
+                        invariant = 0.5 * vn * vn + 0.5 * sign * acc * h * vn - acc * s_now
+                    target = bounce_target(invariant, s_now, acc, e, h, sign)
+                else:
+                    target = 0.0
+                if k == 0:
+                    need0, t0 = True, target
+                else:
+                    need1, t1 = True, target
+            if not (need0 or need1):
+                continue
+            j0, j1 = push_targets(bodies, rows, m, a, b, need0, t0, need1, t1)
+            if j0 > 0.0 or j1 > 0.0:
+                struck = True
+        if not struck:
+            break
+    for m in range(n_man):
+        if kind[m] == _ALONE:
+            for k in range(c_points[m]):
+                total = c_normal_impulse[m, k]
+                c_max_normal_impulse[m, k] = max(c_max_normal_impulse[m, k], total)
+                if c_approach_velocity[m, k] == math.inf:
+                    # a bounce is not warm-started; a point that only stopped an
+                    # approach keeps its impulse, as the solve's points do
+                    c_normal_impulse[m, k] = min(total, c_start_impulse[m, k])
+
+
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
+def _relative_acceleration(body_type, body_force, im, gx, gy, a, b, nx, ny):
+    """Relative normal acceleration (m/s²) of bodies a and b from gravity and forces."""
+    acc = 0.0
+    if body_type[a] == C.BODY_DYNAMIC:
+        acc += (gx + im[a] * body_force[a, 0]) * nx + (gy + im[a] * body_force[a, 1]) * ny
+    if body_type[b] == C.BODY_DYNAMIC:
+        acc -= (gx + im[b] * body_force[b, 0]) * nx + (gy + im[b] * body_force[b, 1]) * ny
+    return acc
 
 
 @njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")

@@ -2,7 +2,7 @@
 
     find_pairs -> collide (manifolds) -> prepare -> support_order ->
     [per substep: integrate_velocities -> warm_start -> solve (biased)
-                  -> integrate_positions -> relax -> shock -> restitution]
+                  -> integrate_positions -> relax -> restitution -> shock]
     -> limit_static_overlap -> store_impulses
 
 (DESIGN.md lists the core of this; support_order and the shock pass (shock.py) carry
@@ -174,8 +174,10 @@ def step(model, state, grid, contacts, cfg):
             n_relax = cfg.iterations * (C.DEEP_RELAX_FACTOR if contacts.count[6] else 1)
             for _ in range(n_relax):
                 solve_contacts(model, state, contacts, inv_h, False, shift, threshold)
-            propagate_shock(model, state, contacts, contacts.count[4], inv_h)
+            # bounces first: the shock pass then leaves them alone, and would otherwise
+            # take a ball struck down onto the floor as a load and stop it dead
             apply_restitution(model, state, contacts, threshold, h, sign)
+            propagate_shock(model, state, contacts, contacts.count[4], inv_h, threshold)
     if contacts_on:
         limit_static_overlap(model, state, contacts, C.STATIC_OVERLAP_LIMIT)
         store_impulses(contacts)

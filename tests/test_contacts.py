@@ -294,9 +294,103 @@ def test_elastic_gas_conserves_momentum_and_kinetic_energy():
     # rounding of ~10⁴ impulse applications
     p0 = np.hypot(*momentum[0])
     assert np.abs(momentum - momentum[0]).max() <= 1e-9 * p0
-    # e = 1: an isolated impact restores −v_n exactly (test above); 1% as asked, for
-    # the impacts that fall within one step of each other
-    np.testing.assert_allclose(kinetic, kinetic[0], rtol=0.01)
+    # e = 1: every pair's impact restores −v_n exactly, also when several fall within
+    # one substep (the restitution stage redoes them one pair at a time); 1e-12 allows
+    # the rounding of some 10⁴ impacts (the issue asks for 1%)
+    np.testing.assert_allclose(kinetic, kinetic[0], rtol=1e-12)
+
+
+ELASTIC = """
+version: 1
+world: {{gravity: [0, {g}], dt: {dt!r}, duration: {duration}}}
+solver: {{restitution_threshold: 0.0}}
+materials: {{elastic: {{density: 1.0, friction: 0.0, restitution: 1.0}}}}
+bodies:
+{bodies}
+"""
+
+
+def elastic_world(bodies: list[str], g: float = 0.0, duration: float = 1.0) -> World:
+    """e = 1, no friction, every approach bounces; `bodies` are YAML flow mappings."""
+    listed = "\n".join(f"  - {{{b}, material: elastic}}" for b in bodies)
+    return make_world(ELASTIC.format(g=g, dt=DT, duration=duration, bodies=listed))
+
+
+def modified_energy(world: World) -> float:
+    """The integrator's invariant in free flight (J): kinetic and potential energy plus
+    (h/2) Σ m g·v, which symplectic Euler with substep h keeps exactly under gravity."""
+    m, s = world.model, world.state
+    d = m.body_type == BODY_DYNAMIC
+    h = world.config.dt / world.config.substeps
+    mass, v = m.body_mass[d], s.body_v[d]
+    energy = (
+        0.5 * (mass * (v**2).sum(axis=1)).sum() + 0.5 * (m.body_inertia[d] * s.body_w[d] ** 2).sum()
+    )
+    return float(
+        energy - (mass * (s.body_x[d] @ m.gravity)).sum() + 0.5 * h * (mass * (v @ m.gravity)).sum()
+    )
+
+
+def test_ball_struck_by_two_balls_within_one_substep_keeps_kinetic_energy():
+    # the two strikers reach the middle ball 1 ms apart (a substep is 4.2 ms): the
+    # solve sees one impact of three bodies, which with targets from each point's own
+    # approach lost 2.7% of the kinetic energy
+    world = elastic_world(
+        [
+            "name: middle, position: [0, 0], shape: {circle: {radius: 0.5}}",
+            "name: left, position: [-1.6, 0.3], velocity: [3, 0], shape: {circle: {radius: 0.5}}",
+            "name: top, position: [0.2, 1.9592], velocity: [0, -5], shape: {circle: {radius: 0.4}}",
+        ]
+    )
+    tr = record(world, 60)
+    m = world.model.body_mass
+    kinetic = 0.5 * np.einsum("n,tnk->t", m, tr["v"] ** 2)
+    momentum = np.einsum("n,tnk->tk", m, tr["v"])
+    assert np.hypot(*tr["v"][-1, 0]) > 1.0  # the middle ball was struck
+    # exact up to rounding: each pair's bounce keeps its energy
+    np.testing.assert_allclose(kinetic, kinetic[0], rtol=1e-12)
+    np.testing.assert_allclose(momentum, momentum[:1].repeat(61, axis=0), atol=1e-12)
+
+
+@pytest.mark.parametrize("drop", [3.16, 3.19, 3.22])
+def test_ball_struck_down_onto_the_floor_keeps_its_energy(drop):
+    # a falling ball is hit from above by a fast one while it lands (the strikers'
+    # heights are where the two impacts fall within one substep): it must bounce off
+    # the floor, not be stopped dead by the shock pass or lose energy to the shared
+    # impact (this lost 11-53%)
+    world = elastic_world(
+        [
+            "name: ground, type: static, shape: {segment: {a: [-10, 0], b: [10, 0]}}",
+            "name: low, position: [0, 0.6], shape: {circle: {radius: 0.25}}",
+            f"name: high, position: [0.1, {drop}], velocity: [0, -8], "
+            "shape: {circle: {radius: 0.25}}",
+        ],
+        g=-G,
+    )
+    e0 = modified_energy(world)
+    balls = np.flatnonzero(world.model.body_type == BODY_DYNAMIC)
+    rising = np.zeros(2)
+    for _ in range(60):
+        world.advance(1)
+        rising = np.maximum(rising, world.state.body_v[balls, 1])
+        # symplectic Euler keeps the invariant in flight; e = 1 bounces keep it too
+        assert modified_energy(world) == pytest.approx(e0, rel=1e-12)
+    assert rising.min() > 1.0  # both bounced: the two really met
+
+
+def test_row_of_touching_balls_passes_the_whole_velocity_to_the_last():
+    # Newton's cradle: four touching balls struck at one end. The restitution stage
+    # resolves the row one pair at a time, so the velocity passes through to the last
+    # ball (treated as one impact of five bodies it went 0.36 m/s to the last ball)
+    row = [f"name: b{i}, position: [{i}, 0], shape: {{circle: {{radius: 0.5}}}}" for i in range(4)]
+    world = elastic_world(
+        ["name: striker, position: [-1.5, 0], velocity: [1, 0], shape: {circle: {radius: 0.5}}"]
+        + row,
+        duration=2.0,
+    )
+    world.advance(world.scene.world.steps)
+    speeds = np.hypot(*world.state.body_v.T)
+    np.testing.assert_allclose(speeds, [0, 0, 0, 0, 1], atol=1e-9)  # rounding
 
 
 # ---------------------------------------------------------------------------------------

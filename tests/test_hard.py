@@ -273,11 +273,6 @@ def test_fast_spin_keeps_a_unit_rotation_and_its_energy_for_a_million_steps():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    reason="total energy falls to 4% of its start (drift 0.959): the e = 1 circles come "
-    "to rest on the floor within 5 minutes (0.61 even without gravity)",
-)
 def test_long_run_energy_drift_below_one_percent_with_symplectic_euler():
     must("long_run", "drift", "<", 0.01)  # issue 6: 1% over 10⁵ steps
 
