@@ -334,15 +334,17 @@ def bounce_target(invariant, s_now, acc, e, h, sign):
 
 
 @njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
-def push_targets(bodies, rows, m, a, b, need0, t0, need1, t1):
+def push_targets(bodies, rows, m, a, b, need0, t0, need1, t1, single):
     """Raise the normal velocity of manifold m's points to their targets t0, t1 (m/s)
     where need0, need1, by impulses added to normal_impulse (kept >= 0). bodies is
     (v, w, inverse mass, inverse inertia), rows (anchor_a, anchor_b, normal,
     normal_mass, normal_impulse), all arrays (world.py's rule for per-manifold
     helpers). Both points at once are one 2x2 block (a box landing flat gets
-    mirror-image impulses; one after the other would tip it); one point at a time when
-    the block would pull. Returns the
-    impulses (N·s) applied at the two points."""
+    mirror-image impulses; one after the other would tip it). When the block would
+    pull, one point at a time; with `single`, only the point furthest below its
+    target (the caller comes back for the other with a target from its velocity
+    then: the first point's impulse changes it). Returns the impulses (N·s) applied
+    at the two points."""
     v, w, im, ii = bodies
     anchor_a, anchor_b, normal, normal_mass, normal_impulse = rows
     nx, ny = normal[m, 0], normal[m, 1]
@@ -374,6 +376,19 @@ def push_targets(bodies, rows, m, a, b, need0, t0, need1, t1):
                 w[b] -= ii[b] * (j0 * cb0 + j1 * cb1)
                 return j0, j1
     j0 = j1 = 0.0
+    if single and need0 and need1:
+        d0 = t0 - normal_velocity(
+            v, w, a, b, anchor_a[m, 0, 0], anchor_a[m, 0, 1], anchor_b[m, 0, 0],
+            anchor_b[m, 0, 1], nx, ny,
+        )  # fmt: skip
+        d1 = t1 - normal_velocity(
+            v, w, a, b, anchor_a[m, 1, 0], anchor_a[m, 1, 1], anchor_b[m, 1, 0],
+            anchor_b[m, 1, 1], nx, ny,
+        )  # fmt: skip
+        if d0 >= d1:
+            need1 = False
+        else:
+            need0 = False
     for k in range(2):
         if not (need0 if k == 0 else need1):
             continue
@@ -586,7 +601,7 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
                 bounce1, t1 = True, target
         if not (bounce0 or bounce1):
             continue
-        j0, j1 = push_targets(bodies, rows, m, a, b, bounce0, t0, bounce1, t1)
+        j0, j1 = push_targets(bodies, rows, m, a, b, bounce0, t0, bounce1, t1, False)
         for k in range(c_points[m]):
             jk = j0 if k == 0 else j1
             c_max_normal_impulse[m, k] = max(c_max_normal_impulse[m, k], jk)
@@ -614,7 +629,6 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
                     continue
                 first = c_approach_velocity[m, k] < -threshold
                 if first or vn < -threshold:
-                    c_approach_velocity[m, k] = math.inf  # bounced (see the end)
                     acc = _relative_acceleration(
                         m_body_type, m_body_force, im, gx, gy, a, b, nx, ny
                     )
@@ -635,7 +649,15 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
                     need1, t1 = True, target
             if not (need0 or need1):
                 continue
-            j0, j1 = push_targets(bodies, rows, m, a, b, need0, t0, need1, t1)
+            # each impulse is a bounce against the velocity it meets (a block's two
+            # targets are both taken from the velocities before it): e = 1 keeps the
+            # energy exactly, and a point left for later is taken up in the next pass
+            j0, j1 = push_targets(bodies, rows, m, a, b, need0, t0, need1, t1, True)
+            for k in range(c_points[m]):
+                jk = j0 if k == 0 else j1
+                bounced = (need0 if k == 0 else need1) and jk != 0.0
+                if bounced and (t0 if k == 0 else t1) > 0.0:
+                    c_approach_velocity[m, k] = math.inf  # bounced (see below)
             if j0 > 0.0 or j1 > 0.0:
                 struck = True
         if not struck:
@@ -649,6 +671,10 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
                     # a bounce is not warm-started; a point that only stopped an
                     # approach keeps its impulse, as the solve's points do
                     c_normal_impulse[m, k] = min(total, c_start_impulse[m, k])
+                elif c_approach_velocity[m, k] < -threshold:
+                    # its impact was met by the others' bounces before it struck: it
+                    # is over (a later approach engages afresh in the solve)
+                    c_approach_velocity[m, k] = math.inf
 
 
 @njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
