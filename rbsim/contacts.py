@@ -61,7 +61,9 @@ class Contacts(NamedTuple):
     body_level (N,), shock_side, shock_order (M,): the shock pass (shock.py);
     solve_order (M,): the order of the solver's passes over the manifolds;
     adj_start (N+1,), adj (2M,), queue (N+2,): its scratch. bounce_kind (M,),
-    body_mark (N,): the restitution stage's scratch (solver.apply_restitution).
+    body_mark (N,): the restitution stage's scratch (solver.apply_restitution);
+    solve_impulse (M,2) N·s: each point's impulse when the positions moved this substep
+    (kept only in scenes with elastic materials, for the restitution stage).
     """
 
     count: np.ndarray
@@ -121,6 +123,7 @@ class Contacts(NamedTuple):
     queue: np.ndarray
     bounce_kind: np.ndarray
     body_mark: np.ndarray
+    solve_impulse: np.ndarray
 
 
 def make_contacts(n_bodies: int, n_shapes: int, n_vertices: int, capacity: int) -> Contacts:
@@ -184,6 +187,7 @@ def make_contacts(n_bodies: int, n_shapes: int, n_vertices: int, capacity: int) 
         queue=np.zeros(max(n_bodies, 1) + 2, np.int64),
         bounce_kind=np.zeros(m, np.int8),
         body_mark=np.zeros(max(n_bodies, 1), np.int8),
+        solve_impulse=np.zeros((m, 2)),
     )
 
 

@@ -334,7 +334,7 @@ def bounce_target(invariant, s_now, acc, e, h, sign):
 
 
 @njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
-def push_targets(bodies, rows, m, a, b, need0, t0, need1, t1, single):
+def push_targets(bodies, rows, m, a, b, need0, t0, need1, t1, single, owed):
     """Raise the normal velocity of manifold m's points to their targets t0, t1 (m/s)
     where need0, need1, by impulses added to normal_impulse (kept >= 0). bodies is
     (v, w, inverse mass, inverse inertia), rows (anchor_a, anchor_b, normal,
@@ -344,7 +344,13 @@ def push_targets(bodies, rows, m, a, b, need0, t0, need1, t1, single):
     pull, one point at a time; with `single`, only the point furthest below its
     target (the caller comes back for the other with a target from its velocity
     then: the first point's impulse changes it). Returns the impulses (N·s) applied
-    at the two points."""
+    at the two points.
+
+    owed = (work, e², h·sign·acc, u0, u1): energy (J) that the impact must return
+    besides the bounce, for the restitution stage (see apply_restitution; zeros
+    elsewhere). The block then raises both targets by the same c for which its
+    impulses do e² times that work; a single point takes u0 or u1, its own target
+    with its own share of the work."""
     v, w, im, ii = bodies
     anchor_a, anchor_b, normal, normal_mass, normal_impulse = rows
     nx, ny = normal[m, 0], normal[m, 1]
@@ -360,10 +366,22 @@ def push_targets(bodies, rows, m, a, b, need0, t0, need1, t1, single):
         k12 = im[a] + im[b] + ii[a] * ca0 * ca1 + ii[b] * cb0 * cb1
         det = k11 * k22 - k12 * k12
         if det > 1.0e-9 * k11 * k22:
-            d0 = t0 - normal_velocity(v, w, a, b, r0ax, r0ay, r0bx, r0by, nx, ny)
-            d1 = t1 - normal_velocity(v, w, a, b, r1ax, r1ay, r1bx, r1by, nx, ny)
+            vn0 = normal_velocity(v, w, a, b, r0ax, r0ay, r0bx, r0by, nx, ny)
+            vn1 = normal_velocity(v, w, a, b, r1ax, r1ay, r1bx, r1by, nx, ny)
+            d0, d1 = t0 - vn0, t1 - vn1
             j0 = (k22 * d0 - k12 * d1) / det
             j1 = (k11 * d1 - k12 * d0) / det
+            work, e2, hsa = owed[0], owed[1], owed[2]
+            if work != 0.0:
+                # impulses j + c q (q = K⁻¹ 1) do ΔE(c) = ΔE(0) + L c + B c² / 2
+                q0, q1 = (k22 - k12) / det, (k11 - k12) / det
+                big_b = q0 + q1
+                big_l = 0.5 * (q0 * (vn0 + t0) + q1 * (vn1 + t1) + j0 + j1 + hsa * big_b)
+                disc = big_l * big_l + 2.0 * big_b * e2 * work
+                if big_l > 0.0 and disc >= 0.0:
+                    c = 2.0 * e2 * work / (big_l + math.sqrt(disc))
+                    j0 += c * q0
+                    j1 += c * q1
             if normal_impulse[m, 0] + j0 >= 0.0 and normal_impulse[m, 1] + j1 >= 0.0:
                 normal_impulse[m, 0] += j0
                 normal_impulse[m, 1] += j1
@@ -376,6 +394,7 @@ def push_targets(bodies, rows, m, a, b, need0, t0, need1, t1, single):
                 w[b] -= ii[b] * (j0 * cb0 + j1 * cb1)
                 return j0, j1
     j0 = j1 = 0.0
+    t0, t1 = owed[3], owed[4]
     if single and need0 and need1:
         d0 = t0 - normal_velocity(
             v, w, a, b, anchor_a[m, 0, 0], anchor_a[m, 0, 1], anchor_b[m, 0, 0],
@@ -411,6 +430,17 @@ def push_targets(bodies, rows, m, a, b, need0, t0, need1, t1, single):
         else:
             j1 = impulse
     return j0, j1
+
+
+@njit(cache=True, _nrt=False)
+def keep_solve_impulses(contacts):
+    """Copy each point's accumulated normal impulse (N·s) to solve_impulse: the push
+    that the positions move with this substep (see apply_restitution)."""
+    c_normal_impulse = contacts.normal_impulse
+    c_solve_impulse = contacts.solve_impulse
+    for m in range(contacts.count[0]):
+        c_solve_impulse[m, 0] = c_normal_impulse[m, 0]
+        c_solve_impulse[m, 1] = c_normal_impulse[m, 1]
 
 
 @njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
@@ -463,6 +493,8 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
     c_points = contacts.points
     c_restitution = contacts.restitution
     c_order = contacts.solve_order
+    c_solve_impulse = contacts.solve_impulse
+    c_normal_k = contacts.normal_k
     kind = contacts.bounce_kind
     mark = contacts.body_mark
     m_body_force = model.body_force
@@ -601,7 +633,8 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
                 bounce1, t1 = True, target
         if not (bounce0 or bounce1):
             continue
-        j0, j1 = push_targets(bodies, rows, m, a, b, bounce0, t0, bounce1, t1, False)
+        owed = (0.0, 0.0, 0.0, t0, t1)
+        j0, j1 = push_targets(bodies, rows, m, a, b, bounce0, t0, bounce1, t1, False, owed)
         for k in range(c_points[m]):
             jk = j0 if k == 0 else j1
             c_max_normal_impulse[m, k] = max(c_max_normal_impulse[m, k], jk)
@@ -619,7 +652,8 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
             a, b = c_body_a[m], c_body_b[m]
             e = c_restitution[m]
             nx, ny = c_normal[m, 0], c_normal[m, 1]
-            t0 = t1 = 0.0
+            acc = _relative_acceleration(m_body_type, m_body_force, im, gx, gy, a, b, nx, ny)
+            t0 = t1 = u0 = u1 = total_work = 0.0
             need0 = need1 = False
             for k in range(c_points[m]):
                 rax, ray = c_anchor_a[m, k, 0], c_anchor_a[m, k, 1]
@@ -629,34 +663,41 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
                     continue
                 first = c_approach_velocity[m, k] < -threshold
                 if first or vn < -threshold:
-                    acc = _relative_acceleration(
-                        m_body_type, m_body_force, im, gx, gy, a, b, nx, ny
-                    )
                     s_now = point_separation(
                         c_anchor_a, c_anchor_b, c_base_separation, delta, m, k, a, b, nx, ny
                     )
-                    if first:  # its first impact: where it engaged, before this substep
-                        s0 = c_approach_separation[m, k]
-                        invariant = 0.5 * vn * vn - 0.5 * acc * h * vn - acc * s0
-                    else:  # struck again within the substep: here and now
-                        invariant = 0.5 * vn * vn + 0.5 * sign * acc * h * vn - acc * s_now
+                    # the invariant here and now; at its first impact the point also
+                    # owes the work gravity did on the bodies' centres over the part
+                    # of the substep's motion that its own solve impulse caused
+                    # (symplectic Euler moves the positions after the solve; explicit
+                    # Euler before it, which owes nothing)
+                    invariant = 0.5 * vn * vn + 0.5 * sign * acc * h * vn - acc * s_now
                     target = bounce_target(invariant, s_now, acc, e, h, sign)
+                    work = 0.0
+                    if first and sign > 0.0:
+                        work = acc * h * c_solve_impulse[m, k]  # J
+                    alone = target
+                    if work != 0.0:  # per unit effective mass, for the point alone
+                        invariant += work * c_normal_k[m, k]
+                        alone = bounce_target(invariant, s_now, acc, e, h, sign)
                 else:
-                    target = 0.0
+                    target = alone = work = 0.0
+                total_work += work
                 if k == 0:
-                    need0, t0 = True, target
+                    need0, t0, u0 = True, target, alone
                 else:
-                    need1, t1 = True, target
+                    need1, t1, u1 = True, target, alone
             if not (need0 or need1):
                 continue
             # each impulse is a bounce against the velocity it meets (a block's two
             # targets are both taken from the velocities before it): e = 1 keeps the
             # energy exactly, and a point left for later is taken up in the next pass
-            j0, j1 = push_targets(bodies, rows, m, a, b, need0, t0, need1, t1, True)
+            owed = (total_work, e * e, sign * h * acc, u0, u1)
+            j0, j1 = push_targets(bodies, rows, m, a, b, need0, t0, need1, t1, True, owed)
             for k in range(c_points[m]):
                 jk = j0 if k == 0 else j1
                 bounced = (need0 if k == 0 else need1) and jk != 0.0
-                if bounced and (t0 if k == 0 else t1) > 0.0:
+                if bounced and (u0 if k == 0 else u1) > 0.0:
                     c_approach_velocity[m, k] = math.inf  # bounced (see below)
             if j0 > 0.0 or j1 > 0.0:
                 struck = True

@@ -61,6 +61,7 @@ from .scene import Scene
 from .shock import propagate_shock, support_order
 from .solver import (
     apply_restitution,
+    keep_solve_impulses,
     limit_static_overlap,
     prepare_contacts,
     soft_parameters,
@@ -77,7 +78,8 @@ NON_FINITE = 2
 class Config(NamedTuple):
     """Per-run numbers for the kernels: dt (s), substeps, iterations per substep,
     explicit (explicit Euler), exact (exact rotation), restitution_threshold (m/s),
-    friction_rule and restitution_rule (contacts.MIX_*), soft and soft_static
+    friction_rule and restitution_rule (contacts.MIX_*), elastic (some material has
+    restitution > 0), soft and soft_static
     (mass scale, impulse scale, bias rate 1/s) for the substep length."""
 
     dt: float
@@ -88,6 +90,7 @@ class Config(NamedTuple):
     restitution_threshold: float
     friction_rule: int
     restitution_rule: int
+    elastic: bool
     soft: tuple[float, float, float]
     soft_static: tuple[float, float, float]
 
@@ -106,6 +109,7 @@ def make_config(scene: Scene) -> Config:
         restitution_threshold=float(sol.restitution_threshold),
         friction_rule=MIXING[scene.world.friction_mixing],
         restitution_rule=MIXING[scene.world.restitution_mixing],
+        elastic=any(sh.material.restitution > 0.0 for b in scene.bodies for sh in b.shapes),
         soft=soft_parameters(hertz, C.CONTACT_DAMPING_RATIO, h),
         soft_static=soft_parameters(2.0 * hertz, C.CONTACT_DAMPING_RATIO, h),
     )
@@ -167,6 +171,8 @@ def step(model, state, grid, contacts, cfg):
             for _ in range(cfg.iterations):
                 solve_contacts(model, state, contacts, inv_h, True, 0.0, threshold)
         if not cfg.explicit:
+            if contacts_on and cfg.elastic:
+                keep_solve_impulses(contacts)
             integrate_positions(model, state, delta, h, cfg.exact)
         if contacts_on:
             # relax; while a deep overlap is being pushed out it gets more passes, so
