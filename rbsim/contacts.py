@@ -26,6 +26,7 @@ MIX_SQRT, MIX_MULTIPLY, MIX_MIN, MIX_MAX = 0, 1, 2, 3
 # speculative pairs only). The gap shrinks by a large factor per advancement.
 TOI_TOLERANCE = 1.0e-9
 TOI_ITERATIONS = 12
+TOI_FINISH = 1.0e-6  # m: within this, an impact just after the step is taken at its end
 MIXING = {"sqrt": MIX_SQRT, "multiply": MIX_MULTIPLY, "min": MIX_MIN, "max": MIX_MAX}
 
 
@@ -327,8 +328,16 @@ def _time_of_impact(g, kinds, radii, a, b, npts, dt, spec, x, q, v, w, tv, tn, o
         if vn >= 0.0:
             break
         step = sep / -vn
-        if t + step > dt:
-            break
+        last = t + step >= dt
+        if last:
+            # the impact falls after the step. Right after it (the search came within
+            # TOI_FINISH), the manifold is taken at the step's end, which has the
+            # impact's normal (stopping short left one on a frame 5e-8 rad off);
+            # further, it stays where it is (a turning body's arc is not in the
+            # estimate, and it may meet the other before the step's end)
+            step = dt - t
+            if step <= 0.0 or sep > TOI_FINISH:
+                break
         t += step
         na, nb = shape_vcount[a], shape_vcount[b]
         _place(g, a, t, 0, x, q, v, w, tv, tn)
@@ -339,6 +348,8 @@ def _time_of_impact(g, kinds, radii, a, b, npts, dt, spec, x, q, v, w, tv, tn, o
         )  # fmt: skip
         if npts == 0:  # passed by after all
             return 0, t
+        if last:
+            break
     return npts, t
 
 
