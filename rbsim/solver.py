@@ -494,7 +494,6 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
     c_restitution = contacts.restitution
     c_order = contacts.solve_order
     c_solve_impulse = contacts.solve_impulse
-    c_normal_k = contacts.normal_k
     kind = contacts.bounce_kind
     mark = contacts.body_mark
     m_body_force = model.body_force
@@ -678,7 +677,7 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
                         work = acc * h * c_solve_impulse[m, k]  # J
                     alone = target
                     if work != 0.0:  # per unit effective mass, for the point alone
-                        invariant += work * c_normal_k[m, k]
+                        invariant += work / c_normal_mass[m, k]
                         alone = bounce_target(invariant, s_now, acc, e, h, sign)
                 else:
                     target = alone = work = 0.0
