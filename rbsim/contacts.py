@@ -18,6 +18,7 @@ from numba import njit
 
 from . import constants as C
 from .narrowphase import collide
+from .solver import ROW_SIZE
 
 MIX_SQRT, MIX_MULTIPLY, MIX_MIN, MIX_MAX = 0, 1, 2, 3
 
@@ -37,17 +38,15 @@ class Contacts(NamedTuple):
     a point overlaps by more than DEEP_OVERLAP].
     pairs (M,2) int32: broadphase output. shape_a, shape_b, body_a, body_b (M,) int32;
     key (M,) int64 = shape_a · S + shape_b; normal (M,2); points (M,) int32;
-    friction, restitution (M,) mixed coefficients; softness (M,3) mass scale, impulse
-    scale, bias rate (1/s) for this manifold's soft constraint;
+    friction, restitution (M,) mixed coefficients;
     anchor_a, anchor_b (M,2,2) m, from each COM at the start of the step;
     base_separation (M,2) m, the separation minus the anchors' contribution;
     feature (M,2) int64; normal_impulse, tangent_impulse (M,2) N·s (per substep);
     start_impulse (M,2) N·s: the normal impulse carried over into this step;
     ref_separation (M,2) m: the separation with both bodies at their reference poses;
-    normal_mass, tangent_mass (M,2) kg;
-    normal_k (M,3) 1/kg: K00, K11, K01 of the normal rows (the 2x2 block);
-    arms (M,2,4) m: r_a × n, r_b × n, r_a × t,
-    r_b × t of each point, the lever arms of its normal and friction impulses;
+    normal_mass (M,2) kg; solver_row (M, solver.ROW_SIZE): what the solver's passes
+    read of each manifold (normal, softness, friction, and per point lever arms,
+    normal K, tangent mass, anchors, base separation), written by prepare_contacts;
     approach_velocity (M,2) m/s and approach_separation (M,2) m where the point
     engaged (for restitution);
     max_normal_impulse (M,2) N·s; prev_* the same from last step for matching and
@@ -74,7 +73,6 @@ class Contacts(NamedTuple):
     points: np.ndarray
     friction: np.ndarray
     restitution: np.ndarray
-    softness: np.ndarray
     anchor_a: np.ndarray
     anchor_b: np.ndarray
     base_separation: np.ndarray
@@ -84,9 +82,7 @@ class Contacts(NamedTuple):
     start_impulse: np.ndarray
     tangent_impulse: np.ndarray
     normal_mass: np.ndarray
-    normal_k: np.ndarray
-    tangent_mass: np.ndarray
-    arms: np.ndarray
+    solver_row: np.ndarray
     approach_velocity: np.ndarray
     approach_separation: np.ndarray
     max_normal_impulse: np.ndarray
@@ -135,7 +131,6 @@ def make_contacts(n_bodies: int, n_shapes: int, n_vertices: int, capacity: int) 
         points=np.zeros(m, np.int32),
         friction=np.zeros(m),
         restitution=np.zeros(m),
-        softness=np.zeros((m, 3)),
         anchor_a=np.zeros((m, 2, 2)),
         anchor_b=np.zeros((m, 2, 2)),
         base_separation=np.zeros((m, 2)),
@@ -145,9 +140,7 @@ def make_contacts(n_bodies: int, n_shapes: int, n_vertices: int, capacity: int) 
         start_impulse=np.zeros((m, 2)),
         tangent_impulse=np.zeros((m, 2)),
         normal_mass=np.zeros((m, 2)),
-        normal_k=np.zeros((m, 3)),
-        tangent_mass=np.zeros((m, 2)),
-        arms=np.zeros((m, 2, 4)),
+        solver_row=np.zeros((m, ROW_SIZE)),
         approach_velocity=np.zeros((m, 2)),
         approach_separation=np.zeros((m, 2)),
         max_normal_impulse=np.zeros((m, 2)),

@@ -27,6 +27,8 @@ import math
 
 from numba import njit
 
+from .solver import POINT_SIZE, PT_RNA, PT_RNB, ROW_POINT
+
 # A contact counts as support when its normal is within this cosine of the vertical
 # (about 45 degrees). Steeper faces (a box leaning on a wall) are solved normally.
 SHOCK_COS = 0.7071
@@ -175,7 +177,7 @@ def propagate_shock(model, state, contacts, n_order, inv_h):
     c_body_b = contacts.body_b
     c_normal = contacts.normal
     c_points = contacts.points
-    arms = contacts.arms
+    row = contacts.solver_row
     side = contacts.shock_side
     order = contacts.shock_order
     delta = contacts.body_delta
@@ -189,11 +191,12 @@ def propagate_shock(model, state, contacts, n_order, inv_h):
         # most supported points are not approaching: skip them before any other work
         dvx, dvy = v[a, 0] - v[b, 0], v[a, 1] - v[b, 1]
         # (the two points in scalars: a kernel allocates nothing, not even scratch)
-        vel0 = dvx * nx + dvy * ny + w[a] * arms[m, 0, 0] - w[b] * arms[m, 0, 1]
+        p0, p1 = ROW_POINT, ROW_POINT + POINT_SIZE
+        vel0 = dvx * nx + dvy * ny + w[a] * row[m, p0 + PT_RNA] - w[b] * row[m, p0 + PT_RNB]
         vel1 = 0.0
         approaching = vel0 < -SHOCK_MIN_APPROACH
         if npts == 2:
-            vel1 = dvx * nx + dvy * ny + w[a] * arms[m, 1, 0] - w[b] * arms[m, 1, 1]
+            vel1 = dvx * nx + dvy * ny + w[a] * row[m, p1 + PT_RNA] - w[b] * row[m, p1 + PT_RNB]
             approaching = approaching or vel1 < -SHOCK_MIN_APPROACH
         if not approaching:
             continue
@@ -203,7 +206,7 @@ def propagate_shock(model, state, contacts, n_order, inv_h):
         nax, nay = ca * nx + sa * ny, ca * ny - sa * nx
         nbx, nby = cb * nx + sb * ny, cb * ny - sb * nx
         # the supported body moves; the sign turns its push along +n (a) or -n (b)
-        u, sgn, k_arm = (a, 1.0, 0) if side[m] == 2 else (b, -1.0, 1)
+        u, sgn, arm = (a, 1.0, PT_RNA) if side[m] == 2 else (b, -1.0, PT_RNB)
         mu, iu = im[u], ii[u]
         need0 = need1 = r0 = r1 = 0.0
         for k in range(npts):
@@ -213,10 +216,10 @@ def propagate_shock(model, state, contacts, n_order, inv_h):
             # how far the point is from allowed: a gap may close within the substep
             if k == 0:
                 need0 = (-sep * inv_h if sep > 0.0 else 0.0) - vel0
-                r0 = arms[m, k, k_arm]
+                r0 = row[m, p0 + arm]
             else:
                 need1 = (-sep * inv_h if sep > 0.0 else 0.0) - vel1
-                r1 = arms[m, k, k_arm]
+                r1 = row[m, p1 + arm]
         # impulses along the supported body's push direction, λ >= 0, that bring every
         # point to at least its target: the two-point case is a 2x2 complementarity
         # problem, solved by trying both points, then each alone
