@@ -407,6 +407,20 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
         # motion of the two bodies since their reference poses
         ddx = (s_body_x[ba, 0] - ref[ba, 0]) - (s_body_x[bb, 0] - ref[bb, 0])
         ddy = (s_body_x[ba, 1] - ref[ba, 1]) - (s_body_x[bb, 1] - ref[bb, 1])
+        if matched and still[ba] and still[bb] and j == m and c_key[m] == key:
+            # neither body has moved, and last step's manifold is still in this slot
+            # (store_impulses copied it to prev_*, so the two agree): only its
+            # separation and this step's impulse records change
+            nx, ny = c_normal[m, 0], c_normal[m, 1]
+            for k in range(c_points[m]):
+                rax, ray = c_anchor_a[m, k, 0], c_anchor_a[m, k, 1]
+                rbx, rby = c_anchor_b[m, k, 0], c_anchor_b[m, k, 1]
+                sep = c_ref_separation[m, k] + nx * ddx + ny * ddy
+                c_base_separation[m, k] = sep - (nx * (rax - rbx) + ny * (ray - rby))
+                c_start_impulse[m, k] = c_normal_impulse[m, k]
+                c_max_normal_impulse[m, k] = 0.0
+            m += 1
+            continue
         if matched and still[ba] and still[bb]:
             # neither body has moved: carry last step's manifold forward
             nx, ny = c_prev_normal[j, 0], c_prev_normal[j, 1]
