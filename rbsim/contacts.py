@@ -33,9 +33,12 @@ MIXING = {"sqrt": MIX_SQRT, "multiply": MIX_MULTIPLY, "min": MIX_MIN, "max": MIX
 class Contacts(NamedTuple):
     """Preallocated contact storage with capacity M manifolds (2 points each).
 
-    count (7,) int64: [manifolds now, manifolds last step, pairs found, points touching,
+    count (8,) int64: [manifolds now, manifolds last step, pairs found, points touching,
     manifolds in the shock pass, a point engaged faster than the restitution threshold,
-    a point overlaps by more than DEEP_OVERLAP].
+    a point overlaps by more than DEEP_OVERLAP, 1 when the manifolds are last step's
+    pairs in the same slots (the contact graph is unchanged)].
+    carried (M,) bool: the manifold is last step's, unchanged in its slot except for
+    its separation (update_manifolds); later stages skip what cannot have changed.
     pairs (M,2) int32: broadphase output. shape_a, shape_b, body_a, body_b (M,) int32;
     key (M,) int64 = shape_a · S + shape_b; normal (M,2); points (M,) int32;
     friction, restitution (M,) mixed coefficients;
@@ -63,6 +66,7 @@ class Contacts(NamedTuple):
     """
 
     count: np.ndarray
+    carried: np.ndarray
     pairs: np.ndarray
     shape_a: np.ndarray
     shape_b: np.ndarray
@@ -120,7 +124,8 @@ def make_contacts(n_bodies: int, n_shapes: int, n_vertices: int, capacity: int) 
     """Allocate contact storage for `capacity` manifolds."""
     m = max(capacity, 1)
     return Contacts(
-        count=np.zeros(7, np.int64),
+        count=np.zeros(8, np.int64),
+        carried=np.zeros(m, np.bool_),
         pairs=np.zeros((m, 2), np.int32),
         shape_a=np.zeros(m, np.int32),
         shape_b=np.zeros(m, np.int32),
@@ -387,9 +392,11 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
     out_n, out_p = contacts.scratch_normal, contacts.scratch_point
     out_s, out_f = contacts.scratch_separation, contacts.scratch_feature
     out = (out_n, out_p, out_s, out_f)
+    c_carried = contacts.carried
     n_prev = c_count[1]
     j = 0  # merge pointer into last step's manifolds (both sorted by key)
     m = 0
+    same = True  # every manifold so far is last step's pair in the same slot
     for p in range(n_pairs):
         a, b = c_pairs[p, 0], c_pairs[p, 1]
         if (
@@ -404,10 +411,11 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
         while j < n_prev and c_prev_key[j] < key:
             j += 1
         matched = j < n_prev and c_prev_key[j] == key
+        in_slot = matched and j == m and c_key[m] == key
         # motion of the two bodies since their reference poses
         ddx = (s_body_x[ba, 0] - ref[ba, 0]) - (s_body_x[bb, 0] - ref[bb, 0])
         ddy = (s_body_x[ba, 1] - ref[ba, 1]) - (s_body_x[bb, 1] - ref[bb, 1])
-        if matched and still[ba] and still[bb] and j == m and c_key[m] == key:
+        if in_slot and still[ba] and still[bb]:
             # neither body has moved, and last step's manifold is still in this slot
             # (store_impulses copied it to prev_*, so the two agree): only its
             # separation and this step's impulse records change
@@ -419,6 +427,7 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
                 c_base_separation[m, k] = sep - (nx * (rax - rbx) + ny * (ray - rby))
                 c_start_impulse[m, k] = c_normal_impulse[m, k]
                 c_max_normal_impulse[m, k] = 0.0
+            c_carried[m] = True
             m += 1
             continue
         if matched and still[ba] and still[bb]:
@@ -505,6 +514,8 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
                 c_start_impulse[m, k] = jn
                 c_tangent_impulse[m, k] = jt
                 c_max_normal_impulse[m, k] = 0.0
+        same = same and in_slot
+        c_carried[m] = False
         c_shape_a[m], c_shape_b[m] = a, b
         c_body_a[m], c_body_b[m] = ba, bb
         c_key[m] = key
@@ -514,6 +525,7 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
         c_restitution[m] = mix(m_shape_restitution[a], m_shape_restitution[b], restitution_rule)
         m += 1
     c_count[0] = m
+    c_count[7] = 1 if same and m == n_prev else 0
     return m
 
 
@@ -536,9 +548,17 @@ def store_impulses(contacts):
     anchor_a, prev_anchor_a = contacts.anchor_a, contacts.prev_anchor_a
     anchor_b, prev_anchor_b = contacts.anchor_b, contacts.prev_anchor_b
     ref_sep, prev_ref_sep = contacts.ref_separation, contacts.prev_ref_separation
+    c_carried = contacts.carried
     m = c_count[0]
     touching = 0
     for i in range(m):
+        if c_carried[i]:  # the slot's prev_* already hold all but the impulses
+            for k in range(c_points[i]):
+                c_prev_normal_impulse[i, k] = c_normal_impulse[i, k]
+                c_prev_tangent_impulse[i, k] = c_tangent_impulse[i, k]
+                if c_max_normal_impulse[i, k] > 0.0:
+                    touching += 1
+            continue
         c_prev_key[i] = c_key[i]
         c_prev_points[i] = c_points[i]
         prev_normal[i, 0], prev_normal[i, 1] = normal[i, 0], normal[i, 1]

@@ -41,40 +41,21 @@ SHOCK_MIN_APPROACH = 1.0e-4
 UNREACHED = 1 << 30
 
 
-@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
-def support_order(model, contacts):
-    """Support level of every body, and the orders of the solver's and the shock pass.
-
-    Writes contacts.solve_order (M,): every manifold, lowest supporter level first (the
-    order of the solver's passes; the manifolds' own order without gravity);
-    contacts.body_level (N,): 0 for static and kinematic bodies, 1 for bodies they
-    touch, ...; UNREACHED otherwise; contacts.shock_order: the manifolds with a
-    supporter, lowest supporter first; contacts.shock_side (M,): 1 when body a supports
-    body b, 2 when body b supports body a, 0 when neither. Returns the number of
-    manifolds in shock_order. Uses contacts.adj_start, adj and queue as scratch.
-    """
+@njit(cache=True, _nrt=False)
+def contact_levels(model, contacts):
+    """contacts.body_level (N,): 0 for static and kinematic bodies, 1 for the bodies
+    they touch, ..., UNREACHED for bodies not connected to one (breadth first over
+    the manifolds with points). Uses contacts.adj_start, adj and queue as scratch."""
     c_body_a = contacts.body_a
     c_body_b = contacts.body_b
-    c_normal = contacts.normal
     c_points = contacts.points
     level = contacts.body_level
     adj_start = contacts.adj_start
     adj = contacts.adj
     queue = contacts.queue
-    side = contacts.shock_side
-    order = contacts.shock_order
     body_type = model.body_type
     n_bodies = level.shape[0]
     n_man = contacts.count[0]
-    gx, gy = model.gravity[0], model.gravity[1]
-    g = math.sqrt(gx * gx + gy * gy)
-    solve_order = contacts.solve_order
-    for m in range(n_man):
-        side[m] = 0
-        solve_order[m] = m
-    if g == 0.0 or n_man == 0:
-        return 0
-    upx, upy = -gx / g, -gy / g
     # adjacency of the contact graph (compressed rows, manifolds with points only)
     for i in range(n_bodies + 1):
         adj_start[i] = 0
@@ -111,6 +92,47 @@ def support_order(model, contacts):
                 level[j] = level[i] + 1
                 queue[tail] = j
                 tail += 1
+
+
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
+def support_order(model, contacts):
+    """Support level of every body, and the orders of the solver's and the shock pass.
+
+    Writes contacts.solve_order (M,): every manifold, lowest supporter level first (the
+    order of the solver's passes; the manifolds' own order without gravity);
+    contacts.body_level (N,): 0 for static and kinematic bodies, 1 for bodies they
+    touch, ...; UNREACHED otherwise; contacts.shock_order: the manifolds with a
+    supporter, lowest supporter first; contacts.shock_side (M,): 1 when body a supports
+    body b, 2 when body b supports body a, 0 when neither. Returns the number of
+    manifolds in shock_order. When the manifolds are last step's (contacts.count[7]),
+    the levels and the solve order are kept and only the shock pass's side and order
+    are found again (a normal may have turned). Uses contacts.queue as scratch.
+    """
+    c_body_a = contacts.body_a
+    c_body_b = contacts.body_b
+    c_normal = contacts.normal
+    c_points = contacts.points
+    level = contacts.body_level
+    queue = contacts.queue
+    side = contacts.shock_side
+    order = contacts.shock_order
+    body_type = model.body_type
+    n_bodies = level.shape[0]
+    n_man = contacts.count[0]
+    gx, gy = model.gravity[0], model.gravity[1]
+    g = math.sqrt(gx * gx + gy * gy)
+    solve_order = contacts.solve_order
+    # the same manifolds as last step, in the same slots: its levels and solve order hold
+    same = contacts.count[7] == 1
+    for m in range(n_man):
+        side[m] = 0
+        if not same:
+            solve_order[m] = m
+    if g == 0.0 or n_man == 0:
+        return 0
+    upx, upy = -gx / g, -gy / g
+    if not same:
+        contact_levels(model, contacts)
     # which side supports, and a counting sort by the supporter's level
     max_level = 0
     for m in range(n_man):
@@ -128,21 +150,22 @@ def support_order(model, contacts):
     # bodies not connected to the ground last): the order of the solver's passes, in
     # which a pass carries a push or a correction up a stack within one sweep
     count = queue  # reuse as bucket counts (the levels are known now)
-    top = 0
-    for i in range(n_bodies):
-        if level[i] != UNREACHED and level[i] > top:
-            top = level[i]
-    for k in range(top + 3):
-        count[k] = 0
-    for m in range(n_man):
-        lv = min(min(level[c_body_a[m]], level[c_body_b[m]]), top + 1)
-        count[lv + 1] += 1
-    for k in range(top + 2):
-        count[k + 1] += count[k]
-    for m in range(n_man):
-        lv = min(min(level[c_body_a[m]], level[c_body_b[m]]), top + 1)
-        solve_order[count[lv]] = m
-        count[lv] += 1
+    if not same:
+        top = 0
+        for i in range(n_bodies):
+            if level[i] != UNREACHED and level[i] > top:
+                top = level[i]
+        for k in range(top + 3):
+            count[k] = 0
+        for m in range(n_man):
+            lv = min(min(level[c_body_a[m]], level[c_body_b[m]]), top + 1)
+            count[lv + 1] += 1
+        for k in range(top + 2):
+            count[k + 1] += count[k]
+        for m in range(n_man):
+            lv = min(min(level[c_body_a[m]], level[c_body_b[m]]), top + 1)
+            solve_order[count[lv]] = m
+            count[lv] += 1
     for k in range(max_level + 2):
         count[k] = 0
     for m in range(n_man):

@@ -61,6 +61,17 @@ PT_RAX, PT_RAY, PT_RBX, PT_RBY, PT_BASE = 6, 7, 8, 9, 10
 ROW_SIZE = 32  # 28 used, padded to four cache lines
 
 
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy", inline="always")
+def approach_point(v, w, a, b, rax, ray, rbx, rby, nx, ny, base, m, k, approach, approach_sep):
+    """Write point k of manifold m's approach velocity (m/s) and separation (m) at the
+    start of the step: bodies a, b with velocities v, w, anchors r_a, r_b (m), normal
+    n, base separations `base` (M,2). Takes arrays (world.py's rule for helpers)."""
+    dvx = v[a, 0] - w[a] * ray - v[b, 0] + w[b] * rby
+    dvy = v[a, 1] + w[a] * rax - v[b, 1] - w[b] * rbx
+    approach[m, k] = dvx * nx + dvy * ny
+    approach_sep[m, k] = base[m, k] + (nx * (rax - rbx) + ny * (ray - rby))
+
+
 @njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
 def prepare_contacts(model, state, contacts, soft, soft_static):
     """Effective masses, approach velocities and softness of every contact point,
@@ -82,6 +93,7 @@ def prepare_contacts(model, state, contacts, soft, soft_static):
     c_normal_mass = contacts.normal_mass
     c_points = contacts.points
     row = contacts.solver_row
+    c_carried = contacts.carried
     im, ii = model.body_inv_mass, model.body_inv_inertia
     v, w = state.body_v, state.body_w
     # γ/K of each soft constraint: mass scale K/(K+γ), impulse scale γ/(K+γ)
@@ -89,8 +101,18 @@ def prepare_contacts(model, state, contacts, soft, soft_static):
     gamma_static = soft_static[1] / soft_static[0] if soft_static[0] > 0.0 else 0.0
     for m in range(c_count[0]):
         a, b = c_body_a[m], c_body_b[m]
-        ma, mb, ia, ib = im[a], im[b], ii[a], ii[b]
         nx, ny = c_normal[m, 0], c_normal[m, 1]
+        if c_carried[m]:
+            # last step's manifold in the same slot: its row holds all but the separation
+            for k in range(c_points[m]):
+                p = ROW_POINT + k * POINT_SIZE
+                rax, ray = row[m, p + PT_RAX], row[m, p + PT_RAY]
+                rbx, rby = row[m, p + PT_RBX], row[m, p + PT_RBY]
+                row[m, p + PT_BASE] = c_base_separation[m, k]
+                approach_point(v, w, a, b, rax, ray, rbx, rby, nx, ny, c_base_separation, m, k,
+                               c_approach_velocity, c_approach_separation)  # fmt: skip
+            continue
+        ma, mb, ia, ib = im[a], im[b], ii[a], ii[b]
         tx, ty = ny, -nx
         row[m, ROW_NX], row[m, ROW_NY] = nx, ny
         if ma == 0.0 or mb == 0.0:
@@ -116,12 +138,8 @@ def prepare_contacts(model, state, contacts, soft, soft_static):
             row[m, p + PT_RAX], row[m, p + PT_RAY] = rax, ray
             row[m, p + PT_RBX], row[m, p + PT_RBY] = rbx, rby
             row[m, p + PT_BASE] = c_base_separation[m, k]
-            dvx = v[a, 0] - w[a] * ray - v[b, 0] + w[b] * rby
-            dvy = v[a, 1] + w[a] * rax - v[b, 1] - w[b] * rbx
-            c_approach_velocity[m, k] = dvx * nx + dvy * ny
-            c_approach_separation[m, k] = c_base_separation[m, k] + (
-                nx * (rax - rbx) + ny * (ray - rby)
-            )
+            approach_point(v, w, a, b, rax, ray, rbx, rby, nx, ny, c_base_separation, m, k,
+                           c_approach_velocity, c_approach_separation)  # fmt: skip
         if c_points[m] == 2:
             p0, p1 = ROW_POINT, ROW_POINT + POINT_SIZE
             k01 = ma + mb + ia * row[m, p0 + PT_RNA] * row[m, p1 + PT_RNA]
