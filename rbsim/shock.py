@@ -27,7 +27,19 @@ import math
 
 from numba import njit
 
-from .solver import POINT_SIZE, PT_RNA, PT_RNB, ROW_POINT
+from .solver import (
+    POINT_SIZE,
+    PT_BASE,
+    PT_RAX,
+    PT_RAY,
+    PT_RBX,
+    PT_RBY,
+    PT_RNA,
+    PT_RNB,
+    ROW_NX,
+    ROW_NY,
+    ROW_POINT,
+)
 
 # A contact counts as support when its normal is within this cosine of the vertical
 # (about 45 degrees). Steeper faces (a box leaning on a wall) are solved normally.
@@ -193,12 +205,8 @@ def propagate_shock(model, state, contacts, n_order, inv_h):
     """One pass over the supported contacts, lowest first, that removes each supported
     body's approach towards its supporter (the supporter taken as infinitely heavy).
     A point with a gap (m) may still close it within the substep (1/inv_h s)."""
-    c_anchor_a = contacts.anchor_a
-    c_anchor_b = contacts.anchor_b
-    c_base_separation = contacts.base_separation
     c_body_a = contacts.body_a
     c_body_b = contacts.body_b
-    c_normal = contacts.normal
     c_points = contacts.points
     row = contacts.solver_row
     side = contacts.shock_side
@@ -209,7 +217,7 @@ def propagate_shock(model, state, contacts, n_order, inv_h):
     for o in range(n_order):
         m = order[o]
         a, b = c_body_a[m], c_body_b[m]
-        nx, ny = c_normal[m, 0], c_normal[m, 1]
+        nx, ny = row[m, ROW_NX], row[m, ROW_NY]
         npts = c_points[m]
         # most supported points are not approaching: skip them before any other work
         dvx, dvy = v[a, 0] - v[b, 0], v[a, 1] - v[b, 1]
@@ -233,9 +241,10 @@ def propagate_shock(model, state, contacts, n_order, inv_h):
         mu, iu = im[u], ii[u]
         need0 = need1 = r0 = r1 = 0.0
         for k in range(npts):
-            sep = moved + c_base_separation[m, k]
-            sep += nax * c_anchor_a[m, k, 0] + nay * c_anchor_a[m, k, 1]
-            sep -= nbx * c_anchor_b[m, k, 0] + nby * c_anchor_b[m, k, 1]
+            p = ROW_POINT + k * POINT_SIZE
+            sep = moved + row[m, p + PT_BASE]
+            sep += nax * row[m, p + PT_RAX] + nay * row[m, p + PT_RAY]
+            sep -= nbx * row[m, p + PT_RBX] + nby * row[m, p + PT_RBY]
             # how far the point is from allowed: a gap may close within the substep
             if k == 0:
                 need0 = (-sep * inv_h if sep > 0.0 else 0.0) - vel0
