@@ -273,19 +273,33 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
                 d0 = (k11 * r0 - k01 * r1) * inv_det
                 d1 = (k00 * r1 - k01 * r0) * inv_det
                 block = lam0 + d0 >= 0.0 and lam1 + d1 >= 0.0
+        # the velocities change once, at the end, by the sum of the manifold's impulses.
+        # On the way, a point's velocity is its value at the start plus what the
+        # impulses so far did to it, through the coupling of their rows: a shorter
+        # chain of dependent arithmetic than updating the velocities after each impulse
+        p0, p1 = ROW_POINT, ROW_POINT + POINT_SIZE
+        rna0, rnb0 = row[m, p0 + PT_RNA], row[m, p0 + PT_RNB]
+        rta0, rtb0 = row[m, p0 + PT_RTA], row[m, p0 + PT_RTB]
+        rna1 = rnb1 = rta1 = rtb1 = 0.0
+        if npts == 2:
+            rna1, rnb1 = row[m, p1 + PT_RNA], row[m, p1 + PT_RNB]
+            rta1, rtb1 = row[m, p1 + PT_RTA], row[m, p1 + PT_RTB]
+        dvx, dvy = vax - vbx, vay - vby
+        vt0 = (dvx * tx + dvy * ty) + (wa * rta0 - wb * rtb0)
+        vt1 = (dvx * tx + dvy * ty) + (wa * rta1 - wb * rtb1)
+        j0 = j1 = 0.0  # the normal impulses applied
         for k in range(npts):
-            p = ROW_POINT + k * POINT_SIZE
-            rna, rnb = row[m, p + PT_RNA], row[m, p + PT_RNB]
             lam = lam0 if k == 0 else lam1
             if block:
                 impulse = d0 if k == 0 else d1
                 vn = vn0 if k == 0 else vn1
             else:
-                vn = ((vax - vbx) * nx + (vay - vby) * ny) + (wa * rna - wb * rnb)
+                vn = vn0 if k == 0 else vn1 + j0 * row[m, ROW_K01]
                 gamma = g0 if k == 0 else g1
                 bias = b0 if k == 0 else b1
                 # 1 / (K + γ) does not wait for the velocities: a product on the chain
-                impulse = (-vn - (bias + gamma * lam)) * (1.0 / (row[m, p + PT_KN] + gamma))
+                kn = row[m, ROW_POINT + k * POINT_SIZE + PT_KN]
+                impulse = (-vn - (bias + gamma * lam)) * (1.0 / (kn + gamma))
             # (the rarely true test first: whether a resting point's impulse is positive
             # is a coin toss, and a branch on it would often be mispredicted)
             engaged = c_max_normal_impulse[m, k] > 0.0
@@ -303,33 +317,41 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
             impulse = new - lam
             c_normal_impulse[m, k] = new
             c_max_normal_impulse[m, k] = max(c_max_normal_impulse[m, k], impulse)
-            px, py = impulse * nx, impulse * ny
-            vax += ma * px
-            vay += ma * py
-            wa += ia * impulse * rna
-            vbx -= mb * px
-            vby -= mb * py
-            wb -= ib * impulse * rnb
+            if k == 0:
+                j0 = impulse
+            else:
+                j1 = impulse
+        f0 = f1 = 0.0  # the friction impulses applied
         mu = row[m, ROW_FRICTION]
         if mu > 0.0:
             for k in range(npts):
                 p = ROW_POINT + k * POINT_SIZE
                 rta, rtb = row[m, p + PT_RTA], row[m, p + PT_RTB]
-                vt = ((vax - vbx) * tx + (vay - vby) * ty) + (wa * rta - wb * rtb)
                 lam = c_tangent_impulse[m, k]
                 limit = mu * c_normal_impulse[m, k]
                 if limit == 0.0 and lam == 0.0:
                     continue  # no normal force, no friction: nothing to do
+                # the normal impulses turn the bodies (n · t = 0: they add no sliding)
+                vt = vt0 if k == 0 else vt1
+                vt += j0 * (ia * rna0 * rta + ib * rnb0 * rtb)
+                vt += j1 * (ia * rna1 * rta + ib * rnb1 * rtb)
+                if k == 1:
+                    vt += f0 * (ma + mb + ia * rta0 * rta + ib * rtb0 * rtb)
                 new = min(max(lam - row[m, p + PT_TMASS] * vt, -limit), limit)
                 impulse = new - lam
                 c_tangent_impulse[m, k] = new
-                px, py = impulse * tx, impulse * ty
-                vax += ma * px
-                vay += ma * py
-                wa += ia * impulse * rta
-                vbx -= mb * px
-                vby -= mb * py
-                wb -= ib * impulse * rtb
+                if k == 0:
+                    f0 = impulse
+                else:
+                    f1 = impulse
+        jn, jt = j0 + j1, f0 + f1
+        px, py = jn * nx + jt * tx, jn * ny + jt * ty
+        vax += ma * px
+        vay += ma * py
+        wa += ia * ((j0 * rna0 + j1 * rna1) + (f0 * rta0 + f1 * rta1))
+        vbx -= mb * px
+        vby -= mb * py
+        wb -= ib * ((j0 * rnb0 + j1 * rnb1) + (f0 * rtb0 + f1 * rtb1))
         # a static or kinematic body's velocity is unchanged: not written back, so that
         # the next manifold on it need not wait for this one
         if ma != 0.0 or ia != 0.0:
