@@ -66,12 +66,12 @@ class Grid(NamedTuple):
 def make_grid(shape_size: np.ndarray, shape_is_dynamic: np.ndarray, capacity: int) -> Grid:
     """Preallocate the broadphase for S shapes and `capacity` pairs.
 
-    The cell size is twice the median half-diagonal (m) of the dynamic shapes plus the
+    The cell size is four times the median half-diagonal (m) of the dynamic shapes plus the
     fat margin, so a typical shape touches 1 to 4 cells.
     """
     s = shape_size.shape[0]
     dyn = shape_size[shape_is_dynamic]
-    size = 2.0 * float(np.median(dyn)) if dyn.size else 1.0
+    size = 4.0 * float(np.median(dyn)) if dyn.size else 1.0
     cell = max(size, 1e-3) + 2.0 * C.AABB_MARGIN
     table = 64
     while table < 4 * s:

@@ -18,6 +18,7 @@ from numba import njit
 
 from . import constants as C
 from .narrowphase import collide
+from .solver import ROW_SIZE
 
 MIX_SQRT, MIX_MULTIPLY, MIX_MIN, MIX_MAX = 0, 1, 2, 3
 
@@ -33,22 +34,23 @@ MIXING = {"sqrt": MIX_SQRT, "multiply": MIX_MULTIPLY, "min": MIX_MIN, "max": MIX
 class Contacts(NamedTuple):
     """Preallocated contact storage with capacity M manifolds (2 points each).
 
-    count (7,) int64: [manifolds now, manifolds last step, pairs found, points touching,
+    count (8,) int64: [manifolds now, manifolds last step, pairs found, points touching,
     manifolds in the shock pass, a point engaged faster than the restitution threshold,
-    a point overlaps by more than DEEP_OVERLAP].
+    a point overlaps by more than DEEP_OVERLAP, 1 when the manifolds are last step's
+    pairs in the same slots (the contact graph is unchanged)].
+    carried (M,) bool: the manifold is last step's, unchanged in its slot except for
+    its separation (update_manifolds); later stages skip what cannot have changed.
     pairs (M,2) int32: broadphase output. shape_a, shape_b, body_a, body_b (M,) int32;
     key (M,) int64 = shape_a · S + shape_b; normal (M,2); points (M,) int32;
-    friction, restitution (M,) mixed coefficients; softness (M,3) mass scale, impulse
-    scale, bias rate (1/s) for this manifold's soft constraint;
+    friction, restitution (M,) mixed coefficients;
     anchor_a, anchor_b (M,2,2) m, from each COM at the start of the step;
     base_separation (M,2) m, the separation minus the anchors' contribution;
     feature (M,2) int64; normal_impulse, tangent_impulse (M,2) N·s (per substep);
     start_impulse (M,2) N·s: the normal impulse carried over into this step;
     ref_separation (M,2) m: the separation with both bodies at their reference poses;
-    normal_mass, tangent_mass (M,2) kg;
-    normal_k (M,3) 1/kg: K00, K11, K01 of the normal rows (the 2x2 block);
-    arms (M,2,4) m: r_a × n, r_b × n, r_a × t,
-    r_b × t of each point, the lever arms of its normal and friction impulses;
+    normal_mass (M,2) kg; solver_row (M, solver.ROW_SIZE): what the solver's passes
+    read of each manifold (normal, softness, friction, and per point lever arms,
+    normal K, tangent mass, anchors, base separation), written by prepare_contacts;
     approach_velocity (M,2) m/s and approach_separation (M,2) m where the point
     engaged (for restitution);
     max_normal_impulse (M,2) N·s; prev_* the same from last step for matching and
@@ -68,6 +70,7 @@ class Contacts(NamedTuple):
     """
 
     count: np.ndarray
+    carried: np.ndarray
     pairs: np.ndarray
     shape_a: np.ndarray
     shape_b: np.ndarray
@@ -78,7 +81,6 @@ class Contacts(NamedTuple):
     points: np.ndarray
     friction: np.ndarray
     restitution: np.ndarray
-    softness: np.ndarray
     anchor_a: np.ndarray
     anchor_b: np.ndarray
     base_separation: np.ndarray
@@ -88,9 +90,7 @@ class Contacts(NamedTuple):
     start_impulse: np.ndarray
     tangent_impulse: np.ndarray
     normal_mass: np.ndarray
-    normal_k: np.ndarray
-    tangent_mass: np.ndarray
-    arms: np.ndarray
+    solver_row: np.ndarray
     approach_velocity: np.ndarray
     approach_separation: np.ndarray
     max_normal_impulse: np.ndarray
@@ -131,7 +131,8 @@ def make_contacts(n_bodies: int, n_shapes: int, n_vertices: int, capacity: int) 
     """Allocate contact storage for `capacity` manifolds."""
     m = max(capacity, 1)
     return Contacts(
-        count=np.zeros(7, np.int64),
+        count=np.zeros(8, np.int64),
+        carried=np.zeros(m, np.bool_),
         pairs=np.zeros((m, 2), np.int32),
         shape_a=np.zeros(m, np.int32),
         shape_b=np.zeros(m, np.int32),
@@ -142,7 +143,6 @@ def make_contacts(n_bodies: int, n_shapes: int, n_vertices: int, capacity: int) 
         points=np.zeros(m, np.int32),
         friction=np.zeros(m),
         restitution=np.zeros(m),
-        softness=np.zeros((m, 3)),
         anchor_a=np.zeros((m, 2, 2)),
         anchor_b=np.zeros((m, 2, 2)),
         base_separation=np.zeros((m, 2)),
@@ -152,9 +152,7 @@ def make_contacts(n_bodies: int, n_shapes: int, n_vertices: int, capacity: int) 
         start_impulse=np.zeros((m, 2)),
         tangent_impulse=np.zeros((m, 2)),
         normal_mass=np.zeros((m, 2)),
-        normal_k=np.zeros((m, 3)),
-        tangent_mass=np.zeros((m, 2)),
-        arms=np.zeros((m, 2, 4)),
+        solver_row=np.zeros((m, ROW_SIZE)),
         approach_velocity=np.zeros((m, 2)),
         approach_separation=np.zeros((m, 2)),
         max_normal_impulse=np.zeros((m, 2)),
@@ -414,9 +412,11 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
     out_n, out_p = contacts.scratch_normal, contacts.scratch_point
     out_s, out_f = contacts.scratch_separation, contacts.scratch_feature
     out = (out_n, out_p, out_s, out_f)
+    c_carried = contacts.carried
     n_prev = c_count[1]
     j = 0  # merge pointer into last step's manifolds (both sorted by key)
     m = 0
+    same = True  # every manifold so far is last step's pair in the same slot
     for p in range(n_pairs):
         a, b = c_pairs[p, 0], c_pairs[p, 1]
         if (
@@ -431,9 +431,25 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
         while j < n_prev and c_prev_key[j] < key:
             j += 1
         matched = j < n_prev and c_prev_key[j] == key
+        in_slot = matched and j == m and c_key[m] == key
         # motion of the two bodies since their reference poses
         ddx = (s_body_x[ba, 0] - ref[ba, 0]) - (s_body_x[bb, 0] - ref[bb, 0])
         ddy = (s_body_x[ba, 1] - ref[ba, 1]) - (s_body_x[bb, 1] - ref[bb, 1])
+        if in_slot and still[ba] and still[bb]:
+            # neither body has moved, and last step's manifold is still in this slot
+            # (store_impulses copied it to prev_*, so the two agree): only its
+            # separation and this step's impulse records change
+            nx, ny = c_normal[m, 0], c_normal[m, 1]
+            for k in range(c_points[m]):
+                rax, ray = c_anchor_a[m, k, 0], c_anchor_a[m, k, 1]
+                rbx, rby = c_anchor_b[m, k, 0], c_anchor_b[m, k, 1]
+                sep = c_ref_separation[m, k] + nx * ddx + ny * ddy
+                c_base_separation[m, k] = sep - (nx * (rax - rbx) + ny * (ray - rby))
+                c_start_impulse[m, k] = c_normal_impulse[m, k]
+                c_max_normal_impulse[m, k] = 0.0
+            c_carried[m] = True
+            m += 1
+            continue
         if matched and still[ba] and still[bb]:
             # neither body has moved: carry last step's manifold forward
             nx, ny = c_prev_normal[j, 0], c_prev_normal[j, 1]
@@ -518,6 +534,8 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
                 c_start_impulse[m, k] = jn
                 c_tangent_impulse[m, k] = jt
                 c_max_normal_impulse[m, k] = 0.0
+        same = same and in_slot
+        c_carried[m] = False
         c_shape_a[m], c_shape_b[m] = a, b
         c_body_a[m], c_body_b[m] = ba, bb
         c_key[m] = key
@@ -527,6 +545,7 @@ def update_manifolds(model, state, contacts, box, n_pairs, friction_rule, restit
         c_restitution[m] = mix(m_shape_restitution[a], m_shape_restitution[b], restitution_rule)
         m += 1
     c_count[0] = m
+    c_count[7] = 1 if same and m == n_prev else 0
     return m
 
 
@@ -549,9 +568,17 @@ def store_impulses(contacts):
     anchor_a, prev_anchor_a = contacts.anchor_a, contacts.prev_anchor_a
     anchor_b, prev_anchor_b = contacts.anchor_b, contacts.prev_anchor_b
     ref_sep, prev_ref_sep = contacts.ref_separation, contacts.prev_ref_separation
+    c_carried = contacts.carried
     m = c_count[0]
     touching = 0
     for i in range(m):
+        if c_carried[i]:  # the slot's prev_* already hold all but the impulses
+            for k in range(c_points[i]):
+                c_prev_normal_impulse[i, k] = c_normal_impulse[i, k]
+                c_prev_tangent_impulse[i, k] = c_tangent_impulse[i, k]
+                if c_max_normal_impulse[i, k] > 0.0:
+                    touching += 1
+            continue
         c_prev_key[i] = c_key[i]
         c_prev_points[i] = c_points[i]
         prev_normal[i, 0], prev_normal[i, 1] = normal[i, 0], normal[i, 1]

@@ -27,6 +27,20 @@ import math
 
 from numba import njit
 
+from .solver import (
+    POINT_SIZE,
+    PT_BASE,
+    PT_RAX,
+    PT_RAY,
+    PT_RBX,
+    PT_RBY,
+    PT_RNA,
+    PT_RNB,
+    ROW_NX,
+    ROW_NY,
+    ROW_POINT,
+)
+
 # A contact counts as support when its normal is within this cosine of the vertical
 # (about 45 degrees). Steeper faces (a box leaning on a wall) are solved normally.
 SHOCK_COS = 0.7071
@@ -39,40 +53,21 @@ SHOCK_MIN_APPROACH = 1.0e-4
 UNREACHED = 1 << 30
 
 
-@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
-def support_order(model, contacts):
-    """Support level of every body, and the orders of the solver's and the shock pass.
-
-    Writes contacts.solve_order (M,): every manifold, lowest supporter level first (the
-    order of the solver's passes; the manifolds' own order without gravity);
-    contacts.body_level (N,): 0 for static and kinematic bodies, 1 for bodies they
-    touch, ...; UNREACHED otherwise; contacts.shock_order: the manifolds with a
-    supporter, lowest supporter first; contacts.shock_side (M,): 1 when body a supports
-    body b, 2 when body b supports body a, 0 when neither. Returns the number of
-    manifolds in shock_order. Uses contacts.adj_start, adj and queue as scratch.
-    """
+@njit(cache=True, _nrt=False)
+def contact_levels(model, contacts):
+    """contacts.body_level (N,): 0 for static and kinematic bodies, 1 for the bodies
+    they touch, ..., UNREACHED for bodies not connected to one (breadth first over
+    the manifolds with points). Uses contacts.adj_start, adj and queue as scratch."""
     c_body_a = contacts.body_a
     c_body_b = contacts.body_b
-    c_normal = contacts.normal
     c_points = contacts.points
     level = contacts.body_level
     adj_start = contacts.adj_start
     adj = contacts.adj
     queue = contacts.queue
-    side = contacts.shock_side
-    order = contacts.shock_order
     body_type = model.body_type
     n_bodies = level.shape[0]
     n_man = contacts.count[0]
-    gx, gy = model.gravity[0], model.gravity[1]
-    g = math.sqrt(gx * gx + gy * gy)
-    solve_order = contacts.solve_order
-    for m in range(n_man):
-        side[m] = 0
-        solve_order[m] = m
-    if g == 0.0 or n_man == 0:
-        return 0
-    upx, upy = -gx / g, -gy / g
     # adjacency of the contact graph (compressed rows, manifolds with points only)
     for i in range(n_bodies + 1):
         adj_start[i] = 0
@@ -109,6 +104,47 @@ def support_order(model, contacts):
                 level[j] = level[i] + 1
                 queue[tail] = j
                 tail += 1
+
+
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
+def support_order(model, contacts):
+    """Support level of every body, and the orders of the solver's and the shock pass.
+
+    Writes contacts.solve_order (M,): every manifold, lowest supporter level first (the
+    order of the solver's passes; the manifolds' own order without gravity);
+    contacts.body_level (N,): 0 for static and kinematic bodies, 1 for bodies they
+    touch, ...; UNREACHED otherwise; contacts.shock_order: the manifolds with a
+    supporter, lowest supporter first; contacts.shock_side (M,): 1 when body a supports
+    body b, 2 when body b supports body a, 0 when neither. Returns the number of
+    manifolds in shock_order. When the manifolds are last step's (contacts.count[7]),
+    the levels and the solve order are kept and only the shock pass's side and order
+    are found again (a normal may have turned). Uses contacts.queue as scratch.
+    """
+    c_body_a = contacts.body_a
+    c_body_b = contacts.body_b
+    c_normal = contacts.normal
+    c_points = contacts.points
+    level = contacts.body_level
+    queue = contacts.queue
+    side = contacts.shock_side
+    order = contacts.shock_order
+    body_type = model.body_type
+    n_bodies = level.shape[0]
+    n_man = contacts.count[0]
+    gx, gy = model.gravity[0], model.gravity[1]
+    g = math.sqrt(gx * gx + gy * gy)
+    solve_order = contacts.solve_order
+    # the same manifolds as last step, in the same slots: its levels and solve order hold
+    same = contacts.count[7] == 1
+    for m in range(n_man):
+        side[m] = 0
+        if not same:
+            solve_order[m] = m
+    if g == 0.0 or n_man == 0:
+        return 0
+    upx, upy = -gx / g, -gy / g
+    if not same:
+        contact_levels(model, contacts)
     # which side supports, and a counting sort by the supporter's level
     max_level = 0
     for m in range(n_man):
@@ -126,21 +162,22 @@ def support_order(model, contacts):
     # bodies not connected to the ground last): the order of the solver's passes, in
     # which a pass carries a push or a correction up a stack within one sweep
     count = queue  # reuse as bucket counts (the levels are known now)
-    top = 0
-    for i in range(n_bodies):
-        if level[i] != UNREACHED and level[i] > top:
-            top = level[i]
-    for k in range(top + 3):
-        count[k] = 0
-    for m in range(n_man):
-        lv = min(min(level[c_body_a[m]], level[c_body_b[m]]), top + 1)
-        count[lv + 1] += 1
-    for k in range(top + 2):
-        count[k + 1] += count[k]
-    for m in range(n_man):
-        lv = min(min(level[c_body_a[m]], level[c_body_b[m]]), top + 1)
-        solve_order[count[lv]] = m
-        count[lv] += 1
+    if not same:
+        top = 0
+        for i in range(n_bodies):
+            if level[i] != UNREACHED and level[i] > top:
+                top = level[i]
+        for k in range(top + 3):
+            count[k] = 0
+        for m in range(n_man):
+            lv = min(min(level[c_body_a[m]], level[c_body_b[m]]), top + 1)
+            count[lv + 1] += 1
+        for k in range(top + 2):
+            count[k + 1] += count[k]
+        for m in range(n_man):
+            lv = min(min(level[c_body_a[m]], level[c_body_b[m]]), top + 1)
+            solve_order[count[lv]] = m
+            count[lv] += 1
     for k in range(max_level + 2):
         count[k] = 0
     for m in range(n_man):
@@ -171,15 +208,11 @@ def propagate_shock(model, state, contacts, n_order, inv_h, threshold):
     elastic contact (restitution > 0) approaching faster than `threshold` (m/s) is an
     impact, not a load: it is left to the next substep's solve and bounce (taken here,
     its energy would be lost: a ball struck down onto the floor stopped dead)."""
-    c_anchor_a = contacts.anchor_a
-    c_anchor_b = contacts.anchor_b
-    c_base_separation = contacts.base_separation
     c_body_a = contacts.body_a
     c_body_b = contacts.body_b
-    c_normal = contacts.normal
     c_points = contacts.points
     c_restitution = contacts.restitution
-    arms = contacts.arms
+    row = contacts.solver_row
     side = contacts.shock_side
     order = contacts.shock_order
     delta = contacts.body_delta
@@ -188,16 +221,17 @@ def propagate_shock(model, state, contacts, n_order, inv_h, threshold):
     for o in range(n_order):
         m = order[o]
         a, b = c_body_a[m], c_body_b[m]
-        nx, ny = c_normal[m, 0], c_normal[m, 1]
+        nx, ny = row[m, ROW_NX], row[m, ROW_NY]
         npts = c_points[m]
         # most supported points are not approaching: skip them before any other work
         dvx, dvy = v[a, 0] - v[b, 0], v[a, 1] - v[b, 1]
         # (the two points in scalars: a kernel allocates nothing, not even scratch)
-        vel0 = dvx * nx + dvy * ny + w[a] * arms[m, 0, 0] - w[b] * arms[m, 0, 1]
+        p0, p1 = ROW_POINT, ROW_POINT + POINT_SIZE
+        vel0 = dvx * nx + dvy * ny + w[a] * row[m, p0 + PT_RNA] - w[b] * row[m, p0 + PT_RNB]
         vel1 = 0.0
         approaching = vel0 < -SHOCK_MIN_APPROACH
         if npts == 2:
-            vel1 = dvx * nx + dvy * ny + w[a] * arms[m, 1, 0] - w[b] * arms[m, 1, 1]
+            vel1 = dvx * nx + dvy * ny + w[a] * row[m, p1 + PT_RNA] - w[b] * row[m, p1 + PT_RNB]
             approaching = approaching or vel1 < -SHOCK_MIN_APPROACH
         if not approaching:
             continue
@@ -209,20 +243,21 @@ def propagate_shock(model, state, contacts, n_order, inv_h, threshold):
         nax, nay = ca * nx + sa * ny, ca * ny - sa * nx
         nbx, nby = cb * nx + sb * ny, cb * ny - sb * nx
         # the supported body moves; the sign turns its push along +n (a) or -n (b)
-        u, sgn, k_arm = (a, 1.0, 0) if side[m] == 2 else (b, -1.0, 1)
+        u, sgn, arm = (a, 1.0, PT_RNA) if side[m] == 2 else (b, -1.0, PT_RNB)
         mu, iu = im[u], ii[u]
         need0 = need1 = r0 = r1 = 0.0
         for k in range(npts):
-            sep = moved + c_base_separation[m, k]
-            sep += nax * c_anchor_a[m, k, 0] + nay * c_anchor_a[m, k, 1]
-            sep -= nbx * c_anchor_b[m, k, 0] + nby * c_anchor_b[m, k, 1]
+            p = ROW_POINT + k * POINT_SIZE
+            sep = moved + row[m, p + PT_BASE]
+            sep += nax * row[m, p + PT_RAX] + nay * row[m, p + PT_RAY]
+            sep -= nbx * row[m, p + PT_RBX] + nby * row[m, p + PT_RBY]
             # how far the point is from allowed: a gap may close within the substep
             if k == 0:
                 need0 = (-sep * inv_h if sep > 0.0 else 0.0) - vel0
-                r0 = arms[m, k, k_arm]
+                r0 = row[m, p0 + arm]
             else:
                 need1 = (-sep * inv_h if sep > 0.0 else 0.0) - vel1
-                r1 = arms[m, k, k_arm]
+                r1 = row[m, p1 + arm]
         # impulses along the supported body's push direction, λ >= 0, that bring every
         # point to at least its target: the two-point case is a 2x2 complementarity
         # problem, solved by trying both points, then each alone

@@ -43,9 +43,39 @@ def soft_parameters(hertz: float, damping_ratio: float, h: float) -> tuple[float
     return a2 * a3, a3, omega / a1
 
 
+# The solver's row of a manifold (contacts.solver_row, (M, ROW_SIZE) float64): what its
+# passes read, in one record, so that a pass reads one row per manifold at fixed
+# offsets instead of a dozen arrays (each with its own address arithmetic).
+ROW_NX, ROW_NY = 0, 1  # the normal, from b towards a
+ROW_K01 = 2  # 1/kg: the off-diagonal of the two points' normal block
+ROW_GAMMA = 3  # γ/K of the soft constraint (impulse scale / mass scale)
+ROW_BIAS_RATE = 4  # 1/s: the soft constraint's push-out rate
+ROW_FRICTION = 5  # the mixed friction coefficient
+ROW_POINT = 6  # point k's fields start at ROW_POINT + k POINT_SIZE
+POINT_SIZE = 11
+# offsets within a point: the lever arms r_a × n, r_b × n, r_a × t, r_b × t (m); the
+# normal row's K (1/kg) and the tangent mass (kg); the anchors r_a, r_b (m); the base
+# separation (m)
+PT_RNA, PT_RNB, PT_RTA, PT_RTB, PT_KN, PT_TMASS = 0, 1, 2, 3, 4, 5
+PT_RAX, PT_RAY, PT_RBX, PT_RBY, PT_BASE = 6, 7, 8, 9, 10
+ROW_SIZE = 32  # 28 used, padded to four cache lines
+
+
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy", inline="always")
+def approach_point(v, w, a, b, rax, ray, rbx, rby, nx, ny, base, m, k, approach, approach_sep):
+    """Write point k of manifold m's approach velocity (m/s) and separation (m) at the
+    start of the step: bodies a, b with velocities v, w, anchors r_a, r_b (m), normal
+    n, base separations `base` (M,2). Takes arrays (world.py's rule for helpers)."""
+    dvx = v[a, 0] - w[a] * ray - v[b, 0] + w[b] * rby
+    dvy = v[a, 1] + w[a] * rax - v[b, 1] - w[b] * rbx
+    approach[m, k] = dvx * nx + dvy * ny
+    approach_sep[m, k] = base[m, k] + (nx * (rax - rbx) + ny * (ray - rby))
+
+
 @njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
 def prepare_contacts(model, state, contacts, soft, soft_static):
-    """Effective masses, approach velocities and softness of every contact point.
+    """Effective masses, approach velocities and softness of every contact point,
+    written into the solver rows (contacts.solver_row; ROW_* and PT_* above).
 
     soft, soft_static: (mass scale, impulse scale, bias rate) for contacts between two
     dynamic bodies and for contacts with a static or kinematic body (stiffer).
@@ -58,46 +88,62 @@ def prepare_contacts(model, state, contacts, soft, soft_static):
     c_body_a = contacts.body_a
     c_body_b = contacts.body_b
     c_count = contacts.count
+    c_friction = contacts.friction
     c_normal = contacts.normal
     c_normal_mass = contacts.normal_mass
-    c_normal_k = contacts.normal_k
     c_points = contacts.points
-    c_softness = contacts.softness
-    c_tangent_mass = contacts.tangent_mass
+    row = contacts.solver_row
+    c_carried = contacts.carried
     im, ii = model.body_inv_mass, model.body_inv_inertia
     v, w = state.body_v, state.body_w
-    arms = contacts.arms
+    # γ/K of each soft constraint: mass scale K/(K+γ), impulse scale γ/(K+γ)
+    gamma = soft[1] / soft[0] if soft[0] > 0.0 else 0.0
+    gamma_static = soft_static[1] / soft_static[0] if soft_static[0] > 0.0 else 0.0
     for m in range(c_count[0]):
         a, b = c_body_a[m], c_body_b[m]
-        ma, mb, ia, ib = im[a], im[b], ii[a], ii[b]
         nx, ny = c_normal[m, 0], c_normal[m, 1]
+        if c_carried[m]:
+            # last step's manifold in the same slot: its row holds all but the separation
+            for k in range(c_points[m]):
+                p = ROW_POINT + k * POINT_SIZE
+                rax, ray = row[m, p + PT_RAX], row[m, p + PT_RAY]
+                rbx, rby = row[m, p + PT_RBX], row[m, p + PT_RBY]
+                row[m, p + PT_BASE] = c_base_separation[m, k]
+                approach_point(v, w, a, b, rax, ray, rbx, rby, nx, ny, c_base_separation, m, k,
+                               c_approach_velocity, c_approach_separation)  # fmt: skip
+            continue
+        ma, mb, ia, ib = im[a], im[b], ii[a], ii[b]
         tx, ty = ny, -nx
-        sft = soft_static if (ma == 0.0 or mb == 0.0) else soft
-        c_softness[m, 0], c_softness[m, 1] = sft[0], sft[1]
-        c_softness[m, 2] = sft[2]
+        row[m, ROW_NX], row[m, ROW_NY] = nx, ny
+        if ma == 0.0 or mb == 0.0:
+            row[m, ROW_GAMMA], row[m, ROW_BIAS_RATE] = gamma_static, soft_static[2]
+        else:
+            row[m, ROW_GAMMA], row[m, ROW_BIAS_RATE] = gamma, soft[2]
+        row[m, ROW_FRICTION] = c_friction[m]
         for k in range(c_points[m]):
+            p = ROW_POINT + k * POINT_SIZE
             rax, ray = c_anchor_a[m, k, 0], c_anchor_a[m, k, 1]
             rbx, rby = c_anchor_b[m, k, 0], c_anchor_b[m, k, 1]
             rna = rax * ny - ray * nx
             rnb = rbx * ny - rby * nx
             kn = ma + mb + ia * rna * rna + ib * rnb * rnb
             c_normal_mass[m, k] = 1.0 / kn if kn > 0.0 else 0.0
-            c_normal_k[m, k] = kn
             rta = rax * ty - ray * tx
             rtb = rbx * ty - rby * tx
-            arms[m, k, 0], arms[m, k, 1] = rna, rnb
-            arms[m, k, 2], arms[m, k, 3] = rta, rtb
             kt = ma + mb + ia * rta * rta + ib * rtb * rtb
-            c_tangent_mass[m, k] = 1.0 / kt if kt > 0.0 else 0.0
-            dvx = v[a, 0] - w[a] * ray - v[b, 0] + w[b] * rby
-            dvy = v[a, 1] + w[a] * rax - v[b, 1] - w[b] * rbx
-            c_approach_velocity[m, k] = dvx * nx + dvy * ny
-            c_approach_separation[m, k] = c_base_separation[m, k] + (
-                nx * (rax - rbx) + ny * (ray - rby)
-            )
+            row[m, p + PT_RNA], row[m, p + PT_RNB] = rna, rnb
+            row[m, p + PT_RTA], row[m, p + PT_RTB] = rta, rtb
+            row[m, p + PT_KN] = kn
+            row[m, p + PT_TMASS] = 1.0 / kt if kt > 0.0 else 0.0
+            row[m, p + PT_RAX], row[m, p + PT_RAY] = rax, ray
+            row[m, p + PT_RBX], row[m, p + PT_RBY] = rbx, rby
+            row[m, p + PT_BASE] = c_base_separation[m, k]
+            approach_point(v, w, a, b, rax, ray, rbx, rby, nx, ny, c_base_separation, m, k,
+                           c_approach_velocity, c_approach_separation)  # fmt: skip
         if c_points[m] == 2:
-            c_normal_k[m, 2] = ma + mb + ia * arms[m, 0, 0] * arms[m, 1, 0]
-            c_normal_k[m, 2] += ib * arms[m, 0, 1] * arms[m, 1, 1]
+            p0, p1 = ROW_POINT, ROW_POINT + POINT_SIZE
+            k01 = ma + mb + ia * row[m, p0 + PT_RNA] * row[m, p1 + PT_RNA]
+            row[m, ROW_K01] = k01 + ib * row[m, p0 + PT_RNB] * row[m, p1 + PT_RNB]
 
 
 @njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
@@ -106,30 +152,33 @@ def warm_start(model, state, contacts):
     c_body_a = contacts.body_a
     c_body_b = contacts.body_b
     c_count = contacts.count
-    c_normal = contacts.normal
     c_normal_impulse = contacts.normal_impulse
     c_points = contacts.points
     c_tangent_impulse = contacts.tangent_impulse
+    row = contacts.solver_row
     im, ii = model.body_inv_mass, model.body_inv_inertia
     v, w = state.body_v, state.body_w
-    arms = contacts.arms
     for m in range(c_count[0]):
         a, b = c_body_a[m], c_body_b[m]
-        nx, ny = c_normal[m, 0], c_normal[m, 1]
+        nx, ny = row[m, ROW_NX], row[m, ROW_NY]
         tx, ty = ny, -nx
         px = py = ta = tb = 0.0
         for k in range(c_points[m]):
+            p = ROW_POINT + k * POINT_SIZE
             jn, jt = c_normal_impulse[m, k], c_tangent_impulse[m, k]
             px += jn * nx + jt * tx
             py += jn * ny + jt * ty
-            ta += jn * arms[m, k, 0] + jt * arms[m, k, 2]
-            tb += jn * arms[m, k, 1] + jt * arms[m, k, 3]
-        v[a, 0] += im[a] * px
-        v[a, 1] += im[a] * py
-        w[a] += ii[a] * ta
-        v[b, 0] -= im[b] * px
-        v[b, 1] -= im[b] * py
-        w[b] -= ii[b] * tb
+            ta += jn * row[m, p + PT_RNA] + jt * row[m, p + PT_RTA]
+            tb += jn * row[m, p + PT_RNB] + jt * row[m, p + PT_RTB]
+        ma, mb, ia, ib = im[a], im[b], ii[a], ii[b]
+        if ma != 0.0 or ia != 0.0:  # a fixed body is not written (see solve_contacts)
+            v[a, 0] += ma * px
+            v[a, 1] += ma * py
+            w[a] += ia * ta
+        if mb != 0.0 or ib != 0.0:
+            v[b, 0] -= mb * px
+            v[b, 1] -= mb * py
+            w[b] -= ib * tb
 
 
 @njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
@@ -144,48 +193,34 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
     restitution threshold; a point that engages faster than it marks count[5], so that
     the restitution stage has something to do.
     """
-    c_anchor_a = contacts.anchor_a
-    c_anchor_b = contacts.anchor_b
     c_approach_separation = contacts.approach_separation
     c_approach_velocity = contacts.approach_velocity
-    c_base_separation = contacts.base_separation
     c_body_a = contacts.body_a
     c_body_b = contacts.body_b
     c_count = contacts.count
-    c_friction = contacts.friction
     c_max_normal_impulse = contacts.max_normal_impulse
-    c_normal = contacts.normal
     c_normal_impulse = contacts.normal_impulse
-    c_normal_k = contacts.normal_k
     c_points = contacts.points
-    c_softness = contacts.softness
     c_tangent_impulse = contacts.tangent_impulse
-    c_tangent_mass = contacts.tangent_mass
+    row = contacts.solver_row
     im, ii = model.body_inv_mass, model.body_inv_inertia
     v, w = state.body_v, state.body_w
     delta = contacts.body_delta
     max_push = -C.CONTACT_PUSH_MAX_VELOCITY
     deep = -C.DEEP_OVERLAP
     c_order = contacts.solve_order  # ground first (shock.support_order)
-    arms = contacts.arms
     for o in range(c_count[0]):
         m = c_order[o]
         a, b = c_body_a[m], c_body_b[m]
         ma, mb, ia, ib = im[a], im[b], ii[a], ii[b]
         vax, vay, wa = v[a, 0], v[a, 1], w[a]
         vbx, vby, wb = v[b, 0], v[b, 1], w[b]
-        nx, ny = c_normal[m, 0], c_normal[m, 1]
+        nx, ny = row[m, ROW_NX], row[m, ROW_NY]
         tx, ty = ny, -nx
         # body motion since the start of the step, for the current separation
         dax, day, ca, sa = delta[a, 0], delta[a, 1], delta[a, 2], delta[a, 3]
         dbx, dby, cb, sb = delta[b, 0], delta[b, 1], delta[b, 2], delta[b, 3]
-        mass_scale0, impulse_scale0, bias_rate = (
-            c_softness[m, 0],
-            c_softness[m, 1],
-            c_softness[m, 2],
-        )
-        # γ/K of the soft constraint: mass scale K/(K+γ), impulse scale γ/(K+γ)
-        soft_gamma = impulse_scale0 / mass_scale0 if mass_scale0 > 0.0 else 0.0
+        soft_gamma, bias_rate = row[m, ROW_GAMMA], row[m, ROW_BIAS_RATE]
         npts = c_points[m]
         s0 = s1 = 0.0
         # the current separation: n · (d_a − d_b + R_a r_a − R_b r_b) + base, with the
@@ -198,21 +233,26 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
         lam1 = c_normal_impulse[m, 1]
         vn0 = vn1 = b0 = b1 = g0 = g1 = 0.0
         for k in range(npts):
-            s = moved + c_base_separation[m, k]
-            s += nax * c_anchor_a[m, k, 0] + nay * c_anchor_a[m, k, 1]
-            s -= nbx * c_anchor_b[m, k, 0] + nby * c_anchor_b[m, k, 1]
-            bias, gamma = 0.0, 0.0
-            if s > 0.0:
-                bias = s * inv_h  # speculative: may close the gap, no more
-            elif use_bias:
-                bias = max(bias_rate * s, max_push)
-                if s < deep:
-                    c_count[6] = 1
-                # the soft constraint as a regularised one: (K + γ) Δλ = −(vn + b) − γλ
-                gamma = c_normal_k[m, k] * soft_gamma
+            p = ROW_POINT + k * POINT_SIZE
+            s = moved + row[m, p + PT_BASE]
+            s += nax * row[m, p + PT_RAX] + nay * row[m, p + PT_RAY]
+            s -= nbx * row[m, p + PT_RBX] + nby * row[m, p + PT_RBY]
+            # a gap (s > 0) may close in the substep, no more (speculative); an overlap
+            # is pushed out softly in the solve stage, as the regularised constraint
+            # (K + γ) Δλ = −(vn + b) − γλ, and not at all in the relax stage. Written
+            # as selects, not branches: whether a resting point's s is just above or
+            # just below zero is a coin toss the processor would often guess wrong
+            push = use_bias and s <= 0.0
+            bias = s * inv_h if s > 0.0 else 0.0
+            bias = max(bias_rate * s, max_push) if push else bias
+            gamma = row[m, p + PT_KN] * soft_gamma if push else 0.0
+            if push and s < deep:
+                c_count[6] = 1
             # sums grouped as two halves: each pass is one long chain of dependent
             # arithmetic through the body velocities, and a shallow sum shortens it
-            vn = ((vax - vbx) * nx + (vay - vby) * ny) + (wa * arms[m, k, 0] - wb * arms[m, k, 1])
+            vn = ((vax - vbx) * nx + (vay - vby) * ny) + (
+                wa * row[m, p + PT_RNA] - wb * row[m, p + PT_RNB]
+            )
             if k == 0:
                 vn0, b0, g0, s0 = vn, bias, gamma, s
             else:
@@ -222,9 +262,9 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
         # friction turns into a sideways drift); one point at a time if a clamp is hit
         block = False
         if npts == 2:
-            k00 = c_normal_k[m, 0] + g0
-            k11 = c_normal_k[m, 1] + g1
-            k01 = c_normal_k[m, 2]
+            k00 = row[m, ROW_POINT + PT_KN] + g0
+            k11 = row[m, ROW_POINT + POINT_SIZE + PT_KN] + g1
+            k01 = row[m, ROW_K01]
             det = k00 * k11 - k01 * k01
             if det > 1.0e-9 * k00 * k11:
                 r0 = -vn0 - (b0 + g0 * lam0)  # the bracket is off the chain
@@ -233,20 +273,37 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
                 d0 = (k11 * r0 - k01 * r1) * inv_det
                 d1 = (k00 * r1 - k01 * r0) * inv_det
                 block = lam0 + d0 >= 0.0 and lam1 + d1 >= 0.0
+        # the velocities change once, at the end, by the sum of the manifold's impulses.
+        # On the way, a point's velocity is its value at the start plus what the
+        # impulses so far did to it, through the coupling of their rows: a shorter
+        # chain of dependent arithmetic than updating the velocities after each impulse
+        p0, p1 = ROW_POINT, ROW_POINT + POINT_SIZE
+        rna0, rnb0 = row[m, p0 + PT_RNA], row[m, p0 + PT_RNB]
+        rta0, rtb0 = row[m, p0 + PT_RTA], row[m, p0 + PT_RTB]
+        rna1 = rnb1 = rta1 = rtb1 = 0.0
+        if npts == 2:
+            rna1, rnb1 = row[m, p1 + PT_RNA], row[m, p1 + PT_RNB]
+            rta1, rtb1 = row[m, p1 + PT_RTA], row[m, p1 + PT_RTB]
+        dvx, dvy = vax - vbx, vay - vby
+        vt0 = (dvx * tx + dvy * ty) + (wa * rta0 - wb * rtb0)
+        vt1 = (dvx * tx + dvy * ty) + (wa * rta1 - wb * rtb1)
+        j0 = j1 = 0.0  # the normal impulses applied
         for k in range(npts):
-            rna, rnb = arms[m, k, 0], arms[m, k, 1]
             lam = lam0 if k == 0 else lam1
             if block:
                 impulse = d0 if k == 0 else d1
                 vn = vn0 if k == 0 else vn1
             else:
-                vn = ((vax - vbx) * nx + (vay - vby) * ny) + (wa * rna - wb * rnb)
+                vn = vn0 if k == 0 else vn1 + j0 * row[m, ROW_K01]
                 gamma = g0 if k == 0 else g1
                 bias = b0 if k == 0 else b1
                 # 1 / (K + γ) does not wait for the velocities: a product on the chain
-                impulse = (-vn - (bias + gamma * lam)) * (1.0 / (c_normal_k[m, k] + gamma))
+                kn = row[m, ROW_POINT + k * POINT_SIZE + PT_KN]
+                impulse = (-vn - (bias + gamma * lam)) * (1.0 / (kn + gamma))
+            # (the rarely true test first: whether a resting point's impulse is positive
+            # is a coin toss, and a branch on it would often be mispredicted)
             engaged = c_max_normal_impulse[m, k] > 0.0
-            if impulse > 0.0 and (not engaged or c_approach_velocity[m, k] == math.inf):
+            if (not engaged or c_approach_velocity[m, k] == math.inf) and impulse > 0.0:
                 # the point engages (its first push this step): its approach speed at
                 # impact, which gravity may have raised since the start of the step.
                 # Later approaches of an engaged point are the solver's own doing
@@ -259,36 +316,48 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
             new = max(lam + impulse, 0.0)  # clamp the accumulated impulse
             impulse = new - lam
             c_normal_impulse[m, k] = new
-            if impulse > c_max_normal_impulse[m, k]:
-                c_max_normal_impulse[m, k] = impulse
-            px, py = impulse * nx, impulse * ny
-            vax += ma * px
-            vay += ma * py
-            wa += ia * impulse * rna
-            vbx -= mb * px
-            vby -= mb * py
-            wb -= ib * impulse * rnb
-        mu = c_friction[m]
+            c_max_normal_impulse[m, k] = max(c_max_normal_impulse[m, k], impulse)
+            if k == 0:
+                j0 = impulse
+            else:
+                j1 = impulse
+        f0 = f1 = 0.0  # the friction impulses applied
+        mu = row[m, ROW_FRICTION]
         if mu > 0.0:
             for k in range(npts):
-                rta, rtb = arms[m, k, 2], arms[m, k, 3]
-                vt = ((vax - vbx) * tx + (vay - vby) * ty) + (wa * rta - wb * rtb)
+                p = ROW_POINT + k * POINT_SIZE
+                rta, rtb = row[m, p + PT_RTA], row[m, p + PT_RTB]
                 lam = c_tangent_impulse[m, k]
                 limit = mu * c_normal_impulse[m, k]
                 if limit == 0.0 and lam == 0.0:
                     continue  # no normal force, no friction: nothing to do
-                new = min(max(lam - c_tangent_mass[m, k] * vt, -limit), limit)
+                # the normal impulses turn the bodies (n · t = 0: they add no sliding)
+                vt = vt0 if k == 0 else vt1
+                vt += j0 * (ia * rna0 * rta + ib * rnb0 * rtb)
+                vt += j1 * (ia * rna1 * rta + ib * rnb1 * rtb)
+                if k == 1:
+                    vt += f0 * (ma + mb + ia * rta0 * rta + ib * rtb0 * rtb)
+                new = min(max(lam - row[m, p + PT_TMASS] * vt, -limit), limit)
                 impulse = new - lam
                 c_tangent_impulse[m, k] = new
-                px, py = impulse * tx, impulse * ty
-                vax += ma * px
-                vay += ma * py
-                wa += ia * impulse * rta
-                vbx -= mb * px
-                vby -= mb * py
-                wb -= ib * impulse * rtb
-        v[a, 0], v[a, 1], w[a] = vax, vay, wa
-        v[b, 0], v[b, 1], w[b] = vbx, vby, wb
+                if k == 0:
+                    f0 = impulse
+                else:
+                    f1 = impulse
+        jn, jt = j0 + j1, f0 + f1
+        px, py = jn * nx + jt * tx, jn * ny + jt * ty
+        vax += ma * px
+        vay += ma * py
+        wa += ia * ((j0 * rna0 + j1 * rna1) + (f0 * rta0 + f1 * rta1))
+        vbx -= mb * px
+        vby -= mb * py
+        wb -= ib * ((j0 * rnb0 + j1 * rnb1) + (f0 * rtb0 + f1 * rtb1))
+        # a static or kinematic body's velocity is unchanged: not written back, so that
+        # the next manifold on it need not wait for this one
+        if ma != 0.0 or ia != 0.0:
+            v[a, 0], v[a, 1], w[a] = vax, vay, wa
+        if mb != 0.0 or ib != 0.0:
+            v[b, 0], v[b, 1], w[b] = vbx, vby, wb
 
 
 @njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
