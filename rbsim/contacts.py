@@ -34,10 +34,11 @@ MIXING = {"sqrt": MIX_SQRT, "multiply": MIX_MULTIPLY, "min": MIX_MIN, "max": MIX
 class Contacts(NamedTuple):
     """Preallocated contact storage with capacity M manifolds (2 points each).
 
-    count (8,) int64: [manifolds now, manifolds last step, pairs found, points touching,
-    manifolds in the shock pass, a point engaged faster than the restitution threshold,
-    a point overlaps by more than DEEP_OVERLAP, 1 when the manifolds are last step's
-    pairs in the same slots (the contact graph is unchanged)].
+    count (10,) int64: [manifolds now, manifolds last step, pairs found, points touching,
+    manifolds in the shock pass, entries in bounce_list, a point overlaps by more than
+    DEEP_OVERLAP, 1 when the manifolds are last step's pairs in the same slots (the
+    contact graph is unchanged), entries of bounce_list carried from the last
+    restitution stage, 1 once an elastic manifold was listed this step].
     carried (M,) bool: the manifold is last step's, unchanged in its slot except for
     its separation (update_manifolds); later stages skip what cannot have changed.
     pairs (M,2) int32: broadphase output. shape_a, shape_b, body_a, body_b (M,) int32;
@@ -66,7 +67,10 @@ class Contacts(NamedTuple):
     adj_start (N+1,), adj (2M,), queue (N+2,): its scratch. bounce_kind (M,),
     body_mark (N,): the restitution stage's scratch (solver.apply_restitution);
     solve_impulse (M,2) N·s: each point's impulse when the positions moved this substep
-    (kept only in scenes with elastic materials, for the restitution stage).
+    (kept only in scenes with elastic materials, for the restitution stage);
+    bounce_list (2M+2,): the manifolds whose points engaged faster than the restitution
+    threshold since the last restitution stage, after those that stage left for later
+    (count[5] of them, count[8] carried; a point is listed at most once at a time).
     """
 
     count: np.ndarray
@@ -125,13 +129,14 @@ class Contacts(NamedTuple):
     bounce_kind: np.ndarray
     body_mark: np.ndarray
     solve_impulse: np.ndarray
+    bounce_list: np.ndarray
 
 
 def make_contacts(n_bodies: int, n_shapes: int, n_vertices: int, capacity: int) -> Contacts:
     """Allocate contact storage for `capacity` manifolds."""
     m = max(capacity, 1)
     return Contacts(
-        count=np.zeros(8, np.int64),
+        count=np.zeros(10, np.int64),
         carried=np.zeros(m, np.bool_),
         pairs=np.zeros((m, 2), np.int32),
         shape_a=np.zeros(m, np.int32),
@@ -187,6 +192,7 @@ def make_contacts(n_bodies: int, n_shapes: int, n_vertices: int, capacity: int) 
         bounce_kind=np.zeros(m, np.int8),
         body_mark=np.zeros(max(n_bodies, 1), np.int8),
         solve_impulse=np.zeros((m, 2)),
+        bounce_list=np.zeros(2 * m + 2, np.int32),
     )
 
 

@@ -190,11 +190,12 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
     back the separation is to be taken when a point engages, so that the recorded
     (separation, velocity) is the state before this substep's position update: the
     substep length in the relax stage of symplectic Euler, else 0. threshold (m/s): the
-    restitution threshold; a point that engages faster than it marks count[5], so that
-    the restitution stage has something to do.
+    restitution threshold; a point that engages faster than it enters its manifold in
+    bounce_list (count[5] entries), which the restitution stage works through.
     """
     c_approach_separation = contacts.approach_separation
     c_approach_velocity = contacts.approach_velocity
+    c_bounce_list = contacts.bounce_list
     c_body_a = contacts.body_a
     c_body_b = contacts.body_b
     c_count = contacts.count
@@ -311,8 +312,9 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
                 # after a bounce (approach set to inf) a new impact is.
                 c_approach_velocity[m, k] = vn
                 c_approach_separation[m, k] = (s0 if k == 0 else s1) - shift * vn
-                if vn < -threshold:
-                    c_count[5] = 1
+                if vn < -threshold:  # a bounce for the restitution stage's list
+                    c_bounce_list[c_count[5]] = m
+                    c_count[5] += 1
             new = max(lam + impulse, 0.0)  # clamp the accumulated impulse
             impulse = new - lam
             c_normal_impulse[m, k] = new
@@ -565,6 +567,7 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
     c_solve_impulse = contacts.solve_impulse
     kind = contacts.bounce_kind
     mark = contacts.body_mark
+    c_bounce_list = contacts.bounce_list
     m_body_force = model.body_force
     m_body_type = model.body_type
     m_gravity = model.gravity
@@ -574,14 +577,26 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
     gx, gy = m_gravity[0], m_gravity[1]
     bodies = (v, w, im, ii)
     rows = (c_anchor_a, c_anchor_b, c_normal, c_normal_mass, c_normal_impulse)
-    if c_count[5] == 0:
+    n_listed = c_count[5]
+    if n_listed == c_count[8]:
         return  # no point engaged faster than the threshold since the last call
-    c_count[5] = 0
+    c_count[5] = c_count[8] = 0
     n_man = c_count[0]
+    # the manifolds that bounce are listed (some twice), after those left for later
+    # below; while none in this step was elastic, each is ended on its own (in index
+    # order, as in the full pass) and nothing else needs a look
+    for i in range(n_listed):
+        if c_restitution[c_bounce_list[i]] > 0.0:
+            c_count[9] = 1
+    elastic_listed = c_count[9] == 1
+    if not elastic_listed:
+        for i in range(n_listed):
+            kind[c_bounce_list[i]] = _JOINED
     # which manifolds bounce, and which bodies something else pushes (mark bit 1)
-    mark[:] = 0
+    if elastic_listed:
+        mark[:] = 0
     n_alone = 0
-    for m in range(n_man):
+    for m in range(n_man if elastic_listed else 0):
         bouncing = joining = pushing = 0
         elastic = c_restitution[m] > 0.0
         for k in range(c_points[m]):
@@ -659,12 +674,14 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
             continue
         if kind[m] != _JOINED:
             continue
+        if not elastic_listed:
+            kind[m] = _QUIET  # the next call's list starts clean
         a, b = c_body_a[m], c_body_b[m]
         e = c_restitution[m]
         nx, ny = c_normal[m, 0], c_normal[m, 1]
         acc = _relative_acceleration(m_body_type, m_body_force, im, gx, gy, a, b, nx, ny)
         t0 = t1 = 0.0
-        bounce0 = bounce1 = False
+        bounce0 = bounce1 = deferred = False
         for k in range(c_points[m]):
             vn0 = c_approach_velocity[m, k]
             if vn0 >= -threshold or c_max_normal_impulse[m, k] == 0.0:
@@ -688,6 +705,7 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
                 arc = ta * ta * math.sqrt(rax * rax + ray * ray)
                 arc += tb * tb * math.sqrt(rbx * rbx + rby * rby)
                 if 0.5 * arc < C.LINEAR_SLOP:
+                    deferred = True
                     continue
             # one bounce per impact; should the bodies meet again within the step, the
             # point engages afresh (see solve_contacts) and records its new approach
@@ -699,6 +717,9 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
                 bounce0, t0 = True, target
             else:
                 bounce1, t1 = True, target
+        if deferred:  # looked at again when the stage next has something to do
+            c_bounce_list[c_count[5]] = m
+            c_count[5] += 1
         if not (bounce0 or bounce1):
             continue
         owed = (0.0, 0.0, 0.0, t0, t1)
@@ -708,6 +729,7 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
             c_max_normal_impulse[m, k] = max(c_max_normal_impulse[m, k], jk)
             if bounce0 if k == 0 else bounce1:
                 c_normal_impulse[m, k] = min(c_normal_impulse[m, k], c_start_impulse[m, k])
+    c_count[8] = c_count[5]  # the deferred ones, carried to the next call
     if n_alone == 0:
         return
     # the lone clusters, one pair's impact at a time

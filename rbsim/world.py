@@ -159,6 +159,8 @@ def step(model, state, grid, contacts, cfg):
     shift = 0.0 if cfg.explicit else h
     sign = -1.0 if cfg.explicit else 1.0
     threshold = cfg.restitution_threshold
+    # the restitution stage's list names this step's manifolds
+    contacts.count[5] = contacts.count[8] = contacts.count[9] = 0
     for _ in range(cfg.substeps):
         if cfg.explicit:
             integrate_positions(model, state, delta, h, cfg.exact)
