@@ -61,14 +61,35 @@ PT_RAX, PT_RAY, PT_RBX, PT_RBY, PT_BASE = 6, 7, 8, 9, 10
 ROW_SIZE = 32  # 28 used, padded to four cache lines
 
 
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
+def normal_velocity(v, w, a, b, rax, ray, rbx, rby, nx, ny):
+    """Relative normal velocity (m/s) of a's point at arm (rax, ray) against b's point
+    at arm (rbx, rby), along the normal (nx, ny) from b towards a; < 0 approaching."""
+    dvx = v[a, 0] - w[a] * ray - v[b, 0] + w[b] * rby
+    dvy = v[a, 1] + w[a] * rax - v[b, 1] - w[b] * rbx
+    return dvx * nx + dvy * ny
+
+
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
+def push_point(v, w, im, ii, a, b, rax, ray, rbx, rby, nx, ny, j):
+    """Apply the normal impulse j (N·s) at a point with arms r_a, r_b (m): +j n on body
+    a, −j n on body b (normal (nx, ny) from b towards a). Takes arrays (world.py's
+    rule for helpers)."""
+    px, py = j * nx, j * ny
+    v[a, 0] += im[a] * px
+    v[a, 1] += im[a] * py
+    w[a] += ii[a] * (rax * py - ray * px)
+    v[b, 0] -= im[b] * px
+    v[b, 1] -= im[b] * py
+    w[b] -= ii[b] * (rbx * py - rby * px)
+
+
 @njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy", inline="always")
 def approach_point(v, w, a, b, rax, ray, rbx, rby, nx, ny, base, m, k, approach, approach_sep):
     """Write point k of manifold m's approach velocity (m/s) and separation (m) at the
     start of the step: bodies a, b with velocities v, w, anchors r_a, r_b (m), normal
     n, base separations `base` (M,2). Takes arrays (world.py's rule for helpers)."""
-    dvx = v[a, 0] - w[a] * ray - v[b, 0] + w[b] * rby
-    dvy = v[a, 1] + w[a] * rax - v[b, 1] - w[b] * rbx
-    approach[m, k] = dvx * nx + dvy * ny
+    approach[m, k] = normal_velocity(v, w, a, b, rax, ray, rbx, rby, nx, ny)
     approach_sep[m, k] = base[m, k] + (nx * (rax - rbx) + ny * (ray - rby))
 
 
@@ -385,15 +406,6 @@ _PASSIVE = 4  # elastic, pushed slowly, no load carried in: joins a lone cluster
 
 
 @njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
-def normal_velocity(v, w, a, b, rax, ray, rbx, rby, nx, ny):
-    """Relative normal velocity (m/s) of a's point at arm (rax, ray) against b's point
-    at arm (rbx, rby), along the normal (nx, ny) from b towards a; < 0 approaching."""
-    dvx = v[a, 0] - w[a] * ray - v[b, 0] + w[b] * rby
-    dvy = v[a, 1] + w[a] * rax - v[b, 1] - w[b] * rbx
-    return dvx * nx + dvy * ny
-
-
-@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
 def bounce_target(invariant, s_now, acc, e, h, sign):
     """The normal velocity (m/s) after a bounce of coefficient e: the one that makes
     the discrete trajectory's invariant at separation s_now (m) e² times `invariant`
@@ -489,13 +501,7 @@ def push_targets(bodies, rows, m, a, b, need0, t0, need1, t1, single, owed):
         new = max(lam - normal_mass[m, k] * (vn - (t0 if k == 0 else t1)), 0.0)
         impulse = new - lam
         normal_impulse[m, k] = new
-        px, py = impulse * nx, impulse * ny
-        v[a, 0] += im[a] * px
-        v[a, 1] += im[a] * py
-        w[a] += ii[a] * (rax * py - ray * px)
-        v[b, 0] -= im[b] * px
-        v[b, 1] -= im[b] * py
-        w[b] -= ii[b] * (rbx * py - rby * px)
+        push_point(v, w, im, ii, a, b, rax, ray, rbx, rby, nx, ny, impulse)
         if k == 0:
             j0 = impulse
         else:
@@ -664,13 +670,7 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
                 c_normal_impulse[m, k] = 0.0
                 rax, ray = c_anchor_a[m, k, 0], c_anchor_a[m, k, 1]
                 rbx, rby = c_anchor_b[m, k, 0], c_anchor_b[m, k, 1]
-                px, py = -j * nx, -j * ny
-                v[a, 0] += im[a] * px
-                v[a, 1] += im[a] * py
-                w[a] += ii[a] * (rax * py - ray * px)
-                v[b, 0] -= im[b] * px
-                v[b, 1] -= im[b] * py
-                w[b] -= ii[b] * (rbx * py - rby * px)
+                push_point(v, w, im, ii, a, b, rax, ray, rbx, rby, nx, ny, -j)
             continue
         if kind[m] != _JOINED:
             continue
