@@ -29,16 +29,12 @@ from numba import njit
 
 from .solver import (
     POINT_SIZE,
-    PT_BASE,
-    PT_RAX,
-    PT_RAY,
-    PT_RBX,
-    PT_RBY,
     PT_RNA,
     PT_RNB,
     ROW_NX,
     ROW_NY,
     ROW_POINT,
+    row_separation,
 )
 
 # A contact counts as support when its normal is within this cosine of the vertical
@@ -248,9 +244,7 @@ def propagate_shock(model, state, contacts, n_order, inv_h, threshold):
         need0 = need1 = r0 = r1 = 0.0
         for k in range(npts):
             p = ROW_POINT + k * POINT_SIZE
-            sep = moved + row[m, p + PT_BASE]
-            sep += nax * row[m, p + PT_RAX] + nay * row[m, p + PT_RAY]
-            sep -= nbx * row[m, p + PT_RBX] + nby * row[m, p + PT_RBY]
+            sep = row_separation(row, m, p, moved, nax, nay, nbx, nby)
             # how far the point is from allowed: a gap may close within the substep
             if k == 0:
                 need0 = (-sep * inv_h if sep > 0.0 else 0.0) - vel0

@@ -202,6 +202,46 @@ def warm_start(model, state, contacts):
             w[b] -= ib * tb
 
 
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy", inline="always")
+def row_separation(row, m, p, moved, nax, nay, nbx, nby):
+    """Separation now (m) of the point whose fields start at offset p of manifold m's
+    solver row: n · (d_a − d_b + R_a r_a − R_b r_b) + base, with the normal turned back
+    into each body's start frame (nax, nay and nbx, nby) instead of each anchor forward,
+    and moved = n · (d_a − d_b) (m). Takes arrays (world.py's rule for helpers)."""
+    s = moved + row[m, p + PT_BASE]
+    s += nax * row[m, p + PT_RAX] + nay * row[m, p + PT_RAY]
+    s -= nbx * row[m, p + PT_RBX] + nby * row[m, p + PT_RBY]
+    return s
+
+
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy", inline="always")
+def clamp_normal(lam_arr, max_arr, approach, approach_sep, bounce_list, count, m, k, lam,
+                 impulse, vn, s, shift, threshold):  # fmt: skip
+    """Apply the clamp λ >= 0 to point k of manifold m, whose accumulated normal impulse
+    is lam (N·s) and whose solve asks for `impulse` (N·s) at normal velocity vn (m/s)
+    and separation s (m); returns the impulse applied. A point that engages (its first
+    push this step, or the first after a bounce) records its approach (see
+    solve_contacts). Takes arrays (world.py's rule for helpers)."""
+    # (the rarely true test first: whether a resting point's impulse is positive is a
+    # coin toss, and a branch on it would often be mispredicted)
+    engaged = max_arr[m, k] > 0.0
+    if (not engaged or approach[m, k] == math.inf) and impulse > 0.0:
+        # the point engages: its approach speed at impact, which gravity may have
+        # raised since the start of the step. Later approaches of an engaged point are
+        # the solver's own doing (a warm start re-applying an impact impulse) and are
+        # not recorded; after a bounce (approach set to inf) a new impact is
+        approach[m, k] = vn
+        approach_sep[m, k] = s - shift * vn
+        if vn < -threshold:  # a bounce for the restitution stage's list
+            bounce_list[count[5]] = m
+            count[5] += 1
+    new = max(lam + impulse, 0.0)  # clamp the accumulated impulse
+    impulse = new - lam
+    lam_arr[m, k] = new
+    max_arr[m, k] = max(max_arr[m, k], impulse)
+    return impulse
+
+
 @njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
 def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
     """One sequential-impulse pass over every contact (normal, then friction).
@@ -244,21 +284,57 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
         dbx, dby, cb, sb = delta[b, 0], delta[b, 1], delta[b, 2], delta[b, 3]
         soft_gamma, bias_rate = row[m, ROW_GAMMA], row[m, ROW_BIAS_RATE]
         npts = c_points[m]
-        s0 = s1 = 0.0
-        # the current separation: n · (d_a − d_b + R_a r_a − R_b r_b) + base, with the
-        # normal turned back into each body's start frame instead of each anchor forward
         moved = nx * (dax - dbx) + ny * (day - dby)
         nax, nay = ca * nx + sa * ny, ca * ny - sa * nx
         nbx, nby = cb * nx + sb * ny, cb * ny - sb * nx
+        if npts == 1:
+            # one point (circles, capsule ends): the same solve as below with the
+            # second point's terms dropped, in straight-line code; a third less work
+            # per manifold than the general loop
+            p = ROW_POINT
+            s = row_separation(row, m, p, moved, nax, nay, nbx, nby)
+            push = use_bias and s <= 0.0
+            bias = s * inv_h if s > 0.0 else 0.0
+            bias = max(bias_rate * s, max_push) if push else bias
+            kn = row[m, p + PT_KN]
+            gamma = kn * soft_gamma if push else 0.0
+            if push and s < deep:
+                c_count[6] = 1
+            rna, rnb = row[m, p + PT_RNA], row[m, p + PT_RNB]
+            rta, rtb = row[m, p + PT_RTA], row[m, p + PT_RTB]
+            dvx, dvy = vax - vbx, vay - vby
+            vn = (dvx * nx + dvy * ny) + (wa * rna - wb * rnb)
+            vt = (dvx * tx + dvy * ty) + (wa * rta - wb * rtb)
+            lam = c_normal_impulse[m, 0]
+            impulse = (-vn - (bias + gamma * lam)) * (1.0 / (kn + gamma))
+            jn = clamp_normal(c_normal_impulse, c_max_normal_impulse, c_approach_velocity,
+                              c_approach_separation, c_bounce_list, c_count, m, 0, lam,
+                              impulse, vn, s, shift, threshold)  # fmt: skip
+            jt = 0.0
+            mu = row[m, ROW_FRICTION]
+            lam = c_tangent_impulse[m, 0]
+            limit = mu * c_normal_impulse[m, 0]
+            if mu > 0.0 and not (limit == 0.0 and lam == 0.0):
+                vt += jn * (ia * rna * rta + ib * rnb * rtb)
+                new = min(max(lam - row[m, p + PT_TMASS] * vt, -limit), limit)
+                jt = new - lam
+                c_tangent_impulse[m, 0] = new
+            px, py = jn * nx + jt * tx, jn * ny + jt * ty
+            if ma != 0.0 or ia != 0.0:
+                v[a, 0], v[a, 1] = vax + ma * px, vay + ma * py
+                w[a] = wa + ia * (jn * rna + jt * rta)
+            if mb != 0.0 or ib != 0.0:
+                v[b, 0], v[b, 1] = vbx - mb * px, vby - mb * py
+                w[b] = wb - ib * (jn * rnb + jt * rtb)
+            continue
+        s0 = s1 = 0.0
         # each point's separation now, its target (bias) and softness
         lam0 = c_normal_impulse[m, 0]
         lam1 = c_normal_impulse[m, 1]
         vn0 = vn1 = b0 = b1 = g0 = g1 = 0.0
         for k in range(npts):
             p = ROW_POINT + k * POINT_SIZE
-            s = moved + row[m, p + PT_BASE]
-            s += nax * row[m, p + PT_RAX] + nay * row[m, p + PT_RAY]
-            s -= nbx * row[m, p + PT_RBX] + nby * row[m, p + PT_RBY]
+            s = row_separation(row, m, p, moved, nax, nay, nbx, nby)
             # a gap (s > 0) may close in the substep, no more (speculative); an overlap
             # is pushed out softly in the solve stage, as the regularised constraint
             # (K + γ) Δλ = −(vn + b) − γλ, and not at all in the relax stage. Written
@@ -322,24 +398,9 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
                 # 1 / (K + γ) does not wait for the velocities: a product on the chain
                 kn = row[m, ROW_POINT + k * POINT_SIZE + PT_KN]
                 impulse = (-vn - (bias + gamma * lam)) * (1.0 / (kn + gamma))
-            # (the rarely true test first: whether a resting point's impulse is positive
-            # is a coin toss, and a branch on it would often be mispredicted)
-            engaged = c_max_normal_impulse[m, k] > 0.0
-            if (not engaged or c_approach_velocity[m, k] == math.inf) and impulse > 0.0:
-                # the point engages (its first push this step): its approach speed at
-                # impact, which gravity may have raised since the start of the step.
-                # Later approaches of an engaged point are the solver's own doing
-                # (a warm start re-applying an impact impulse) and are not recorded;
-                # after a bounce (approach set to inf) a new impact is.
-                c_approach_velocity[m, k] = vn
-                c_approach_separation[m, k] = (s0 if k == 0 else s1) - shift * vn
-                if vn < -threshold:  # a bounce for the restitution stage's list
-                    c_bounce_list[c_count[5]] = m
-                    c_count[5] += 1
-            new = max(lam + impulse, 0.0)  # clamp the accumulated impulse
-            impulse = new - lam
-            c_normal_impulse[m, k] = new
-            c_max_normal_impulse[m, k] = max(c_max_normal_impulse[m, k], impulse)
+            impulse = clamp_normal(c_normal_impulse, c_max_normal_impulse, c_approach_velocity,
+                                   c_approach_separation, c_bounce_list, c_count, m, k, lam,
+                                   impulse, vn, s0 if k == 0 else s1, shift, threshold)  # fmt: skip
             if k == 0:
                 j0 = impulse
             else:
