@@ -51,6 +51,10 @@ CONTACT_PUSH_MAX_VELOCITY = 3.0
 # overlap by millimetres and never pay for it.
 DEEP_OVERLAP = 0.02
 DEEP_RELAX_FACTOR = 4
+# The extra relax passes take the contacts of the bodies within this many contacts of
+# a deep overlap (a pile's other contacts are left alone: they have nothing to take
+# back); larger is closer to taking them all.
+DEEP_RELAX_REACH = 8
 
 # Deepest overlap with a static or kinematic body that is left to the soft contacts, m;
 # beyond it the body is moved out directly (solver.limit_static_overlap). Bodies resting

@@ -35,10 +35,10 @@ class Contacts(NamedTuple):
     """Preallocated contact storage with capacity M manifolds (2 points each).
 
     count (10,) int64: [manifolds now, manifolds last step, pairs found, points touching,
-    manifolds in the shock pass, entries in bounce_list, a point overlaps by more than
-    DEEP_OVERLAP, 1 when the manifolds are last step's pairs in the same slots (the
-    contact graph is unchanged), entries of bounce_list carried from the last
-    restitution stage, 1 once an elastic manifold was listed this step].
+    manifolds in the shock pass, entries in bounce_list, entries in relax_list (points
+    that overlap by more than DEEP_OVERLAP), 1 when the manifolds are last step's pairs
+    in the same slots (the contact graph is unchanged), entries of bounce_list carried
+    from the last restitution stage, 1 once an elastic manifold was listed this step].
     carried (M,) bool: the manifold is last step's, unchanged in its slot except for
     its separation (update_manifolds); later stages skip what cannot have changed.
     pairs (M,2) int32: broadphase output. shape_a, shape_b, body_a, body_b (M,) int32;
@@ -71,6 +71,9 @@ class Contacts(NamedTuple):
     bounce_list (2M+2,): the manifolds whose points engaged faster than the restitution
     threshold since the last restitution stage, after those that stage left for later
     (count[5] of them, count[8] carried; a point is listed at most once at a time).
+    relax_list (M,): the manifolds with a point deeper than DEEP_OVERLAP in this
+    substep's solve (count[6] entries, M when full), then those the extra relax passes
+    take (shock.deep_region); body_reach (N,): its scratch.
     """
 
     count: np.ndarray
@@ -130,6 +133,8 @@ class Contacts(NamedTuple):
     body_mark: np.ndarray
     solve_impulse: np.ndarray
     bounce_list: np.ndarray
+    relax_list: np.ndarray
+    body_reach: np.ndarray
 
 
 def make_contacts(n_bodies: int, n_shapes: int, n_vertices: int, capacity: int) -> Contacts:
@@ -193,6 +198,8 @@ def make_contacts(n_bodies: int, n_shapes: int, n_vertices: int, capacity: int) 
         body_mark=np.zeros(max(n_bodies, 1), np.int8),
         solve_impulse=np.zeros((m, 2)),
         bounce_list=np.zeros(2 * m + 2, np.int32),
+        relax_list=np.zeros(m, np.int32),
+        body_reach=np.zeros(max(n_bodies, 1), np.int64),
     )
 
 

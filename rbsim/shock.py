@@ -196,6 +196,60 @@ def support_order(model, contacts):
     return total
 
 
+@njit(cache=True, _nrt=False)
+def deep_region(model, contacts, reach):
+    """The manifolds near a deep overlap, for the relax stage's extra passes: those of
+    the dynamic bodies within `reach` contacts of a body in a manifold of
+    contacts.relax_list[:count[6]], written in solve order over that list; returns
+    their count. Every manifold when the list is full or the scene has no gravity (the
+    contact graph, contact_levels' adjacency, is built only for the shock pass).
+    Uses contacts.queue and body_reach as scratch."""
+    c_body_a, c_body_b = contacts.body_a, contacts.body_b
+    adj_start, adj = contacts.adj_start, contacts.adj
+    queue, dist = contacts.queue, contacts.body_reach
+    relax_list, order = contacts.relax_list, contacts.solve_order
+    body_type = model.body_type
+    n_man = contacts.count[0]
+    n_seeds = contacts.count[6]
+    everything = n_seeds >= relax_list.shape[0]
+    everything = everything or (model.gravity[0] == 0.0 and model.gravity[1] == 0.0)
+    if everything:
+        for o in range(n_man):
+            relax_list[o] = order[o]
+        return n_man
+    for i in range(dist.shape[0]):
+        dist[i] = -1
+    # breadth first from the deep manifolds' bodies; static and kinematic bodies are
+    # not passed through (a push does not travel through the ground)
+    tail = 0
+    for k in range(n_seeds):
+        m = relax_list[k]
+        for i in (c_body_a[m], c_body_b[m]):
+            if body_type[i] == 0 and dist[i] < 0:
+                dist[i] = 0
+                queue[tail] = i
+                tail += 1
+    head = 0
+    while head < tail:
+        i = queue[head]
+        head += 1
+        if dist[i] >= reach:
+            continue
+        for e in range(adj_start[i], adj_start[i + 1]):
+            j = adj[e]
+            if body_type[j] == 0 and dist[j] < 0:
+                dist[j] = dist[i] + 1
+                queue[tail] = j
+                tail += 1
+    count = 0
+    for o in range(n_man):
+        m = order[o]
+        if dist[c_body_a[m]] >= 0 or dist[c_body_b[m]] >= 0:
+            relax_list[count] = m
+            count += 1
+    return count
+
+
 @njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
 def propagate_shock(model, state, contacts, n_order, inv_h, threshold):
     """One pass over the supported contacts, lowest first, that removes each supported

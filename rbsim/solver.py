@@ -242,9 +242,19 @@ def clamp_normal(lam_arr, max_arr, approach, approach_sep, bounce_list, count, m
     return impulse
 
 
+@njit(cache=True, _nrt=False, inline="always")
+def mark_deep(count, relax_list, m):
+    """List manifold m in relax_list as having a deep overlap (count[6] entries; once
+    the list is full it stays at its length, which means every manifold)."""
+    if count[6] < relax_list.shape[0]:
+        relax_list[count[6]] = m
+        count[6] += 1
+
+
 @njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy")
-def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
-    """One sequential-impulse pass over every contact (normal, then friction).
+def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold, order, n):
+    """One sequential-impulse pass (normal, then friction) over the manifolds order[:n]:
+    contacts.solve_order (ground first, shock.support_order) or a part of it.
 
     inv_h: 1 / substep length (1/s). use_bias: True in the solve stage (soft position
     correction), False in the relax stage (rigid, no push-out). shift (s): how far
@@ -252,7 +262,9 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
     (separation, velocity) is the state before this substep's position update: the
     substep length in the relax stage of symplectic Euler, else 0. threshold (m/s): the
     restitution threshold; a point that engages faster than it enters its manifold in
-    bounce_list (count[5] entries), which the restitution stage works through.
+    bounce_list (count[5] entries), which the restitution stage works through. A
+    manifold with a point that overlaps deeper than DEEP_OVERLAP in the solve stage
+    enters relax_list (count[6] entries), once per such point.
     """
     c_approach_separation = contacts.approach_separation
     c_approach_velocity = contacts.approach_velocity
@@ -270,9 +282,9 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
     delta = contacts.body_delta
     max_push = -C.CONTACT_PUSH_MAX_VELOCITY
     deep = -C.DEEP_OVERLAP
-    c_order = contacts.solve_order  # ground first (shock.support_order)
-    for o in range(c_count[0]):
-        m = c_order[o]
+    relax_list = contacts.relax_list
+    for o in range(n):
+        m = order[o]
         a, b = c_body_a[m], c_body_b[m]
         ma, mb, ia, ib = im[a], im[b], ii[a], ii[b]
         vax, vay, wa = v[a, 0], v[a, 1], w[a]
@@ -299,7 +311,7 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
             kn = row[m, p + PT_KN]
             gamma = kn * soft_gamma if push else 0.0
             if push and s < deep:
-                c_count[6] = 1
+                mark_deep(c_count, relax_list, m)
             rna, rnb = row[m, p + PT_RNA], row[m, p + PT_RNB]
             rta, rtb = row[m, p + PT_RTA], row[m, p + PT_RTB]
             dvx, dvy = vax - vbx, vay - vby
@@ -345,7 +357,7 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold):
             bias = max(bias_rate * s, max_push) if push else bias
             gamma = row[m, p + PT_KN] * soft_gamma if push else 0.0
             if push and s < deep:
-                c_count[6] = 1
+                mark_deep(c_count, relax_list, m)
             # sums grouped as two halves: each pass is one long chain of dependent
             # arithmetic through the body velocities, and a shallow sum shortens it
             vn = ((vax - vbx) * nx + (vay - vby) * ny) + (

@@ -58,7 +58,7 @@ from .contacts import (
 from .integrator import integrate_positions, integrate_velocities
 from .model import Model, State, build
 from .scene import Scene
-from .shock import propagate_shock, support_order
+from .shock import deep_region, propagate_shock, support_order
 from .solver import (
     apply_restitution,
     keep_solve_impulses,
@@ -161,6 +161,7 @@ def step(model, state, grid, contacts, cfg):
     threshold = cfg.restitution_threshold
     # the restitution stage's list names this step's manifolds
     contacts.count[5] = contacts.count[8] = contacts.count[9] = 0
+    order, n_man = contacts.solve_order, contacts.count[0]
     for _ in range(cfg.substeps):
         if cfg.explicit:
             integrate_positions(model, state, delta, h, cfg.exact)
@@ -171,17 +172,24 @@ def step(model, state, grid, contacts, cfg):
             warm_start(model, state, contacts)
             contacts.count[6] = 0
             for _ in range(cfg.iterations):
-                solve_contacts(model, state, contacts, inv_h, True, 0.0, threshold)
+                solve_contacts(model, state, contacts, inv_h, True, 0.0, threshold, order, n_man)
         if not cfg.explicit:
             if contacts_on and cfg.elastic:
                 keep_solve_impulses(contacts)
             integrate_positions(model, state, delta, h, cfg.exact)
         if contacts_on:
-            # relax; while a deep overlap is being pushed out it gets more passes, so
-            # that the push's velocity is taken back all the way up a stack
-            n_relax = cfg.iterations * (C.DEEP_RELAX_FACTOR if contacts.count[6] else 1)
-            for _ in range(n_relax):
-                solve_contacts(model, state, contacts, inv_h, False, shift, threshold)
+            for _ in range(cfg.iterations):  # relax
+                solve_contacts(model, state, contacts, inv_h, False, shift, threshold, order, n_man)
+            if contacts.count[6]:
+                # a deep overlap is being pushed out: the contacts around it get more
+                # relax passes, so that the push's velocity is taken back all the way
+                # up a stack instead of adding up from row to row
+                near = contacts.relax_list
+                n_near = deep_region(model, contacts, C.DEEP_RELAX_REACH)
+                for _ in range(cfg.iterations * (C.DEEP_RELAX_FACTOR - 1)):
+                    solve_contacts(
+                        model, state, contacts, inv_h, False, shift, threshold, near, n_near
+                    )
             # bounces first: the shock pass then leaves them alone, and would otherwise
             # take a ball struck down onto the floor as a load and stop it dead
             apply_restitution(model, state, contacts, threshold, h, sign)
