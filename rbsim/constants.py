@@ -45,15 +45,17 @@ CONTACT_DAMPING_RATIO = 10.0
 CONTACT_PUSH_MAX_VELOCITY = 3.0
 
 # An overlap deeper than this (m, 4 * LINEAR_SLOP) is being pushed out, not resting:
-# while one exists the relax stage makes DEEP_RELAX_FACTOR times as many passes, so that
-# the velocity of the push-out (at most CONTACT_PUSH_MAX_VELOCITY per contact) is taken
-# back through a whole stack instead of adding up from row to row. Resting contacts
-# overlap by millimetres and never pay for it.
+# while one exists the contacts around it get DEEP_RELAX_FACTOR times as many relax
+# passes, so that the velocity of the push-out (at most CONTACT_PUSH_MAX_VELOCITY per
+# contact) is taken back through a whole stack instead of adding up from row to row.
+# Resting contacts overlap by millimetres and never pay for it.
 DEEP_OVERLAP = 0.02
 DEEP_RELAX_FACTOR = 4
-# The extra relax passes take the contacts of the bodies within this many contacts of
-# a deep overlap (a pile's other contacts are left alone: they have nothing to take
-# back); larger is closer to taking them all.
+# "Around it": the contacts of the dynamic bodies within this many contacts of a deep
+# overlap (shock.deep_region). A pile's far contacts have nothing to take back: a ball
+# landing hard on a pile of 1000 got the extra passes over a fifth of its contacts, not
+# all. 8 reaches past the 3 extra passes' own reach; on a stack of 30 with a deep
+# overlap at the bottom the top box's peak speed moved from 0.71 to 0.73 m/s.
 DEEP_RELAX_REACH = 8
 
 # Deepest overlap with a static or kinematic body that is left to the soft contacts, m;
