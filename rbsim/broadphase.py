@@ -5,11 +5,16 @@ that contains it with AABB_MARGIN to spare. Pairs are found between fat boxes an
 from step to step; only a shape whose tight box has left its fat box ("moved") is
 queried again. A resting stack therefore costs one containment test per shape.
 
-Queries use a uniform grid hashed into a table. Each shape is entered in every cell
-its fat box touches (at most MAX_CELLS); a pair sharing several cells is reported only
-from the cell that holds the corner max(min_a, min_b), so no pair is found twice.
-Shapes whose box spans more cells than that (a long ground, a very fast body) are
-"big": they are tested against every other shape directly, cheap while they are few.
+Queries use a loose uniform grid: each shape is entered once, in the cell that holds
+its fat box's min corner, and a query looks at every cell where the min corner of an
+overlapping box can lie, which the widest and tallest box in the grid bound. One entry
+per shape keeps the fill cheap and finds each pair once per query. When the occupied
+cells fit in a rectangle of at most as many cells as the table has buckets, each cell
+is its own bucket, numbered row by row, so a query reads one run of entries per row
+and needs no check that an entry is in the cell it looks at; otherwise (shapes far
+apart) cells are hashed into the table. Shapes wider or taller than a cell (a long
+ground, a very fast body) are "big": they are tested against every other shape
+directly, cheap while they are few.
 
 Pairs are kept sorted by (shape a, shape b) with a < b, so the order is deterministic
 and the contact stage matches them against the previous step in one merge pass.
@@ -26,36 +31,45 @@ from numba import njit
 
 from . import constants as C
 
-MAX_CELLS = 16  # cells a shape may touch before it is treated as big
+CELL_SIZES = 4.0  # cell size in median half-diagonals (plus two fat margins)
+TABLE_PER_SHAPE = 2  # hash table buckets per shape, at least
 RADIX_BITS = 8  # bits of a pair key sorted per radix pass (256 buckets)
 INSERTION_SORT_MAX = 32  # fewer new pair keys than this are sorted by insertion
 
 
 class Grid(NamedTuple):
-    """Broadphase storage; S shapes, E = MAX_CELLS·S entries, T table buckets, P pairs.
+    """Broadphase storage; S shapes, E = S entries, T table buckets, P pairs.
 
     inv_cell: 1 / cell size (1/m). shape_aabb (S,4) tight boxes min x, min y, max x,
-    max y (m); shape_fat (S,4) fat boxes; shape_moved (S,) bool; shape_cells (S,4)
-    int64 cell range of the fat box ix0, iy0, ix1, iy1; shape_big (S,) bool;
-    entry_shape, entry_ix, entry_iy (E,) sorted by bucket; entry_bucket (E,) scratch;
-    bucket_start (T+1,); big_list (S,) the big shapes in index order; meta (2,) int64:
-    [big shape count, 1 once the pairs are valid]; new_keys (P,) int64 and
-    kept (P,2) int32: scratch for the pair update; sort_scratch (P,) int64 and
-    sort_count (2**RADIX_BITS + 1,) int64: scratch for sorting the new keys.
+    max y (m); shape_fat (S,4) fat boxes; shape_moved (S,) bool; shape_big (S,) bool;
+    shape_cell (S,2) int64 cell ix, iy of a small shape's min corner; shape_bucket (S,)
+    int64 its bucket. The small shapes' entries, sorted by bucket, copy what a pair
+    test reads so that it reads memory in sequence: entry_shape (E,) int32; entry_cell
+    (E,2) int64 cell ix, iy (hashed table only); entry_fat (E,4) the fat box (m);
+    entry_tag (E,) int32 the body index if the body is dynamic, else -1 - body index.
+    bucket_start (T+1,); big_list (S,) the big shapes in index order; span (2,) float64
+    width and height (m) of the widest and tallest small fat box, padded up by a
+    relative 1e-12 so that rounding cannot hide a pair; meta (7,) int64: [big shape
+    count, 1 once the pairs are valid, 1 if the cells are their own buckets, then the
+    first cell ix, iy and the rectangle's width and height in cells]; new_keys (P,)
+    int64 and kept (P,2) int32: scratch for the pair update; sort_scratch (P,) int64
+    and sort_count (2**RADIX_BITS + 1,) int64: scratch for sorting the new keys.
     """
 
     inv_cell: float
     shape_aabb: np.ndarray
     shape_fat: np.ndarray
     shape_moved: np.ndarray
-    shape_cells: np.ndarray
     shape_big: np.ndarray
+    shape_cell: np.ndarray
+    shape_bucket: np.ndarray
     entry_shape: np.ndarray
-    entry_ix: np.ndarray
-    entry_iy: np.ndarray
-    entry_bucket: np.ndarray
+    entry_cell: np.ndarray
+    entry_fat: np.ndarray
+    entry_tag: np.ndarray
     bucket_start: np.ndarray
     big_list: np.ndarray
+    span: np.ndarray
     meta: np.ndarray
     new_keys: np.ndarray
     kept: np.ndarray
@@ -66,32 +80,36 @@ class Grid(NamedTuple):
 def make_grid(shape_size: np.ndarray, shape_is_dynamic: np.ndarray, capacity: int) -> Grid:
     """Preallocate the broadphase for S shapes and `capacity` pairs.
 
-    The cell size is four times the median half-diagonal (m) of the dynamic shapes plus the
-    fat margin, so a typical shape touches 1 to 4 cells.
+    The cell size is CELL_SIZES times the median half-diagonal (m) of the dynamic shapes
+    plus twice the fat margin, so a typical fat box fits in one cell with room to spare
+    (2 to 3 cells per axis per query); the table has at least TABLE_PER_SHAPE buckets per
+    shape (2: measured a little faster to fill than 4, and as fast to query).
     """
     s = shape_size.shape[0]
     dyn = shape_size[shape_is_dynamic]
-    size = 4.0 * float(np.median(dyn)) if dyn.size else 1.0
+    size = CELL_SIZES * float(np.median(dyn)) if dyn.size else 1.0
     cell = max(size, 1e-3) + 2.0 * C.AABB_MARGIN
     table = 64
-    while table < 4 * s:
+    while table < TABLE_PER_SHAPE * s:
         table *= 2
-    e = MAX_CELLS * max(s, 1)
+    e = max(s, 1)
     p = max(capacity, 1)
     return Grid(
         inv_cell=1.0 / cell,
         shape_aabb=np.zeros((s, 4)),
         shape_fat=np.zeros((s, 4)),
         shape_moved=np.zeros(s, np.bool_),
-        shape_cells=np.zeros((s, 4), np.int64),
         shape_big=np.zeros(s, np.bool_),
+        shape_cell=np.zeros((s, 2), np.int64),
+        shape_bucket=np.zeros(s, np.int64),
         entry_shape=np.zeros(e, np.int32),
-        entry_ix=np.zeros(e, np.int64),
-        entry_iy=np.zeros(e, np.int64),
-        entry_bucket=np.zeros(e, np.int64),
+        entry_cell=np.zeros((e, 2), np.int64),
+        entry_fat=np.zeros((e, 4)),
+        entry_tag=np.zeros(e, np.int32),
         bucket_start=np.zeros(table + 1, np.int64),
         big_list=np.zeros(max(s, 1), np.int32),
-        meta=np.zeros(2, np.int64),
+        span=np.zeros(2),
+        meta=np.zeros(7, np.int64),
         new_keys=np.zeros(p, np.int64),
         kept=np.zeros((p, 2), np.int32),
         sort_scratch=np.zeros(p, np.int64),
@@ -145,66 +163,83 @@ def update_aabbs(model, grid, vert_world, shape_margin):
 
 
 @njit(cache=True, _nrt=False)
-def _fill_grid(grid):
-    """Enter every small shape's fat box into the cells it touches (counting sort)."""
+def _fill_grid(model, grid):
+    """Enter every small shape in the cell of its fat box's min corner (counting sort by
+    bucket), with a copy of the shape data the pair tests read."""
+    shape_body, body_type = model.shape_body, model.body_type
     g_big_list = grid.big_list
-    g_bucket_start = grid.bucket_start
-    g_entry_bucket = grid.entry_bucket
-    g_entry_ix = grid.entry_ix
-    g_entry_iy = grid.entry_iy
+    g_entry_cell = grid.entry_cell
+    g_entry_fat = grid.entry_fat
     g_entry_shape = grid.entry_shape
+    g_entry_tag = grid.entry_tag
     g_meta = grid.meta
     g_shape_big = grid.shape_big
-    g_shape_cells = grid.shape_cells
+    g_shape_bucket = grid.shape_bucket
+    g_shape_cell = grid.shape_cell
     g_shape_fat = grid.shape_fat
+    g_span = grid.span
     n = g_shape_fat.shape[0]
-    mask = g_bucket_start.shape[0] - 2  # table size - 1 (a power of two minus one)
+    starts = grid.bucket_start
+    table = starts.shape[0] - 1  # a power of two
     inv = grid.inv_cell
-    starts = g_bucket_start
-    starts[:] = 0
-    e = 0
+    cell = 1.0 / inv
     nbig = 0
+    wide = tall = 0.0
+    gx0 = gy0 = np.int64(0)
+    gx1 = gy1 = np.int64(-1)
     for s in range(n):
-        ix0 = math.floor(g_shape_fat[s, 0] * inv)
-        iy0 = math.floor(g_shape_fat[s, 1] * inv)
-        ix1 = math.floor(g_shape_fat[s, 2] * inv)
-        iy1 = math.floor(g_shape_fat[s, 3] * inv)
-        big = (ix1 - ix0 + 1) * (iy1 - iy0 + 1) > MAX_CELLS
+        w = g_shape_fat[s, 2] - g_shape_fat[s, 0]
+        h = g_shape_fat[s, 3] - g_shape_fat[s, 1]
+        big = w > cell or h > cell
         g_shape_big[s] = big
-        g_shape_cells[s, 0], g_shape_cells[s, 1] = ix0, iy0
-        g_shape_cells[s, 2], g_shape_cells[s, 3] = ix1, iy1
         if big:
             g_big_list[nbig] = s
             nbig += 1
             continue
-        for ix in range(ix0, ix1 + 1):
-            for iy in range(iy0, iy1 + 1):
-                b = ((ix * 73856093) ^ (iy * 19349663)) & mask
-                g_entry_bucket[e] = b
-                starts[b + 1] += 1
-                e += 1
+        wide, tall = max(wide, w), max(tall, h)
+        ix = math.floor(g_shape_fat[s, 0] * inv)
+        iy = math.floor(g_shape_fat[s, 1] * inv)
+        g_shape_cell[s, 0], g_shape_cell[s, 1] = ix, iy
+        if gx1 < gx0:
+            gx0 = gx1 = ix
+            gy0 = gy1 = iy
+        gx0, gy0, gx1, gy1 = min(gx0, ix), min(gy0, iy), max(gx1, ix), max(gy1, iy)
     g_meta[0] = nbig
-    for b in range(mask + 1):
-        starts[b + 1] += starts[b]
-    # place entries; `starts[b]` walks forward and is restored afterwards
-    e = 0
+    g_span[0], g_span[1] = wide * (1.0 + 1e-12), tall * (1.0 + 1e-12)
+    nx, ny = gx1 - gx0 + 1, gy1 - gy0 + 1
+    dense = nx <= table and ny <= table and nx * ny <= table
+    g_meta[2], g_meta[3], g_meta[4], g_meta[5], g_meta[6] = dense, gx0, gy0, nx, ny
+    used = nx * ny if dense else table
+    for b in range(used + 1):
+        starts[b] = 0
     for s in range(n):
         if g_shape_big[s]:
             continue
-        ix0, iy0 = g_shape_cells[s, 0], g_shape_cells[s, 1]
-        ix1, iy1 = g_shape_cells[s, 2], g_shape_cells[s, 3]
-        for ix in range(ix0, ix1 + 1):
-            for iy in range(iy0, iy1 + 1):
-                b = g_entry_bucket[e]
-                k = starts[b]
-                g_entry_shape[k] = s
-                g_entry_ix[k] = ix
-                g_entry_iy[k] = iy
-                starts[b] = k + 1
-                e += 1
-    for b in range(mask, 0, -1):
-        starts[b] = starts[b - 1]
-    starts[0] = 0
+        ix, iy = g_shape_cell[s, 0], g_shape_cell[s, 1]
+        if dense:
+            b = (ix - gx0) + nx * (iy - gy0)
+        else:
+            b = ((ix * 73856093) ^ (iy * 19349663)) & (table - 1)
+        g_shape_bucket[s] = b
+        starts[b] += 1
+    # starts[b] becomes the end of bucket b; placing the shapes from the last one back
+    # moves it down to the bucket's beginning, so no pass is needed to restore it
+    for b in range(used - 1):
+        starts[b + 1] += starts[b]
+    starts[used] = n - nbig
+    for s in range(n - 1, -1, -1):
+        if g_shape_big[s]:
+            continue
+        b = g_shape_bucket[s]
+        k = starts[b] - 1
+        starts[b] = k
+        body = shape_body[s]
+        g_entry_shape[k] = s
+        if not dense:
+            g_entry_cell[k, 0], g_entry_cell[k, 1] = g_shape_cell[s, 0], g_shape_cell[s, 1]
+        g_entry_fat[k, 0], g_entry_fat[k, 1] = g_shape_fat[s, 0], g_shape_fat[s, 1]
+        g_entry_fat[k, 2], g_entry_fat[k, 3] = g_shape_fat[s, 2], g_shape_fat[s, 3]
+        g_entry_tag[k] = body if body_type[body] == C.BODY_DYNAMIC else -1 - body
 
 
 @njit(cache=True, _nrt=False)
@@ -218,41 +253,57 @@ def _query_moved(model, grid):
     """
     shape_body, body_type = model.shape_body, model.body_type
     bucket_start, entry_shape = grid.bucket_start, grid.entry_shape
-    entry_ix, entry_iy = grid.entry_ix, grid.entry_iy
+    entry_cell, entry_fat, entry_tag = grid.entry_cell, grid.entry_fat, grid.entry_tag
     fat, moved, big = grid.shape_fat, grid.shape_moved, grid.shape_big
-    cells, big_list, keys = grid.shape_cells, grid.big_list, grid.new_keys
-    n_big = grid.meta[0]
+    big_list, keys = grid.big_list, grid.new_keys
+    wide, tall = grid.span[0], grid.span[1]
+    g_meta = grid.meta
+    n_big = g_meta[0]
+    dense, gx0, gy0, nx, ny = g_meta[2] != 0, g_meta[3], g_meta[4], g_meta[5], g_meta[6]
     n = fat.shape[0]
     capacity = keys.shape[0]
     mask = bucket_start.shape[0] - 2
+    inv = grid.inv_cell
     count = 0
     for a in range(n):
         if not moved[a]:
             continue
         body_a = shape_body[a]
         dyn_a = body_type[body_a] == C.BODY_DYNAMIC
+        tag_a = body_a if dyn_a else -1 - body_a
         ax0, ay0, ax1, ay1 = fat[a, 0], fat[a, 1], fat[a, 2], fat[a, 3]
-        ix0, iy0, ix1, iy1 = cells[a, 0], cells[a, 1], cells[a, 2], cells[a, 3]
         # candidates: every shape for a big shape; else the grid cells, then big shapes
         n_cand = n if big[a] else n_big
-        for ix in range(ix0, ix1 + 1):
-            if big[a]:
-                break
-            for iy in range(iy0, iy1 + 1):
-                bk = ((ix * 73856093) ^ (iy * 19349663)) & mask
-                for k in range(bucket_start[bk], bucket_start[bk + 1]):
-                    if entry_ix[k] != ix or entry_iy[k] != iy:
+        if big[a]:
+            ix0, ix1, iy0, iy1 = 0, -1, 0, -1
+        else:
+            # a box overlapping a's has its min corner in [a's min - span, a's max]
+            ix0, ix1 = math.floor((ax0 - wide) * inv), math.floor(ax1 * inv)
+            iy0, iy1 = math.floor((ay0 - tall) * inv), math.floor(ay1 * inv)
+            if dense:  # clip to the occupied rectangle; one run of entries per row
+                ix0, ix1 = max(ix0, gx0), min(ix1, gx0 + nx - 1)
+                iy0, iy1 = max(iy0, gy0), min(iy1, gy0 + ny - 1)
+        for iy in range(iy0, iy1 + 1):
+            # hashed: one bucket per cell; dense: a single pass reads the row's whole run
+            for ix in range(ix0, ix1 + 1 if not dense else min(ix0, ix1) + 1):
+                if dense:
+                    row = (iy - gy0) * nx - gx0
+                    k0, k1 = bucket_start[row + ix0], bucket_start[row + ix1 + 1]
+                else:
+                    bk = ((ix * 73856093) ^ (iy * 19349663)) & mask
+                    k0, k1 = bucket_start[bk], bucket_start[bk + 1]
+                for k in range(k0, k1):
+                    if not dense and (entry_cell[k, 0] != ix or entry_cell[k, 1] != iy):
+                        continue
+                    if entry_fat[k, 0] > ax1 or ax0 > entry_fat[k, 2]:
+                        continue
+                    if entry_fat[k, 1] > ay1 or ay0 > entry_fat[k, 3]:
+                        continue
+                    # the same body, or neither body dynamic (both tags below zero)
+                    if entry_tag[k] == tag_a or (tag_a & entry_tag[k]) < 0:
                         continue
                     b = entry_shape[k]
-                    # report the pair only from the cell at max(min_a, min_b)
-                    if ix != max(ix0, cells[b, 0]) or iy != max(iy0, cells[b, 1]):
-                        continue
                     if b == a or (moved[b] and b < a):
-                        continue
-                    if fat[b, 0] > ax1 or ax0 > fat[b, 2] or fat[b, 1] > ay1 or ay0 > fat[b, 3]:
-                        continue
-                    body_b = shape_body[b]
-                    if body_b == body_a or not (dyn_a or body_type[body_b] == C.BODY_DYNAMIC):
                         continue
                     if count < capacity:
                         keys[count] = np.int64(min(a, b)) * n + max(a, b)
@@ -330,7 +381,7 @@ def find_pairs(model, grid, vert_world, shape_margin, pairs, n_pairs):
         return n_pairs
     fresh = g_meta[1] == 0
     g_meta[1] = 0  # invalid until this update completes
-    _fill_grid(grid)
+    _fill_grid(model, grid)
     n = g_shape_fat.shape[0]
     capacity = pairs.shape[0]
     # keep the old pairs between shapes that did not move (already sorted)
