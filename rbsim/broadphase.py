@@ -14,7 +14,8 @@ is its own bucket, numbered row by row, so a query reads one run of entries per 
 and needs no check that an entry is in the cell it looks at; otherwise (shapes far
 apart) cells are hashed into the table. Shapes wider or taller than a cell (a long
 ground, a very fast body) are "big": they are tested against every other shape
-directly, cheap while they are few.
+directly, cheap while they are few. When more than BIG_MAX shapes are that wide (a
+fast gas), the cut is raised to 2, 4, ... cells until few are left above it.
 
 Pairs are kept sorted by (shape a, shape b) with a < b, so the order is deterministic
 and the contact stage matches them against the previous step in one merge pass.
@@ -33,6 +34,8 @@ from . import constants as C
 
 CELL_SIZES = 4.0  # cell size in median half-diagonals (plus two fat margins)
 TABLE_PER_SHAPE = 2  # hash table buckets per shape, at least
+BIG_MAX = 16  # shapes made big (tested against every shape) while a wider cut allows
+BIG_CELLS_MAX = 16.0  # a shape wider than this many cells is always big
 RADIX_BITS = 8  # bits of a pair key sorted per radix pass (256 buckets)
 INSERTION_SORT_MAX = 32  # fewer new pair keys than this are sorted by insertion
 
@@ -183,6 +186,21 @@ def _fill_grid(model, grid):
     table = starts.shape[0] - 1  # a power of two
     inv = grid.inv_cell
     cell = 1.0 / inv
+    # the width (in cells) above which a shape is big: the smallest of 1, 2, 4, ...,
+    # BIG_CELLS_MAX that leaves at most BIG_MAX shapes big. A few long walls or fast
+    # bodies are cheaper tested against every shape; many wide ones (a fast gas whose
+    # speculative reach spans more than a cell) are cheaper kept in the grid, where
+    # they widen every query a little, than tested against every shape each
+    cut = 1.0
+    while cut < BIG_CELLS_MAX:
+        over = 0
+        for s in range(n):
+            w = g_shape_fat[s, 2] - g_shape_fat[s, 0]
+            h = g_shape_fat[s, 3] - g_shape_fat[s, 1]
+            over += max(w, h) > cut * cell
+        if over <= BIG_MAX:
+            break
+        cut *= 2.0
     nbig = 0
     wide = tall = 0.0
     gx0 = gy0 = np.int64(0)
@@ -190,7 +208,7 @@ def _fill_grid(model, grid):
     for s in range(n):
         w = g_shape_fat[s, 2] - g_shape_fat[s, 0]
         h = g_shape_fat[s, 3] - g_shape_fat[s, 1]
-        big = w > cell or h > cell
+        big = max(w, h) > cut * cell
         g_shape_big[s] = big
         if big:
             g_big_list[nbig] = s

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from rbsim.broadphase import BIG_MAX
 from rbsim.constants import BODY_DYNAMIC
 from rbsim.world import World
 
@@ -60,4 +61,31 @@ def test_pairs_match_brute_force(far: float, dense: bool) -> None:
         world.advance(1)
         n = int(world.contacts.count[2])
         assert bool(world.grid.meta[2]) == dense
+        np.testing.assert_array_equal(world.contacts.pairs[:n], brute_pairs(world))
+
+
+GAS = """
+version: 1
+name: gas
+world: {{gravity: [0, 0], dt: 1/60, duration: 1}}
+bodies:
+  - {{name: wall, type: static, shape: {{segment: {{a: [-30, -8], b: [30, -8]}}}}}}
+  - grid: {{name: g, count: [12, 8], spacing: [1.0, 1.0], origin: [-6, -4],
+           velocity: [{speed}, {speed}], shape: {{circle: {{radius: 0.2}}}}}}
+"""
+
+
+def test_a_fast_gas_stays_in_the_grid() -> None:
+    # at 60 m/s each ball's speculative reach spans more than a cell: were every such
+    # shape "big" (tested against every shape), the broadphase would cost N² per step.
+    # The cut rises until at most BIG_MAX shapes are big; the pairs stay exact
+    world = World.from_scene(scene_from(GAS.format(speed=60.0)))
+    for _ in range(20):
+        world.advance(1)
+        cell = 1.0 / world.grid.inv_cell
+        fat = world.grid.shape_fat
+        wide = np.maximum(fat[:, 2] - fat[:, 0], fat[:, 3] - fat[:, 1]) > cell
+        assert wide.sum() > BIG_MAX  # the case at hand: most balls wider than a cell
+        assert world.grid.meta[0] <= BIG_MAX  # the big shapes
+        n = int(world.contacts.count[2])
         np.testing.assert_array_equal(world.contacts.pairs[:n], brute_pairs(world))
