@@ -215,6 +215,23 @@ def row_separation(row, m, p, moved, nax, nay, nbx, nby):
 
 
 @njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy", inline="always")
+def soft_target(s, use_bias, inv_h, bias_rate, max_push, kn, soft_gamma):
+    """(bias m/s, γ 1/kg) of a point at separation s (m) with normal row K = kn (1/kg).
+
+    A gap (s > 0) may close in the substep, no more (speculative); an overlap is pushed
+    out softly in the solve stage (use_bias), as the regularised constraint
+    (K + γ) Δλ = −(vn + b) − γλ with b = max(bias_rate s, max_push) (1/s, m/s) and
+    γ = soft_gamma K, and not at all in the relax stage. inv_h: 1 / substep (1/s).
+    Written as selects, not branches: whether a resting point's s is just above or
+    just below zero is a coin toss the processor would often guess wrong."""
+    push = use_bias and s <= 0.0
+    bias = s * inv_h if s > 0.0 else 0.0
+    bias = max(bias_rate * s, max_push) if push else bias
+    gamma = kn * soft_gamma if push else 0.0
+    return bias, gamma
+
+
+@njit(cache=True, _nrt=False, fastmath={"contract"}, error_model="numpy", inline="always")
 def clamp_normal(lam_arr, max_arr, approach, approach_sep, bounce_list, count, m, k, lam,
                  impulse, vn, s, shift, threshold):  # fmt: skip
     """Apply the clamp λ >= 0 to point k of manifold m, whose accumulated normal impulse
@@ -264,7 +281,7 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold, or
     restitution threshold; a point that engages faster than it enters its manifold in
     bounce_list (count[5] entries), which the restitution stage works through. A
     manifold with a point that overlaps deeper than DEEP_OVERLAP in the solve stage
-    enters relax_list (count[6] entries), once per such point.
+    enters relax_list (count[6] entries).
     """
     c_approach_separation = contacts.approach_separation
     c_approach_velocity = contacts.approach_velocity
@@ -305,12 +322,9 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold, or
             # per manifold than the general loop
             p = ROW_POINT
             s = row_separation(row, m, p, moved, nax, nay, nbx, nby)
-            push = use_bias and s <= 0.0
-            bias = s * inv_h if s > 0.0 else 0.0
-            bias = max(bias_rate * s, max_push) if push else bias
             kn = row[m, p + PT_KN]
-            gamma = kn * soft_gamma if push else 0.0
-            if push and s < deep:
+            bias, gamma = soft_target(s, use_bias, inv_h, bias_rate, max_push, kn, soft_gamma)
+            if use_bias and s < deep:
                 mark_deep(c_count, relax_list, m)
             rna, rnb = row[m, p + PT_RNA], row[m, p + PT_RNB]
             rta, rtb = row[m, p + PT_RTA], row[m, p + PT_RTB]
@@ -339,107 +353,78 @@ def solve_contacts(model, state, contacts, inv_h, use_bias, shift, threshold, or
                 v[b, 0], v[b, 1] = vbx - mb * px, vby - mb * py
                 w[b] = wb - ib * (jn * rnb + jt * rtb)
             continue
-        s0 = s1 = 0.0
-        # each point's separation now, its target (bias) and softness
-        lam0 = c_normal_impulse[m, 0]
-        lam1 = c_normal_impulse[m, 1]
-        vn0 = vn1 = b0 = b1 = g0 = g1 = 0.0
-        for k in range(npts):
-            p = ROW_POINT + k * POINT_SIZE
-            s = row_separation(row, m, p, moved, nax, nay, nbx, nby)
-            # a gap (s > 0) may close in the substep, no more (speculative); an overlap
-            # is pushed out softly in the solve stage, as the regularised constraint
-            # (K + γ) Δλ = −(vn + b) − γλ, and not at all in the relax stage. Written
-            # as selects, not branches: whether a resting point's s is just above or
-            # just below zero is a coin toss the processor would often guess wrong
-            push = use_bias and s <= 0.0
-            bias = s * inv_h if s > 0.0 else 0.0
-            bias = max(bias_rate * s, max_push) if push else bias
-            gamma = row[m, p + PT_KN] * soft_gamma if push else 0.0
-            if push and s < deep:
-                mark_deep(c_count, relax_list, m)
-            # sums grouped as two halves: each pass is one long chain of dependent
-            # arithmetic through the body velocities, and a shallow sum shortens it
-            vn = ((vax - vbx) * nx + (vay - vby) * ny) + (
-                wa * row[m, p + PT_RNA] - wb * row[m, p + PT_RNB]
-            )
-            if k == 0:
-                vn0, b0, g0, s0 = vn, bias, gamma, s
-            else:
-                vn1, b1, g1, s1 = vn, bias, gamma, s
+        # two points (every manifold has one or two)
+        p0, p1 = ROW_POINT, ROW_POINT + POINT_SIZE
+        s0 = row_separation(row, m, p0, moved, nax, nay, nbx, nby)
+        s1 = row_separation(row, m, p1, moved, nax, nay, nbx, nby)
+        kn0, kn1 = row[m, p0 + PT_KN], row[m, p1 + PT_KN]
+        b0, g0 = soft_target(s0, use_bias, inv_h, bias_rate, max_push, kn0, soft_gamma)
+        b1, g1 = soft_target(s1, use_bias, inv_h, bias_rate, max_push, kn1, soft_gamma)
+        if use_bias and min(s0, s1) < deep:
+            mark_deep(c_count, relax_list, m)
+        rna0, rnb0 = row[m, p0 + PT_RNA], row[m, p0 + PT_RNB]
+        rta0, rtb0 = row[m, p0 + PT_RTA], row[m, p0 + PT_RTB]
+        rna1, rnb1 = row[m, p1 + PT_RNA], row[m, p1 + PT_RNB]
+        rta1, rtb1 = row[m, p1 + PT_RTA], row[m, p1 + PT_RTB]
+        # sums grouped as two halves: each pass is one long chain of dependent
+        # arithmetic through the body velocities, and a shallow sum shortens it
+        dvx, dvy = vax - vbx, vay - vby
+        vn0 = (dvx * nx + dvy * ny) + (wa * rna0 - wb * rnb0)
+        vn1 = (dvx * nx + dvy * ny) + (wa * rna1 - wb * rnb1)
+        vt0 = (dvx * tx + dvy * ty) + (wa * rta0 - wb * rtb0)
+        vt1 = (dvx * tx + dvy * ty) + (wa * rta1 - wb * rtb1)
+        lam0, lam1 = c_normal_impulse[m, 0], c_normal_impulse[m, 1]
         # both points as one 2x2 block, so that a face held at two points gets
         # mirror-image impulses (solved one after the other they would leave a spin that
         # friction turns into a sideways drift); one point at a time if a clamp is hit
+        k00, k11, k01 = kn0 + g0, kn1 + g1, row[m, ROW_K01]
+        det = k00 * k11 - k01 * k01
         block = False
-        if npts == 2:
-            k00 = row[m, ROW_POINT + PT_KN] + g0
-            k11 = row[m, ROW_POINT + POINT_SIZE + PT_KN] + g1
-            k01 = row[m, ROW_K01]
-            det = k00 * k11 - k01 * k01
-            if det > 1.0e-9 * k00 * k11:
-                r0 = -vn0 - (b0 + g0 * lam0)  # the bracket is off the chain
-                r1 = -vn1 - (b1 + g1 * lam1)
-                inv_det = 1.0 / det  # known before the velocities: a product on the chain
-                d0 = (k11 * r0 - k01 * r1) * inv_det
-                d1 = (k00 * r1 - k01 * r0) * inv_det
-                block = lam0 + d0 >= 0.0 and lam1 + d1 >= 0.0
+        d0 = d1 = 0.0
+        if det > 1.0e-9 * k00 * k11:
+            r0 = -vn0 - (b0 + g0 * lam0)  # the bracket is off the chain
+            r1 = -vn1 - (b1 + g1 * lam1)
+            inv_det = 1.0 / det  # known before the velocities: a product on the chain
+            d0 = (k11 * r0 - k01 * r1) * inv_det
+            d1 = (k00 * r1 - k01 * r0) * inv_det
+            block = lam0 + d0 >= 0.0 and lam1 + d1 >= 0.0
         # the velocities change once, at the end, by the sum of the manifold's impulses.
         # On the way, a point's velocity is its value at the start plus what the
         # impulses so far did to it, through the coupling of their rows: a shorter
-        # chain of dependent arithmetic than updating the velocities after each impulse
-        p0, p1 = ROW_POINT, ROW_POINT + POINT_SIZE
-        rna0, rnb0 = row[m, p0 + PT_RNA], row[m, p0 + PT_RNB]
-        rta0, rtb0 = row[m, p0 + PT_RTA], row[m, p0 + PT_RTB]
-        rna1 = rnb1 = rta1 = rtb1 = 0.0
-        if npts == 2:
-            rna1, rnb1 = row[m, p1 + PT_RNA], row[m, p1 + PT_RNB]
-            rta1, rtb1 = row[m, p1 + PT_RTA], row[m, p1 + PT_RTB]
-        dvx, dvy = vax - vbx, vay - vby
-        vt0 = (dvx * tx + dvy * ty) + (wa * rta0 - wb * rtb0)
-        vt1 = (dvx * tx + dvy * ty) + (wa * rta1 - wb * rtb1)
-        j0 = j1 = 0.0  # the normal impulses applied
-        for k in range(npts):
-            lam = lam0 if k == 0 else lam1
-            if block:
-                impulse = d0 if k == 0 else d1
-                vn = vn0 if k == 0 else vn1
-            else:
-                vn = vn0 if k == 0 else vn1 + j0 * row[m, ROW_K01]
-                gamma = g0 if k == 0 else g1
-                bias = b0 if k == 0 else b1
-                # 1 / (K + γ) does not wait for the velocities: a product on the chain
-                kn = row[m, ROW_POINT + k * POINT_SIZE + PT_KN]
-                impulse = (-vn - (bias + gamma * lam)) * (1.0 / (kn + gamma))
-            impulse = clamp_normal(c_normal_impulse, c_max_normal_impulse, c_approach_velocity,
-                                   c_approach_separation, c_bounce_list, c_count, m, k, lam,
-                                   impulse, vn, s0 if k == 0 else s1, shift, threshold)  # fmt: skip
-            if k == 0:
-                j0 = impulse
-            else:
-                j1 = impulse
+        # chain of dependent arithmetic than updating the velocities after each impulse.
+        # 1 / (K + γ) does not wait for the velocities: a product on the chain
+        if not block:
+            d0 = (-vn0 - (b0 + g0 * lam0)) * (1.0 / (kn0 + g0))
+        j0 = clamp_normal(c_normal_impulse, c_max_normal_impulse, c_approach_velocity,
+                          c_approach_separation, c_bounce_list, c_count, m, 0, lam0, d0,
+                          vn0, s0, shift, threshold)  # fmt: skip
+        if not block:
+            vn1 += j0 * k01
+            d1 = (-vn1 - (b1 + g1 * lam1)) * (1.0 / (kn1 + g1))
+        j1 = clamp_normal(c_normal_impulse, c_max_normal_impulse, c_approach_velocity,
+                          c_approach_separation, c_bounce_list, c_count, m, 1, lam1, d1,
+                          vn1, s1, shift, threshold)  # fmt: skip
         f0 = f1 = 0.0  # the friction impulses applied
         mu = row[m, ROW_FRICTION]
         if mu > 0.0:
-            for k in range(npts):
-                p = ROW_POINT + k * POINT_SIZE
-                rta, rtb = row[m, p + PT_RTA], row[m, p + PT_RTB]
-                lam = c_tangent_impulse[m, k]
-                limit = mu * c_normal_impulse[m, k]
-                if limit == 0.0 and lam == 0.0:
-                    continue  # no normal force, no friction: nothing to do
-                # the normal impulses turn the bodies (n · t = 0: they add no sliding)
-                vt = vt0 if k == 0 else vt1
-                vt += j0 * (ia * rna0 * rta + ib * rnb0 * rtb)
-                vt += j1 * (ia * rna1 * rta + ib * rnb1 * rtb)
-                if k == 1:
-                    vt += f0 * (ma + mb + ia * rta0 * rta + ib * rtb0 * rtb)
-                new = min(max(lam - row[m, p + PT_TMASS] * vt, -limit), limit)
-                impulse = new - lam
-                c_tangent_impulse[m, k] = new
-                if k == 0:
-                    f0 = impulse
-                else:
-                    f1 = impulse
+            # the normal impulses turn the bodies (n · t = 0: they add no sliding)
+            lam = c_tangent_impulse[m, 0]
+            limit = mu * c_normal_impulse[m, 0]
+            if not (limit == 0.0 and lam == 0.0):  # no normal force, no friction
+                vt0 += j0 * (ia * rna0 * rta0 + ib * rnb0 * rtb0)
+                vt0 += j1 * (ia * rna1 * rta0 + ib * rnb1 * rtb0)
+                new = min(max(lam - row[m, p0 + PT_TMASS] * vt0, -limit), limit)
+                f0 = new - lam
+                c_tangent_impulse[m, 0] = new
+            lam = c_tangent_impulse[m, 1]
+            limit = mu * c_normal_impulse[m, 1]
+            if not (limit == 0.0 and lam == 0.0):
+                vt1 += j0 * (ia * rna0 * rta1 + ib * rnb0 * rtb1)
+                vt1 += j1 * (ia * rna1 * rta1 + ib * rnb1 * rtb1)
+                vt1 += f0 * (ma + mb + ia * rta0 * rta1 + ib * rtb0 * rtb1)
+                new = min(max(lam - row[m, p1 + PT_TMASS] * vt1, -limit), limit)
+                f1 = new - lam
+                c_tangent_impulse[m, 1] = new
         jn, jt = j0 + j1, f0 + f1
         px, py = jn * nx + jt * tx, jn * ny + jt * ty
         vax += ma * px
