@@ -1,0 +1,329 @@
+// The only code that knows Python: rbsim._core, the engine's World over numpy arrays.
+//
+// A world is built from the flat arrays of rbsim's scene compiler (a dict of numpy
+// arrays, checked here for dtype and shape as they cross), keeps its own storage, and
+// shows its state and storage as numpy views that share memory with it (no copies).
+// C++ exceptions surface as Python exceptions with their message.
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/tuple.h>
+
+#include <cstring>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "rbsim/constants.hpp"
+#include "rbsim/world.hpp"
+
+namespace nb = nanobind;
+using namespace nb::literals;
+
+namespace rbsim {
+namespace {
+
+// How an element type lies in memory: its scalar type and the trailing shape it adds.
+template <class T>
+struct Layout {
+  using scalar = T;
+  static constexpr std::size_t rank = 0;
+  static void shape(std::size_t*) {}
+};
+template <class T, std::size_t K>
+struct Layout<std::array<T, K>> {
+  using scalar = typename Layout<T>::scalar;
+  static constexpr std::size_t rank = 1 + Layout<T>::rank;
+  static void shape(std::size_t* out) {
+    out[0] = K;
+    Layout<T>::shape(out + 1);
+  }
+};
+#define RBSIM_FLAT_LAYOUT(Type, Scalar, Width)         \
+  template <>                                          \
+  struct Layout<Type> {                                \
+    using scalar = Scalar;                             \
+    static constexpr std::size_t rank = 1;             \
+    static void shape(std::size_t* out) { out[0] = Width; } \
+  };
+RBSIM_FLAT_LAYOUT(Vec2, double, 2)
+RBSIM_FLAT_LAYOUT(Vec3, double, 3)
+RBSIM_FLAT_LAYOUT(Rot2, double, 2)
+RBSIM_FLAT_LAYOUT(Quat, double, 4)
+RBSIM_FLAT_LAYOUT(Sym3, double, 6)
+RBSIM_FLAT_LAYOUT(SolverRow<2>, double, 32)
+RBSIM_FLAT_LAYOUT(Aabb<2>, double, 4)
+RBSIM_FLAT_LAYOUT(Dim<2>::RefPose, double, 3)
+RBSIM_FLAT_LAYOUT(BodyDelta<2>, double, 4)
+RBSIM_FLAT_LAYOUT(ContactCounts, std::int64_t, 10)
+RBSIM_FLAT_LAYOUT(GridMeta<2>, std::int64_t, 7)
+#undef RBSIM_FLAT_LAYOUT
+template <>
+struct Layout<BodyType> : Layout<std::int8_t> {};
+template <>
+struct Layout<ShapeKind> : Layout<std::int32_t> {};
+
+static_assert(sizeof(Dim<2>::RefPose) == 3 * sizeof(double));
+static_assert(sizeof(BodyDelta<2>) == 4 * sizeof(double));
+static_assert(sizeof(GridMeta<2>) == 7 * sizeof(std::int64_t));
+static_assert(sizeof(ContactCounts) == 10 * sizeof(std::int64_t));
+
+using Array = nb::ndarray<nb::numpy>;
+
+// A numpy view of n elements of type T at data, kept alive by owner. flag: show a uint8
+// array as numpy bool.
+template <class T>
+Array view(T* data, std::size_t n, nb::handle owner, bool leading = true, bool flag = false) {
+  using L = Layout<T>;
+  std::size_t shape[8];
+  std::size_t ndim = 0;
+  if (leading) shape[ndim++] = n;
+  L::shape(shape + ndim);
+  ndim += L::rank;
+  auto dtype = flag ? nb::dtype<bool>() : nb::dtype<typename L::scalar>();
+  return Array(static_cast<void*>(data), ndim, shape, owner, nullptr, dtype);
+}
+template <class T>
+Array view(std::vector<T>& v, nb::handle owner, bool flag = false) {
+  return view(v.data(), v.size(), owner, true, flag);
+}
+
+// Copy a numpy array into dst, checking its dtype and shape: (n, trailing...) with n
+// given (n < 0: any).
+template <class T>
+void load(std::vector<T>& dst, nb::handle obj, const char* name, long n = -1) {
+  using L = Layout<T>;
+  using S = typename L::scalar;
+  nb::ndarray<nb::c_contig, nb::device::cpu> a;
+  if (!nb::try_cast(obj, a)) throw std::invalid_argument(std::string(name) + ": not a C-contiguous array");
+  if (a.dtype() != nb::dtype<S>())
+    throw std::invalid_argument(std::string(name) + ": wrong dtype");
+  std::size_t trailing[8];
+  L::shape(trailing);
+  if (a.ndim() != 1 + L::rank) throw std::invalid_argument(std::string(name) + ": wrong number of dimensions");
+  for (std::size_t k = 0; k < L::rank; ++k)
+    if (a.shape(k + 1) != trailing[k]) throw std::invalid_argument(std::string(name) + ": wrong shape");
+  if (n >= 0 && a.shape(0) != static_cast<std::size_t>(n))
+    throw std::invalid_argument(std::string(name) + ": expected " + std::to_string(n) + " rows");
+  dst.resize(a.shape(0));
+  if (!dst.empty()) std::memcpy(static_cast<void*>(dst.data()), a.data(), dst.size() * sizeof(T));
+}
+
+template <class T>
+T load_value(nb::dict d, const char* key) {
+  if (!d.contains(key)) throw std::invalid_argument(std::string("missing key ") + key);
+  return nb::cast<T>(d[key]);
+}
+
+using World2 = World<2>;
+
+// The storage arrays by name (the numba engine's names), for tests and diagnostics.
+nb::dict storage(World2& w, nb::handle owner) {
+  nb::dict d;
+  auto& c = w.contacts;
+  d["count"] = view(&c.count, 1, owner, false);
+  d["carried"] = view(c.carried, owner, true);
+#define RBSIM_VIEW(name) d[#name] = view(c.name, owner);
+  RBSIM_VIEW(pairs) RBSIM_VIEW(shape_a) RBSIM_VIEW(shape_b) RBSIM_VIEW(body_a) RBSIM_VIEW(body_b)
+  RBSIM_VIEW(key) RBSIM_VIEW(normal) RBSIM_VIEW(points) RBSIM_VIEW(friction) RBSIM_VIEW(restitution)
+  RBSIM_VIEW(anchor_a) RBSIM_VIEW(anchor_b) RBSIM_VIEW(base_separation) RBSIM_VIEW(ref_separation)
+  RBSIM_VIEW(feature) RBSIM_VIEW(normal_impulse) RBSIM_VIEW(start_impulse) RBSIM_VIEW(tangent_impulse)
+  RBSIM_VIEW(normal_mass) RBSIM_VIEW(solver_row) RBSIM_VIEW(approach_velocity)
+  RBSIM_VIEW(approach_separation) RBSIM_VIEW(max_normal_impulse) RBSIM_VIEW(prev_key)
+  RBSIM_VIEW(prev_points) RBSIM_VIEW(prev_feature) RBSIM_VIEW(prev_normal_impulse)
+  RBSIM_VIEW(prev_tangent_impulse) RBSIM_VIEW(prev_normal) RBSIM_VIEW(prev_anchor_a)
+  RBSIM_VIEW(prev_anchor_b) RBSIM_VIEW(prev_ref_separation) RBSIM_VIEW(body_ref)
+  RBSIM_VIEW(body_delta) RBSIM_VIEW(toi_verts) RBSIM_VIEW(toi_norms) RBSIM_VIEW(vert_world)
+  RBSIM_VIEW(norm_world) RBSIM_VIEW(shape_margin) RBSIM_VIEW(body_level) RBSIM_VIEW(shock_side)
+  RBSIM_VIEW(shock_order) RBSIM_VIEW(solve_order) RBSIM_VIEW(adj_start) RBSIM_VIEW(adj)
+  RBSIM_VIEW(queue) RBSIM_VIEW(bounce_kind) RBSIM_VIEW(body_mark) RBSIM_VIEW(solve_impulse)
+  RBSIM_VIEW(bounce_list) RBSIM_VIEW(relax_list) RBSIM_VIEW(body_reach)
+#undef RBSIM_VIEW
+  d["body_still"] = view(c.body_still, owner, true);
+  auto& g = w.grid;
+  nb::dict gd;
+  gd["inv_cell"] = view(&g.inv_cell, 1, owner, false);
+  gd["shape_moved"] = view(g.shape_moved, owner, true);
+  gd["shape_big"] = view(g.shape_big, owner, true);
+#define RBSIM_VIEW(name) gd[#name] = view(g.name, owner);
+  RBSIM_VIEW(shape_aabb) RBSIM_VIEW(shape_fat) RBSIM_VIEW(shape_cell) RBSIM_VIEW(shape_bucket)
+  RBSIM_VIEW(entry_shape) RBSIM_VIEW(entry_cell) RBSIM_VIEW(entry_fat) RBSIM_VIEW(entry_tag)
+  RBSIM_VIEW(bucket_start) RBSIM_VIEW(big_list) RBSIM_VIEW(new_keys) RBSIM_VIEW(kept)
+  RBSIM_VIEW(sort_scratch) RBSIM_VIEW(sort_count)
+#undef RBSIM_VIEW
+  gd["span"] = view(&g.span, 1, owner, false);
+  gd["meta"] = view(&g.meta, 1, owner, false);
+  d["grid"] = gd;
+  return d;
+}
+
+std::unique_ptr<World2> make_world2(nb::dict model, nb::dict state, nb::dict config) {
+  auto w = std::make_unique<World2>();
+  auto& m = w->model;
+  load(m.body_type, model["body_type"], "body_type");
+  const long n = static_cast<long>(m.body_type.size());
+  load(m.body_mass, model["body_mass"], "body_mass", n);
+  load(m.body_inertia, model["body_inertia"], "body_inertia", n);
+  load(m.body_inv_mass, model["body_inv_mass"], "body_inv_mass", n);
+  load(m.body_inv_inertia, model["body_inv_inertia"], "body_inv_inertia", n);
+  load(m.body_com, model["body_com"], "body_com", n);
+  load(m.body_force, model["body_force"], "body_force", n);
+  load(m.body_force_arm, model["body_force_arm"], "body_force_arm", n);
+  load(m.body_torque, model["body_torque"], "body_torque", n);
+  load(m.shape_body, model["shape_body"], "shape_body");
+  const long s = static_cast<long>(m.shape_body.size());
+  load(m.shape_kind, model["shape_kind"], "shape_kind", s);
+  load(m.shape_radius, model["shape_radius"], "shape_radius", s);
+  load(m.shape_vstart, model["shape_vstart"], "shape_vstart", s);
+  load(m.shape_vcount, model["shape_vcount"], "shape_vcount", s);
+  load(m.shape_friction, model["shape_friction"], "shape_friction", s);
+  load(m.shape_restitution, model["shape_restitution"], "shape_restitution", s);
+  load(m.vertex_local, model["vertex_local"], "vertex_local");
+  const long nv = static_cast<long>(m.vertex_local.size());
+  load(m.normal_local, model["normal_local"], "normal_local", nv);
+  std::vector<Vec2> gravity;
+  {
+    std::vector<double> g;
+    load(g, model["gravity"], "gravity", 2);
+    m.gravity = {g[0], g[1]};
+  }
+  m.linear_damping = load_value<double>(model, "linear_damping");
+  m.angular_damping = load_value<double>(model, "angular_damping");
+  m.has_forces = load_value<bool>(model, "has_forces");
+  m.has_shapes = load_value<bool>(model, "has_shapes");
+  // the model's indices must stay inside the arrays they index
+  for (long i = 0; i < s; ++i) {
+    if (m.shape_body[i] < 0 || m.shape_body[i] >= n) throw std::invalid_argument("shape_body out of range");
+    int k = static_cast<int>(m.shape_kind[i]);
+    if (k < 0 || k >= SHAPE_KIND_COUNT) throw std::invalid_argument("shape_kind out of range");
+    if (m.shape_vstart[i] < 0 || m.shape_vcount[i] < 1 || m.shape_vstart[i] + m.shape_vcount[i] > nv)
+      throw std::invalid_argument("shape vertices out of range");
+  }
+  for (long i = 0; i < n; ++i) {
+    int t = static_cast<int>(m.body_type[i]);
+    if (t < 0 || t > 2) throw std::invalid_argument("body_type out of range");
+  }
+  auto& st = w->state;
+  load(st.body_x, state["body_x"], "body_x", n);
+  load(st.body_q, state["body_q"], "body_q", n);
+  load(st.body_angle, state["body_angle"], "body_angle", n);
+  load(st.body_v, state["body_v"], "body_v", n);
+  load(st.body_w, state["body_w"], "body_w", n);
+  auto& cf = w->config;
+  cf.dt = load_value<double>(config, "dt");
+  cf.substeps = load_value<int>(config, "substeps");
+  cf.iterations = load_value<int>(config, "iterations");
+  if (!(cf.dt > 0.0) || cf.substeps < 1 || cf.iterations < 1)
+    throw std::invalid_argument("dt, substeps and iterations must be positive");
+  cf.explicit_euler = load_value<bool>(config, "explicit");
+  cf.exact_rotation = load_value<bool>(config, "exact");
+  cf.restitution_threshold = load_value<double>(config, "restitution_threshold");
+  cf.friction_rule = static_cast<MixRule>(load_value<int>(config, "friction_rule"));
+  cf.restitution_rule = static_cast<MixRule>(load_value<int>(config, "restitution_rule"));
+  cf.elastic = load_value<bool>(config, "elastic");
+  auto soft = [&](const char* key) {
+    auto t = nb::cast<std::tuple<double, double, double>>(config[key]);
+    return Soft{std::get<0>(t), std::get<1>(t), std::get<2>(t)};
+  };
+  cf.soft = soft("soft");
+  cf.soft_static = soft("soft_static");
+  w->allocate();
+  return w;
+}
+
+// One stage by name, on the world's current storage: for tests that hold each stage
+// against the numba engine's. The step itself is step.cpp's.
+nb::object run_stage(World2& w, const std::string& name, nb::dict args) {
+  auto& m = w.model;
+  auto& st = w.state;
+  auto& c = w.contacts;
+  auto& cf = w.config;
+  auto num = [&](const char* key) { return load_value<double>(args, key); };
+  auto flag = [&](const char* key) { return load_value<bool>(args, key); };
+  if (name == "transform_shapes") {
+    transform_shapes(m, st, c, cf.dt);
+  } else if (name == "find_pairs") {
+    return nb::int_(find_pairs(m, w.grid, c));
+  } else if (name == "update_manifolds") {
+    update_manifolds(m, st, c, w.grid, load_value<std::int64_t>(args, "n_pairs"), cf.friction_rule,
+                     cf.restitution_rule, cf.dt);
+  } else if (name == "prepare_contacts") {
+    prepare_contacts(m, st, c, cf.soft, cf.soft_static);
+  } else if (name == "support_order") {
+    return nb::int_(support_order(m, c));
+  } else if (name == "deep_region") {
+    return nb::int_(deep_region(m, c, load_value<int>(args, "reach")));
+  } else if (name == "propagate_shock") {
+    propagate_shock(m, st, c, load_value<std::int64_t>(args, "n_order"), num("inv_h"), num("threshold"));
+  } else if (name == "integrate_velocities") {
+    integrate_velocities(m, st, num("h"));
+  } else if (name == "integrate_positions") {
+    integrate_positions(m, st, c.body_delta, num("h"), flag("exact"));
+  } else if (name == "warm_start") {
+    warm_start(m, st, c);
+  } else if (name == "solve_contacts") {
+    std::string list = load_value<std::string>(args, "order");
+    const std::int32_t* order = list == "relax_list" ? c.relax_list.data() : c.solve_order.data();
+    std::int64_t n = load_value<std::int64_t>(args, "n");
+    if (n < 0 || n > c.capacity()) throw std::invalid_argument("n out of range");
+    solve_contacts(m, st, c, num("inv_h"), flag("use_bias"), num("shift"), num("threshold"), order, n);
+  } else if (name == "keep_solve_impulses") {
+    keep_solve_impulses(c);
+  } else if (name == "apply_restitution") {
+    apply_restitution(m, st, c, num("threshold"), num("h"), num("sign"));
+  } else if (name == "limit_static_overlap") {
+    limit_static_overlap(m, st, c, num("max_overlap"));
+  } else if (name == "store_impulses") {
+    store_impulses(c);
+  } else {
+    throw std::invalid_argument("no stage named " + name);
+  }
+  return nb::none();
+}
+
+}  // namespace
+}  // namespace rbsim
+
+NB_MODULE(_core, mod) {
+  using namespace rbsim;
+  mod.doc() = "rbsim's compiled engine (C++20). Built by the package; imported by rbsim.core only.";
+  nb::class_<World2>(mod, "World2", "A 2D scene ready to step: model, state and stage storage.")
+      .def("__init__",
+           [](World2* self, nb::dict model, nb::dict state, nb::dict config) {
+             auto w = make_world2(model, state, config);
+             new (self) World2(std::move(*w));
+           },
+           "model"_a, "state"_a, "config"_a,
+           "Build from the scene compiler's arrays (SI units); arrays are copied and checked.")
+      .def(
+          "advance",
+          [](World2& w, std::int64_t n) {
+            if (n < 0) throw std::invalid_argument("n_steps must be >= 0");
+            std::int64_t taken = 0, bad = -1;
+            Status status;
+            {
+              nb::gil_scoped_release release;
+              status = w.advance(n, &taken, &bad);
+            }
+            return std::make_tuple(static_cast<int>(status), taken, bad);
+          },
+          "n_steps"_a, "Take up to n_steps steps; returns (status, steps taken, bad body).")
+      .def("step", &World2::step, "One step; False when the contact store must grow first.")
+      .def("grow", &World2::grow, "capacity"_a, "Room for `capacity` manifolds and pairs.")
+      .def("stage", &run_stage, "name"_a, "args"_a = nb::dict(), "Run one stage (tests).")
+      .def("storage", [](nb::handle self) { return storage(nb::cast<World2&>(self), self); },
+           "The stages' storage arrays by name, as views (valid until the store grows).")
+      .def_prop_ro("contact_count", &World2::contact_count)
+      .def_rw("step_index", &World2::step_index)
+#define RBSIM_STATE(name, doc) \
+  .def_prop_ro(#name, [](nb::handle self) { return view(nb::cast<World2&>(self).state.name, self); }, doc)
+      RBSIM_STATE(body_x, "(N,2) m, COM positions (a view)")
+      RBSIM_STATE(body_q, "(N,2) (cos θ, sin θ) (a view)")
+      RBSIM_STATE(body_angle, "(N,) rad, unwrapped (a view)")
+      RBSIM_STATE(body_v, "(N,2) m/s, COM velocities (a view)")
+      RBSIM_STATE(body_w, "(N,) rad/s (a view)");
+#undef RBSIM_STATE
+  mod.attr("OK") = static_cast<int>(Status::Ok);
+  mod.attr("NON_FINITE") = static_cast<int>(Status::NonFinite);
+}

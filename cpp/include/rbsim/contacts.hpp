@@ -1,0 +1,182 @@
+// The contact store: manifolds (up to Dim<D>::max_points points each), their solver rows,
+// last step's manifolds for warm starting, and the scratch of the stages that walk the
+// contact graph. Capacity M manifolds; it grows between steps (World::grow), never in one.
+//
+// A manifold joins shape a to shape b (a < b) with one normal pointing from b towards a.
+// Manifolds are kept sorted by key = a · S + b, so this step's are matched to last step's
+// in one merge pass and a point whose feature id matches takes over last step's impulses.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include "math.hpp"
+#include "state.hpp"
+
+namespace rbsim {
+
+// Counters of the contact store, by name (the numba engine kept them as count[0..9], in
+// this order; the bindings show the struct as that array).
+struct ContactCounts {
+  std::int64_t manifolds = 0;       // manifolds this step
+  std::int64_t manifolds_prev = 0;  // manifolds last step (prev_* hold them)
+  std::int64_t pairs = 0;           // broadphase pairs found (may exceed capacity: grow)
+  std::int64_t points_touching = 0; // contact points that pushed in the last step
+  std::int64_t shock_count = 0;     // manifolds in the shock pass's order
+  std::int64_t bounce_count = 0;    // entries in bounce_list
+  std::int64_t deep_count = 0;      // entries in relax_list: points deeper than DEEP_OVERLAP
+  std::int64_t graph_unchanged = 0; // 1: the manifolds are last step's pairs in the same slots
+  std::int64_t bounce_carried = 0;  // entries of bounce_list carried from the last restitution
+  std::int64_t elastic_listed = 0;  // 1 once an elastic manifold was listed this step
+};
+
+// What the solver's passes read of one manifold, in one record of four cache lines.
+template <int D>
+struct SolverRow;
+
+template <>
+struct SolverRow<2> {
+  struct Point {
+    double rna = 0, rnb = 0;  // m: lever arms r_a × n, r_b × n
+    double rta = 0, rtb = 0;  // m: r_a × t, r_b × t
+    double kn = 0;            // 1/kg: the normal row's K
+    double tangent_mass = 0;  // kg
+    Vec2 ra, rb;              // m: anchors from each COM
+    double base = 0;          // m: base separation
+  };
+  Vec2 normal;              // from b towards a
+  double k01 = 0;           // 1/kg: off-diagonal of the two points' normal block
+  double gamma = 0;         // γ/K of the soft constraint (impulse scale / mass scale)
+  double bias_rate = 0;     // 1/s: the soft constraint's push-out rate
+  double friction = 0;      // the mixed friction coefficient
+  std::array<Point, 2> point;
+  double pad[4] = {0, 0, 0, 0};
+};
+static_assert(sizeof(SolverRow<2>) == 32 * sizeof(double));
+
+template <int D>
+struct Contacts {
+  static constexpr int P = Dim<D>::max_points;
+  using Vec = typename Dim<D>::Vec;
+  template <class T>
+  using PerPoint = std::array<T, P>;
+
+  ContactCounts count;
+  // this step's manifolds (M,)
+  std::vector<std::uint8_t> carried;  // last step's, unchanged in its slot but for separation
+  std::vector<std::array<std::int32_t, 2>> pairs;  // broadphase output (shape a, shape b)
+  std::vector<std::int32_t> shape_a, shape_b, body_a, body_b;
+  std::vector<std::int64_t> key;                    // shape_a · S + shape_b
+  std::vector<Vec> normal;                          // from b towards a
+  std::vector<std::int32_t> points;                 // point count
+  std::vector<double> friction, restitution;        // mixed coefficients
+  std::vector<PerPoint<Vec>> anchor_a, anchor_b;    // m, from each COM at the step's start
+  std::vector<PerPoint<double>> base_separation;    // m: separation minus the anchors' part
+  std::vector<PerPoint<double>> ref_separation;     // m: at both bodies' reference poses
+  std::vector<PerPoint<std::int64_t>> feature;      // feature ids
+  std::vector<PerPoint<double>> normal_impulse;     // N·s, per substep
+  std::vector<PerPoint<double>> start_impulse;      // N·s carried into this step
+  std::vector<PerPoint<double>> tangent_impulse;    // N·s (2D: one direction)
+  std::vector<PerPoint<double>> normal_mass;        // kg
+  std::vector<SolverRow<D>> solver_row;
+  std::vector<PerPoint<double>> approach_velocity;  // m/s where the point engaged
+  std::vector<PerPoint<double>> approach_separation;  // m where the point engaged
+  std::vector<PerPoint<double>> max_normal_impulse;   // N·s
+  // last step's manifolds, for matching and for carrying a manifold forward (M,)
+  std::vector<std::int64_t> prev_key;
+  std::vector<std::int32_t> prev_points;
+  std::vector<PerPoint<std::int64_t>> prev_feature;
+  std::vector<PerPoint<double>> prev_normal_impulse, prev_tangent_impulse;
+  std::vector<Vec> prev_normal;
+  std::vector<PerPoint<Vec>> prev_anchor_a, prev_anchor_b;
+  std::vector<PerPoint<double>> prev_ref_separation;
+  // per body (N,)
+  std::vector<typename Dim<D>::RefPose> body_ref;  // reference pose; NaN until first taken
+  std::vector<std::uint8_t> body_still;  // within STILL_DISTANCE/ANGLE of its reference pose
+  std::vector<BodyDelta<D>> body_delta;  // motion since the step's start
+  // per vertex / shape
+  std::vector<Vec> toi_verts, toi_norms;  // (V,) two shapes moved to their time of impact
+  std::vector<Vec> vert_world, norm_world;  // (V,) shape geometry in the world this step
+  std::vector<double> shape_margin;         // (S,) m: speculative reach this step
+  // the shock pass and the solve order (shock.cpp)
+  std::vector<std::int64_t> body_level;     // (N,)
+  std::vector<std::int8_t> shock_side;      // (M,)
+  std::vector<std::int32_t> shock_order;    // (M,)
+  std::vector<std::int32_t> solve_order;    // (M,) the order of the solver's passes
+  std::vector<std::int64_t> adj_start;      // (N+1,)
+  std::vector<std::int32_t> adj;            // (2M,)
+  std::vector<std::int64_t> queue;          // (N+2,)
+  // the restitution stage (restitution.cpp)
+  std::vector<std::int8_t> bounce_kind;     // (M,)
+  std::vector<std::int8_t> body_mark;       // (N,)
+  std::vector<PerPoint<double>> solve_impulse;  // (M,) N·s when the positions moved
+  std::vector<std::int32_t> bounce_list;    // (2M+2,) manifolds that engaged fast
+  std::vector<std::int32_t> relax_list;     // (M,) deep manifolds, then the extra passes' set
+  std::vector<std::int64_t> body_reach;     // (N,) deep_region's scratch
+
+  std::int64_t capacity() const { return static_cast<std::int64_t>(key.size()); }
+
+  // Storage for `capacity` manifolds, n_bodies bodies, n_shapes shapes, n_vertices.
+  void allocate(int n_bodies, int n_shapes, int n_vertices, std::int64_t capacity);
+  // Room for `capacity` manifolds, keeping last step's manifolds (warm starting).
+  void grow(std::int64_t capacity);
+};
+
+template <int D>
+void Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int64_t capacity) {
+  const std::size_t m = static_cast<std::size_t>(capacity < 1 ? 1 : capacity);
+  const std::size_t n = static_cast<std::size_t>(n_bodies < 1 ? 1 : n_bodies);
+  const std::size_t s = static_cast<std::size_t>(n_shapes < 1 ? 1 : n_shapes);
+  const std::size_t v = static_cast<std::size_t>(n_vertices < 1 ? 1 : n_vertices);
+  count = ContactCounts{};
+  auto reset = [](auto& vec, std::size_t size) { vec.assign(size, {}); };
+  reset(carried, m); reset(pairs, m);
+  reset(shape_a, m); reset(shape_b, m); reset(body_a, m); reset(body_b, m);
+  reset(key, m); reset(normal, m); reset(points, m); reset(friction, m); reset(restitution, m);
+  reset(anchor_a, m); reset(anchor_b, m); reset(base_separation, m); reset(ref_separation, m);
+  reset(feature, m); reset(normal_impulse, m); reset(start_impulse, m);
+  reset(tangent_impulse, m); reset(normal_mass, m); reset(solver_row, m);
+  reset(approach_velocity, m); reset(approach_separation, m); reset(max_normal_impulse, m);
+  reset(prev_key, m); reset(prev_points, m); reset(prev_feature, m);
+  reset(prev_normal_impulse, m); reset(prev_tangent_impulse, m); reset(prev_normal, m);
+  reset(prev_anchor_a, m); reset(prev_anchor_b, m); reset(prev_ref_separation, m);
+  typename Dim<D>::RefPose unset{};
+  constexpr double nan = std::numeric_limits<double>::quiet_NaN();
+  unset.x = nan * unset.x;
+  if constexpr (D == 2) unset.angle = nan;
+  body_ref.assign(n, unset);
+  reset(body_still, n); reset(body_delta, n);
+  reset(toi_verts, v < 2 ? 2 : v); reset(toi_norms, v < 2 ? 2 : v);
+  reset(vert_world, v); reset(norm_world, v); reset(shape_margin, s);
+  reset(body_level, n); reset(shock_side, m); reset(shock_order, m); reset(solve_order, m);
+  reset(adj_start, n + 1); reset(adj, 2 * m); reset(queue, n + 2);
+  reset(bounce_kind, m); reset(body_mark, n); reset(solve_impulse, m);
+  reset(bounce_list, 2 * m + 2); reset(relax_list, m); reset(body_reach, n);
+}
+
+template <int D>
+void Contacts<D>::grow(std::int64_t new_capacity) {
+  Contacts<D> old = std::move(*this);
+  allocate(static_cast<int>(old.body_delta.size()), static_cast<int>(old.shape_margin.size()),
+           static_cast<int>(old.vert_world.size()), new_capacity);
+  const std::int64_t n = old.count.manifolds_prev;
+  count = old.count;
+  count.pairs = 0;  // the pair list is found anew
+  for (std::int64_t i = 0; i < n; ++i) {
+    prev_key[i] = old.prev_key[i];
+    prev_points[i] = old.prev_points[i];
+    prev_feature[i] = old.prev_feature[i];
+    prev_normal_impulse[i] = old.prev_normal_impulse[i];
+    prev_tangent_impulse[i] = old.prev_tangent_impulse[i];
+    prev_normal[i] = old.prev_normal[i];
+    prev_anchor_a[i] = old.prev_anchor_a[i];
+    prev_anchor_b[i] = old.prev_anchor_b[i];
+    prev_ref_separation[i] = old.prev_ref_separation[i];
+  }
+  body_ref = std::move(old.body_ref);
+  body_still = std::move(old.body_still);
+}
+
+}  // namespace rbsim

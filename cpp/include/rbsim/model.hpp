@@ -1,0 +1,51 @@
+// The model: what does not change while a scene runs (MuJoCo's mjModel). N bodies, S
+// shapes, V shape vertices. Body quantities are about the centre of mass; shape geometry
+// is in the body frame relative to the centre of mass, so a shape's world vertex is
+// x + R(q) vertex_local. A static or kinematic body has zero inverse mass and inertia,
+// so the solver treats every body alike.
+#pragma once
+
+#include <vector>
+
+#include "math.hpp"
+#include "types.hpp"
+
+namespace rbsim {
+
+template <int D>
+struct Model {
+  using Vec = typename Dim<D>::Vec;
+  using Ang = typename Dim<D>::Ang;
+  using Inertia = typename Dim<D>::Inertia;
+
+  std::vector<BodyType> body_type;        // (N,)
+  std::vector<double> body_mass;          // (N,) kg; inf if not dynamic
+  std::vector<Inertia> body_inertia;      // (N,) kg·m², body frame about the COM
+  std::vector<double> body_inv_mass;      // (N,) 1/kg; 0 if not dynamic
+  std::vector<Inertia> body_inv_inertia;  // (N,) 1/(kg·m²); 0 if not dynamic
+  std::vector<Vec> body_com;              // (N,) m: the COM in the body frame, from the origin
+  std::vector<Vec> body_force;            // (N,) N, world frame
+  std::vector<Vec> body_force_arm;        // (N,) m, body frame, from the COM
+  std::vector<Ang> body_torque;           // (N,) N·m, world frame
+  std::vector<std::int32_t> shape_body;   // (S,)
+  std::vector<ShapeKind> shape_kind;      // (S,)
+  std::vector<double> shape_radius;       // (S,) m (a segment with a radius is a capsule)
+  std::vector<std::int32_t> shape_vstart; // (S,) first vertex in vertex_local
+  std::vector<std::int32_t> shape_vcount; // (S,) its vertex count
+  std::vector<double> shape_friction;     // (S,)
+  std::vector<double> shape_restitution;  // (S,)
+  std::vector<Vec> vertex_local;          // (V,) m, body frame about the COM
+  std::vector<Vec> normal_local;          // (V,) outward edge normals (polygons, segments)
+  Vec gravity{};                          // m/s²
+  double linear_damping = 0.0;            // 1/s
+  double angular_damping = 0.0;           // 1/s
+  bool has_forces = false;  // some body carries a constant force or torque
+  bool has_shapes = false;  // two bodies have shapes and one is dynamic: contacts are possible
+
+  int body_count() const { return static_cast<int>(body_type.size()); }
+  int shape_count() const { return static_cast<int>(shape_body.size()); }
+  int vertex_count() const { return static_cast<int>(vertex_local.size()); }
+  bool is_dynamic(int i) const { return body_type[i] == BodyType::Dynamic; }
+};
+
+}  // namespace rbsim

@@ -1,0 +1,45 @@
+// A scene ready to step: model, state, the stages' storage and the run's settings.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "contacts.hpp"
+#include "grid.hpp"
+#include "model.hpp"
+#include "stages.hpp"
+#include "state.hpp"
+
+namespace rbsim {
+
+template <int D>
+struct World {
+  Model<D> model;
+  State<D> state;
+  Config config;
+  Grid<D> grid;
+  Contacts<D> contacts;
+  std::int64_t step_index = 0;
+
+  // Storage for the model's bodies and shapes (call once the model and state are set).
+  void allocate();
+  // One time step config.dt. Returns false when the contact store is too small (the
+  // state is then unchanged: grow and call again).
+  bool step();
+  // Up to n_steps steps, growing the contact store as needed. Returns Ok, or NonFinite
+  // with *bad_body set to the first body whose state is not finite; *taken = steps taken.
+  Status advance(std::int64_t n_steps, std::int64_t* taken, std::int64_t* bad_body);
+  // Room for `capacity` manifolds and pairs, keeping what warm starting needs.
+  void grow(std::int64_t capacity);
+  // Contact points that pushed in the last step.
+  std::int64_t contact_count() const { return model.has_shapes ? contacts.count.points_touching : 0; }
+
+ private:
+  bool collide();
+};
+
+// Half the diagonal (m) of each shape's own bounding box, radius included.
+template <int D>
+std::vector<double> shape_extent(const Model<D>& model);
+
+}  // namespace rbsim

@@ -1,0 +1,189 @@
+// The time step as the list of its stages, and the loop that runs a scene. This is the
+// only file that orders stages:
+//
+//   transform -> find_pairs -> update_manifolds -> prepare -> support_order
+//   -> [per substep: integrate_velocities -> warm_start -> solve -> integrate_positions
+//       -> relax (-> extra relax passes near a deep overlap) -> restitution -> shock]
+//   -> limit_static_overlap -> store_impulses
+//
+// A scene without contacts possible skips the contact stages; one without forces skips
+// their evaluation (integrate.cpp).
+#include <algorithm>
+#include <cmath>
+
+#include "rbsim/constants.hpp"
+#include "rbsim/world.hpp"
+
+namespace rbsim {
+
+namespace C = constants;
+
+template <int D>
+void World<D>::allocate() {
+  const int n_shapes = model.shape_count();
+  const std::int64_t capacity = 4 * static_cast<std::int64_t>(n_shapes) + 16;
+  std::vector<std::uint8_t> dynamic(n_shapes);
+  for (int s = 0; s < n_shapes; ++s) dynamic[s] = model.is_dynamic(model.shape_body[s]);
+  grid.allocate(shape_extent(model), dynamic, capacity);
+  contacts.allocate(model.body_count(), n_shapes, model.vertex_count(), capacity);
+}
+
+template <int D>
+void World<D>::grow(std::int64_t capacity) {
+  contacts.grow(capacity);
+  grid.grow(capacity);
+}
+
+template <int D>
+bool World<D>::collide() {
+  const Config& cfg = config;
+  transform_shapes(model, state, contacts, cfg.dt);
+  std::int64_t n_pairs = find_pairs(model, grid, contacts);
+  contacts.count.pairs = n_pairs;
+  if (n_pairs > contacts.capacity()) return false;
+  update_manifolds(model, state, contacts, grid, n_pairs, cfg.friction_rule,
+                   cfg.restitution_rule, cfg.dt);
+  prepare_contacts(model, state, contacts, cfg.soft, cfg.soft_static);
+  contacts.count.shock_count = support_order(model, contacts);
+  return true;
+}
+
+template <int D>
+bool World<D>::step() {
+  const Config& cfg = config;
+  const bool contacts_on = model.has_shapes;
+  if (contacts_on && !collide()) return false;
+  auto& c = contacts;
+  for (auto& d : c.body_delta) d = BodyDelta<D>{};
+  const double h = cfg.dt / cfg.substeps;
+  const double inv_h = 1.0 / h;
+  const double shift = cfg.explicit_euler ? 0.0 : h;
+  const double sign = cfg.explicit_euler ? -1.0 : 1.0;
+  const double threshold = cfg.restitution_threshold;
+  // the restitution stage's list names this step's manifolds
+  c.count.bounce_count = c.count.bounce_carried = c.count.elastic_listed = 0;
+  const std::int64_t n_man = c.count.manifolds;
+  for (int sub = 0; sub < cfg.substeps; ++sub) {
+    if (cfg.explicit_euler) {
+      integrate_positions(model, state, c.body_delta, h, cfg.exact_rotation);
+      integrate_velocities(model, state, h);
+    } else {
+      integrate_velocities(model, state, h);
+    }
+    if (contacts_on) {
+      warm_start(model, state, c);
+      c.count.deep_count = 0;
+      for (int it = 0; it < cfg.iterations; ++it)
+        solve_contacts(model, state, c, inv_h, true, 0.0, threshold, c.solve_order.data(), n_man);
+    }
+    if (!cfg.explicit_euler) {
+      if (contacts_on && cfg.elastic) keep_solve_impulses(c);
+      integrate_positions(model, state, c.body_delta, h, cfg.exact_rotation);
+    }
+    if (contacts_on) {
+      for (int it = 0; it < cfg.iterations; ++it)  // relax
+        solve_contacts(model, state, c, inv_h, false, shift, threshold, c.solve_order.data(), n_man);
+      if (c.count.deep_count) {
+        // a deep overlap is being pushed out: the contacts around it get more relax
+        // passes, so that the push's velocity is taken back all the way up a stack
+        // instead of adding up from row to row
+        std::int64_t n_near = deep_region(model, c, C::DEEP_RELAX_REACH);
+        for (int it = 0; it < cfg.iterations * (C::DEEP_RELAX_FACTOR - 1); ++it)
+          solve_contacts(model, state, c, inv_h, false, shift, threshold, c.relax_list.data(), n_near);
+      }
+      // bounces first: the shock pass then leaves them alone, and would otherwise take a
+      // ball struck down onto the floor as a load and stop it dead
+      apply_restitution(model, state, c, threshold, h, sign);
+      propagate_shock(model, state, c, c.count.shock_count, inv_h, threshold);
+    }
+  }
+  if (contacts_on) {
+    limit_static_overlap(model, state, c, C::STATIC_OVERLAP_LIMIT);
+    store_impulses(c);
+  }
+  return true;
+}
+
+namespace {
+
+template <class T>
+bool finite(const T& v) {
+  if constexpr (std::is_same_v<T, double>) {
+    return std::isfinite(v);
+  } else {
+    const double* p = reinterpret_cast<const double*>(&v);
+    for (std::size_t k = 0; k < sizeof(T) / sizeof(double); ++k)
+      if (!std::isfinite(p[k])) return false;
+    return true;
+  }
+}
+
+template <int D>
+std::int64_t first_non_finite(const State<D>& st) {
+  for (std::size_t i = 0; i < st.body_x.size(); ++i) {
+    if (!(finite(st.body_x[i]) && finite(st.body_v[i]) && finite(st.body_w[i]) &&
+          finite(st.body_q[i])))
+      return static_cast<std::int64_t>(i);
+  }
+  return -1;
+}
+
+}  // namespace
+
+template <int D>
+Status World<D>::advance(std::int64_t n_steps, std::int64_t* taken, std::int64_t* bad_body) {
+  *taken = 0;
+  while (*taken < n_steps) {
+    if (!step()) {
+      grow(2 * contacts.count.pairs);
+      continue;
+    }
+    ++*taken;
+    ++step_index;
+    std::int64_t bad = first_non_finite(state);
+    if (bad >= 0) {
+      *bad_body = bad;
+      return Status::NonFinite;
+    }
+  }
+  return Status::Ok;
+}
+
+template <int D>
+std::vector<double> shape_extent(const Model<D>& model) {
+  std::vector<double> ext(model.shape_count());
+  for (int s = 0; s < model.shape_count(); ++s) {
+    const int start = model.shape_vstart[s], count = model.shape_vcount[s];
+    auto lo = model.vertex_local[start], hi = lo;
+    for (int k = start + 1; k < start + count; ++k) {
+      const double* p = reinterpret_cast<const double*>(&model.vertex_local[k]);
+      double* l = reinterpret_cast<double*>(&lo);
+      double* u = reinterpret_cast<double*>(&hi);
+      for (int d = 0; d < D; ++d) {
+        l[d] = std::min(l[d], p[d]);
+        u[d] = std::max(u[d], p[d]);
+      }
+    }
+    auto span = hi - lo;
+    if constexpr (D == 2) {
+      ext[s] = 0.5 * std::hypot(span.x, span.y) + model.shape_radius[s];
+    } else {
+      ext[s] = 0.5 * length(span) + model.shape_radius[s];
+    }
+  }
+  return ext;
+}
+
+Soft soft_parameters(double hertz, double zeta, double h) {
+  if (hertz == 0.0) return {1.0, 0.0, 0.0};
+  const double omega = 2.0 * M_PI * hertz;
+  const double a1 = 2.0 * zeta + h * omega;
+  const double a2 = h * omega * a1;
+  const double a3 = 1.0 / (1.0 + a2);
+  return {a2 * a3, a3, omega / a1};
+}
+
+template struct World<2>;
+template std::vector<double> shape_extent(const Model<2>&);
+
+}  // namespace rbsim
