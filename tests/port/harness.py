@@ -81,7 +81,8 @@ class Pair:
         self.cc.engine.step_index = self.nb.step_index
 
     def diff(self, names=None, *, atol: float = 0.0) -> dict[str, float]:
-        """Max |numba − C++| per array (NaN in the same places counts as equal); only
+        """Max |numba − C++| per array (equal infinities and NaN in the same places count
+        as equal); only
         arrays that differ by more than atol, or whose shapes differ."""
         out = {}
         for name, a, b in self._storage_pairs():
@@ -93,8 +94,9 @@ class Pair:
                 continue
             if a.size == 0:
                 continue
-            both_nan = np.isnan(a) & np.isnan(b) if a.dtype.kind == "f" else False
-            d = np.where(both_nan, 0.0, np.abs(a.astype(np.float64) - b.astype(np.float64)))
+            same = (a == b) | (np.isnan(a) & np.isnan(b)) if a.dtype.kind == "f" else a == b
+            with np.errstate(invalid="ignore"):
+                d = np.where(same, 0.0, np.abs(a.astype(np.float64) - b.astype(np.float64)))
             d = np.nan_to_num(d, nan=np.inf)
             worst = float(d.max())
             if worst > atol:
