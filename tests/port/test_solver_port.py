@@ -80,7 +80,7 @@ class Checker:
         assert not bad, f"{stage} {args}: {bad}"
         self.calls[stage] = self.calls.get(stage, 0) + 1
         self._note(stage, args, *before)
-        for name, a, b in pair._storage_pairs():
+        for _name, a, b in pair._storage_pairs():
             a, b = np.asarray(a), np.asarray(b)
             if a.dtype.kind == "f" and a.size:
                 with np.errstate(invalid="ignore"):
@@ -195,19 +195,22 @@ def column(sink: float, n: int = 6) -> str:
     )
     return (
         "version: 1\nworld: {dt: 1/60, duration: 3}\nbodies:\n"
-        "  - {name: ground, type: static, shape: {segment: {a: [-50, 0], b: [50, 0]}}}\n"
-        + balls
+        "  - {name: ground, type: static, shape: {segment: {a: [-50, 0], b: [50, 0]}}}\n" + balls
     )
 
 
-GROUND = "  - {name: ground, type: static, friction: 0.6, shape: {segment: {a: [-30, 0], b: [30, 0]}}}\n"  # noqa: E501
+GROUND = (
+    "  - {name: ground, type: static, friction: 0.6, shape: {segment: {a: [-30, 0], b: [30, 0]}}}\n"  # noqa: E501
+)
 
 SCENES = {
     # boxes on boxes: two-point manifolds, the 2x2 block solve, friction at two points
-    "stack": "version: 1\nworld: {dt: 1/60, steps: 200}\nbodies:\n" + GROUND
+    "stack": "version: 1\nworld: {dt: 1/60, steps: 200}\nbodies:\n"
+    + GROUND
     + "  - stack: {count: 6, size: [1, 1], origin: [0, 0.5], friction: 0.6}\n",
     # a pyramid: block solves with neighbours on both sides, the solve order
-    "pyramid": "version: 1\nworld: {dt: 1/60, steps: 200}\nbodies:\n" + GROUND
+    "pyramid": "version: 1\nworld: {dt: 1/60, steps: 200}\nbodies:\n"
+    + GROUND
     + "  - pyramid: {base: 6, size: [1, 1], origin: [0, 0.5], friction: 0.6}\n",
     # circles poured into a box: one-point manifolds, ball on ball, walls
     "circles": """
@@ -287,11 +290,13 @@ bodies:
 """,
     # explicit Euler (shift 0 in the relax stage) and two iterations per substep
     "explicit": "version: 1\nworld: {dt: 1/60, steps: 200}\n"
-    "solver: {integrator: explicit_euler, iterations: 2}\nbodies:\n" + GROUND
+    "solver: {integrator: explicit_euler, iterations: 2}\nbodies:\n"
+    + GROUND
     + "  - pyramid: {base: 3, size: [1, 1], origin: [0, 0.5], friction: 0.6}\n"
     "  - {name: ball, position: [3, 1], restitution: 0.5, shape: {circle: {radius: 0.3}}}\n",
     # overlapping boxes pushed apart (large push-out), boxes squeezed into the ground
-    "overlap": "version: 1\nworld: {dt: 1/60, steps: 200}\nbodies:\n" + GROUND
+    "overlap": "version: 1\nworld: {dt: 1/60, steps: 200}\nbodies:\n"
+    + GROUND
     + "".join(
         f"  - {{name: 'b{r}{i}', position: [{(i - (3 - r) / 2) * 0.75}, {0.45 + 0.75 * r}],"
         f" friction: 0.6, shape: {{box: {{size: [1, 1]}}}}}}\n"
@@ -309,7 +314,7 @@ MOMENTS = {
     "deep": (0, 1, 5, 20),
     "mixed": (0, 4, 30, 80),
     "elastic": (0, 12, 20, 27, 40, 70),
-    "cradle": (10, 13, 14, 16, 40),
+    "cradle": (10, 11, 12, 14, 40),
     "explicit": (0, 5, 30, 45),
     "overlap": (0, 1, 10, 40),
 }
@@ -323,7 +328,7 @@ EXPECT = {
     "deep": {"deep", "relax_list", "moved out", "one-point"},
     "mixed": {"one-point", "two-point", "friction within"},
     "elastic": {"bounce listed", "approach inf", "one-point", "two-point"},
-    "cradle": {"bounce listed", "approach inf", "one-point"},
+    "cradle": {"bounce listed", "one-point"},
     "explicit": {"two-point", "one-point", "bounce listed"},
     "overlap": {"two-point", "deep", "relax_list"},
 }
