@@ -19,6 +19,7 @@
 #include "rbsim/constants.hpp"
 #include "rbsim/world.hpp"
 #include "../src/collide/narrow2d.hpp"
+#include "../src/tools/separation.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
@@ -387,4 +388,39 @@ NB_MODULE(_core, mod) {
           "separations (2,), ids (2,) int64); rows past count are NaN / -1.");
   // ---- end narrowphase test entry ----
   mod.attr("NON_FINITE") = static_cast<int>(Status::NonFinite);
+
+  // ---- tools outside the step: the penetration ruler (cpp/src/tools/separation.cpp) ----
+  mod.def(
+      "min_separation",
+      [](nb::handle verts_in, nb::handle vstart_in, nb::handle vcount_in, nb::handle radius_in,
+         nb::handle pairs_in) {
+        std::vector<Vec2> verts;
+        std::vector<std::int32_t> vstart, vcount;
+        std::vector<double> radius;
+        std::vector<std::array<std::int32_t, 2>> pairs;
+        load(verts, verts_in, "verts");
+        load(vstart, vstart_in, "vstart");
+        const long s = static_cast<long>(vstart.size());
+        load(vcount, vcount_in, "vcount", s);
+        load(radius, radius_in, "radius", s);
+        load(pairs, pairs_in, "pairs");
+        const long nv = static_cast<long>(verts.size());
+        for (long i = 0; i < s; ++i)
+          if (vstart[i] < 0 || vcount[i] < 1 || vstart[i] + static_cast<long>(vcount[i]) > nv)
+            throw std::invalid_argument("min_separation: shape vertices out of range");
+        for (const auto& p : pairs)
+          if (p[0] < 0 || p[0] >= s || p[1] < 0 || p[1] >= s)
+            throw std::invalid_argument("min_separation: pair index out of range");
+        const std::size_t n = pairs.size();
+        double* out = new double[n > 0 ? n : 1];
+        nb::capsule owner(out, [](void* p) noexcept { delete[] static_cast<double*>(p); });
+        min_separation(verts.data(), vstart.data(), vcount.data(), radius.data(), pairs.data(),
+                       static_cast<std::int64_t>(n), out);
+        std::size_t shape[1] = {n};
+        return nb::ndarray<nb::numpy, double>(out, 1, shape, owner);
+      },
+      "verts"_a, "vstart"_a, "vcount"_a, "radius"_a, "pairs"_a,
+      "Separation (m) of each shape pair (P,2) int32 from world vertices (V,2) float64, "
+      "each shape's first vertex and vertex count (S,) int32 and radius (S,) float64: the "
+      "signed distance of the cores minus both radii (reference.py's penetration ruler).");
 }

@@ -1,11 +1,337 @@
-// PLACEHOLDER: being ported from the numba engine; replaced before this lands.
-#include <stdexcept>
+// Shock propagation: contacts solved from the ground up, the supporting body held still.
+//
+// Sequential impulses converge slowly when a heavy body presses on light ones: each pass
+// over a slab resting on a small box hands the box the slab's whole approach speed and
+// takes back only a mass ratio's worth of it from the slab, so a 400 kg slab falling on
+// 1 kg boxes needs hundreds of passes to stop and, in a few, crushes them into the ground.
+// After the relax pass of every substep this stage makes one more pass over the contacts,
+// ordered by how far each body is from a static or kinematic body through the contact
+// graph (its support level, found once per step), and solves each contact between a
+// supporting body (lower level, underneath with respect to gravity) and a supported one
+// (higher level) as if the supporter had infinite mass: only the supported body's approach
+// is removed. A rigidly supported body cannot be pushed into what holds it, so for
+// vertical support this is what the converged solve would give; the impulse goes into
+// the ground through the chain, as it physically does.
+//
+// The pass only removes approach velocity (it never pushes apart and never adds energy)
+// and keeps no accumulated impulse, so warm starting and the resting equilibrium of the
+// soft contacts are unchanged. It needs gravity to say what is underneath: a scene
+// without gravity, or a contact whose normal is closer to horizontal than SHOCK_COS,
+// is left to the ordinary solve. (Guendelman, Bridson and Fedkiw 2003 introduced shock
+// propagation for stacking; this is a velocity-level variant of it.)
+//
+// The same file finds the solve order of the solver's passes (support level first) and
+// the region around a deep overlap that the relax stage gives extra passes.
+#include <algorithm>
+#include <cmath>
+
+#include "rbsim/constants.hpp"
 #include "rbsim/stages.hpp"
+#include "solver/row.hpp"
+
 namespace rbsim {
-template <int D> std::int64_t support_order(const Model<D>&, Contacts<D>&) { throw std::logic_error("support_order: not ported"); }
-template <int D> std::int64_t deep_region(const Model<D>&, Contacts<D>&, int) { throw std::logic_error("deep_region: not ported"); }
-template <int D> void propagate_shock(const Model<D>&, State<D>&, Contacts<D>&, std::int64_t, double, double) { throw std::logic_error("shock: not ported"); }
+
+namespace C = constants;
+
+namespace {
+
+// The level of a body not connected to a static or kinematic body.
+constexpr std::int64_t UNREACHED = std::int64_t{1} << 30;
+
+// Whether every component of v is exactly zero (a scene without gravity).
+inline bool all_zero(Vec2 v) { return v.x == 0.0 && v.y == 0.0; }
+inline bool all_zero(Vec3 v) { return v.x == 0.0 && v.y == 0.0 && v.z == 0.0; }
+
+// contacts.body_level (N,): 0 for static and kinematic bodies, 1 for the bodies they
+// touch, ..., UNREACHED for bodies not connected to one (breadth first over the manifolds
+// with points). Builds the contact graph's adjacency (compressed rows in adj_start, adj;
+// deep_region walks it too) and uses contacts.queue as scratch.
+template <int D>
+void contact_levels(const Model<D>& model, Contacts<D>& c) {
+  auto& level = c.body_level;
+  auto& adj_start = c.adj_start;
+  auto& adj = c.adj;
+  auto& queue = c.queue;
+  const std::int64_t n_bodies = static_cast<std::int64_t>(level.size());
+  const std::int64_t n_man = c.count.manifolds;
+  // adjacency of the contact graph (compressed rows, manifolds with points only)
+  for (std::int64_t i = 0; i <= n_bodies; ++i) adj_start[i] = 0;
+  for (std::int64_t m = 0; m < n_man; ++m) {
+    if (c.points[m] > 0) {
+      adj_start[c.body_a[m] + 1] += 1;
+      adj_start[c.body_b[m] + 1] += 1;
+    }
+  }
+  for (std::int64_t i = 0; i < n_bodies; ++i) adj_start[i + 1] += adj_start[i];
+  for (std::int64_t i = 0; i < n_bodies; ++i) queue[i] = adj_start[i];  // fill cursor
+  for (std::int64_t m = 0; m < n_man; ++m) {
+    if (c.points[m] > 0) {
+      const int a = c.body_a[m], b = c.body_b[m];
+      adj[queue[a]++] = b;
+      adj[queue[b]++] = a;
+    }
+  }
+  // breadth-first levels from every static or kinematic body
+  std::int64_t head = 0, tail = 0;
+  for (std::int64_t i = 0; i < n_bodies; ++i) {
+    if (model.body_type[i] != BodyType::Dynamic) {
+      level[i] = 0;
+      queue[tail++] = i;
+    } else {
+      level[i] = UNREACHED;
+    }
+  }
+  while (head < tail) {
+    const std::int64_t i = queue[head++];
+    for (std::int64_t e = adj_start[i]; e < adj_start[i + 1]; ++e) {
+      const int j = adj[e];
+      if (level[j] == UNREACHED) {
+        level[j] = level[i] + 1;
+        queue[tail++] = j;
+      }
+    }
+  }
+}
+
+// ω · (r × n) for a point's angular lever (2D: scalars; 3D: vectors).
+inline double angular_along(double w, double r) { return w * r; }
+
+}  // namespace
+
+// Support level of every body, and the orders of the solver's and the shock pass.
+//
+// Writes contacts.solve_order (M,): every manifold, lowest supporter level first (the
+// order of the solver's passes; the manifolds' own order without gravity);
+// contacts.body_level (N,): 0 for static and kinematic bodies, 1 for bodies they touch,
+// ...; UNREACHED otherwise; contacts.shock_order: the manifolds with a supporter, lowest
+// supporter first; contacts.shock_side (M,): 1 when body a supports body b, 2 when body b
+// supports body a, 0 when neither. Returns the number of manifolds in shock_order. When
+// the manifolds are last step's (count.graph_unchanged), the levels and the solve order
+// are kept and only the shock pass's side and order are found again (a normal may have
+// turned). Uses contacts.queue as scratch.
+template <int D>
+std::int64_t support_order(const Model<D>& model, Contacts<D>& c) {
+  using Vec = typename Dim<D>::Vec;
+  auto& level = c.body_level;
+  auto& side = c.shock_side;
+  auto& order = c.shock_order;
+  auto& solve_order = c.solve_order;
+  const std::int64_t n_bodies = static_cast<std::int64_t>(level.size());
+  const std::int64_t n_man = c.count.manifolds;
+  const Vec gravity = model.gravity;
+  const double g = std::sqrt(dot(gravity, gravity));  // m/s²
+  // the same manifolds as last step, in the same slots: its levels and solve order hold
+  const bool same = c.count.graph_unchanged == 1;
+  for (std::int64_t m = 0; m < n_man; ++m) {
+    side[m] = 0;
+    if (!same) solve_order[m] = static_cast<std::int32_t>(m);
+  }
+  if (g == 0.0 || n_man == 0) return 0;
+  const Vec up = (-1.0 / g) * gravity;
+  if (!same) contact_levels(model, c);
+  // which side supports, and a counting sort by the supporter's level
+  std::int64_t max_level = 0;
+  for (std::int64_t m = 0; m < n_man; ++m) {
+    if (c.points[m] == 0) continue;
+    const int a = c.body_a[m], b = c.body_b[m];
+    const double u = dot(c.normal[m], up);  // the normal points from b to a
+    if (level[b] < level[a] && u >= C::SHOCK_COS && model.is_dynamic(a)) {
+      side[m] = 2;
+      max_level = std::max(max_level, level[b]);
+    } else if (level[a] < level[b] && u <= -C::SHOCK_COS && model.is_dynamic(b)) {
+      side[m] = 1;
+      max_level = std::max(max_level, level[a]);
+    }
+  }
+  // every manifold, ordered by the lower of its two bodies' levels (ground first, bodies
+  // not connected to the ground last): the order of the solver's passes, in which a pass
+  // carries a push or a correction up a stack within one sweep
+  auto& count = c.queue;  // reused as bucket counts (the levels are known now)
+  if (!same) {
+    std::int64_t top = 0;
+    for (std::int64_t i = 0; i < n_bodies; ++i)
+      if (level[i] != UNREACHED && level[i] > top) top = level[i];
+    for (std::int64_t k = 0; k < top + 3; ++k) count[k] = 0;
+    for (std::int64_t m = 0; m < n_man; ++m) {
+      const std::int64_t lv = std::min(std::min(level[c.body_a[m]], level[c.body_b[m]]), top + 1);
+      count[lv + 1] += 1;
+    }
+    for (std::int64_t k = 0; k < top + 2; ++k) count[k + 1] += count[k];
+    for (std::int64_t m = 0; m < n_man; ++m) {
+      const std::int64_t lv = std::min(std::min(level[c.body_a[m]], level[c.body_b[m]]), top + 1);
+      solve_order[count[lv]++] = static_cast<std::int32_t>(m);
+    }
+  }
+  for (std::int64_t k = 0; k < max_level + 2; ++k) count[k] = 0;
+  for (std::int64_t m = 0; m < n_man; ++m) {
+    if (side[m] == 2)
+      count[level[c.body_b[m]] + 1] += 1;
+    else if (side[m] == 1)
+      count[level[c.body_a[m]] + 1] += 1;
+  }
+  for (std::int64_t k = 0; k < max_level + 1; ++k) count[k + 1] += count[k];
+  const std::int64_t total = count[max_level + 1];
+  for (std::int64_t m = 0; m < n_man; ++m) {
+    std::int64_t lv;
+    if (side[m] == 2)
+      lv = level[c.body_b[m]];
+    else if (side[m] == 1)
+      lv = level[c.body_a[m]];
+    else
+      continue;
+    order[count[lv]++] = static_cast<std::int32_t>(m);
+  }
+  return total;
+}
+
+// The manifolds near a deep overlap, for the relax stage's extra passes: those of the
+// dynamic bodies within `reach` contacts of a body in a manifold of
+// contacts.relax_list[:count.deep_count], written in solve order over that list; returns
+// their count. Every manifold when the list is full or the scene has no gravity (the
+// contact graph, contact_levels' adjacency, is built only for the shock pass). Uses
+// contacts.queue and body_reach as scratch.
+template <int D>
+std::int64_t deep_region(const Model<D>& model, Contacts<D>& c, int reach) {
+  auto& queue = c.queue;
+  auto& dist = c.body_reach;
+  auto& relax_list = c.relax_list;
+  const auto& order = c.solve_order;
+  const std::int64_t n_man = c.count.manifolds;
+  const std::int64_t n_seeds = c.count.deep_count;
+  const bool everything =
+      n_seeds >= static_cast<std::int64_t>(relax_list.size()) || all_zero(model.gravity);
+  if (everything) {
+    for (std::int64_t o = 0; o < n_man; ++o) relax_list[o] = order[o];
+    return n_man;
+  }
+  for (auto& d : dist) d = -1;
+  // breadth first from the deep manifolds' bodies; static and kinematic bodies are not
+  // passed through (a push does not travel through the ground)
+  std::int64_t tail = 0;
+  for (std::int64_t k = 0; k < n_seeds; ++k) {
+    const std::int32_t m = relax_list[k];
+    for (const int i : {c.body_a[m], c.body_b[m]}) {
+      if (model.is_dynamic(i) && dist[i] < 0) {
+        dist[i] = 0;
+        queue[tail++] = i;
+      }
+    }
+  }
+  std::int64_t head = 0;
+  while (head < tail) {
+    const std::int64_t i = queue[head++];
+    if (dist[i] >= reach) continue;
+    for (std::int64_t e = c.adj_start[i]; e < c.adj_start[i + 1]; ++e) {
+      const int j = c.adj[e];
+      if (model.is_dynamic(j) && dist[j] < 0) {
+        dist[j] = dist[i] + 1;
+        queue[tail++] = j;
+      }
+    }
+  }
+  std::int64_t count = 0;
+  for (std::int64_t o = 0; o < n_man; ++o) {
+    const std::int32_t m = order[o];
+    if (dist[c.body_a[m]] >= 0 || dist[c.body_b[m]] >= 0) relax_list[count++] = m;
+  }
+  return count;
+}
+
+// One pass over the supported contacts, lowest first, that removes each supported body's
+// approach towards its supporter (the supporter taken as infinitely heavy). A point with a
+// gap (m) may still close it within the substep (1/inv_h s). An elastic contact
+// (restitution > 0) approaching faster than `threshold` (m/s) is an impact, not a load: it
+// is left to the next substep's solve and bounce (taken here, its energy would be lost: a
+// ball struck down onto the floor stopped dead).
+template <int D>
+void propagate_shock(const Model<D>& model, State<D>& st, Contacts<D>& c, std::int64_t n_order,
+                     double inv_h, double threshold) {
+  using Vec = typename Dim<D>::Vec;
+  auto& v = st.body_v;
+  auto& w = st.body_w;
+  for (std::int64_t o = 0; o < n_order; ++o) {
+    const std::int32_t m = c.shock_order[o];
+    const int a = c.body_a[m], b = c.body_b[m];
+    const SolverRow<D>& row = c.solver_row[m];
+    const auto& pt0 = row.point[0];
+    const auto& pt1 = row.point[1];
+    const Vec n = row.normal;
+    const int npts = c.points[m];
+    // most supported points are not approaching: skip them before any other work
+    const Vec dv = v[a] - v[b];
+    const double dvn = dot(dv, n);
+    const double vel0 = dvn + angular_along(w[a], pt0.rna) - angular_along(w[b], pt0.rnb);
+    double vel1 = 0.0;
+    bool approaching = vel0 < -C::SHOCK_MIN_APPROACH;
+    if (npts == 2) {
+      vel1 = dvn + angular_along(w[a], pt1.rna) - angular_along(w[b], pt1.rnb);
+      approaching = approaching || vel1 < -C::SHOCK_MIN_APPROACH;
+    }
+    if (!approaching) continue;
+    if (c.restitution[m] > 0.0 && std::min(vel0, vel1) < -threshold) continue;
+    const BodyDelta<D>& da = c.body_delta[a];
+    const BodyDelta<D>& db = c.body_delta[b];
+    const double moved = dot(n, da.dx - db.dx);  // m
+    // the normal turned back into each body's frame at the step's start
+    const Vec na = inv_rotate(da.dq, n);
+    const Vec nb = inv_rotate(db.dq, n);
+    // the supported body moves; the sign turns its push along +n (a) or -n (b)
+    const bool a_moves = c.shock_side[m] == 2;
+    const int u = a_moves ? a : b;
+    const double sgn = a_moves ? 1.0 : -1.0;
+    const double mu = model.body_inv_mass[u], iu = model.body_inv_inertia[u];
+    // how far each point is from allowed (m/s): a gap may close within the substep
+    const double sep0 = row_separation(pt0, moved, na, nb);
+    const double need0 = (sep0 > 0.0 ? -sep0 * inv_h : 0.0) - vel0;
+    const double r0 = a_moves ? pt0.rna : pt0.rnb;  // m: the supported body's lever
+    double need1 = 0.0, r1 = 0.0;
+    if (npts == 2) {
+      const double sep1 = row_separation(pt1, moved, na, nb);
+      need1 = (sep1 > 0.0 ? -sep1 * inv_h : 0.0) - vel1;
+      r1 = a_moves ? pt1.rna : pt1.rnb;
+    }
+    // impulses (N·s) along the supported body's push direction, λ >= 0, that bring every
+    // point to at least its target: the two-point case is a 2x2 complementarity problem,
+    // solved by trying both points, then each alone
+    double l0 = 0.0, l1 = 0.0;
+    const double k00 = mu + iu * r0 * r0;  // 1/kg
+    if (npts == 1) {
+      if (need0 > 0.0 && k00 > 0.0) l0 = need0 / k00;
+    } else {
+      const double k11 = mu + iu * r1 * r1;
+      const double k01 = mu + iu * r0 * r1;
+      const double det = k00 * k11 - k01 * k01;
+      bool done = false;
+      if (det > 1e-12 * k00 * k11) {
+        l0 = (k11 * need0 - k01 * need1) / det;
+        l1 = (k00 * need1 - k01 * need0) / det;
+        done = l0 >= 0.0 && l1 >= 0.0;
+      }
+      if (!done) {
+        l0 = l1 = 0.0;
+        if (need0 > 0.0 && k00 > 0.0 && k01 * need0 / k00 >= need1) {
+          l0 = need0 / k00;
+        } else if (need1 > 0.0 && k11 > 0.0 && k01 * need1 / k11 >= need0) {
+          l1 = need1 / k11;
+        } else if (need0 > 0.0 || need1 > 0.0) {
+          // parallel arms (singular K): one impulse at the neediest point
+          if (need0 >= need1 && k00 > 0.0)
+            l0 = need0 / k00;
+          else if (k11 > 0.0)
+            l1 = need1 / k11;
+        }
+      }
+    }
+    const double impulse = l0 + l1;
+    if (impulse == 0.0) continue;
+    v[u] += (sgn * mu * impulse) * n;
+    w[u] += sgn * iu * (l0 * r0 + l1 * r1);
+  }
+}
+
 template std::int64_t support_order(const Model<2>&, Contacts<2>&);
 template std::int64_t deep_region(const Model<2>&, Contacts<2>&, int);
-template void propagate_shock(const Model<2>&, State<2>&, Contacts<2>&, std::int64_t, double, double);
+template void propagate_shock(const Model<2>&, State<2>&, Contacts<2>&, std::int64_t, double,
+                              double);
+
 }  // namespace rbsim
