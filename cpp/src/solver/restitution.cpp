@@ -1,9 +1,446 @@
-// PLACEHOLDER: being ported from the numba engine; replaced before this lands.
-#include <stdexcept>
+// The restitution stage: bounces by the restitution hypothesis, v_n⁺ from v_n⁻, at the
+// points that engaged in this substep approaching faster than the threshold.
+//
+// Run after every substep, so that impacts follow each other in order. A bouncing point's
+// accumulated impulse is dropped afterwards (what it carried into the step, a resting
+// load, it keeps), so that later substeps do not warm-start the bounce a second time.
+//
+// Without forces the target is exactly v_n⁺ = −e v_n⁻. Under a constant relative normal
+// acceleration a (gravity, constant forces) the target is taken on the discrete
+// trajectory instead: Euler with substep h (s) conserves not the energy but
+// I = v²/2 − a s + sign (a h / 2) v (sign +1 symplectic, −1 explicit Euler), and
+// reversing v alone would lose or gain about |a| h |v| per bounce. So v_n⁺ makes I after
+// the bounce (at the current separation) equal e² times I where the point engaged. For
+// e = 1 a ball then keeps its apex bounce after bounce, to round-off.
+//
+// Impacts that share a body within a substep (a ball struck by two others, a ball hitting
+// a wall while another hits it, a row of touching balls struck at one end) are where
+// energy went: the solve treats them as one inelastic impact, and each point's approach
+// was recorded mid-pass, after its neighbours had pushed. So a cluster of bouncing points
+// (e > 0) whose bodies nothing else pushes is done again exactly: the substep's impulses
+// at its points are taken back, which leaves each point's true approach velocity, and the
+// impacts are then resolved one pair at a time, in passes, each a bounce against the
+// point's velocity at that moment, until no point of the cluster approaches (a point
+// struck again within the substep, as in the row of balls, bounces again; one that
+// approaches slower than the threshold is only stopped). The cluster also takes in
+// elastic points that pushed slower than the threshold and carried no load into the
+// step: in a touching row struck at one end, the solve's joint push engages them at a
+// fraction of the striker's speed. A pair's bounce with e = 1 keeps the kinetic energy
+// exactly, so the cluster does. After RESTITUTION_PASSES passes what still approaches is
+// left to the next substep's solve. Clusters that also hold resting contacts (a ball
+// landing on a stack) keep the solve's impulses and get the targets from the recorded
+// approach.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "rbsim/constants.hpp"
 #include "rbsim/stages.hpp"
+#include "solver/row.hpp"
+
 namespace rbsim {
-template <int D> void keep_solve_impulses(Contacts<D>&) { throw std::logic_error("keep: not ported"); }
-template <int D> void apply_restitution(const Model<D>&, State<D>&, Contacts<D>&, double, double, double) { throw std::logic_error("restitution: not ported"); }
+
+namespace C = constants;
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// bounce_kind of a manifold in the restitution stage (contacts.bounce_kind, int8)
+enum BounceKind : std::int8_t {
+  kQuiet = 0,    // no point pushes or bounces
+  kAlone = 1,    // bounces, e > 0, and touches no body that anything else pushes: redone exactly
+  kJoined = 2,   // bounces within a cluster that also has resting or inelastic contacts
+  kPushing = 3,  // pushes without bouncing (a resting or slow contact)
+  kPassive = 4,  // elastic, pushed slowly, no load carried in: joins a lone cluster it touches
+};
+
+// body_mark bits: bit 1, something other than a lone cluster pushes the body; bit 2, the
+// body is reached from a lone cluster's bounce
+constexpr std::int8_t kPushed = 1;
+constexpr std::int8_t kReached = 2;
+
+// a · b of two angular quantities (2D: scalars; 3D: vectors)
+inline double ang_dot(double a, double b) { return a * b; }
+inline double ang_dot(Vec3 a, Vec3 b) { return dot(a, b); }
+
+// The normal velocity (m/s) after a bounce of coefficient e: the one that makes the
+// discrete trajectory's invariant at separation s_now (m) e² times `invariant` (m²/s²),
+// with relative normal acceleration acc (m/s²), substep h (s), sign +1 for symplectic
+// and −1 for explicit Euler. The invariant after the bounce, v²/2 + sign a h v / 2 − a s,
+// set to e² I: v = (−a h sign + √((a h)² + 8 (e² I + a s))) / 2 (the root moving apart).
+inline double bounce_target(double invariant, double s_now, double acc, double e, double h,
+                            double sign) {
+  const double ah = sign * acc * h;
+  const double rhs = e * e * invariant + acc * s_now;
+  return 0.5 * (-ah + std::sqrt(std::fmax(ah * ah + 8.0 * rhs, 0.0)));
+}
+
+// Relative normal acceleration (m/s²) of bodies a and b along n from gravity and forces.
+template <int D>
+inline double relative_acceleration(const Model<D>& model, int a, int b, typename Dim<D>::Vec n) {
+  double acc = 0.0;
+  if (model.body_type[a] == BodyType::Dynamic)
+    acc += dot(model.gravity + model.body_inv_mass[a] * model.body_force[a], n);
+  if (model.body_type[b] == BodyType::Dynamic)
+    acc -= dot(model.gravity + model.body_inv_mass[b] * model.body_force[b], n);
+  return acc;
+}
+
+// Energy the impact owes besides the bounce (see the passes below; zeros elsewhere): work
+// (J), e², h·sign·acc (m/s), and u0, u1 (m/s), each point's target alone with its own
+// share of the work.
+struct Owed {
+  double work = 0.0, e2 = 0.0, hsa = 0.0, u0 = 0.0, u1 = 0.0;
+};
+
+struct PointImpulses {
+  double j0 = 0.0, j1 = 0.0;  // N·s at points 0 and 1
+};
+
+// Raise the normal velocity of manifold m's points to their targets t0, t1 (m/s) where
+// need0, need1, by impulses added to normal_impulse (kept >= 0). Both points at once are
+// one 2x2 block (a box landing flat gets mirror-image impulses; one after the other would
+// tip it). When the block would pull, one point at a time; with `single`, only the point
+// furthest below its target (the caller comes back for the other with a target from its
+// velocity then: the first point's impulse changes it). Returns the impulses applied.
+//
+// With owed.work != 0 the block raises both targets by the same c for which its impulses
+// do e² times that work; a single point takes u0 or u1, its own target with its own
+// share of the work. (The block is of a manifold's two points: 2D's face contact.)
+template <int D>
+PointImpulses push_targets(const Model<D>& model, State<D>& st, Contacts<D>& c, std::int64_t m,
+                           int a, int b, bool need0, double t0, bool need1, double t1,
+                           bool single, const Owed& owed) {
+  using Vec = typename Dim<D>::Vec;
+  const Vec n = c.normal[m];
+  const double ima = model.body_inv_mass[a], imb = model.body_inv_mass[b];
+  const auto& iia = model.body_inv_inertia[a];
+  const auto& iib = model.body_inv_inertia[b];
+  const auto qa = st.body_q[a], qb = st.body_q[b];
+  if (need0 && need1) {
+    const Vec r0a = c.anchor_a[m][0], r0b = c.anchor_b[m][0];
+    const Vec r1a = c.anchor_a[m][1], r1b = c.anchor_b[m][1];
+    // lever arms r × n (2D: m; 3D: vectors)
+    const auto ca0 = cross(r0a, n), cb0 = cross(r0b, n);
+    const auto ca1 = cross(r1a, n), cb1 = cross(r1b, n);
+    const auto ia0 = Dim<D>::apply_inv_inertia(iia, qa, ca0);
+    const auto ib0 = Dim<D>::apply_inv_inertia(iib, qb, cb0);
+    const auto ia1 = Dim<D>::apply_inv_inertia(iia, qa, ca1);
+    const auto ib1 = Dim<D>::apply_inv_inertia(iib, qb, cb1);
+    // the block K (1/kg)
+    const double k11 = ima + imb + ang_dot(ca0, ia0) + ang_dot(cb0, ib0);
+    const double k22 = ima + imb + ang_dot(ca1, ia1) + ang_dot(cb1, ib1);
+    const double k12 = ima + imb + ang_dot(ca1, ia0) + ang_dot(cb1, ib0);
+    const double det = k11 * k22 - k12 * k12;
+    if (det > 1.0e-9 * k11 * k22) {
+      const double vn0 = normal_velocity(st, a, b, r0a, r0b, n);
+      const double vn1 = normal_velocity(st, a, b, r1a, r1b, n);
+      const double d0 = t0 - vn0, d1 = t1 - vn1;
+      double j0 = (k22 * d0 - k12 * d1) / det;
+      double j1 = (k11 * d1 - k12 * d0) / det;
+      if (owed.work != 0.0) {
+        // impulses j + c q (q = K⁻¹ 1) do ΔE(c) = ΔE(0) + L c + B c² / 2
+        const double q0 = (k22 - k12) / det, q1 = (k11 - k12) / det;
+        const double big_b = q0 + q1;
+        const double big_l =
+            0.5 * (q0 * (vn0 + t0) + q1 * (vn1 + t1) + j0 + j1 + owed.hsa * big_b);
+        const double disc = big_l * big_l + 2.0 * big_b * owed.e2 * owed.work;
+        if (big_l > 0.0 && disc >= 0.0) {
+          const double cc = 2.0 * owed.e2 * owed.work / (big_l + std::sqrt(disc));
+          j0 += cc * q0;
+          j1 += cc * q1;
+        }
+      }
+      auto& lam = c.normal_impulse[m];
+      if (lam[0] + j0 >= 0.0 && lam[1] + j1 >= 0.0) {
+        lam[0] += j0;
+        lam[1] += j1;
+        const Vec p = (j0 + j1) * n;
+        st.body_v[a] += ima * p;
+        st.body_w[a] += Dim<D>::apply_inv_inertia(iia, qa, j0 * ca0 + j1 * ca1);
+        st.body_v[b] -= imb * p;
+        st.body_w[b] -= Dim<D>::apply_inv_inertia(iib, qb, j0 * cb0 + j1 * cb1);
+        return {j0, j1};
+      }
+    }
+  }
+  PointImpulses out;
+  t0 = owed.u0;
+  t1 = owed.u1;
+  if (single && need0 && need1) {
+    const double d0 = t0 - normal_velocity(st, a, b, c.anchor_a[m][0], c.anchor_b[m][0], n);
+    const double d1 = t1 - normal_velocity(st, a, b, c.anchor_a[m][1], c.anchor_b[m][1], n);
+    if (d0 >= d1)
+      need1 = false;
+    else
+      need0 = false;
+  }
+  for (int k = 0; k < 2; ++k) {
+    if (!(k == 0 ? need0 : need1)) continue;
+    const Vec ra = c.anchor_a[m][k], rb = c.anchor_b[m][k];
+    const double vn = normal_velocity(st, a, b, ra, rb, n);
+    const double lam = c.normal_impulse[m][k];
+    const double next = std::fmax(lam - c.normal_mass[m][k] * (vn - (k == 0 ? t0 : t1)), 0.0);
+    const double impulse = next - lam;
+    c.normal_impulse[m][k] = next;
+    push_point(model, st, a, b, ra, rb, n, impulse);
+    (k == 0 ? out.j0 : out.j1) = impulse;
+  }
+  return out;
+}
+
+}  // namespace
+
+// Copy each point's accumulated normal impulse (N·s) to solve_impulse: the push that the
+// positions move with this substep (symplectic Euler; see the lone clusters' passes).
+template <int D>
+void keep_solve_impulses(Contacts<D>& c) {
+  const std::int64_t n_man = c.count.manifolds;
+  for (std::int64_t m = 0; m < n_man; ++m) c.solve_impulse[m] = c.normal_impulse[m];
+}
+
+template <int D>
+void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, double threshold,
+                       double h, double sign) {
+  using Vec = typename Dim<D>::Vec;
+  auto& count = c.count;
+  const std::int64_t n_listed = count.bounce_count;
+  if (n_listed == count.bounce_carried) return;  // nothing engaged fast since the last call
+  count.bounce_count = count.bounce_carried = 0;
+  const std::int64_t n_man = count.manifolds;
+  auto& kind = c.bounce_kind;
+  auto& mark = c.body_mark;
+  const auto& im = model.body_inv_mass;
+  // The manifolds that bounce are listed (some twice), after those left for later below;
+  // while none in this step was elastic, each is ended on its own (in index order, as in
+  // the full pass) and nothing else needs a look.
+  for (std::int64_t i = 0; i < n_listed; ++i)
+    if (c.restitution[c.bounce_list[i]] > 0.0) count.elastic_listed = 1;
+  const bool elastic_listed = count.elastic_listed == 1;
+  if (!elastic_listed)
+    for (std::int64_t i = 0; i < n_listed; ++i) kind[c.bounce_list[i]] = kJoined;
+  // which manifolds bounce, and which bodies something else pushes (mark bit 1)
+  if (elastic_listed) std::fill(mark.begin(), mark.end(), std::int8_t{0});
+  std::int64_t n_alone = 0;
+  for (std::int64_t m = 0; m < (elastic_listed ? n_man : 0); ++m) {
+    int bouncing = 0, joining = 0, pushing = 0;
+    const bool elastic = c.restitution[m] > 0.0;
+    for (int k = 0; k < c.points[m]; ++k) {
+      if (c.approach_velocity[m][k] < -threshold && c.max_normal_impulse[m][k] > 0.0) {
+        ++bouncing;
+      } else if (c.normal_impulse[m][k] > 0.0) {
+        // pushed, slower than the threshold: in an elastic contact that carried no load
+        // into the step, it may be a passive part of an impact (a ball of a touching
+        // row, engaged only by its neighbour's push)
+        if (elastic && c.start_impulse[m][k] == 0.0)
+          ++joining;
+        else
+          ++pushing;
+      }
+    }
+    if (pushing == 0 && (bouncing > 0 || joining > 0) && elastic) {
+      kind[m] = bouncing > 0 ? kAlone : kPassive;
+      ++n_alone;
+      continue;
+    }
+    if (bouncing > 0)
+      kind[m] = kJoined;
+    else
+      kind[m] = pushing + joining > 0 ? kPushing : kQuiet;
+    if (kind[m] != kQuiet) {
+      mark[c.body_a[m]] |= kPushed;
+      mark[c.body_b[m]] |= kPushed;
+    }
+  }
+  // a cluster that touches a pushed (dynamic) body joins it, until nothing changes
+  bool changed = n_alone > 0;
+  while (changed) {
+    changed = false;
+    for (std::int64_t m = 0; m < n_man; ++m) {
+      if (kind[m] != kAlone && kind[m] != kPassive) continue;
+      const int a = c.body_a[m], b = c.body_b[m];
+      if (((mark[a] & kPushed) && im[a] > 0.0) || ((mark[b] & kPushed) && im[b] > 0.0)) {
+        kind[m] = kind[m] == kAlone ? kJoined : kPushing;
+        mark[a] |= kPushed;
+        mark[b] |= kPushed;
+        --n_alone;
+        changed = true;
+      }
+    }
+  }
+  // passive points take part only in a cluster that holds a bounce (mark bit 2: the body
+  // is reached from one); the others stay as the solve left them
+  if (n_alone > 0) {
+    for (std::int64_t m = 0; m < n_man; ++m) {
+      if (kind[m] == kAlone) {
+        mark[c.body_a[m]] |= kReached;
+        mark[c.body_b[m]] |= kReached;
+      }
+    }
+    changed = true;
+    while (changed) {
+      changed = false;
+      for (std::int64_t m = 0; m < n_man; ++m) {
+        if (kind[m] != kPassive) continue;
+        const int a = c.body_a[m], b = c.body_b[m];
+        if (((mark[a] & kReached) && im[a] > 0.0) || ((mark[b] & kReached) && im[b] > 0.0)) {
+          kind[m] = kAlone;
+          mark[a] |= kReached;
+          mark[b] |= kReached;
+          changed = true;
+        }
+      }
+    }
+  }
+  for (std::int64_t m = 0; m < n_man; ++m) {
+    if (kind[m] == kAlone) {
+      // take back this substep's impulses at the cluster's points
+      const int a = c.body_a[m], b = c.body_b[m];
+      const Vec n = c.normal[m];
+      for (int k = 0; k < c.points[m]; ++k) {
+        const double j = c.normal_impulse[m][k];
+        c.normal_impulse[m][k] = 0.0;
+        push_point(model, st, a, b, c.anchor_a[m][k], c.anchor_b[m][k], n, -j);
+      }
+      continue;
+    }
+    if (kind[m] != kJoined) continue;
+    if (!elastic_listed) kind[m] = kQuiet;  // the next call's list starts clean
+    const int a = c.body_a[m], b = c.body_b[m];
+    const double e = c.restitution[m];
+    const Vec n = c.normal[m];
+    const double acc = relative_acceleration(model, a, b, n);
+    double t0 = 0.0, t1 = 0.0;
+    bool bounce0 = false, bounce1 = false, deferred = false;
+    for (int k = 0; k < c.points[m]; ++k) {
+      const double vn0 = c.approach_velocity[m][k];
+      if (vn0 >= -threshold || c.max_normal_impulse[m][k] == 0.0) continue;
+      const double s_now = point_separation(c, m, k, a, b, n);
+      if (s_now > C::SPECULATIVE_DISTANCE && e == 0.0) {
+        // Engaged through a speculative push while still far apart (a fast body one
+        // substep from a wall). With e = 0, ending the approach now would stop it short
+        // by up to a substep's travel: leave it to the solver, which stops it where the
+        // bodies meet, if the speculative separation can be trusted that far: it is
+        // linear in the motion, so a turning body's arc leaves it by about |r| (ω h)² / 2
+        // per substep. Closer, or turning faster, the impact is ended here, exactly by
+        // the formula above. (With e > 0 the bounce is taken now, a little early, so
+        // that the energy it returns is exact.)
+        const auto ta = st.body_w[a] * h, tb = st.body_w[b] * h;
+        double arc = ang_dot(ta, ta) * length(c.anchor_a[m][k]);
+        arc += ang_dot(tb, tb) * length(c.anchor_b[m][k]);
+        if (0.5 * arc < C::LINEAR_SLOP) {
+          deferred = true;
+          continue;
+        }
+      }
+      // one bounce per impact; should the bodies meet again within the step, the point
+      // engages afresh (see solve_contacts) and records its new approach
+      c.approach_velocity[m][k] = kInf;
+      const double s0 = c.approach_separation[m][k];
+      const double invariant = 0.5 * vn0 * vn0 - 0.5 * acc * h * vn0 - acc * s0;
+      const double target = bounce_target(invariant, s_now, acc, e, h, sign);
+      if (k == 0) {
+        bounce0 = true;
+        t0 = target;
+      } else {
+        bounce1 = true;
+        t1 = target;
+      }
+    }
+    if (deferred) {  // looked at again when the stage next has something to do
+      c.bounce_list[count.bounce_count] = static_cast<std::int32_t>(m);
+      ++count.bounce_count;
+    }
+    if (!(bounce0 || bounce1)) continue;
+    const Owed owed{0.0, 0.0, 0.0, t0, t1};
+    const auto j = push_targets(model, st, c, m, a, b, bounce0, t0, bounce1, t1, false, owed);
+    for (int k = 0; k < c.points[m]; ++k) {
+      const double jk = k == 0 ? j.j0 : j.j1;
+      c.max_normal_impulse[m][k] = std::fmax(c.max_normal_impulse[m][k], jk);
+      if (k == 0 ? bounce0 : bounce1)
+        c.normal_impulse[m][k] = std::fmin(c.normal_impulse[m][k], c.start_impulse[m][k]);
+    }
+  }
+  count.bounce_carried = count.bounce_count;  // the deferred ones, carried to the next call
+  if (n_alone == 0) return;
+  // the lone clusters, one pair's impact at a time
+  for (int pass = 0; pass < C::RESTITUTION_PASSES; ++pass) {
+    bool struck = false;
+    for (std::int64_t o = 0; o < n_man; ++o) {
+      const std::int64_t m = c.solve_order[o];
+      if (kind[m] != kAlone) continue;
+      const int a = c.body_a[m], b = c.body_b[m];
+      const double e = c.restitution[m];
+      const Vec n = c.normal[m];
+      const double acc = relative_acceleration(model, a, b, n);
+      double t0 = 0.0, t1 = 0.0, u0 = 0.0, u1 = 0.0, total_work = 0.0;
+      bool need0 = false, need1 = false;
+      for (int k = 0; k < c.points[m]; ++k) {
+        const double vn = normal_velocity(st, a, b, c.anchor_a[m][k], c.anchor_b[m][k], n);
+        if (vn >= 0.0) continue;
+        const bool first = c.approach_velocity[m][k] < -threshold;
+        double target = 0.0, alone = 0.0, work = 0.0;
+        if (first || vn < -threshold) {
+          const double s_now = point_separation(c, m, k, a, b, n);
+          // The invariant here and now; at its first impact the point also owes the
+          // work gravity did on the bodies' centres over the part of the substep's
+          // motion that its own solve impulse caused (symplectic Euler moves the
+          // positions after the solve; explicit Euler before it, which owes nothing).
+          double invariant = 0.5 * vn * vn + 0.5 * sign * acc * h * vn - acc * s_now;
+          target = bounce_target(invariant, s_now, acc, e, h, sign);
+          if (first && sign > 0.0) work = acc * h * c.solve_impulse[m][k];  // J
+          alone = target;
+          if (work != 0.0) {  // per unit effective mass, for the point alone
+            invariant += work / c.normal_mass[m][k];
+            alone = bounce_target(invariant, s_now, acc, e, h, sign);
+          }
+        }
+        total_work += work;
+        if (k == 0) {
+          need0 = true;
+          t0 = target;
+          u0 = alone;
+        } else {
+          need1 = true;
+          t1 = target;
+          u1 = alone;
+        }
+      }
+      if (!(need0 || need1)) continue;
+      // each impulse is a bounce against the velocity it meets (a block's two targets
+      // are both taken from the velocities before it): e = 1 keeps the energy exactly,
+      // and a point left for later is taken up in the next pass
+      const Owed owed{total_work, e * e, sign * h * acc, u0, u1};
+      const auto j = push_targets(model, st, c, m, a, b, need0, t0, need1, t1, true, owed);
+      for (int k = 0; k < c.points[m]; ++k) {
+        const double jk = k == 0 ? j.j0 : j.j1;
+        const bool bounced = (k == 0 ? need0 : need1) && jk != 0.0;
+        if (bounced && (k == 0 ? u0 : u1) > 0.0) c.approach_velocity[m][k] = kInf;  // bounced
+      }
+      if (j.j0 > 0.0 || j.j1 > 0.0) struck = true;
+    }
+    if (!struck) break;
+  }
+  for (std::int64_t m = 0; m < n_man; ++m) {
+    if (kind[m] != kAlone) continue;
+    for (int k = 0; k < c.points[m]; ++k) {
+      const double total = c.normal_impulse[m][k];
+      c.max_normal_impulse[m][k] = std::fmax(c.max_normal_impulse[m][k], total);
+      if (c.approach_velocity[m][k] == kInf) {
+        // a bounce is not warm-started; a point that only stopped an approach keeps its
+        // impulse, as the solve's points do
+        c.normal_impulse[m][k] = std::fmin(total, c.start_impulse[m][k]);
+      } else if (c.approach_velocity[m][k] < -threshold) {
+        // its impact was met by the others' bounces before it struck: it is over (a
+        // later approach engages afresh in the solve)
+        c.approach_velocity[m][k] = kInf;
+      }
+    }
+  }
+}
+
 template void keep_solve_impulses(Contacts<2>&);
 template void apply_restitution(const Model<2>&, State<2>&, Contacts<2>&, double, double, double);
+
 }  // namespace rbsim
