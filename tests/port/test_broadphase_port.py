@@ -216,3 +216,12 @@ def test_pairs_after_the_store_grows(name: str) -> None:
     np.testing.assert_array_equal(cs.pairs[: int(r)], pairs[: int(r)])
     for key in ("shape_aabb", "shape_fat", "shape_cell", "bucket_start", "entry_shape", "meta"):
         np.testing.assert_array_equal(getattr(cs.grid, key), np.asarray(getattr(grid, key)))
+
+
+@pytest.mark.parametrize("name", SCENES)
+def test_fresh_engines_agree(name: str) -> None:
+    """Without a sync: the C++ grid as allocated (cell size from the median shape,
+    table size, capacities) finds the same first pair list as numba's."""
+    pair = Pair.from_text(SCENES[name])
+    assert float(pair.cc.storage.grid.inv_cell) == pair.nb.grid.inv_cell
+    _transform_and_pairs(pair)
