@@ -1,7 +1,83 @@
-// PLACEHOLDER: being ported from the numba engine; replaced before this lands.
-#include <stdexcept>
+// The shapes in the world for this step: world vertices and normals of every shape, each
+// shape's speculative reach, and which bodies are still near their reference pose.
+//
+// The reach (m) is how far the shape's surface can move in one step, dt (|v| + |ω| r),
+// so that contacts are created before a fast body can pass through another. A body
+// within STILL_DISTANCE and STILL_ANGLE of its reference pose is "still": its contacts
+// may be carried from the last step; one that left it re-takes the reference pose here,
+// and its contacts are recomputed.
+#include <algorithm>
+#include <cmath>
+
+#include "rbsim/constants.hpp"
 #include "rbsim/stages.hpp"
+
 namespace rbsim {
-template <int D> void transform_shapes(const Model<D>&, const State<D>&, Contacts<D>&, double) { throw std::logic_error("transform_shapes: not ported"); }
+
+namespace C = constants;
+
+namespace {
+
+// x + R(q) l, a body-frame vertex in the world (m). In 2D the sums are taken in the
+// numba kernel's order, (x + c lx) − s ly and (y + s lx) + c ly, so that the world
+// vertices, and the boxes and pairs found from them, are the same to the bit.
+inline Vec2 world_point(Vec2 x, Rot2 q, Vec2 l) {
+  return {x.x + q.c * l.x - q.s * l.y, x.y + q.s * l.x + q.c * l.y};
+}
+inline Vec3 world_point(Vec3 x, Quat q, Vec3 l) { return x + rotate(q, l); }
+
+// |ω| (rad/s): a scalar in the plane, a vector in space.
+inline double magnitude(double w) { return std::fabs(w); }
+inline double magnitude(Vec3 w) { return length(w); }
+
+// Whether body i is within STILL_DISTANCE (m) and STILL_ANGLE (rad) of its reference
+// pose; if not, the pose becomes its reference. 2D-specific: the angle is compared as
+// the unwrapped angle (the 3D reference pose holds a quaternion; not ported yet).
+template <int D>
+bool near_reference(typename Dim<D>::RefPose& ref, const State<D>& state, std::size_t i) {
+  static_assert(D == 2, "near_reference: the 3D still test (by quaternion) is not written");
+  const Vec2 d = state.body_x[i] - ref.x;
+  const bool near = d.x * d.x + d.y * d.y < C::STILL_DISTANCE * C::STILL_DISTANCE &&
+                    std::fabs(state.body_angle[i] - ref.angle) < C::STILL_ANGLE;
+  if (!near) ref = {state.body_x[i], state.body_angle[i]};
+  return near;
+}
+
+}  // namespace
+
+template <int D>
+void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
+                      double dt) {
+  using Vec = typename Dim<D>::Vec;
+  auto& ref = contacts.body_ref;
+  auto& still = contacts.body_still;
+  for (std::size_t i = 0; i < ref.size(); ++i) still[i] = near_reference<D>(ref[i], state, i);
+
+  Vec* vw = contacts.vert_world.data();
+  Vec* nw = contacts.norm_world.data();
+  const Vec* vl = model.vertex_local.data();
+  const Vec* nl = model.normal_local.data();
+  for (int s = 0; s < model.shape_count(); ++s) {
+    const int i = model.shape_body[s];
+    const auto q = state.body_q[i];
+    const Vec x = state.body_x[i];
+    double reach = 0.0;  // m: the farthest vertex from the COM, then plus the radius
+    const int k0 = model.shape_vstart[s], k1 = k0 + model.shape_vcount[s];
+    for (int k = k0; k < k1; ++k) {
+      vw[k] = world_point(x, q, vl[k]);
+      nw[k] = rotate(q, nl[k]);
+      reach = std::max(reach, length(vl[k]));
+    }
+    if (model.body_type[i] == BodyType::Static) {
+      contacts.shape_margin[s] = 0.0;
+    } else {
+      const double speed = length(state.body_v[i]);  // m/s
+      reach += model.shape_radius[s];
+      contacts.shape_margin[s] = dt * (speed + magnitude(state.body_w[i]) * reach);
+    }
+  }
+}
+
 template void transform_shapes(const Model<2>&, const State<2>&, Contacts<2>&, double);
+
 }  // namespace rbsim
