@@ -158,6 +158,8 @@ void Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
 
 template <int D>
 void Contacts<D>::grow(std::int64_t new_capacity) {
+  // never below what last step's manifolds need
+  if (new_capacity < count.manifolds_prev) new_capacity = count.manifolds_prev;
   Contacts<D> old = std::move(*this);
   allocate(static_cast<int>(old.body_delta.size()), static_cast<int>(old.shape_margin.size()),
            static_cast<int>(old.vert_world.size()), new_capacity);
