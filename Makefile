@@ -3,26 +3,42 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
+BUILD_DEPS := $(VENV)/.build-deps
+ENGINE := CMakeLists.txt $(shell find cpp -name '*.cpp' -o -name '*.hpp')
 SCENES := $(wildcard scenes/*.yaml)
 OUTS   := $(patsubst scenes/%.yaml,out/%.h5,$(SCENES))
 DEMO   := scenes/pyramid.yaml
 
-.PHONY: install test lint demo batch bench clean
+.PHONY: install test lint demo batch bench clean cpp-test sanitize
 
 install: $(STAMP)
 
-$(STAMP): pyproject.toml
+# the venv and the engine's build tools (scikit-build-core, nanobind, cmake, ninja), so
+# that a change to the engine rebuilds without fetching them again
+$(BUILD_DEPS): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[test,plot]'
+	$(BIN)/pip install --quiet 'scikit-build-core>=0.10' 'nanobind>=2.4' cmake ninja
+	touch $(BUILD_DEPS)
+
+# rbsim with its compiled engine (C++20 with the machine's g++), editable: Python files
+# are used in place, the engine is rebuilt when a C++ file changes
+$(STAMP): $(BUILD_DEPS) pyproject.toml $(ENGINE)
+	$(BIN)/pip install --quiet --no-build-isolation -e '.[test,plot]'
 	touch $(STAMP)
 
 lint: $(STAMP)
 	$(BIN)/ruff check rbsim tests bench
 	$(BIN)/ruff format --check rbsim tests bench
 
-test: $(STAMP) lint
+test: $(STAMP) lint cpp-test
 	$(BIN)/pytest -q
+
+# the engine's C++ unit tests (cpp/tests/test_*.cpp, one per source file), under ctest
+cpp-test: $(BUILD_DEPS) $(ENGINE)
+	$(BIN)/cmake -S . -B build/cpp-tests -G Ninja -DRBSIM_TESTS=ON -DCMAKE_MAKE_PROGRAM=$(CURDIR)/$(BIN)/ninja > /dev/null
+	$(BIN)/cmake --build build/cpp-tests
+	$(BIN)/ctest --test-dir build/cpp-tests --output-on-failure
 
 demo: $(STAMP)
 	@mkdir -p out

@@ -17,9 +17,9 @@ import time
 from pathlib import Path
 
 from rbsim import constants as C
+from rbsim.core import make_world
 from rbsim.pymunk_bridge import PymunkSettings, PymunkWorld
 from rbsim.scene import load_scene
-from rbsim.world import World
 
 HERE = Path(__file__).parent
 SCENES = ["pyramid20", "circles1000", "pyramid40", "pyramids4x4"]
@@ -28,9 +28,10 @@ STEPS = 60
 REPEATS = 5
 
 
-def time_rbsim(scene) -> tuple[float, int]:
-    """Median µs per step and the contact points at the end, for rbsim."""
-    world = World.from_scene(scene)
+def time_rbsim(scene, engine: str = "rbsim") -> tuple[float, int]:
+    """Median µs per step and the contact points at the end, for rbsim (the compiled
+    engine, or "rbsim-numba")."""
+    world = make_world(scene, engine)
     world.advance(WARMUP)
     samples = []
     for _ in range(REPEATS):
@@ -59,21 +60,29 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__)
     parser.add_argument("scenes", nargs="*", default=SCENES, help="bench/scenes/<name>.yaml")
     parser.add_argument("--iterations", type=int, default=10, help="pymunk iterations")
+    parser.add_argument(
+        "--numba", action="store_true", help="also time the numba engine (rbsim-numba)"
+    )
     args = parser.parse_args(argv)
     header = (
         f"{'scene':<14}{'bodies':>8}{'contacts':>10}{'rbsim us':>11}{'pymunk us':>11}{'ratio':>8}"
     )
+    if args.numba:
+        header += f"{'numba us':>11}{'ratio':>8}"
     print(header)
     print("-" * len(header))
     for name in args.scenes:
         scene = load_scene(HERE / "scenes" / f"{name}.yaml")
         rb, rb_contacts = time_rbsim(scene)
         pm, _ = time_pymunk(scene, args.iterations)
-        print(
+        row = (
             f"{name:<14}{len(scene.bodies):>8}{rb_contacts:>10}{rb:>11.1f}{pm:>11.1f}"
-            f"{rb / pm:>8.2f}",
-            flush=True,
+            f"{rb / pm:>8.2f}"
         )
+        if args.numba:
+            nb, _ = time_rbsim(scene, "rbsim-numba")
+            row += f"{nb:>11.1f}{nb / pm:>8.2f}"
+        print(row, flush=True)
     return 0
 
 

@@ -128,15 +128,24 @@ def main() -> None:
     metavar="KEY.PATH=VALUE",
     help="Override a scene value, e.g. --set world.dt=0.005 (repeatable).",
 )
+@click.option(
+    "--engine",
+    type=click.Choice(["rbsim", "rbsim-numba"]),
+    default="rbsim",
+    show_default=True,
+    help="rbsim's compiled engine, or the numba kernels it was ported from.",
+)
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
-def run(scene: str, output: str | None, overrides: tuple[str, ...], quiet: bool) -> None:
+def run(
+    scene: str, output: str | None, overrides: tuple[str, ...], engine: str, quiet: bool
+) -> None:
     """Step SCENE with rbsim's solver and write its trajectory."""
     main_thread = threading.current_thread() is threading.main_thread()
     if main_thread:  # SIGTERM ends a run like Ctrl-C (only the main thread may set it)
         previous = signal.signal(signal.SIGTERM, _raise_interrupt)
     progress = _Progress(not quiet)
     try:
-        summary = _run(scene, output, overrides, progress)
+        summary = _run(scene, output, overrides, progress, engine)
     except KeyboardInterrupt as err:
         # run.RunInterrupted once the file exists: it says how many frames it kept
         if getattr(err, "frames", None) is not None:
@@ -153,7 +162,11 @@ def run(scene: str, output: str | None, overrides: tuple[str, ...], quiet: bool)
 
 
 def _run(
-    scene: str, output: str | None, overrides: tuple[str, ...], progress: _Progress
+    scene: str,
+    output: str | None,
+    overrides: tuple[str, ...],
+    progress: _Progress,
+    engine: str = "rbsim",
 ) -> RunSummary:
     """Load and run SCENE; every expected failure becomes a message and an exit code."""
     from .model import ModelError
@@ -163,7 +176,9 @@ def _run(
     out = Path(output) if output else Path("out") / f"{sc.name}.h5"
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
-        return run_scene(sc, out, progress=progress, signals=(signal.SIGINT, signal.SIGTERM))
+        return run_scene(
+            sc, out, progress=progress, signals=(signal.SIGINT, signal.SIGTERM), engine=engine
+        )
     except ModelError as err:
         _fail(EXIT_SCENE, f"{scene}: {err}", progress)
     except RunFailed as err:
@@ -246,6 +261,13 @@ def info(trajectory: str) -> None:
     metavar="KEY.PATH=VALUE",
     help="Override a scene value for pymunk only (after --set).",
 )
+@click.option(
+    "--engine",
+    type=click.Choice(["rbsim", "rbsim-numba"]),
+    default="rbsim",
+    show_default=True,
+    help="rbsim's engine for the rbsim side.",
+)
 def compare(
     scene: str,
     out_dir: str,
@@ -257,6 +279,7 @@ def compare(
     iterations: int | None,
     with_statistics: bool,
     pymunk_overrides: tuple[str, ...],
+    engine: str,
 ) -> None:
     """Run SCENE in rbsim and in pymunk and report their differences (exit 4 when a
     difference exceeds its tolerance)."""
@@ -278,6 +301,7 @@ def compare(
             iterations=iterations,
             with_statistics=with_statistics,
             pymunk_scene=pm_sc,
+            engine=engine,
         )
     except UnsupportedScene as err:
         _fail(EXIT_SCENE, f"{scene}: pymunk cannot express this scene: {err}")

@@ -428,12 +428,12 @@ def _same_run(scene: Scene, other: Scene) -> None:
         raise UnsupportedScene(f"pymunk's scene must run the same frames as rbsim's: {why}")
 
 
-def _warm_up(scene: Scene) -> None:
-    """Take one step of the scene on a throwaway World, so that loading (or compiling)
-    rbsim's kernels is not counted in its wall time per step."""
-    from .world import World
+def _warm_up(scene: Scene, engine: str) -> None:
+    """Take one step of the scene on a throwaway world, so that loading rbsim's engine
+    is not counted in its wall time per step."""
+    from .core import make_world
 
-    World.from_scene(scene).advance(1)
+    make_world(scene, engine).advance(1)
 
 
 def compare_scene(
@@ -446,13 +446,15 @@ def compare_scene(
     iterations: int | None = None,
     with_statistics: bool = False,
     pymunk_scene: Scene | None = None,
+    engine: str = "rbsim",
 ) -> CompareResult:
     """Run `scene` in rbsim and pymunk, writing out_dir/<name>.rbsim.h5 and
     out_dir/<name>.pymunk.h5, and compare them. Statistics (see `statistics`) are
     computed when `with_statistics` or the scene has a compare.statistics block.
     `pymunk_scene` (default `scene`) is what pymunk runs: the same scene with a setting
     changed, to see how much that setting matters. Raises UnsupportedScene (pymunk cannot
-    express the scene) before running either engine, and whatever run_scene raises."""
+    express the scene) before running either engine, and whatever run_scene raises.
+    `engine` is rbsim's side: "rbsim" (compiled) or "rbsim-numba"."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     pm_scene = scene if pymunk_scene is None else pymunk_scene
@@ -463,8 +465,8 @@ def compare_scene(
         "rbsim": str(out_dir / f"{scene.name}.rbsim.h5"),
         "pymunk": str(out_dir / f"{scene.name}.pymunk.h5"),
     }
-    _warm_up(scene)
-    summary = run_scene(scene, files["rbsim"])
+    _warm_up(scene, engine)
+    summary = run_scene(scene, files["rbsim"], engine=engine)
     pm_wall = run_pymunk_to_file(pm_scene, files["pymunk"], settings)
     ra, pm = load_trajectory(files["rbsim"]), load_trajectory(files["pymunk"])
     bodies = body_diffs(ra, pm)

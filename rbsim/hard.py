@@ -3,7 +3,8 @@
 Each case names its scene(s) in scenes/hard/ (every parameter is in the scene file,
 with a comment on what it tests), measures figures from a run, and holds them to
 rules (figure, comparison, limit, reason). A case runs with either engine: rbsim
-(World, stepped in numba blocks, the state read between blocks, no trajectory file)
+(its compiled engine, stepped in blocks, the state read between blocks, no trajectory
+file; `--engine rbsim-numba` runs the numba engine it was ported from instead)
 or pymunk (pymunk_bridge.PymunkWorld, steps of dt / solver.substeps and 10 iterations,
 as `rbsim compare` runs it). The same measuring code reads both engines' states.
 
@@ -32,10 +33,11 @@ import h5py
 import numpy as np
 
 from . import constants as C
+from .config import NonFiniteState
+from .core import make_world
 from .model import body_origin
 from .pymunk_bridge import PymunkSettings, PymunkWorld, UnsupportedScene
 from .scene import Scene, load_scene
-from .world import NonFiniteState, World
 
 SCENES = Path(__file__).resolve().parent.parent / "scenes" / "hard"
 ENGINES = ("rbsim", "pymunk")
@@ -95,13 +97,13 @@ class Sim:
 
 
 class RbsimSim(Sim):
-    """rbsim's World; `advance` steps in numba blocks."""
+    """rbsim's compiled engine; `advance` steps in blocks."""
 
     engine = "rbsim"
 
     def __init__(self, scene: Scene) -> None:
         super().__init__(scene)
-        self.world = World.from_scene(scene)
+        self.world = make_world(scene, self.engine)
         model = self.world.model
         self.mass = model.body_mass.copy()
         self.inertia = model.body_inertia.copy()
@@ -125,6 +127,13 @@ class RbsimSim(Sim):
             angular_velocity=st.body_w.copy(),
             q_norm=np.hypot(st.body_q[:, 0], st.body_q[:, 1]),
         )
+
+
+class NumbaSim(RbsimSim):
+    """The numba engine rbsim's compiled one was ported from (for holding them side by
+    side: `--engine rbsim-numba`)."""
+
+    engine = "rbsim-numba"
 
 
 class PymunkSim(Sim):
@@ -164,7 +173,7 @@ class PymunkSim(Sim):
         )
 
 
-SIMS: dict[str, type[Sim]] = {"rbsim": RbsimSim, "pymunk": PymunkSim}
+SIMS: dict[str, type[Sim]] = {"rbsim": RbsimSim, "rbsim-numba": NumbaSim, "pymunk": PymunkSim}
 
 # make(scene_file_name, overrides) -> a Sim of the engine the case runs with
 Maker = Callable[..., Sim]
@@ -895,7 +904,7 @@ def measure_long_run(make: Maker) -> dict[str, float]:
     """Max relative energy drift with symplectic Euler, and (rbsim) explicit Euler."""
     sim = make("long_run.yaml")
     out = {"drift": energy_drift(sim)}
-    if sim.engine == "rbsim":  # pymunk has one integrator; solver.integrator is rbsim's
+    if sim.engine != "pymunk":  # pymunk has one integrator; solver.integrator is rbsim's
         try:
             out["explicit_drift"] = energy_drift(
                 make("long_run.yaml", ["solver.integrator=explicit_euler"])
@@ -955,11 +964,11 @@ def measure_determinism(make: Maker) -> dict[str, float]:
     }
     sim = make("confined.yaml", over)
     if isinstance(sim, RbsimSim):
-        out["file"] = float(trajectory_file_differences(sim.scene))
+        out["file"] = float(trajectory_file_differences(sim.scene, sim.engine))
     return out
 
 
-def trajectory_file_differences(scene: Scene) -> int:
+def trajectory_file_differences(scene: Scene, engine: str = "rbsim") -> int:
     """Run `scene` to two HDF5 trajectories with `run_scene`; the number of datasets
     under /particles and /observables whose contents are not bit-identical."""
     from .run import run_scene  # the trajectory writer; only this check needs it
@@ -967,7 +976,7 @@ def trajectory_file_differences(scene: Scene) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         paths = [Path(tmp) / f"run{k}.h5" for k in (0, 1)]
         for p in paths:
-            run_scene(scene, p)
+            run_scene(scene, p, engine=engine)
         differ = 0
         with h5py.File(paths[0], "r") as f0, h5py.File(paths[1], "r") as f1:
             names: list[str] = []
@@ -1093,7 +1102,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         prog="python -m rbsim.hard", description=__doc__.split("\n")[0]
     )
     parser.add_argument("cases", nargs="*", help=f"cases to run (default all): {', '.join(CASES)}")
-    parser.add_argument("--engine", choices=[*ENGINES, "both"], default="both")
+    parser.add_argument("--engine", choices=[*SIMS, "both"], default="both")
     parser.add_argument("--readme", type=Path, help="rewrite this file's hard-case block")
     args = parser.parse_args(argv)
     unknown = [n for n in args.cases if n not in CASES]

@@ -21,11 +21,12 @@ from types import FrameType
 import numpy as np
 
 from . import __version__
+from .config import NonFiniteState
+from .core import DEFAULT_ENGINE, make_world
 from .model import Model, body_origin
 from .observables import observables
 from .scene import Scene, scene_to_dict
 from .trajectory import BodyTable, TrajectoryWriter
-from .world import NonFiniteState, World
 
 # at most this many steps between returns to Python, so Ctrl-C and progress stay lively
 MAX_CHUNK = 256
@@ -173,7 +174,7 @@ def parameters(scene: Scene, engine: str, settings: dict | None = None) -> dict[
     }
 
 
-def write_frame(writer: TrajectoryWriter, world: World) -> None:
+def write_frame(writer: TrajectoryWriter, world) -> None:  # noqa: ANN001 - any engine's world
     """Append the world's current state as one frame. Observables that overflow (a
     state racing towards infinity) are stored as inf without a numpy warning."""
     model, state = world.model, world.state
@@ -196,6 +197,7 @@ def run_scene(
     out: str | Path,
     progress: Callable[[int, int], None] | None = None,
     signals: Collection[signal.Signals] = (signal.SIGINT,),
+    engine: str = DEFAULT_ENGINE,
 ) -> RunSummary:
     """Step `scene` for world.steps steps, writing frames to `out` (HDF5, H5MD layout).
 
@@ -206,18 +208,22 @@ def run_scene(
     (or a KeyboardInterrupt) stops the run it keeps every frame so far, with status
     "interrupted", and RunInterrupted (a KeyboardInterrupt) is raised. Interrupted
     before the file is created (while the model is built), KeyboardInterrupt propagates
-    as it is. See _Interrupts for when a signal takes effect.
+    as it is. See _Interrupts for when a signal takes effect. `engine`: one of
+    core.ENGINES ("rbsim", the compiled engine; "rbsim-numba").
     """
     t0 = time.perf_counter()
     interrupts = _Interrupts(signals)
     with interrupts.installed():
-        world = World.from_scene(scene)
+        world = make_world(scene, engine)
         total = scene.world.steps
         every = scene.output.every
         step_time = 0.0
         with interrupts.held():
             writer = TrajectoryWriter(
-                out, bodies=body_table(scene, world.model), parameters=parameters(scene, "rbsim")
+                out,
+                bodies=body_table(scene, world.model),
+                parameters=parameters(scene, engine),
+                engine=engine,
             )
         status = "failed"  # made precise below
         last_step = 0

@@ -26,22 +26,7 @@ import math
 from numba import njit
 
 from . import constants as C
-
-
-def soft_parameters(hertz: float, damping_ratio: float, h: float) -> tuple[float, float, float]:
-    """(mass scale, impulse scale, bias rate 1/s) of a soft constraint for substep h (s).
-
-    An implicit damped spring of frequency `hertz` and the given damping ratio,
-    integrated with step h, expressed as scalings of the rigid impulse.
-    """
-    if hertz == 0.0:
-        return 1.0, 0.0, 0.0
-    omega = 2.0 * math.pi * hertz
-    a1 = 2.0 * damping_ratio + h * omega
-    a2 = h * omega * a1
-    a3 = 1.0 / (1.0 + a2)
-    return a2 * a3, a3, omega / a1
-
+from .config import soft_parameters  # noqa: F401 (kept where it was)
 
 # The solver's row of a manifold (contacts.solver_row, (M, ROW_SIZE) float64): what its
 # passes read, in one record, so that a pass reads one row per manifold at fixed

@@ -3,7 +3,7 @@
 Each setting runs the scene twice over: once for its error, sampling the poses of the
 tracked bodies every `sample_dt` (the largest dt of the grid, which every dt of the grid
 divides, so that all runs are compared at the same instants), and several times for its
-cost, timing `World.advance` (rbsim, kernels compiled and loaded beforehand) or the
+cost, timing `advance` (rbsim's engine, loaded beforehand) or the
 loop of `space.step` calls (pymunk) with the process's CPU clock. The cost is the
 median CPU time per simulated second; building the world is not timed. The runs are
 deterministic, so the timed runs follow the same motion as the sampled one.
@@ -462,10 +462,11 @@ class _Probe:
 
 def sample_rbsim(scene: Scene, ref: Reference, per_sample: int, samples: int) -> _Sampled:
     """Run rbsim, reading the tracked bodies every `per_sample` steps."""
-    from .world import NonFiniteState, World
+    from .config import NonFiniteState
+    from .core import make_world
 
     probe = _Probe(scene, ref)
-    world = World.from_scene(scene)
+    world = make_world(scene)
     t = np.arange(samples + 1) * per_sample * scene.world.dt
     st = world.state
     status = "ok"
@@ -521,12 +522,12 @@ def _median_time(run_once: Callable[[], float], repeats: int) -> tuple[float, in
 
 def time_rbsim(scene: Scene, repeats: int) -> tuple[float, int]:
     """Median CPU seconds of `advance(steps)` on fresh worlds (kernels loaded first)."""
-    from .world import World
+    from .core import make_world
 
-    World.from_scene(scene).advance(1)  # compile or load the kernels, outside the timing
+    make_world(scene).advance(1)  # load the engine, outside the timing
 
     def once() -> float:
-        world = World.from_scene(scene)
+        world = make_world(scene)
         t0 = time.process_time()
         world.advance(scene.world.steps)
         return time.process_time() - t0
@@ -806,13 +807,13 @@ def measure_scaling(
     """µs per step of rbsim (its default settings) and pymunk (10 iterations), dt 1/60,
     on pyramids of the given bases: median of `repeats` timed blocks of `block` steps
     after `warmup` steps, CPU time."""
+    from .core import make_world
     from .pymunk_bridge import PymunkSettings, PymunkWorld
-    from .world import World
 
     out = []
     for base in bases:
         scene = pile_scene(base)
-        world = World.from_scene(scene)
+        world = make_world(scene)
         world.advance(warmup)
         rb = []
         for _ in range(repeats):

@@ -39,15 +39,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 from . import constants as C
 from .broadphase import Grid, find_pairs, grow_grid, make_grid
+from .config import Config, NonFiniteState, make_config
 from .contacts import (
-    MIXING,
     Contacts,
     grow_contacts,
     make_contacts,
@@ -64,7 +63,6 @@ from .solver import (
     keep_solve_impulses,
     limit_static_overlap,
     prepare_contacts,
-    soft_parameters,
     solve_contacts,
     warm_start,
 )
@@ -73,46 +71,6 @@ from .solver import (
 OK = 0
 NEED_CAPACITY = 1
 NON_FINITE = 2
-
-
-class Config(NamedTuple):
-    """Per-run numbers for the kernels: dt (s), substeps, iterations per substep,
-    explicit (explicit Euler), exact (exact rotation), restitution_threshold (m/s),
-    friction_rule and restitution_rule (contacts.MIX_*), elastic (some material has
-    restitution > 0), soft and soft_static
-    (mass scale, impulse scale, bias rate 1/s) for the substep length."""
-
-    dt: float
-    substeps: int
-    iterations: int
-    explicit: bool
-    exact: bool
-    restitution_threshold: float
-    friction_rule: int
-    restitution_rule: int
-    elastic: bool
-    soft: tuple[float, float, float]
-    soft_static: tuple[float, float, float]
-
-
-def make_config(scene: Scene) -> Config:
-    """Kernel settings from the scene's world and solver blocks."""
-    sol = scene.solver
-    h = scene.world.dt / sol.substeps
-    hertz = min(C.CONTACT_HERTZ, 0.25 / h)
-    return Config(
-        dt=float(scene.world.dt),
-        substeps=int(sol.substeps),
-        iterations=int(sol.iterations),
-        explicit=sol.integrator == "explicit_euler",
-        exact=sol.rotation == "exact",
-        restitution_threshold=float(sol.restitution_threshold),
-        friction_rule=MIXING[scene.world.friction_mixing],
-        restitution_rule=MIXING[scene.world.restitution_mixing],
-        elastic=any(sh.material.restitution > 0.0 for b in scene.bodies for sh in b.shapes),
-        soft=soft_parameters(hertz, C.CONTACT_DAMPING_RATIO, h),
-        soft_static=soft_parameters(2.0 * hertz, C.CONTACT_DAMPING_RATIO, h),
-    )
 
 
 @njit(cache=True, _nrt=False)
@@ -231,15 +189,6 @@ def advance(model, state, grid, contacts, cfg, n_steps, result):
             return NON_FINITE
     result[0] = n_steps
     return OK
-
-
-class NonFiniteState(RuntimeError):
-    """The state became NaN or infinite: `body` (index) at `step`."""
-
-    def __init__(self, body: int, step: int) -> None:
-        super().__init__(f"state of body {body} became non-finite at step {step}")
-        self.body = body
-        self.step = step
 
 
 @dataclass

@@ -10,6 +10,7 @@
 #include <nanobind/stl/tuple.h>
 
 #include <cstring>
+#include <limits>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -17,6 +18,7 @@
 
 #include "rbsim/constants.hpp"
 #include "rbsim/world.hpp"
+#include "../src/collide/narrow2d.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
@@ -282,6 +284,57 @@ nb::object run_stage(World2& w, const std::string& name, nb::dict args) {
   return nb::none();
 }
 
+// ---- narrowphase test entry (rbsim._core.collide2d) ------------------------------------
+// One manifold from collide2d on the caller's world-frame verts/norms (V,2) float64, for
+// tests that hold the C++ narrowphase against rbsim.narrowphase.collide. Rows past the
+// point count are NaN (ids -1).
+nb::ndarray<nb::c_contig, nb::device::cpu> narrow_rows(nb::handle obj, const char* name) {
+  nb::ndarray<nb::c_contig, nb::device::cpu> a;
+  if (!nb::try_cast(obj, a)) throw std::invalid_argument(std::string(name) + ": not a C-contiguous array");
+  if (a.dtype() != nb::dtype<double>()) throw std::invalid_argument(std::string(name) + ": wrong dtype");
+  if (a.ndim() != 2 || a.shape(1) != 2) throw std::invalid_argument(std::string(name) + ": expected shape (V,2)");
+  return a;
+}
+
+template <class T>
+Array owned_array(std::initializer_list<std::size_t> shape, const T* src) {
+  std::size_t n = 1;
+  for (auto k : shape) n *= k;
+  T* buf = new T[n];
+  std::memcpy(buf, src, n * sizeof(T));
+  nb::capsule owner(buf, [](void* p) noexcept { delete[] static_cast<T*>(p); });
+  return Array(buf, shape, owner, {}, nb::dtype<T>());
+}
+
+nb::tuple collide2d_py(int kind_a, int start_a, int count_a, double radius_a, int kind_b,
+                       int start_b, int count_b, double radius_b, nb::handle verts_obj,
+                       nb::handle norms_obj, double speculative) {
+  auto verts = narrow_rows(verts_obj, "verts");
+  auto norms = narrow_rows(norms_obj, "norms");
+  const long nv = static_cast<long>(verts.shape(0));
+  if (static_cast<long>(norms.shape(0)) != nv) throw std::invalid_argument("norms: expected as many rows as verts");
+  auto check = [nv](int kind, int start, int count, const char* which) {
+    if (start < 0 || count < 1 || static_cast<long>(start) + count > nv)
+      throw std::invalid_argument(std::string(which) + ": start+count outside verts");
+    // a segment's pair functions read its second vertex
+    if (kind == static_cast<int>(ShapeKind::Segment) && count < 2)
+      throw std::invalid_argument(std::string(which) + ": a segment needs 2 vertices");
+  };
+  check(kind_a, start_a, count_a, "shape a");
+  check(kind_b, start_b, count_b, "shape b");
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  Manifold2 m{{nan, nan}, {Vec2{nan, nan}, Vec2{nan, nan}}, {nan, nan}, {-1, -1}};
+  const ShapeRef2 a{static_cast<ShapeKind>(kind_a), start_a, count_a, radius_a};
+  const ShapeRef2 b{static_cast<ShapeKind>(kind_b), start_b, count_b, radius_b};
+  const int n = collide2d(a, b, static_cast<const Vec2*>(verts.data()),
+                          static_cast<const Vec2*>(norms.data()), speculative, m);
+  return nb::make_tuple(n, owned_array<double>({2}, &m.normal.x),
+                        owned_array<double>({2, 2}, &m.point[0].x),
+                        owned_array<double>({2}, m.separation.data()),
+                        owned_array<std::int64_t>({2}, m.id.data()));
+}
+// ---- end narrowphase test entry ---------------------------------------------------------
+
 }  // namespace
 }  // namespace rbsim
 
@@ -325,5 +378,13 @@ NB_MODULE(_core, mod) {
       RBSIM_STATE(body_w, "(N,) rad/s (a view)");
 #undef RBSIM_STATE
   mod.attr("OK") = static_cast<int>(Status::Ok);
+
+  // ---- narrowphase test entry ----
+  mod.def("collide2d", &collide2d_py, "kind_a"_a, "start_a"_a, "count_a"_a, "radius_a"_a,
+          "kind_b"_a, "start_b"_a, "count_b"_a, "radius_b"_a, "verts"_a, "norms"_a,
+          "speculative"_a,
+          "One narrowphase manifold (tests): (count, normal (2,), points (2,2), "
+          "separations (2,), ids (2,) int64); rows past count are NaN / -1.");
+  // ---- end narrowphase test entry ----
   mod.attr("NON_FINITE") = static_cast<int>(Status::NonFinite);
 }
