@@ -1,7 +1,187 @@
-// PLACEHOLDER: being ported from the numba engine; replaced before this lands.
-#include <stdexcept>
+// The narrowphase over the broadphase's pairs, into the manifold store.
+//
+// Run the narrowphase on every pair whose tight boxes overlap, and keep the manifolds
+// with points. A point whose feature id matches one of last step's points in the same
+// pair takes over that point's accumulated impulses (warm start); both lists are sorted
+// by key = a · S + b, so the matching is one merge pass. A pair of bodies that have not
+// moved from their reference poses carries last step's manifold forward instead (only
+// its separation changes, by the bodies' motion since those poses). A speculative pair
+// that meets within the step is moved to its time of impact first (collide/toi.cpp).
+#include <cmath>
+
+#include "collide/narrow2d.hpp"
+#include "collide/toi.hpp"
+#include "rbsim/constants.hpp"
 #include "rbsim/stages.hpp"
+
 namespace rbsim {
-template <int D> void update_manifolds(const Model<D>&, const State<D>&, Contacts<D>&, const Grid<D>&, std::int64_t, MixRule, MixRule, double) { throw std::logic_error("update_manifolds: not ported"); }
-template void update_manifolds(const Model<2>&, const State<2>&, Contacts<2>&, const Grid<2>&, std::int64_t, MixRule, MixRule, double);
+
+namespace C = constants;
+
+namespace {
+
+// Combine two shapes' coefficients by the scene's mixing rule.
+inline double mix(double a, double b, MixRule rule) {
+  switch (rule) {
+    case MixRule::Sqrt: return std::sqrt(a * b);
+    case MixRule::Multiply: return a * b;
+    case MixRule::Min: return std::min(a, b);
+    default: return std::max(a, b);
+  }
+}
+
+inline bool any_greater(Vec2 a, Vec2 b) { return a.x > b.x || a.y > b.y; }
+inline bool any_greater(Vec3 a, Vec3 b) { return a.x > b.x || a.y > b.y || a.z > b.z; }
+
+// The two tight boxes are apart.
+template <int D>
+inline bool disjoint(const Aabb<D>& a, const Aabb<D>& b) {
+  return any_greater(a.lo, b.hi) || any_greater(b.lo, a.hi);
+}
+
+}  // namespace
+
+template <int D>
+void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
+                      const Grid<D>& grid, std::int64_t n_pairs, MixRule friction_rule,
+                      MixRule restitution_rule, double dt) {
+  using Vec = typename Dim<D>::Vec;
+  using Rot = typename Dim<D>::Rot;
+  const auto& box = grid.shape_aabb;
+  const std::int64_t n_shapes = model.shape_count();
+  const std::int64_t n_prev = c.count.manifolds_prev;
+  Manifold2 out;  // one narrowphase result
+  std::int64_t j = 0;  // merge pointer into last step's manifolds (both sorted by key)
+  std::int64_t m = 0;
+  bool same = true;  // every manifold so far is last step's pair in the same slot
+  for (std::int64_t p = 0; p < n_pairs; ++p) {
+    const int a = c.pairs[p][0], b = c.pairs[p][1];
+    if (disjoint<D>(box[a], box[b])) continue;  // near in the fat boxes only: out of reach
+    const int ba = model.shape_body[a], bb = model.shape_body[b];
+    const std::int64_t key = static_cast<std::int64_t>(a) * n_shapes + b;
+    while (j < n_prev && c.prev_key[j] < key) ++j;
+    const bool matched = j < n_prev && c.prev_key[j] == key;
+    const bool in_slot = matched && j == m && c.key[m] == key;
+    const bool still = c.body_still[ba] && c.body_still[bb];
+    // motion of the two bodies since their reference poses (m)
+    const Vec dd = (st.body_x[ba] - c.body_ref[ba].x) - (st.body_x[bb] - c.body_ref[bb].x);
+    if (in_slot && still) {
+      // neither body has moved, and last step's manifold is still in this slot
+      // (store_impulses copied it to prev_*, so the two agree): only its separation and
+      // this step's impulse records change
+      const Vec n = c.normal[m];
+      for (int k = 0; k < c.points[m]; ++k) {
+        const Vec ra = c.anchor_a[m][k], rb = c.anchor_b[m][k];
+        const double sep = c.ref_separation[m][k] + dot(n, dd);
+        c.base_separation[m][k] = sep - dot(n, ra - rb);
+        c.start_impulse[m][k] = c.normal_impulse[m][k];
+        c.max_normal_impulse[m][k] = 0.0;
+      }
+      c.carried[m] = 1;
+      ++m;
+      continue;
+    }
+    Vec n;
+    int npts;
+    if (matched && still) {
+      // neither body has moved: carry last step's manifold forward
+      n = c.prev_normal[j];
+      npts = c.prev_points[j];
+      for (int k = 0; k < npts; ++k) {
+        const Vec ra = c.prev_anchor_a[j][k], rb = c.prev_anchor_b[j][k];
+        c.anchor_a[m][k] = ra;
+        c.anchor_b[m][k] = rb;
+        const double ref_sep = c.prev_ref_separation[j][k];
+        c.ref_separation[m][k] = ref_sep;
+        const double sep = ref_sep + dot(n, dd);
+        c.base_separation[m][k] = sep - dot(n, ra - rb);
+        c.feature[m][k] = c.prev_feature[j][k];
+        c.normal_impulse[m][k] = c.prev_normal_impulse[j][k];
+        c.start_impulse[m][k] = c.prev_normal_impulse[j][k];
+        c.tangent_impulse[m][k] = c.prev_tangent_impulse[j][k];
+        c.max_normal_impulse[m][k] = 0.0;
+      }
+    } else {
+      const double spec = C::SPECULATIVE_DISTANCE + c.shape_margin[a] + c.shape_margin[b];
+      const ShapeRef2 sa{model.shape_kind[a], model.shape_vstart[a], model.shape_vcount[a],
+                         model.shape_radius[a]};
+      const ShapeRef2 sb{model.shape_kind[b], model.shape_vstart[b], model.shape_vcount[b],
+                         model.shape_radius[b]};
+      npts = collide2d(sa, sb, c.vert_world.data(), c.norm_world.data(), spec, out);
+      double t = 0.0;  // s
+      // only a pair that is clearly apart can turn its normal before the impact, and
+      // only if it meets within the step: most such pairs do not (two balls falling
+      // side by side), and their test is made here, as the search's first, so that they
+      // skip the call
+      bool meets = false;
+      if (npts > 0 && std::min(out.separation[0], out.separation[npts - 1]) > C::LINEAR_SLOP) {
+        const Approach ap = nearest_approach(out, npts, ba, bb, 0.0, st);
+        meets = ap.vn < 0.0 && ap.sep / -ap.vn < dt;
+      }
+      if (meets) {
+        const Impact hit = time_of_impact(model, st, a, b, npts, dt, spec, c.toi_verts.data(),
+                                          c.toi_norms.data(), out);
+        npts = hit.points;
+        t = hit.t;
+      }
+      if (npts == 0) continue;
+      n = out.normal;
+      // the bodies' free motion to the impact (t = 0 unless it was moved there)
+      const Vec da = t * st.body_v[ba], db = t * st.body_v[bb];
+      Rot qa{}, qb{};  // the rotations by ω t; t = 0 is the common case, and then
+      if (t != 0.0) {  // costs no trigonometry
+        qa = turn_by(t * st.body_w[ba]);
+        qb = turn_by(t * st.body_w[bb]);
+      }
+      for (int k = 0; k < npts; ++k) {
+        // lever arms at the impact
+        const Vec ra = out.point[k] - st.body_x[ba] - da;
+        const Vec rb = out.point[k] - st.body_x[bb] - db;
+        c.anchor_a[m][k] = ra;
+        c.anchor_b[m][k] = rb;
+        // separation = base + n · (d_a + R(Δθ_a) r_a − d_b − R(Δθ_b) r_b) as the bodies
+        // move (d, Δθ: motion since the step's start); at the impact (d = v t, Δθ = ω t)
+        // it equals the separation found there
+        const double moved = dot(n, da + rotate(qa, ra) - db - rotate(qb, rb));
+        const double base = out.separation[k] - moved;
+        c.base_separation[m][k] = base;
+        const double start = base + dot(n, ra - rb);
+        c.ref_separation[m][k] = start - dot(n, dd);
+        c.feature[m][k] = out.id[k];
+        double jn = 0.0, jt = 0.0;  // N·s
+        if (matched) {
+          for (int kk = 0; kk < c.prev_points[j]; ++kk) {
+            if (c.prev_feature[j][kk] == out.id[k]) {
+              jn = c.prev_normal_impulse[j][kk];
+              jt = c.prev_tangent_impulse[j][kk];
+            }
+          }
+        }
+        c.normal_impulse[m][k] = jn;
+        c.start_impulse[m][k] = jn;
+        c.tangent_impulse[m][k] = jt;
+        c.max_normal_impulse[m][k] = 0.0;
+      }
+    }
+    same = same && in_slot;
+    c.carried[m] = 0;
+    c.shape_a[m] = a;
+    c.shape_b[m] = b;
+    c.body_a[m] = ba;
+    c.body_b[m] = bb;
+    c.key[m] = key;
+    c.normal[m] = n;
+    c.points[m] = npts;
+    c.friction[m] = mix(model.shape_friction[a], model.shape_friction[b], friction_rule);
+    c.restitution[m] =
+        mix(model.shape_restitution[a], model.shape_restitution[b], restitution_rule);
+    ++m;
+  }
+  c.count.manifolds = m;
+  c.count.graph_unchanged = (same && m == n_prev) ? 1 : 0;
+}
+
+template void update_manifolds(const Model<2>&, const State<2>&, Contacts<2>&, const Grid<2>&,
+                               std::int64_t, MixRule, MixRule, double);
+
 }  // namespace rbsim
