@@ -15,7 +15,7 @@ import numpy as np
 
 from . import _core
 from .config import Config, NonFiniteState, make_config
-from .model import Model, build
+from .model import Model, State, build
 from .scene import Scene
 
 
@@ -24,38 +24,6 @@ def _model_arrays(model: Model) -> dict:
     for name, value in model._asdict().items():
         arrays[name] = np.ascontiguousarray(value) if isinstance(value, np.ndarray) else value
     return arrays
-
-
-class _StateView:
-    """The engine's state arrays as numpy views (fresh on each read, same memory)."""
-
-    def __init__(self, engine: _core.World2) -> None:
-        self._engine = engine
-
-    @property
-    def body_x(self) -> np.ndarray:
-        """(N,2) m, centre-of-mass positions."""
-        return self._engine.body_x
-
-    @property
-    def body_q(self) -> np.ndarray:
-        """(N,2) (cos θ, sin θ)."""
-        return self._engine.body_q
-
-    @property
-    def body_angle(self) -> np.ndarray:
-        """(N,) rad, unwrapped."""
-        return self._engine.body_angle
-
-    @property
-    def body_v(self) -> np.ndarray:
-        """(N,2) m/s, centre-of-mass velocities."""
-        return self._engine.body_v
-
-    @property
-    def body_w(self) -> np.ndarray:
-        """(N,) rad/s."""
-        return self._engine.body_w
 
 
 @dataclass
@@ -80,9 +48,11 @@ class CoreWorld:
         return cls(scene, model, config, engine)
 
     @property
-    def state(self) -> _StateView:
-        """The state (views of the engine's arrays)."""
-        return _StateView(self.engine)
+    def state(self) -> State:
+        """The state, as the numba engine's State tuple of the engine's own arrays
+        (numpy views: no copy; they stay valid for the world's life)."""
+        e = self.engine
+        return State(e.body_x, e.body_q, e.body_angle, e.body_v, e.body_w)
 
     @property
     def step_index(self) -> int:
@@ -104,6 +74,20 @@ class CoreWorld:
     def contact_count(self) -> int:
         """Contact points that pushed in the last step."""
         return int(self.engine.contact_count)
+
+    @property
+    def contacts(self) -> SimpleNamespace:
+        """The contact store's arrays by name (as `storage`), for tests and tools."""
+        return self.storage
+
+    @property
+    def grid(self) -> SimpleNamespace:
+        """The broadphase's arrays by name, for tests and tools."""
+        return self.storage.grid
+
+    def stage(self, name: str, **args):  # noqa: ANN201 - the stage's own result
+        """Run one stage of the step by name on the current storage (tests, tools)."""
+        return self.engine.stage(name, args)
 
     @property
     def storage(self) -> SimpleNamespace:
@@ -129,3 +113,40 @@ def make_world(scene: Scene, engine: str = DEFAULT_ENGINE):
 
         return World.from_scene(scene)
     raise ValueError(f"unknown engine {engine!r}; expected one of {', '.join(ENGINES)}")
+
+
+def collide2d(
+    kind_a: int,
+    start_a: int,
+    count_a: int,
+    radius_a: float,
+    kind_b: int,
+    start_b: int,
+    count_b: int,
+    radius_b: float,
+    verts: np.ndarray,
+    norms: np.ndarray,
+    speculative: float,
+    out_normal: np.ndarray,
+    out_point: np.ndarray,
+    out_sep: np.ndarray,
+    out_id: np.ndarray,
+) -> int:
+    """The engine's narrowphase for one pair of shapes (for tests and tools); returns
+    the point count 0, 1 or 2 and writes its first rows of the outputs.
+
+    kind_*: constants.SHAPE_*; start_*, count_*: the shape's rows of verts and norms
+    ((V,2), world frame, m; norms the outward edge normals); radius_* m; speculative m:
+    points whose surfaces are farther apart are dropped. Outputs: out_normal (2,) from
+    b towards a, out_point (2,2) m, out_sep (2,) m (negative: overlap), out_id (2,)
+    int64 feature ids."""
+    n, normal, point, sep, ids = _core.collide2d(
+        kind_a, start_a, count_a, radius_a, kind_b, start_b, count_b, radius_b,
+        np.ascontiguousarray(verts, np.float64), np.ascontiguousarray(norms, np.float64),
+        speculative,
+    )  # fmt: skip
+    out_normal[:] = normal
+    out_point[:n] = point[:n]
+    out_sep[:n] = sep[:n]
+    out_id[:n] = ids[:n]
+    return int(n)

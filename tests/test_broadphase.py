@@ -9,7 +9,7 @@ import pytest
 
 from rbsim.broadphase import BIG_MAX
 from rbsim.constants import BODY_DYNAMIC
-from rbsim.world import World
+from rbsim.core import CoreWorld as World
 
 from .conftest import scene_from
 

@@ -19,7 +19,8 @@ from rbsim.constants import (
     SHAPE_SEGMENT,
     SPECULATIVE_DISTANCE,
 )
-from rbsim.narrowphase import REFERENCE_FACE_TOLERANCE, SEGMENT_SKIN, collide
+from rbsim.core import collide2d as collide
+from rbsim.narrowphase import REFERENCE_FACE_TOLERANCE, SEGMENT_SKIN
 
 SPEC = SPECULATIVE_DISTANCE
 TOL = 1e-9

@@ -80,6 +80,22 @@ class Pair:
             b[...] = a
         self.cc.engine.step_index = self.nb.step_index
 
+    def sync_to_numba(self) -> None:
+        """Copy the C++ engine's state and storage into the numba engine (the reverse
+        of `sync`, to replay a step the C++ engine took in both)."""
+        capacity = self.cc.storage.key.shape[0]
+        if self.nb.contacts.key.shape[0] != capacity:
+            from rbsim.broadphase import grow_grid
+            from rbsim.contacts import grow_contacts
+
+            self.nb.contacts = grow_contacts(self.nb.contacts, capacity)
+            self.nb.grid = grow_grid(self.nb.grid, capacity)
+        for name, a, b in self._storage_pairs():
+            if name == "grid.inv_cell":
+                continue  # a float in the numba grid, set at build
+            np.asarray(a)[...] = b
+        self.nb.step_index = self.cc.step_index
+
     def diff(self, names=None, *, atol: float = 0.0) -> dict[str, float]:
         """Max |numba − C++| per array (equal infinities and NaN in the same places count
         as equal); only
