@@ -57,6 +57,7 @@ sanitize: $(BUILD_DEPS)
 	$(BIN)/python -m pip install --quiet --no-build-isolation --no-deps --upgrade \
 		--target $(SANITIZE_DIR)/site -C build-dir=$(SANITIZE_DIR)/build -C install.strip=false -C cmake.build-type=RelWithDebInfo \
 		-C cmake.define.RBSIM_SANITIZE=ON -C cmake.define.CMAKE_CXX_FLAGS=-D_GLIBCXX_ASSERTIONS .
+	ln -sfn $(CURDIR)/scenes $(SANITIZE_DIR)/site/scenes  # rbsim.hard finds scenes/ beside the package
 	$(SANITIZE_ENV) $(BIN)/python -S -P -c "import rbsim._core as c, os, sys; \
 		print('sanitized engine:', c.__file__); \
 		so = open(c.__file__, 'rb').read(); \
