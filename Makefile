@@ -48,6 +48,7 @@ cpp-test: $(BUILD_DEPS) $(ENGINE)
 # -P and --import-mode=append keep the source tree's rbsim (no _core) behind the built one.
 # The interpreter is not built with ASan, so its runtime is preloaded; leaks are not checked
 # (CPython leaks at exit). Tests of stages still placeholders fail on a partial port.
+# RelWithDebInfo and no strip: nanobind strips Release modules, and reports need line numbers.
 SANITIZE_TESTS ?= tests/port tests/test_contacts.py tests/test_hard.py
 SANITIZE_DIR   := build/sanitize
 SANITIZE_ENV    = PYTHONPATH=$(SANITIZE_DIR)/site:$(VENV)/lib/python3.11/site-packages \
