@@ -142,7 +142,12 @@ nb::dict storage(World2& w, nb::handle owner) {
   RBSIM_VIEW(shock_order) RBSIM_VIEW(solve_order) RBSIM_VIEW(adj_start) RBSIM_VIEW(adj)
   RBSIM_VIEW(queue) RBSIM_VIEW(bounce_kind) RBSIM_VIEW(body_mark) RBSIM_VIEW(solve_impulse)
   RBSIM_VIEW(bounce_list) RBSIM_VIEW(relax_list) RBSIM_VIEW(body_reach)
+  RBSIM_VIEW(color_order) RBSIM_VIEW(manifold_wave)
 #undef RBSIM_VIEW
+#define RBSIM_VIEW2(name) d[#name] = view(c.name, owner);
+  RBSIM_VIEW2(group_start) RBSIM_VIEW2(group_batch)
+  d["group_count"] = view(&c.group_count, 1, owner, false);
+#undef RBSIM_VIEW2
   d["body_still"] = view(c.body_still, owner, true);
   auto& g = w.grid;
   nb::dict gd;
@@ -267,10 +272,16 @@ nb::object run_stage(World2& w, const std::string& name, nb::dict args) {
     warm_start(m, st, c);
   } else if (name == "solve_contacts") {
     std::string list = load_value<std::string>(args, "order");
-    const std::int32_t* order = list == "relax_list" ? c.relax_list.data() : c.solve_order.data();
+    const std::int32_t* order = list == "relax_list"    ? c.relax_list.data()
+                                : list == "color_order" ? c.color_order.data()
+                                                        : c.solve_order.data();
     std::int64_t n = load_value<std::int64_t>(args, "n");
     if (n < 0 || n > c.capacity()) throw std::invalid_argument("n out of range");
     solve_contacts(m, st, c, num("inv_h"), flag("use_bias"), num("shift"), num("threshold"), order, n);
+  } else if (name == "color_contacts") {
+    return nb::int_(color_contacts(m, c));
+  } else if (name == "solve_colored") {
+    solve_colored(m, st, c, num("inv_h"), flag("use_bias"), num("shift"), num("threshold"));
   } else if (name == "keep_solve_impulses") {
     keep_solve_impulses(c);
   } else if (name == "apply_restitution") {
@@ -370,6 +381,16 @@ NB_MODULE(_core, mod) {
            "The stages' storage arrays by name, as views (valid until the store grows).")
       .def_prop_ro("contact_count", &World2::contact_count)
       .def_rw("step_index", &World2::step_index)
+      .def_rw("profile", &World2::profile, "Accumulate each stage's wall time (stage_times).")
+      .def(
+          "stage_times",
+          [](World2& w) {
+            nb::dict d;
+            for (int k = 0; k < static_cast<int>(StageId::Count); ++k)
+              d[STAGE_NAMES[k]] = w.stage_seconds[k];
+            return d;
+          },
+          "Seconds spent in each stage since profiling began.")
 #define RBSIM_STATE(name, doc) \
   .def_prop_ro(#name, [](nb::handle self) { return view(nb::cast<World2&>(self).state.name, self); }, doc)
       RBSIM_STATE(body_x, "(N,2) m, COM positions (a view)")

@@ -1,7 +1,7 @@
 // The time step as the list of its stages, and the loop that runs a scene. This is the
 // only file that orders stages:
 //
-//   transform -> find_pairs -> update_manifolds -> prepare -> support_order
+//   transform -> find_pairs -> update_manifolds -> prepare -> support_order -> color (waves)
 //   -> [per substep: integrate_velocities -> warm_start -> solve -> integrate_positions
 //       -> relax (-> extra relax passes near a deep overlap) -> restitution -> shock]
 //   -> limit_static_overlap -> store_impulses
@@ -9,7 +9,9 @@
 // A scene without contacts possible skips the contact stages; one without forces skips
 // their evaluation (integrate.cpp).
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <cstdlib>
 
 #include "rbsim/constants.hpp"
 #include "rbsim/world.hpp"
@@ -35,16 +37,35 @@ void World<D>::grow(std::int64_t capacity) {
 }
 
 template <int D>
+template <class F>
+void World<D>::timed(StageId stage, F&& run) {
+  if (!profile) {
+    run();
+    return;
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  run();
+  const std::chrono::duration<double> dt = std::chrono::steady_clock::now() - t0;
+  stage_seconds[static_cast<int>(stage)] += dt.count();
+}
+
+template <int D>
 bool World<D>::collide() {
   const Config& cfg = config;
-  transform_shapes(model, state, contacts, cfg.dt);
-  std::int64_t n_pairs = find_pairs(model, grid, contacts);
-  contacts.count.pairs = n_pairs;
-  if (n_pairs > contacts.capacity()) return false;
-  update_manifolds(model, state, contacts, grid, n_pairs, cfg.friction_rule,
-                   cfg.restitution_rule, cfg.dt);
-  prepare_contacts(model, state, contacts, cfg.soft, cfg.soft_static);
-  contacts.count.shock_count = support_order(model, contacts);
+  auto& c = contacts;
+  using S = StageId;
+  timed(S::Transform, [&] { transform_shapes(model, state, c, cfg.dt); });
+  std::int64_t n_pairs = 0;
+  timed(S::FindPairs, [&] { n_pairs = find_pairs(model, grid, c); });
+  c.count.pairs = n_pairs;
+  if (n_pairs > c.capacity()) return false;
+  timed(S::UpdateManifolds, [&] {
+    update_manifolds(model, state, c, grid, n_pairs, cfg.friction_rule, cfg.restitution_rule,
+                     cfg.dt);
+  });
+  timed(S::Prepare, [&] { prepare_contacts(model, state, c, cfg.soft, cfg.soft_static); });
+  timed(S::SupportOrder, [&] { c.count.shock_count = support_order(model, c); });
+  timed(S::Color, [&] { color_contacts(model, c); });
   return true;
 }
 
@@ -54,6 +75,7 @@ bool World<D>::step() {
   const bool contacts_on = model.has_shapes;
   if (contacts_on && !collide()) return false;
   auto& c = contacts;
+  using S = StageId;
   for (auto& d : c.body_delta) d = BodyDelta<D>{};
   const double h = cfg.dt / cfg.substeps;
   const double inv_h = 1.0 / h;
@@ -62,44 +84,46 @@ bool World<D>::step() {
   const double threshold = cfg.restitution_threshold;
   // the restitution stage's list names this step's manifolds
   c.count.bounce_count = c.count.bounce_carried = c.count.elastic_listed = 0;
-  const std::int64_t n_man = c.count.manifolds;
   for (int sub = 0; sub < cfg.substeps; ++sub) {
-    if (cfg.explicit_euler) {
-      integrate_positions(model, state, c.body_delta, h, cfg.exact_rotation);
-      integrate_velocities(model, state, h);
-    } else {
-      integrate_velocities(model, state, h);
-    }
+    if (cfg.explicit_euler)
+      timed(S::IntegratePositions, [&] { integrate_positions(model, state, c.body_delta, h, cfg.exact_rotation); });
+    timed(S::IntegrateVelocities, [&] { integrate_velocities(model, state, h); });
     if (contacts_on) {
-      warm_start(model, state, c);
+      timed(S::WarmStart, [&] { warm_start(model, state, c); });
       c.count.deep_count = 0;
-      for (int it = 0; it < cfg.iterations; ++it)
-        solve_contacts(model, state, c, inv_h, true, 0.0, threshold, c.solve_order.data(), n_man);
+      timed(S::Solve, [&] {
+        for (int it = 0; it < cfg.iterations; ++it)
+          solve_colored(model, state, c, inv_h, true, 0.0, threshold);
+      });
     }
     if (!cfg.explicit_euler) {
       if (contacts_on && cfg.elastic) keep_solve_impulses(c);
-      integrate_positions(model, state, c.body_delta, h, cfg.exact_rotation);
+      timed(S::IntegratePositions, [&] { integrate_positions(model, state, c.body_delta, h, cfg.exact_rotation); });
     }
     if (contacts_on) {
-      for (int it = 0; it < cfg.iterations; ++it)  // relax
-        solve_contacts(model, state, c, inv_h, false, shift, threshold, c.solve_order.data(), n_man);
+      timed(S::Relax, [&] {
+        for (int it = 0; it < cfg.iterations; ++it)
+          solve_colored(model, state, c, inv_h, false, shift, threshold);
+      });
       if (c.count.deep_count) {
         // a deep overlap is being pushed out: the contacts around it get more relax
         // passes, so that the push's velocity is taken back all the way up a stack
         // instead of adding up from row to row
-        std::int64_t n_near = deep_region(model, c, C::DEEP_RELAX_REACH);
-        for (int it = 0; it < cfg.iterations * (C::DEEP_RELAX_FACTOR - 1); ++it)
-          solve_contacts(model, state, c, inv_h, false, shift, threshold, c.relax_list.data(), n_near);
+        timed(S::ExtraRelax, [&] {
+          std::int64_t n_near = deep_region(model, c, C::DEEP_RELAX_REACH);
+          for (int it = 0; it < cfg.iterations * (C::DEEP_RELAX_FACTOR - 1); ++it)
+            solve_contacts(model, state, c, inv_h, false, shift, threshold, c.relax_list.data(), n_near);
+        });
       }
       // bounces first: the shock pass then leaves them alone, and would otherwise take a
       // ball struck down onto the floor as a load and stop it dead
-      apply_restitution(model, state, c, threshold, h, sign);
-      propagate_shock(model, state, c, c.count.shock_count, inv_h, threshold);
+      timed(S::Restitution, [&] { apply_restitution(model, state, c, threshold, h, sign); });
+      timed(S::Shock, [&] { propagate_shock(model, state, c, c.count.shock_count, inv_h, threshold); });
     }
   }
   if (contacts_on) {
-    limit_static_overlap(model, state, c, C::STATIC_OVERLAP_LIMIT);
-    store_impulses(c);
+    timed(S::OverlapLimit, [&] { limit_static_overlap(model, state, c, C::STATIC_OVERLAP_LIMIT); });
+    timed(S::Store, [&] { store_impulses(c); });
   }
   return true;
 }

@@ -14,6 +14,7 @@
 
 #include "math.hpp"
 #include "state.hpp"
+#include "wide.hpp"
 
 namespace rbsim {
 
@@ -115,6 +116,16 @@ struct Contacts {
   std::vector<std::int32_t> bounce_list;    // (2M+2,) manifolds that engaged fast
   std::vector<std::int32_t> relax_list;     // (M,) deep manifolds, then the extra passes' set
   std::vector<std::int64_t> body_reach;     // (N,) deep_region's scratch
+  // the waves of the solve order (color.cpp): groups of independent manifolds
+  std::int64_t group_count = 0;             // waves
+  std::vector<std::int32_t> color_order;    // (M,) the manifolds wave by wave
+  std::vector<std::int32_t> manifold_wave;  // (M,) each manifold's wave (scratch)
+  std::vector<std::int32_t> body_wave;      // (N,) the last wave that moved the body (scratch)
+  std::vector<std::int64_t> group_start;    // (M+2,) wave g: color_order[start[g]..start[g+1])
+  std::vector<std::int64_t> group_batch;    // (M+2,) wave g: batches[batch[g]..batch[g+1])
+  std::vector<std::int64_t> group_single;   // (M+1,) wave g's one-point manifolds:
+                                            // color_order[single[g]..start[g+1])
+  std::vector<WideBatch> batches;           // the waves' manifolds, LANES at a time
 
   std::int64_t capacity() const { return static_cast<std::int64_t>(key.size()); }
 
@@ -154,6 +165,11 @@ void Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   reset(adj_start, n + 1); reset(adj, 2 * m); reset(queue, n + 2);
   reset(bounce_kind, m); reset(body_mark, n); reset(solve_impulse, m);
   reset(bounce_list, 2 * m + 2); reset(relax_list, m); reset(body_reach, n);
+  group_count = 0;
+  reset(color_order, m); reset(manifold_wave, m); reset(body_wave, n);
+  reset(group_start, m + 2); reset(group_batch, m + 2); reset(group_single, m + 1);
+  // every wave may end in a part-filled batch
+  batches.assign(m / LANES + m + 2, WideBatch{});
 }
 
 template <int D>

@@ -72,6 +72,12 @@ void prepare_contacts(const Model<D>& model, const State<D>& state, Contacts<D>&
 template <int D>
 std::int64_t support_order(const Model<D>& model, Contacts<D>& contacts);
 
+// solver/color.cpp: the waves of the solve order (manifolds that share no dynamic body,
+// solved at once with the result of solving them in solve order) into contacts.color_order
+// and contacts.batches; returns the number of waves.
+template <int D>
+std::int64_t color_contacts(const Model<D>& model, Contacts<D>& contacts);
+
 // solver/shock.cpp: the manifolds within `reach` contacts of a deep overlap, written to
 // contacts.relax_list; returns their count.
 template <int D>
@@ -103,6 +109,12 @@ template <int D>
 void solve_contacts(const Model<D>& model, State<D>& state, Contacts<D>& contacts,
                     double inv_h, bool use_bias, double shift, double threshold,
                     const std::int32_t* order, std::int64_t n);
+
+// solver/solve.cpp: the same pass over the solve order, wave by wave: a wave's two-point
+// manifolds LANES at a time (contacts.batches), its one-point manifolds one by one.
+template <int D>
+void solve_colored(const Model<D>& model, State<D>& state, Contacts<D>& contacts, double inv_h,
+                   bool use_bias, double shift, double threshold);
 
 // solver/restitution.cpp: keep each point's impulse at the position update (scenes with
 // elastic materials), and the restitution stage itself.

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <array>
 #include <string>
 
 #include "contacts.hpp"
@@ -12,6 +13,17 @@
 
 namespace rbsim {
 
+// The stages as the step calls them, for the time spent in each (World::profile).
+enum class StageId : int {
+  Transform, FindPairs, UpdateManifolds, Prepare, SupportOrder, Color, IntegrateVelocities,
+  WarmStart, Solve, IntegratePositions, Relax, ExtraRelax, Restitution, Shock, OverlapLimit,
+  Store, Count
+};
+inline constexpr const char* STAGE_NAMES[] = {
+    "transform", "find_pairs", "update_manifolds", "prepare", "support_order", "color",
+    "integrate_velocities", "warm_start", "solve", "integrate_positions", "relax",
+    "extra_relax", "restitution", "shock", "limit_static_overlap", "store_impulses"};
+
 template <int D>
 struct World {
   Model<D> model;
@@ -20,6 +32,9 @@ struct World {
   Grid<D> grid;
   Contacts<D> contacts;
   std::int64_t step_index = 0;
+  // with profile set, each stage's wall time accumulates in stage_seconds (s)
+  bool profile = false;
+  std::array<double, static_cast<int>(StageId::Count)> stage_seconds{};
 
   // Storage for the model's bodies and shapes (call once the model and state are set).
   void allocate();
@@ -36,6 +51,8 @@ struct World {
 
  private:
   bool collide();
+  template <class F>
+  void timed(StageId stage, F&& run);
 };
 
 // Half the diagonal (m) of each shape's own bounding box, radius included.

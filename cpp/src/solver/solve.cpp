@@ -236,4 +236,210 @@ void solve_contacts(const Model<D>& model, State<D>& st, Contacts<D>& c, double 
 template void solve_contacts(const Model<2>&, State<2>&, Contacts<2>&, double, bool, double,
                              double, const std::int32_t*, std::int64_t);
 
+namespace {
+
+// The clamp λ >= 0 of point k in every lane of a batch where `on`: what clamp_normal does
+// for one manifold, lane by lane. A point that engages is recorded lane by lane (rare: a
+// resting point engaged in an earlier pass).
+inline Lanes clamp_lanes(Contacts<2>& c, const WideBatch& B, int k, LaneMask on, Lanes lam,
+                         Lanes impulse, Lanes vn, Lanes s, Lanes& max_impulse, Lanes approach,
+                         double shift, double threshold, Lanes& accumulated) {
+  const Lanes zero = splat(0.0);
+  const LaneMask engages =
+      on & ((max_impulse <= zero) | (approach == splat(std::numeric_limits<double>::infinity()))) &
+      (impulse > zero);
+  for (int l = 0; any(engages) && l < LANES; ++l) {
+    if (!engages[l]) continue;
+    const std::int64_t m = B.m[l];
+    c.approach_velocity[m][k] = vn[l];
+    c.approach_separation[m][k] = s[l] - shift * vn[l];
+    if (vn[l] < -threshold) {  // a bounce for the restitution stage's list
+      c.bounce_list[c.count.bounce_count] = static_cast<std::int32_t>(m);
+      c.count.bounce_count += 1;
+    }
+  }
+  const Lanes next = vmax(lam + impulse, zero);  // clamp the accumulated impulse
+  const Lanes applied = select(on, next - lam, zero);
+  accumulated = select(on, next, lam);
+  max_impulse = select(on, vmax(max_impulse, applied), max_impulse);
+  return applied;
+}
+
+// One batch of LANES manifolds of one colour: solve_contacts' two-point code (a one-point
+// manifold is the same with its second point's terms zero), lane by lane.
+void solve_batch(const Model<2>& model, State<2>& st, Contacts<2>& c, const WideBatch& B,
+                 double inv_h, bool use_bias, double shift, double threshold) {
+  Vec2* v = st.body_v.data();
+  double* w = st.body_w.data();
+  const BodyDelta<2>* delta = c.body_delta.data();
+  // the lanes' bodies and impulses, each vector built at once from its lanes' values (a
+  // vector assembled lane by lane through memory would wait on store forwarding)
+  const int a0 = B.a[0], a1 = B.a[1], a2 = B.a[2], a3 = B.a[3];
+  const int b0i = B.b[0], b1i = B.b[1], b2i = B.b[2], b3i = B.b[3];
+  static_assert(LANES == 4, "the gathers below are written for four lanes");
+  Lanes vax = {v[a0].x, v[a1].x, v[a2].x, v[a3].x};
+  Lanes vay = {v[a0].y, v[a1].y, v[a2].y, v[a3].y};
+  Lanes wa = {w[a0], w[a1], w[a2], w[a3]};
+  Lanes vbx = {v[b0i].x, v[b1i].x, v[b2i].x, v[b3i].x};
+  Lanes vby = {v[b0i].y, v[b1i].y, v[b2i].y, v[b3i].y};
+  Lanes wb = {w[b0i], w[b1i], w[b2i], w[b3i]};
+  const BodyDelta<2>&da0 = delta[a0], &da1 = delta[a1], &da2 = delta[a2], &da3 = delta[a3];
+  const BodyDelta<2>&db0 = delta[b0i], &db1 = delta[b1i], &db2 = delta[b2i], &db3 = delta[b3i];
+  const Lanes dax = {da0.dx.x, da1.dx.x, da2.dx.x, da3.dx.x};
+  const Lanes day = {da0.dx.y, da1.dx.y, da2.dx.y, da3.dx.y};
+  const Lanes dac = {da0.dq.c, da1.dq.c, da2.dq.c, da3.dq.c};
+  const Lanes das = {da0.dq.s, da1.dq.s, da2.dq.s, da3.dq.s};
+  const Lanes dbx = {db0.dx.x, db1.dx.x, db2.dx.x, db3.dx.x};
+  const Lanes dby = {db0.dx.y, db1.dx.y, db2.dx.y, db3.dx.y};
+  const Lanes dbc = {db0.dq.c, db1.dq.c, db2.dq.c, db3.dq.c};
+  const Lanes dbs = {db0.dq.s, db1.dq.s, db2.dq.s, db3.dq.s};
+  // an empty lane reads manifold 0's impulses (its rows are zero: it changes nothing and
+  // is not written back); a one-point manifold's second point reads as zero
+  const std::int32_t m0 = B.m[0] < 0 ? 0 : B.m[0], m1 = B.m[1] < 0 ? 0 : B.m[1];
+  const std::int32_t m2 = B.m[2] < 0 ? 0 : B.m[2], m3 = B.m[3] < 0 ? 0 : B.m[3];
+  const Lanes zero = splat(0.0);
+  const LaneMask two = B.two != zero;
+  const auto* ni = c.normal_impulse.data();
+  const auto* ti = c.tangent_impulse.data();
+  const auto* xi = c.max_normal_impulse.data();
+  const auto* av = c.approach_velocity.data();
+  const Lanes lam0 = {ni[m0][0], ni[m1][0], ni[m2][0], ni[m3][0]};
+  const Lanes lam1 = select(two, Lanes{ni[m0][1], ni[m1][1], ni[m2][1], ni[m3][1]}, zero);
+  Lanes tl0 = {ti[m0][0], ti[m1][0], ti[m2][0], ti[m3][0]};
+  Lanes tl1 = select(two, Lanes{ti[m0][1], ti[m1][1], ti[m2][1], ti[m3][1]}, zero);
+  Lanes mx0 = {xi[m0][0], xi[m1][0], xi[m2][0], xi[m3][0]};
+  Lanes mx1 = select(two, Lanes{xi[m0][1], xi[m1][1], xi[m2][1], xi[m3][1]}, zero);
+  const Lanes ap0 = {av[m0][0], av[m1][0], av[m2][0], av[m3][0]};
+  const Lanes ap1 = {av[m0][1], av[m1][1], av[m2][1], av[m3][1]};
+  const LaneMask active = LaneMask{B.m[0], B.m[1], B.m[2], B.m[3]} >= LaneMask{};
+  const Lanes nx = B.nx, ny = B.ny;
+  const Lanes tx = ny, ty = -nx;  // t = (n_y, −n_x)
+  const Lanes ma = B.ma, mb = B.mb, ia = B.ia, ib = B.ib;
+  // the separation now: the normal turned back into each body's start frame
+  const Lanes moved = nx * (dax - dbx) + ny * (day - dby);
+  const Lanes nax = dac * nx + das * ny, nay = -das * nx + dac * ny;
+  const Lanes nbx = dbc * nx + dbs * ny, nby = -dbs * nx + dbc * ny;
+  const WidePoint& p0 = B.p0;
+  const WidePoint& p1 = B.p1;
+  const Lanes s0 = ((moved + p0.base) + (nax * p0.rax + nay * p0.ray)) - (nbx * p0.rbx + nby * p0.rby);
+  const Lanes s1 = ((moved + p1.base) + (nax * p1.rax + nay * p1.ray)) - (nbx * p1.rbx + nby * p1.rby);
+  // soft targets, as soft_target
+  const Lanes max_push = splat(-C::CONTACT_PUSH_MAX_VELOCITY);
+  const Lanes inv_hv = splat(inv_h);
+  const LaneMask bias_on = use_bias ? LaneMask{} == LaneMask{} : LaneMask{} != LaneMask{};
+  const LaneMask push0 = bias_on & (s0 <= zero), push1 = bias_on & (s1 <= zero);
+  Lanes b0 = select(s0 > zero, s0 * inv_hv, zero);
+  Lanes b1 = select(s1 > zero, s1 * inv_hv, zero);
+  b0 = select(push0, vmax(B.bias_rate * s0, max_push), b0);
+  b1 = select(push1, vmax(B.bias_rate * s1, max_push), b1);
+  const Lanes g0 = select(push0, p0.kn * B.gamma, zero);
+  const Lanes g1 = select(push1, p1.kn * B.gamma, zero);
+  if (use_bias) {  // a deep overlap: the manifold enters relax_list
+    const Lanes deep = splat(-C::DEEP_OVERLAP);
+    const LaneMask is_deep = active & ((s0 < deep) | (two & (s1 < deep)));
+    for (int l = 0; any(is_deep) && l < LANES; ++l) {
+      if (is_deep[l] && c.count.deep_count < static_cast<std::int64_t>(c.relax_list.size())) {
+        c.relax_list[c.count.deep_count] = B.m[l];
+        c.count.deep_count += 1;
+      }
+    }
+  }
+  // velocities along the normal and the tangent at both points
+  const Lanes dvx = vax - vbx, dvy = vay - vby;
+  const Lanes dvn = dvx * nx + dvy * ny, dvt = dvx * tx + dvy * ty;
+  const Lanes vn0 = dvn + (wa * p0.rna - wb * p0.rnb);
+  Lanes vn1 = dvn + (wa * p1.rna - wb * p1.rnb);
+  Lanes vt0 = dvt + (wa * p0.rta - wb * p0.rtb);
+  Lanes vt1 = dvt + (wa * p1.rta - wb * p1.rtb);
+  // both points as one 2x2 block, else one at a time (solve_contacts says why)
+  const Lanes k00 = p0.kn + g0, k11 = p1.kn + g1, k01 = B.k01;
+  const Lanes det = k00 * k11 - k01 * k01;
+  const LaneMask blockable = two & (det > splat(1.0e-9) * k00 * k11);
+  const Lanes r0 = -vn0 - (b0 + g0 * lam0);
+  const Lanes r1 = -vn1 - (b1 + g1 * lam1);
+  const Lanes inv_det = splat(1.0) / select(blockable, det, splat(1.0));
+  const Lanes d0b = (k11 * r0 - k01 * r1) * inv_det;
+  const Lanes d1b = (k00 * r1 - k01 * r0) * inv_det;
+  const LaneMask block = blockable & (lam0 + d0b >= zero) & (lam1 + d1b >= zero);
+  const Lanes d0 = select(block, d0b, (-vn0 - (b0 + g0 * lam0)) * (splat(1.0) / (p0.kn + g0)));
+  Lanes n0, n1;  // the accumulated normal impulses after the clamp
+  const Lanes j0 = clamp_lanes(c, B, 0, active, lam0, d0, vn0, s0, mx0, ap0, shift, threshold, n0);
+  vn1 = select(block, vn1, vn1 + j0 * k01);
+  Lanes d1 = select(block, d1b, (-vn1 - (b1 + g1 * lam1)) * (splat(1.0) / (p1.kn + g1)));
+  d1 = select(two, d1, zero);
+  const Lanes j1 =
+      clamp_lanes(c, B, 1, active & two, lam1, d1, vn1, s1, mx1, ap1, shift, threshold, n1);
+  // friction, as solve_contacts
+  const Lanes mu = B.friction;
+  const LaneMask has_mu = active & (mu > zero);
+  Lanes f0 = zero, f1 = zero;
+  {
+    const Lanes lam = tl0, limit = mu * n0;
+    const LaneMask on = has_mu & ~((limit == zero) & (lam == zero));
+    vt0 += j0 * (ia * p0.rna * p0.rta + ib * p0.rnb * p0.rtb);
+    vt0 += j1 * (ia * p1.rna * p0.rta + ib * p1.rnb * p0.rtb);
+    const Lanes next = vmin(vmax(lam - p0.tangent_mass * vt0, -limit), limit);
+    f0 = select(on, next - lam, zero);
+    tl0 = select(on, next, lam);
+  }
+  {
+    const Lanes lam = tl1, limit = mu * n1;
+    const LaneMask on = has_mu & two & ~((limit == zero) & (lam == zero));
+    vt1 += j0 * (ia * p0.rna * p1.rta + ib * p0.rnb * p1.rtb);
+    vt1 += j1 * (ia * p1.rna * p1.rta + ib * p1.rnb * p1.rtb);
+    vt1 += f0 * (ma + mb + ia * p0.rta * p1.rta + ib * p0.rtb * p1.rtb);
+    const Lanes next = vmin(vmax(lam - p1.tangent_mass * vt1, -limit), limit);
+    f1 = select(on, next - lam, zero);
+    tl1 = select(on, next, lam);
+  }
+  const Lanes jn = j0 + j1, jt = f0 + f1;
+  const Lanes px = jn * nx + jt * tx, py = jn * ny + jt * ty;
+  vax += ma * px;
+  vay += ma * py;
+  wa += ia * ((j0 * p0.rna + j1 * p1.rna) + (f0 * p0.rta + f1 * p1.rta));
+  vbx -= mb * px;
+  vby -= mb * py;
+  wb -= ib * ((j0 * p0.rnb + j1 * p1.rnb) + (f0 * p0.rtb + f1 * p1.rtb));
+  for (int l = 0; l < LANES; ++l) {
+    const std::int64_t m = B.m[l];
+    if (m < 0) continue;
+    // a static or kinematic body's velocity is unchanged: not written back
+    if (B.ma[l] != 0.0 || B.ia[l] != 0.0) {
+      v[B.a[l]] = {vax[l], vay[l]};
+      w[B.a[l]] = wa[l];
+    }
+    if (B.mb[l] != 0.0 || B.ib[l] != 0.0) {
+      v[B.b[l]] = {vbx[l], vby[l]};
+      w[B.b[l]] = wb[l];
+    }
+    c.normal_impulse[m][0] = n0[l];
+    c.tangent_impulse[m][0] = tl0[l];
+    c.max_normal_impulse[m][0] = mx0[l];
+    if (two[l]) {
+      c.normal_impulse[m][1] = n1[l];
+      c.tangent_impulse[m][1] = tl1[l];
+      c.max_normal_impulse[m][1] = mx1[l];
+    }
+  }
+}
+
+}  // namespace
+
+template <int D>
+void solve_colored(const Model<D>& model, State<D>& st, Contacts<D>& c, double inv_h,
+                   bool use_bias, double shift, double threshold) {
+  static_assert(D == 2, "the batches hold 2D solver rows");
+  for (std::int64_t g = 0; g < c.group_count; ++g) {
+    for (std::int64_t i = c.group_batch[g]; i < c.group_batch[g + 1]; ++i)
+      solve_batch(model, st, c, c.batches[i], inv_h, use_bias, shift, threshold);
+    const std::int64_t first = c.group_single[g];  // the wave's one-point manifolds
+    if (c.group_start[g + 1] > first)
+      solve_contacts(model, st, c, inv_h, use_bias, shift, threshold, c.color_order.data() + first,
+                     c.group_start[g + 1] - first);
+  }
+}
+
+template void solve_colored(const Model<2>&, State<2>&, Contacts<2>&, double, bool, double, double);
+
+
 }  // namespace rbsim

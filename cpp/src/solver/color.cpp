@@ -1,0 +1,133 @@
+// Waves of the solve order: groups of manifolds that can be solved at once, LANES at a
+// time, with exactly the result of solving them one after the other.
+//
+// The solver's passes take the manifolds in solve order (support_order: ground first,
+// level by level), and that order matters: a pass carries a push up a stack within one
+// sweep (solved colour by colour over the whole scene instead, a base-40 pyramid drifted
+// 5 cm in 10 s and a card house fell; colour by colour within each level, the pyramid
+// still drifted 8 cm). But two manifolds that share no dynamic body can be swapped
+// without changing anything: neither reads what the other writes (the solver never
+// changes a static or kinematic body's velocity). So each manifold goes in the wave after
+// the last wave of the manifolds before it that share one of its dynamic bodies; the
+// manifolds of a wave are independent, and solving the waves in turn is solving the
+// solve order, one manifold after another, reordered only where that changes nothing. A
+// wave's two-point manifolds are packed LANES at a time for solve.cpp, which solves them
+// in vector registers (its one-point manifolds are solved one by one); a pass gives the same result however a wave is split (one by one, several
+// at a time, or on several threads).
+#include <algorithm>
+#include <array>
+#include <cstdint>
+
+#include "rbsim/stages.hpp"
+#include "rbsim/wide.hpp"
+
+namespace rbsim {
+
+namespace {
+
+// Fill lane l of batch w with manifold m's row, or leave it empty (m < 0: zero rows,
+// body 0, never written).
+template <int D>
+void pack_lane(const Model<D>& model, const Contacts<D>& c, WideBatch& w, int l, std::int32_t m) {
+  if (m < 0) {
+    w.m[l] = -1;
+    w.a[l] = w.b[l] = 0;
+    w.nx[l] = w.ny[l] = w.k01[l] = w.gamma[l] = w.bias_rate[l] = w.friction[l] = 0.0;
+    w.ma[l] = w.mb[l] = w.ia[l] = w.ib[l] = w.two[l] = 0.0;
+    for (WidePoint* p : {&w.p0, &w.p1}) {
+      p->rna[l] = p->rnb[l] = p->rta[l] = p->rtb[l] = 0.0;
+      p->kn[l] = 1.0;  // no division by zero in an empty lane
+      p->tangent_mass[l] = p->rax[l] = p->ray[l] = p->rbx[l] = p->rby[l] = p->base[l] = 0.0;
+    }
+    return;
+  }
+  const SolverRow<2>& row = c.solver_row[m];
+  const int a = c.body_a[m], b = c.body_b[m];
+  w.m[l] = m;
+  w.a[l] = a;
+  w.b[l] = b;
+  w.nx[l] = row.normal.x;
+  w.ny[l] = row.normal.y;
+  w.k01[l] = row.k01;
+  w.gamma[l] = row.gamma;
+  w.bias_rate[l] = row.bias_rate;
+  w.friction[l] = row.friction;
+  w.ma[l] = model.body_inv_mass[a];
+  w.mb[l] = model.body_inv_mass[b];
+  w.ia[l] = model.body_inv_inertia[a];
+  w.ib[l] = model.body_inv_inertia[b];
+  const bool two = c.points[m] == 2;
+  w.two[l] = two ? 1.0 : 0.0;
+  for (int k = 0; k < 2; ++k) {
+    WidePoint& p = k == 0 ? w.p0 : w.p1;
+    const bool here = k == 0 || two;  // a one-point manifold's second point is all zero
+    const auto& pt = row.point[k];
+    p.rna[l] = here ? pt.rna : 0.0;
+    p.rnb[l] = here ? pt.rnb : 0.0;
+    p.rta[l] = here ? pt.rta : 0.0;
+    p.rtb[l] = here ? pt.rtb : 0.0;
+    p.kn[l] = here ? pt.kn : 1.0;  // (never used: no division by zero)
+    p.tangent_mass[l] = here ? pt.tangent_mass : 0.0;
+    p.rax[l] = here ? pt.ra.x : 0.0;
+    p.ray[l] = here ? pt.ra.y : 0.0;
+    p.rbx[l] = here ? pt.rb.x : 0.0;
+    p.rby[l] = here ? pt.rb.y : 0.0;
+    p.base[l] = here ? pt.base : 0.0;
+  }
+}
+
+}  // namespace
+
+template <int D>
+std::int64_t color_contacts(const Model<D>& model, Contacts<D>& c) {
+  static_assert(D == 2, "the batches hold 2D solver rows");
+  const std::int64_t n_man = c.count.manifolds;
+  auto& last = c.body_wave;
+  auto& wave = c.manifold_wave;
+  for (auto& w : last) w = 0;
+  std::int32_t n_waves = 0;
+  for (std::int64_t o = 0; o < n_man; ++o) {
+    const std::int32_t m = c.solve_order[o];
+    const int a = c.body_a[m], b = c.body_b[m];
+    const bool da = model.is_dynamic(a), db = model.is_dynamic(b);
+    const std::int32_t k = std::max(da ? last[a] : 0, db ? last[b] : 0);  // waves are 0-based
+    wave[m] = k;
+    if (da) last[a] = k + 1;
+    if (db) last[b] = k + 1;
+    n_waves = std::max(n_waves, k + 1);
+  }
+  // a counting sort by wave, in solve order within a wave
+  auto& start = c.group_start;
+  for (std::int32_t k = 0; k <= n_waves; ++k) start[k] = 0;
+  for (std::int64_t m = 0; m < n_man; ++m) start[wave[m] + 1] += 1;
+  for (std::int32_t k = 0; k < n_waves; ++k) start[k + 1] += start[k];
+  auto& fill = c.group_batch;  // scratch cursors first, the batch ranges after
+  for (std::int32_t k = 0; k <= n_waves; ++k) fill[k] = start[k];
+  // within a wave the two-point manifolds first, then the one-point ones (circles,
+  // capsule ends), each in solve order: the first are solved in batches, the second one
+  // by one (their scalar code is shorter than a batch's two-point code per lane)
+  for (int pass = 2; pass >= 1; --pass) {
+    for (std::int64_t o = 0; o < n_man; ++o) {
+      const std::int32_t m = c.solve_order[o];
+      if ((c.points[m] == 2) == (pass == 2)) c.color_order[fill[wave[m]]++] = m;
+    }
+    if (pass == 2)
+      for (std::int32_t k = 0; k < n_waves; ++k) c.group_single[k] = fill[k];
+  }
+  std::int64_t n_batches = 0;
+  for (std::int32_t k = 0; k < n_waves; ++k) {
+    c.group_batch[k] = n_batches;
+    const std::int64_t end = c.group_single[k];
+    for (std::int64_t i = start[k]; i < end; i += LANES) {
+      WideBatch& w = c.batches[n_batches++];
+      for (int l = 0; l < LANES; ++l) pack_lane(model, c, w, l, i + l < end ? c.color_order[i + l] : -1);
+    }
+  }
+  c.group_batch[n_waves] = n_batches;
+  c.group_count = n_waves;
+  return n_waves;
+}
+
+template std::int64_t color_contacts(const Model<2>&, Contacts<2>&);
+
+}  // namespace rbsim
