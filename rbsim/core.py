@@ -15,8 +15,8 @@ import numpy as np
 
 from . import _core
 from .config import Config, NonFiniteState, make_config
-from .model import Model, State, build
 from .scene import Scene
+from .scene.compile import Model, State, build
 
 
 def _model_arrays(model: Model) -> dict:
@@ -95,24 +95,6 @@ class CoreWorld:
         d = self.engine.storage()
         grid = SimpleNamespace(**d.pop("grid"))
         return SimpleNamespace(grid=grid, **d)
-
-
-# The engines that step a scene, by the name a trajectory records. "rbsim" is the
-# compiled engine; "rbsim-numba" the numba kernels it was ported from, kept until the
-# port is complete so that the two can be held against each other.
-ENGINES = ("rbsim", "rbsim-numba")
-DEFAULT_ENGINE = "rbsim"
-
-
-def make_world(scene: Scene, engine: str = DEFAULT_ENGINE):
-    """A world for `scene` in the named engine (one of ENGINES)."""
-    if engine == "rbsim":
-        return CoreWorld.from_scene(scene)
-    if engine == "rbsim-numba":
-        from .world import World  # imports numba: only when asked for
-
-        return World.from_scene(scene)
-    raise ValueError(f"unknown engine {engine!r}; expected one of {', '.join(ENGINES)}")
 
 
 def collide2d(

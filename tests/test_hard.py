@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rbsim import hard
 from rbsim.constants import LINEAR_SLOP
+from rbsim.tools import hard
 
 SCENES = Path(__file__).resolve().parent.parent / "scenes" / "hard"
 G = 9.81

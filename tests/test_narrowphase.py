@@ -13,14 +13,10 @@ from typing import NamedTuple
 import numpy as np
 import pytest
 
-from rbsim.constants import (
-    SHAPE_CIRCLE,
-    SHAPE_POLYGON,
-    SHAPE_SEGMENT,
-    SPECULATIVE_DISTANCE,
-)
+from rbsim.constants import SPECULATIVE_DISTANCE
 from rbsim.core import collide2d as collide
-from rbsim.narrowphase import REFERENCE_FACE_TOLERANCE, SEGMENT_SKIN
+from rbsim.engines.numba.narrowphase import REFERENCE_FACE_TOLERANCE, SEGMENT_SKIN
+from rbsim.scene.types import SHAPE_CIRCLE, SHAPE_POLYGON, SHAPE_SEGMENT
 
 SPEC = SPECULATIVE_DISTANCE
 TOL = 1e-9

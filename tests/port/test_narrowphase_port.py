@@ -18,8 +18,9 @@ import numpy as np
 import pytest
 
 from rbsim import _core
-from rbsim.constants import SHAPE_CIRCLE, SHAPE_POLYGON, SHAPE_SEGMENT, SPECULATIVE_DISTANCE
-from rbsim.narrowphase import collide
+from rbsim.constants import SPECULATIVE_DISTANCE
+from rbsim.engines.numba.narrowphase import collide
+from rbsim.scene.types import SHAPE_CIRCLE, SHAPE_POLYGON, SHAPE_SEGMENT
 
 SPEC = SPECULATIVE_DISTANCE
 S = 1 << 16

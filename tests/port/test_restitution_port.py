@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 
 from rbsim import constants as C
-from rbsim.contacts import store_impulses
-from rbsim.integrator import integrate_positions, integrate_velocities
-from rbsim.shock import deep_region, propagate_shock
-from rbsim.solver import (
+from rbsim.engines.numba.contacts import store_impulses
+from rbsim.engines.numba.integrator import integrate_positions, integrate_velocities
+from rbsim.engines.numba.shock import deep_region, propagate_shock
+from rbsim.engines.numba.solver import (
     _ALONE,
     _JOINED,
     _PUSHING,
@@ -30,7 +30,7 @@ from rbsim.solver import (
     solve_contacts,
     warm_start,
 )
-from rbsim.world import collide
+from rbsim.engines.numba.world import collide
 
 from .harness import Pair
 

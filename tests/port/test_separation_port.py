@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from rbsim import _core
-from rbsim import reference as R
+from rbsim.engines.numba.world import World
 from rbsim.scene import load_scene_text
-from rbsim.world import World
+from rbsim.tools import reference as R
 
 SCENE = """
 version: 1

@@ -33,9 +33,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from .mass import body_mass_properties
-from .model import Model
-from .scene import Body, Scene
+from ..scene import Body, Scene
+from ..scene.compile import Model
+from ..scene.mass import body_mass_properties
 
 __all__ = [
     "ANALYTIC_KINDS",

@@ -1,6 +1,6 @@
 """The self-contained HTML player: one file that plays a trajectory on a canvas.
 
-The page (template `rbsim/player.html`) draws from the stored numbers, not from
+The page (template `rbsim/view/player.html`, package data) draws from the stored numbers, not from
 pictures: for each shown frame and body, x and y (m) and the angle (rad) as
 little-endian float32, base64-encoded (16 bytes per body and frame), plus each body's
 shapes once. Its size therefore grows with frames x bodies, not with pixels: 1000 bodies
@@ -113,7 +113,7 @@ def _track(
 
 def page_text(data: dict[str, object], title: str) -> str:
     """The player page with `data` (the JSON the page reads) and `title` filled in."""
-    template = resources.files("rbsim").joinpath(TEMPLATE).read_text(encoding="utf-8")
+    template = resources.files(__package__).joinpath(TEMPLATE).read_text(encoding="utf-8")
     # "</" could end the <script> element early (a body named "</script>"): escape it.
     payload = json.dumps(data, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
     return template.replace("{{TITLE}}", html.escape(title)).replace("{{DATA}}", payload)

@@ -43,6 +43,8 @@ from types import TracebackType
 import h5py
 import numpy as np
 
+from ..scene.types import BODY_TYPES, SHAPE_KINDS
+
 __all__ = [
     "BodyTable",
     "Trajectory",
@@ -52,8 +54,6 @@ __all__ = [
 ]
 
 H5MD_VERSION = (1, 1)
-BODY_TYPES = ("dynamic", "static", "kinematic")
-SHAPE_KINDS = ("circle", "box", "polygon", "segment")
 STATUS_RUNNING = "running"
 
 # Per-body time series: name -> (components per body, unit). 0 components = (T,N).

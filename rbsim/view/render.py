@@ -19,7 +19,7 @@ from types import TracebackType
 import h5py
 import numpy as np
 
-from .trajectory import (
+from ..io.trajectory import (
     BodyTable,
     _frame_count,
     _open_for_reading,

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 import h5py
 import numpy as np
 
+from ..io.trajectory import _frame_count, _open_for_reading, _read_parameters
 from .render import RenderError, _need_matplotlib
-from .trajectory import _frame_count, _open_for_reading, _read_parameters
 
 __all__ = ["Observables", "plot_observables", "read_observables"]
 
