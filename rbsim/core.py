@@ -132,3 +132,25 @@ def collide2d(
     out_sep[:n] = sep[:n]
     out_id[:n] = ids[:n]
     return int(n)
+
+
+def min_separation(
+    verts: np.ndarray,
+    vstart: np.ndarray,
+    vcount: np.ndarray,
+    radius: np.ndarray,
+    pairs: np.ndarray,
+) -> np.ndarray:
+    """The engine's penetration ruler: per pair of shapes (P,) the signed distance (m) of
+    their cores (SAT for two polygons or segments, exact for a circle centre), minus both
+    radii; negative when they overlap.
+
+    verts (V,2) world-frame vertices, m; vstart, vcount (S,) each shape's rows of verts;
+    radius (S,) m; pairs (P,2) shape indices."""
+    return _core.min_separation(
+        np.ascontiguousarray(verts, np.float64),
+        np.ascontiguousarray(vstart, np.int32),
+        np.ascontiguousarray(vcount, np.int32),
+        np.ascontiguousarray(radius, np.float64),
+        np.ascontiguousarray(pairs, np.int32).reshape(-1, 2),
+    )

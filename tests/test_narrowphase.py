@@ -1,4 +1,5 @@
-"""Contact manifolds between pairs of shapes (rbsim.narrowphase).
+"""Contact manifolds between pairs of shapes (the compiled engine's collide2d, with
+rbsim.engines.numba.narrowphase's constants).
 
 Every test places shapes in the world with an analytic gap or overlap and checks the
 manifold: point count, separation, the normal pointing from shape b towards shape a,

@@ -3,7 +3,7 @@
 Every key of a scene file is a :class:`Key`: its kind, default, allowed values, range
 and description. Two things are driven from the table:
 
-- :func:`check_scene` validates a parsed tree (see rbsim.yamlsrc) against it, fills
+- :func:`check_scene` validates a parsed tree (see rbsim.scene.yamlsrc) against it, fills
   defaults and reports every problem with its location and key path;
 - :func:`json_schema` turns it into a JSON Schema (draft 2020-12) for editors
   (yaml-language-server: ``# yaml-language-server: $schema=rbsim-schema.json``).

@@ -1,12 +1,12 @@
 """The hard cases: numerical stability on scenes that break naive solvers (issue 6).
 
-Each case names its scene(s) in scenes/hard/ (every parameter is in the scene file,
-with a comment on what it tests), measures figures from a run, and holds them to
-rules (figure, comparison, limit, reason). A case runs with either engine: rbsim
-(its compiled engine, stepped in blocks, the state read between blocks, no trajectory
-file; `--engine rbsim-numba` runs the numba engine it was ported from instead)
-or pymunk (pymunk_bridge.PymunkWorld, steps of dt / solver.substeps and 10 iterations,
-as `rbsim compare` runs it). The same measuring code reads both engines' states.
+Each case names its scene(s) in rbsim/scenes/hard/ (package data; every parameter is in
+the scene file, with a comment on what it tests), measures figures from a run, and holds
+them to rules (figure, comparison, limit, reason). A case runs with any engine, through
+rbsim.engines' one interface (an Engine stepped in blocks, its Snapshot read between
+blocks, no trajectory file): rbsim (the compiled engine; `--engine rbsim-numba` runs the
+numba engine it was ported from instead) or pymunk (steps of dt / solver.substeps and 10
+iterations, as `rbsim compare` runs it). The same measuring code reads every state.
 
     python -m rbsim.tools.hard                     # every case, both engines, as a table
     python -m rbsim.tools.hard stack pyramid_20    # some cases

@@ -31,7 +31,8 @@ from ..engines import Engine, NonFiniteState, Snapshot, make_engine
 from ..engines.pymunk import PymunkSettings
 from ..scene import Scene
 from ..scene import types as T
-from .reference import Poses, Reference, make_reference, penetration, pose_error, touching_pairs
+from .measure import penetration, touching_pairs
+from .reference import Poses, Reference, make_reference, pose_error
 
 __all__ = [
     "DEFAULT_DTS",

@@ -25,9 +25,9 @@ from .render import (
     Progress,
     RenderError,
     View,
-    _no_frames_message,
     fit_view,
     match_frames,
+    no_frames_message,
     sample_frames,
     shape_outline,
     shape_vertices,
@@ -145,7 +145,7 @@ def render_html(
     with FrameReader(path) as main:
         idx = sample_frames(main.time, fps, start, end)
         if not len(idx):
-            raise RenderError(_no_frames_message(main, start, end))
+            raise RenderError(no_frames_message(main, start, end))
         times = main.time[idx]
         other = FrameReader(overlay) if overlay is not None else None
         try:

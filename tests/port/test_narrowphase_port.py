@@ -1,4 +1,5 @@
-"""The C++ narrowphase (rbsim._core.collide2d) against the numba one (rbsim.narrowphase.collide).
+"""The C++ narrowphase (rbsim._core.collide2d) against the numba one
+(rbsim.engines.numba.narrowphase.collide).
 
 Every kind pair in both orders (circle, polygon incl. boxes and triangles, segment with and
 without radius), on hand-made configurations (touching, deep, parallel faces, corner to

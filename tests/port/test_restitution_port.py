@@ -1,6 +1,6 @@
 """The C++ restitution stage (keep_solve_impulses, apply_restitution) against the numba one.
 
-The numba step is replayed stage by stage (as rbsim/world.py's step calls them); at
+The numba step is replayed stage by stage (as rbsim/engines/numba/world.py's step calls them); at
 keep_solve_impulses (its first 100 calls, then wherever a bounce is listed) and at every
 apply_restitution that has something to do (bounce_count != bounce_carried, up to
 max_checks), the whole numba state and storage is copied into the C++ engine, the stage

@@ -1,4 +1,5 @@
-"""The C++ shock pass (cpp/src/solver/shock.cpp) against the numba one (rbsim/shock.py).
+"""The C++ shock pass (cpp/src/solver/shock.cpp) against the numba one
+(rbsim/engines/numba/shock.py).
 
 Each case steps the numba engine to a moment, then runs the numba stages of one step by
 hand (world.py's step) up to the shock pass of a chosen substep, so that the shock

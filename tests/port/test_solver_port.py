@@ -2,7 +2,7 @@
 limit_static_overlap) against the numba ones, on the same inputs.
 
 Each scene is stepped by the numba engine to a few moments; then one more step is taken
-stage by stage by hand (the order of rbsim/world.py's step), and before each of the
+stage by stage by hand (the order of rbsim/engines/numba/world.py's step), and before each of the
 four solver stages the numba state and storage are copied into the C++ engine and the
 stage runs in both: every solve and relax pass of every substep, the extra relax passes
 over relax_list near a deep overlap, prepare before them and the overlap limit after.
