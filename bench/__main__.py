@@ -20,6 +20,7 @@ from rbsim import constants as C
 from rbsim.engines import Engine, make_engine
 from rbsim.engines.pymunk import PymunkSettings
 from rbsim.scene import load_scene
+from rbsim.tools.measure import block_times
 
 HERE = Path(__file__).parent
 SCENES = ["pyramid20", "circles1000", "pyramid40", "pyramids4x4"]
@@ -31,12 +32,7 @@ REPEATS = 5
 def time_engine(engine: Engine) -> tuple[float, int]:
     """Median µs per step and the contact points at the end: WARMUP steps, then REPEATS
     timed blocks of STEPS steps (wall time)."""
-    engine.advance(WARMUP)
-    samples = []
-    for _ in range(REPEATS):
-        t0 = time.perf_counter()
-        engine.advance(STEPS)
-        samples.append((time.perf_counter() - t0) / STEPS * 1e6)
+    samples = block_times(engine, WARMUP, STEPS, REPEATS, time.perf_counter)
     return statistics.median(samples), engine.contact_count
 
 

@@ -1,12 +1,20 @@
-"""One penetration ruler: how deep two shapes of a pose overlap, from the model's shapes
-at given centres of mass and angles, by the engine's own separation function
-(rbsim.core.min_separation: SAT separation of the shapes' cores minus their radii)."""
+"""What the tools measure the same way.
+
+- One penetration ruler: how deep two shapes of a pose overlap, from the model's shapes
+  at given centres of mass and angles, by the engine's own separation function
+  (rbsim.core.min_separation: SAT separation of the shapes' cores minus their radii).
+- One stopwatch for engines stepped in blocks (block_times).
+"""
 
 from __future__ import annotations
+
+import time
+from collections.abc import Callable
 
 import numpy as np
 
 from ..core import min_separation
+from ..engines import Engine
 from ..scene import types as T
 from ..scene.compile import Model
 
@@ -54,3 +62,21 @@ def penetration(model: Model, pairs: np.ndarray, x: np.ndarray, theta: np.ndarra
     verts = vertices_world(model, x, theta)
     sep = min_separation(verts, model.shape_vstart, model.shape_vcount, model.shape_radius, pairs)
     return max(0.0, -float(sep.min()))
+
+
+def block_times(
+    engine: Engine,
+    warmup: int,
+    block: int,
+    repeats: int,
+    clock: Callable[[], float] = time.process_time,
+) -> list[float]:
+    """µs per step of `repeats` blocks of `block` steps, after `warmup` untimed steps, by
+    `clock` (s; CPU time by default, time.perf_counter for wall time)."""
+    engine.advance(warmup)
+    times = []
+    for _ in range(repeats):
+        t0 = clock()
+        engine.advance(block)
+        times.append((clock() - t0) / block * 1e6)
+    return times

@@ -31,7 +31,7 @@ from ..engines import Engine, NonFiniteState, Snapshot, make_engine
 from ..engines.pymunk import PymunkSettings
 from ..scene import Scene
 from ..scene import types as T
-from .measure import penetration, touching_pairs
+from .measure import block_times, penetration, touching_pairs
 from .reference import Poses, Reference, make_reference, pose_error
 
 __all__ = [
@@ -767,8 +767,8 @@ def measure_scaling(
     out = []
     for base in bases:
         scene = pile_scene(base)
-        rb = _block_times(make_engine("rbsim", scene), warmup, block, repeats)
-        pm = _block_times(
+        rb = block_times(make_engine("rbsim", scene), warmup, block, repeats)
+        pm = block_times(
             make_engine("pymunk", scene, settings=PymunkSettings(iterations=10)),
             warmup,
             block,
@@ -776,17 +776,6 @@ def measure_scaling(
         )
         out.append(ScalingPoint(len(scene.bodies), statistics.median(rb), statistics.median(pm)))
     return out
-
-
-def _block_times(engine: Engine, warmup: int, block: int, repeats: int) -> list[float]:
-    """CPU µs per step of `repeats` blocks of `block` steps, after `warmup` steps."""
-    engine.advance(warmup)
-    times = []
-    for _ in range(repeats):
-        t0 = time.process_time()
-        engine.advance(block)
-        times.append((time.process_time() - t0) / block * 1e6)
-    return times
 
 
 def fitted_slope(n: Sequence[float], cost: Sequence[float]) -> float:
