@@ -58,7 +58,6 @@ sanitize: $(BUILD_DEPS)
 	$(BIN)/python -m pip install --quiet --no-build-isolation --no-deps --upgrade \
 		--target $(SANITIZE_DIR)/site -C build-dir=$(SANITIZE_DIR)/build -C install.strip=false -C cmake.build-type=RelWithDebInfo \
 		-C cmake.define.RBSIM_SANITIZE=ON -C cmake.define.CMAKE_CXX_FLAGS=-D_GLIBCXX_ASSERTIONS .
-	ln -sfn $(CURDIR)/scenes $(SANITIZE_DIR)/site/scenes  # rbsim.hard finds scenes/ beside the package
 	$(SANITIZE_ENV) $(BIN)/python -S -P -c "import rbsim._core as c, os, sys; \
 		print('sanitized engine:', c.__file__); \
 		so = open(c.__file__, 'rb').read(); \
@@ -76,7 +75,7 @@ demo: $(STAMP)
 
 batch: $(OUTS)
 
-out/%.h5: scenes/%.yaml $(STAMP) $(wildcard rbsim/*.py)
+out/%.h5: scenes/%.yaml $(STAMP) $(wildcard rbsim/*.py rbsim/*/*.py)
 	@mkdir -p out
 	$(BIN)/rbsim run $< -o $@ --quiet
 
@@ -97,13 +96,14 @@ bench: $(STAMP)
 # README's hard-case block (about 2 min; pymunk's base-100 pyramid is half of it).
 .PHONY: hard
 hard: $(STAMP)
-	$(BIN)/python -m rbsim.hard --readme README.md
+	$(BIN)/python -m rbsim.tools.hard --readme README.md
 
 # Speed against error on scenes/reference/ and cost against bodies, both engines:
 # regenerates reports/work-precision.md, its plots and reports/data/ (about 10 min).
 .PHONY: report
 report: $(STAMP)
-	$(BIN)/python -m rbsim.report -o reports
+	$(BIN)/python -m rbsim.tools.report -o reports
 
 clean:
-	rm -rf out .pytest_cache build *.egg-info rbsim/__pycache__ tests/__pycache__ bench/__pycache__
+	rm -rf out .pytest_cache build *.egg-info tests/__pycache__ bench/__pycache__
+	find rbsim -name __pycache__ -type d -prune -exec rm -rf {} +

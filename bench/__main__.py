@@ -17,9 +17,10 @@ import time
 from pathlib import Path
 
 from rbsim import constants as C
-from rbsim.core import make_world
-from rbsim.pymunk_bridge import PymunkSettings, PymunkWorld
+from rbsim.engines import Engine, make_engine
+from rbsim.engines.pymunk import PymunkSettings
 from rbsim.scene import load_scene
+from rbsim.tools.measure import block_times
 
 HERE = Path(__file__).parent
 SCENES = ["pyramid20", "circles1000", "pyramid40", "pyramids4x4"]
@@ -28,31 +29,17 @@ STEPS = 60
 REPEATS = 5
 
 
-def time_rbsim(scene, engine: str = "rbsim") -> tuple[float, int]:
-    """Median µs per step and the contact points at the end, for rbsim (the compiled
-    engine, or "rbsim-numba")."""
-    world = make_world(scene, engine)
-    world.advance(WARMUP)
-    samples = []
-    for _ in range(REPEATS):
-        t0 = time.perf_counter()
-        world.advance(STEPS)
-        samples.append((time.perf_counter() - t0) / STEPS * 1e6)
-    return statistics.median(samples), world.contact_count
+def time_engine(engine: Engine) -> tuple[float, int]:
+    """Median µs per step and the contact points at the end: WARMUP steps, then REPEATS
+    timed blocks of STEPS steps (wall time)."""
+    samples = block_times(engine, WARMUP, STEPS, REPEATS, time.perf_counter)
+    return statistics.median(samples), engine.contact_count
 
 
-def time_pymunk(scene, iterations: int) -> tuple[float, int]:
-    """Median µs per step and the contact points at the end, for pymunk."""
-    pw = PymunkWorld(scene, PymunkSettings(iterations=iterations, collision_slop=C.LINEAR_SLOP))
-    for _ in range(WARMUP):
-        pw.step()
-    samples = []
-    for _ in range(REPEATS):
-        t0 = time.perf_counter()
-        for _ in range(STEPS):
-            pw.step()
-        samples.append((time.perf_counter() - t0) / STEPS * 1e6)
-    return statistics.median(samples), int(pw.observables()["contact_count"])
+def pymunk_engine(scene, iterations: int) -> Engine:  # noqa: ANN001 - a Scene
+    """pymunk with `iterations` iterations per step of dt and rbsim's collision slop."""
+    settings = PymunkSettings(iterations=iterations, collision_slop=C.LINEAR_SLOP)
+    return make_engine("pymunk", scene, settings=settings)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -73,14 +60,14 @@ def main(argv: list[str] | None = None) -> int:
     print("-" * len(header))
     for name in args.scenes:
         scene = load_scene(HERE / "scenes" / f"{name}.yaml")
-        rb, rb_contacts = time_rbsim(scene)
-        pm, _ = time_pymunk(scene, args.iterations)
+        rb, rb_contacts = time_engine(make_engine("rbsim", scene))
+        pm, _ = time_engine(pymunk_engine(scene, args.iterations))
         row = (
             f"{name:<14}{len(scene.bodies):>8}{rb_contacts:>10}{rb:>11.1f}{pm:>11.1f}"
             f"{rb / pm:>8.2f}"
         )
         if args.numba:
-            nb, _ = time_rbsim(scene, "rbsim-numba")
+            nb, _ = time_engine(make_engine("rbsim-numba", scene))
             row += f"{nb:>11.1f}{nb / pm:>8.2f}"
         print(row, flush=True)
     return 0

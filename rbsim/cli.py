@@ -169,8 +169,8 @@ def _run(
     engine: str = "rbsim",
 ) -> RunSummary:
     """Load and run SCENE; every expected failure becomes a message and an exit code."""
-    from .model import ModelError
     from .run import RunFailed, run_scene
+    from .scene.compile import ModelError
 
     sc = _load(scene, overrides)
     out = Path(output) if output else Path("out") / f"{sc.name}.h5"
@@ -214,7 +214,7 @@ def info(trajectory: str) -> None:
     """Summarise a trajectory file written by rbsim (either engine)."""
     import h5py
 
-    from .trajectory import summarize
+    from .io.trajectory import summarize
 
     try:
         if not h5py.is_hdf5(trajectory):
@@ -283,10 +283,10 @@ def compare(
 ) -> None:
     """Run SCENE in rbsim and in pymunk and report their differences (exit 4 when a
     difference exceeds its tolerance)."""
-    from .compare import compare_scene
-    from .model import ModelError
-    from .pymunk_bridge import UnsupportedScene
+    from .engines.pymunk import UnsupportedScene
     from .run import RunFailed
+    from .scene.compile import ModelError
+    from .tools.compare import compare_scene
 
     sc = _load(scene, overrides)
     pm_sc = _load(scene, overrides + pymunk_overrides) if pymunk_overrides else None
@@ -376,7 +376,7 @@ def render(
     quiet: bool,
 ) -> None:
     """Draw TRAJECTORY into an animated GIF or a self-contained HTML player."""
-    from .render import GIF_MAX_FPS, RenderError, View, render_gif
+    from .view.render import GIF_MAX_FPS, RenderError, View, render_gif
 
     out = Path(output) if output else Path(trajectory).with_suffix(".gif")
     kind = out.suffix.lower()
@@ -408,7 +408,7 @@ def render(
             )  # fmt: skip
             line = f"{result.frames} frames, {result.width}x{result.height} px"
         else:
-            from .player import render_html
+            from .view.player import render_html
 
             page = render_html(
                 trajectory, out, fps=fps, view=chosen, overlay=overlay, start=start, end=end,
@@ -441,8 +441,8 @@ def render(
 )
 def plot(trajectories: tuple[str, ...], output: str | None) -> None:
     """Plot energy and momentum over time for one or several trajectories."""
-    from .plot import plot_observables
-    from .render import RenderError
+    from .view.plot import plot_observables
+    from .view.render import RenderError
 
     first = Path(trajectories[0])
     out = Path(output) if output else first.with_name(first.stem + ".energy.png")
@@ -511,10 +511,10 @@ def sweep(
 ) -> None:
     """Speed against error: run SCENE over a grid of settings in rbsim and pymunk, print
     the table and write CSV, JSON and a log-log plot with each engine's Pareto front."""
-    from .model import ModelError
-    from .pymunk_bridge import UnsupportedScene
-    from .reference import ReferenceError
-    from .sweep import Grid, PlotUnavailable, SweepError, parse_list, run_sweep
+    from .engines.pymunk import UnsupportedScene
+    from .scene.compile import ModelError
+    from .tools.reference import ReferenceError
+    from .tools.sweep import Grid, PlotUnavailable, SweepError, parse_list, run_sweep
 
     lists = {
         "--dt": (dts, "dts", "dt"),
@@ -566,7 +566,7 @@ def sweep(
 @main.command()
 def schema() -> None:
     """Print the JSON Schema of the scene format (for editors)."""
-    from .schema import json_schema
+    from .scene.schema import json_schema
 
     click.echo(json.dumps(json_schema(), indent=2))
 

@@ -9,9 +9,7 @@ from typing import NamedTuple
 
 from . import constants as C
 from .scene import Scene
-
-MIX_SQRT, MIX_MULTIPLY, MIX_MIN, MIX_MAX = 0, 1, 2, 3
-MIXING = {"sqrt": MIX_SQRT, "multiply": MIX_MULTIPLY, "min": MIX_MIN, "max": MIX_MAX}
+from .scene.types import MIXING
 
 
 class NonFiniteState(RuntimeError):

@@ -4,15 +4,6 @@ The solver follows the "soft step" design (sub-stepping, soft contact constraint
 a relax pass, restitution applied last). Values are SI: metres, seconds, radians.
 """
 
-# Shape kinds as stored in Model.shape_kind. A box is stored as a polygon.
-SHAPE_CIRCLE = 0
-SHAPE_POLYGON = 1
-SHAPE_SEGMENT = 2  # a segment with a radius is a capsule
-
-BODY_DYNAMIC = 0
-BODY_STATIC = 1
-BODY_KINEMATIC = 2
-
 # Contacts closer than this are created before the shapes touch, so that the solver
 # can stop an approaching body exactly at the surface (no tunneling within one step).
 # m; typically 4 * LINEAR_SLOP. Larger values create more contacts (slower).

@@ -15,8 +15,8 @@ import numpy as np
 
 from . import _core
 from .config import Config, NonFiniteState, make_config
-from .model import Model, State, build
 from .scene import Scene
+from .scene.compile import Model, State, build
 
 
 def _model_arrays(model: Model) -> dict:
@@ -97,24 +97,6 @@ class CoreWorld:
         return SimpleNamespace(grid=grid, **d)
 
 
-# The engines that step a scene, by the name a trajectory records. "rbsim" is the
-# compiled engine; "rbsim-numba" the numba kernels it was ported from, kept until the
-# port is complete so that the two can be held against each other.
-ENGINES = ("rbsim", "rbsim-numba")
-DEFAULT_ENGINE = "rbsim"
-
-
-def make_world(scene: Scene, engine: str = DEFAULT_ENGINE):
-    """A world for `scene` in the named engine (one of ENGINES)."""
-    if engine == "rbsim":
-        return CoreWorld.from_scene(scene)
-    if engine == "rbsim-numba":
-        from .world import World  # imports numba: only when asked for
-
-        return World.from_scene(scene)
-    raise ValueError(f"unknown engine {engine!r}; expected one of {', '.join(ENGINES)}")
-
-
 def collide2d(
     kind_a: int,
     start_a: int,
@@ -150,3 +132,25 @@ def collide2d(
     out_sep[:n] = sep[:n]
     out_id[:n] = ids[:n]
     return int(n)
+
+
+def min_separation(
+    verts: np.ndarray,
+    vstart: np.ndarray,
+    vcount: np.ndarray,
+    radius: np.ndarray,
+    pairs: np.ndarray,
+) -> np.ndarray:
+    """The engine's penetration ruler: per pair of shapes (P,) the signed distance (m) of
+    their cores (SAT for two polygons or segments, exact for a circle centre), minus both
+    radii; negative when they overlap.
+
+    verts (V,2) world-frame vertices, m; vstart, vcount (S,) each shape's rows of verts;
+    radius (S,) m; pairs (P,2) shape indices."""
+    return _core.min_separation(
+        np.ascontiguousarray(verts, np.float64),
+        np.ascontiguousarray(vstart, np.int32),
+        np.ascontiguousarray(vcount, np.int32),
+        np.ascontiguousarray(radius, np.float64),
+        np.ascontiguousarray(pairs, np.int32).reshape(-1, 2),
+    )

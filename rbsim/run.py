@@ -21,12 +21,9 @@ from types import FrameType
 import numpy as np
 
 from . import __version__
-from .config import NonFiniteState
-from .core import DEFAULT_ENGINE, make_world
-from .model import Model, body_origin
-from .observables import observables
+from .engines import DEFAULT_ENGINE, Engine, NonFiniteState, make_engine
+from .io.trajectory import BodyTable, TrajectoryWriter
 from .scene import Scene, scene_to_dict
-from .trajectory import BodyTable, TrajectoryWriter
 
 # at most this many steps between returns to Python, so Ctrl-C and progress stay lively
 MAX_CHUNK = 256
@@ -135,8 +132,9 @@ class RunSummary:
         )
 
 
-def body_table(scene: Scene, model: Model) -> BodyTable:
-    """Static per-body data for the trajectory file (body frame, SI units)."""
+def body_table(scene: Scene, engine: Engine) -> BodyTable:
+    """Static per-body data for the trajectory file (body frame, SI units), with the
+    engine's own mass properties."""
     shape_body, kinds, radius, start, count, verts = [], [], [], [], [], []
     for i, body in enumerate(scene.bodies):
         for shape in body.shapes:
@@ -149,9 +147,9 @@ def body_table(scene: Scene, model: Model) -> BodyTable:
     return BodyTable(
         name=[b.name for b in scene.bodies],
         type=[b.type for b in scene.bodies],
-        mass=model.body_mass.copy(),
-        moment_of_inertia=model.body_inertia.copy(),
-        center_of_mass=model.body_com.copy(),
+        mass=engine.mass.copy(),
+        moment_of_inertia=engine.inertia.copy(),
+        center_of_mass=engine.com_local.copy(),
         shape_body=np.asarray(shape_body, np.int32),
         shape_kind=kinds,
         shape_radius=np.asarray(radius, np.float64),
@@ -174,20 +172,20 @@ def parameters(scene: Scene, engine: str, settings: dict | None = None) -> dict[
     }
 
 
-def write_frame(writer: TrajectoryWriter, world) -> None:  # noqa: ANN001 - any engine's world
-    """Append the world's current state as one frame. Observables that overflow (a
+def write_frame(writer: TrajectoryWriter, world: Engine) -> None:
+    """Append the engine's current state as one frame. Observables that overflow (a
     state racing towards infinity) are stored as inf without a numpy warning."""
-    model, state = world.model, world.state
+    s = world.read()
     with np.errstate(over="ignore", invalid="ignore"):
-        obs = observables(model, state, world.contact_count)
+        obs = world.observables()
     writer.append(
         world.step_index,
         world.time,
-        body_origin(model, state),
-        state.body_q,
-        state.body_angle,
-        state.body_v,
-        state.body_w,
+        s.origin,
+        s.orientation,
+        s.angle,
+        s.velocity,
+        s.angular_velocity,
         obs,
     )
 
@@ -198,6 +196,7 @@ def run_scene(
     progress: Callable[[int, int], None] | None = None,
     signals: Collection[signal.Signals] = (signal.SIGINT,),
     engine: str = DEFAULT_ENGINE,
+    options: dict | None = None,
 ) -> RunSummary:
     """Step `scene` for world.steps steps, writing frames to `out` (HDF5, H5MD layout).
 
@@ -209,20 +208,21 @@ def run_scene(
     "interrupted", and RunInterrupted (a KeyboardInterrupt) is raised. Interrupted
     before the file is created (while the model is built), KeyboardInterrupt propagates
     as it is. See _Interrupts for when a signal takes effect. `engine`: one of
-    core.ENGINES ("rbsim", the compiled engine; "rbsim-numba").
+    engines.ENGINES ("rbsim", the compiled engine; "rbsim-numba"; "pymunk"), built with
+    `options` (pymunk: {"settings": PymunkSettings(...)}). The summary's step_time is
+    the engine's own (pymunk: inside space.step only).
     """
     t0 = time.perf_counter()
     interrupts = _Interrupts(signals)
     with interrupts.installed():
-        world = make_world(scene, engine)
+        world = make_engine(engine, scene, **(options or {}))
         total = scene.world.steps
         every = scene.output.every
-        step_time = 0.0
         with interrupts.held():
             writer = TrajectoryWriter(
                 out,
-                bodies=body_table(scene, world.model),
-                parameters=parameters(scene, engine),
+                bodies=body_table(scene, world),
+                parameters=parameters(scene, engine, world.settings or None),
                 engine=engine,
             )
         status = "failed"  # made precise below
@@ -233,18 +233,7 @@ def run_scene(
             while world.step_index < total:
                 to_frame = every - world.step_index % every
                 n = min(to_frame, total - world.step_index, MAX_CHUNK)
-                ts = time.perf_counter()
-                try:
-                    world.advance(n)
-                except NonFiniteState as err:
-                    name = scene.bodies[err.body].name
-                    status = f"failed: body {name!r} became non-finite at step {err.step}"
-                    raise RunFailed(
-                        f"{scene.path}: the state of body {name!r} became non-finite at step "
-                        f"{err.step} (t = {err.step * scene.world.dt:g} s); "
-                        f"{_frames(writer.frames_written)} before it kept in {out}"
-                    ) from None
-                step_time += time.perf_counter() - ts
+                world.advance(n)
                 interrupts.check()
                 if world.step_index % every == 0 or world.step_index == total:
                     with interrupts.held():
@@ -253,6 +242,14 @@ def run_scene(
                 if progress is not None:
                     progress(world.step_index, total)
             status = "complete"
+        except NonFiniteState as err:  # from a step, or from reading a frame (pymunk)
+            name = scene.bodies[err.body].name
+            status = f"failed: body {name!r} became non-finite at step {err.step}"
+            raise RunFailed(
+                f"{scene.path}: the state of body {name!r} became non-finite at step "
+                f"{err.step} (t = {err.step * scene.world.dt:g} s); "
+                f"{_frames(writer.frames_written)} before it kept in {out}"
+            ) from None
         except KeyboardInterrupt:
             status = "interrupted"
             raise RunInterrupted(str(out), writer.frames_written, last_step) from None
@@ -268,6 +265,6 @@ def run_scene(
         bodies=len(scene.bodies),
         frames=writer.frames_written,
         wall_time=time.perf_counter() - t0,
-        step_time=step_time,
+        step_time=world.step_time,
         path=str(out),
     )

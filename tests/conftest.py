@@ -9,8 +9,8 @@ import pytest
 from click.testing import CliRunner
 
 from rbsim import cli
+from rbsim.io.trajectory import Trajectory, load_trajectory
 from rbsim.scene import Scene, load_scene_text
-from rbsim.trajectory import Trajectory, load_trajectory
 
 
 def scene_from(text: str, overrides: tuple[str, ...] = ()) -> Scene:

@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rbsim.broadphase import BIG_MAX
-from rbsim.constants import BODY_DYNAMIC
 from rbsim.core import CoreWorld as World
+from rbsim.engines.numba.broadphase import BIG_MAX
+from rbsim.scene.types import BODY_DYNAMIC
 
 from .conftest import scene_from
 

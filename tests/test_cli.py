@@ -24,9 +24,9 @@ import pytest
 import yaml
 
 from rbsim import cli
+from rbsim.io.trajectory import load_trajectory
 from rbsim.scene import load_scene_text, scene_to_dict
-from rbsim.schema import json_schema
-from rbsim.trajectory import load_trajectory
+from rbsim.scene.schema import json_schema
 
 from .conftest import rbsim
 

@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rbsim.compare import BodyDiff, CompareResult, compare_scene
+from rbsim.io.trajectory import load_trajectory
 from rbsim.scene import load_scene
-from rbsim.trajectory import load_trajectory
+from rbsim.tools.compare import BodyDiff, CompareResult, compare_scene
 
 from .conftest import rbsim, scene_from
 
@@ -275,7 +275,7 @@ def test_statistics_of_a_resting_stack(tmp_path: Path):
 
 
 def test_max_penetration_measures_a_known_overlap(tmp_path: Path):
-    from rbsim.compare import max_penetration
+    from rbsim.tools.compare import max_penetration
 
     scene = scene_from(
         """

@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rbsim.constants import BODY_DYNAMIC
 from rbsim.core import CoreWorld as World
-from rbsim.narrowphase import SEGMENT_SKIN
+from rbsim.engines.numba.narrowphase import SEGMENT_SKIN
 from rbsim.scene import load_scene
+from rbsim.scene.types import BODY_DYNAMIC
 
 from .conftest import scene_from
 

@@ -1,6 +1,6 @@
 """The hard cases of issue 6, run with rbsim: what must hold on each.
 
-Each case is measured once per session by rbsim.hard (the same code that prints
+Each case is measured once per session by rbsim.tools.hard (the same code that prints
 `make hard`'s table) and every check below states its tolerance and the reason for it.
 `must` also checks that hard.py's table judges the figure by the same rule, so the
 table and the tests cannot drift apart. Where rbsim fails a case today the test is an
@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rbsim import hard
 from rbsim.constants import LINEAR_SLOP
+from rbsim.tools import hard
 
 SCENES = Path(__file__).resolve().parent.parent / "scenes" / "hard"
 G = 9.81

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from rbsim.mass import body_mass_properties
+from rbsim.scene.mass import body_mass_properties
 from tests.conftest import scene_from
 
 

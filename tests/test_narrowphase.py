@@ -1,4 +1,5 @@
-"""Contact manifolds between pairs of shapes (rbsim.narrowphase).
+"""Contact manifolds between pairs of shapes (the compiled engine's collide2d, with
+rbsim.engines.numba.narrowphase's constants).
 
 Every test places shapes in the world with an analytic gap or overlap and checks the
 manifold: point count, separation, the normal pointing from shape b towards shape a,
@@ -13,14 +14,10 @@ from typing import NamedTuple
 import numpy as np
 import pytest
 
-from rbsim.constants import (
-    SHAPE_CIRCLE,
-    SHAPE_POLYGON,
-    SHAPE_SEGMENT,
-    SPECULATIVE_DISTANCE,
-)
+from rbsim.constants import SPECULATIVE_DISTANCE
 from rbsim.core import collide2d as collide
-from rbsim.narrowphase import REFERENCE_FACE_TOLERANCE, SEGMENT_SKIN
+from rbsim.engines.numba.narrowphase import REFERENCE_FACE_TOLERANCE, SEGMENT_SKIN
+from rbsim.scene.types import SHAPE_CIRCLE, SHAPE_POLYGON, SHAPE_SEGMENT
 
 SPEC = SPECULATIVE_DISTANCE
 TOL = 1e-9

@@ -15,7 +15,7 @@ import numpy as np
 import pymunk
 import pytest
 
-from rbsim.pymunk_bridge import PymunkSettings, PymunkWorld, UnsupportedScene, run_pymunk
+from rbsim.engines.pymunk import PymunkSettings, PymunkWorld, UnsupportedScene, run_pymunk
 from rbsim.scene import Body, Material, Output, Scene, Shape, Solver, World
 
 WOOD = Material(density=2.0, friction=0.6, restitution=0.0)

@@ -15,7 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rbsim.render import (
+from rbsim.io.trajectory import BodyTable, TrajectoryWriter
+from rbsim.view.render import (
     COLOURS,
     FrameReader,
     View,
@@ -24,7 +25,6 @@ from rbsim.render import (
     render_gif,
     sample_frames,
 )
-from rbsim.trajectory import BodyTable, TrajectoryWriter
 from tests.conftest import rbsim, scene_from
 
 PIL = pytest.importorskip("PIL", reason="the plot extra: pip install -e '.[plot]'")
@@ -221,7 +221,7 @@ def test_render_reads_only_the_frames_it_shows(tmp_path, monkeypatch):
 
 
 def test_gif_of_a_pymunk_trajectory_with_every_shape_kind(tmp_path):
-    from rbsim.compare import pymunk_settings_for, run_pymunk_to_file
+    from rbsim.tools.compare import pymunk_settings_for, run_pymunk_to_file
 
     scene = scene_from(
         """
@@ -303,7 +303,7 @@ def test_plot_draws_energy_and_momentum_of_several_trajectories(tmp_path):
     assert code == 0, err
     with Image.open(tmp_path / "e.png") as im:
         assert im.size[0] > 300 and im.size[1] > 300
-    from rbsim.plot import read_observables
+    from rbsim.view.plot import read_observables
 
     obs = read_observables(b)
     assert obs.label == "b.h5 (pymunk)"
@@ -318,7 +318,7 @@ def test_plot_draws_energy_and_momentum_of_several_trajectories(tmp_path):
 
 
 def test_html_page_is_self_contained_and_grows_with_frames_times_bodies(tmp_path):
-    from rbsim.player import render_html
+    from rbsim.view.player import render_html
 
     path = write_trajectory(tmp_path / "t.h5", frames=41)
     small = render_html(path, tmp_path / "a.html", fps=5)
@@ -454,7 +454,7 @@ def test_html_player_overlays_a_second_trajectory_in_its_own_colour(tmp_path, br
 
 
 def test_html_player_stays_usable_at_1000_bodies_by_600_frames(tmp_path, browser):
-    from rbsim.player import render_html
+    from rbsim.view.player import render_html
 
     n, frames = 1000, 600
     bodies = BodyTable(

@@ -19,8 +19,8 @@ from rbsim.scene import (
     load_scene_text,
     scene_to_dict,
 )
-from rbsim.schema import json_schema
-from rbsim.yamlsrc import load_yaml
+from rbsim.scene.schema import json_schema
+from rbsim.scene.yamlsrc import load_yaml
 
 SCENES = sorted((Path(__file__).parent.parent / "scenes").glob("*.yaml"))
 

@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rbsim.reference import ReferenceError, make_reference
 from rbsim.scene import SceneError, load_scene
-from rbsim.sweep import Grid, Point, Setting, fitted_slope, pareto_front, run_sweep
+from rbsim.tools.reference import ReferenceError, make_reference
+from rbsim.tools.sweep import Grid, Point, Setting, fitted_slope, pareto_front, run_sweep
 from tests.conftest import rbsim, scene_from
 
 ROOT = Path(__file__).parent.parent

@@ -13,7 +13,7 @@ import h5py
 import numpy as np
 import pytest
 
-from rbsim.trajectory import BodyTable, TrajectoryWriter, load_trajectory, summarize
+from rbsim.io.trajectory import BodyTable, TrajectoryWriter, load_trajectory, summarize
 
 REPO = Path(__file__).resolve().parents[1]
 N_FRAMES = 5
@@ -226,7 +226,7 @@ import sys, time
 import numpy as np
 sys.path.insert(0, {tests!r})
 from test_trajectory import PARAMETERS, frames, three_bodies
-from rbsim.trajectory import TrajectoryWriter
+from rbsim.io.trajectory import TrajectoryWriter
 
 data = frames(40)
 w = TrajectoryWriter({path!r}, bodies=three_bodies(), parameters=PARAMETERS, flush_seconds=0.2)

@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from rbsim.core import CoreWorld
+from rbsim.engines.numba.world import World
 from rbsim.scene import load_scene
-from rbsim.world import World
 
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_SCENES = sorted(

@@ -15,14 +15,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from rbsim import world as nw
-from rbsim.broadphase import find_pairs as nb_find_pairs
-from rbsim.contacts import store_impulses, transform_shapes, update_manifolds
 from rbsim.core import CoreWorld
-from rbsim.integrator import integrate_positions, integrate_velocities
-from rbsim.scene import load_scene_text
-from rbsim.shock import deep_region, propagate_shock, support_order
-from rbsim.solver import (
+from rbsim.engines.numba import world as nw
+from rbsim.engines.numba.broadphase import find_pairs as nb_find_pairs
+from rbsim.engines.numba.contacts import store_impulses, transform_shapes, update_manifolds
+from rbsim.engines.numba.integrator import integrate_positions, integrate_velocities
+from rbsim.engines.numba.shock import deep_region, propagate_shock, support_order
+from rbsim.engines.numba.solver import (
     apply_restitution,
     keep_solve_impulses,
     limit_static_overlap,
@@ -30,6 +29,7 @@ from rbsim.solver import (
     solve_contacts,
     warm_start,
 )
+from rbsim.scene import load_scene_text
 
 STATE = ("body_x", "body_q", "body_angle", "body_v", "body_w")
 
@@ -85,8 +85,8 @@ class Pair:
         of `sync`, to replay a step the C++ engine took in both)."""
         capacity = self.cc.storage.key.shape[0]
         if self.nb.contacts.key.shape[0] != capacity:
-            from rbsim.broadphase import grow_grid
-            from rbsim.contacts import grow_contacts
+            from rbsim.engines.numba.broadphase import grow_grid
+            from rbsim.engines.numba.contacts import grow_contacts
 
             self.nb.contacts = grow_contacts(self.nb.contacts, capacity)
             self.nb.grid = grow_grid(self.nb.grid, capacity)

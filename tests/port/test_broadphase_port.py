@@ -14,8 +14,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rbsim.broadphase import BIG_MAX, grow_grid
-from rbsim.broadphase import find_pairs as nb_find_pairs
+from rbsim.engines.numba.broadphase import BIG_MAX, grow_grid
+from rbsim.engines.numba.broadphase import find_pairs as nb_find_pairs
 from tests.port.harness import STATE, Pair
 
 PYRAMID = """

@@ -13,8 +13,8 @@ import math
 import numpy as np
 import pytest
 
-from rbsim.broadphase import find_pairs, grow_grid
-from rbsim.contacts import grow_contacts, transform_shapes, update_manifolds
+from rbsim.engines.numba.broadphase import find_pairs, grow_grid
+from rbsim.engines.numba.contacts import grow_contacts, transform_shapes, update_manifolds
 
 from .harness import Pair
 

@@ -1,4 +1,5 @@
-"""The C++ narrowphase (rbsim._core.collide2d) against the numba one (rbsim.narrowphase.collide).
+"""The C++ narrowphase (rbsim._core.collide2d) against the numba one
+(rbsim.engines.numba.narrowphase.collide).
 
 Every kind pair in both orders (circle, polygon incl. boxes and triangles, segment with and
 without radius), on hand-made configurations (touching, deep, parallel faces, corner to
@@ -18,8 +19,9 @@ import numpy as np
 import pytest
 
 from rbsim import _core
-from rbsim.constants import SHAPE_CIRCLE, SHAPE_POLYGON, SHAPE_SEGMENT, SPECULATIVE_DISTANCE
-from rbsim.narrowphase import collide
+from rbsim.constants import SPECULATIVE_DISTANCE
+from rbsim.engines.numba.narrowphase import collide
+from rbsim.scene.types import SHAPE_CIRCLE, SHAPE_POLYGON, SHAPE_SEGMENT
 
 SPEC = SPECULATIVE_DISTANCE
 S = 1 << 16

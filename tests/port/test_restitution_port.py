@@ -1,6 +1,6 @@
 """The C++ restitution stage (keep_solve_impulses, apply_restitution) against the numba one.
 
-The numba step is replayed stage by stage (as rbsim/world.py's step calls them); at
+The numba step is replayed stage by stage (as rbsim/engines/numba/world.py's step calls them); at
 keep_solve_impulses (its first 100 calls, then wherever a bounce is listed) and at every
 apply_restitution that has something to do (bounce_count != bounce_carried, up to
 max_checks), the whole numba state and storage is copied into the C++ engine, the stage
@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 
 from rbsim import constants as C
-from rbsim.contacts import store_impulses
-from rbsim.integrator import integrate_positions, integrate_velocities
-from rbsim.shock import deep_region, propagate_shock
-from rbsim.solver import (
+from rbsim.engines.numba.contacts import store_impulses
+from rbsim.engines.numba.integrator import integrate_positions, integrate_velocities
+from rbsim.engines.numba.shock import deep_region, propagate_shock
+from rbsim.engines.numba.solver import (
     _ALONE,
     _JOINED,
     _PUSHING,
@@ -30,7 +30,7 @@ from rbsim.solver import (
     solve_contacts,
     warm_start,
 )
-from rbsim.world import collide
+from rbsim.engines.numba.world import collide
 
 from .harness import Pair
 

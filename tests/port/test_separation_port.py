@@ -1,5 +1,6 @@
 """The C++ penetration ruler (cpp/src/tools/separation.cpp, rbsim._core.min_separation)
-against rbsim/reference.py's numba kernels (_min_separation and the two it calls).
+against the numba kernels it was ported from (tests/port/separation_numba.py:
+min_separation and the two it calls), and rbsim.tools.measure.penetration over it.
 
 Both do the same operations in the same order without fused multiply-adds, so every
 pair's separation must be bit-identical; the scenes are stepped (or posed at random, to
@@ -13,9 +14,12 @@ import numpy as np
 import pytest
 
 from rbsim import _core
-from rbsim import reference as R
+from rbsim.core import min_separation
+from rbsim.engines.numba.world import World
 from rbsim.scene import load_scene_text
-from rbsim.world import World
+from rbsim.tools import measure as M
+
+from . import separation_numba as NB
 
 SCENE = """
 version: 1
@@ -52,24 +56,28 @@ def cxx(verts, model, pairs):
 
 def compare(model, x, theta, pairs) -> np.ndarray:
     """Every pair's separation from both; asserts them bit-identical. Returns them."""
-    verts = R._vertices_world(model, x, theta)
+    verts = M.vertices_world(model, x, theta)
     got = cxx(verts, model, pairs)
     assert got.shape == (pairs.shape[0],) and got.dtype == np.float64
     want = np.array(
         [
-            R._min_separation(
+            NB.min_separation(
                 verts, model.shape_vstart, model.shape_vcount, model.shape_radius, pairs[p : p + 1]
             )
             for p in range(pairs.shape[0])
         ]
     )
     np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(
+        min_separation(verts, model.shape_vstart, model.shape_vcount, model.shape_radius, pairs),
+        got,
+    )
     if pairs.shape[0]:
-        whole = R._min_separation(
+        whole = NB.min_separation(
             verts, model.shape_vstart, model.shape_vcount, model.shape_radius, pairs
         )
         assert got.min() == whole
-        assert max(0.0, -got.min()) == R.penetration(model, pairs, x, theta)
+        assert max(0.0, -got.min()) == M.penetration(model, pairs, x, theta)
     return got
 
 
@@ -85,7 +93,7 @@ def test_stepped_scene_agrees(steps):
     w = World.from_scene(load_scene_text(SCENE, "<port test>"))
     w.advance(steps)
     x, theta = w.state.body_x, w.state.body_angle
-    pairs = R.touching_pairs(w.model, x, theta, 0.05)
+    pairs = M.touching_pairs(w.model, x, theta, 0.05)
     assert pairs.shape[0] > 0
     compare(w.model, x, theta, pairs)
 
@@ -104,7 +112,7 @@ def test_random_poses_meet_every_branch():
         dyn = model.body_type == 0
         x[dyn] = rng.uniform([-2, -0.5], [2, 2.5], size=(int(dyn.sum()), 2))
         theta[dyn] = rng.uniform(-np.pi, np.pi, size=int(dyn.sum()))
-        pairs = R.touching_pairs(model, x, theta, 0.3)
+        pairs = M.touching_pairs(model, x, theta, 0.3)
         got = compare(model, x, theta, pairs)
         seen |= kinds(model, pairs)
         signs |= set(np.sign(got).astype(int).tolist())
@@ -115,7 +123,7 @@ def test_random_poses_meet_every_branch():
 
 def test_no_pairs_gives_an_empty_array():
     w = World.from_scene(load_scene_text(SCENE, "<port test>"))
-    verts = R._vertices_world(w.model, w.state.body_x, w.state.body_angle)
+    verts = M.vertices_world(w.model, w.state.body_x, w.state.body_angle)
     out = cxx(verts, w.model, np.zeros((0, 2), np.int32))
     assert out.shape == (0,)
 
@@ -123,7 +131,7 @@ def test_no_pairs_gives_an_empty_array():
 def test_bad_input_is_refused():
     w = World.from_scene(load_scene_text(SCENE, "<port test>"))
     m = w.model
-    verts = R._vertices_world(m, w.state.body_x, w.state.body_angle)
+    verts = M.vertices_world(m, w.state.body_x, w.state.body_angle)
     good = dict(
         verts=verts,
         vstart=m.shape_vstart.astype(np.int32),

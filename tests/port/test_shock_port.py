@@ -1,4 +1,5 @@
-"""The C++ shock pass (cpp/src/solver/shock.cpp) against the numba one (rbsim/shock.py).
+"""The C++ shock pass (cpp/src/solver/shock.cpp) against the numba one
+(rbsim/engines/numba/shock.py).
 
 Each case steps the numba engine to a moment, then runs the numba stages of one step by
 hand (world.py's step) up to the shock pass of a chosen substep, so that the shock
@@ -15,11 +16,16 @@ import numpy as np
 import pytest
 
 from rbsim import constants as C
-from rbsim.integrator import integrate_positions, integrate_velocities
-from rbsim.shock import SHOCK_COS as C_SHOCK_COS
-from rbsim.shock import propagate_shock
-from rbsim.solver import apply_restitution, keep_solve_impulses, solve_contacts, warm_start
-from rbsim.world import collide
+from rbsim.engines.numba.integrator import integrate_positions, integrate_velocities
+from rbsim.engines.numba.shock import SHOCK_COS as C_SHOCK_COS
+from rbsim.engines.numba.shock import propagate_shock
+from rbsim.engines.numba.solver import (
+    apply_restitution,
+    keep_solve_impulses,
+    solve_contacts,
+    warm_start,
+)
+from rbsim.engines.numba.world import collide
 
 from .harness import Pair
 

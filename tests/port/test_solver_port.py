@@ -2,7 +2,7 @@
 limit_static_overlap) against the numba ones, on the same inputs.
 
 Each scene is stepped by the numba engine to a few moments; then one more step is taken
-stage by stage by hand (the order of rbsim/world.py's step), and before each of the
+stage by stage by hand (the order of rbsim/engines/numba/world.py's step), and before each of the
 four solver stages the numba state and storage are copied into the C++ engine and the
 stage runs in both: every solve and relax pass of every substep, the extra relax passes
 over relax_list near a deep overlap, prepare before them and the overlap limit after.
@@ -19,12 +19,17 @@ import numpy as np
 import pytest
 
 from rbsim import constants as C
-from rbsim.broadphase import find_pairs as nb_find_pairs
-from rbsim.broadphase import grow_grid
-from rbsim.contacts import grow_contacts, store_impulses, transform_shapes, update_manifolds
-from rbsim.integrator import integrate_positions, integrate_velocities
-from rbsim.shock import deep_region, propagate_shock, support_order
-from rbsim.solver import apply_restitution, keep_solve_impulses
+from rbsim.engines.numba.broadphase import find_pairs as nb_find_pairs
+from rbsim.engines.numba.broadphase import grow_grid
+from rbsim.engines.numba.contacts import (
+    grow_contacts,
+    store_impulses,
+    transform_shapes,
+    update_manifolds,
+)
+from rbsim.engines.numba.integrator import integrate_positions, integrate_velocities
+from rbsim.engines.numba.shock import deep_region, propagate_shock, support_order
+from rbsim.engines.numba.solver import apply_restitution, keep_solve_impulses
 
 from .harness import Pair
 

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from rbsim.core import CoreWorld
+from rbsim.engines.numba.world import World
 from rbsim.scene import load_scene
-from rbsim.world import World
 
 from .agreement import DEFAULT_SCENES, state_difference
 from .harness import Pair

@@ -19,13 +19,13 @@ from types import TracebackType
 import h5py
 import numpy as np
 
-from .trajectory import (
+from ..io.trajectory import (
     BodyTable,
-    _frame_count,
-    _open_for_reading,
-    _read_body_table,
-    _read_parameters,
-    _scene_name,
+    frame_count,
+    open_for_reading,
+    read_body_table,
+    read_parameters,
+    scene_name,
 )
 
 __all__ = [
@@ -91,17 +91,17 @@ class FrameReader:
         if not h5py.is_hdf5(self.path):
             raise RenderError(f"{self.path}: not an HDF5 file (rbsim writes .h5 trajectories)")
         try:
-            self._file = _open_for_reading(self.path)
+            self._file = open_for_reading(self.path)
         except OSError as err:
             raise RenderError(f"{self.path}: cannot read: {err}") from None
         try:
             f = self._file
-            self.bodies: BodyTable = _read_body_table(f["particles/bodies"])
-            params = _read_parameters(f)
+            self.bodies: BodyTable = read_body_table(f["particles/bodies"])
+            params = read_parameters(f)
             self.engine = params.get("engine", "unknown")
             self.status = params.get("status", "unknown")
-            self.scene = _scene_name(params, self.path)
-            t = _frame_count(f, closed=self.status != "running")
+            self.scene = scene_name(params, self.path)
+            t = frame_count(f, closed=self.status != "running")
             if t:
                 self.time = np.asarray(f["particles/bodies/position/time"][:t], dtype=float)
                 self.step = np.asarray(f["particles/bodies/position/step"][:t], dtype=np.int64)
@@ -404,7 +404,7 @@ class _PlacedOutlines:
 # ---------------------------------------------------------------------------------------
 
 
-def _need_matplotlib(what: str) -> None:
+def need_matplotlib(what: str) -> None:
     """Raise RenderError saying how to install matplotlib when it is missing."""
     try:
         import matplotlib  # noqa: F401
@@ -497,7 +497,7 @@ def render_gif(
     after each frame. Frames are drawn and written one at a time (memory does not grow
     with their number). Raises RenderError.
     """
-    _need_matplotlib("rbsim render to a GIF")
+    need_matplotlib("rbsim render to a GIF")
     if not 0 < fps <= GIF_MAX_FPS:
         raise ValueError(f"GIF frames per second must lie in (0, {GIF_MAX_FPS:g}], got {fps:g}")
     width, height = int(size[0]), int(size[1])
@@ -508,7 +508,7 @@ def render_gif(
     with FrameReader(path) as main:
         idx = sample_frames(main.time, fps, start, end)
         if not len(idx):
-            raise RenderError(_no_frames_message(main, start, end))
+            raise RenderError(no_frames_message(main, start, end))
         other = FrameReader(overlay) if overlay is not None else None
         try:
             if other is not None and not len(other.time):
@@ -528,7 +528,8 @@ def render_gif(
     return GifResult(output, len(idx), width, height, view, duration)
 
 
-def _no_frames_message(reader: FrameReader, start: float | None, end: float | None) -> str:
+def no_frames_message(reader: FrameReader, start: float | None, end: float | None) -> str:
+    """What to say when no frame of `reader` falls in [start, end] (s)."""
     if not len(reader.time):
         return f"{reader.path}: no frames to render (status {reader.status})"
     return (

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .scene import Body, Shape
+from .resolve import Body, Shape
 
 Vec2 = tuple[float, float]
 

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 import h5py
 import numpy as np
 
-from .render import RenderError, _need_matplotlib
-from .trajectory import _frame_count, _open_for_reading, _read_parameters
+from ..io.trajectory import frame_count, open_for_reading, read_parameters
+from .render import RenderError, need_matplotlib
 
 __all__ = ["Observables", "plot_observables", "read_observables"]
 
@@ -47,9 +47,9 @@ def read_observables(path: str | os.PathLike) -> Observables:
     if not h5py.is_hdf5(path):
         raise RenderError(f"{path}: not an HDF5 file (rbsim writes .h5 trajectories)")
     try:
-        with _open_for_reading(path) as f:
-            params = _read_parameters(f)
-            t = _frame_count(f, closed=params.get("status", "running") != "running")
+        with open_for_reading(path) as f:
+            params = read_parameters(f)
+            t = frame_count(f, closed=params.get("status", "running") != "running")
             time = np.asarray(f["particles/bodies/position/time"][:t], dtype=float)
             values = {
                 name: np.asarray(f[f"observables/{name}/value"][:t], dtype=float)
@@ -70,7 +70,7 @@ def plot_observables(
     and angular momentum (kg m²/s) against time (s) for every trajectory in `paths`,
     one colour per file, into `output` (format from its suffix: .png, .pdf, .svg).
     size: inches. Returns what was read. Raises RenderError."""
-    _need_matplotlib("rbsim plot")
+    need_matplotlib("rbsim plot")
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 

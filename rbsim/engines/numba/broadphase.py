@@ -30,7 +30,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from . import constants as C
+from ... import constants as C
+from ...scene import types as T
 
 CELL_SIZES = 4.0  # cell size in median half-diagonals (plus two fat margins)
 TABLE_PER_SHAPE = 2  # hash table buckets per shape, at least
@@ -257,7 +258,7 @@ def _fill_grid(model, grid):
             g_entry_cell[k, 0], g_entry_cell[k, 1] = g_shape_cell[s, 0], g_shape_cell[s, 1]
         g_entry_fat[k, 0], g_entry_fat[k, 1] = g_shape_fat[s, 0], g_shape_fat[s, 1]
         g_entry_fat[k, 2], g_entry_fat[k, 3] = g_shape_fat[s, 2], g_shape_fat[s, 3]
-        g_entry_tag[k] = body if body_type[body] == C.BODY_DYNAMIC else -1 - body
+        g_entry_tag[k] = body if body_type[body] == T.BODY_DYNAMIC else -1 - body
 
 
 @njit(cache=True, _nrt=False)
@@ -287,7 +288,7 @@ def _query_moved(model, grid):
         if not moved[a]:
             continue
         body_a = shape_body[a]
-        dyn_a = body_type[body_a] == C.BODY_DYNAMIC
+        dyn_a = body_type[body_a] == T.BODY_DYNAMIC
         tag_a = body_a if dyn_a else -1 - body_a
         ax0, ay0, ax1, ay1 = fat[a, 0], fat[a, 1], fat[a, 2], fat[a, 3]
         # candidates: every shape for a big shape; else the grid cells, then big shapes
@@ -333,7 +334,7 @@ def _query_moved(model, grid):
             if fat[b, 0] > ax1 or ax0 > fat[b, 2] or fat[b, 1] > ay1 or ay0 > fat[b, 3]:
                 continue
             body_b = shape_body[b]
-            if body_b == body_a or not (dyn_a or body_type[body_b] == C.BODY_DYNAMIC):
+            if body_b == body_a or not (dyn_a or body_type[body_b] == T.BODY_DYNAMIC):
                 continue
             if count < capacity:
                 keys[count] = np.int64(min(a, b)) * n + max(a, b)

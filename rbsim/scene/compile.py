@@ -17,12 +17,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import constants as C
+from . import types as T
 from .mass import body_mass_properties
-from .scene import Scene
-
-_KIND = {"circle": C.SHAPE_CIRCLE, "box": C.SHAPE_POLYGON, "polygon": C.SHAPE_POLYGON}
-_TYPE = {"dynamic": C.BODY_DYNAMIC, "static": C.BODY_STATIC, "kinematic": C.BODY_KINEMATIC}
+from .resolve import Scene
 
 
 class ModelError(ValueError):
@@ -32,7 +29,7 @@ class ModelError(ValueError):
 class Model(NamedTuple):
     """Static data. N bodies, S shapes, V shape vertices.
 
-    body_type (N,) int8: constants.BODY_*; body_mass (N,) kg (inf if not dynamic);
+    body_type (N,) int8: types.BODY_*; body_mass (N,) kg (inf if not dynamic);
     body_inertia (N,) kg·m²; body_inv_mass (N,) 1/kg; body_inv_inertia (N,) 1/(kg·m²);
     body_com (N,2) m, centre of mass in the body frame (relative to the origin);
     body_force (N,2) N, world frame; body_force_arm (N,2) m, body frame, from the COM;
@@ -108,11 +105,11 @@ def build(scene: Scene) -> tuple[Model, State]:
     normals: list[tuple[float, float]] = []
 
     for i, body in enumerate(bodies):
-        kind = _TYPE[body.type]
+        kind = T.BODY_TYPE_CODE[body.type]
         body_type[i] = kind
         props = body_mass_properties(body)
         com[i] = props.center
-        if kind == C.BODY_DYNAMIC:
+        if kind == T.BODY_DYNAMIC:
             if not (props.mass > 0.0 and props.inertia > 0.0):
                 raise ModelError(
                     f"body {body.name!r}: a dynamic body needs a mass; its shapes have no "
@@ -126,7 +123,7 @@ def build(scene: Scene) -> tuple[Model, State]:
         x[i] = (body.position[0] + rc[0], body.position[1] + rc[1])
         q[i] = (c, s)
         angle[i] = body.angle
-        if kind != C.BODY_STATIC:
+        if kind != T.BODY_STATIC:
             v[i] = body.velocity
             w[i] = body.angular_velocity
         force[i] = body.force
@@ -142,14 +139,14 @@ def build(scene: Scene) -> tuple[Model, State]:
             shape_vstart.append(len(vertices))
             local = [(p[0] - props.center[0], p[1] - props.center[1]) for p in shape.vertices]
             if shape.kind == "segment":
-                shape_kind.append(C.SHAPE_SEGMENT)
+                shape_kind.append(T.SHAPE_SEGMENT)
                 (ax, ay), (bx, by) = local
                 length = math.hypot(bx - ax, by - ay)
                 nx, ny = (by - ay) / length, -(bx - ax) / length
                 vertices.extend(local)
                 normals.extend([(nx, ny), (-nx, -ny)])
             else:
-                shape_kind.append(_KIND[shape.kind])
+                shape_kind.append(T.SHAPE_KIND_CODE[shape.kind])
                 vertices.extend(local)
                 m = len(local)
                 for k in range(m):
@@ -158,7 +155,7 @@ def build(scene: Scene) -> tuple[Model, State]:
                     normals.append(((by - ay) / length, -(bx - ax) / length) if m > 1 else (0, 0))
             shape_vcount.append(len(local))
 
-    dynamic = body_type == C.BODY_DYNAMIC
+    dynamic = body_type == T.BODY_DYNAMIC
     inv_mass = np.where(dynamic, 1.0 / np.where(dynamic, mass, 1.0), 0.0)
     inv_inertia = np.where(dynamic, 1.0 / np.where(dynamic, inertia, 1.0), 0.0)
     world = scene.world
@@ -193,7 +190,7 @@ def build(scene: Scene) -> tuple[Model, State]:
 def _contacts_possible(shape_body: list[int], body_type: np.ndarray) -> bool:
     """True when two bodies with shapes can touch and one of them can respond."""
     shaped = np.unique(np.asarray(shape_body, np.int64))
-    return len(shaped) >= 2 and bool(np.any(body_type[shaped] == C.BODY_DYNAMIC))
+    return len(shaped) >= 2 and bool(np.any(body_type[shaped] == T.BODY_DYNAMIC))
 
 
 def body_origin(model: Model, state: State) -> np.ndarray:

@@ -32,6 +32,7 @@ rbsim -> pymunk mapping (see ../shared/DESIGN.md for rbsim's side):
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Callable
@@ -40,8 +41,10 @@ from dataclasses import dataclass
 import numpy as np
 import pymunk
 
-from .constants import LINEAR_SLOP
-from .scene import Body, Scene, Shape, World
+from ..config import NonFiniteState
+from ..constants import LINEAR_SLOP
+from ..scene import Body, Scene, Shape, World
+from .base import Engine, Snapshot
 
 try:  # pymunk's batch readback (experimental in pymunk 7); a per-body loop otherwise
     import pymunk.batch as _batch
@@ -53,6 +56,7 @@ except ImportError:  # pragma: no cover - depends on the installed pymunk
     _cp_lib = None
 
 __all__ = [
+    "PymunkEngine",
     "PymunkSettings",
     "PymunkWorld",
     "UnsupportedScene",
@@ -662,3 +666,61 @@ def run_pymunk(
         if on_frame is not None and (n % every == 0 or n == steps):
             on_frame(n, n * world.dt, world.read_state(), world.observables())
     return world.wall_time
+
+
+class PymunkEngine(Engine):
+    """pymunk's Space behind the engine interface. `world` is the PymunkWorld;
+    `settings` (PymunkSettings, default PymunkSettings()) says how its Space steps.
+    step_time counts the time inside space.step only. A non-finite state is found
+    when the state is read."""
+
+    name = "pymunk"
+
+    def __init__(self, scene: Scene, settings: PymunkSettings | None = None) -> None:
+        super().__init__(scene)
+        self.world = PymunkWorld(scene, settings)
+        self.pymunk_settings = self.world.settings
+        self.settings = dataclasses.asdict(self.world.settings)
+        self.mass = self.world.body_mass.copy()
+        self.inertia = self.world.body_moment.copy()
+        self.com_local = self.world.body_com.copy()
+        self.dynamic = self.world.body_dynamic.copy()
+
+    def advance(self, n: int) -> None:
+        step = self.world.step
+        for _ in range(n):
+            step()
+        self.step_time = self.world.wall_time
+
+    def read(self) -> Snapshot:
+        """The current state; raises NonFiniteState when a position or velocity is not
+        finite (Chipmunk does not stop: the state is checked when it is read)."""
+        st = self.world.read_state()
+        origin, angle = st["position"], st["angle"]
+        bad = np.flatnonzero(
+            ~(np.isfinite(origin).all(axis=1) & np.isfinite(st["velocity"]).all(axis=1))
+        )
+        if bad.size:
+            raise NonFiniteState(int(bad[0]), self.step_index)
+        c, s = np.cos(angle), np.sin(angle)
+        cx, cy = self.com_local[:, 0], self.com_local[:, 1]
+        com = origin + np.stack([c * cx - s * cy, s * cx + c * cy], axis=1)
+        return Snapshot(
+            origin=origin,
+            angle=angle,
+            orientation=st["orientation"],
+            com=com,
+            velocity=st["velocity"],
+            angular_velocity=st["angular_velocity"],
+        )
+
+    @property
+    def step_index(self) -> int:
+        return self.world.step_count
+
+    @property
+    def contact_count(self) -> int:
+        return self.world.contact_count()
+
+    def observables(self) -> dict:
+        return self.world.observables()

@@ -27,8 +27,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .reference import Poses, Reference, make_reference, penetration, pose_error, touching_pairs
-from .scene import Scene
+from ..engines import Engine, NonFiniteState, Snapshot, make_engine
+from ..engines.pymunk import PymunkSettings
+from ..scene import Scene
+from ..scene import types as T
+from .measure import block_times, penetration, touching_pairs
+from .reference import Poses, Reference, make_reference, pose_error
 
 __all__ = [
     "DEFAULT_DTS",
@@ -408,7 +412,7 @@ class _Probe:
     (N,) rad, velocities v (N,2) m/s and w (N,) rad/s."""
 
     def __init__(self, scene: Scene, ref: Reference) -> None:
-        from .model import build
+        from ..scene.compile import build
 
         self.model, state = build(scene)
         self.bodies = np.array(ref.bodies, dtype=np.int64)
@@ -418,7 +422,7 @@ class _Probe:
             if self.invariants
             else None
         )
-        dyn = self.model.body_type == 0
+        dyn = self.model.body_type == T.BODY_DYNAMIC
         self.dyn = dyn
         self.g = np.asarray(scene.world.gravity, dtype=float)
         self.e0 = self.energy(state.body_x, state.body_v, state.body_w)
@@ -434,7 +438,8 @@ class _Probe:
             - (m * (xd @ self.g)).sum()
         )
 
-    def take(self, x, th, v, w) -> None:
+    def take(self, snap: Snapshot) -> None:
+        x, th, v, w = snap.com, snap.angle, snap.velocity, snap.angular_velocity
         b = self.bodies
         self.x.append(x[b].copy())
         self.th.append(th[b].copy())
@@ -460,56 +465,31 @@ class _Probe:
         )
 
 
-def sample_rbsim(scene: Scene, ref: Reference, per_sample: int, samples: int) -> _Sampled:
-    """Run rbsim, reading the tracked bodies every `per_sample` steps."""
-    from .config import NonFiniteState
-    from .core import make_world
+def engine_for(scene: Scene, s: Setting) -> Engine:
+    """The scene in the setting's engine: rbsim with the scene's solver block (scene_for
+    put the setting there), pymunk with s.iterations iterations per step of dt."""
+    if s.engine == "pymunk":
+        return make_engine(
+            "pymunk", scene, settings=PymunkSettings(iterations=s.iterations, substeps=1)
+        )
+    return make_engine(s.engine, scene)
 
+
+def sample_run(scene: Scene, ref: Reference, s: Setting, per_sample: int, samples: int) -> _Sampled:
+    """Run the setting's engine, reading the tracked bodies every `per_sample` steps."""
     probe = _Probe(scene, ref)
-    world = make_world(scene)
+    engine = engine_for(scene, s)
     t = np.arange(samples + 1) * per_sample * scene.world.dt
-    st = world.state
     status = "ok"
-    probe.take(st.body_x, st.body_angle, st.body_v, st.body_w)
+    probe.take(engine.read())
     for _ in range(samples):
         try:
-            world.advance(per_sample)
+            engine.advance(per_sample)
+            snap = engine.read()
         except NonFiniteState as err:
             status = f"non-finite at step {err.step}"
             break
-        st = world.state
-        probe.take(st.body_x, st.body_angle, st.body_v, st.body_w)
-    return probe.result(t, status)
-
-
-def _pymunk_state(pw) -> tuple[np.ndarray, ...]:
-    st = pw.read_state()
-    th = st["angle"]
-    c, s = np.cos(th), np.sin(th)
-    com = pw.body_com
-    x = st["position"] + np.stack(
-        [c * com[:, 0] - s * com[:, 1], s * com[:, 0] + c * com[:, 1]], axis=1
-    )
-    return x, th, st["velocity"], st["angular_velocity"]
-
-
-def sample_pymunk(scene: Scene, ref: Reference, s: Setting, per_sample: int, samples: int):
-    """Run pymunk, reading the tracked bodies every `per_sample` steps."""
-    from .pymunk_bridge import PymunkSettings, PymunkWorld
-
-    probe = _Probe(scene, ref)
-    pw = PymunkWorld(scene, PymunkSettings(iterations=s.iterations, substeps=1))
-    t = np.arange(samples + 1) * per_sample * scene.world.dt
-    status = "ok"
-    probe.take(*_pymunk_state(pw))
-    for _ in range(samples):
-        for _ in range(per_sample):
-            pw.step()
-        x, th, v, w = _pymunk_state(pw)
-        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(v))):
-            status = f"non-finite at step {pw.step_count}"
-            break
-        probe.take(x, th, v, w)
+        probe.take(snap)
     return probe.result(t, status)
 
 
@@ -520,33 +500,16 @@ def _median_time(run_once: Callable[[], float], repeats: int) -> tuple[float, in
     return statistics.median(samples), len(samples)
 
 
-def time_rbsim(scene: Scene, repeats: int) -> tuple[float, int]:
-    """Median CPU seconds of `advance(steps)` on fresh worlds (kernels loaded first)."""
-    from .core import make_world
-
-    make_world(scene).advance(1)  # load the engine, outside the timing
-
-    def once() -> float:
-        world = make_world(scene)
-        t0 = time.process_time()
-        world.advance(scene.world.steps)
-        return time.process_time() - t0
-
-    return _median_time(once, repeats)
-
-
-def time_pymunk(scene: Scene, s: Setting, repeats: int) -> tuple[float, int]:
-    """Median CPU seconds of the loop of `steps` pymunk steps on fresh spaces."""
-    from .pymunk_bridge import PymunkSettings, PymunkWorld
-
-    settings = PymunkSettings(iterations=s.iterations, substeps=1)
+def time_run(scene: Scene, s: Setting, repeats: int) -> tuple[float, int]:
+    """Median CPU seconds of `advance(steps)` on fresh engines of the setting (the
+    compiled engine loaded first, outside the timing)."""
+    if s.engine != "pymunk":
+        engine_for(scene, s).advance(1)
 
     def once() -> float:
-        pw = PymunkWorld(scene, settings)
-        step = pw.step
+        engine = engine_for(scene, s)
         t0 = time.process_time()
-        for _ in range(scene.world.steps):
-            step()
+        engine.advance(scene.world.steps)
         return time.process_time() - t0
 
     return _median_time(once, repeats)
@@ -632,20 +595,14 @@ def _measure(
 ) -> Point:
     per = _steps(s.dt, sample_dt)
     sc = scene_for(scene, s, per * samples)
-    if s.engine == "rbsim":
-        got = sample_rbsim(sc, ref, per, samples)
-    else:
-        got = sample_pymunk(sc, ref, s, per, samples)
+    got = sample_run(sc, ref, s, per, samples)
     point = Point(s, penetration=got.penetration, energy_drift=got.energy_drift, status=got.status)
     if got.status != "ok":
         return point
     point.error, point.position_error, point.angle_error = pose_error(
         got.poses, ref_poses, ref.gyration
     )
-    if s.engine == "rbsim":
-        seconds, n = time_rbsim(sc, repeats)
-    else:
-        seconds, n = time_pymunk(sc, s, repeats)
+    seconds, n = time_run(sc, s, repeats)
     point.cpu = seconds / (sc.world.steps * sc.world.dt)
     point.us_per_step = 1e6 * seconds / sc.world.steps
     point.timed_runs = n
@@ -672,7 +629,7 @@ def _converged(
     per = round(per)
     runs = []
     for s, n in ((fine, per), (coarse, per // 2)):
-        got = sample_rbsim(scene_for(scene, s, n * samples), ref, n, samples)
+        got = sample_run(scene_for(scene, s, n * samples), ref, s, n, samples)
         if got.status != "ok":
             raise SweepError(f"the converged reference run ({s.family}) failed: {got.status}")
         runs.append(got.poses)
@@ -782,7 +739,7 @@ class ScalingPoint:
 
 def pile_scene(base: int) -> Scene:
     """A pyramid of 1 m boxes with `base` boxes in its bottom row, on a static ground."""
-    from .scene import load_scene_text
+    from ..scene import load_scene_text
 
     half = base + 5
     text = f"""
@@ -807,28 +764,16 @@ def measure_scaling(
     """µs per step of rbsim (its default settings) and pymunk (10 iterations), dt 1/60,
     on pyramids of the given bases: median of `repeats` timed blocks of `block` steps
     after `warmup` steps, CPU time."""
-    from .core import make_world
-    from .pymunk_bridge import PymunkSettings, PymunkWorld
-
     out = []
     for base in bases:
         scene = pile_scene(base)
-        world = make_world(scene)
-        world.advance(warmup)
-        rb = []
-        for _ in range(repeats):
-            t0 = time.process_time()
-            world.advance(block)
-            rb.append((time.process_time() - t0) / block * 1e6)
-        pw = PymunkWorld(scene, PymunkSettings(iterations=10))
-        for _ in range(warmup):
-            pw.step()
-        pm = []
-        for _ in range(repeats):
-            t0 = time.process_time()
-            for _ in range(block):
-                pw.step()
-            pm.append((time.process_time() - t0) / block * 1e6)
+        rb = block_times(make_engine("rbsim", scene), warmup, block, repeats)
+        pm = block_times(
+            make_engine("pymunk", scene, settings=PymunkSettings(iterations=10)),
+            warmup,
+            block,
+            repeats,
+        )
         out.append(ScalingPoint(len(scene.bodies), statistics.median(rb), statistics.median(pm)))
     return out
 

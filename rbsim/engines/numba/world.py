@@ -43,9 +43,12 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from . import constants as C
+from ... import constants as C
+from ...config import Config, NonFiniteState, make_config
+from ...scene import Scene
+from ...scene import types as T
+from ...scene.compile import Model, State, build
 from .broadphase import Grid, find_pairs, grow_grid, make_grid
-from .config import Config, NonFiniteState, make_config
 from .contacts import (
     Contacts,
     grow_contacts,
@@ -55,8 +58,6 @@ from .contacts import (
     update_manifolds,
 )
 from .integrator import integrate_positions, integrate_velocities
-from .model import Model, State, build
-from .scene import Scene
 from .shock import deep_region, propagate_shock, support_order
 from .solver import (
     apply_restitution,
@@ -209,7 +210,7 @@ class World:
         model, state = build(scene)
         n_shapes = model.shape_body.shape[0]
         capacity = 4 * n_shapes + 16
-        dynamic = model.body_type[model.shape_body] == C.BODY_DYNAMIC
+        dynamic = model.body_type[model.shape_body] == T.BODY_DYNAMIC
         grid = make_grid(shape_extent(model), dynamic, capacity)
         contacts = make_contacts(
             model.body_mass.shape[0], n_shapes, model.vertex_local.shape[0], capacity

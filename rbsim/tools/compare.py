@@ -21,17 +21,16 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .model import build
-from .pymunk_bridge import PymunkSettings, PymunkWorld, UnsupportedScene
-from .run import body_table, parameters, run_scene
-from .scene import Scene
-from .trajectory import Trajectory, TrajectoryWriter, load_trajectory
+from ..engines import make_engine
+from ..engines.pymunk import PymunkSettings, PymunkWorld, UnsupportedScene
+from ..io.trajectory import Trajectory, load_trajectory
+from ..run import run_scene
+from ..scene import Scene
 
 __all__ = [
     "BodyDiff",
@@ -198,55 +197,8 @@ def run_pymunk_to_file(scene: Scene, out: str | Path, settings: PymunkSettings) 
     frames at rbsim's steps: 0, every output.every-th and the last. Returns the wall time
     (s) spent in pymunk's space.step. Raises UnsupportedScene before creating the file
     when pymunk cannot express the scene."""
-    t0 = time.perf_counter()
-    world = PymunkWorld(scene, settings)
-    model, _state = build(scene)
-    table = body_table(scene, model)
-    arrays = world.body_table_arrays()  # pymunk's own mass properties
-    table = dataclasses.replace(
-        table,
-        mass=arrays["mass"],
-        moment_of_inertia=arrays["moment_of_inertia"],
-        center_of_mass=arrays["center_of_mass"],
-    )
-    writer = TrajectoryWriter(
-        out,
-        bodies=table,
-        parameters=parameters(scene, "pymunk", dataclasses.asdict(settings)),
-        engine="pymunk",
-    )
-    total, every = int(scene.world.steps), int(scene.output.every)
-    status = "failed"
-
-    def frame() -> None:
-        st = world.read_state()
-        writer.append(
-            world.step_count,
-            world.step_count * world.dt,
-            st["position"],
-            st["orientation"],
-            st["angle"],
-            st["velocity"],
-            st["angular_velocity"],
-            world.observables(),
-        )
-
-    try:
-        frame()
-        while world.step_count < total:
-            world.step()
-            if world.step_count % every == 0 or world.step_count == total:
-                frame()
-        status = "complete"
-    except KeyboardInterrupt:
-        status = "interrupted"
-        raise
-    except Exception as err:
-        status = f"failed: {type(err).__name__}: {err}"
-        raise
-    finally:
-        writer.close(status=status, wall_time=time.perf_counter() - t0)
-    return world.wall_time
+    summary = run_scene(scene, out, engine="pymunk", options={"settings": settings})
+    return summary.step_time
 
 
 def _angle_diff(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -431,9 +383,7 @@ def _same_run(scene: Scene, other: Scene) -> None:
 def _warm_up(scene: Scene, engine: str) -> None:
     """Take one step of the scene on a throwaway world, so that loading rbsim's engine
     is not counted in its wall time per step."""
-    from .core import make_world
-
-    make_world(scene, engine).advance(1)
+    make_engine(engine, scene).advance(1)
 
 
 def compare_scene(
@@ -460,7 +410,7 @@ def compare_scene(
     pm_scene = scene if pymunk_scene is None else pymunk_scene
     _same_run(scene, pm_scene)
     settings = pymunk_settings_for(scene, iterations)
-    PymunkWorld(pm_scene, settings)  # UnsupportedScene before any work
+    make_engine("pymunk", pm_scene, settings=settings)  # UnsupportedScene before any work
     files = {
         "rbsim": str(out_dir / f"{scene.name}.rbsim.h5"),
         "pymunk": str(out_dir / f"{scene.name}.pymunk.h5"),

@@ -25,8 +25,9 @@ import math
 
 from numba import njit
 
-from . import constants as C
-from .config import soft_parameters  # noqa: F401 (kept where it was)
+from ... import constants as C
+from ...config import soft_parameters  # noqa: F401 (kept where it was)
+from ...scene import types as T
 
 # The solver's row of a manifold (contacts.solver_row, (M, ROW_SIZE) float64): what its
 # passes read, in one record, so that a pass reads one row per manifold at fixed
@@ -856,9 +857,9 @@ def apply_restitution(model, state, contacts, threshold, h, sign):
 def _relative_acceleration(body_type, body_force, im, gx, gy, a, b, nx, ny):
     """Relative normal acceleration (m/s²) of bodies a and b from gravity and forces."""
     acc = 0.0
-    if body_type[a] == C.BODY_DYNAMIC:
+    if body_type[a] == T.BODY_DYNAMIC:
         acc += (gx + im[a] * body_force[a, 0]) * nx + (gy + im[a] * body_force[a, 1]) * ny
-    if body_type[b] == C.BODY_DYNAMIC:
+    if body_type[b] == T.BODY_DYNAMIC:
         acc -= (gx + im[b] * body_force[b, 0]) * nx + (gy + im[b] * body_force[b, 1]) * ny
     return acc
 
@@ -888,8 +889,8 @@ def limit_static_overlap(model, state, contacts, max_overlap):
     delta = contacts.body_delta
     for m in range(c_count[0]):
         a, b = c_body_a[m], c_body_b[m]
-        a_fixed = body_type[a] != C.BODY_DYNAMIC
-        b_fixed = body_type[b] != C.BODY_DYNAMIC
+        a_fixed = body_type[a] != T.BODY_DYNAMIC
+        b_fixed = body_type[b] != T.BODY_DYNAMIC
         if a_fixed == b_fixed:
             continue  # two dynamic bodies (left to the solver) or two fixed ones
         nx, ny = c_normal[m, 0], c_normal[m, 1]

@@ -16,11 +16,11 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from . import constants as C
+from ... import constants as C
+from ...scene import types as T
+from ...scene.types import MIX_MIN, MIX_MULTIPLY, MIX_SQRT
 from .narrowphase import collide
 from .solver import ROW_SIZE
-
-MIX_SQRT, MIX_MULTIPLY, MIX_MIN, MIX_MAX = 0, 1, 2, 3
 
 # Time of impact by conservative advancement: stop when the gap is below this (m) or
 # after this many advancements (each costs one narrowphase call, for approaching
@@ -28,7 +28,6 @@ MIX_SQRT, MIX_MULTIPLY, MIX_MIN, MIX_MAX = 0, 1, 2, 3
 TOI_TOLERANCE = 1.0e-9
 TOI_ITERATIONS = 12
 TOI_FINISH = 1.0e-6  # m: within this, an impact just after the step is taken at its end
-MIXING = {"sqrt": MIX_SQRT, "multiply": MIX_MULTIPLY, "min": MIX_MIN, "max": MIX_MAX}
 
 
 class Contacts(NamedTuple):
@@ -269,7 +268,7 @@ def transform_shapes(model, state, contacts, dt):
             nw[k, 0] = c * nx - sn * ny
             nw[k, 1] = sn * nx + c * ny
             reach = max(reach, math.sqrt(lx * lx + ly * ly))
-        if m_body_type[i] == C.BODY_STATIC:
+        if m_body_type[i] == T.BODY_STATIC:
             c_shape_margin[s] = 0.0
         else:
             speed = math.sqrt(s_body_v[i, 0] ** 2 + s_body_v[i, 1] ** 2)

@@ -43,6 +43,8 @@ from types import TracebackType
 import h5py
 import numpy as np
 
+from ..scene.types import BODY_TYPES, SHAPE_KINDS
+
 __all__ = [
     "BodyTable",
     "Trajectory",
@@ -52,8 +54,6 @@ __all__ = [
 ]
 
 H5MD_VERSION = (1, 1)
-BODY_TYPES = ("dynamic", "static", "kinematic")
-SHAPE_KINDS = ("circle", "box", "polygon", "segment")
 STATUS_RUNNING = "running"
 
 # Per-body time series: name -> (components per body, unit). 0 components = (T,N).
@@ -206,7 +206,8 @@ def _read_strings(dataset: h5py.Dataset) -> list[str]:
     return [str(s) for s in dataset.asstr()[()]]
 
 
-def _read_body_table(group: h5py.Group) -> BodyTable:
+def read_body_table(group: h5py.Group) -> BodyTable:
+    """The per-body table of an open file's /particles/bodies group."""
     shapes = group["shapes"]
     return BodyTable(
         name=_read_strings(group["name"]),
@@ -545,7 +546,7 @@ class Trajectory:
             raise KeyError(f"no body named {name!r}{hint}") from None
 
 
-def _open_for_reading(path: str | os.PathLike) -> h5py.File:
+def open_for_reading(path: str | os.PathLike) -> h5py.File:
     """Open read-only; files whose writer is running or was killed need SWMR read mode."""
     try:
         return h5py.File(path, "r")
@@ -563,7 +564,7 @@ def _series_groups(f: h5py.File) -> tuple[list[str], list[str]]:
     return bodies, obs
 
 
-def _frame_count(f: h5py.File, closed: bool) -> int:
+def frame_count(f: h5py.File, closed: bool) -> int:
     """Frames present in every time series: the shortest common length, less trailing
     frames whose step was never written (-1, the fill value). In a file that was not
     closed (writer running or killed) a trailing frame is also dropped when any series
@@ -594,7 +595,8 @@ def _frame_count(f: h5py.File, closed: bool) -> int:
     return t
 
 
-def _read_parameters(f: h5py.File) -> dict[str, str]:
+def read_parameters(f: h5py.File) -> dict[str, str]:
+    """/parameters/rbsim of an open file as text by name ({} when absent)."""
     params: dict[str, str] = {}
     group = f.get("parameters/rbsim")
     if group is None:
@@ -611,11 +613,11 @@ def load_trajectory(path: str | os.PathLike) -> Trajectory:
     """Read a trajectory file written by TrajectoryWriter (closed normally, still being
     written, or left by a killed writer). Every series is cut to the frames present in
     all of them. Units as in `Trajectory`."""
-    with _open_for_reading(path) as f:
-        bodies = _read_body_table(f["particles/bodies"])
+    with open_for_reading(path) as f:
+        bodies = read_body_table(f["particles/bodies"])
         n = len(bodies)
-        params = _read_parameters(f)
-        t = _frame_count(f, closed=params.get("status", STATUS_RUNNING) != STATUS_RUNNING)
+        params = read_parameters(f)
+        t = frame_count(f, closed=params.get("status", STATUS_RUNNING) != STATUS_RUNNING)
         arrays: dict[str, np.ndarray] = {}
         for name, (components, _unit) in BODY_SERIES.items():
             key = f"particles/bodies/{name}/value"
@@ -666,7 +668,8 @@ def _json_or_none(text: str | None) -> object:
         return None
 
 
-def _scene_name(params: dict[str, str], path: str) -> str:
+def scene_name(params: dict[str, str], path: str) -> str:
+    """The run's scene name: from the resolved scene in `params`, else from `path`."""
     resolved = _json_or_none(params.get("resolved_scene"))
     if isinstance(resolved, dict) and resolved.get("name"):
         return str(resolved["name"])
@@ -695,10 +698,10 @@ def summarize(path: str | os.PathLike) -> str:
     frames, step and time range (s), dt (s), wall time (s), file size, observables at
     the first and last frame, and the solver parameters. Reads only what it prints."""
     path = os.fspath(path)
-    with _open_for_reading(path) as f:
-        params = _read_parameters(f)
+    with open_for_reading(path) as f:
+        params = read_parameters(f)
         types = _read_strings(f["particles/bodies/type"])
-        t = _frame_count(f, closed=params.get("status", STATUS_RUNNING) != STATUS_RUNNING)
+        t = frame_count(f, closed=params.get("status", STATUS_RUNNING) != STATUS_RUNNING)
         step = time = np.zeros(0)
         if t:
             step = f["particles/bodies/position/step"][[0, t - 1] if t > 1 else [0]]
@@ -717,7 +720,7 @@ def summarize(path: str | os.PathLike) -> str:
     if status == STATUS_RUNNING:
         status += " (not closed: the writer is still running or was killed)"
     lines.append(f"  status     {status}")
-    lines.append(f"  scene      {_scene_name(params, path)}")
+    lines.append(f"  scene      {scene_name(params, path)}")
     counts = ", ".join(f"{types.count(k)} {k}" for k in BODY_TYPES if types.count(k))
     lines.append(f"  bodies     {len(types)}" + (f" ({counts})" if counts else ""))
     if t:

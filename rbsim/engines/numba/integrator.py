@@ -16,7 +16,7 @@ import math
 
 from numba import njit
 
-from . import constants as C
+from ...scene import types as T
 
 # |x| below which atan_small's series is used: its first omitted term, x^19 / 19, is
 # then below 1e-18 of x, far under double rounding.
@@ -62,7 +62,7 @@ def integrate_velocities(model, state, h):
     ang = 1.0 / (1.0 + h * m_angular_damping)
     v, w = state.body_v, state.body_w
     for i in range(v.shape[0]):
-        if m_body_type[i] != C.BODY_DYNAMIC:
+        if m_body_type[i] != T.BODY_DYNAMIC:
             continue
         ax, ay, alpha = gx, gy, 0.0
         if m_has_forces:
@@ -89,7 +89,7 @@ def integrate_positions(model, state, delta, h, exact):
     m_body_type = model.body_type
     x, q, angle, v, w = state.body_x, state.body_q, state.body_angle, state.body_v, state.body_w
     for i in range(x.shape[0]):
-        if m_body_type[i] == C.BODY_STATIC:
+        if m_body_type[i] == T.BODY_STATIC:
             continue
         dx, dy = h * v[i, 0], h * v[i, 1]
         x[i, 0] += dx

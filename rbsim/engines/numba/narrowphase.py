@@ -42,7 +42,8 @@ import math
 import numpy as np
 from numba import njit
 
-from .constants import LINEAR_SLOP, SHAPE_CIRCLE, SHAPE_POLYGON, SHAPE_SEGMENT
+from ...constants import LINEAR_SLOP
+from ...scene.types import SHAPE_CIRCLE, SHAPE_POLYGON, SHAPE_SEGMENT
 
 # The reference face stays on shape a unless b's best face is separated more by this
 # much, so that nearly equal faces (a box resting flat on a box) do not swap the

@@ -1,6 +1,6 @@
 """The self-contained HTML player: one file that plays a trajectory on a canvas.
 
-The page (template `rbsim/player.html`) draws from the stored numbers, not from
+The page (template `rbsim/view/player.html`, package data) draws from the stored numbers, not from
 pictures: for each shown frame and body, x and y (m) and the angle (rad) as
 little-endian float32, base64-encoded (16 bytes per body and frame), plus each body's
 shapes once. Its size therefore grows with frames x bodies, not with pixels: 1000 bodies
@@ -25,9 +25,9 @@ from .render import (
     Progress,
     RenderError,
     View,
-    _no_frames_message,
     fit_view,
     match_frames,
+    no_frames_message,
     sample_frames,
     shape_outline,
     shape_vertices,
@@ -113,7 +113,7 @@ def _track(
 
 def page_text(data: dict[str, object], title: str) -> str:
     """The player page with `data` (the JSON the page reads) and `title` filled in."""
-    template = resources.files("rbsim").joinpath(TEMPLATE).read_text(encoding="utf-8")
+    template = resources.files(__package__).joinpath(TEMPLATE).read_text(encoding="utf-8")
     # "</" could end the <script> element early (a body named "</script>"): escape it.
     payload = json.dumps(data, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
     return template.replace("{{TITLE}}", html.escape(title)).replace("{{DATA}}", payload)
@@ -145,7 +145,7 @@ def render_html(
     with FrameReader(path) as main:
         idx = sample_frames(main.time, fps, start, end)
         if not len(idx):
-            raise RenderError(_no_frames_message(main, start, end))
+            raise RenderError(no_frames_message(main, start, end))
         times = main.time[idx]
         other = FrameReader(overlay) if overlay is not None else None
         try:

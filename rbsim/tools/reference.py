@@ -31,11 +31,9 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
-from .mass import body_mass_properties
-from .model import Model
-from .scene import Body, Scene
+from ..scene import Body, Scene
+from ..scene.mass import body_mass_properties
 
 __all__ = [
     "ANALYTIC_KINDS",
@@ -44,7 +42,6 @@ __all__ = [
     "Reference",
     "ReferenceError",
     "make_reference",
-    "penetration",
     "pose_error",
 ]
 
@@ -597,116 +594,3 @@ def make_reference(scene: Scene) -> Reference:
 
 # --------------------------------------------------------------------------------------
 # Penetration (invariants)
-
-
-def touching_pairs(model: Model, x: np.ndarray, theta: np.ndarray, margin: float) -> np.ndarray:
-    """(P, 2) shape index pairs of different bodies, at least one dynamic, whose bounding
-    boxes at the pose (x (N,2) centres of mass m, theta (N,) rad) are within `margin` m."""
-    lo, hi = _shape_boxes(model, x, theta)
-    body = model.shape_body
-    dynamic = model.body_type[body] == 0
-    overlap = np.all(lo[:, None, :] <= hi[None, :, :] + margin, axis=2) & np.all(
-        lo[None, :, :] <= hi[:, None, :] + margin, axis=2
-    )
-    i, j = np.nonzero(np.triu(overlap, 1))
-    keep = (body[i] != body[j]) & (dynamic[i] | dynamic[j])
-    return np.stack([i[keep], j[keep]], axis=1).astype(np.int64)
-
-
-def _shape_boxes(model: Model, x: np.ndarray, theta: np.ndarray):
-    verts = _vertices_world(model, x, theta)
-    n = model.shape_body.shape[0]
-    lo, hi = np.empty((n, 2)), np.empty((n, 2))
-    for s in range(n):
-        v = verts[model.shape_vstart[s] : model.shape_vstart[s] + model.shape_vcount[s]]
-        lo[s], hi[s] = v.min(axis=0) - model.shape_radius[s], v.max(axis=0) + model.shape_radius[s]
-    return lo, hi
-
-
-def _vertices_world(model: Model, x: np.ndarray, theta: np.ndarray) -> np.ndarray:
-    b = model.shape_body[np.repeat(np.arange(model.shape_body.shape[0]), model.shape_vcount)]
-    c, s = np.cos(theta[b]), np.sin(theta[b])
-    v = model.vertex_local
-    return x[b] + np.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1]], axis=1)
-
-
-def penetration(model: Model, pairs: np.ndarray, x: np.ndarray, theta: np.ndarray) -> float:
-    """Deepest overlap (m, 0 when none) among the shape `pairs` at the pose x (N,2)
-    centres of mass (m), theta (N,) (rad): SAT separation of the shapes' cores (polygons,
-    segments, circle centres) minus their radii."""
-    if pairs.shape[0] == 0:
-        return 0.0
-    verts = _vertices_world(model, x, theta)
-    return max(
-        0.0,
-        -_min_separation(verts, model.shape_vstart, model.shape_vcount, model.shape_radius, pairs),
-    )
-
-
-@njit(cache=True)
-def _core_separation(verts, sa, na, sb, nb):
-    """Largest separation (m) of core b's vertices along the outward edge normals of core
-    a (a polygon, or a segment with both of its normals)."""
-    best = -np.inf
-    edges = na if na > 2 else 1
-    signs = 2 if na == 2 else 1
-    for k in range(edges):
-        ax, ay = verts[sa + k, 0], verts[sa + k, 1]
-        bx, by = verts[sa + (k + 1) % na, 0], verts[sa + (k + 1) % na, 1]
-        ex, ey = bx - ax, by - ay
-        length = np.sqrt(ex * ex + ey * ey)
-        for si in range(signs):
-            sign = 1.0 - 2.0 * si
-            nx, ny = sign * ey / length, -sign * ex / length
-            low = np.inf
-            for j in range(nb):
-                d = (verts[sb + j, 0] - ax) * nx + (verts[sb + j, 1] - ay) * ny
-                low = min(low, d)
-            best = max(best, low)
-    return best
-
-
-@njit(cache=True)
-def _point_core_distance(verts, c, sa, na):
-    """Signed distance (m) from vertex c to core a (a polygon or a segment): the distance
-    to the nearest edge outside a polygon, minus the depth of the nearest face inside."""
-    inside = na > 2 and _core_separation(verts, sa, na, c, 1) <= 0.0
-    if inside:
-        return _core_separation(verts, sa, na, c, 1)
-    best = np.inf
-    edges = na if na > 2 else 1
-    px, py = verts[c, 0], verts[c, 1]
-    for k in range(edges):
-        ax, ay = verts[sa + k, 0], verts[sa + k, 1]
-        ex = verts[sa + (k + 1) % na, 0] - ax
-        ey = verts[sa + (k + 1) % na, 1] - ay
-        s = ((px - ax) * ex + (py - ay) * ey) / (ex * ex + ey * ey)
-        s = min(max(s, 0.0), 1.0)
-        dx, dy = px - ax - s * ex, py - ay - s * ey
-        best = min(best, np.sqrt(dx * dx + dy * dy))
-    return best
-
-
-@njit(cache=True)
-def _min_separation(verts, vstart, vcount, radius, pairs):
-    """Smallest separation (m) over the pairs of shapes: the signed distance of their
-    cores (SAT for two polygons or segments, exact for a circle centre), minus both
-    radii."""
-    worst = np.inf
-    for p in range(pairs.shape[0]):
-        a, b = pairs[p, 0], pairs[p, 1]
-        sa, na, sb, nb = vstart[a], vcount[a], vstart[b], vcount[b]
-        if na == 1 and nb == 1:
-            dx = verts[sb, 0] - verts[sa, 0]
-            dy = verts[sb, 1] - verts[sa, 1]
-            sep = np.sqrt(dx * dx + dy * dy)
-        elif na == 1:
-            sep = _point_core_distance(verts, sa, sb, nb)
-        elif nb == 1:
-            sep = _point_core_distance(verts, sb, sa, na)
-        else:
-            sep = max(
-                _core_separation(verts, sa, na, sb, nb), _core_separation(verts, sb, nb, sa, na)
-            )
-        worst = min(worst, sep - radius[a] - radius[b])
-    return worst

@@ -15,14 +15,12 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from rbsim import schema
-from rbsim.schema import INVALID, Checked, did_you_mean
-from rbsim.yamlsrc import BROKEN, Mark, Problem, YList, YMap, format_path, load_yaml
+from . import schema
+from .schema import INVALID, Checked, did_you_mean
+from .types import SHAPE_KINDS
+from .yamlsrc import BROKEN, Mark, Problem, YList, YMap, format_path, load_yaml
 
 Vec2 = tuple[float, float]
-
-SHAPE_KINDS = ("circle", "box", "polygon", "segment")
-BODY_TYPES = ("dynamic", "static", "kinematic")
 
 
 @dataclass(frozen=True)

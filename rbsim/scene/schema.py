@@ -3,7 +3,7 @@
 Every key of a scene file is a :class:`Key`: its kind, default, allowed values, range
 and description. Two things are driven from the table:
 
-- :func:`check_scene` validates a parsed tree (see rbsim.yamlsrc) against it, fills
+- :func:`check_scene` validates a parsed tree (see rbsim.scene.yamlsrc) against it, fills
   defaults and reports every problem with its location and key path;
 - :func:`json_schema` turns it into a JSON Schema (draft 2020-12) for editors
   (yaml-language-server: ``# yaml-language-server: $schema=rbsim-schema.json``).
@@ -21,7 +21,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from rbsim.yamlsrc import BROKEN, Mark, Path, Problem, YList, YMap
+from . import types as T
+from .yamlsrc import BROKEN, Mark, Path, Problem, YList, YMap
 
 SCENE_VERSION = 1
 
@@ -156,14 +157,13 @@ SHAPE = Key(
     ref="shape",
 )
 
-BODY_TYPES = ("dynamic", "static", "kinematic")
 
 BODY = Key(
     "object",
     "A rigid body with one shape (`shape`) or several (`shapes`, a compound body).",
     fields={
         "name": Key("string", "Unique name; default body[i] with i the index in `bodies`."),
-        "type": Key("enum", "How the body moves.", "dynamic", choices=BODY_TYPES),
+        "type": Key("enum", "How the body moves.", "dynamic", choices=T.BODY_TYPES),
         "position": Key("vec2", "Body origin in the world, m.", (0.0, 0.0)),
         "angle": Key("number", "Orientation, rad.", 0.0),
         "velocity": Key("vec2", "Velocity of the centre of mass, m/s.", (0.0, 0.0)),
@@ -249,13 +249,13 @@ WORLD = Key(
                     "enum",
                     "Friction of a contact from the two shapes'.",
                     "sqrt",
-                    choices=("sqrt", "multiply", "min", "max"),
+                    choices=T.FRICTION_MIXING,
                 ),
                 "restitution": Key(
                     "enum",
                     "Restitution of a contact from the two shapes'.",
                     "max",
-                    choices=("max", "multiply", "min"),
+                    choices=T.RESTITUTION_MIXING,
                 ),
             },
         ),
@@ -274,13 +274,13 @@ SOLVER = Key(
             "enum",
             "Time integrator.",
             "symplectic_euler",
-            choices=("symplectic_euler", "explicit_euler"),
+            choices=T.INTEGRATORS,
         ),
         "rotation": Key(
             "enum",
             "Orientation update: normalize(q + h ω×q), or the exact rotation by h ω.",
             "normalize",
-            choices=("normalize", "exact"),
+            choices=T.ROTATIONS,
         ),
         "restitution_threshold": Key(
             "number", "Approach speed below which contacts do not bounce, m/s.", 1.0, ge=0

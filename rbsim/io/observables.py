@@ -7,15 +7,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import constants as C
-from .model import Model, State
+from ..scene import types as T
+from ..scene.compile import Model, State
 
 
 def observables(model: Model, state: State, contact_count: int) -> dict[str, float | np.ndarray]:
     """kinetic_energy (J), potential_energy (J, −m g·x relative to the world origin),
     linear_momentum (2,) kg·m/s, angular_momentum about the world origin (kg·m²/s,
     orbital plus spin), contact_count (points that pushed in the last step)."""
-    dyn = model.body_type == C.BODY_DYNAMIC
+    dyn = model.body_type == T.BODY_DYNAMIC
     m = model.body_mass[dyn]
     inertia = model.body_inertia[dyn]
     x, v, w = state.body_x[dyn], state.body_v[dyn], state.body_w[dyn]

@@ -1,0 +1,103 @@
+"""The one interface every engine is reached through: an Engine steps one scene and
+reads its state back in scene body order.
+
+compare, sweep, the hard cases, the benchmark and the run loop all drive engines
+through it; adding a reference engine means one adapter (a subclass) and one entry in
+rbsim.engines.ENGINES.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..config import NonFiniteState
+from ..scene import Scene
+
+__all__ = ["Engine", "NonFiniteState", "Snapshot"]
+
+
+@dataclass
+class Snapshot:
+    """One engine's state, scene body order: origin (N,2) m (the body origin as placed in
+    the scene), angle (N,) rad (unwrapped), orientation (N,2) the stored rotation (cos θ,
+    sin θ), com (N,2) m (centre of mass), velocity (N,2) m/s of the centre of mass,
+    angular_velocity (N,) rad/s."""
+
+    origin: np.ndarray
+    angle: np.ndarray
+    orientation: np.ndarray
+    com: np.ndarray
+    velocity: np.ndarray
+    angular_velocity: np.ndarray
+
+    @property
+    def q_norm(self) -> np.ndarray:
+        """(N,) |q| of the stored orientation (1 for an exact unit rotation)."""
+        return np.hypot(self.orientation[:, 0], self.orientation[:, 1])
+
+    def finite(self) -> bool:
+        """Whether every position and velocity is finite."""
+        return bool(np.all(np.isfinite(self.origin)) and np.all(np.isfinite(self.velocity)))
+
+
+class Engine:
+    """A scene being stepped by one engine.
+
+    name: the engine's name as a trajectory records it. scene: the scene it steps.
+    dt (s): one step. mass (N,) kg and inertia (N,) kg·m² about the centre of mass (inf
+    for static and kinematic bodies), com_local (N,2) m the centre of mass in the body
+    frame, dynamic (N,) bool: each engine's own mass properties. settings: the engine's
+    settings as a trajectory's /parameters records them. step_time (s): wall time spent
+    stepping so far (time.perf_counter), as the engine measures it.
+    """
+
+    name = ""
+
+    def __init__(self, scene: Scene) -> None:
+        self.scene = scene
+        self.dt = float(scene.world.dt)
+        self.mass = np.zeros(0)
+        self.inertia = np.zeros(0)
+        self.com_local = np.zeros((0, 2))
+        self.dynamic = np.zeros(0, bool)
+        self.settings: dict = {}
+        self.step_time = 0.0
+
+    @classmethod
+    def from_scene(cls, scene: Scene, **options) -> Engine:  # noqa: ANN003 - per engine
+        """The scene ready to step; raises what the engine raises when it cannot express
+        the scene (pymunk: UnsupportedScene)."""
+        return cls(scene, **options)
+
+    def advance(self, n: int) -> None:
+        """Take n steps of dt; raises NonFiniteState (body index, step) if the state
+        becomes non-finite (an engine that cannot tell while stepping raises it from
+        `read`)."""
+        raise NotImplementedError
+
+    def read(self) -> Snapshot:
+        """The current state (copies); may raise NonFiniteState (see advance)."""
+        raise NotImplementedError
+
+    @property
+    def step_index(self) -> int:
+        """Steps taken."""
+        raise NotImplementedError
+
+    @property
+    def time(self) -> float:
+        """Simulated time of the current state, s."""
+        return self.step_index * self.dt
+
+    @property
+    def contact_count(self) -> int:
+        """Contact points of the last step."""
+        raise NotImplementedError
+
+    def observables(self) -> dict[str, float | np.ndarray]:
+        """Sums over the dynamic bodies for a trajectory frame: kinetic_energy (J),
+        potential_energy (J), linear_momentum (2,) (kg·m/s), angular_momentum about the
+        world origin (kg·m²/s), contact_count (points)."""
+        raise NotImplementedError

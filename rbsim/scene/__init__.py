@@ -1,0 +1,48 @@
+"""Scenes: YAML text -> a validated, resolved Scene -> the model's flat arrays.
+
+The bottom of the front: this package imports nothing else of rbsim.
+
+- types: the vocabularies (shape kinds, body types, integrators, rotations, mixing
+  rules), defined once.
+- yamlsrc: YAML with the file:line:column of every node.
+- schema: the format as data; validation and the JSON Schema come from it.
+- resolve: the resolver (defaults, materials, generators) into the Scene dataclasses.
+- mass: mass, centre of mass and moment of inertia from shapes and density.
+- compile: Scene -> Model and State arrays, the only flattener.
+"""
+
+from .resolve import (
+    Body,
+    Material,
+    Output,
+    Scene,
+    SceneError,
+    SceneIssue,
+    Shape,
+    Solver,
+    World,
+    apply_overrides,
+    box_corners,
+    convex_ccw,
+    load_scene,
+    load_scene_text,
+    scene_to_dict,
+)
+
+__all__ = [
+    "Body",
+    "Material",
+    "Output",
+    "Scene",
+    "SceneError",
+    "SceneIssue",
+    "Shape",
+    "Solver",
+    "World",
+    "apply_overrides",
+    "box_corners",
+    "convex_ccw",
+    "load_scene",
+    "load_scene_text",
+    "scene_to_dict",
+]
