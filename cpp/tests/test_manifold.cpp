@@ -1,0 +1,105 @@
+// contact/manifold.cpp: warm-start matching by feature id, carried manifolds of still
+// bodies, and the pair's mixed coefficients.
+#include <cmath>
+#include <utility>
+
+#include "check.hpp"
+#include "scene_builder.hpp"
+
+using namespace rbsim;
+using rbsim::test::SceneBuilder;
+
+// A box on the ground, its last step's points listed in the other order and one id
+// unknown: each point takes the impulses of last step's point with its feature id, and
+// a point whose id was not there starts from zero.
+TEST(warm_start_matches_points_by_feature_id) {
+  SceneBuilder s;
+  s.ground();
+  const int box = s.box({0.0, 0.5}, 0.5, 0.5, 1.0);
+  World<2>& w = s.finish();
+  auto& c = w.contacts;
+  rbsim::test::collide(w);
+  CHECK(c.count.manifolds == 1 && c.points[0] == 2);
+  const std::int64_t id0 = c.feature[0][0], id1 = c.feature[0][1];
+  CHECK(id0 != id1);
+  c.normal_impulse[0] = {1.0, 2.0};
+  c.tangent_impulse[0] = {0.1, 0.2};
+  store_impulses(c);
+  // last step's points in the other order
+  std::swap(c.prev_feature[0][0], c.prev_feature[0][1]);
+  std::swap(c.prev_normal_impulse[0][0], c.prev_normal_impulse[0][1]);
+  std::swap(c.prev_tangent_impulse[0][0], c.prev_tangent_impulse[0][1]);
+  w.state.body_x[box].x += 1e-3;  // moved: the narrowphase runs again, same features
+  rbsim::test::collide(w);
+  CHECK(c.carried[0] == 0);
+  CHECK(c.feature[0][0] == id0 && c.feature[0][1] == id1);
+  CHECK(c.normal_impulse[0][0] == 1.0 && c.normal_impulse[0][1] == 2.0);
+  CHECK(c.tangent_impulse[0][0] == 0.1 && c.tangent_impulse[0][1] == 0.2);
+  CHECK(c.start_impulse[0][0] == 1.0);
+  // an id last step did not have
+  store_impulses(c);
+  c.prev_feature[0][1] = -5;
+  w.state.body_x[box].x += 1e-3;
+  rbsim::test::collide(w);
+  CHECK(c.normal_impulse[0][0] == 1.0);
+  CHECK(c.normal_impulse[0][1] == 0.0 && c.tangent_impulse[0][1] == 0.0);
+}
+
+// Bodies within STILL_DISTANCE of their reference poses keep last step's manifold: the
+// same points and impulses, marked carried, the separation moved by the bodies' motion.
+TEST(still_bodies_carry_their_manifold_with_separation_moved) {
+  SceneBuilder s;
+  s.ground();
+  const int box = s.box({0.0, 0.5}, 0.5, 0.5, 1.0);
+  World<2>& w = s.finish();
+  auto& c = w.contacts;
+  rbsim::test::collide(w);  // takes the reference pose
+  c.normal_impulse[0] = {1.0, 2.0};
+  store_impulses(c);
+  auto separation = [&](int k) {
+    return c.base_separation[0][k] + dot(c.normal[0], c.anchor_a[0][k] - c.anchor_b[0][k]);
+  };
+  const double sep0 = separation(0), sep1 = separation(1);
+  const Vec2 n0 = c.normal[0];
+  const double dy = -0.5 * constants::STILL_DISTANCE;  // m: sinks a little
+  w.state.body_x[box].y += dy;
+  rbsim::test::collide(w);
+  CHECK(c.body_still[box]);
+  CHECK(c.carried[0] == 1);
+  CHECK(c.normal[0].x == n0.x && c.normal[0].y == n0.y);
+  CHECK(c.normal_impulse[0][0] == 1.0 && c.start_impulse[0][1] == 2.0);
+  // the box is shape... body a or b: the normal from b to a is +y when the box is a
+  const double sign = c.body_a[0] == box ? 1.0 : -1.0;
+  CHECK_NEAR(separation(0), sep0 + sign * dy * n0.y, 1e-15);
+  CHECK_NEAR(separation(1), sep1 + sign * dy * n0.y, 1e-15);
+  CHECK(c.count.graph_unchanged == 1);
+  // a move past STILL_DISTANCE runs the narrowphase again
+  store_impulses(c);
+  w.state.body_x[box].y += 2.0 * constants::STILL_DISTANCE;
+  rbsim::test::collide(w);
+  CHECK(!c.body_still[box]);
+  CHECK(c.carried[0] == 0);
+  CHECK(c.normal_impulse[0][0] == 1.0);  // still warm-started, by id
+}
+
+// The contact's friction and restitution mix the two shapes' by the scene's rule.
+TEST(coefficients_mix_by_the_rule) {
+  for (const MixRule rule : {MixRule::Sqrt, MixRule::Multiply, MixRule::Min, MixRule::Max}) {
+    SceneBuilder s;
+    s.ground(-10, 10, {0.4, 0.1});
+    s.box({0.0, 0.5}, 0.5, 0.5, 1.0, {0.9, 0.6});
+    s.world.config.friction_rule = rule;
+    s.world.config.restitution_rule = rule;
+    World<2>& w = s.finish();
+    rbsim::test::collide(w);
+    const double f = w.contacts.friction[0], e = w.contacts.restitution[0];
+    switch (rule) {
+      case MixRule::Sqrt: CHECK_NEAR(f, 0.6, 1e-15); CHECK_NEAR(e, std::sqrt(0.06), 1e-15); break;
+      case MixRule::Multiply: CHECK_NEAR(f, 0.36, 1e-15); CHECK_NEAR(e, 0.06, 1e-15); break;
+      case MixRule::Min: CHECK(f == 0.4 && e == 0.1); break;
+      case MixRule::Max: CHECK(f == 0.9 && e == 0.6); break;
+    }
+  }
+}
+
+RBSIM_TEST_MAIN

@@ -1,0 +1,51 @@
+// solver/overlap_limit.cpp: a body deeper than the limit in a static one is moved out
+// along the normal to the limit, its velocity untouched; shallower overlaps and overlaps
+// between dynamic bodies are left to the solver.
+#include "check.hpp"
+#include "scene_builder.hpp"
+
+using namespace rbsim;
+using rbsim::test::SceneBuilder;
+
+namespace {
+constexpr double LIMIT = 0.02;  // m
+}
+
+TEST(deep_box_in_static_ground_moves_out_to_the_limit) {
+  SceneBuilder s;
+  s.ground();
+  const int deep = s.box({-3.0, 0.5 - 0.05}, 0.5, 0.5, 1.0, {}, 0.0, {0.0, -1.0});  // 5 cm in
+  const int shallow = s.box({3.0, 0.5 - 0.01}, 0.5, 0.5, 1.0);                      // 1 cm in
+  World<2>& w = s.finish();
+  rbsim::test::collide(w);
+  limit_static_overlap(w.model, w.state, w.contacts, LIMIT);
+  CHECK_NEAR(w.state.body_x[deep].y, 0.5 - LIMIT, 1e-12);
+  CHECK_NEAR(w.contacts.body_delta[deep].dx.y, 0.05 - LIMIT, 1e-12);
+  CHECK(w.state.body_v[deep].y == -1.0);
+  CHECK(w.state.body_x[shallow].y == 0.5 - 0.01);
+}
+
+// Under a static ceiling (the static body is shape a) the box is pushed down, along −n.
+TEST(box_deep_in_static_ceiling_moves_down) {
+  SceneBuilder s;
+  s.box({0.0, 1.5}, 2.0, 0.5, 0.0);                       // ceiling from y = 1
+  const int box = s.box({0.0, 0.5 + 0.06}, 0.5, 0.5, 1.0);  // 6 cm into it
+  World<2>& w = s.finish();
+  rbsim::test::collide(w);
+  CHECK(w.contacts.body_a[0] != box);
+  limit_static_overlap(w.model, w.state, w.contacts, LIMIT);
+  CHECK_NEAR(w.state.body_x[box].y, 0.5 + LIMIT, 1e-12);
+}
+
+TEST(overlap_between_dynamic_bodies_is_left_to_the_solver) {
+  SceneBuilder s;
+  s.world.model.gravity = {0.0, 0.0};
+  const int a = s.box({0.0, 0.0}, 0.5, 0.5, 1.0);
+  const int b = s.box({0.0, 0.9}, 0.5, 0.5, 1.0);  // 10 cm into a
+  World<2>& w = s.finish();
+  rbsim::test::collide(w);
+  limit_static_overlap(w.model, w.state, w.contacts, LIMIT);
+  CHECK(w.state.body_x[a].y == 0.0 && w.state.body_x[b].y == 0.9);
+}
+
+RBSIM_TEST_MAIN

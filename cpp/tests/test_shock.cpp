@@ -1,0 +1,100 @@
+// solver/shock.cpp: support levels through the contact graph, the solve order, and the
+// shock pass that holds the supporter still.
+#include <cmath>
+
+#include "check.hpp"
+#include "scene_builder.hpp"
+
+using namespace rbsim;
+using rbsim::test::SceneBuilder;
+
+namespace {
+
+// Ground, then boxes 1 kg, 10 kg, 1 kg stacked, and a box floating to the side.
+World<2>& stack(SceneBuilder& s) {
+  s.ground();
+  s.box({0.0, 0.5}, 0.5, 0.5, 1.0);
+  s.box({0.0, 1.5}, 0.5, 0.5, 10.0);
+  s.box({0.0, 2.5}, 0.5, 0.5, 1.0);
+  s.box({5.0, 5.0}, 0.5, 0.5, 1.0);
+  World<2>& w = s.finish();
+  rbsim::test::collide(w);
+  return w;
+}
+
+// The manifold between bodies i and j (-1 if none).
+int manifold_of(const World<2>& w, int i, int j) {
+  const auto& c = w.contacts;
+  for (int m = 0; m < c.count.manifolds; ++m)
+    if ((c.body_a[m] == i && c.body_b[m] == j) || (c.body_a[m] == j && c.body_b[m] == i)) return m;
+  return -1;
+}
+
+}  // namespace
+
+// Levels count contacts down to the ground; each supported contact is in the shock order,
+// lowest supporter first, with the side that supports; the solve order is ground first.
+TEST(stack_support_levels_count_up_from_the_ground) {
+  SceneBuilder s;
+  World<2>& w = stack(s);
+  const auto& c = w.contacts;
+  CHECK(c.body_level[0] == 0 && c.body_level[1] == 1 && c.body_level[2] == 2 && c.body_level[3] == 3);
+  CHECK(c.body_level[4] > 1000);  // not connected to the ground
+  CHECK(c.count.shock_count == 3);
+  for (int lv = 0; lv < 3; ++lv) {
+    const int m = c.shock_order[lv];
+    CHECK(m == manifold_of(w, lv, lv + 1));
+    // the lower body supports: side 1 when it is body a, 2 when it is body b
+    CHECK(c.shock_side[m] == (c.body_a[m] == lv ? 1 : 2));
+    CHECK(c.solve_order[lv] == m);
+  }
+}
+
+// The heavy middle box falls onto the light one at 2 m/s: the pass stops the approach
+// against the light box held still, and the light box is not pushed into the ground.
+TEST(shock_pass_removes_supported_approach_and_holds_supporter) {
+  SceneBuilder s;
+  World<2>& w = stack(s);
+  w.state.body_v[2] = {0.0, -2.0};
+  w.state.body_v[3] = {0.0, -2.0};
+  const double h = rbsim::test::substep(w);
+  propagate_shock(w.model, w.state, w.contacts, w.contacts.count.shock_count, 1.0 / h, 1.0);
+  CHECK(w.state.body_v[1].y == 0.0 && w.state.body_w[1] == 0.0);  // the supporter, untouched
+  const int m = manifold_of(w, 1, 2);
+  for (int k = 0; k < 2; ++k)
+    CHECK(rbsim::test::point_normal_velocity(w, m, k) >= -constants::SHOCK_MIN_APPROACH);
+  CHECK_NEAR(w.state.body_v[2].y, 0.0, 1e-12);  // m/s: touching (gap ~1e-16 m)
+  CHECK_NEAR(w.state.body_v[3].y, 0.0, 1e-12);  // carried up the stack in the same pass
+  CHECK_NEAR(w.state.body_w[2], 0.0, 1e-12);    // flat faces: no spin
+}
+
+// The pass never pulls: bodies moving apart, or closing a gap slower than it allows, keep
+// their velocities.
+TEST(shock_pass_never_pushes_apart) {
+  SceneBuilder s;
+  World<2>& w = stack(s);
+  w.state.body_v[2] = {0.0, 1.0};   // leaving the light box
+  w.state.body_v[3] = {0.3, 2.0};   // leaving the middle one faster
+  const State<2> before = w.state;
+  const double h = rbsim::test::substep(w);
+  propagate_shock(w.model, w.state, w.contacts, w.contacts.count.shock_count, 1.0 / h, 1.0);
+  CHECK(rbsim::test::same_bits(w.state, before));
+}
+
+// Without gravity nothing supports anything: no levels are needed and the pass is empty.
+TEST(no_gravity_no_shock_pass) {
+  SceneBuilder s;
+  s.world.model.gravity = {0.0, 0.0};
+  s.ground();
+  s.box({0.0, 0.5}, 0.5, 0.5, 1.0, {}, 0.0, {0.0, -2.0});
+  s.box({0.0, 1.5}, 0.5, 0.5, 1.0, {}, 0.0, {0.0, -3.0});
+  World<2>& w = s.finish();
+  rbsim::test::collide(w);
+  CHECK(w.contacts.count.manifolds == 2);
+  CHECK(w.contacts.count.shock_count == 0);
+  const State<2> before = w.state;
+  propagate_shock(w.model, w.state, w.contacts, w.contacts.count.shock_count, 240.0, 1.0);
+  CHECK(rbsim::test::same_bits(w.state, before));
+}
+
+RBSIM_TEST_MAIN

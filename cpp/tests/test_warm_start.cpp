@@ -1,0 +1,60 @@
+// solver/warm_start.cpp: last substep's impulses applied again, as the impulse and moment
+// they are, equal and opposite on the two bodies.
+#include <cmath>
+
+#include "check.hpp"
+#include "scene_builder.hpp"
+
+using namespace rbsim;
+using rbsim::test::SceneBuilder;
+
+// Impulses set at a box-on-box face: each body's velocity changes by ±P/m and its spin by
+// ±Σ (r × p)/I, with P = Σ (λn n + λt t); the total momentum is unchanged.
+TEST(warm_start_applies_stored_impulses_equal_and_opposite) {
+  SceneBuilder s;
+  s.world.model.gravity = {0.0, 0.0};
+  s.box({0.0, 0.0}, 1.0, 0.5, 4.0);
+  s.box({0.3, 0.75}, 0.25, 0.25, 1.0);
+  World<2>& w = s.finish();
+  rbsim::test::collide(w);
+  auto& c = w.contacts;
+  CHECK(c.count.manifolds == 1 && c.points[0] == 2);
+  c.normal_impulse[0] = {0.3, 0.1};
+  c.tangent_impulse[0] = {-0.05, 0.02};
+  const int a = c.body_a[0], b = c.body_b[0];
+  const Vec2 n = c.normal[0], t{n.y, -n.x};
+  Vec2 p{};
+  double la = 0.0, lb = 0.0;  // N·m·s
+  for (int k = 0; k < 2; ++k) {
+    const Vec2 pk = c.normal_impulse[0][k] * n + c.tangent_impulse[0][k] * t;
+    p += pk;
+    la += cross(c.anchor_a[0][k], pk);
+    lb += cross(c.anchor_b[0][k], pk);
+  }
+  warm_start(w.model, w.state, c);
+  const auto& m = w.model;
+  CHECK_NEAR(w.state.body_v[a].x, m.body_inv_mass[a] * p.x, 1e-15);
+  CHECK_NEAR(w.state.body_v[a].y, m.body_inv_mass[a] * p.y, 1e-15);
+  CHECK_NEAR(w.state.body_v[b].y, -m.body_inv_mass[b] * p.y, 1e-15);
+  CHECK_NEAR(w.state.body_w[a], m.body_inv_inertia[a] * la, 1e-15);
+  CHECK_NEAR(w.state.body_w[b], -m.body_inv_inertia[b] * lb, 1e-15);
+  const Vec2 total = m.body_mass[0] * w.state.body_v[0] + m.body_mass[1] * w.state.body_v[1];
+  CHECK_NEAR(total.x, 0.0, 1e-15);
+  CHECK_NEAR(total.y, 0.0, 1e-15);
+}
+
+// Against the ground only the box moves; the static body's state is not written.
+TEST(warm_start_leaves_static_body_alone) {
+  SceneBuilder s;
+  const int g = s.ground();
+  const int box = s.box({0.0, 0.5}, 0.5, 0.5, 2.0);
+  World<2>& w = s.finish();
+  rbsim::test::collide(w);
+  w.contacts.normal_impulse[0] = {0.5, 0.5};
+  warm_start(w.model, w.state, w.contacts);
+  CHECK_NEAR(w.state.body_v[box].y, 0.5, 1e-15);  // (0.5 + 0.5) N·s / 2 kg
+  CHECK_NEAR(w.state.body_w[box], 0.0, 1e-15);    // mirror-image impulses: no spin
+  CHECK(w.state.body_v[g].x == 0.0 && w.state.body_v[g].y == 0.0 && w.state.body_w[g] == 0.0);
+}
+
+RBSIM_TEST_MAIN
