@@ -118,6 +118,7 @@ struct Contacts {
   std::vector<std::int64_t> body_reach;     // (N,) deep_region's scratch
   // the waves of the solve order (color.cpp): groups of independent manifolds
   std::int64_t group_count = 0;             // waves
+  bool waves_valid = false;                 // the waves are this contact graph's
   std::vector<std::int32_t> color_order;    // (M,) the manifolds wave by wave
   std::vector<std::int32_t> manifold_wave;  // (M,) each manifold's wave (scratch)
   std::vector<std::int32_t> body_wave;      // (N,) the last wave that moved the body (scratch)
@@ -166,6 +167,7 @@ void Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   reset(bounce_kind, m); reset(body_mark, n); reset(solve_impulse, m);
   reset(bounce_list, 2 * m + 2); reset(relax_list, m); reset(body_reach, n);
   group_count = 0;
+  waves_valid = false;
   reset(color_order, m); reset(manifold_wave, m); reset(body_wave, n);
   reset(group_start, m + 2); reset(group_batch, m + 2); reset(group_single, m + 1);
   // every wave may end in a part-filled batch

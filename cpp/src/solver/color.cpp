@@ -82,6 +82,25 @@ template <int D>
 std::int64_t color_contacts(const Model<D>& model, Contacts<D>& c) {
   static_assert(D == 2, "the batches hold 2D solver rows");
   const std::int64_t n_man = c.count.manifolds;
+  if (c.count.graph_unchanged == 1 && c.waves_valid) {
+    // last step's manifolds in the same slots and the same solve order (support_order
+    // keeps it): the waves hold, and only the rows that prepare wrote again are packed
+    // again (a carried manifold's row changes in its base separations only)
+    for (std::int64_t i = 0; i < c.group_batch[c.group_count]; ++i) {
+      WideBatch& w = c.batches[i];
+      for (int l = 0; l < LANES; ++l) {
+        const std::int32_t m = w.m[l];
+        if (m < 0) continue;
+        if (c.carried[m]) {
+          w.p0.base[l] = c.solver_row[m].point[0].base;
+          if (w.two[l] != 0.0) w.p1.base[l] = c.solver_row[m].point[1].base;
+        } else {
+          pack_lane(model, c, w, l, m);
+        }
+      }
+    }
+    return c.group_count;
+  }
   auto& last = c.body_wave;
   auto& wave = c.manifold_wave;
   for (auto& w : last) w = 0;
@@ -125,6 +144,7 @@ std::int64_t color_contacts(const Model<D>& model, Contacts<D>& c) {
   }
   c.group_batch[n_waves] = n_batches;
   c.group_count = n_waves;
+  c.waves_valid = true;
   return n_waves;
 }
 
