@@ -126,6 +126,8 @@ struct Contacts {
   std::vector<std::int64_t> group_batch;    // (M+2,) wave g: batches[batch[g]..batch[g+1])
   std::vector<std::int64_t> group_single;   // (M+1,) wave g's one-point manifolds:
                                             // color_order[single[g]..start[g+1])
+  std::vector<std::int64_t> group_single_batch;  // (M+1,) and their batches, from here
+                                                 // to group_batch[g+1]
   std::vector<WideBatch> batches;           // the waves' manifolds, LANES at a time
 
   std::int64_t capacity() const { return static_cast<std::int64_t>(key.size()); }
@@ -170,8 +172,9 @@ void Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   waves_valid = false;
   reset(color_order, m); reset(manifold_wave, m); reset(body_wave, n);
   reset(group_start, m + 2); reset(group_batch, m + 2); reset(group_single, m + 1);
-  // every wave may end in a part-filled batch
-  batches.assign(m / LANES + m + 2, WideBatch{});
+  reset(group_single_batch, m + 1);
+  // each wave's two-point and one-point manifolds may end in a part-filled batch
+  batches.assign(m / LANES + 2 * m + 2, WideBatch{});
 }
 
 template <int D>

@@ -11,8 +11,8 @@
 // the last wave of the manifolds before it that share one of its dynamic bodies; the
 // manifolds of a wave are independent, and solving the waves in turn is solving the
 // solve order, one manifold after another, reordered only where that changes nothing. A
-// wave's two-point manifolds are packed LANES at a time for solve.cpp, which solves them
-// in vector registers (its one-point manifolds are solved one by one); a pass gives the same result however a wave is split (one by one, several
+// wave's manifolds are packed LANES at a time for solve.cpp, which solves them in vector
+// registers; a pass gives the same result however a wave is split (one by one, several
 // at a time, or on several threads).
 #include <algorithm>
 #include <array>
@@ -85,8 +85,10 @@ std::int64_t color_contacts(const Model<D>& model, Contacts<D>& c) {
   if (c.count.graph_unchanged == 1 && c.waves_valid) {
     // last step's manifolds in the same slots and the same solve order (support_order
     // keeps it): the waves hold, and only the rows that prepare wrote again are packed
-    // again (a carried manifold's row changes in its base separations only)
-    for (std::int64_t i = 0; i < c.group_batch[c.group_count]; ++i) {
+    // again (a carried manifold's row changes in its base separations only), unless a
+    // manifold's point count changed (it belongs in a batch of the other kind)
+    bool same_kinds = true;
+    for (std::int64_t i = 0; same_kinds && i < c.group_batch[c.group_count]; ++i) {
       WideBatch& w = c.batches[i];
       for (int l = 0; l < LANES; ++l) {
         const std::int32_t m = w.m[l];
@@ -94,12 +96,15 @@ std::int64_t color_contacts(const Model<D>& model, Contacts<D>& c) {
         if (c.carried[m]) {
           w.p0.base[l] = c.solver_row[m].point[0].base;
           if (w.two[l] != 0.0) w.p1.base[l] = c.solver_row[m].point[1].base;
-        } else {
+        } else if ((c.points[m] == 2) == (w.two[l] != 0.0)) {
           pack_lane(model, c, w, l, m);
+        } else {
+          same_kinds = false;
+          break;
         }
       }
     }
-    return c.group_count;
+    if (same_kinds) return c.group_count;
   }
   auto& last = c.body_wave;
   auto& wave = c.manifold_wave;
@@ -123,8 +128,8 @@ std::int64_t color_contacts(const Model<D>& model, Contacts<D>& c) {
   auto& fill = c.group_batch;  // scratch cursors first, the batch ranges after
   for (std::int32_t k = 0; k <= n_waves; ++k) fill[k] = start[k];
   // within a wave the two-point manifolds first, then the one-point ones (circles,
-  // capsule ends), each in solve order: the first are solved in batches, the second one
-  // by one (their scalar code is shorter than a batch's two-point code per lane)
+  // capsule ends), each in solve order and in batches of their own (a one-point batch
+  // skips the second point's work)
   for (int pass = 2; pass >= 1; --pass) {
     for (std::int64_t o = 0; o < n_man; ++o) {
       const std::int32_t m = c.solve_order[o];
@@ -136,10 +141,15 @@ std::int64_t color_contacts(const Model<D>& model, Contacts<D>& c) {
   std::int64_t n_batches = 0;
   for (std::int32_t k = 0; k < n_waves; ++k) {
     c.group_batch[k] = n_batches;
-    const std::int64_t end = c.group_single[k];
-    for (std::int64_t i = start[k]; i < end; i += LANES) {
-      WideBatch& w = c.batches[n_batches++];
-      for (int l = 0; l < LANES; ++l) pack_lane(model, c, w, l, i + l < end ? c.color_order[i + l] : -1);
+    for (int part = 0; part < 2; ++part) {  // the two-point batches, then the one-point ones
+      const std::int64_t from = part == 0 ? start[k] : c.group_single[k];
+      const std::int64_t end = part == 0 ? c.group_single[k] : start[k + 1];
+      if (part == 1) c.group_single_batch[k] = n_batches;
+      for (std::int64_t i = from; i < end; i += LANES) {
+        WideBatch& w = c.batches[n_batches++];
+        for (int l = 0; l < LANES; ++l)
+          pack_lane(model, c, w, l, i + l < end ? c.color_order[i + l] : -1);
+      }
     }
   }
   c.group_batch[n_waves] = n_batches;

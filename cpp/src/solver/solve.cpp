@@ -265,10 +265,12 @@ inline Lanes clamp_lanes(Contacts<2>& c, const WideBatch& B, int k, LaneMask on,
   return applied;
 }
 
-// One batch of LANES manifolds of one colour: solve_contacts' two-point code (a one-point
-// manifold is the same with its second point's terms zero), lane by lane.
-void solve_batch(const Model<2>& model, State<2>& st, Contacts<2>& c, const WideBatch& B,
-                 double inv_h, bool use_bias, double shift, double threshold) {
+// One batch of LANES manifolds of one wave, all with TWO points or all with one:
+// solve_contacts' code for that count, lane by lane.
+template <bool TWO>
+void solve_batch(State<2>& st, Contacts<2>& c, const WideBatch& B, double inv_h, bool use_bias,
+                 double shift, double threshold) {
+  static_assert(LANES == 4, "the gathers below are written for four lanes");
   Vec2* v = st.body_v.data();
   double* w = st.body_w.data();
   const BodyDelta<2>* delta = c.body_delta.data();
@@ -276,7 +278,6 @@ void solve_batch(const Model<2>& model, State<2>& st, Contacts<2>& c, const Wide
   // vector assembled lane by lane through memory would wait on store forwarding)
   const int a0 = B.a[0], a1 = B.a[1], a2 = B.a[2], a3 = B.a[3];
   const int b0i = B.b[0], b1i = B.b[1], b2i = B.b[2], b3i = B.b[3];
-  static_assert(LANES == 4, "the gathers below are written for four lanes");
   Lanes vax = {v[a0].x, v[a1].x, v[a2].x, v[a3].x};
   Lanes vay = {v[a0].y, v[a1].y, v[a2].y, v[a3].y};
   Lanes wa = {w[a0], w[a1], w[a2], w[a3]};
@@ -294,23 +295,25 @@ void solve_batch(const Model<2>& model, State<2>& st, Contacts<2>& c, const Wide
   const Lanes dbc = {db0.dq.c, db1.dq.c, db2.dq.c, db3.dq.c};
   const Lanes dbs = {db0.dq.s, db1.dq.s, db2.dq.s, db3.dq.s};
   // an empty lane reads manifold 0's impulses (its rows are zero: it changes nothing and
-  // is not written back); a one-point manifold's second point reads as zero
+  // is not written back)
   const std::int32_t m0 = B.m[0] < 0 ? 0 : B.m[0], m1 = B.m[1] < 0 ? 0 : B.m[1];
   const std::int32_t m2 = B.m[2] < 0 ? 0 : B.m[2], m3 = B.m[3] < 0 ? 0 : B.m[3];
   const Lanes zero = splat(0.0);
-  const LaneMask two = B.two != zero;
   const auto* ni = c.normal_impulse.data();
   const auto* ti = c.tangent_impulse.data();
   const auto* xi = c.max_normal_impulse.data();
   const auto* av = c.approach_velocity.data();
   const Lanes lam0 = {ni[m0][0], ni[m1][0], ni[m2][0], ni[m3][0]};
-  const Lanes lam1 = select(two, Lanes{ni[m0][1], ni[m1][1], ni[m2][1], ni[m3][1]}, zero);
   Lanes tl0 = {ti[m0][0], ti[m1][0], ti[m2][0], ti[m3][0]};
-  Lanes tl1 = select(two, Lanes{ti[m0][1], ti[m1][1], ti[m2][1], ti[m3][1]}, zero);
   Lanes mx0 = {xi[m0][0], xi[m1][0], xi[m2][0], xi[m3][0]};
-  Lanes mx1 = select(two, Lanes{xi[m0][1], xi[m1][1], xi[m2][1], xi[m3][1]}, zero);
   const Lanes ap0 = {av[m0][0], av[m1][0], av[m2][0], av[m3][0]};
-  const Lanes ap1 = {av[m0][1], av[m1][1], av[m2][1], av[m3][1]};
+  Lanes lam1 = zero, tl1 = zero, mx1 = zero, ap1 = zero;
+  if constexpr (TWO) {
+    lam1 = Lanes{ni[m0][1], ni[m1][1], ni[m2][1], ni[m3][1]};
+    tl1 = Lanes{ti[m0][1], ti[m1][1], ti[m2][1], ti[m3][1]};
+    mx1 = Lanes{xi[m0][1], xi[m1][1], xi[m2][1], xi[m3][1]};
+    ap1 = Lanes{av[m0][1], av[m1][1], av[m2][1], av[m3][1]};
+  }
   const LaneMask active = LaneMask{B.m[0], B.m[1], B.m[2], B.m[3]} >= LaneMask{};
   const Lanes nx = B.nx, ny = B.ny;
   const Lanes tx = ny, ty = -nx;  // t = (n_y, −n_x)
@@ -321,22 +324,24 @@ void solve_batch(const Model<2>& model, State<2>& st, Contacts<2>& c, const Wide
   const Lanes nbx = dbc * nx + dbs * ny, nby = -dbs * nx + dbc * ny;
   const WidePoint& p0 = B.p0;
   const WidePoint& p1 = B.p1;
-  const Lanes s0 = ((moved + p0.base) + (nax * p0.rax + nay * p0.ray)) - (nbx * p0.rbx + nby * p0.rby);
-  const Lanes s1 = ((moved + p1.base) + (nax * p1.rax + nay * p1.ray)) - (nbx * p1.rbx + nby * p1.rby);
-  // soft targets, as soft_target
   const Lanes max_push = splat(-C::CONTACT_PUSH_MAX_VELOCITY);
   const Lanes inv_hv = splat(inv_h);
   const LaneMask bias_on = use_bias ? LaneMask{} == LaneMask{} : LaneMask{} != LaneMask{};
-  const LaneMask push0 = bias_on & (s0 <= zero), push1 = bias_on & (s1 <= zero);
-  Lanes b0 = select(s0 > zero, s0 * inv_hv, zero);
-  Lanes b1 = select(s1 > zero, s1 * inv_hv, zero);
-  b0 = select(push0, vmax(B.bias_rate * s0, max_push), b0);
-  b1 = select(push1, vmax(B.bias_rate * s1, max_push), b1);
-  const Lanes g0 = select(push0, p0.kn * B.gamma, zero);
-  const Lanes g1 = select(push1, p1.kn * B.gamma, zero);
+  // a point's separation and soft target (soft_target's bias m/s and γ 1/kg)
+  auto target = [&](const WidePoint& p, Lanes& s, Lanes& bias, Lanes& gamma) {
+    s = ((moved + p.base) + (nax * p.rax + nay * p.ray)) - (nbx * p.rbx + nby * p.rby);
+    const LaneMask push = bias_on & (s <= zero);
+    bias = select(s > zero, s * inv_hv, zero);
+    bias = select(push, vmax(B.bias_rate * s, max_push), bias);
+    gamma = select(push, p.kn * B.gamma, zero);
+  };
+  Lanes s0, b0, g0, s1 = zero, b1 = zero, g1 = zero;
+  target(p0, s0, b0, g0);
+  if constexpr (TWO) target(p1, s1, b1, g1);
   if (use_bias) {  // a deep overlap: the manifold enters relax_list
     const Lanes deep = splat(-C::DEEP_OVERLAP);
-    const LaneMask is_deep = active & ((s0 < deep) | (two & (s1 < deep)));
+    LaneMask is_deep = active & (s0 < deep);
+    if constexpr (TWO) is_deep |= active & (s1 < deep);
     for (int l = 0; any(is_deep) && l < LANES; ++l) {
       if (is_deep[l] && c.count.deep_count < static_cast<std::int64_t>(c.relax_list.size())) {
         c.relax_list[c.count.deep_count] = B.m[l];
@@ -344,47 +349,51 @@ void solve_batch(const Model<2>& model, State<2>& st, Contacts<2>& c, const Wide
       }
     }
   }
-  // velocities along the normal and the tangent at both points
+  // velocities along the normal and the tangent at the points
   const Lanes dvx = vax - vbx, dvy = vay - vby;
   const Lanes dvn = dvx * nx + dvy * ny, dvt = dvx * tx + dvy * ty;
   const Lanes vn0 = dvn + (wa * p0.rna - wb * p0.rnb);
-  Lanes vn1 = dvn + (wa * p1.rna - wb * p1.rnb);
   Lanes vt0 = dvt + (wa * p0.rta - wb * p0.rtb);
-  Lanes vt1 = dvt + (wa * p1.rta - wb * p1.rtb);
-  // both points as one 2x2 block, else one at a time (solve_contacts says why)
-  const Lanes k00 = p0.kn + g0, k11 = p1.kn + g1, k01 = B.k01;
-  const Lanes det = k00 * k11 - k01 * k01;
-  const LaneMask blockable = two & (det > splat(1.0e-9) * k00 * k11);
-  const Lanes r0 = -vn0 - (b0 + g0 * lam0);
-  const Lanes r1 = -vn1 - (b1 + g1 * lam1);
-  const Lanes inv_det = splat(1.0) / select(blockable, det, splat(1.0));
-  const Lanes d0b = (k11 * r0 - k01 * r1) * inv_det;
-  const Lanes d1b = (k00 * r1 - k01 * r0) * inv_det;
-  const LaneMask block = blockable & (lam0 + d0b >= zero) & (lam1 + d1b >= zero);
-  const Lanes d0 = select(block, d0b, (-vn0 - (b0 + g0 * lam0)) * (splat(1.0) / (p0.kn + g0)));
-  Lanes n0, n1;  // the accumulated normal impulses after the clamp
-  const Lanes j0 = clamp_lanes(c, B, 0, active, lam0, d0, vn0, s0, mx0, ap0, shift, threshold, n0);
-  vn1 = select(block, vn1, vn1 + j0 * k01);
-  Lanes d1 = select(block, d1b, (-vn1 - (b1 + g1 * lam1)) * (splat(1.0) / (p1.kn + g1)));
-  d1 = select(two, d1, zero);
-  const Lanes j1 =
-      clamp_lanes(c, B, 1, active & two, lam1, d1, vn1, s1, mx1, ap1, shift, threshold, n1);
-  // friction, as solve_contacts
+  Lanes n0, n1 = zero;  // the accumulated normal impulses after the clamp
+  Lanes j0, j1 = zero;  // the normal impulses applied (N·s)
+  if constexpr (TWO) {
+    Lanes vn1 = dvn + (wa * p1.rna - wb * p1.rnb);
+    // both points as one 2x2 block, else one at a time (solve_contacts says why)
+    const Lanes k00 = p0.kn + g0, k11 = p1.kn + g1, k01 = B.k01;
+    const Lanes det = k00 * k11 - k01 * k01;
+    const LaneMask blockable = det > splat(1.0e-9) * k00 * k11;
+    const Lanes r0 = -vn0 - (b0 + g0 * lam0);
+    const Lanes r1 = -vn1 - (b1 + g1 * lam1);
+    const Lanes inv_det = splat(1.0) / select(blockable, det, splat(1.0));
+    const Lanes d0b = (k11 * r0 - k01 * r1) * inv_det;
+    const Lanes d1b = (k00 * r1 - k01 * r0) * inv_det;
+    const LaneMask block = blockable & (lam0 + d0b >= zero) & (lam1 + d1b >= zero);
+    const Lanes d0 = select(block, d0b, (-vn0 - (b0 + g0 * lam0)) * (splat(1.0) / (p0.kn + g0)));
+    j0 = clamp_lanes(c, B, 0, active, lam0, d0, vn0, s0, mx0, ap0, shift, threshold, n0);
+    vn1 = select(block, vn1, vn1 + j0 * k01);
+    const Lanes d1 = select(block, d1b, (-vn1 - (b1 + g1 * lam1)) * (splat(1.0) / (p1.kn + g1)));
+    j1 = clamp_lanes(c, B, 1, active, lam1, d1, vn1, s1, mx1, ap1, shift, threshold, n1);
+  } else {
+    const Lanes d0 = (-vn0 - (b0 + g0 * lam0)) * (splat(1.0) / (p0.kn + g0));
+    j0 = clamp_lanes(c, B, 0, active, lam0, d0, vn0, s0, mx0, ap0, shift, threshold, n0);
+  }
+  // friction, as solve_contacts (the normal impulses turn the bodies: n · t = 0)
   const Lanes mu = B.friction;
   const LaneMask has_mu = active & (mu > zero);
-  Lanes f0 = zero, f1 = zero;
+  Lanes f0 = zero, f1 = zero;  // the friction impulses applied (N·s)
   {
     const Lanes lam = tl0, limit = mu * n0;
     const LaneMask on = has_mu & ~((limit == zero) & (lam == zero));
     vt0 += j0 * (ia * p0.rna * p0.rta + ib * p0.rnb * p0.rtb);
-    vt0 += j1 * (ia * p1.rna * p0.rta + ib * p1.rnb * p0.rtb);
+    if constexpr (TWO) vt0 += j1 * (ia * p1.rna * p0.rta + ib * p1.rnb * p0.rtb);
     const Lanes next = vmin(vmax(lam - p0.tangent_mass * vt0, -limit), limit);
     f0 = select(on, next - lam, zero);
     tl0 = select(on, next, lam);
   }
-  {
+  if constexpr (TWO) {
+    Lanes vt1 = dvt + (wa * p1.rta - wb * p1.rtb);
     const Lanes lam = tl1, limit = mu * n1;
-    const LaneMask on = has_mu & two & ~((limit == zero) & (lam == zero));
+    const LaneMask on = has_mu & ~((limit == zero) & (lam == zero));
     vt1 += j0 * (ia * p0.rna * p1.rta + ib * p0.rnb * p1.rtb);
     vt1 += j1 * (ia * p1.rna * p1.rta + ib * p1.rnb * p1.rtb);
     vt1 += f0 * (ma + mb + ia * p0.rta * p1.rta + ib * p0.rtb * p1.rtb);
@@ -392,14 +401,20 @@ void solve_batch(const Model<2>& model, State<2>& st, Contacts<2>& c, const Wide
     f1 = select(on, next - lam, zero);
     tl1 = select(on, next, lam);
   }
-  const Lanes jn = j0 + j1, jt = f0 + f1;
+  Lanes jn = j0, jt = f0, ta = j0 * p0.rna + f0 * p0.rta, tb = j0 * p0.rnb + f0 * p0.rtb;
+  if constexpr (TWO) {
+    jn = j0 + j1;
+    jt = f0 + f1;
+    ta = (j0 * p0.rna + j1 * p1.rna) + (f0 * p0.rta + f1 * p1.rta);
+    tb = (j0 * p0.rnb + j1 * p1.rnb) + (f0 * p0.rtb + f1 * p1.rtb);
+  }
   const Lanes px = jn * nx + jt * tx, py = jn * ny + jt * ty;
   vax += ma * px;
   vay += ma * py;
-  wa += ia * ((j0 * p0.rna + j1 * p1.rna) + (f0 * p0.rta + f1 * p1.rta));
+  wa += ia * ta;
   vbx -= mb * px;
   vby -= mb * py;
-  wb -= ib * ((j0 * p0.rnb + j1 * p1.rnb) + (f0 * p0.rtb + f1 * p1.rtb));
+  wb -= ib * tb;
   for (int l = 0; l < LANES; ++l) {
     const std::int64_t m = B.m[l];
     if (m < 0) continue;
@@ -415,7 +430,7 @@ void solve_batch(const Model<2>& model, State<2>& st, Contacts<2>& c, const Wide
     c.normal_impulse[m][0] = n0[l];
     c.tangent_impulse[m][0] = tl0[l];
     c.max_normal_impulse[m][0] = mx0[l];
-    if (two[l]) {
+    if constexpr (TWO) {
       c.normal_impulse[m][1] = n1[l];
       c.tangent_impulse[m][1] = tl1[l];
       c.max_normal_impulse[m][1] = mx1[l];
@@ -430,12 +445,11 @@ void solve_colored(const Model<D>& model, State<D>& st, Contacts<D>& c, double i
                    bool use_bias, double shift, double threshold) {
   static_assert(D == 2, "the batches hold 2D solver rows");
   for (std::int64_t g = 0; g < c.group_count; ++g) {
-    for (std::int64_t i = c.group_batch[g]; i < c.group_batch[g + 1]; ++i)
-      solve_batch(model, st, c, c.batches[i], inv_h, use_bias, shift, threshold);
-    const std::int64_t first = c.group_single[g];  // the wave's one-point manifolds
-    if (c.group_start[g + 1] > first)
-      solve_contacts(model, st, c, inv_h, use_bias, shift, threshold, c.color_order.data() + first,
-                     c.group_start[g + 1] - first);
+    const std::int64_t single = c.group_single_batch[g];  // the first batch of one-point ones
+    for (std::int64_t i = c.group_batch[g]; i < single; ++i)
+      solve_batch<true>(st, c, c.batches[i], inv_h, use_bias, shift, threshold);
+    for (std::int64_t i = single; i < c.group_batch[g + 1]; ++i)
+      solve_batch<false>(st, c, c.batches[i], inv_h, use_bias, shift, threshold);
   }
 }
 
