@@ -280,6 +280,8 @@ nb::object run_stage(World2& w, const std::string& name, nb::dict args) {
     solve_contacts(m, st, c, num("inv_h"), flag("use_bias"), num("shift"), num("threshold"), order, n);
   } else if (name == "color_contacts") {
     return nb::int_(color_contacts(m, c));
+  } else if (name == "warm_start_colored") {
+    warm_start_colored(m, st, c);
   } else if (name == "solve_colored") {
     solve_colored(m, st, c, num("inv_h"), flag("use_bias"), num("shift"), num("threshold"));
   } else if (name == "keep_solve_impulses") {

@@ -89,7 +89,7 @@ bool World<D>::step() {
       timed(S::IntegratePositions, [&] { integrate_positions(model, state, c.body_delta, h, cfg.exact_rotation); });
     timed(S::IntegrateVelocities, [&] { integrate_velocities(model, state, h); });
     if (contacts_on) {
-      timed(S::WarmStart, [&] { warm_start(model, state, c); });
+      timed(S::WarmStart, [&] { warm_start_colored(model, state, c); });
       c.count.deep_count = 0;
       timed(S::Solve, [&] {
         for (int it = 0; it < cfg.iterations; ++it)

@@ -102,6 +102,10 @@ void integrate_positions(const Model<D>& model, State<D>& state,
 template <int D>
 void warm_start(const Model<D>& model, State<D>& state, Contacts<D>& contacts);
 
+// solver/warm_start.cpp: the same, wave by wave, LANES manifolds at a time (the step's).
+template <int D>
+void warm_start_colored(const Model<D>& model, State<D>& state, Contacts<D>& contacts);
+
 // solver/solve.cpp: one pass of sequential impulses over order[0..n): with the soft
 // bias (use_bias, the solve stage) or without (the relax stage). inv_h: 1/substep (1/s);
 // shift: h in the relax stage of symplectic Euler (s); threshold (m/s).

@@ -2,6 +2,7 @@
 // substep's solve (they are impulses per substep, so the solver starts from the answer
 // of the last one and only corrects it).
 #include "rbsim/stages.hpp"
+#include "rbsim/wide.hpp"
 #include "solver/row.hpp"
 
 namespace rbsim {
@@ -43,5 +44,64 @@ void warm_start(const Model<D>& model, State<D>& st, Contacts<D>& c) {
 }
 
 template void warm_start(const Model<2>&, State<2>&, Contacts<2>&);
+
+namespace {
+
+// One batch of a wave (color.cpp): the same impulses, LANES manifolds at a time. A wave's
+// manifolds share no dynamic body, so the order in which their impulses reach the bodies
+// changes only the rounding of the sums.
+template <bool TWO>
+void warm_start_batch(State<2>& st, const Contacts<2>& c, const WideBatch& B) {
+  static_assert(LANES == 4, "the gathers below are written for four lanes");
+  const std::int32_t m0 = B.m[0] < 0 ? 0 : B.m[0], m1 = B.m[1] < 0 ? 0 : B.m[1];
+  const std::int32_t m2 = B.m[2] < 0 ? 0 : B.m[2], m3 = B.m[3] < 0 ? 0 : B.m[3];
+  const auto* ni = c.normal_impulse.data();
+  const auto* ti = c.tangent_impulse.data();
+  const Lanes nx = B.nx, ny = B.ny;
+  const Lanes tx = ny, ty = -nx;  // t = (n_y, −n_x)
+  const Lanes jn0 = {ni[m0][0], ni[m1][0], ni[m2][0], ni[m3][0]};
+  const Lanes jt0 = {ti[m0][0], ti[m1][0], ti[m2][0], ti[m3][0]};
+  // the manifold's impulse (N·s) and its moments on each body (N·m·s)
+  Lanes px = jn0 * nx + jt0 * tx, py = jn0 * ny + jt0 * ty;
+  Lanes ta = jn0 * B.p0.rna + jt0 * B.p0.rta, tb = jn0 * B.p0.rnb + jt0 * B.p0.rtb;
+  if constexpr (TWO) {
+    const Lanes jn1 = {ni[m0][1], ni[m1][1], ni[m2][1], ni[m3][1]};
+    const Lanes jt1 = {ti[m0][1], ti[m1][1], ti[m2][1], ti[m3][1]};
+    px += jn1 * nx + jt1 * tx;
+    py += jn1 * ny + jt1 * ty;
+    ta += jn1 * B.p1.rna + jt1 * B.p1.rta;
+    tb += jn1 * B.p1.rnb + jt1 * B.p1.rtb;
+  }
+  const Lanes ma = B.ma, mb = B.mb, ia = B.ia, ib = B.ib;
+  const Lanes dvax = ma * px, dvay = ma * py, dwa = ia * ta;
+  const Lanes dvbx = mb * px, dvby = mb * py, dwb = ib * tb;
+  for (int l = 0; l < LANES; ++l) {
+    if (B.m[l] < 0) continue;
+    // a fixed body is not written (see solve_contacts)
+    if (B.ma[l] != 0.0 || B.ia[l] != 0.0) {
+      st.body_v[B.a[l]] += Vec2{dvax[l], dvay[l]};
+      st.body_w[B.a[l]] += dwa[l];
+    }
+    if (B.mb[l] != 0.0 || B.ib[l] != 0.0) {
+      st.body_v[B.b[l]] -= Vec2{dvbx[l], dvby[l]};
+      st.body_w[B.b[l]] -= dwb[l];
+    }
+  }
+}
+
+}  // namespace
+
+template <int D>
+void warm_start_colored(const Model<D>& model, State<D>& st, Contacts<D>& c) {
+  static_assert(D == 2, "the batches hold 2D solver rows");
+  for (std::int64_t g = 0; g < c.group_count; ++g) {
+    const std::int64_t single = c.group_single_batch[g];
+    for (std::int64_t i = c.group_batch[g]; i < single; ++i) warm_start_batch<true>(st, c, c.batches[i]);
+    for (std::int64_t i = single; i < c.group_batch[g + 1]; ++i)
+      warm_start_batch<false>(st, c, c.batches[i]);
+  }
+}
+
+template void warm_start_colored(const Model<2>&, State<2>&, Contacts<2>&);
 
 }  // namespace rbsim
