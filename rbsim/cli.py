@@ -128,24 +128,15 @@ def main() -> None:
     metavar="KEY.PATH=VALUE",
     help="Override a scene value, e.g. --set world.dt=0.005 (repeatable).",
 )
-@click.option(
-    "--engine",
-    type=click.Choice(["rbsim", "rbsim-numba"]),
-    default="rbsim",
-    show_default=True,
-    help="rbsim's compiled engine, or the numba kernels it was ported from.",
-)
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
-def run(
-    scene: str, output: str | None, overrides: tuple[str, ...], engine: str, quiet: bool
-) -> None:
+def run(scene: str, output: str | None, overrides: tuple[str, ...], quiet: bool) -> None:
     """Step SCENE with rbsim's solver and write its trajectory."""
     main_thread = threading.current_thread() is threading.main_thread()
     if main_thread:  # SIGTERM ends a run like Ctrl-C (only the main thread may set it)
         previous = signal.signal(signal.SIGTERM, _raise_interrupt)
     progress = _Progress(not quiet)
     try:
-        summary = _run(scene, output, overrides, progress, engine)
+        summary = _run(scene, output, overrides, progress)
     except KeyboardInterrupt as err:
         # run.RunInterrupted once the file exists: it says how many frames it kept
         if getattr(err, "frames", None) is not None:
@@ -261,13 +252,6 @@ def info(trajectory: str) -> None:
     metavar="KEY.PATH=VALUE",
     help="Override a scene value for pymunk only (after --set).",
 )
-@click.option(
-    "--engine",
-    type=click.Choice(["rbsim", "rbsim-numba"]),
-    default="rbsim",
-    show_default=True,
-    help="rbsim's engine for the rbsim side.",
-)
 def compare(
     scene: str,
     out_dir: str,
@@ -279,7 +263,6 @@ def compare(
     iterations: int | None,
     with_statistics: bool,
     pymunk_overrides: tuple[str, ...],
-    engine: str,
 ) -> None:
     """Run SCENE in rbsim and in pymunk and report their differences (exit 4 when a
     difference exceeds its tolerance)."""
@@ -301,7 +284,6 @@ def compare(
             iterations=iterations,
             with_statistics=with_statistics,
             pymunk_scene=pm_sc,
-            engine=engine,
         )
     except UnsupportedScene as err:
         _fail(EXIT_SCENE, f"{scene}: pymunk cannot express this scene: {err}")

@@ -7,7 +7,6 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-from . import constants as C
 from .scene import Scene
 from .scene.types import MIXING
 
@@ -58,6 +57,8 @@ class Config(NamedTuple):
 
 def make_config(scene: Scene) -> Config:
     """Engine settings from the scene's world and solver blocks."""
+    from . import constants as C  # the engine's (rbsim.core imports this module)
+
     sol = scene.solver
     h = scene.world.dt / sol.substeps
     hertz = min(C.CONTACT_HERTZ, 0.25 / h)

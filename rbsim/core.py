@@ -1,7 +1,7 @@
-"""The compiled engine (rbsim._core, C++20) behind the same World API as the numba one.
+"""The compiled engine (rbsim._core, C++20) behind a World API.
 
 `CoreWorld.from_scene` compiles the scene into the model's flat arrays (model.build,
-the same compiler the numba engine uses), hands them to the engine, and shows the
+the front's one flattener), hands them to the engine, and shows the
 engine's state as numpy views that share its memory: `world.state.body_x` is the
 engine's array, not a copy. This module is the only importer of rbsim._core.
 """
@@ -17,6 +17,9 @@ from . import _core
 from .config import Config, NonFiniteState, make_config
 from .scene import Scene
 from .scene.compile import Model, State, build
+
+# the engine's tuning constants by name (cpp/include/rbsim/constants.hpp; rbsim.constants)
+CONSTANTS: dict = dict(_core.constants)
 
 
 def _model_arrays(model: Model) -> dict:
@@ -49,7 +52,7 @@ class CoreWorld:
 
     @property
     def state(self) -> State:
-        """The state, as the numba engine's State tuple of the engine's own arrays
+        """The state, as a State tuple (rbsim.scene.compile) of the engine's own arrays
         (numpy views: no copy; they stay valid for the world's life)."""
         e = self.engine
         return State(e.body_x, e.body_q, e.body_angle, e.body_v, e.body_w)

@@ -208,7 +208,7 @@ def run_scene(
     "interrupted", and RunInterrupted (a KeyboardInterrupt) is raised. Interrupted
     before the file is created (while the model is built), KeyboardInterrupt propagates
     as it is. See _Interrupts for when a signal takes effect. `engine`: one of
-    engines.ENGINES ("rbsim", the compiled engine; "rbsim-numba"; "pymunk"), built with
+    engines.ENGINES ("rbsim", the compiled engine; "pymunk"), built with
     `options` (pymunk: {"settings": PymunkSettings(...)}). The summary's step_time is
     the engine's own (pymunk: inside space.step only).
     """

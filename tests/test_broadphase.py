@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from rbsim.constants import BIG_MAX
 from rbsim.core import CoreWorld as World
-from rbsim.engines.numba.broadphase import BIG_MAX
 from rbsim.scene.types import BODY_DYNAMIC
 
 from .conftest import scene_from

@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from rbsim.constants import SEGMENT_SKIN
 from rbsim.core import CoreWorld as World
-from rbsim.engines.numba.narrowphase import SEGMENT_SKIN
 from rbsim.scene import load_scene
 from rbsim.scene.types import BODY_DYNAMIC
 from rbsim.tools.measure import penetration, touching_pairs

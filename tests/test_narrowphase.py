@@ -1,5 +1,4 @@
-"""Contact manifolds between pairs of shapes (the compiled engine's collide2d, with
-rbsim.engines.numba.narrowphase's constants).
+"""Contact manifolds between pairs of shapes (the compiled engine's collide2d).
 
 Every test places shapes in the world with an analytic gap or overlap and checks the
 manifold: point count, separation, the normal pointing from shape b towards shape a,
@@ -14,9 +13,8 @@ from typing import NamedTuple
 import numpy as np
 import pytest
 
-from rbsim.constants import SPECULATIVE_DISTANCE
+from rbsim.constants import REFERENCE_FACE_TOLERANCE, SEGMENT_SKIN, SPECULATIVE_DISTANCE
 from rbsim.core import collide2d as collide
-from rbsim.engines.numba.narrowphase import REFERENCE_FACE_TOLERANCE, SEGMENT_SKIN
 from rbsim.scene.types import SHAPE_CIRCLE, SHAPE_POLYGON, SHAPE_SEGMENT
 
 SPEC = SPECULATIVE_DISTANCE

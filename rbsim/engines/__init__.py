@@ -2,12 +2,10 @@
 `make_engine(name, scene, **options)` -> an Engine.
 
 - "rbsim": rbsim's compiled engine (compiled.py, over rbsim.core).
-- "rbsim-numba": the numba kernels it was ported from (numba/), kept until the port is
-  complete so that the two can be held against each other.
 - "pymunk": pymunk (Chipmunk2D), the reference engine in 2D (pymunk.py; options:
   settings=PymunkSettings(...)).
 
-Adapters are imported when their engine is asked for: numba and pymunk load only then.
+Adapters are imported when their engine is asked for: pymunk loads only then.
 """
 
 from __future__ import annotations
@@ -20,12 +18,11 @@ from .base import Engine, NonFiniteState, Snapshot
 # engine name -> (module, adapter class), relative to this package
 ENGINES = {
     "rbsim": (".compiled", "RbsimEngine"),
-    "rbsim-numba": (".numba.adapter", "NumbaEngine"),
     "pymunk": (".pymunk", "PymunkEngine"),
 }
 DEFAULT_ENGINE = "rbsim"
 # the engines that are rbsim's own (they step rbsim's model; `rbsim run --engine`)
-RBSIM_ENGINES = ("rbsim", "rbsim-numba")
+RBSIM_ENGINES = ("rbsim",)
 
 
 def engine_class(name: str) -> type[Engine]:

@@ -1,6 +1,5 @@
-"""The adapter of rbsim's compiled engine ("rbsim", rbsim.core.CoreWorld), and the
-base of the numba engine's adapter ("rbsim-numba"): both step the model that
-rbsim.scene.compile builds, with the same state arrays."""
+"""The adapter of rbsim's compiled engine ("rbsim", rbsim.core.CoreWorld): it steps the
+model that rbsim.scene.compile builds."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """Scene -> Model (static struct-of-arrays) + State (what changes every step).
 
-Both are NamedTuples of flat numpy arrays so that numba kernels take them whole.
+Both are NamedTuples of flat numpy arrays: the engine (rbsim.core) takes them whole.
 Body state is kept at the centre of mass: `body_x` is the COM position, `body_q` the
 unit complex rotation (cos θ, sin θ), `body_v` the COM velocity, `body_w` the angular
 velocity. Shape geometry is stored in the body frame relative to the centre of mass,

@@ -404,7 +404,7 @@ def compare_scene(
     `pymunk_scene` (default `scene`) is what pymunk runs: the same scene with a setting
     changed, to see how much that setting matters. Raises UnsupportedScene (pymunk cannot
     express the scene) before running either engine, and whatever run_scene raises.
-    `engine` is rbsim's side: "rbsim" (compiled) or "rbsim-numba"."""
+    `engine` is rbsim's side (engines.RBSIM_ENGINES)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     pm_scene = scene if pymunk_scene is None else pymunk_scene

@@ -4,9 +4,9 @@ Each case names its scene(s) in rbsim/scenes/hard/ (package data; every paramete
 the scene file, with a comment on what it tests), measures figures from a run, and holds
 them to rules (figure, comparison, limit, reason). A case runs with any engine, through
 rbsim.engines' one interface (an Engine stepped in blocks, its Snapshot read between
-blocks, no trajectory file): rbsim (the compiled engine; `--engine rbsim-numba` runs the
-numba engine it was ported from instead) or pymunk (steps of dt / solver.substeps and 10
-iterations, as `rbsim compare` runs it). The same measuring code reads every state.
+blocks, no trajectory file): rbsim (the compiled engine) or pymunk (steps of dt /
+solver.substeps and 10 iterations, as `rbsim compare` runs it). The same measuring code
+reads every state.
 
     python -m rbsim.tools.hard                     # every case, both engines, as a table
     python -m rbsim.tools.hard stack pyramid_20    # some cases

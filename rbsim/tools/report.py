@@ -150,7 +150,6 @@ def write_report(out_dir: Path, quick: bool = False, log=print) -> Path:
     slope_rb = fitted_slope(n, [p.rbsim_us for p in scaling])
     slope_pm = fitted_slope(n, [p.pymunk_us for p in scaling])
 
-    import numba
     import numpy
     import pymunk
 
@@ -165,11 +164,11 @@ def write_report(out_dir: Path, quick: bool = False, log=print) -> Path:
         f"- generated {datetime.datetime.now().isoformat(timespec='seconds')} in "
         f"{time.perf_counter() - t_start:.0f} s on {platform.machine()}, {os.cpu_count()} "
         f"logical CPUs (shared: timings vary by 10-20 % between runs), Python "
-        f"{platform.python_version()}, rbsim {__version__}, numba {numba.__version__}, "
+        f"{platform.python_version()}, rbsim {__version__}, "
         f"numpy {numpy.__version__}, pymunk {pymunk.version} (Chipmunk {pymunk.chipmunk_version})",
         "- cost: median CPU time (process time) per simulated second of at least 3 runs "
-        "(short runs repeated until they add up to 0.2 s), numba compile and scene setup "
-        "excluded; pymunk is timed around its `space.step` loop in the same process",
+        "(short runs repeated until they add up to 0.2 s), loading the engine and scene "
+        "setup excluded; pymunk is timed around its `space.step` loop in the same process",
         "- rbsim settings: dt, substeps (s), iterations per substep (it), integrator, "
         "rotation update (norm: normalize(q + h ω×q), exact); pymunk: dt and iterations "
         "(it), one step per dt, collision slop 0.5 cm as rbsim's",
