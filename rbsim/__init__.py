@@ -2,8 +2,9 @@
 
 A YAML scene is stepped by rbsim's own impulse solver and written to an HDF5
 trajectory (H5MD layout); `load_scene` reads a scene, `load_trajectory` reads a
-trajectory back as numpy arrays. Importing rbsim has no side effects and imports
-nothing heavy: both are loaded on first use.
+trajectory back as numpy arrays, and `World.from_scene(scene)` is a scene ready to step
+in the compiled engine (`advance(n)`, the state as numpy views). Importing rbsim has no
+side effects and imports nothing heavy: each is loaded on first use.
 
 The package, top down (imports point down): cli -> tools -> run, view, engines ->
 io, core -> scene.
@@ -29,4 +30,12 @@ def load_trajectory(path):  # noqa: ANN001, ANN201 - re-exported, documented in 
     return _load(path)
 
 
-__all__ = ["__version__", "load_scene", "load_trajectory"]
+def __getattr__(name: str):  # noqa: ANN202 - module attributes loaded on first use
+    if name == "World":  # the compiled engine's world (rbsim.core.CoreWorld)
+        from .core import CoreWorld
+
+        return CoreWorld
+    raise AttributeError(f"module 'rbsim' has no attribute {name!r}")
+
+
+__all__ = ["World", "__version__", "load_scene", "load_trajectory"]

@@ -118,3 +118,23 @@ def test_force_at_arm_gives_torque_r_cross_f():
     m, inertia = w.model.body_mass[0], w.model.body_inertia[0]
     assert w.state.body_w[0] == pytest.approx(h * torque / inertia, rel=1e-14)
     np.testing.assert_allclose(w.state.body_v[0], [0.0, h * 2.0 / m], rtol=1e-14)
+
+
+def test_the_package_world_steps_a_scene_and_its_state_is_the_engines_memory():
+    import rbsim
+
+    world = rbsim.World.from_scene(
+        scene_from(
+            """
+            version: 1
+            world: {gravity: [0, 0], dt: 0.01, steps: 10}
+            bodies:
+              - {name: ball, position: [0, 0], shape: {circle: {radius: 0.5}}}
+            """
+        )
+    )
+    world.state.body_v[0] = (2.0, 0.0)  # a view: writing it sets the engine's state
+    x = world.state.body_x  # taken before the steps
+    world.advance(10)
+    assert world.step_index == 10
+    assert x[0, 0] == pytest.approx(0.2, abs=1e-12)  # 10 steps of 0.02 m, seen through it
