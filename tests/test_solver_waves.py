@@ -1,4 +1,4 @@
-"""The solver's passes wave by wave (solver/color.cpp, solve.cpp) give the result of the
+"""The solver's passes wave by wave (solver/waves.cpp, solve.cpp) give the result of the
 sequential pass in solve order: manifolds of a wave share no dynamic body, so solving
 them at once (four to a vector register) only swaps manifolds that do not interact."""
 
@@ -44,17 +44,17 @@ def test_a_pass_wave_by_wave_equals_the_pass_in_solve_order(name, use_bias):
     seq.advance(120)
     waves = CoreWorld.from_scene(scene)
     _copy(seq, waves)
-    waves.stage("color_contacts")
+    waves.stage("find_waves")
     h = seq.config.dt / seq.config.substeps
     args = dict(inv_h=1.0 / h, use_bias=use_bias, shift=0.0 if use_bias else h, threshold=1.0)
     n = int(seq.contacts.count[0])
     assert n > 0
-    assert int(waves.contacts.group_count) <= n
+    assert int(waves.contacts.wave_count) <= n
     for _ in range(3):  # repeated passes: the impulses accumulate
         for w in (seq, waves):  # the lists of one pass (a step empties them per substep)
             w.contacts.count[5] = w.contacts.count[6] = 0
         seq.stage("solve_contacts", order="solve_order", n=n, **args)
-        waves.stage("solve_colored", **args)
+        waves.stage("solve_waves", **args)
         _same_lists(seq, waves)
     # 1e-12 (m/s, N·s): the vector code rounds some sums in another order
     for name_ in ("body_v", "body_w"):
@@ -84,8 +84,8 @@ def test_waves_put_no_two_manifolds_of_one_dynamic_body_together():
     w.advance(30)
     c = w.contacts
     dynamic = w.model.body_type == 0
-    for g in range(int(c.group_count)):
-        ms = c.color_order[c.group_start[g] : c.group_start[g + 1]]
+    for g in range(int(c.wave_count)):
+        ms = c.wave_order[c.wave_start[g] : c.wave_start[g + 1]]
         bodies = [b for m in ms for b in (c.body_a[m], c.body_b[m]) if dynamic[b]]
         assert len(bodies) == len(set(bodies))
 
@@ -97,11 +97,11 @@ def test_warm_start_wave_by_wave_equals_the_warm_start_in_manifold_order(name):
     seq.advance(120)
     waves = CoreWorld.from_scene(scene)
     _copy(seq, waves)
-    waves.stage("color_contacts")
+    waves.stage("find_waves")
     assert int(seq.contacts.count[0]) > 0
     before = seq.state.body_v.copy()
     seq.stage("warm_start")
-    waves.stage("warm_start_colored")
+    waves.stage("warm_start_waves")
     assert not np.array_equal(seq.state.body_v, before)  # it has impulses to apply
     # 1e-12 m/s and rad/s: a body's impulses are summed in another order
     np.testing.assert_allclose(waves.state.body_v, seq.state.body_v, rtol=0, atol=1e-12)

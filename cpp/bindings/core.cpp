@@ -142,11 +142,11 @@ nb::dict storage(World2& w, nb::handle owner) {
   RBSIM_VIEW(shock_order) RBSIM_VIEW(solve_order) RBSIM_VIEW(adj_start) RBSIM_VIEW(adj)
   RBSIM_VIEW(queue) RBSIM_VIEW(bounce_kind) RBSIM_VIEW(body_mark) RBSIM_VIEW(solve_impulse)
   RBSIM_VIEW(bounce_list) RBSIM_VIEW(relax_list) RBSIM_VIEW(body_reach)
-  RBSIM_VIEW(color_order) RBSIM_VIEW(manifold_wave)
+  RBSIM_VIEW(wave_order) RBSIM_VIEW(manifold_wave)
 #undef RBSIM_VIEW
 #define RBSIM_VIEW2(name) d[#name] = view(c.name, owner);
-  RBSIM_VIEW2(group_start) RBSIM_VIEW2(group_batch)
-  d["group_count"] = view(&c.group_count, 1, owner, false);
+  RBSIM_VIEW2(wave_start) RBSIM_VIEW2(wave_batch)
+  d["wave_count"] = view(&c.wave_count, 1, owner, false);
 #undef RBSIM_VIEW2
   d["body_still"] = view(c.body_still, owner, true);
   auto& g = w.grid;
@@ -273,17 +273,17 @@ nb::object run_stage(World2& w, const std::string& name, nb::dict args) {
   } else if (name == "solve_contacts") {
     std::string list = load_value<std::string>(args, "order");
     const std::int32_t* order = list == "relax_list"    ? c.relax_list.data()
-                                : list == "color_order" ? c.color_order.data()
+                                : list == "wave_order" ? c.wave_order.data()
                                                         : c.solve_order.data();
     std::int64_t n = load_value<std::int64_t>(args, "n");
     if (n < 0 || n > c.capacity()) throw std::invalid_argument("n out of range");
     solve_contacts(m, st, c, num("inv_h"), flag("use_bias"), num("shift"), num("threshold"), order, n);
-  } else if (name == "color_contacts") {
-    return nb::int_(color_contacts(m, c));
-  } else if (name == "warm_start_colored") {
-    warm_start_colored(m, st, c);
-  } else if (name == "solve_colored") {
-    solve_colored(m, st, c, num("inv_h"), flag("use_bias"), num("shift"), num("threshold"));
+  } else if (name == "find_waves") {
+    return nb::int_(find_waves(m, c));
+  } else if (name == "warm_start_waves") {
+    warm_start_waves(m, st, c);
+  } else if (name == "solve_waves") {
+    solve_waves(m, st, c, num("inv_h"), flag("use_bias"), num("shift"), num("threshold"));
   } else if (name == "keep_solve_impulses") {
     keep_solve_impulses(c);
   } else if (name == "apply_restitution") {

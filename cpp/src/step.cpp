@@ -1,7 +1,7 @@
 // The time step as the list of its stages, and the loop that runs a scene. This is the
 // only file that orders stages:
 //
-//   transform -> find_pairs -> update_manifolds -> prepare -> support_order -> color (waves)
+//   transform -> find_pairs -> update_manifolds -> prepare -> support_order -> waves
 //   -> [per substep: integrate_velocities -> warm_start -> solve -> integrate_positions
 //       -> relax (-> extra relax passes near a deep overlap) -> restitution -> shock]
 //   -> limit_static_overlap -> store_impulses
@@ -65,7 +65,7 @@ bool World<D>::collide() {
   });
   timed(S::Prepare, [&] { prepare_contacts(model, state, c, cfg.soft, cfg.soft_static); });
   timed(S::SupportOrder, [&] { c.count.shock_count = support_order(model, c); });
-  timed(S::Color, [&] { color_contacts(model, c); });
+  timed(S::Waves, [&] { find_waves(model, c); });
   return true;
 }
 
@@ -89,11 +89,11 @@ bool World<D>::step() {
       timed(S::IntegratePositions, [&] { integrate_positions(model, state, c.body_delta, h, cfg.exact_rotation); });
     timed(S::IntegrateVelocities, [&] { integrate_velocities(model, state, h); });
     if (contacts_on) {
-      timed(S::WarmStart, [&] { warm_start_colored(model, state, c); });
+      timed(S::WarmStart, [&] { warm_start_waves(model, state, c); });
       c.count.deep_count = 0;
       timed(S::Solve, [&] {
         for (int it = 0; it < cfg.iterations; ++it)
-          solve_colored(model, state, c, inv_h, true, 0.0, threshold);
+          solve_waves(model, state, c, inv_h, true, 0.0, threshold);
       });
     }
     if (!cfg.explicit_euler) {
@@ -103,7 +103,7 @@ bool World<D>::step() {
     if (contacts_on) {
       timed(S::Relax, [&] {
         for (int it = 0; it < cfg.iterations; ++it)
-          solve_colored(model, state, c, inv_h, false, shift, threshold);
+          solve_waves(model, state, c, inv_h, false, shift, threshold);
       });
       if (c.count.deep_count) {
         // a deep overlap is being pushed out: the contacts around it get more relax

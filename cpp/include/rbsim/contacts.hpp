@@ -116,18 +116,18 @@ struct Contacts {
   std::vector<std::int32_t> bounce_list;    // (2M+2,) manifolds that engaged fast
   std::vector<std::int32_t> relax_list;     // (M,) deep manifolds, then the extra passes' set
   std::vector<std::int64_t> body_reach;     // (N,) deep_region's scratch
-  // the waves of the solve order (color.cpp): groups of independent manifolds
-  std::int64_t group_count = 0;             // waves
+  // the waves of the solve order (waves.cpp): groups of independent manifolds
+  std::int64_t wave_count = 0;             // waves
   bool waves_valid = false;                 // the waves are this contact graph's
-  std::vector<std::int32_t> color_order;    // (M,) the manifolds wave by wave
+  std::vector<std::int32_t> wave_order;    // (M,) the manifolds wave by wave
   std::vector<std::int32_t> manifold_wave;  // (M,) each manifold's wave (scratch)
   std::vector<std::int32_t> body_wave;      // (N,) the last wave that moved the body (scratch)
-  std::vector<std::int64_t> group_start;    // (M+2,) wave g: color_order[start[g]..start[g+1])
-  std::vector<std::int64_t> group_batch;    // (M+2,) wave g: batches[batch[g]..batch[g+1])
-  std::vector<std::int64_t> group_single;   // (M+1,) wave g's one-point manifolds:
-                                            // color_order[single[g]..start[g+1])
-  std::vector<std::int64_t> group_single_batch;  // (M+1,) and their batches, from here
-                                                 // to group_batch[g+1]
+  std::vector<std::int64_t> wave_start;    // (M+2,) wave g: wave_order[start[g]..start[g+1])
+  std::vector<std::int64_t> wave_batch;    // (M+2,) wave g: batches[batch[g]..batch[g+1])
+  std::vector<std::int64_t> wave_single;   // (M+1,) wave g's one-point manifolds:
+                                            // wave_order[single[g]..start[g+1])
+  std::vector<std::int64_t> wave_single_batch;  // (M+1,) and their batches, from here
+                                                 // to wave_batch[g+1]
   std::vector<WideBatch> batches;           // the waves' manifolds, LANES at a time
 
   std::int64_t capacity() const { return static_cast<std::int64_t>(key.size()); }
@@ -168,11 +168,11 @@ void Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   reset(adj_start, n + 1); reset(adj, 2 * m); reset(queue, n + 2);
   reset(bounce_kind, m); reset(body_mark, n); reset(solve_impulse, m);
   reset(bounce_list, 2 * m + 2); reset(relax_list, m); reset(body_reach, n);
-  group_count = 0;
+  wave_count = 0;
   waves_valid = false;
-  reset(color_order, m); reset(manifold_wave, m); reset(body_wave, n);
-  reset(group_start, m + 2); reset(group_batch, m + 2); reset(group_single, m + 1);
-  reset(group_single_batch, m + 1);
+  reset(wave_order, m); reset(manifold_wave, m); reset(body_wave, n);
+  reset(wave_start, m + 2); reset(wave_batch, m + 2); reset(wave_single, m + 1);
+  reset(wave_single_batch, m + 1);
   // each wave's two-point and one-point manifolds may end in a part-filled batch
   batches.assign(m / LANES + 2 * m + 2, WideBatch{});
 }

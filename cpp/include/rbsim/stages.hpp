@@ -72,11 +72,11 @@ void prepare_contacts(const Model<D>& model, const State<D>& state, Contacts<D>&
 template <int D>
 std::int64_t support_order(const Model<D>& model, Contacts<D>& contacts);
 
-// solver/color.cpp: the waves of the solve order (manifolds that share no dynamic body,
-// solved at once with the result of solving them in solve order) into contacts.color_order
+// solver/waves.cpp: the waves of the solve order (manifolds that share no dynamic body,
+// solved at once with the result of solving them in solve order) into contacts.wave_order
 // and contacts.batches; returns the number of waves.
 template <int D>
-std::int64_t color_contacts(const Model<D>& model, Contacts<D>& contacts);
+std::int64_t find_waves(const Model<D>& model, Contacts<D>& contacts);
 
 // solver/shock.cpp: the manifolds within `reach` contacts of a deep overlap, written to
 // contacts.relax_list; returns their count.
@@ -104,7 +104,7 @@ void warm_start(const Model<D>& model, State<D>& state, Contacts<D>& contacts);
 
 // solver/warm_start.cpp: the same, wave by wave, LANES manifolds at a time (the step's).
 template <int D>
-void warm_start_colored(const Model<D>& model, State<D>& state, Contacts<D>& contacts);
+void warm_start_waves(const Model<D>& model, State<D>& state, Contacts<D>& contacts);
 
 // solver/solve.cpp: one pass of sequential impulses over order[0..n): with the soft
 // bias (use_bias, the solve stage) or without (the relax stage). inv_h: 1/substep (1/s);
@@ -117,7 +117,7 @@ void solve_contacts(const Model<D>& model, State<D>& state, Contacts<D>& contact
 // solver/solve.cpp: the same pass over the solve order, wave by wave: a wave's two-point
 // manifolds LANES at a time (contacts.batches), its one-point manifolds one by one.
 template <int D>
-void solve_colored(const Model<D>& model, State<D>& state, Contacts<D>& contacts, double inv_h,
+void solve_waves(const Model<D>& model, State<D>& state, Contacts<D>& contacts, double inv_h,
                    bool use_bias, double shift, double threshold);
 
 // solver/restitution.cpp: keep each point's impulse at the position update (scenes with

@@ -1,11 +1,11 @@
 // Several manifolds solved at once, one in each lane of a vector register.
 //
-// The manifolds of one colour (color.cpp) share no dynamic body, so they can be solved
+// The manifolds of one wave (waves.cpp) share no dynamic body, so they can be solved
 // together: the solver gathers their bodies' velocities into lanes, computes every
 // lane's impulses with one instruction per operation, and scatters the velocities back.
-// A batch holds LANES manifolds of one colour and what their rows say, laid out lane by
+// A batch holds LANES manifolds of one wave and what their rows say, laid out lane by
 // lane (structure of arrays), so that it loads as whole vectors. A lane past the end of a
-// colour is empty: its manifold index is -1 and nothing of it is written.
+// wave is empty: its manifold index is -1 and nothing of it is written.
 #pragma once
 
 #include <cstdint>
@@ -39,7 +39,7 @@ struct WidePoint {
   Lanes base;                // m: base separation
 };
 
-// LANES manifolds of one colour.
+// LANES manifolds of one wave.
 struct WideBatch {
   Lanes nx, ny;              // the normal, from b towards a
   Lanes k01, gamma, bias_rate, friction;

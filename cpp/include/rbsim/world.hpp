@@ -15,12 +15,12 @@ namespace rbsim {
 
 // The stages as the step calls them, for the time spent in each (World::profile).
 enum class StageId : int {
-  Transform, FindPairs, UpdateManifolds, Prepare, SupportOrder, Color, IntegrateVelocities,
+  Transform, FindPairs, UpdateManifolds, Prepare, SupportOrder, Waves, IntegrateVelocities,
   WarmStart, Solve, IntegratePositions, Relax, ExtraRelax, Restitution, Shock, OverlapLimit,
   Store, Count
 };
 inline constexpr const char* STAGE_NAMES[] = {
-    "transform", "find_pairs", "update_manifolds", "prepare", "support_order", "color",
+    "transform", "find_pairs", "update_manifolds", "prepare", "support_order", "waves",
     "integrate_velocities", "warm_start", "solve", "integrate_positions", "relax",
     "extra_relax", "restitution", "shock", "limit_static_overlap", "store_impulses"};
 

@@ -441,19 +441,19 @@ void solve_batch(State<2>& st, Contacts<2>& c, const WideBatch& B, double inv_h,
 }  // namespace
 
 template <int D>
-void solve_colored(const Model<D>& model, State<D>& st, Contacts<D>& c, double inv_h,
+void solve_waves(const Model<D>& model, State<D>& st, Contacts<D>& c, double inv_h,
                    bool use_bias, double shift, double threshold) {
   static_assert(D == 2, "the batches hold 2D solver rows");
-  for (std::int64_t g = 0; g < c.group_count; ++g) {
-    const std::int64_t single = c.group_single_batch[g];  // the first batch of one-point ones
-    for (std::int64_t i = c.group_batch[g]; i < single; ++i)
+  for (std::int64_t g = 0; g < c.wave_count; ++g) {
+    const std::int64_t single = c.wave_single_batch[g];  // the first batch of one-point ones
+    for (std::int64_t i = c.wave_batch[g]; i < single; ++i)
       solve_batch<true>(st, c, c.batches[i], inv_h, use_bias, shift, threshold);
-    for (std::int64_t i = single; i < c.group_batch[g + 1]; ++i)
+    for (std::int64_t i = single; i < c.wave_batch[g + 1]; ++i)
       solve_batch<false>(st, c, c.batches[i], inv_h, use_bias, shift, threshold);
   }
 }
 
-template void solve_colored(const Model<2>&, State<2>&, Contacts<2>&, double, bool, double, double);
+template void solve_waves(const Model<2>&, State<2>&, Contacts<2>&, double, bool, double, double);
 
 
 }  // namespace rbsim

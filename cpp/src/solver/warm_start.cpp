@@ -47,7 +47,7 @@ template void warm_start(const Model<2>&, State<2>&, Contacts<2>&);
 
 namespace {
 
-// One batch of a wave (color.cpp): the same impulses, LANES manifolds at a time. A wave's
+// One batch of a wave (waves.cpp): the same impulses, LANES manifolds at a time. A wave's
 // manifolds share no dynamic body, so the order in which their impulses reach the bodies
 // changes only the rounding of the sums.
 template <bool TWO>
@@ -92,16 +92,16 @@ void warm_start_batch(State<2>& st, const Contacts<2>& c, const WideBatch& B) {
 }  // namespace
 
 template <int D>
-void warm_start_colored(const Model<D>& model, State<D>& st, Contacts<D>& c) {
+void warm_start_waves(const Model<D>& model, State<D>& st, Contacts<D>& c) {
   static_assert(D == 2, "the batches hold 2D solver rows");
-  for (std::int64_t g = 0; g < c.group_count; ++g) {
-    const std::int64_t single = c.group_single_batch[g];
-    for (std::int64_t i = c.group_batch[g]; i < single; ++i) warm_start_batch<true>(st, c, c.batches[i]);
-    for (std::int64_t i = single; i < c.group_batch[g + 1]; ++i)
+  for (std::int64_t g = 0; g < c.wave_count; ++g) {
+    const std::int64_t single = c.wave_single_batch[g];
+    for (std::int64_t i = c.wave_batch[g]; i < single; ++i) warm_start_batch<true>(st, c, c.batches[i]);
+    for (std::int64_t i = single; i < c.wave_batch[g + 1]; ++i)
       warm_start_batch<false>(st, c, c.batches[i]);
   }
 }
 
-template void warm_start_colored(const Model<2>&, State<2>&, Contacts<2>&);
+template void warm_start_waves(const Model<2>&, State<2>&, Contacts<2>&);
 
 }  // namespace rbsim

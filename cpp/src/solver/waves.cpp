@@ -79,7 +79,7 @@ void pack_lane(const Model<D>& model, const Contacts<D>& c, WideBatch& w, int l,
 }  // namespace
 
 template <int D>
-std::int64_t color_contacts(const Model<D>& model, Contacts<D>& c) {
+std::int64_t find_waves(const Model<D>& model, Contacts<D>& c) {
   static_assert(D == 2, "the batches hold 2D solver rows");
   const std::int64_t n_man = c.count.manifolds;
   if (c.count.graph_unchanged == 1 && c.waves_valid) {
@@ -88,7 +88,7 @@ std::int64_t color_contacts(const Model<D>& model, Contacts<D>& c) {
     // again (a carried manifold's row changes in its base separations only), unless a
     // manifold's point count changed (it belongs in a batch of the other kind)
     bool same_kinds = true;
-    for (std::int64_t i = 0; same_kinds && i < c.group_batch[c.group_count]; ++i) {
+    for (std::int64_t i = 0; same_kinds && i < c.wave_batch[c.wave_count]; ++i) {
       WideBatch& w = c.batches[i];
       for (int l = 0; l < LANES; ++l) {
         const std::int32_t m = w.m[l];
@@ -104,7 +104,7 @@ std::int64_t color_contacts(const Model<D>& model, Contacts<D>& c) {
         }
       }
     }
-    if (same_kinds) return c.group_count;
+    if (same_kinds) return c.wave_count;
   }
   auto& last = c.body_wave;
   auto& wave = c.manifold_wave;
@@ -121,11 +121,11 @@ std::int64_t color_contacts(const Model<D>& model, Contacts<D>& c) {
     n_waves = std::max(n_waves, k + 1);
   }
   // a counting sort by wave, in solve order within a wave
-  auto& start = c.group_start;
+  auto& start = c.wave_start;
   for (std::int32_t k = 0; k <= n_waves; ++k) start[k] = 0;
   for (std::int64_t m = 0; m < n_man; ++m) start[wave[m] + 1] += 1;
   for (std::int32_t k = 0; k < n_waves; ++k) start[k + 1] += start[k];
-  auto& fill = c.group_batch;  // scratch cursors first, the batch ranges after
+  auto& fill = c.wave_batch;  // scratch cursors first, the batch ranges after
   for (std::int32_t k = 0; k <= n_waves; ++k) fill[k] = start[k];
   // within a wave the two-point manifolds first, then the one-point ones (circles,
   // capsule ends), each in solve order and in batches of their own (a one-point batch
@@ -133,31 +133,31 @@ std::int64_t color_contacts(const Model<D>& model, Contacts<D>& c) {
   for (int pass = 2; pass >= 1; --pass) {
     for (std::int64_t o = 0; o < n_man; ++o) {
       const std::int32_t m = c.solve_order[o];
-      if ((c.points[m] == 2) == (pass == 2)) c.color_order[fill[wave[m]]++] = m;
+      if ((c.points[m] == 2) == (pass == 2)) c.wave_order[fill[wave[m]]++] = m;
     }
     if (pass == 2)
-      for (std::int32_t k = 0; k < n_waves; ++k) c.group_single[k] = fill[k];
+      for (std::int32_t k = 0; k < n_waves; ++k) c.wave_single[k] = fill[k];
   }
   std::int64_t n_batches = 0;
   for (std::int32_t k = 0; k < n_waves; ++k) {
-    c.group_batch[k] = n_batches;
+    c.wave_batch[k] = n_batches;
     for (int part = 0; part < 2; ++part) {  // the two-point batches, then the one-point ones
-      const std::int64_t from = part == 0 ? start[k] : c.group_single[k];
-      const std::int64_t end = part == 0 ? c.group_single[k] : start[k + 1];
-      if (part == 1) c.group_single_batch[k] = n_batches;
+      const std::int64_t from = part == 0 ? start[k] : c.wave_single[k];
+      const std::int64_t end = part == 0 ? c.wave_single[k] : start[k + 1];
+      if (part == 1) c.wave_single_batch[k] = n_batches;
       for (std::int64_t i = from; i < end; i += LANES) {
         WideBatch& w = c.batches[n_batches++];
         for (int l = 0; l < LANES; ++l)
-          pack_lane(model, c, w, l, i + l < end ? c.color_order[i + l] : -1);
+          pack_lane(model, c, w, l, i + l < end ? c.wave_order[i + l] : -1);
       }
     }
   }
-  c.group_batch[n_waves] = n_batches;
-  c.group_count = n_waves;
+  c.wave_batch[n_waves] = n_batches;
+  c.wave_count = n_waves;
   c.waves_valid = true;
   return n_waves;
 }
 
-template std::int64_t color_contacts(const Model<2>&, Contacts<2>&);
+template std::int64_t find_waves(const Model<2>&, Contacts<2>&);
 
 }  // namespace rbsim
