@@ -142,12 +142,9 @@ nb::dict storage(World2& w, nb::handle owner) {
   RBSIM_VIEW(shock_order) RBSIM_VIEW(solve_order) RBSIM_VIEW(adj_start) RBSIM_VIEW(adj)
   RBSIM_VIEW(queue) RBSIM_VIEW(bounce_kind) RBSIM_VIEW(body_mark) RBSIM_VIEW(solve_impulse)
   RBSIM_VIEW(bounce_list) RBSIM_VIEW(relax_list) RBSIM_VIEW(body_reach)
-  RBSIM_VIEW(wave_order) RBSIM_VIEW(manifold_wave)
+  RBSIM_VIEW(wave_order) RBSIM_VIEW(manifold_wave) RBSIM_VIEW(wave_start) RBSIM_VIEW(wave_batch)
 #undef RBSIM_VIEW
-#define RBSIM_VIEW2(name) d[#name] = view(c.name, owner);
-  RBSIM_VIEW2(wave_start) RBSIM_VIEW2(wave_batch)
   d["wave_count"] = view(&c.wave_count, 1, owner, false);
-#undef RBSIM_VIEW2
   d["body_still"] = view(c.body_still, owner, true);
   auto& g = w.grid;
   nb::dict gd;
@@ -190,7 +187,6 @@ std::unique_ptr<World2> make_world2(nb::dict model, nb::dict state, nb::dict con
   load(m.vertex_local, model["vertex_local"], "vertex_local");
   const long nv = static_cast<long>(m.vertex_local.size());
   load(m.normal_local, model["normal_local"], "normal_local", nv);
-  std::vector<Vec2> gravity;
   {
     std::vector<double> g;
     load(g, model["gravity"], "gravity", 2);
@@ -230,12 +226,7 @@ std::unique_ptr<World2> make_world2(nb::dict model, nb::dict state, nb::dict con
   cf.friction_rule = static_cast<MixRule>(load_value<int>(config, "friction_rule"));
   cf.restitution_rule = static_cast<MixRule>(load_value<int>(config, "restitution_rule"));
   cf.elastic = load_value<bool>(config, "elastic");
-  auto soft = [&](const char* key) {
-    auto t = nb::cast<std::tuple<double, double, double>>(config[key]);
-    return Soft{std::get<0>(t), std::get<1>(t), std::get<2>(t)};
-  };
-  cf.soft = soft("soft");
-  cf.soft_static = soft("soft_static");
+  set_contact_softness(cf);
   w->allocate();
   return w;
 }

@@ -11,7 +11,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdlib>
 
 #include "rbsim/constants.hpp"
 #include "rbsim/world.hpp"
@@ -205,6 +204,13 @@ Soft soft_parameters(double hertz, double zeta, double h) {
   const double a2 = h * omega * a1;
   const double a3 = 1.0 / (1.0 + a2);
   return {a2 * a3, a3, omega / a1};
+}
+
+void set_contact_softness(Config& cfg) {
+  const double h = cfg.dt / cfg.substeps;
+  const double hertz = std::min(C::CONTACT_HERTZ, 0.25 / h);
+  cfg.soft = soft_parameters(hertz, C::CONTACT_DAMPING_RATIO, h);
+  cfg.soft_static = soft_parameters(2.0 * hertz, C::CONTACT_DAMPING_RATIO, h);
 }
 
 template struct World<2>;

@@ -25,14 +25,6 @@ struct Material {
   double restitution = 0.0;
 };
 
-// The soft contacts of a substep h (s), as rbsim/config.py's make_config sets them.
-inline void set_softness(Config& cfg) {
-  const double h = cfg.dt / cfg.substeps;
-  const double hertz = std::min(constants::CONTACT_HERTZ, 0.25 / h);
-  cfg.soft = soft_parameters(hertz, constants::CONTACT_DAMPING_RATIO, h);
-  cfg.soft_static = soft_parameters(2.0 * hertz, constants::CONTACT_DAMPING_RATIO, h);
-}
-
 class SceneBuilder {
  public:
   World<2> world;
@@ -98,7 +90,7 @@ class SceneBuilder {
     Config& cfg = world.config;
     cfg.dt = dt;
     cfg.substeps = substeps;
-    set_softness(cfg);
+    set_contact_softness(cfg);
     cfg.elastic = std::any_of(m.shape_restitution.begin(), m.shape_restitution.end(),
                               [](double e) { return e > 0.0; });
     const bool any_dynamic =

@@ -39,6 +39,11 @@ struct Config {
   Soft soft_static;               // contacts with a static or kinematic body (stiffer)
 };
 
+// The soft contacts of config's substep h = dt / substeps: CONTACT_HERTZ, capped at a
+// quarter of the substep rate, for contacts between dynamic bodies; twice that for
+// contacts with a static or kinematic body; damping ratio CONTACT_DAMPING_RATIO.
+void set_contact_softness(Config& config);
+
 // collide/transform.cpp: world vertices and normals of every shape, each shape's
 // speculative reach dt (|v| + |ω| r), and which bodies are still near their reference pose.
 template <int D>
