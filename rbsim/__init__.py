@@ -1,7 +1,8 @@
 """rbsim: a command-line scene runner for 2D rigid-body dynamics.
 
 A YAML scene is stepped by rbsim's own impulse solver and written to an HDF5
-trajectory (H5MD layout); `load_scene` reads a scene, `load_trajectory` reads a
+trajectory (H5MD layout); `run(scene)` runs one and returns its trajectory in memory,
+`load_scene` reads a scene, `load_trajectory` reads a
 trajectory back as numpy arrays, and `World.from_scene(scene)` is a scene ready to step
 in the compiled engine (`advance(n)`, the state as numpy views). Importing rbsim has no
 side effects and imports nothing heavy: each is loaded on first use.
@@ -30,6 +31,15 @@ def load_trajectory(path):  # noqa: ANN001, ANN201 - re-exported, documented in 
     return _load(path)
 
 
+def run(scene, out=None, overrides=()):  # noqa: ANN001, ANN201 - documented in rbsim.run
+    """Run a scene (a path, YAML text or a dict) and return its trajectory in memory;
+    see rbsim.run.run. (Once the module rbsim.run is imported, `rbsim.run` is that
+    module, which is callable and does the same.)"""
+    from .run import run as _run
+
+    return _run(scene, out, overrides)
+
+
 def __getattr__(name: str):  # noqa: ANN202 - module attributes loaded on first use
     if name == "World":  # the compiled engine's world (rbsim.core.CoreWorld)
         from .core import CoreWorld
@@ -38,4 +48,4 @@ def __getattr__(name: str):  # noqa: ANN202 - module attributes loaded on first 
     raise AttributeError(f"module 'rbsim' has no attribute {name!r}")
 
 
-__all__ = ["World", "__version__", "load_scene", "load_trajectory"]
+__all__ = ["World", "__version__", "load_scene", "load_trajectory", "run"]

@@ -113,13 +113,20 @@ def main() -> None:
 
 
 @main.command()
-@click.argument("scene", type=click.Path(dir_okay=False))
+@click.argument("scene", type=click.Path(dir_okay=False), required=False)
 @click.option(
     "-o",
     "--output",
     "output",
     type=click.Path(dir_okay=False),
     help="Trajectory file to write [default: out/<scene name>.h5].",
+)
+@click.option(
+    "--resume",
+    "resume",
+    type=click.Path(dir_okay=False),
+    metavar="OUT.h5",
+    help="Continue the interrupted or killed run of this trajectory (no SCENE).",
 )
 @click.option(
     "--set",
@@ -129,14 +136,28 @@ def main() -> None:
     help="Override a scene value, e.g. --set world.dt=0.005 (repeatable).",
 )
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
-def run(scene: str, output: str | None, overrides: tuple[str, ...], quiet: bool) -> None:
+def run(
+    scene: str | None,
+    output: str | None,
+    resume: str | None,
+    overrides: tuple[str, ...],
+    quiet: bool,
+) -> None:
     """Step SCENE with rbsim's solver and write its trajectory."""
+    started = _process_start()
+    if resume is not None and (scene is not None or output is not None or overrides):
+        raise click.UsageError("--resume OUT.h5 takes no SCENE, -o or --set: the file has them")
+    if resume is None and scene is None:
+        raise click.UsageError("missing argument SCENE (or --resume OUT.h5)")
     main_thread = threading.current_thread() is threading.main_thread()
     if main_thread:  # SIGTERM ends a run like Ctrl-C (only the main thread may set it)
         previous = signal.signal(signal.SIGTERM, _raise_interrupt)
     progress = _Progress(not quiet)
     try:
-        summary = _run(scene, output, overrides, progress)
+        if resume is not None:
+            summary = _resume(resume, progress, started)
+        else:
+            summary = _run(scene, output, overrides, progress, started=started)
     except KeyboardInterrupt as err:
         # run.RunInterrupted once the file exists: it says how many frames it kept
         if getattr(err, "frames", None) is not None:
@@ -158,6 +179,7 @@ def _run(
     overrides: tuple[str, ...],
     progress: _Progress,
     engine: str = "rbsim",
+    started: float | None = None,
 ) -> RunSummary:
     """Load and run SCENE; every expected failure becomes a message and an exit code."""
     from .run import RunFailed, run_scene
@@ -168,7 +190,13 @@ def _run(
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         return run_scene(
-            sc, out, progress=progress, signals=(signal.SIGINT, signal.SIGTERM), engine=engine
+            sc,
+            out,
+            progress=progress,
+            signals=(signal.SIGINT, signal.SIGTERM),
+            engine=engine,
+            overrides=overrides,
+            started=started,
         )
     except ModelError as err:
         _fail(EXIT_SCENE, f"{scene}: {err}", progress)
@@ -178,6 +206,31 @@ def _run(
         _fail(EXIT_RUNTIME, f"error: cannot write {out}: {out.parent} is not a folder", progress)
     except OSError as err:
         _fail(EXIT_RUNTIME, f"error: cannot write {out}: {_reason(err)}", progress)
+
+
+def _resume(path: str, progress: _Progress, started: float | None) -> RunSummary:
+    """Resume the run of trajectory `path`; failures become messages and exit codes."""
+    from .run import ResumeError, RunFailed, resume_run
+    from .scene import SceneError
+
+    try:
+        return resume_run(
+            path, progress=progress, signals=(signal.SIGINT, signal.SIGTERM), started=started
+        )
+    except ResumeError as err:
+        _fail(EXIT_RUNTIME, f"error: cannot resume: {err}", progress)
+    except SceneError as err:
+        _fail(EXIT_SCENE, f"{path}: the scene it records is no longer valid:\n{err}", progress)
+    except RunFailed as err:
+        _fail(EXIT_RUNTIME, f"error: {err}", progress)
+    except OSError as err:
+        _fail(EXIT_RUNTIME, f"error: cannot write {path}: {_reason(err)}", progress)
+
+
+def _process_start() -> float | None:
+    from .run import process_start
+
+    return process_start()
 
 
 @main.command()

@@ -20,6 +20,8 @@ from .scene.compile import Model, State, build
 
 # the engine's tuning constants by name (cpp/include/rbsim/constants.hpp; rbsim.constants)
 CONSTANTS: dict = dict(_core.constants)
+# the status World2.advance and advance_recording return when a state turned non-finite
+NON_FINITE: int = _core.NON_FINITE
 
 
 def _model_arrays(model: Model) -> dict:

@@ -9,10 +9,13 @@ between two frames, never inside one; a non-finite state closes it with status
 from __future__ import annotations
 
 import json
+import os
 import signal
+import sys
 import threading
 import time
-from collections.abc import Callable, Collection, Iterator
+import types
+from collections.abc import Callable, Collection, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -22,11 +25,27 @@ import numpy as np
 
 from . import __version__
 from .engines import DEFAULT_ENGINE, Engine, NonFiniteState, make_engine
-from .io.trajectory import BodyTable, TrajectoryWriter
-from .scene import Scene, scene_to_dict
+from .io.trajectory import (
+    BLOCK_MAX_FRAMES,
+    CHECKPOINT_SUFFIX,
+    OBSERVABLES,
+    STATUS_RUNNING,
+    BodyTable,
+    FixedBodies,
+    Trajectory,
+    TrajectoryError,
+    TrajectoryWriter,
+    frame_count,
+    load_trajectory,
+    open_for_reading,
+    read_checkpoint,
+    read_parameters,
+)
+from .scene import Scene, load_scene_text, scene_to_dict
 
-# at most this many steps between returns to Python, so Ctrl-C and progress stay lively
-MAX_CHUNK = 256
+# wall time (s) the engine steps between returns to Python, so that Ctrl-C, progress
+# and flushes stay lively; the frames per call adapt to it
+CHUNK_SECONDS = 0.1
 
 
 def _frames(n: int) -> str:
@@ -58,7 +77,7 @@ class _Interrupts:
     "Exception ignored" and carries on as if nothing happened (the run would then go on
     to the end). So once the first steps have been taken, a signal only sets a flag that
     `check` turns into a KeyboardInterrupt; the run checks after every chunk of steps
-    (at most MAX_CHUNK). Before that (building the model, compiling or loading the
+    (about CHUNK_SECONDS of wall time). Before that (building the model, compiling or loading the
     kernels: seconds without a check), and for a second signal, the handler raises at
     once, except inside `held` (writing a frame or closing the file).
 
@@ -113,7 +132,9 @@ class _Interrupts:
 @dataclass
 class RunSummary:
     """What a finished run reports: steps taken, bodies, frames written, wall time (s)
-    of the whole run and of stepping alone, and the output path."""
+    of the whole run, of set-up (reading the scene, building the engine, creating the
+    file, the first frame: from process start when known) and of stepping and writing
+    (the loop), the engine's own stepping time (s), and the output path."""
 
     steps: int
     bodies: int
@@ -121,15 +142,39 @@ class RunSummary:
     wall_time: float
     step_time: float
     path: str
+    setup_time: float = 0.0
+    loop_time: float = 0.0
+    steps_run: int = 0  # steps taken by this process (less than `steps` after a resume)
 
     def line(self) -> str:
-        """The one-line summary `rbsim run` prints."""
-        rate = self.steps / self.wall_time if self.wall_time > 0 else float("inf")
+        """The one-line summary `rbsim run` prints: set-up apart from stepping, and the
+        stepping rate (steps this process took per second of its loop)."""
+        taken = self.steps_run or self.steps
+        rate = taken / self.loop_time if self.loop_time > 0 else float("inf")
         bodies = "1 body" if self.bodies == 1 else f"{self.bodies} bodies"
         return (
-            f"{self.steps} steps, {bodies}, {_frames(self.frames)} in "
-            f"{self.wall_time:.2f} s ({rate:,.0f} steps/s) -> {self.path}"
+            f"{self.steps} steps, {bodies}, {_frames(self.frames)} in {self.wall_time:.2f} s "
+            f"(set-up {self.setup_time:.2f} s, stepping {self.loop_time:.2f} s at "
+            f"{rate:,.0f} steps/s) -> {self.path}"
         )
+
+
+def process_start() -> float | None:
+    """time.perf_counter() at which this process started (Linux), or None."""
+    try:
+        with open("/proc/self/stat") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+        with open("/proc/uptime") as f:
+            uptime = float(f.read().split()[0])
+        started = int(fields[19]) / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return None
+    return time.perf_counter() - max(0.0, uptime - started)
+
+
+def frame_steps(total: int, every: int) -> int:
+    """Frames a complete run writes: step 0, every `every`-th step, and the last."""
+    return total // every + 1 + (1 if total % every else 0)
 
 
 def body_table(scene: Scene, engine: Engine) -> BodyTable:
@@ -172,22 +217,29 @@ def parameters(scene: Scene, engine: str, settings: dict | None = None) -> dict[
     }
 
 
-def write_frame(writer: TrajectoryWriter, world: Engine) -> None:
-    """Append the engine's current state as one frame. Observables that overflow (a
-    state racing towards infinity) are stored as inf without a numpy warning."""
-    s = world.read()
-    with np.errstate(over="ignore", invalid="ignore"):
-        obs = world.observables()
-    writer.append(
-        world.step_index,
-        world.time,
-        s.origin,
-        s.orientation,
-        s.angle,
-        s.velocity,
-        s.angular_velocity,
-        obs,
-    )
+def output_layout(
+    scene: Scene, engine: Engine
+) -> tuple[BodyTable, np.ndarray | None, FixedBodies | None]:
+    """The bodies written in every frame (their table, their engine rows or None for
+    all) and the static bodies stored once, as the scene's output.bodies asks."""
+    table = body_table(scene, engine)
+    names = [b.name for b in scene.bodies]
+    types = [b.type for b in scene.bodies]
+    chosen = scene.output.body_indices(names, types)
+    if len(chosen) == len(names):
+        return table, None, None
+    keep = set(chosen)
+    fixed_rows = [i for i, t in enumerate(types) if t == "static" and i not in keep]
+    fixed = None
+    if fixed_rows:
+        s = engine.read()
+        fixed = FixedBodies(
+            bodies=table.subset(fixed_rows),
+            position=s.origin[fixed_rows],
+            orientation=s.orientation[fixed_rows],
+            angle=s.angle[fixed_rows],
+        )
+    return table.subset(chosen), np.asarray(chosen, np.intp), fixed
 
 
 def run_scene(
@@ -197,69 +249,140 @@ def run_scene(
     signals: Collection[signal.Signals] = (signal.SIGINT,),
     engine: str = DEFAULT_ENGINE,
     options: dict | None = None,
+    overrides: Sequence[str] = (),
+    started: float | None = None,
+    flush_seconds: float = 1.0,
 ) -> RunSummary:
     """Step `scene` for world.steps steps, writing frames to `out` (HDF5, H5MD layout).
 
-    Step 0 and every output.every-th step are written, and the last step always.
-    progress(step, total) is called after each chunk of steps. The file is closed and
-    valid however the run ends: on a non-finite state it keeps the frames before that
-    step, with status "failed: ...", and RunFailed is raised; when one of `signals`
-    (or a KeyboardInterrupt) stops the run it keeps every frame so far, with status
-    "interrupted", and RunInterrupted (a KeyboardInterrupt) is raised. Interrupted
-    before the file is created (while the model is built), KeyboardInterrupt propagates
-    as it is. See _Interrupts for when a signal takes effect. `engine`: one of
-    engines.ENGINES ("rbsim", the compiled engine; "pymunk"), built with
-    `options` (pymunk: {"settings": PymunkSettings(...)}). The summary's step_time is
-    the engine's own (pymunk: inside space.step only).
+    Step 0 and every output.every-th step are written, and the last step always; the
+    file also follows output.precision, output.compression and output.bodies. Frames are
+    gathered in blocks and written at least every `flush_seconds` of wall time, each time
+    with the engine's checkpoint beside the file (OUT.h5.resume), so that a killed run
+    keeps its frames up to the last flush and `resume_run` can continue it.
+    progress(step, total) is called after each chunk of steps (about CHUNK_SECONDS). The
+    file is closed and valid however the run ends: on a non-finite state it keeps the
+    frames before that step, with status "failed: ...", and RunFailed is raised; when
+    one of `signals` (or a KeyboardInterrupt) stops the run it keeps every frame so far,
+    with status "interrupted" and the checkpoint inside, and RunInterrupted (a
+    KeyboardInterrupt) is raised; an error writing the file raises OSError with the
+    frames flushed so far kept. Interrupted before the file is created (while the model
+    is built), KeyboardInterrupt propagates as it is. `engine`: one of engines.ENGINES
+    ("rbsim", the compiled engine; "pymunk"), built with `options` (pymunk: {"settings":
+    PymunkSettings(...)}). `overrides`: the --set lines the scene was loaded with
+    (recorded for --resume). `started`: time.perf_counter() when the run began (for the
+    set-up time; default: now). The summary's step_time is the engine's own (pymunk:
+    inside space.step only).
     """
-    t0 = time.perf_counter()
+    t0 = time.perf_counter() if started is None else started
     interrupts = _Interrupts(signals)
     with interrupts.installed():
         world = make_engine(engine, scene, **(options or {}))
-        total = scene.world.steps
-        every = scene.output.every
+        bodies, select, fixed = output_layout(scene, world)
+        params = parameters(scene, engine, world.settings or None)
+        params["overrides"] = json.dumps(list(overrides))
         with interrupts.held():
             writer = TrajectoryWriter(
                 out,
-                bodies=body_table(scene, world),
-                parameters=parameters(scene, engine, world.settings or None),
+                bodies=bodies,
+                parameters=params,
                 engine=engine,
+                flush_seconds=flush_seconds,
+                frames=frame_steps(scene.world.steps, scene.output.every),
+                precision=scene.output.precision,
+                compression=scene.output.compression,
+                select=select,
+                block_bodies=len(scene.bodies),
+                fixed=fixed,
+                observables=OBSERVABLES,
             )
-        status = "failed"  # made precise below
-        last_step = 0
-        try:
+        return _loop(scene, world, writer, interrupts, progress, t0, first_frame=True)
+
+
+def _loop(
+    scene: Scene,
+    world: Engine,
+    writer: TrajectoryWriter,
+    interrupts: _Interrupts,
+    progress: Callable[[int, int], None] | None,
+    t0: float,
+    first_frame: bool,
+) -> RunSummary:
+    """Step `world` to the scene's last step, recording frames into `writer`'s blocks,
+    and close the writer however the loop ends (see run_scene)."""
+    total = scene.world.steps
+    every = scene.output.every
+    out = writer.path
+    status = "failed"  # made precise below
+    checkpoint: bytes | None = None
+    start_step = world.step_index
+    loop_start = time.perf_counter()
+    setup = loop_start - t0
+    last_step = start_step
+    frames_per_call = 1
+    try:
+        if first_frame:
             with interrupts.held():
-                write_frame(writer, world)
-            while world.step_index < total:
-                to_frame = every - world.step_index % every
-                n = min(to_frame, total - world.step_index, MAX_CHUNK)
-                world.advance(n)
-                interrupts.check()
-                if world.step_index % every == 0 or world.step_index == total:
-                    with interrupts.held():
-                        write_frame(writer, world)
-                        last_step = world.step_index
-                if progress is not None:
-                    progress(world.step_index, total)
-            status = "complete"
-        except NonFiniteState as err:  # from a step, or from reading a frame (pymunk)
-            name = scene.bodies[err.body].name
-            status = f"failed: body {name!r} became non-finite at step {err.step}"
-            raise RunFailed(
-                f"{scene.path}: the state of body {name!r} became non-finite at step "
-                f"{err.step} (t = {err.step * scene.world.dt:g} s); "
-                f"{_frames(writer.frames_written)} before it kept in {out}"
-            ) from None
-        except KeyboardInterrupt:
-            status = "interrupted"
-            raise RunInterrupted(str(out), writer.frames_written, last_step) from None
-        except Exception as err:
-            if status == "failed":  # not the non-finite state: an error writing, or a bug
-                status = f"failed: {type(err).__name__}: {err}"
-            raise
-        finally:
+                world.record(writer.block, writer.rows)
+                writer.commit(1, write_when_full=False)
+        while world.step_index < total:
+            cur = world.step_index
+            k = max(1, min(writer.rows_free, frames_per_call))
+            target = min((cur // every + k) * every, total)
+            call = time.perf_counter()
+            taken, written, err = world.advance_recording(
+                target - cur, every, total, writer.block, writer.rows
+            )
+            elapsed = time.perf_counter() - call
             with interrupts.held():
-                writer.close(status=status, wall_time=time.perf_counter() - t0)
+                writer.commit(written, write_when_full=False)
+            if written:
+                last_step = int(world.step_index) if err is None else last_step
+                per_frame = elapsed / written
+                frames_per_call = max(
+                    1, min(BLOCK_MAX_FRAMES, int(CHUNK_SECONDS / max(per_frame, 1e-9)))
+                )
+            if err is not None:
+                raise err
+            if writer.rows_free == 0 or writer.flush_due():
+                with interrupts.held():
+                    writer.flush(checkpoint=world.checkpoint())
+            interrupts.check()
+            if progress is not None:
+                progress(world.step_index, total)
+        status = "complete"
+    except NonFiniteState as err:  # from a step, or from reading a frame (pymunk)
+        name = scene.bodies[err.body].name
+        status = f"failed: body {name!r} became non-finite at step {err.step}"
+        raise RunFailed(
+            f"{scene.path}: the state of body {name!r} became non-finite at step "
+            f"{err.step} (t = {err.step * scene.world.dt:g} s); "
+            f"{_frames(writer.frames_written)} before it kept in {out}"
+        ) from None
+    except KeyboardInterrupt:
+        status = "interrupted"
+        if world.step_index == last_step:  # the engine is at the last frame's state
+            checkpoint = world.checkpoint()
+        raise RunInterrupted(str(out), writer.frames_written, last_step) from None
+    except OSError as err:  # writing the file: a full disk, a vanished folder
+        status = f"failed: {err}"
+        writer.abandon()
+        raise
+    except Exception as err:
+        if status == "failed":  # not the non-finite state: an error writing, or a bug
+            status = f"failed: {type(err).__name__}: {err}"
+        raise
+    finally:
+        with interrupts.held():
+            try:
+                writer.close(
+                    status=status, wall_time=time.perf_counter() - t0, checkpoint=checkpoint
+                )
+            except OSError:
+                writer.abandon()
+                if status == "complete":
+                    raise
+    loop = time.perf_counter() - loop_start
     return RunSummary(
         steps=world.step_index,
         bodies=len(scene.bodies),
@@ -267,4 +390,140 @@ def run_scene(
         wall_time=time.perf_counter() - t0,
         step_time=world.step_time,
         path=str(out),
+        setup_time=setup,
+        loop_time=loop,
+        steps_run=world.step_index - start_step,
     )
+
+
+class ResumeError(ValueError):
+    """A trajectory that cannot be resumed: complete, not rbsim's, or without a checkpoint."""
+
+
+def resume_run(
+    path: str | Path,
+    progress: Callable[[int, int], None] | None = None,
+    signals: Collection[signal.Signals] = (signal.SIGINT,),
+    started: float | None = None,
+    flush_seconds: float = 1.0,
+) -> RunSummary:
+    """Continue the interrupted or killed run whose trajectory is `path`, from its last
+    checkpoint (in the file for a run stopped by a signal or a failure, beside it as
+    PATH.resume for a killed one): the scene is rebuilt from the text and --set lines
+    the file records, the engine restored, and the frames after the checkpoint are
+    written as an uninterrupted run would have written them, bit for bit. Raises
+    ResumeError when the file cannot be resumed; otherwise as run_scene."""
+    t0 = time.perf_counter() if started is None else started
+    path = str(path)
+    try:
+        with open_for_reading(path) as f:
+            params = read_parameters(f)
+            inside = f.get("parameters/rbsim/checkpoint")
+            stored = bytes(inside[()].tobytes()) if inside is not None else None
+            on_file = frame_count(f, closed=params.get("status", STATUS_RUNNING) != STATUS_RUNNING)
+            steps = f["particles/bodies/position/step"] if on_file else None
+            last_on_file = int(steps[on_file - 1]) if steps is not None else -1
+    except TrajectoryError as err:
+        raise ResumeError(str(err)) from None
+    status = params.get("status", "")
+    if "scene" not in params or params.get("engine") is None:
+        raise ResumeError(f"{path}: not an rbsim trajectory (no scene recorded)")
+    if status == "complete":
+        raise ResumeError(f"{path}: the run is complete; there is nothing to resume")
+    frames, step, data = -1, -1, b""
+    sidecar = read_checkpoint(path + CHECKPOINT_SUFFIX)
+    if status == STATUS_RUNNING and sidecar is not None:
+        frames, step, data = sidecar
+    elif stored is not None:
+        frames, step, data = on_file, last_on_file, stored
+    if not data:
+        raise ResumeError(
+            f"{path}: no checkpoint to resume from (status {status!r}; a run killed before "
+            "its first flush, or one that failed, starts again with rbsim run)"
+        )
+    if frames > on_file:
+        raise ResumeError(
+            f"{path}: the checkpoint is ahead of the file ({frames} > {on_file} frames)"
+        )
+    overrides = json.loads(params.get("overrides", "[]"))
+    scene = load_scene_text(params["scene"], params.get("scene_path", path), overrides)
+    engine = params["engine"]
+    interrupts = _Interrupts(signals)
+    with interrupts.installed():
+        world = make_engine(engine, scene)
+        world.restore(data)
+        if step >= 0 and world.step_index != step:
+            raise ResumeError(f"{path}: the checkpoint is at step {world.step_index}, not {step}")
+        bodies, select, fixed = output_layout(scene, world)
+        params = {k: v for k, v in params.items() if k not in ("status", "wall_time", "checkpoint")}
+        params["resumed"] = str(int(params.get("resumed", "0")) + 1)
+        with interrupts.held():
+            writer = TrajectoryWriter(
+                path,
+                bodies=bodies,
+                parameters=params,
+                engine=engine,
+                flush_seconds=flush_seconds,
+                frames=frame_steps(scene.world.steps, scene.output.every),
+                precision=scene.output.precision,
+                compression=scene.output.compression,
+                select=select,
+                block_bodies=len(scene.bodies),
+                fixed=fixed,
+                observables=OBSERVABLES,
+                keep=frames,
+            )
+        return _loop(scene, world, writer, interrupts, progress, t0, first_frame=False)
+
+
+def run(
+    scene: Scene | str | os.PathLike | dict,
+    out: str | os.PathLike | None = None,
+    overrides: Sequence[str] = (),
+) -> Trajectory:
+    """Run a scene and return its trajectory (rbsim.io.trajectory.Trajectory) in memory.
+
+    scene: a Scene, a path to a YAML file (str or Path), YAML text, or a dict of the
+    scene format. out: a .h5 file to write as well (kept); by default a temporary file,
+    removed once read. overrides: --set lines ("world.dt=0.005"). Raises
+    rbsim.scene.SceneError for an invalid scene and RunFailed for a non-finite state."""
+    import tempfile
+
+    from .scene import load_scene
+
+    if isinstance(scene, Scene):
+        sc = scene
+    elif isinstance(scene, dict):
+        import yaml
+
+        sc = load_scene_text(yaml.safe_dump(scene, sort_keys=False), "<dict>", overrides)
+    elif isinstance(scene, os.PathLike) or (
+        isinstance(scene, str) and "\n" not in scene and ":" not in scene
+    ):
+        sc = load_scene(scene, overrides)
+    else:
+        sc = load_scene_text(str(scene), "<string>", overrides)
+    if out is not None:
+        Path(out).parent.mkdir(parents=True, exist_ok=True)
+        run_scene(sc, out, overrides=overrides)
+        return load_trajectory(out)
+    with tempfile.TemporaryDirectory(prefix="rbsim-") as folder:
+        path = os.path.join(folder, "run.h5")
+        run_scene(sc, path, overrides=overrides)
+        return load_trajectory(path)
+
+
+class _Module(types.ModuleType):
+    """rbsim.run, the module, is callable: `rbsim.run(scene)` works whether the name is
+    the package's function or (once imported) this module."""
+
+    def __call__(
+        self,
+        scene: Scene | str | os.PathLike | dict,
+        out: str | os.PathLike | None = None,
+        overrides: Sequence[str] = (),
+    ) -> Trajectory:
+        return run(scene, out, overrides)
+
+
+sys.modules[__name__].__class__ = _Module

@@ -85,7 +85,7 @@ bodies:
 
 SUMMARY = re.compile(
     r"^(\d+) steps, (\d+) bod(?:y|ies), (\d+) frames? in \d+\.\d\d s "
-    r"\([\d,]+ steps/s\) -> (.+)$"
+    r"\(set-up \d+\.\d\d s, stepping \d+\.\d\d s at [\d,]+ steps/s\) -> (.+)$"
 )
 
 

@@ -19,6 +19,8 @@
 #include "rbsim/constants.hpp"
 #include "rbsim/world.hpp"
 #include "../src/collide/narrow2d.hpp"
+#include "../src/tools/checkpoint.hpp"
+#include "../src/tools/record.hpp"
 #include "../src/tools/separation.hpp"
 
 namespace nb = nanobind;
@@ -340,6 +342,69 @@ nb::tuple collide2d_py(int kind_a, int start_a, int count_a, double radius_a, in
 }
 // ---- end narrowphase test entry ---------------------------------------------------------
 
+// ---- output frames (the run loop's blocks) ----------------------------------------
+// A block of B frames of N bodies: a dict of C-contiguous arrays whose first dimension is
+// B. Keys (each optional): step (B,) int64, time (B,) float64 s, position, orientation,
+// velocity (B,N,2) float64, angle, angular_velocity (B,N) float64, kinetic_energy,
+// potential_energy, angular_momentum (B,) float64, linear_momentum (B,2) float64,
+// contact_count (B,) int64.
+struct Block {
+  std::int64_t rows = -1;
+  std::int64_t* step = nullptr;
+  double* time = nullptr;
+  FrameRow2 base;  // pointers at row 0
+  std::int64_t n = 0;
+};
+
+template <class S>
+S* block_array(nb::dict d, const char* key, Block& b, std::initializer_list<std::int64_t> trailing) {
+  if (!d.contains(key)) return nullptr;
+  nb::ndarray<nb::c_contig, nb::device::cpu> a;
+  if (!nb::try_cast(d[key], a)) throw std::invalid_argument(std::string("block ") + key + ": not a C-contiguous array");
+  if (a.dtype() != nb::dtype<S>()) throw std::invalid_argument(std::string("block ") + key + ": wrong dtype");
+  if (a.ndim() != 1 + trailing.size()) throw std::invalid_argument(std::string("block ") + key + ": wrong number of dimensions");
+  std::size_t k = 1;
+  for (auto t : trailing)
+    if (static_cast<std::int64_t>(a.shape(k++)) != t) throw std::invalid_argument(std::string("block ") + key + ": wrong shape");
+  const auto rows = static_cast<std::int64_t>(a.shape(0));
+  if (b.rows >= 0 && rows != b.rows) throw std::invalid_argument(std::string("block ") + key + ": rows differ from the other arrays'");
+  b.rows = rows;
+  return static_cast<S*>(a.data());
+}
+
+Block make_block(World2& w, nb::dict d) {
+  Block b;
+  const std::int64_t n = w.model.body_count();
+  b.n = n;
+  b.step = block_array<std::int64_t>(d, "step", b, {});
+  b.time = block_array<double>(d, "time", b, {});
+  b.base.position = block_array<double>(d, "position", b, {n, 2});
+  b.base.orientation = block_array<double>(d, "orientation", b, {n, 2});
+  b.base.angle = block_array<double>(d, "angle", b, {n});
+  b.base.velocity = block_array<double>(d, "velocity", b, {n, 2});
+  b.base.angular_velocity = block_array<double>(d, "angular_velocity", b, {n});
+  b.base.kinetic_energy = block_array<double>(d, "kinetic_energy", b, {});
+  b.base.potential_energy = block_array<double>(d, "potential_energy", b, {});
+  b.base.linear_momentum = block_array<double>(d, "linear_momentum", b, {2});
+  b.base.angular_momentum = block_array<double>(d, "angular_momentum", b, {});
+  b.base.contact_count = block_array<std::int64_t>(d, "contact_count", b, {});
+  if (b.rows < 0) b.rows = 0;
+  return b;
+}
+
+void record_row(const World2& w, const Block& b, std::int64_t r) {
+  auto at = [r](auto* p, std::int64_t width) { return p ? p + r * width : nullptr; };
+  FrameRow2 row{at(b.base.position, 2 * b.n), at(b.base.orientation, 2 * b.n),
+                at(b.base.angle, b.n), at(b.base.velocity, 2 * b.n),
+                at(b.base.angular_velocity, b.n), at(b.base.kinetic_energy, 1),
+                at(b.base.potential_energy, 1), at(b.base.linear_momentum, 2),
+                at(b.base.angular_momentum, 1), at(b.base.contact_count, 1)};
+  record_frame(w, row);
+  if (b.step) b.step[r] = w.step_index;
+  if (b.time) b.time[r] = static_cast<double>(w.step_index) * w.config.dt;
+}
+// ---- end output frames ---------------------------------------------------------------
+
 }  // namespace
 }  // namespace rbsim
 
@@ -367,6 +432,55 @@ NB_MODULE(_core, mod) {
             return std::make_tuple(static_cast<int>(status), taken, bad);
           },
           "n_steps"_a, "Take up to n_steps steps; returns (status, steps taken, bad body).")
+      .def(
+          "advance_recording",
+          [](World2& w, std::int64_t n, std::int64_t every, std::int64_t last, nb::dict block,
+             std::int64_t row) {
+            if (n < 0) throw std::invalid_argument("n_steps must be >= 0");
+            if (every < 1) throw std::invalid_argument("every must be >= 1");
+            Block b = make_block(w, block);
+            if (row < 0 || row > b.rows) throw std::invalid_argument("row outside the block");
+            std::int64_t taken = 0, bad = -1, written = 0;
+            Status status = Status::Ok;
+            {
+              nb::gil_scoped_release release;
+              while (taken < n && row + written < b.rows) {
+                std::int64_t one = 0;
+                status = w.advance(1, &one, &bad);
+                taken += one;
+                if (status != Status::Ok) break;
+                if (w.step_index % every == 0 || w.step_index == last) record_row(w, b, row + written++);
+              }
+            }
+            return std::make_tuple(static_cast<int>(status), taken, written, bad);
+          },
+          "n_steps"_a, "every"_a, "last_step"_a, "block"_a, "row"_a,
+          "Take up to n_steps steps, recording a frame into block (a dict of arrays, rows "
+          "from `row` on) after each step that is a multiple of `every` or is `last_step`; "
+          "stops early when the block is full. Returns (status, steps taken, frames "
+          "recorded, bad body).")
+      .def(
+          "record",
+          [](World2& w, nb::dict block, std::int64_t row) {
+            Block b = make_block(w, block);
+            if (row < 0 || row >= b.rows) throw std::invalid_argument("row outside the block");
+            record_row(w, b, row);
+          },
+          "block"_a, "row"_a, "Record the current state as frame `row` of block.")
+      .def(
+          "save_checkpoint",
+          [](const World2& w) {
+            auto bytes = save_checkpoint(w);
+            return nb::bytes(reinterpret_cast<const char*>(bytes.data()), bytes.size());
+          },
+          "The world's whole changing state (state, step index, broadphase, contact store) "
+          "as bytes.")
+      .def(
+          "load_checkpoint",
+          [](World2& w, nb::bytes data) {
+            load_checkpoint(w, reinterpret_cast<const std::uint8_t*>(data.c_str()), data.size());
+          },
+          "data"_a, "Restore a checkpoint of a world built from the same scene.")
       .def("step", &World2::step, "One step; False when the contact store must grow first.")
       .def("grow", &World2::grow, "capacity"_a, "Room for `capacity` manifolds and pairs.")
       .def("stage", &run_stage, "name"_a, "args"_a = nb::dict(), "Run one stage (tests).")

@@ -96,6 +96,59 @@ class Engine:
         """Contact points of the last step."""
         raise NotImplementedError
 
+    def record(self, block: dict[str, np.ndarray], row: int) -> None:
+        """Write the current state as frame `row` of `block` (the trajectory writer's
+        block: step, time s, position, orientation, angle, velocity, angular_velocity,
+        and the observables, each with rows first; see TrajectoryWriter.block)."""
+        s = self.read()
+        with np.errstate(over="ignore", invalid="ignore"):
+            obs = self.observables()
+        values = {
+            "position": s.origin,
+            "orientation": s.orientation,
+            "angle": s.angle,
+            "velocity": s.velocity,
+            "angular_velocity": s.angular_velocity,
+            **obs,
+        }
+        for key, value in values.items():
+            if key in block:
+                block[key][row] = value
+        block["step"][row] = self.step_index
+        block["time"][row] = self.time
+
+    def advance_recording(
+        self, n: int, every: int, last_step: int, block: dict[str, np.ndarray], row: int
+    ) -> tuple[int, int, NonFiniteState | None]:
+        """Take up to n steps, recording a frame into `block` from `row` on after each
+        step that is a multiple of `every` or is `last_step`, stopping early when the
+        block is full. Returns (steps taken, frames recorded, the NonFiniteState that
+        stopped it or None)."""
+        taken = written = 0
+        rows = len(block["step"])
+        while taken < n and row + written < rows:
+            try:
+                self.advance(1)
+            except NonFiniteState as err:
+                return taken, written, err
+            taken += 1
+            step = self.step_index
+            if step % every == 0 or step == last_step:
+                try:
+                    self.record(block, row + written)
+                except NonFiniteState as err:
+                    return taken, written, err
+                written += 1
+        return taken, written, None
+
+    def checkpoint(self) -> bytes | None:
+        """The engine's whole state (bytes) for a resumed run, or None if it has none."""
+        return None
+
+    def restore(self, data: bytes) -> None:
+        """Continue from a `checkpoint` of an engine built from the same scene."""
+        raise NotImplementedError(f"the {self.name} engine cannot resume a run")
+
     def observables(self) -> dict[str, float | np.ndarray]:
         """Sums over the dynamic bodies for a trajectory frame: kinetic_energy (J),
         potential_energy (J), linear_momentum (2,) (kg·m/s), angular_momentum about the

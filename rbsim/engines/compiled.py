@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import time
 
-from ..core import CoreWorld
+import numpy as np
+
+from ..core import NON_FINITE, CoreWorld
 from ..io.observables import observables
 from ..scene import Scene
 from ..scene import types as T
 from ..scene.compile import body_origin
-from .base import Engine, Snapshot
+from .base import Engine, NonFiniteState, Snapshot
 
 
 class RbsimEngine(Engine):
@@ -40,6 +42,30 @@ class RbsimEngine(Engine):
             self.world.advance(n)
         finally:
             self.step_time += time.perf_counter() - t0
+
+    def advance_recording(
+        self, n: int, every: int, last_step: int, block: dict[str, np.ndarray], row: int
+    ) -> tuple[int, int, NonFiniteState | None]:
+        t0 = time.perf_counter()
+        try:
+            status, taken, written, bad = self.world.engine.advance_recording(
+                int(n), int(every), int(last_step), block, int(row)
+            )
+        finally:
+            self.step_time += time.perf_counter() - t0
+        err = None
+        if status == NON_FINITE:
+            err = NonFiniteState(int(bad), self.step_index)
+        return int(taken), int(written), err
+
+    def record(self, block: dict[str, np.ndarray], row: int) -> None:
+        self.world.engine.record(block, int(row))
+
+    def checkpoint(self) -> bytes:
+        return self.world.engine.save_checkpoint()
+
+    def restore(self, data: bytes) -> None:
+        self.world.engine.load_checkpoint(data)
 
     def read(self) -> Snapshot:
         st = self.world.state

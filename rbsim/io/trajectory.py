@@ -31,11 +31,13 @@ is still running, or was killed, reads status "running".
 
 from __future__ import annotations
 
+import contextlib
 import difflib
 import getpass
 import json
 import math
 import os
+import struct
 import time as _time
 from dataclasses import dataclass, field
 from types import TracebackType
@@ -74,21 +76,6 @@ OBSERVABLE_UNITS = {
 }
 # Keys of /parameters/rbsim that the writer owns.
 RESERVED_PARAMETERS = ("status", "wall_time")
-
-# Chunks of time-dependent datasets hold whole frames: CHUNK_MAX_FRAMES of them, or
-# fewer so that a chunk stays under about CHUNK_TARGET_BYTES (at least one frame).
-# Chunks are allocated whole, so a larger maximum bloats files of short, small runs.
-CHUNK_TARGET_BYTES = 1 << 20
-CHUNK_MAX_FRAMES = 64
-# Per-dataset chunk cache of the writer, bytes. Must exceed one chunk, or every append
-# writes straight through to the file.
-CHUNK_CACHE_BYTES = 4 << 20
-# Fixed byte lengths of the status and wall-time strings (writable in SWMR mode).
-# Longer statuses are cut (at a character boundary).
-STATUS_BYTES = 256
-WALL_TIME_BYTES = 32
-
-_STR = h5py.string_dtype("utf-8")
 
 
 def _package_version() -> str:
@@ -157,6 +144,32 @@ class BodyTable:
 
     def __len__(self) -> int:
         return len(self.name)
+
+    def subset(self, rows: list[int] | np.ndarray) -> BodyTable:
+        """The table of the bodies `rows` (in that order), with their shapes."""
+        rows = [int(r) for r in rows]
+        shape_rows: list[int] = []
+        for r in rows:
+            shape_rows += [int(k) for k in np.flatnonzero(self.shape_body == r)]
+        new_index = {r: i for i, r in enumerate(rows)}
+        starts, verts = [], []
+        for k in shape_rows:
+            a, n = int(self.shape_vertex_start[k]), int(self.shape_vertex_count[k])
+            starts.append(sum(len(v) for v in verts))
+            verts.append(self.shape_vertices[a : a + n])
+        return BodyTable(
+            name=[self.name[r] for r in rows],
+            type=[self.type[r] for r in rows],
+            mass=self.mass[rows],
+            moment_of_inertia=self.moment_of_inertia[rows],
+            center_of_mass=self.center_of_mass[rows],
+            shape_body=[new_index[int(self.shape_body[k])] for k in shape_rows],
+            shape_kind=[self.shape_kind[k] for k in shape_rows],
+            shape_radius=self.shape_radius[shape_rows],
+            shape_vertex_start=starts,
+            shape_vertex_count=self.shape_vertex_count[shape_rows],
+            shape_vertices=np.concatenate(verts) if verts else np.zeros((0, 2)),
+        )
 
     def _check(self) -> None:
         n, s, v = len(self.name), len(self.shape_kind), len(self.shape_vertices)
@@ -228,80 +241,134 @@ def read_body_table(group: h5py.Group) -> BodyTable:
 # Writer
 # ---------------------------------------------------------------------------------------
 
+# The standard observables: name -> (shape per frame, dtype).
+OBSERVABLES: dict[str, tuple[tuple[int, ...], str]] = {
+    "kinetic_energy": ((), "f8"),
+    "potential_energy": ((), "f8"),
+    "linear_momentum": ((2,), "f8"),
+    "angular_momentum": ((), "f8"),
+    "contact_count": ((), "i8"),
+}
+PRECISIONS = ("float64", "float32")
+COMPRESSIONS = ("none", "lzf", "gzip")
+# Frames the writer gathers before it writes them out: as many as fill BLOCK_BYTES of
+# per-frame data, within [1, BLOCK_MAX_FRAMES]. This bounds its memory: a block holds at
+# most max(one frame, BLOCK_BYTES) (plus the same again while a float32 copy is made).
+BLOCK_BYTES = 8 << 20
+BLOCK_MAX_FRAMES = 256
+# Frames a writer that was not told how many to expect makes room for at first; the
+# room doubles (the file is laid out anew) when it runs out.
+INITIAL_FRAMES = 64
+# Chunks of a compressed file: whole frames, about this many bytes.
+CHUNK_TARGET_BYTES = 1 << 20
+CHUNK_MAX_FRAMES = 64
+# Fixed byte lengths of the status and wall-time strings, rewritten in place at close.
+STATUS_BYTES = 256
+WALL_TIME_BYTES = 32
+# The engine checkpoint written beside a running trajectory (OUT.h5 + this suffix).
+CHECKPOINT_SUFFIX = ".resume"
+_CHECKPOINT_MAGIC = b"RBSIMRS1"
 
-def _chunk_frames(frame_shape: tuple[int, ...], itemsize: int) -> int:
-    """Whole frames per chunk: about CHUNK_TARGET_BYTES, within [1, CHUNK_MAX_FRAMES]."""
-    frame_bytes = max(1, math.prod(frame_shape)) * itemsize
-    return max(1, min(CHUNK_MAX_FRAMES, CHUNK_TARGET_BYTES // frame_bytes))
+_STR = h5py.string_dtype("utf-8")
 
 
-def _create_series(
-    group: h5py.Group, name: str, frame_shape: tuple[int, ...], dtype: type, unit: str | None
-) -> h5py.Dataset:
-    """An empty (0, *frame_shape) dataset, chunked and resizable along T, uncompressed.
-    Unwritten frames read as fill values: -1 for integers, NaN for floats."""
-    dtype = np.dtype(dtype)
-    # A chunk dimension must be >= 1 even for zero bodies.
-    chunks = (_chunk_frames(frame_shape, dtype.itemsize), *(max(1, d) for d in frame_shape))
-    fill = -1 if dtype.kind in "iu" else np.nan
-    ds = group.create_dataset(
-        name,
-        shape=(0, *frame_shape),
-        maxshape=(None, *frame_shape),
-        chunks=chunks,
-        dtype=dtype,
-        fillvalue=fill,
-    )
-    if unit is not None:
-        ds.attrs["unit"] = unit
-    return ds
+def _fixed(nbytes: int) -> np.dtype:
+    return h5py.string_dtype("utf-8", nbytes)
 
 
+def _dcpl(fill: float | int | None = None, dtype: str = "f8") -> h5py.h5p.PropDCID:
+    """Contiguous, allocated when created; written with `fill` then, or left unwritten."""
+    dcpl = h5py.h5p.create(h5py.h5p.DATASET_CREATE)
+    dcpl.set_layout(h5py.h5d.CONTIGUOUS)
+    dcpl.set_alloc_time(h5py.h5d.ALLOC_TIME_EARLY)
+    if fill is None:
+        dcpl.set_fill_time(h5py.h5d.FILL_TIME_NEVER)
+    else:
+        dcpl.set_fill_time(h5py.h5d.FILL_TIME_ALLOC)
+        dcpl.set_fill_value(np.array(fill, dtype=dtype))
+    return dcpl
+
+
+@dataclass
+class FixedBodies:
+    """Bodies stored once rather than in every frame (static bodies that `output.bodies`
+    leaves out): their table, and their pose: position (K,2) m, orientation (K,2),
+    angle (K,) rad. Stored under /particles/static, as time-independent H5MD elements."""
+
+    bodies: BodyTable
+    position: np.ndarray
+    orientation: np.ndarray
+    angle: np.ndarray
+
+
+@dataclass
 class _Series:
-    """A dataset that grows along T, with its frame shape and low-level handles kept so
-    that an append is two HDF5 calls (high-level h5py indexing costs ~50 µs a call,
-    more than writing a frame of thousands of bodies)."""
+    """One time-dependent dataset: its path, per-frame shape, dtype on file, the block
+    key it is filled from, and its byte offset in the file (contiguous layout)."""
 
-    def __init__(self, dataset: h5py.Dataset) -> None:
-        self.name = dataset.name
-        self.dsid = dataset.id
-        self.dtype = dataset.dtype
-        self.frame: tuple[int, ...] = dataset.shape[1:]
-        self.empty = math.prod(self.frame) == 0
-        self.integral = self.dtype.kind in "iu" and self.name.startswith("/observables/")
-        self.origin = (0,) * len(self.frame)
-        self.count = (1, *self.frame)
-        self.mspace = h5py.h5s.create_simple(self.count)
+    path: str
+    frame: tuple[int, ...]
+    dtype: np.dtype
+    key: str
+    offset: int = -1
 
-    def resize(self, frames: int) -> None:
-        self.dsid.set_extent((frames, *self.frame))
+    @property
+    def frame_bytes(self) -> int:
+        return math.prod(self.frame) * self.dtype.itemsize
 
-    def write(self, t: int, value: object) -> None:
-        """Write frame t (already checked to have shape self.frame)."""
-        if self.empty:
-            return
-        arr = np.ascontiguousarray(value, dtype=self.dtype)
-        if self.integral and np.any(arr != value):
-            raise ValueError(f"{self.name}: {value!r} is not an integer, as in the first frame")
-        fspace = self.dsid.get_space()
-        fspace.select_hyperslab((t, *self.origin), self.count)
-        self.dsid.write(self.mspace, fspace, arr)
+
+def write_checkpoint(path: str, frames: int, step: int, data: bytes) -> None:
+    """Write the engine checkpoint of a running trajectory at `path` atomically (a
+    temporary file renamed over it): `frames` frames are on file, the last at `step`."""
+    tmp = f"{path}.tmp"
+    with open(tmp, "wb") as f:
+        f.write(_CHECKPOINT_MAGIC + struct.pack("<qq", frames, step) + data)
+    os.replace(tmp, path)
+
+
+def read_checkpoint(path: str) -> tuple[int, int, bytes] | None:
+    """(frames, step, engine bytes) of a checkpoint file, or None if it is not one."""
+    try:
+        with open(path, "rb") as f:
+            raw = f.read()
+    except OSError:
+        return None
+    if len(raw) < 24 or not raw.startswith(_CHECKPOINT_MAGIC):
+        return None
+    frames, step = struct.unpack("<qq", raw[8:24])
+    return frames, step, raw[24:]
 
 
 class TrajectoryWriter:
-    """Writes an rbsim trajectory (H5MD 1.1) frame by frame.
+    """Writes an rbsim trajectory (H5MD 1.1), gathering frames in blocks.
 
-    path: the .h5 file to create (overwritten if it exists).
-    bodies: static per-body data; fixes N, the number of bodies in every frame.
-    parameters: strings stored under /parameters/rbsim (e.g. "scene" YAML text,
-        "resolved_scene" and "solver" JSON, "rbsim_version"). "engine" is added from
-        `engine`; "status" and "wall_time" are written by the writer.
+    path: the .h5 file to create (replaced if it exists).
+    bodies: static data of the bodies written in every frame.
+    parameters: strings stored under /parameters/rbsim ("scene" YAML text, "resolved_scene"
+        and "solver" JSON, ...). "engine" is added from `engine`; "status" and
+        "wall_time" are the writer's.
     engine: "rbsim" or "pymunk", the engine that computed the frames.
-    flush_seconds: the longest time, s, between flushes to disk; a killed writer loses
-        at most the frames appended in the last `flush_seconds`. 0 flushes every frame.
+    flush_seconds: the longest wall time, s, between writes to disk (`flush_due`); a
+        killed writer loses at most the frames of the last `flush_seconds`.
+    frames: how many frames the run will write (room is made for them at once; without
+        it the room doubles as needed).
+    precision: "float64" or "float32" for the per-body series (step, time and the
+        observables stay as they are).
+    compression: "none", "lzf" or "gzip"; applied when the file is closed (until then
+        the file is uncompressed, so that a killed run leaves a readable file).
+    select: indices of the `bodies` rows among the rows of what is appended (the
+        engine's bodies), or None when they are the same.
+    block_bodies: rows per frame of what is appended (default len(bodies)).
+    fixed: bodies stored once (FixedBodies), or None.
+    observables: name -> (shape, dtype) of each observable (default OBSERVABLES); when
+        None and frames are appended with `append`, the first frame's decide.
+    keep: resume: keep the first `keep` frames of the trajectory already at `path`.
 
-    Use as a context manager, or call `close`. `frames_written` counts appended frames,
-    `frames_flushed` those flushed to disk.
+    Durability: the file is only ever replaced whole (written under a temporary name and
+    renamed) or written in place inside datasets whose room was made when it was laid
+    out, with the frames' `step` last. So a kill at any moment leaves a file that any
+    HDF5 reader opens, holding every frame flushed so far: the frames whose step is >= 0
+    (the unwritten rows read as step -1).
     """
 
     def __init__(
@@ -312,6 +379,14 @@ class TrajectoryWriter:
         parameters: dict[str, str],
         engine: str = "rbsim",
         flush_seconds: float = 1.0,
+        frames: int | None = None,
+        precision: str = "float64",
+        compression: str = "none",
+        select: np.ndarray | None = None,
+        block_bodies: int | None = None,
+        fixed: FixedBodies | None = None,
+        observables: dict[str, tuple[tuple[int, ...], str]] | None = None,
+        keep: int = 0,
     ) -> None:
         params = {str(k): v for k, v in parameters.items()}
         for key, value in params.items():
@@ -324,41 +399,410 @@ class TrajectoryWriter:
             raise ValueError(f"parameters['engine']={params['engine']!r} but engine={engine!r}")
         if flush_seconds < 0:
             raise ValueError(f"flush_seconds must be >= 0, got {flush_seconds}")
+        if precision not in PRECISIONS:
+            raise ValueError(f"precision must be one of {PRECISIONS}, got {precision!r}")
+        if compression not in COMPRESSIONS:
+            raise ValueError(f"compression must be one of {COMPRESSIONS}, got {compression!r}")
 
         self.path = os.fspath(path)
+        self.checkpoint_path = self.path + CHECKPOINT_SUFFIX
         self.bodies = bodies
         self.engine = engine
+        self.parameters = params
         self.flush_seconds = float(flush_seconds)
-        self.frames_written = 0
-        self.frames_flushed = 0
+        self.precision = precision
+        self.compression = compression
+        self.fixed = fixed
         self._n = len(bodies)
-        self._file: h5py.File | None = None
+        self._block_n = self._n if block_bodies is None else int(block_bodies)
+        self._select = None if select is None else np.asarray(select, np.intp)
+        if self._select is None and self._block_n != self._n:
+            raise ValueError("block_bodies differs from len(bodies) but no select is given")
+        self._capacity = max(1, int(frames)) if frames is not None else INITIAL_FRAMES
+        self._grows = frames is None
+        self.frames_written = 0  # frames appended (on file or in the block)
+        self.frames_flushed = 0  # frames on file
+        self._rows = 0  # frames in the block
         self._closed = False
         self._started = _time.perf_counter()
         self._last_flush = _time.monotonic()
-        self._series: list[_Series] = []  # every dataset that grows along T, written in order
-        self._observable_names: tuple[str, ...] = ()
+        self._fd: int | None = None
+        self._spec = dict(observables) if observables is not None else None
+        self._series: list[_Series] = []
+        self._block: dict[str, np.ndarray] | None = None
+        self._status_offset = self._wall_offset = -1
+        self._last_step = -1
+        if keep:
+            self.frames_written = self.frames_flushed = int(keep)
+            self._capacity = max(self._capacity, self.frames_written)
+        if self._spec is None:
+            self._layout(self._capacity, keep_from=None, series=False)
+        else:
+            self._layout(self._capacity, keep_from=self.path if keep else None, series=True)
 
-        # Phase 1: static data, then close, so that the file is valid before frame 0.
-        with h5py.File(self.path, "w", libver="latest") as f:
-            h5md = f.create_group("h5md")
-            h5md.attrs["version"] = np.array(H5MD_VERSION, dtype=np.int32)
-            h5md.create_group("author").attrs["name"] = _author()
-            creator = h5md.create_group("creator")
-            creator.attrs["name"] = "rbsim"
-            creator.attrs["version"] = _package_version()
-            group = f.create_group("particles/bodies")
-            box = group.create_group("box")
+    # -- layout ---------------------------------------------------------------------------
+
+    def _plan(self) -> list[_Series]:
+        """Every time-dependent dataset, in write order (`step` last)."""
+        assert self._spec is not None
+        body_dtype = np.dtype("<f4" if self.precision == "float32" else "<f8")
+        plan = [_Series("particles/bodies/position/time", (), np.dtype("<f8"), "time")]
+        for name, (components, _unit) in BODY_SERIES.items():
+            frame = (self._n, components) if components else (self._n,)
+            plan.append(_Series(f"particles/bodies/{name}/value", frame, body_dtype, name))
+        for name, (shape, dtype) in self._spec.items():
+            dt = np.dtype("<i8") if np.dtype(dtype).kind in "iub" else np.dtype("<f8")
+            plan.append(_Series(f"observables/{name}/value", tuple(shape), dt, name))
+        plan.append(_Series("particles/bodies/position/step", (), np.dtype("<i8"), "step"))
+        return plan
+
+    def _layout(
+        self,
+        capacity: int,
+        keep_from: str | None,
+        series: bool,
+        final: bool = False,
+        status: str = STATUS_RUNNING,
+        wall_time: str = "",
+        checkpoint: bytes | None = None,
+    ) -> None:
+        """Write the whole file anew under a temporary name and rename it over `path`:
+        static data, parameters, and (with `series`) room for `capacity` frames, with the
+        first frames_flushed frames copied from the file `keep_from`. `final`: the closed
+        file: exactly frames_flushed frames, chunked and compressed as asked (no room)."""
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+        tmp = f"{self.path}.tmp-{os.getpid()}"
+        keep = self.frames_flushed
+        old = open_for_reading(keep_from) if keep_from is not None and keep else None
+        try:
+            with h5py.File(tmp, "w", libver="earliest") as f:
+                self._write_static(f, status, wall_time, checkpoint)
+                if series:
+                    self._series = self._plan()
+                    self._write_series(f, capacity, old, keep, final)
+        except BaseException:
+            if old is not None:
+                old.close()
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+            raise
+        if old is not None:
+            old.close()
+        os.replace(tmp, self.path)
+        self._capacity = capacity
+        if not final:
+            self._fd = os.open(self.path, os.O_WRONLY)
+
+    def _write_static(
+        self, f: h5py.File, status: str, wall_time: str, checkpoint: bytes | None
+    ) -> None:
+        h5md = f.create_group("h5md")
+        h5md.attrs["version"] = np.array(H5MD_VERSION, dtype=np.int32)
+        h5md.create_group("author").attrs["name"] = _author()
+        creator = h5md.create_group("creator")
+        creator.attrs["name"] = "rbsim"
+        creator.attrs["version"] = _package_version()
+        group = f.create_group("particles/bodies")
+        box = group.create_group("box")
+        box.attrs["dimension"] = np.int32(2)
+        box.attrs["boundary"] = np.array(["none", "none"], dtype=_STR)
+        _write_body_table(group, self.bodies)
+        if self.fixed is not None:
+            fixed = f.create_group("particles/static")
+            box = fixed.create_group("box")
             box.attrs["dimension"] = np.int32(2)
             box.attrs["boundary"] = np.array(["none", "none"], dtype=_STR)
-            _write_body_table(group, bodies)
-            f.create_group("observables")
-            rb = f.create_group("parameters/rbsim")
-            for key, value in params.items():
-                rb.create_dataset(key, data=value, dtype=_STR)
-            # Fixed-length strings: the only kind SWMR mode lets us overwrite at close.
-            rb.create_dataset("status", data=STATUS_RUNNING.encode(), dtype=_fixed(STATUS_BYTES))
-            rb.create_dataset("wall_time", data=b"", dtype=_fixed(WALL_TIME_BYTES))
+            _write_body_table(fixed, self.fixed.bodies)
+            fixed.create_dataset("position", data=self.fixed.position).attrs["unit"] = "m"
+            fixed.create_dataset("orientation", data=self.fixed.orientation)
+            fixed.create_dataset("angle", data=self.fixed.angle).attrs["unit"] = "rad"
+        f.create_group("observables")
+        rb = f.create_group("parameters/rbsim")
+        for key, value in self.parameters.items():
+            rb.create_dataset(key, data=value, dtype=_STR)
+        status_ds = rb.create_dataset(
+            "status", (), dtype=_fixed(STATUS_BYTES), dcpl=_dcpl(b"", f"S{STATUS_BYTES}")
+        )
+        status_ds[()] = _status_bytes(status)
+        wall_ds = rb.create_dataset(
+            "wall_time", (), dtype=_fixed(WALL_TIME_BYTES), dcpl=_dcpl(b"", f"S{WALL_TIME_BYTES}")
+        )
+        wall_ds[()] = wall_time.encode()
+        self._status_offset = status_ds.id.get_offset()
+        self._wall_offset = wall_ds.id.get_offset()
+        if checkpoint is not None:
+            rb.create_dataset("checkpoint", data=np.frombuffer(checkpoint, np.uint8))
+
+    def _write_series(
+        self, f: h5py.File, capacity: int, old: h5py.File | None, keep: int, final: bool
+    ) -> None:
+        bodies = f["particles/bodies"]
+        step_ds = time_ds = None
+        units = {name: unit for name, (_c, unit) in BODY_SERIES.items()}
+        for s in self._series:
+            shape = (capacity, *s.frame)
+            if final:
+                kwargs: dict = {}
+                if self.compression != "none" and math.prod(shape) > 0:
+                    frame_bytes = max(1, s.frame_bytes)
+                    rows = max(1, min(CHUNK_MAX_FRAMES, CHUNK_TARGET_BYTES // frame_bytes))
+                    kwargs = {
+                        "chunks": (min(rows, max(1, capacity)), *(max(1, d) for d in s.frame))
+                    }
+                    kwargs["compression"] = self.compression
+                    if self.compression == "gzip":
+                        kwargs["shuffle"] = True
+                ds = f.create_dataset(s.path, shape=shape, dtype=s.dtype, **kwargs)
+            else:
+                fill = -1 if s.key == "step" else (np.nan if s.key == "time" else None)
+                ds = f.create_dataset(
+                    s.path, shape=shape, dtype=s.dtype, dcpl=_dcpl(fill, s.dtype.str)
+                )
+                s.offset = ds.id.get_offset() if math.prod(shape) else -1
+            if keep and old is not None and math.prod(s.frame) >= 0:
+                ds[:keep] = old[s.path][:keep]
+            if s.key == "step":
+                step_ds = ds
+            elif s.key == "time":
+                time_ds = ds
+            elif s.key in units and units[s.key] is not None:
+                ds.attrs["unit"] = units[s.key]
+            elif s.path.startswith("observables/") and s.key in OBSERVABLE_UNITS:
+                ds.attrs["unit"] = OBSERVABLE_UNITS[s.key]
+        assert step_ds is not None and time_ds is not None
+        time_ds.attrs["unit"] = "s"
+        for name in BODY_SERIES:
+            group = bodies[name]
+            if name != "position":
+                group["step"], group["time"] = step_ds, time_ds  # hard links
+        for name in self._spec or {}:
+            group = f[f"observables/{name}"]
+            group["step"], group["time"] = step_ds, time_ds
+
+    # -- frames ---------------------------------------------------------------------------
+
+    def _block_rows(self) -> int:
+        frame_bytes = 8 * self._block_n * 8 + 64
+        return max(1, min(BLOCK_MAX_FRAMES, BLOCK_BYTES // frame_bytes))
+
+    @property
+    def block(self) -> dict[str, np.ndarray]:
+        """The block that frames are gathered in: step (B,) int64, time (B,) s, position,
+        orientation, velocity (B,M,2), angle, angular_velocity (B,M) float64 for the M
+        rows of an appended frame, and each observable (B, *shape). Fill rows from
+        `rows` on, then `commit` them."""
+        if self._block is None:
+            if self._spec is None:
+                raise ValueError("the observables are not known yet: append a frame first")
+            b, m = self._block_rows(), self._block_n
+            block = {"step": np.full(b, -1, np.int64), "time": np.zeros(b)}
+            for name, (components, _unit) in BODY_SERIES.items():
+                block[name] = np.zeros((b, m, components) if components else (b, m))
+            for name, (shape, dtype) in self._spec.items():
+                kind = "i8" if np.dtype(dtype).kind in "iub" else "f8"
+                block[name] = np.zeros((b, *shape), dtype=kind)
+            self._block = block
+        return self._block
+
+    @property
+    def rows(self) -> int:
+        """Frames gathered in the block so far."""
+        return self._rows
+
+    @property
+    def rows_free(self) -> int:
+        """Frames the block has room for."""
+        return len(self.block["step"]) - self._rows
+
+    def commit(self, rows: int, write_when_full: bool = True) -> None:
+        """Count `rows` more frames as filled in the block; writes the block out when it
+        is full (unless not `write_when_full`: the caller then flushes)."""
+        if self._closed:
+            raise ValueError(f"append to a closed trajectory ({self.path})")
+        if rows < 0 or rows > self.rows_free:
+            raise ValueError(f"commit of {rows} rows with {self.rows_free} free")
+        if rows:
+            self._last_step = int(self.block["step"][self._rows + rows - 1])
+        self._rows += rows
+        self.frames_written += rows
+        if self.rows_free == 0 and write_when_full:
+            self._write_block()
+
+    def append(
+        self,
+        step: int,
+        time: float,
+        position: np.ndarray,
+        orientation: np.ndarray,
+        angle: np.ndarray,
+        velocity: np.ndarray,
+        angular_velocity: np.ndarray,
+        observables: dict[str, float | np.ndarray],
+    ) -> None:
+        """Append one frame; written out with its block, and flushed when `flush_seconds`
+        have passed since the last flush.
+
+        step: step number; time: s. position (M,2) m, body origin; orientation (M,2)
+        (cos θ, sin θ); angle (M,) rad, unwrapped; velocity (M,2) m/s of the centre of
+        mass; angular_velocity (M,) rad/s (M = block_bodies). observables: name ->
+        scalar or (k,) array; the first frame fixes the names unless the writer was told.
+        """
+        if self._closed:
+            raise ValueError(f"append to a closed trajectory ({self.path})")
+        if self._spec is None:
+            spec = {}
+            for name, value in observables.items():
+                arr = np.asarray(value)
+                if arr.ndim > 1:
+                    raise ValueError(
+                        f"observable {name!r} must be a scalar or 1-D, got {arr.shape}"
+                    )
+                integral = arr.dtype.kind in "iub" and name not in OBSERVABLE_UNITS
+                spec[name] = (arr.shape, "i8" if integral else "f8")
+            self._spec = spec
+            self._layout(self._capacity, keep_from=None, series=True)
+        elif observables.keys() != self._spec.keys():
+            missing = sorted(self._spec.keys() - observables.keys())
+            extra = sorted(observables.keys() - self._spec.keys())
+            raise ValueError(
+                f"observables must be those of the first frame: missing {missing}, "
+                f"unexpected {extra}"
+            )
+        block, r = self.block, self._rows
+        values = {
+            "position": position,
+            "orientation": orientation,
+            "angle": angle,
+            "velocity": velocity,
+            "angular_velocity": angular_velocity,
+        }
+        values.update(observables)
+        for key, value in values.items():
+            target = block[key]
+            if np.shape(value) != target.shape[1:]:
+                raise ValueError(
+                    f"{key}: frame has shape {np.shape(value)}, expected {target.shape[1:]}"
+                )
+            if target.dtype.kind == "i":
+                arr = np.asarray(value)
+                if np.any(arr.astype(np.int64) != arr):
+                    raise ValueError(f"{key}: {value!r} is not an integer, as in the first frame")
+        for key, value in values.items():
+            block[key][r] = value
+        block["step"][r] = step
+        block["time"][r] = time
+        self.commit(1)
+        if self.flush_due():
+            self.flush()
+
+    def flush_due(self) -> bool:
+        """Whether `flush_seconds` have passed since the last flush."""
+        return _time.monotonic() - self._last_flush >= self.flush_seconds
+
+    def _write_block(self) -> None:
+        """Write the block's frames to the file (in place, `step` last) and empty it."""
+        rows = self._rows
+        if rows == 0:
+            return
+        t0 = self.frames_flushed
+        if t0 + rows > self._capacity:
+            if not self._grows:
+                raise ValueError(
+                    f"{self.path}: more frames than the {self._capacity} the writer was told"
+                )
+            capacity = max(2 * self._capacity, t0 + rows)
+            self._layout(capacity, keep_from=self.path, series=True)
+        assert self._fd is not None
+        block = self.block
+        for s in self._series:
+            if s.offset < 0:
+                continue
+            data = block[s.key][:rows]
+            if self._select is not None and s.key in BODY_SERIES:
+                data = data[:, self._select]
+            data = np.ascontiguousarray(data, dtype=s.dtype)
+            _pwrite_all(self._fd, data, s.offset + t0 * s.frame_bytes, self.path)
+        self._rows = 0
+        self.frames_flushed = t0 + rows
+
+    def flush(self, checkpoint: bytes | None = None) -> None:
+        """Write every gathered frame to the file now, and `checkpoint` (the engine's
+        state at the last frame, bytes) beside it for `rbsim run --resume`."""
+        if self._closed:
+            return
+        self._write_block()
+        if checkpoint is not None and self.frames_flushed:
+            write_checkpoint(self.checkpoint_path, self.frames_flushed, self._last_step, checkpoint)
+        self._last_flush = _time.monotonic()
+
+    def close(
+        self,
+        *,
+        status: str = "complete",
+        wall_time: float | None = None,
+        checkpoint: bytes | None = None,
+    ) -> None:
+        """Write the last frames, record `status` and `wall_time`, and close. Idempotent.
+
+        status: "complete", "interrupted" (Ctrl-C, SIGTERM) or "failed", optionally with
+            a detail after a colon; stored up to STATUS_BYTES bytes of UTF-8.
+        wall_time: s; by default the time since the writer was created.
+        checkpoint: the engine's state at the last frame; stored in the file (a run that
+            did not complete can then be resumed from it).
+        A file with room for more frames than it holds, or asked to be compressed, is laid
+        out anew with exactly its frames.
+        """
+        if self._closed:
+            return
+        if wall_time is None:
+            wall_time = _time.perf_counter() - self._started
+        try:
+            if self._spec is None:  # no frame appended: lay out the standard series
+                self._spec = dict(OBSERVABLES)
+                self._layout(self._capacity, keep_from=None, series=True)
+            self._write_block()
+            wall = repr(float(wall_time))
+            exact = self.frames_flushed == self._capacity
+            if exact and self.compression == "none" and checkpoint is None:
+                assert self._fd is not None
+                _pwrite_all(
+                    self._fd,
+                    np.frombuffer(_status_bytes(status), np.uint8),
+                    self._status_offset,
+                    self.path,
+                )
+                wall_bytes = wall.encode().ljust(WALL_TIME_BYTES, b"\0")[:WALL_TIME_BYTES]
+                _pwrite_all(
+                    self._fd, np.frombuffer(wall_bytes, np.uint8), self._wall_offset, self.path
+                )
+            else:
+                self._layout(
+                    self.frames_flushed,
+                    keep_from=self.path,
+                    series=True,
+                    final=True,
+                    status=status,
+                    wall_time=wall,
+                    checkpoint=checkpoint,
+                )
+        finally:
+            self._closed = True
+            if self._fd is not None:
+                os.close(self._fd)
+                self._fd = None
+        with contextlib.suppress(OSError):
+            os.unlink(self.checkpoint_path)
+
+    def abandon(self) -> None:
+        """Close the file descriptor without writing anything more (after an I/O error):
+        the file keeps what was flushed, and the checkpoint beside it stays."""
+        self._closed = True
+        if self._fd is not None:
+            with contextlib.suppress(OSError):
+                os.close(self._fd)
+            self._fd = None
 
     def __enter__(self) -> TrajectoryWriter:
         return self
@@ -376,131 +820,22 @@ class TrajectoryWriter:
         else:
             self.close(status="failed")
 
-    def _open_for_frames(self, observables: dict[str, float | np.ndarray]) -> None:
-        """Phase 2: reopen, create every time-dependent dataset, and (on the caller's
-        side) switch on SWMR. Observables get the names, dtypes and shapes of the first
-        frame's values: integers -> int64 (counts; not the energies and momenta, which are
-        float64 even when the first frame gives 0), everything else float64."""
-        arrays = {name: np.asarray(value) for name, value in observables.items()}
-        for name, arr in arrays.items():
-            if arr.ndim > 1:
-                raise ValueError(f"observable {name!r} must be a scalar or 1-D, got {arr.shape}")
-        f = h5py.File(self.path, "r+", libver="latest", rdcc_nbytes=CHUNK_CACHE_BYTES)
-        self._file = f
-        bodies = f["particles/bodies"]
-        shared: tuple[h5py.Dataset, h5py.Dataset] | None = None
-        for name, (components, unit) in BODY_SERIES.items():
-            group = bodies.create_group(name)
-            if shared is None:
-                shared = (
-                    _create_series(group, "step", (), np.int64, None),
-                    _create_series(group, "time", (), np.float64, "s"),
-                )
-                self._series += [_Series(ds) for ds in shared]
-            else:
-                group["step"], group["time"] = shared  # hard links
-            frame = (self._n, components) if components else (self._n,)
-            self._series.append(_Series(_create_series(group, "value", frame, np.float64, unit)))
-        assert shared is not None
-        obs_group = f["observables"]
-        for name, arr in arrays.items():
-            integral = arr.dtype.kind in "iub" and name not in OBSERVABLE_UNITS
-            dtype = np.int64 if integral else np.float64
-            group = obs_group.create_group(name)
-            group["step"], group["time"] = shared
-            ds = _create_series(group, "value", arr.shape, dtype, OBSERVABLE_UNITS.get(name))
-            self._series.append(_Series(ds))
-        self._observable_names = tuple(observables)
-        f.flush()
 
-    def append(
-        self,
-        step: int,
-        time: float,
-        position: np.ndarray,
-        orientation: np.ndarray,
-        angle: np.ndarray,
-        velocity: np.ndarray,
-        angular_velocity: np.ndarray,
-        observables: dict[str, float | np.ndarray],
-    ) -> None:
-        """Append one frame and flush if `flush_seconds` have passed since the last flush.
-
-        step: step number; time: s. position (N,2) m, body origin; orientation (N,2)
-        (cos θ, sin θ); angle (N,) rad, unwrapped; velocity (N,2) m/s of the centre of
-        mass; angular_velocity (N,) rad/s. observables: name -> scalar or (k,) array
-        (energies J, linear momentum kg m/s, angular momentum kg m²/s, contact count);
-        the first frame fixes the names, later frames must give the same names.
-        """
-        if self._closed:
-            raise ValueError(f"append to a closed trajectory ({self.path})")
-        if self._file is None:
-            self._open_for_frames(observables)
-            self._file.swmr_mode = True  # type: ignore[union-attr]
-        elif observables.keys() != set(self._observable_names):
-            missing = sorted(set(self._observable_names) - observables.keys())
-            extra = sorted(observables.keys() - set(self._observable_names))
-            raise ValueError(
-                f"observables must be those of the first frame: missing {missing}, "
-                f"unexpected {extra}"
-            )
-        values = [step, time, position, orientation, angle, velocity, angular_velocity]
-        values += [observables[name] for name in self._observable_names]
-        t = self.frames_written
-        for series, value in zip(self._series, values, strict=True):
-            if np.shape(value) != series.frame:
-                raise ValueError(
-                    f"{series.name}: frame has shape {np.shape(value)}, expected {series.frame}"
-                )
-        # Resize everything first, then write: a kill between the two leaves fill
-        # values (-1 steps) at the end, which load_trajectory trims.
-        for series in self._series:
-            series.resize(t + 1)
-        for series, value in zip(self._series, values, strict=True):
-            series.write(t, value)
-        self.frames_written = t + 1
-        if _time.monotonic() - self._last_flush >= self.flush_seconds:
-            self.flush()
-
-    def flush(self) -> None:
-        """Write every appended frame to disk now (SWMR readers then see them)."""
-        if self._file is not None and not self._closed:
-            self._file.flush()
-            self.frames_flushed = self.frames_written
-        self._last_flush = _time.monotonic()
-
-    def close(self, *, status: str = "complete", wall_time: float | None = None) -> None:
-        """Flush, record `status` and `wall_time`, and close the file. Idempotent.
-
-        status: "complete", "interrupted" (Ctrl-C, SIGTERM) or "failed", optionally with
-            a detail after a colon ("failed: body 'ball' became non-finite at step 12");
-            stored up to STATUS_BYTES bytes of UTF-8. Never raises on the text, so that
-            closing in a `finally` cannot hide the error being handled.
-        wall_time: s; by default the time since the writer was created.
-        """
-        if self._closed:
-            return
-        if wall_time is None:
-            wall_time = _time.perf_counter() - self._started
-        if self._file is None:  # no frame appended: create the empty series anyway
-            self._open_for_frames({})
-        f = self._file
-        assert f is not None
-        try:
-            rb = f["parameters/rbsim"]
-            text = str(status).encode("utf-8")[:STATUS_BYTES]
-            rb["status"][()] = text.decode("utf-8", errors="ignore").encode("utf-8")
-            rb["wall_time"][()] = repr(float(wall_time)).encode()
-            f.flush()
-            self.frames_flushed = self.frames_written
-        finally:
-            self._closed = True
-            self._series = []
-            f.close()
+def _status_bytes(status: str) -> bytes:
+    text = str(status).encode("utf-8")[:STATUS_BYTES]
+    text = text.decode("utf-8", errors="ignore").encode("utf-8")
+    return text.ljust(STATUS_BYTES, b"\0")
 
 
-def _fixed(nbytes: int) -> np.dtype:
-    return h5py.string_dtype("utf-8", nbytes)
+def _pwrite_all(fd: int, data: np.ndarray, offset: int, path: str) -> None:
+    """Write all of data's bytes at offset (os.pwrite may write fewer)."""
+    view = memoryview(np.ascontiguousarray(data)).cast("B")
+    while len(view):
+        n = os.pwrite(fd, view, offset)
+        if n <= 0:
+            raise OSError(f"{path}: short write")
+        view = view[n:]
+        offset += n
 
 
 # ---------------------------------------------------------------------------------------
@@ -517,7 +852,8 @@ class Trajectory:
     angular_velocity (T,N) rad/s; observables name -> (T,) or (T,k) (energies J, linear
     momentum kg m/s, angular momentum kg m²/s, contact count); bodies: static data;
     parameters: /parameters/rbsim as strings; engine: "rbsim" or "pymunk"; status:
-    "complete", "interrupted", "failed", or "running" (writer running or killed).
+    "complete", "interrupted", "failed", or "running" (writer running or killed);
+    fixed: the static bodies stored once rather than per frame (output.bodies), or None.
     """
 
     step: np.ndarray
@@ -532,6 +868,7 @@ class Trajectory:
     parameters: dict[str, str]
     engine: str
     status: str
+    fixed: FixedBodies | None = None
     _index: dict[str, int] | None = field(default=None, init=False, repr=False, compare=False)
 
     def body(self, name: str) -> int:
@@ -546,15 +883,33 @@ class Trajectory:
             raise KeyError(f"no body named {name!r}{hint}") from None
 
 
+class TrajectoryError(OSError):
+    """A file that is not a readable rbsim trajectory: missing, truncated or corrupt."""
+
+
 def open_for_reading(path: str | os.PathLike) -> h5py.File:
-    """Open read-only; files whose writer is running or was killed need SWMR read mode."""
+    """Open a trajectory read-only; raises TrajectoryError (at once) with what is wrong.
+
+    Files of this rbsim open as they are at any moment, even while being written or
+    after the writer was killed. Files of earlier versions (written in SWMR mode) that
+    were left open by a killed writer are opened in SWMR read mode."""
+    path = os.fspath(path)
     try:
         return h5py.File(path, "r")
-    except OSError as plain_error:
-        try:
-            return h5py.File(path, "r", swmr=True)
-        except OSError:
-            raise plain_error from None
+    except FileNotFoundError:
+        raise TrajectoryError(f"{path}: no such file") from None
+    except OSError as err:
+        text = str(err)
+        if "already open for write" in text or "file close degree" in text:
+            try:
+                return h5py.File(path, "r", swmr=True)
+            except OSError:
+                pass
+        if not h5py.is_hdf5(path):
+            raise TrajectoryError(f"{path}: not an HDF5 file") from None
+        if "truncated" in text or "eof" in text.lower():
+            raise TrajectoryError(f"{path}: the file is truncated ({text})") from None
+        raise TrajectoryError(f"{path}: cannot be read as HDF5 ({text})") from None
 
 
 def _series_groups(f: h5py.File) -> tuple[list[str], list[str]]:
@@ -565,34 +920,17 @@ def _series_groups(f: h5py.File) -> tuple[list[str], list[str]]:
 
 
 def frame_count(f: h5py.File, closed: bool) -> int:
-    """Frames present in every time series: the shortest common length, less trailing
-    frames whose step was never written (-1, the fill value). In a file that was not
-    closed (writer running or killed) a trailing frame is also dropped when any series
-    holds only fill values there (NaN, or -1 for integer observables): its extent
-    reached the disk before its data did."""
+    """Frames present in every time series: the leading frames whose step was written
+    (>= 0: rows with room made but not yet written hold -1), within the shortest series.
+    `closed` (the writer closed the file) is kept for callers; every file reads alike."""
     if "particles/bodies/position" not in f:
         return 0
     body_groups, obs_groups = _series_groups(f)
     values = [f[g]["value"] for g in body_groups + obs_groups]
     step, time = f["particles/bodies/position/step"], f["particles/bodies/position/time"]
     t = min(ds.shape[0] for ds in [*values, step, time])
-
-    def unwritten(i: int) -> bool:
-        if step[i] < 0:
-            return True
-        if closed:
-            return False
-        for ds in [time, *values]:
-            frame = ds[i]
-            if ds.dtype.kind == "f" and np.isnan(frame).all() and np.size(frame):
-                return True
-            if ds.dtype.kind in "iu" and (frame == -1).all() and np.size(frame):
-                return True
-        return False
-
-    while t > 0 and unwritten(t - 1):
-        t -= 1
-    return t
+    unwritten = np.flatnonzero(step[:t] < 0)
+    return int(unwritten[0]) if unwritten.size else t
 
 
 def read_parameters(f: h5py.File) -> dict[str, str]:
@@ -633,6 +971,15 @@ def load_trajectory(path: str | os.PathLike) -> Trajectory:
         observables: dict[str, np.ndarray] = {}
         for group in _series_groups(f)[1]:
             observables[group.split("/", 1)[1]] = f[group]["value"][:t]
+        fixed = None
+        if "particles/static" in f:
+            g = f["particles/static"]
+            fixed = FixedBodies(
+                bodies=read_body_table(g),
+                position=g["position"][()],
+                orientation=g["orientation"][()],
+                angle=g["angle"][()],
+            )
     return Trajectory(
         step=step,
         time=time,
@@ -641,6 +988,7 @@ def load_trajectory(path: str | os.PathLike) -> Trajectory:
         parameters=params,
         engine=params.get("engine", "unknown"),
         status=params.get("status", "unknown"),
+        fixed=fixed,
         **arrays,
     )
 

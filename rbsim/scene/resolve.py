@@ -10,6 +10,7 @@ expressed in its body's frame (metres, radians).
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -106,9 +107,28 @@ class Solver:
 
 @dataclass(frozen=True)
 class Output:
-    """every: write every k-th step (step 0 and the last step are always written)."""
+    """every: write every k-th step (step 0 and the last step are always written).
+    precision: "float64" | "float32" (per-body series). compression: "none" | "lzf" |
+    "gzip". bodies: "all", "moving", or names and patterns (``*`` matches any text)."""
 
     every: int = 1
+    precision: str = "float64"
+    compression: str = "none"
+    bodies: str | tuple[str, ...] = "all"
+
+    def body_indices(self, names: Sequence[str], types: Sequence[str]) -> list[int]:
+        """Indices of the bodies written in every frame, in scene order."""
+        if self.bodies == "all":
+            return list(range(len(names)))
+        if self.bodies == "moving":
+            return [i for i, t in enumerate(types) if t != "static"]
+        rules = [_pattern(p) for p in self.bodies]
+        return [i for i, n in enumerate(names) if any(r.fullmatch(n) for r in rules)]
+
+
+def _pattern(text: str) -> re.Pattern[str]:
+    """A body-name pattern: ``*`` matches any text, everything else itself."""
+    return re.compile(".*".join(re.escape(part) for part in text.split("*")))
 
 
 @dataclass(frozen=True)
@@ -425,6 +445,18 @@ class _Resolver:
             return None
         if not _ok(*compare.get("statistics", {}).values()):
             return None
+        output = dict(output)
+        if isinstance(output.get("bodies"), list):
+            names = [b.name for b in bodies]
+            for i, text in enumerate(output["bodies"]):
+                if not any(_pattern(text).fullmatch(n) for n in names):
+                    mark = c["output"].mark_of("bodies")
+                    close = did_you_mean(text, names)
+                    hint = f"; did you mean {close}?" if close else ""
+                    self.error(mark, ("output", "bodies", i), f"no body matches {text!r}{hint}")
+            output["bodies"] = tuple(output["bodies"])
+            if self.problems:
+                return None
         reference = self.reference(c.get("reference"), bodies)
         if not _ok(reference):
             return None
@@ -774,7 +806,12 @@ def scene_to_dict(scene: Scene) -> dict[str, Any]:
             "rotation": s.rotation,
             "restitution_threshold": s.restitution_threshold,
         },
-        "output": {"every": scene.output.every},
+        "output": {
+            "every": scene.output.every,
+            "precision": scene.output.precision,
+            "compression": scene.output.compression,
+            "bodies": o if isinstance(o := scene.output.bodies, str) else list(o),
+        },
         "materials": {
             name: {"density": m.density, "friction": m.friction, "restitution": m.restitution}
             for name, m in scene.materials.items()

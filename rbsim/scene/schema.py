@@ -292,7 +292,29 @@ OUTPUT = Key(
     "object",
     "What the trajectory file holds.",
     {},
-    fields={"every": Key("integer", "Write every k-th step (step 0 always).", 1, ge=1)},
+    fields={
+        "every": Key("integer", "Write every k-th step (step 0 and the last always).", 1, ge=1),
+        "precision": Key(
+            "enum",
+            "Floating-point width of the per-body series (observables stay float64).",
+            "float64",
+            choices=("float64", "float32"),
+        ),
+        "compression": Key(
+            "enum",
+            "Compression of the series, applied when the run closes the file.",
+            "none",
+            choices=("none", "lzf", "gzip"),
+        ),
+        "bodies": Key(
+            "selection",
+            "Bodies written in every frame: all, moving (every body that is not static), "
+            "or a list of names and patterns (* matches any text: pyramid[*]); static "
+            "bodies left out are stored once.",
+            "all",
+            choices=("all", "moving"),
+        ),
+    },
 )
 
 COMPARE = Key(
@@ -519,6 +541,17 @@ class Checker:
             return self.error(mark, path, "must not be empty")
         return value
 
+    def _selection(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
+        if isinstance(value, str):
+            return self._enum(value, key, path, mark)
+        if not isinstance(value, YList) or not value:
+            message = f"expected {' or '.join(key.choices)} or a list of body names, got "
+            return self.error(mark, path, message + describe(value))
+        return [
+            self._string(item, key, path + (i,), value.item_marks[i])
+            for i, item in enumerate(value)
+        ]
+
     def _enum(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
         if isinstance(value, str) and value in key.choices:
             return value
@@ -719,6 +752,11 @@ def _json_body(key: Key, defs: dict[str, Any]) -> dict[str, Any]:
         out |= {"type": "string", "minLength": 1}
     elif kind == "enum":
         out |= {"type": "string", "enum": list(key.choices)}
+    elif kind == "selection":
+        out["anyOf"] = [
+            {"type": "string", "enum": list(key.choices)},
+            {"type": "array", "items": {"type": "string", "minLength": 1}, "minItems": 1},
+        ]
     elif kind == "fraction":
         out["anyOf"] = [
             _json_bounds(key, "number"),

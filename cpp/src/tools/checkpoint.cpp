@@ -1,0 +1,145 @@
+#include "checkpoint.hpp"
+
+#include <cstring>
+#include <stdexcept>
+#include <string>
+#include <type_traits>
+
+namespace rbsim {
+namespace {
+
+constexpr char MAGIC[8] = {'R', 'B', 'S', 'I', 'M', 'C', 'K', '1'};
+
+// Every member of the world that changes while it runs, in one fixed order. A member
+// added to State, Grid or Contacts must be added here too: the static_asserts on their
+// sizes below fail until it is (and the resume tests check the result bit for bit).
+template <int D, class W, class F>
+void visit(W& w, F&& f) {
+  f(w.step_index);
+  auto& s = w.state;
+  f(s.body_x), f(s.body_q), f(s.body_angle), f(s.body_v), f(s.body_w), f(s.body_l);
+  auto& g = w.grid;
+  f(g.inv_cell), f(g.shape_aabb), f(g.shape_fat), f(g.shape_moved), f(g.shape_big);
+  f(g.shape_cell), f(g.shape_bucket), f(g.entry_shape), f(g.entry_cell), f(g.entry_fat);
+  f(g.entry_tag), f(g.bucket_start), f(g.big_list), f(g.span), f(g.meta), f(g.new_keys);
+  f(g.kept), f(g.sort_scratch), f(g.sort_count);
+  auto& c = w.contacts;
+  f(c.count), f(c.carried), f(c.pairs), f(c.shape_a), f(c.shape_b), f(c.body_a), f(c.body_b);
+  f(c.key), f(c.normal), f(c.points), f(c.friction), f(c.restitution), f(c.anchor_a);
+  f(c.anchor_b), f(c.base_separation), f(c.ref_separation), f(c.feature), f(c.normal_impulse);
+  f(c.start_impulse), f(c.tangent_impulse), f(c.normal_mass), f(c.solver_row);
+  f(c.approach_velocity), f(c.approach_separation), f(c.max_normal_impulse), f(c.prev_key);
+  f(c.prev_points), f(c.prev_feature), f(c.prev_normal_impulse), f(c.prev_tangent_impulse);
+  f(c.prev_normal), f(c.prev_anchor_a), f(c.prev_anchor_b), f(c.prev_ref_separation);
+  f(c.body_ref), f(c.body_still), f(c.body_delta), f(c.toi_verts), f(c.toi_norms);
+  f(c.vert_world), f(c.norm_world), f(c.shape_margin), f(c.body_level), f(c.shock_side);
+  f(c.shock_order), f(c.solve_order), f(c.adj_start), f(c.adj), f(c.queue), f(c.bounce_kind);
+  f(c.body_mark), f(c.solve_impulse), f(c.bounce_list), f(c.relax_list), f(c.body_reach);
+  f(c.wave_count), f(c.waves_valid), f(c.wave_order), f(c.manifold_wave), f(c.body_wave);
+  f(c.wave_start), f(c.wave_batch), f(c.wave_single), f(c.wave_single_batch), f(c.batches);
+}
+
+constexpr std::size_t VEC = sizeof(std::vector<int>);
+static_assert(sizeof(State<2>) == 6 * VEC, "State changed: update visit()");
+static_assert(sizeof(Grid<2>) == 8 + 16 * VEC + sizeof(Vec2) + sizeof(GridMeta<2>),
+              "Grid changed: update visit()");
+static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 62 * VEC + 8 + 8,
+              "Contacts changed: update visit()");
+
+template <class T>
+struct is_vector : std::false_type {};
+template <class T, class A>
+struct is_vector<std::vector<T, A>> : std::true_type {};
+
+struct Writer {
+  std::vector<std::uint8_t>& out;
+  void bytes(const void* p, std::size_t n) {
+    const auto* b = static_cast<const std::uint8_t*>(p);
+    out.insert(out.end(), b, b + n);
+  }
+  template <class T>
+  void operator()(const T& v) {
+    if constexpr (is_vector<T>::value) {
+      static_assert(std::is_trivially_copyable_v<typename T::value_type>);
+      const std::uint64_t n = v.size();
+      bytes(&n, sizeof n);
+      bytes(v.data(), n * sizeof(typename T::value_type));
+    } else {
+      static_assert(std::is_trivially_copyable_v<T>);
+      bytes(&v, sizeof v);
+    }
+  }
+};
+
+struct Reader {
+  const std::uint8_t* p;
+  const std::uint8_t* end;
+  void bytes(void* dst, std::size_t n) {
+    if (static_cast<std::size_t>(end - p) < n) throw std::invalid_argument("checkpoint: truncated");
+    if (n) std::memcpy(dst, p, n);
+    p += n;
+  }
+  template <class T>
+  void operator()(T& v) {
+    if constexpr (is_vector<T>::value) {
+      std::uint64_t n = 0;
+      bytes(&n, sizeof n);
+      using E = typename T::value_type;
+      if (n > static_cast<std::uint64_t>(end - p) / sizeof(E))
+        throw std::invalid_argument("checkpoint: truncated");
+      v.resize(n);
+      bytes(v.data(), n * sizeof(E));
+    } else {
+      bytes(&v, sizeof v);
+    }
+  }
+};
+
+struct Sizes {
+  std::int64_t dimension, bodies, shapes, vertices;
+};
+
+template <int D>
+Sizes sizes_of(const World<D>& w) {
+  return {D, w.model.body_count(), w.model.shape_count(), w.model.vertex_count()};
+}
+
+}  // namespace
+
+template <int D>
+std::vector<std::uint8_t> save_checkpoint(const World<D>& world) {
+  std::vector<std::uint8_t> out;
+  Writer wr{out};
+  wr.bytes(MAGIC, sizeof MAGIC);
+  const Sizes sz = sizes_of(world);
+  wr.bytes(&sz, sizeof sz);
+  visit<D>(world, wr);
+  return out;
+}
+
+template <int D>
+void load_checkpoint(World<D>& world, const std::uint8_t* data, std::size_t size) {
+  Reader rd{data, data + size};
+  char magic[8];
+  rd.bytes(magic, sizeof magic);
+  if (std::memcmp(magic, MAGIC, sizeof MAGIC) != 0)
+    throw std::invalid_argument("checkpoint: not an rbsim engine checkpoint");
+  Sizes sz{}, want = sizes_of(world);
+  rd.bytes(&sz, sizeof sz);
+  if (std::memcmp(&sz, &want, sizeof sz) != 0)
+    throw std::invalid_argument(
+        "checkpoint: made for a world of " + std::to_string(sz.bodies) + " bodies, " +
+        std::to_string(sz.shapes) + " shapes (this one has " + std::to_string(want.bodies) +
+        ", " + std::to_string(want.shapes) + ")");
+  World<D> copy;  // read into a copy, so that a bad checkpoint leaves the world as it was
+  copy.model = world.model;
+  copy.config = world.config;
+  visit<D>(copy, rd);
+  if (rd.p != rd.end) throw std::invalid_argument("checkpoint: trailing bytes");
+  world = std::move(copy);
+}
+
+template std::vector<std::uint8_t> save_checkpoint(const World<2>&);
+template void load_checkpoint(World<2>&, const std::uint8_t*, std::size_t);
+
+}  // namespace rbsim

@@ -1,0 +1,355 @@
+"""Trajectory output as a user meets it: frames written in blocks, files that survive a
+kill at any moment and resume bit for bit, and the output options (precision,
+compression, a subset of bodies).
+
+Kills are real (SIGKILL to an `rbsim run` subprocess) at seeded random moments; every
+file left must open with plain h5py and hold a prefix of an uninterrupted run's frames.
+"""
+
+from __future__ import annotations
+
+import os
+import random
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from rbsim.io.trajectory import (
+    BLOCK_BYTES,
+    BLOCK_MAX_FRAMES,
+    CHECKPOINT_SUFFIX,
+    OBSERVABLES,
+    BodyTable,
+    TrajectoryWriter,
+    load_trajectory,
+    summarize,
+)
+from rbsim.run import frame_steps, resume_run, run_scene
+
+from .conftest import rbsim, scene_from
+
+SERIES = ("step", "time", "position", "orientation", "angle", "velocity", "angular_velocity")
+
+# Large frames (1,600 bodies, 100 kB a frame) so that kills land inside block writes as
+# well as between them; a pile that collapses onto a ramp, so that contacts (and the
+# warm-start cache a checkpoint must hold) change all the time.
+BIG = """\
+version: 1
+name: big
+world: {gravity: [0, -10], dt: 1/60, steps: STEPS}
+materials:
+  m: {density: 1.0, friction: 0.5, restitution: 0.1}
+bodies:
+  - name: floor
+    type: static
+    material: m
+    shape: {segment: {a: [-60, 0], b: [60, 0]}}
+  - name: ramp
+    type: static
+    material: m
+    shape: {segment: {a: [-60, 30], b: [0, 2]}}
+  - grid: {count: [40, 40], spacing: [1.05, 1.05], origin: [-35, 20], material: m,
+           shape: {circle: {radius: 0.5}}}
+"""
+
+
+def big_scene(folder: Path, steps: int) -> Path:
+    path = folder / "big.yaml"
+    path.write_text(BIG.replace("STEPS", str(steps)))
+    return path
+
+
+def same_frames(a, b, n: int | None = None) -> bool:
+    """Whether trajectory b's frames equal a's first len(b) (or n) frames, bit for bit."""
+    n = len(b.step) if n is None else n
+    if not all(np.array_equal(getattr(a, k)[:n], getattr(b, k)[:n]) for k in SERIES):
+        return False
+    return all(np.array_equal(a.observables[k][:n], b.observables[k][:n]) for k in a.observables)
+
+
+def start_run(*args: str | Path) -> subprocess.Popen:
+    return subprocess.Popen(
+        [sys.executable, "-m", "rbsim", "run", *map(str, args), "-q"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory) -> tuple[Path, Path, object]:
+    folder = tmp_path_factory.mktemp("reference")
+    scene = big_scene(folder, 450)
+    out = folder / "ref.h5"
+    code, _out, err = rbsim("run", scene, "-o", out, "-q")
+    assert code == 0, err
+    return folder, scene, load_trajectory(out)
+
+
+def test_sigkill_at_random_moments_leaves_a_plain_readable_prefix(reference, tmp_path) -> None:
+    folder, scene, ref = reference
+    rng = random.Random(14)
+    lengths = []
+    for k in range(6):
+        out = tmp_path / f"killed{k}.h5"
+        proc = start_run(scene, "-o", out)
+        time.sleep(rng.uniform(0.4, 2.2))  # from before the file exists to late in the run
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        if not out.exists():  # killed while the engine was still being built
+            lengths.append(-1)
+            continue
+        with h5py.File(out, "r") as f:  # plain h5py: no SWMR, no consistency flags
+            assert "particles/bodies/position/step" in f
+        traj = load_trajectory(out)
+        assert traj.status in ("running", "complete")
+        assert same_frames(ref, traj), f"kill {k}: frames differ from the reference"
+        assert "frames" in summarize(out)
+        lengths.append(len(traj.step))
+    # the moments spread over the run: some kills keep frames, and not all the same count
+    assert len({n for n in lengths if n > 0}) >= 3, lengths
+
+
+def test_killed_runs_resume_bit_identically(reference, tmp_path) -> None:
+    folder, scene, ref = reference
+    for k, delay in enumerate((0.0, 0.45)):
+        out = tmp_path / f"resumed{k}.h5"
+        proc = start_run(scene, "-o", out)
+        checkpoint = Path(f"{out}{CHECKPOINT_SUFFIX}")
+        deadline = time.monotonic() + 60
+        while not checkpoint.exists() and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.02)  # until the first flush
+        time.sleep(delay)  # then at once, or a while later
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        kept = len(load_trajectory(out).step)
+        if not checkpoint.exists():
+            pytest.skip("the run finished before the kill")
+        code, _o, err = rbsim("run", "--resume", out, "-q")
+        assert code == 0, err
+        traj = load_trajectory(out)
+        assert traj.status == "complete" and len(traj.step) == len(ref.step), kept
+        assert same_frames(ref, traj, len(ref.step))
+        assert not Path(f"{out}{CHECKPOINT_SUFFIX}").exists()
+
+
+def test_a_run_stopped_by_sigterm_keeps_its_checkpoint_and_resumes(reference, tmp_path) -> None:
+    folder, scene, ref = reference
+    out = tmp_path / "term.h5"
+    proc = start_run(scene, "-o", out)
+    time.sleep(1.2)
+    proc.send_signal(signal.SIGTERM)
+    _out, err = proc.communicate(timeout=60)
+    if proc.returncode == 0:
+        pytest.skip("the run finished before SIGTERM arrived")
+    assert proc.returncode == 130, err
+    with h5py.File(out, "r") as f:
+        assert "parameters/rbsim/checkpoint" in f
+    stopped = load_trajectory(out)
+    assert stopped.status == "interrupted" and same_frames(ref, stopped)
+    summary = resume_run(out)
+    assert summary.steps == ref.step[-1] and summary.steps_run < summary.steps
+    done = load_trajectory(out)
+    assert done.parameters["resumed"] == "1"
+    assert same_frames(ref, done, len(ref.step))
+
+
+def test_resume_refuses_a_complete_run_with_a_message(reference) -> None:
+    folder, _scene, _ref = reference
+    code, _o, err = rbsim("run", "--resume", folder / "ref.h5")
+    assert code == 1 and "complete" in err and "Traceback" not in err
+
+
+PILE = """\
+version: 1
+world: {gravity: [0, -9.81], dt: 1/60, steps: 90}
+bodies:
+  - name: ground
+    type: static
+    shape: {segment: {a: [-20, 0], b: [20, 0]}}
+  - name: wall
+    type: static
+    shape: {box: {size: [1, 4], offset: [8, 2]}}
+  - pyramid: {base: 6, size: [1, 1], origin: [0, 0.5]}
+  - name: ball
+    position: [-6, 1]
+    velocity: [8, 0]
+    mass: 20
+    shape: {circle: {radius: 1}}
+"""
+
+
+def run_pile(tmp_path: Path, name: str, *overrides: str):
+    scene = scene_from(PILE, overrides)
+    out = tmp_path / f"{name}.h5"
+    run_scene(scene, out)
+    return load_trajectory(out), out
+
+
+def test_float32_differs_from_float64_by_float32_rounding_and_halves_the_series(tmp_path) -> None:
+    full, full_path = run_pile(tmp_path, "f64")
+    half, half_path = run_pile(tmp_path, "f32", "output.precision=float32")
+    assert half.position.dtype == np.float32 and full.position.dtype == np.float64
+    for name in ("position", "orientation", "angle", "velocity", "angular_velocity"):
+        exact = getattr(full, name)
+        # float32 rounding: half an ulp of float32 at each value, relative 2**-24
+        assert np.all(np.abs(getattr(half, name) - exact) <= np.abs(exact) * 2.0**-24 + 1e-45)
+    np.testing.assert_array_equal(half.step, full.step)
+    np.testing.assert_array_equal(
+        half.observables["kinetic_energy"], full.observables["kinetic_energy"]
+    )
+    series = lambda p: sum(  # noqa: E731 - bytes of the per-body series on file
+        h5py.File(p)[f"particles/bodies/{n}/value"].id.get_storage_size()
+        for n in ("position", "orientation", "angle", "velocity", "angular_velocity")
+    )
+    assert series(half_path) * 2 == series(full_path)
+
+
+@pytest.mark.parametrize("compression", ["lzf", "gzip"])
+def test_compressed_files_hold_the_same_frames(tmp_path, compression: str) -> None:
+    plain, _ = run_pile(tmp_path, "plain")
+    packed, path = run_pile(tmp_path, compression, f"output.compression={compression}")
+    assert same_frames(plain, packed, len(plain.step)) and len(packed.step) == len(plain.step)
+    with h5py.File(path, "r") as f:
+        assert f["particles/bodies/position/value"].compression == compression
+    assert "complete" in summarize(path)
+
+
+def test_a_subset_of_bodies_keeps_their_rows_and_stores_the_rest_once(tmp_path) -> None:
+    full, _ = run_pile(tmp_path, "all")
+    some, path = run_pile(tmp_path, "some", "output.bodies=[ball, 'pyramid[0,*]']")
+    names = some.bodies.name
+    assert names[0] == "pyramid[0,0]" and names[-1] == "ball" and len(names) == 7
+    rows = [full.body(n) for n in names]
+    np.testing.assert_array_equal(some.position, full.position[:, rows])
+    np.testing.assert_array_equal(some.angular_velocity, full.angular_velocity[:, rows])
+    # the static bodies left out are stored once, with their shapes and pose
+    assert some.fixed is not None and some.fixed.bodies.name == ["ground", "wall"]
+    np.testing.assert_array_equal(some.fixed.position, full.position[0, :2])
+    moving, _ = run_pile(tmp_path, "moving", "output.bodies=moving")
+    assert "ground" not in moving.bodies.name and len(moving.bodies) == len(full.bodies) - 2
+
+
+def test_output_bodies_that_match_nothing_is_an_invalid_scene(tmp_path) -> None:
+    path = tmp_path / "s.yaml"
+    path.write_text(PILE + "output: {bodies: [bal]}\n")
+    code, _o, err = rbsim("validate", path)
+    assert code == 3 and "output.bodies" in err and "ball" in err and ":" in err
+
+
+def test_the_writer_holds_a_bounded_number_of_frames(tmp_path) -> None:
+    n = 10_000
+    bodies = BodyTable(
+        name=[f"b{i}" for i in range(n)],
+        type=["dynamic"] * n,
+        mass=np.ones(n),
+        moment_of_inertia=np.ones(n),
+        center_of_mass=np.zeros((n, 2)),
+        shape_body=np.arange(n),
+        shape_kind=["circle"] * n,
+        shape_radius=np.full(n, 0.5),
+        shape_vertex_start=np.arange(n),
+        shape_vertex_count=np.ones(n),
+        shape_vertices=np.zeros((n, 2)),
+    )
+    writer = TrajectoryWriter(
+        tmp_path / "w.h5", bodies=bodies, parameters={}, frames=100, observables=OBSERVABLES
+    )
+    frame_bytes = n * 8 * 8  # position, orientation, velocity (2 each), angle, angular velocity
+    rows = len(writer.block["step"])
+    # the bound: BLOCK_BYTES of frames (at least one, at most BLOCK_MAX_FRAMES)
+    assert 1 <= rows <= BLOCK_MAX_FRAMES and rows * frame_bytes <= max(BLOCK_BYTES, frame_bytes)
+    frame = {
+        "position": np.zeros((n, 2)),
+        "orientation": np.tile([1.0, 0.0], (n, 1)),
+        "angle": np.zeros(n),
+        "velocity": np.zeros((n, 2)),
+        "angular_velocity": np.zeros(n),
+        "observables": {
+            "kinetic_energy": 0.0,
+            "potential_energy": 0.0,
+            "linear_momentum": np.zeros(2),
+            "angular_momentum": 0.0,
+            "contact_count": 0,
+        },
+    }
+    writer.flush_seconds = 1e9  # only a full block writes
+    for t in range(3 * rows + 1):
+        writer.append(t, 0.1 * t, **frame)
+        assert writer.rows <= rows and writer.frames_written - writer.frames_flushed <= rows
+    writer.close()
+    assert len(load_trajectory(tmp_path / "w.h5").step) == 3 * rows + 1
+
+
+def test_a_write_error_mid_run_keeps_the_frames_flushed_and_exits_1(tmp_path, monkeypatch) -> None:
+    import rbsim.io.trajectory as trajectory
+
+    scene = big_scene(tmp_path, 300)
+    out = tmp_path / "full.h5"
+    calls = {"n": 0}
+    real = os.pwrite
+
+    def pwrite(fd, data, offset):  # noqa: ANN001, ANN202 - os.pwrite's
+        calls["n"] += 1
+        if calls["n"] > 40:  # a disk that fills up after some blocks
+            raise OSError(28, "No space left on device")
+        return real(fd, data, offset)
+
+    monkeypatch.setattr(trajectory.os, "pwrite", pwrite)
+    code, _o, err = rbsim("run", scene, "-o", out, "-q", "--set", "output.every=1")
+    monkeypatch.setattr(trajectory.os, "pwrite", real)
+    assert code == 1 and "No space left on device" in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1
+    with h5py.File(out, "r") as f:
+        assert "particles/bodies/position/value" in f
+    kept = load_trajectory(out)
+    assert 0 < len(kept.step) < frame_steps(300, 1)
+
+
+def test_an_unwritable_folder_is_a_clear_message(tmp_path) -> None:
+    scene = big_scene(tmp_path, 3)
+    folder = tmp_path / "locked"
+    folder.mkdir()
+    folder.chmod(0o500)
+    try:
+        if os.access(folder, os.W_OK):
+            pytest.skip("running as a user who may write anywhere")
+        code, _o, err = rbsim("run", scene, "-o", folder / "x.h5")
+    finally:
+        folder.chmod(0o700)
+    assert code == 1 and "Permission denied" in err and "Traceback" not in err
+
+
+def test_a_truncated_trajectory_fails_at_once_with_a_message(reference, tmp_path) -> None:
+    folder, _scene, _ref = reference
+    cut = tmp_path / "cut.h5"
+    cut.write_bytes((folder / "ref.h5").read_bytes()[:5000])
+    t0 = time.monotonic()
+    code, _o, err = rbsim("info", cut)
+    assert code == 1 and "truncated" in err and time.monotonic() - t0 < 5
+    with pytest.raises(OSError, match="truncated"):
+        load_trajectory(cut)
+
+
+def test_run_from_python_returns_the_trajectory_in_memory(tmp_path) -> None:
+    import rbsim as rb
+
+    traj = rb.run(textwrap.dedent(PILE))
+    assert len(traj.step) == 91 and traj.status == "complete"
+    path = tmp_path / "pile.yaml"
+    path.write_text(PILE)
+    again = rb.run(path)
+    assert same_frames(traj, again, 91)
+    as_dict = rb.run(
+        {"version": 1, "world": {"steps": 5}, "bodies": [{"shape": {"circle": {"radius": 1}}}]}
+    )
+    assert len(as_dict.step) == 6 and as_dict.position[-1, 0, 1] < 0
+    out = tmp_path / "kept.h5"
+    on_file = rb.run(path, out)
+    assert out.exists() and same_frames(traj, on_file, 91)
