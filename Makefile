@@ -7,7 +7,7 @@ BUILD_DEPS := $(VENV)/.build-deps
 ENGINE := CMakeLists.txt $(shell find cpp -name '*.cpp' -o -name '*.hpp')
 SCENES := $(wildcard scenes/*.yaml)
 OUTS   := $(patsubst scenes/%.yaml,out/%.h5,$(SCENES))
-DEMO   := scenes/pyramid.yaml
+DEMO   := scenes/smash.yaml
 
 .PHONY: install test lint demo batch bench clean cpp-test sanitize
 

@@ -5,7 +5,9 @@ LINEAR_SLOP, 0.5 cm) and comparable solver work: rbsim runs its defaults (4 subs
 1 solve + 1 relax pass each: 8 velocity passes and a restitution pass per step);
 pymunk runs 10 iterations per step (its usual setting). Each engine first steps
 WARMUP steps (the engine loaded, contacts formed, outside the timing), then the median
-of REPEATS timed blocks of STEPS steps is reported. The from-rest scenes (FROM_REST) are
+of REPEATS timed blocks of STEPS steps is reported. A second table times `rbsim run`
+end to end (frames written every step, and only the first and last) beside the engine
+alone and pymunk alone, and the writer's own cost per frame. The from-rest scenes (FROM_REST) are
 timed instead over their whole run from step 0, which a settled window leaves out (a
 pyramid settling, a pile forming): the median of REST_REPEATS fresh runs. Timings report;
 they do not fail.
@@ -61,6 +63,59 @@ def pymunk_engine(scene, iterations: int) -> Engine:  # noqa: ANN001 - a Scene
     return make_engine("pymunk", scene, settings=settings)
 
 
+# `rbsim run` end to end: a run of E2E_STEPS + 1 steps less a run of 1 step (set-up
+# cancels), over E2E_STEPS; output every step, and with only the first and last frames
+END_TO_END = ["pyramid20", "circles1000"]
+E2E_STEPS = 600
+E2E_REPEATS = 3
+
+
+def run_wall(scene_path: Path, steps: int, every: int) -> tuple[float, float]:
+    """Wall time (s) of run_scene over `steps` steps writing every `every`-th frame to a
+    temporary file, and the writer's share of it (s: the loop less the engine's time)."""
+    import tempfile
+
+    from rbsim.run import run_scene
+
+    scene = load_scene(scene_path, [f"world.steps={steps}", f"output.every={every}"])
+    with tempfile.TemporaryDirectory() as folder:
+        t0 = time.perf_counter()
+        summary = run_scene(scene, Path(folder) / "run.h5")
+        wall = time.perf_counter() - t0
+    return wall, summary.loop_time - summary.step_time
+
+
+def end_to_end(name: str, iterations: int) -> str:
+    """One row: µs per step of `rbsim run` with output every step and with frames off,
+    the engine alone and pymunk alone (each from rest, the median of E2E_REPEATS), the
+    writer's µs per frame, and the ratio of the end-to-end run to the engine."""
+    path = HERE / "scenes" / f"{name}.yaml"
+    scene = load_scene(path, [f"world.steps={E2E_STEPS + 1}"])
+    every, off, engine, pm, writer = [], [], [], [], []
+    for _ in range(E2E_REPEATS):
+        full, w = run_wall(path, E2E_STEPS + 1, 1)
+        one, _ = run_wall(path, 1, 1)
+        every.append((full - one) / E2E_STEPS * 1e6)
+        writer.append(w / (E2E_STEPS + 2) * 1e6)
+        full, _ = run_wall(path, E2E_STEPS + 1, 10**9)
+        one, _ = run_wall(path, 1, 10**9)
+        off.append((full - one) / E2E_STEPS * 1e6)
+        for make, out in (
+            (lambda: make_engine("rbsim", scene), engine),
+            (lambda: pymunk_engine(scene, iterations), pm),
+        ):
+            e = make()
+            e.advance(1)
+            t0 = time.perf_counter()
+            e.advance(E2E_STEPS)
+            out.append((time.perf_counter() - t0) / E2E_STEPS * 1e6)
+    m = statistics.median
+    return (
+        f"{name:<17}{m(every):>10.1f}{m(off):>11.1f}{m(engine):>9.1f}{m(pm):>10.1f}"
+        f"{m(writer):>9.1f}{m(every) / m(engine):>9.2f}{m(every) / m(pm):>9.2f}"
+    )
+
+
 def main(argv: list[str] | None = None) -> int:
     """Print the benchmark table; return 0."""
     parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__)
@@ -86,6 +141,17 @@ def main(argv: list[str] | None = None) -> int:
             f"{rb / pm:>8.2f}"
         )
         print(row, flush=True)
+    print()
+    print(f"rbsim run end to end, µs per step over {E2E_STEPS} steps from rest:")
+    header = (
+        f"{'scene':<17}{'frames':>10}{'no frames':>11}{'engine':>9}{'pymunk':>10}"
+        f"{'writer':>9}{'/engine':>9}{'/pymunk':>9}"
+    )
+    print(header)
+    print("-" * len(header))
+    for name in END_TO_END:
+        if not args.scenes or name in args.scenes or args.scenes == SCENES:
+            print(end_to_end(name, args.iterations), flush=True)
     return 0
 
 

@@ -344,9 +344,12 @@ def _loop(
                 )
             if err is not None:
                 raise err
-            if writer.rows_free == 0 or writer.flush_due():
+            if writer.flush_due():  # frames and the engine's checkpoint, once a second
                 with interrupts.held():
                     writer.flush(checkpoint=world.checkpoint())
+            elif writer.rows_free == 0:  # a full block: its frames only
+                with interrupts.held():
+                    writer.flush()
             interrupts.check()
             if progress is not None:
                 progress(world.step_index, total)

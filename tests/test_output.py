@@ -118,7 +118,7 @@ def test_sigkill_at_random_moments_leaves_a_plain_readable_prefix(reference, tmp
 
 def test_killed_runs_resume_bit_identically(reference, tmp_path) -> None:
     folder, scene, ref = reference
-    for k, delay in enumerate((0.0, 0.45)):
+    for k, delay in enumerate((0.0, 0.2)):
         out = tmp_path / f"resumed{k}.h5"
         proc = start_run(scene, "-o", out)
         checkpoint = Path(f"{out}{CHECKPOINT_SUFFIX}")

@@ -17,16 +17,14 @@ Layout (the "Trajectory file" contract of DESIGN.md)::
 `step` and `time` are created once, under `position`, and hard-linked into every other
 time series group (H5MD allows shared step and time datasets).
 
-Durability: the file is written in four phases so that it can be opened at any moment
-that matters. The constructor writes the static data and closes the file (a kill before
-the first frame leaves a valid file with no frames). The first `append` reopens it,
-creates every time-dependent dataset, and switches on SWMR (single writer, multiple
-readers); from then on frames are appended by resizing and flushed at most every
-`flush_seconds`, so a `kill -9` leaves a file that a SWMR reader opens with every frame
-flushed so far. `close` writes the final status and closes the file cleanly. The status
-and wall time are fixed-length string datasets created before SWMR starts, because new
-objects (and variable-length data) cannot be written in SWMR mode; a file whose writer
-is still running, or was killed, reads status "running".
+Durability: the HDF5 library never holds the file open for writing while frames are
+written. The writer lays the whole file out at once (under a temporary name, renamed
+over the path): static data, parameters, and each time series as a contiguous dataset
+with room for every frame the run will write. Frames are then written in place with
+os.pwrite, `step` last, so that at every moment the file is a valid HDF5 file (plain
+h5py, h5dump) whose frames are those with step >= 0. A closed file holds exactly its
+frames. `OUT.h5.resume` beside a running file is the engine checkpoint of the last
+flush (docs/design.md, "Output").
 """
 
 from __future__ import annotations
@@ -144,6 +142,25 @@ class BodyTable:
 
     def __len__(self) -> int:
         return len(self.name)
+
+    def joined(self, other: BodyTable) -> BodyTable:
+        """This table's bodies followed by `other`'s, with their shapes."""
+        n, v = len(self), len(self.shape_vertices)
+        return BodyTable(
+            name=self.name + other.name,
+            type=self.type + other.type,
+            mass=np.concatenate([self.mass, other.mass]),
+            moment_of_inertia=np.concatenate([self.moment_of_inertia, other.moment_of_inertia]),
+            center_of_mass=np.concatenate([self.center_of_mass, other.center_of_mass]),
+            shape_body=np.concatenate([self.shape_body, other.shape_body + n]),
+            shape_kind=self.shape_kind + other.shape_kind,
+            shape_radius=np.concatenate([self.shape_radius, other.shape_radius]),
+            shape_vertex_start=np.concatenate(
+                [self.shape_vertex_start, other.shape_vertex_start + v]
+            ),
+            shape_vertex_count=np.concatenate([self.shape_vertex_count, other.shape_vertex_count]),
+            shape_vertices=np.concatenate([self.shape_vertices, other.shape_vertices]),
+        )
 
     def subset(self, rows: list[int] | np.ndarray) -> BodyTable:
         """The table of the bodies `rows` (in that order), with their shapes."""

@@ -97,6 +97,13 @@ class FrameReader:
         try:
             f = self._file
             self.bodies: BodyTable = read_body_table(f["particles/bodies"])
+            # static bodies stored once (output.bodies) are drawn too, after the others
+            self._fixed: tuple[np.ndarray, np.ndarray] | None = None
+            if "particles/static" in f:
+                fixed = f["particles/static"]
+                self._moving = len(self.bodies)
+                self.bodies = self.bodies.joined(read_body_table(fixed))
+                self._fixed = (fixed["position"][()], fixed["orientation"][()])
             params = read_parameters(f)
             self.engine = params.get("engine", "unknown")
             self.status = params.get("status", "unknown")
@@ -145,6 +152,15 @@ class FrameReader:
         n = len(self.bodies)
         if len(idx) == 0 or n == 0:
             return np.zeros((len(idx), n, 2)), np.zeros((len(idx), n, 2))
+        if self._fixed is not None:
+            pos, rot = self._read(idx)
+            k = len(idx)
+            fixed_pos = np.broadcast_to(self._fixed[0], (k, *self._fixed[0].shape))
+            fixed_rot = np.broadcast_to(self._fixed[1], (k, *self._fixed[1].shape))
+            return np.concatenate([pos, fixed_pos], 1), np.concatenate([rot, fixed_rot], 1)
+        return self._read(idx)
+
+    def _read(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         lo, hi = int(idx[0]), int(idx[-1]) + 1
         if hi - lo <= 2 * len(idx):  # dense: one slice, then pick
             pos = self._position[lo:hi][idx - lo]
