@@ -320,6 +320,7 @@ def _loop(
     setup = loop_start - t0
     last_step = start_step
     frames_per_call = 1
+    checkpointed = False
     try:
         if first_frame:
             with interrupts.held():
@@ -344,9 +345,11 @@ def _loop(
                 )
             if err is not None:
                 raise err
-            if writer.flush_due():  # frames and the engine's checkpoint, once a second
+            if writer.flush_due() or (writer.rows_free == 0 and not checkpointed):
+                # frames and the engine's checkpoint: once a second, and with the first block
                 with interrupts.held():
                     writer.flush(checkpoint=world.checkpoint())
+                checkpointed = True
             elif writer.rows_free == 0:  # a full block: its frames only
                 with interrupts.held():
                     writer.flush()
