@@ -278,25 +278,40 @@ def run_scene(
     interrupts = _Interrupts(signals)
     with interrupts.installed():
         world = make_engine(engine, scene, **(options or {}))
-        bodies, select, fixed = output_layout(scene, world)
         params = parameters(scene, engine, world.settings or None)
         params["overrides"] = json.dumps(list(overrides))
         with interrupts.held():
-            writer = TrajectoryWriter(
-                out,
-                bodies=bodies,
-                parameters=params,
-                engine=engine,
-                flush_seconds=flush_seconds,
-                frames=frame_steps(scene.world.steps, scene.output.every),
-                precision=scene.output.precision,
-                compression=scene.output.compression,
-                select=select,
-                block_bodies=len(scene.bodies),
-                fixed=fixed,
-                observables=OBSERVABLES,
-            )
+            writer = _writer(scene, world, out, params, engine, flush_seconds, keep=0)
         return _loop(scene, world, writer, interrupts, progress, t0, first_frame=True)
+
+
+def _writer(
+    scene: Scene,
+    world: Engine,
+    path: str | Path,
+    params: dict[str, str],
+    engine: str,
+    flush_seconds: float,
+    keep: int,
+) -> TrajectoryWriter:
+    """The trajectory writer of a run of `scene` (its output options) into `path`,
+    keeping the first `keep` frames of the file there (resume)."""
+    bodies, select, fixed = output_layout(scene, world)
+    return TrajectoryWriter(
+        path,
+        bodies=bodies,
+        parameters=params,
+        engine=engine,
+        flush_seconds=flush_seconds,
+        frames=frame_steps(scene.world.steps, scene.output.every),
+        precision=scene.output.precision,
+        compression=scene.output.compression,
+        select=select,
+        block_bodies=len(scene.bodies),
+        fixed=fixed,
+        observables=OBSERVABLES,
+        keep=keep,
+    )
 
 
 def _loop(
@@ -460,25 +475,10 @@ def resume_run(
         world.restore(data)
         if step >= 0 and world.step_index != step:
             raise ResumeError(f"{path}: the checkpoint is at step {world.step_index}, not {step}")
-        bodies, select, fixed = output_layout(scene, world)
         params = {k: v for k, v in params.items() if k not in ("status", "wall_time", "checkpoint")}
         params["resumed"] = str(int(params.get("resumed", "0")) + 1)
         with interrupts.held():
-            writer = TrajectoryWriter(
-                path,
-                bodies=bodies,
-                parameters=params,
-                engine=engine,
-                flush_seconds=flush_seconds,
-                frames=frame_steps(scene.world.steps, scene.output.every),
-                precision=scene.output.precision,
-                compression=scene.output.compression,
-                select=select,
-                block_bodies=len(scene.bodies),
-                fixed=fixed,
-                observables=OBSERVABLES,
-                keep=frames,
-            )
+            writer = _writer(scene, world, path, params, engine, flush_seconds, keep=frames)
         return _loop(scene, world, writer, interrupts, progress, t0, first_frame=False)
 
 
