@@ -223,7 +223,7 @@ std::unique_ptr<World2> make_world2(nb::dict model, nb::dict state, nb::dict con
   if (!(cf.dt > 0.0) || cf.substeps < 1 || cf.iterations < 1)
     throw std::invalid_argument("dt, substeps and iterations must be positive");
   cf.explicit_euler = load_value<bool>(config, "explicit");
-  cf.exact_rotation = load_value<bool>(config, "exact");
+  cf.rotation = load_value<bool>(config, "exact") ? Rotation::Exact : Rotation::Normalize;
   cf.restitution_threshold = load_value<double>(config, "restitution_threshold");
   cf.friction_rule = static_cast<MixRule>(load_value<int>(config, "friction_rule"));
   cf.restitution_rule = static_cast<MixRule>(load_value<int>(config, "restitution_rule"));
@@ -260,7 +260,7 @@ nb::object run_stage(World2& w, const std::string& name, nb::dict args) {
   } else if (name == "integrate_velocities") {
     integrate_velocities(m, st, num("h"));
   } else if (name == "integrate_positions") {
-    integrate_positions(m, st, c.body_delta, num("h"), flag("exact"));
+    integrate_positions(m, st, c.body_delta, num("h"), flag("exact") ? Rotation::Exact : Rotation::Normalize);
   } else if (name == "warm_start") {
     warm_start(m, st, c);
   } else if (name == "solve_contacts") {

@@ -19,20 +19,27 @@ namespace rbsim {
 
 namespace C = constants;
 
+// Contacts between bodies exist in 2D; in 3D (issue 16) bodies fly free for now, and the
+// contact stages are not compiled for it.
+template <int D>
+inline constexpr bool HAS_CONTACTS = D == 2;
+
 template <int D>
 void World<D>::allocate() {
   const int n_shapes = model.shape_count();
   const std::int64_t capacity = 4 * static_cast<std::int64_t>(n_shapes) + 16;
-  std::vector<std::uint8_t> dynamic(n_shapes);
-  for (int s = 0; s < n_shapes; ++s) dynamic[s] = model.is_dynamic(model.shape_body[s]);
-  grid.allocate(shape_extent(model), dynamic, capacity);
+  if constexpr (HAS_CONTACTS<D>) {
+    std::vector<std::uint8_t> dynamic(n_shapes);
+    for (int s = 0; s < n_shapes; ++s) dynamic[s] = model.is_dynamic(model.shape_body[s]);
+    grid.allocate(shape_extent(model), dynamic, capacity);
+  }
   contacts.allocate(model.body_count(), n_shapes, model.vertex_count(), capacity);
 }
 
 template <int D>
 void World<D>::grow(std::int64_t capacity) {
   contacts.grow(capacity);
-  grid.grow(capacity);
+  if constexpr (HAS_CONTACTS<D>) grid.grow(capacity);
 }
 
 template <int D>
@@ -50,6 +57,9 @@ void World<D>::timed(StageId stage, F&& run) {
 
 template <int D>
 bool World<D>::collide() {
+  if constexpr (!HAS_CONTACTS<D>) {
+    return true;
+  } else {
   const Config& cfg = config;
   auto& c = contacts;
   using S = StageId;
@@ -66,10 +76,14 @@ bool World<D>::collide() {
   timed(S::SupportOrder, [&] { c.count.shock_count = support_order(model, c); });
   timed(S::Waves, [&] { find_waves(model, c); });
   return true;
+  }
 }
 
 template <int D>
 bool World<D>::step() {
+  if constexpr (!HAS_CONTACTS<D>) {
+    return step_free();
+  } else {
   const Config& cfg = config;
   const bool contacts_on = model.has_shapes;
   if (contacts_on && !collide()) return false;
@@ -85,7 +99,7 @@ bool World<D>::step() {
   c.count.bounce_count = c.count.bounce_carried = c.count.elastic_listed = 0;
   for (int sub = 0; sub < cfg.substeps; ++sub) {
     if (cfg.explicit_euler)
-      timed(S::IntegratePositions, [&] { integrate_positions(model, state, c.body_delta, h, cfg.exact_rotation); });
+      timed(S::IntegratePositions, [&] { integrate_positions(model, state, c.body_delta, h, cfg.rotation); });
     timed(S::IntegrateVelocities, [&] { integrate_velocities(model, state, h); });
     if (contacts_on) {
       timed(S::WarmStart, [&] { warm_start_waves(model, state, c); });
@@ -97,7 +111,7 @@ bool World<D>::step() {
     }
     if (!cfg.explicit_euler) {
       if (contacts_on && cfg.elastic) keep_solve_impulses(c);
-      timed(S::IntegratePositions, [&] { integrate_positions(model, state, c.body_delta, h, cfg.exact_rotation); });
+      timed(S::IntegratePositions, [&] { integrate_positions(model, state, c.body_delta, h, cfg.rotation); });
     }
     if (contacts_on) {
       timed(S::Relax, [&] {
@@ -123,6 +137,25 @@ bool World<D>::step() {
   if (contacts_on) {
     timed(S::OverlapLimit, [&] { limit_static_overlap(model, state, c, C::STATIC_OVERLAP_LIMIT); });
     timed(S::Store, [&] { store_impulses(c); });
+  }
+  return true;
+  }
+}
+
+// A step of bodies that do not touch: the integrator's substeps alone.
+template <int D>
+bool World<D>::step_free() {
+  const Config& cfg = config;
+  auto& c = contacts;
+  using S = StageId;
+  for (auto& d : c.body_delta) d = BodyDelta<D>{};
+  const double h = cfg.dt / cfg.substeps;
+  for (int sub = 0; sub < cfg.substeps; ++sub) {
+    if (cfg.explicit_euler)
+      timed(S::IntegratePositions, [&] { integrate_positions(model, state, c.body_delta, h, cfg.rotation); });
+    timed(S::IntegrateVelocities, [&] { integrate_velocities(model, state, h); });
+    if (!cfg.explicit_euler)
+      timed(S::IntegratePositions, [&] { integrate_positions(model, state, c.body_delta, h, cfg.rotation); });
   }
   return true;
 }
@@ -214,6 +247,7 @@ void set_contact_softness(Config& cfg) {
 }
 
 template struct World<2>;
+template struct World<3>;
 template std::vector<double> shape_extent(const Model<2>&);
 
 }  // namespace rbsim

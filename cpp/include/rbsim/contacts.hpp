@@ -56,6 +56,9 @@ struct SolverRow<2> {
   double pad[4] = {0, 0, 0, 0};
 };
 static_assert(sizeof(SolverRow<2>) == 32 * sizeof(double));
+// 3D contact rows come with 3D contacts (issue 16); until then a 3D world stores none.
+template <>
+struct SolverRow<3> {};
 
 template <int D>
 struct Contacts {

@@ -24,6 +24,11 @@ struct Model {
   std::vector<double> body_inv_mass;      // (N,) 1/kg; 0 if not dynamic
   std::vector<Inertia> body_inv_inertia;  // (N,) 1/(kg·m²); 0 if not dynamic
   std::vector<Vec> body_com;              // (N,) m: the COM in the body frame, from the origin
+  // 3D only: each body's principal axes (the rotation P from principal to body frame,
+  // I_b = P diag(moments) Pᵀ) and principal moments (kg·m²; inf if not dynamic), for the
+  // split rotation update
+  std::vector<Quat> body_axes;
+  std::vector<Vec3> body_moments;
   std::vector<Vec> body_force;            // (N,) N, world frame
   std::vector<Vec> body_force_arm;        // (N,) m, body frame, from the COM
   std::vector<Ang> body_torque;           // (N,) N·m, world frame

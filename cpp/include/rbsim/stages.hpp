@@ -30,7 +30,7 @@ struct Config {
   int substeps = 4;
   int iterations = 1;             // per substep
   bool explicit_euler = false;    // else symplectic Euler
-  bool exact_rotation = false;    // else q <- normalize(q + h ω×q)
+  Rotation rotation = Rotation::Normalize;  // how q turns (integrate.cpp)
   double restitution_threshold = 1.0;  // m/s
   MixRule friction_rule = MixRule::Sqrt;
   MixRule restitution_rule = MixRule::Max;
@@ -101,7 +101,7 @@ void integrate_velocities(const Model<D>& model, State<D>& state, double h);
 // delta accumulates each body's motion since the step's start.
 template <int D>
 void integrate_positions(const Model<D>& model, State<D>& state,
-                         std::vector<BodyDelta<D>>& delta, double h, bool exact);
+                         std::vector<BodyDelta<D>>& delta, double h, Rotation rotation);
 
 // solver/warm_start.cpp: last substep's accumulated impulses applied again.
 template <int D>

@@ -15,6 +15,14 @@ enum class BodyType : std::int8_t { Dynamic = 0, Static = 1, Kinematic = 2 };
 // How two shapes' coefficients combine into one contact's.
 enum class MixRule : std::int32_t { Sqrt = 0, Multiply = 1, Min = 2, Max = 3 };
 
+// How a body's rotation is advanced over a substep h (dynamics/integrate.cpp).
+//   Normalize: the notes' q <- normalize(q + h ω×q) (2D) / normalize(q + (h/2) ω q) (3D);
+//   Exact: q <- exp(h ω) q with ω held over the substep;
+//   Split (3D): the free rigid body split into rotations about its principal axes,
+//     symmetric (1-2-3-2-1), each exact; keeps L exactly and is symplectic. In 2D it is
+//     Exact (one axis: the split is exact).
+enum class Rotation : std::int32_t { Normalize = 0, Exact = 1, Split = 2 };
+
 // What World::advance returns.
 enum class Status : std::int32_t { Ok = 0, NeedCapacity = 1, NonFinite = 2 };
 

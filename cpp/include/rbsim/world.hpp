@@ -51,6 +51,7 @@ struct World {
 
  private:
   bool collide();
+  bool step_free();
   template <class F>
   void timed(StageId stage, F&& run);
 };

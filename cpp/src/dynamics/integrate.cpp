@@ -11,7 +11,8 @@
 // `normalize` is q <- normalize(q + (h/2) ω q), `exact` is q <- exp(h ω / 2) q. The 3D
 // angular state is the angular momentum L (world frame, about the COM), changed by
 // torques only, with ω = R I_b⁻¹ Rᵀ L recomputed after each rotation: a torque-free body
-// keeps L exactly while its ω precesses.
+// keeps L exactly while its ω precesses. `split` (3D) turns the body by the free rigid
+// body's own flow, split about its principal axes (turn_split).
 #include <cmath>
 
 #include "rbsim/constants.hpp"
@@ -80,6 +81,33 @@ inline Quat turn(Quat& q, double&, Vec3 w, double h, bool exact) {
   return r;
 }
 
+// Turn a body by the free rigid body's flow over h, split into exact rotations about
+// its principal axes: with m = Pᵀ Rᵀ L the body's angular momentum in principal axes,
+// the flow of H_k = m_k² / (2 I_k) turns the body about principal axis k by h m_k / I_k
+// and leaves L (world) and m_k unchanged. The symmetric sequence 1(h/2) 2(h/2) 3(h)
+// 2(h/2) 1(h/2) is second order, symplectic and time-reversible; L is not touched, so
+// a torque-free body keeps it to the bit. Returns the rotation applied.
+inline Quat turn_split(Quat& q, const Quat& axes, Vec3 moments, Vec3 l, double h) {
+  Quat p = mul(q, axes);  // principal frame to world
+  const Quat before = q;
+  auto about = [&](int k, double tau) {
+    const Vec3 m = inv_rotate(p, l);
+    const double mk = k == 0 ? m.x : (k == 1 ? m.y : m.z);
+    const double ik = k == 0 ? moments.x : (k == 1 ? moments.y : moments.z);
+    const double half = 0.5 * tau * mk / ik;
+    const double c = std::cos(half), s = std::sin(half);
+    const Quat r{c, k == 0 ? s : 0.0, k == 1 ? s : 0.0, k == 2 ? s : 0.0};
+    p = mul(p, r);  // about the body's own axis: multiplied on the right
+  };
+  about(0, 0.5 * h);
+  about(1, 0.5 * h);
+  about(2, h);
+  about(1, 0.5 * h);
+  about(0, 0.5 * h);
+  q = normalize(mul(p, Quat{axes.w, -axes.x, -axes.y, -axes.z}));
+  return mul(q, Quat{before.w, -before.x, -before.y, -before.z});
+}
+
 // ω from the angular state after the body turned (3D: from L; 2D: ω is the state).
 inline void refresh_angular(const Model<2>&, State<2>&, int) {}
 inline void refresh_angular(const Model<3>& model, State<3>& st, int i) {
@@ -119,15 +147,24 @@ void integrate_velocities(const Model<D>& model, State<D>& st, double h) {
 
 template <int D>
 void integrate_positions(const Model<D>& model, State<D>& st, std::vector<BodyDelta<D>>& delta,
-                         double h, bool exact) {
+                         double h, Rotation rotation) {
   const int n = model.body_count();
   double unused_angle = 0.0;
+  const bool exact = rotation != Rotation::Normalize;
   for (int i = 0; i < n; ++i) {
     if (model.body_type[i] == BodyType::Static) continue;
     const auto dx = h * st.body_v[i];
     st.body_x[i] += dx;
     double& angle = D == 2 ? st.body_angle[i] : unused_angle;
-    const auto r = turn(st.body_q[i], angle, st.body_w[i], h, exact);
+    typename Dim<D>::Rot r;
+    if constexpr (D == 3) {
+      if (rotation == Rotation::Split && model.is_dynamic(i))
+        r = turn_split(st.body_q[i], model.body_axes[i], model.body_moments[i], st.body_l[i], h);
+      else
+        r = turn(st.body_q[i], angle, st.body_w[i], h, exact);
+    } else {
+      r = turn(st.body_q[i], angle, st.body_w[i], h, exact);
+    }
     if (model.is_dynamic(i)) refresh_angular(model, st, i);
     delta[i].dx += dx;
     delta[i].dq = mul(r, delta[i].dq);
@@ -135,8 +172,8 @@ void integrate_positions(const Model<D>& model, State<D>& st, std::vector<BodyDe
 }
 
 template void integrate_velocities(const Model<2>&, State<2>&, double);
-template void integrate_positions(const Model<2>&, State<2>&, std::vector<BodyDelta<2>>&, double, bool);
+template void integrate_positions(const Model<2>&, State<2>&, std::vector<BodyDelta<2>>&, double, Rotation);
 template void integrate_velocities(const Model<3>&, State<3>&, double);
-template void integrate_positions(const Model<3>&, State<3>&, std::vector<BodyDelta<3>>&, double, bool);
+template void integrate_positions(const Model<3>&, State<3>&, std::vector<BodyDelta<3>>&, double, Rotation);
 
 }  // namespace rbsim
