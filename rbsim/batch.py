@@ -713,15 +713,21 @@ def run_batch(
 
 
 class _Tally:
-    """The figures found so far, and the progress callback told of each."""
+    """The figures found so far (by run id), and the progress callback told of each."""
 
     def __init__(self, found: dict[str, dict], total: int, progress: Progress | None) -> None:
         self.found, self.total, self.progress = found, total, progress
+        self.failed = sum(1 for f in found.values() if f["status"] != "complete")
+
+    def record(self, run_id: str, figures: dict[str, Any]) -> None:
+        """Keep a finished run's figures and redraw the progress."""
+        self.found[run_id] = figures
+        self.failed += figures["status"] != "complete"
+        self.report()
 
     def report(self) -> None:
         if self.progress is not None:
-            failed = sum(1 for f in self.found.values() if f["status"] != "complete")
-            self.progress(len(self.found), failed, self.total)
+            self.progress(len(self.found), self.failed, self.total)
 
 
 def _run_tasks(
@@ -767,8 +773,7 @@ def _run_tasks(
         if result is None:
             result = dict.fromkeys(FIGURE_COLUMNS)
             result["status"] = failure
-        state.found[spec.run_id] = result
-        state.report()
+        state.record(spec.run_id, result)
 
 
 def _describe(err: BaseException) -> str:
