@@ -5,8 +5,6 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 BUILD_DEPS := $(VENV)/.build-deps
 ENGINE := CMakeLists.txt $(shell find cpp -name '*.cpp' -o -name '*.hpp')
-SCENES := $(wildcard scenes/*.yaml)
-OUTS   := $(patsubst scenes/%.yaml,out/%.h5,$(SCENES))
 DEMO   := scenes/smash.yaml
 
 .PHONY: install test lint demo batch bench clean cpp-test sanitize
@@ -74,11 +72,10 @@ demo: $(STAMP)
 	@echo "trajectory written to out/demo.h5 (inspect it with: $(BIN)/rbsim info out/demo.h5)"
 	@echo "watch it: out/demo.gif, or open out/demo.html in a browser"
 
-batch: $(OUTS)
-
-out/%.h5: scenes/%.yaml $(STAMP) $(wildcard rbsim/*.py rbsim/*/*.py)
-	@mkdir -p out
-	$(BIN)/rbsim run $< -o $@ --quiet
+# every scene of scenes/ as one batch on a local Dask cluster (rbsim batch, see cli.md):
+# out/<run-id>.h5 and out/summary.csv; runs already complete are skipped
+batch: $(STAMP)
+	$(BIN)/rbsim batch scenes/*.yaml -o out/
 
 COMPARE_SCENES := $(wildcard scenes/compare/*.yaml scenes/compare/statistics/*.yaml)
 

@@ -7,8 +7,8 @@ trajectory back as numpy arrays, and `World.from_scene(scene)` is a scene ready 
 in the compiled engine (`advance(n)`, the state as numpy views). Importing rbsim has no
 side effects and imports nothing heavy: each is loaded on first use.
 
-The package, top down (imports point down): cli -> tools -> run, view, engines ->
-io, core -> scene.
+The package, top down (imports point down): cli -> batch -> tools -> run, view,
+engines -> io, core -> scene.
 """
 
 from __future__ import annotations

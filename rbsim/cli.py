@@ -6,6 +6,7 @@ Exit codes (DESIGN.md): 0 ok; 1 runtime failure; 2 usage error; 3 invalid scene;
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -104,6 +105,56 @@ def _fail(code: int, message: str, progress: _Progress | None = None) -> NoRetur
 def _reason(err: OSError) -> str:
     """The system's short reason for an OSError ("Permission denied"), else its text."""
     return os.strerror(err.errno) if err.errno else str(err)
+
+
+class _BatchProgress(_Progress):
+    """The batch's one progress line: runs finished of the total, failed, ETA."""
+
+    def __init__(self, enabled: bool) -> None:
+        super().__init__(enabled, unit="runs")
+        self.started: tuple[float, int] | None = None  # (time, runs finished) at the first call
+
+    def runs(self, done: int, failed: int, total: int) -> None:
+        """Redraw with `done` runs finished (`failed` of them failed) of `total`."""
+        now = time.perf_counter()
+        if self.started is None:  # runs skipped as complete do not count towards the rate
+            self.started = (now, done)
+        if not self.enabled:
+            return
+        elapsed = now - self.t0
+        if elapsed < self.DELAY or (now - self.last < self.INTERVAL and done < total):
+            return
+        self.last = now
+        t_start, done_start = self.started
+        ran = done - done_start
+        eta = (total - done) * (now - t_start) / ran if ran > 0 else None
+        width = 30
+        filled = int(width * done / max(total, 1))
+        eta_text = f"eta {eta:.0f} s" if eta is not None else "eta -"
+        try:
+            sys.stderr.write(
+                f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} runs, "
+                f"{failed} failed, {eta_text} "
+            )
+            sys.stderr.flush()
+        except (OSError, ValueError):
+            self.enabled = False
+            return
+        self.shown = True
+
+
+def _cluster_options(function):  # noqa: ANN001, ANN202 - a click decorator
+    return click.option(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="Run on the Dask cluster of this scheduler (tcp://host:8786).",
+    )(
+        click.option(
+            "--workers",
+            type=click.IntRange(min=1),
+            help="Worker processes of a local Dask cluster [default: every core].",
+        )(function)
+    )
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -529,6 +580,7 @@ def plot(trajectories: tuple[str, ...], output: str | None) -> None:
     help="Timed runs per setting (at least; short runs are repeated more).",
 )
 @click.option("--no-plot", is_flag=True, help="Write the table, CSV and JSON only.")
+@_cluster_options
 def sweep(
     scene: str,
     out_dir: str,
@@ -543,9 +595,14 @@ def sweep(
     duration: float | None,
     repeats: int,
     no_plot: bool,
+    scheduler: str | None,
+    workers: int | None,
 ) -> None:
     """Speed against error: run SCENE over a grid of settings in rbsim and pymunk, print
-    the table and write CSV, JSON and a log-log plot with each engine's Pareto front."""
+    the table and write CSV, JSON and a log-log plot with each engine's Pareto front.
+    With --workers or --scheduler the error runs go to a Dask cluster; the timed runs
+    still run one at a time, on one worker."""
+    from .batch import BatchError
     from .engines.pymunk import UnsupportedScene
     from .scene.compile import ModelError
     from .tools.reference import ReferenceError
@@ -574,8 +631,21 @@ def sweep(
     def step(k: int, total: int, setting) -> None:
         progress(k, total)
 
+    if scheduler is not None and workers is not None:
+        raise click.UsageError("--scheduler and --workers exclude each other")
     try:
-        result = run_sweep(sc, Grid(**grid_args), repeats=repeats, duration=duration, progress=step)
+        with contextlib.ExitStack() as stack:
+            pool = None
+            if scheduler is not None or workers is not None:
+                from .batch import DaskPool, dask_cluster
+
+                cluster = stack.enter_context(dask_cluster(scheduler, workers))
+                if cluster.dashboard:
+                    click.echo(f"dashboard: {cluster.dashboard}", err=True)
+                pool = DaskPool(cluster.client)
+            result = run_sweep(
+                sc, Grid(**grid_args), repeats=repeats, duration=duration, progress=step, pool=pool
+            )
     except SweepError as err:
         _fail(2, f"Error: {err}", progress)
     except ReferenceError as err:
@@ -584,6 +654,8 @@ def sweep(
         _fail(EXIT_SCENE, f"{scene}: {err}", progress)
     except KeyboardInterrupt:
         _fail(EXIT_INTERRUPTED, "interrupted", progress)
+    except BatchError as err:
+        _fail(EXIT_RUNTIME, f"error: {err}", progress)
     progress.finish()
     click.echo(result.table())
     try:
@@ -596,6 +668,133 @@ def sweep(
     except OSError as err:
         _fail(EXIT_RUNTIME, f"error: cannot write to {out_dir}: {_reason(err)}")
     click.echo("  files: " + ", ".join(str(p) for p in paths.values()))
+
+
+@main.command()
+@click.argument("scenes", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option(
+    "-o",
+    "--output",
+    "out_dir",
+    type=click.Path(file_okay=False),
+    default="out/batch",
+    show_default=True,
+    help="Folder for <run-id>.h5 and summary.csv.",
+)
+@click.option("--set", "overrides", multiple=True, metavar="KEY.PATH=VALUE", help="As for run.")
+@click.option(
+    "--vary",
+    "varies",
+    multiple=True,
+    metavar="KEY.PATH=LIST",
+    help="Run every value of a YAML list, e.g. --vary world.dt=[0.01,0.005] (repeatable: a "
+    "grid); with --samples also uniform(a,b) or normal(mu,sigma).",
+)
+@click.option(
+    "--samples", type=click.IntRange(min=1), help="Draw N runs from the --vary values instead."
+)
+@click.option("--seed", type=int, help="Seed of the --samples draws [default: 0].")
+@_cluster_options
+@click.option(
+    "--retries",
+    type=click.IntRange(min=0),
+    default=1,
+    show_default=True,
+    help="Times a failed run is sent again before it is recorded as failed.",
+)
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+def batch(
+    scenes: tuple[str, ...],
+    out_dir: str,
+    overrides: tuple[str, ...],
+    varies: tuple[str, ...],
+    samples: int | None,
+    seed: int | None,
+    scheduler: str | None,
+    workers: int | None,
+    retries: int,
+    quiet: bool,
+) -> None:
+    """Run every SCENE over the grid of its --vary lists (or --samples draws) as
+    independent runs on a Dask cluster; write DIR/<run-id>.h5 and DIR/summary.csv."""
+    from .batch import (
+        BatchError,
+        BatchInterrupted,
+        BatchInvalid,
+        VaryError,
+        parse_vary,
+        plan_batch,
+        run_batch,
+    )
+
+    if scheduler is not None and workers is not None:
+        raise click.UsageError("--scheduler and --workers exclude each other")
+    if samples is None and seed is not None:
+        raise click.UsageError("--seed needs --samples")
+    if samples is not None and not varies:
+        raise click.UsageError("--samples needs at least one --vary to draw from")
+    try:
+        parsed = [parse_vary(v) for v in varies]
+        if samples is None and any(v.dist is not None for v in parsed):
+            bad = next(v for v in parsed if v.dist is not None)
+            raise click.UsageError(f"--vary {bad.key}: a distribution needs --samples N")
+        plan = plan_batch(scenes, overrides, parsed, samples, seed or 0)
+    except (VaryError, BatchInvalid) as err:
+        _fail(EXIT_SCENE, str(err))
+    out = Path(out_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        _fail(EXIT_RUNTIME, f"error: cannot write to {out}: it is not a folder")
+    except OSError as err:
+        _fail(EXIT_RUNTIME, f"error: cannot write to {out}: {_reason(err)}")
+    progress = _BatchProgress(not quiet)
+
+    def notify(text: str) -> None:
+        if not quiet:
+            click.echo(text, err=True)
+
+    main_thread = threading.current_thread() is threading.main_thread()
+    if main_thread:  # SIGTERM stops a batch like Ctrl-C
+        previous = signal.signal(signal.SIGTERM, _raise_interrupt)
+    try:
+        result = run_batch(
+            plan,
+            out,
+            scheduler=scheduler,
+            workers=workers,
+            retries=retries,
+            progress=progress.runs,
+            notify=notify,
+        )
+    except BatchInterrupted as err:
+        _fail(EXIT_INTERRUPTED, str(err), progress)
+    except KeyboardInterrupt:  # before the batch could record anything
+        _fail(EXIT_INTERRUPTED, "interrupted before any run finished", progress)
+    except BatchError as err:
+        _fail(EXIT_RUNTIME, f"error: {err}", progress)
+    except OSError as err:
+        _fail(EXIT_RUNTIME, f"error: cannot write to {out}: {_reason(err)}", progress)
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGTERM, previous)
+    progress.finish()
+    shown = result.failures[:20]
+    for spec, status in shown:
+        click.echo(f"{spec.run_id}: {spec.label()}: {status}", err=True)
+    if len(result.failures) > len(shown):
+        click.echo(f"... and {len(result.failures) - len(shown)} more failed runs", err=True)
+    if not quiet:
+        skipped = f" ({result.skipped} already)" if result.skipped else ""
+        rate = ""
+        if result.ran and result.wall_time > 0:
+            rate = f" ({result.ran / result.wall_time * 60:,.1f} runs/min)"
+        click.echo(
+            f"{result.total} runs: {result.complete} complete{skipped}, {result.failed} failed "
+            f"in {result.wall_time:.1f} s{rate} -> {result.paths[0]}"
+        )
+    if result.failed:
+        sys.exit(EXIT_RUNTIME)
 
 
 @main.command()

@@ -21,9 +21,10 @@ import json
 import math
 import statistics
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -39,6 +40,8 @@ __all__ = [
     "Grid",
     "PlotUnavailable",
     "Point",
+    "Pool",
+    "SerialPool",
     "Setting",
     "SweepError",
     "SweepResult",
@@ -516,6 +519,38 @@ def time_run(scene: Scene, s: Setting, repeats: int) -> tuple[float, int]:
 
 
 # --------------------------------------------------------------------------------------
+# Where the runs go
+
+
+class Pool(Protocol):
+    """Where a sweep's runs are computed. `map` calls fn(*args) for each tuple of
+    `calls`, possibly several at once, and yields (index in calls, result) as each
+    finishes; `alone` calls fn(*args) with nothing else of the sweep running, always in
+    the same process (timed runs)."""
+
+    def map(self, fn: Callable[..., Any], calls: Sequence[tuple]) -> Iterator[tuple[int, Any]]:
+        """(index, fn(*calls[index])) for every call, in any order."""
+        ...
+
+    def alone(self, fn: Callable[..., Any], *args: Any) -> Any:
+        """fn(*args), run by itself."""
+        ...
+
+
+class SerialPool:
+    """Every run in this process, one after the other (the default)."""
+
+    def map(self, fn: Callable[..., Any], calls: Sequence[tuple]) -> Iterator[tuple[int, Any]]:
+        """(index, fn(*calls[index])) in order."""
+        for i, args in enumerate(calls):
+            yield i, fn(*args)
+
+    def alone(self, fn: Callable[..., Any], *args: Any) -> Any:
+        """fn(*args)."""
+        return fn(*args)
+
+
+# --------------------------------------------------------------------------------------
 # The sweep
 
 
@@ -526,12 +561,18 @@ def run_sweep(
     repeats: int = 3,
     duration: float | None = None,
     progress: Callable[[int, int, Setting], None] | None = None,
+    pool: Pool | None = None,
 ) -> SweepResult:
     """Run every setting of `grid` on `scene` and measure its cost and error.
 
     duration (s): simulated time, default the scene's; rounded to whole multiples of the
-    grid's largest dt. Raises SweepError for a grid that cannot be compared, and
+    grid's largest dt. The error runs (and the converged reference's) go to
+    `pool.map`, side by side when the pool has several workers; then the timed runs go
+    one at a time to `pool.alone`, so that no run of the sweep disturbs a timing.
+    progress(k, total, setting) is called as runs finish (total: two per setting).
+    Raises SweepError for a grid that cannot be compared, and
     rbsim.reference.ReferenceError when the scene does not fit its reference."""
+    pool = pool or SerialPool()
     grid = grid or Grid()
     if repeats < 1:
         raise SweepError("repeats must be at least 1")
@@ -544,15 +585,29 @@ def run_sweep(
     uncertainty = None
     settings = grid.settings()
     if ref.family == "converged":
-        ref_poses, statement, uncertainty = _converged(scene, ref, grid, sample_dt, samples)
+        ref_poses, statement, uncertainty = _converged(scene, ref, grid, sample_dt, samples, pool)
         ref.statement = statement
     else:
         ref_poses = ref.poses(np.arange(samples + 1) * sample_dt)
-    points = []
-    for k, s in enumerate(settings):
+    total = 2 * len(settings)
+    if progress is not None and settings:
+        progress(0, total, settings[0])
+    scenes, calls = [], []
+    for s in settings:
+        per = _steps(s.dt, sample_dt)
+        scenes.append(scene_for(scene, s, per * samples))
+        calls.append((scenes[-1], ref, s, per, samples))
+    sampled: list[_Sampled | None] = [None] * len(settings)
+    for done, (i, got) in enumerate(pool.map(sample_run, calls), start=1):
+        sampled[i] = got
         if progress is not None:
-            progress(k, len(settings), s)
-        points.append(_measure(scene, ref, ref_poses, s, sample_dt, samples, repeats))
+            progress(done, total, settings[i])
+    points = []
+    for k, (s, sc, got) in enumerate(zip(settings, scenes, sampled, strict=True)):
+        assert got is not None
+        points.append(_measure(sc, ref, ref_poses, s, got, repeats, pool))
+        if progress is not None:
+            progress(len(settings) + k + 1, total, s)
     for engine in ("rbsim", "pymunk"):
         for p in pareto_front([p for p in points if p.setting.engine == engine]):
             p.front = True
@@ -585,24 +640,23 @@ def _steps(s_dt: float, sample_dt: float) -> int:
 
 
 def _measure(
-    scene: Scene,
+    sc: Scene,
     ref: Reference,
     ref_poses: Poses,
     s: Setting,
-    sample_dt: float,
-    samples: int,
+    got: _Sampled,
     repeats: int,
+    pool: Pool,
 ) -> Point:
-    per = _steps(s.dt, sample_dt)
-    sc = scene_for(scene, s, per * samples)
-    got = sample_run(sc, ref, s, per, samples)
+    """The setting's point: the error of its sampled run `got` of `sc`, then its cost
+    from timed runs (none when the sampled run failed)."""
     point = Point(s, penetration=got.penetration, energy_drift=got.energy_drift, status=got.status)
     if got.status != "ok":
         return point
     point.error, point.position_error, point.angle_error = pose_error(
         got.poses, ref_poses, ref.gyration
     )
-    seconds, n = time_run(sc, s, repeats)
+    seconds, n = pool.alone(time_run, sc, s, repeats)
     point.cpu = seconds / (sc.world.steps * sc.world.dt)
     point.us_per_step = 1e6 * seconds / sc.world.steps
     point.timed_runs = n
@@ -610,7 +664,7 @@ def _measure(
 
 
 def _converged(
-    scene: Scene, ref: Reference, grid: Grid, sample_dt: float, samples: int
+    scene: Scene, ref: Reference, grid: Grid, sample_dt: float, samples: int, pool: Pool
 ) -> tuple[Poses, str, float]:
     """The converged reference's poses, its statement and its uncertainty (m): the error
     of a run at twice its dt measured against it."""
@@ -627,12 +681,16 @@ def _converged(
     fine = Setting("rbsim", dt, sub, it, "symplectic_euler", "exact")
     coarse = replace(fine, dt=2 * dt)
     per = round(per)
-    runs = []
-    for s, n in ((fine, per), (coarse, per // 2)):
-        got = sample_run(scene_for(scene, s, n * samples), ref, s, n, samples)
+    calls = [
+        (scene_for(scene, s, n * samples), ref, s, n, samples)
+        for s, n in ((fine, per), (coarse, per // 2))
+    ]
+    runs: list[Poses | None] = [None, None]
+    for i, got in pool.map(sample_run, calls):
         if got.status != "ok":
-            raise SweepError(f"the converged reference run ({s.family}) failed: {got.status}")
-        runs.append(got.poses)
+            family = calls[i][2].family
+            raise SweepError(f"the converged reference run ({family}) failed: {got.status}")
+        runs[i] = got.poses
     uncertainty = pose_error(runs[1], runs[0], ref.gyration)[0]
     statement = (
         f"converged rbsim run (dt {dt_text(dt)} s, {sub} substeps, {it} iterations, "
