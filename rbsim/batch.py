@@ -398,7 +398,9 @@ def run_one(job: Job) -> Outcome:
     part = folder / f".{spec.run_id}.{tag}.part"
     try:
         try:
-            run_scene(scene, part, progress=None, signals=(), engine=ENGINE)
+            run_scene(
+                scene, part, progress=None, signals=(), engine=ENGINE, overrides=spec.overrides
+            )
         except RunFailed:
             pass  # the file says which body and step; figures() reads it
         found = figures(part, scene)
