@@ -20,6 +20,8 @@ from .scene.compile import Model, State, build
 
 # the engine's tuning constants by name (cpp/include/rbsim/constants.hpp; rbsim.constants)
 CONSTANTS: dict = dict(_core.constants)
+# m: a body farther from the origin along x or y ends the run (cpp/include/rbsim/world.hpp)
+POSITION_LIMIT: float = float(_core.POSITION_LIMIT)
 
 
 def _model_arrays(model: Model) -> dict:
@@ -68,10 +70,15 @@ class CoreWorld:
         return self.step_index * self.config.dt
 
     def advance(self, n_steps: int) -> None:
-        """Take n_steps steps; raises NonFiniteState if the state blows up."""
+        """Take n_steps steps; raises NonFiniteState if the state blows up or a body
+        flies beyond POSITION_LIMIT. A signal handler that raises between two steps
+        stops it there (the exception propagates; the steps taken are kept)."""
         status, _taken, bad = self.engine.advance(int(n_steps))
         if status == _core.NON_FINITE:
-            raise NonFiniteState(int(bad), self.step_index)
+            e, i = self.engine, int(bad)
+            values = (e.body_x[i], e.body_q[i], e.body_v[i], e.body_w[i])
+            beyond = POSITION_LIMIT if all(np.isfinite(v).all() for v in values) else None
+            raise NonFiniteState(i, self.step_index, beyond)
 
     @property
     def contact_count(self) -> int:

@@ -25,8 +25,13 @@ from .engines import DEFAULT_ENGINE, Engine, NonFiniteState, make_engine
 from .io.trajectory import BodyTable, TrajectoryWriter
 from .scene import Scene, scene_to_dict
 
-# at most this many steps between returns to Python, so Ctrl-C and progress stay lively
-MAX_CHUNK = 256
+# Steps are taken in chunks of about CHUNK_SECONDS (s) of wall time between returns to
+# Python (for progress, and for Ctrl-C with an engine that cannot run the signal
+# handlers between its steps itself), sized from the last chunk's rate: from 1 step,
+# growing at most twofold per chunk, never above MAX_CHUNK steps. Chunking does not
+# change the steps taken.
+CHUNK_SECONDS = 0.1
+MAX_CHUNK = 1 << 20
 
 
 def _frames(n: int) -> str:
@@ -34,7 +39,18 @@ def _frames(n: int) -> str:
 
 
 class RunFailed(RuntimeError):
-    """The state turned non-finite; the message names the body and the step."""
+    """The state turned non-finite (or a body flew off, or an observable overflowed);
+    the message names the body or the observable, and the step."""
+
+
+class ObservableOverflow(RuntimeError):
+    """An observable of a frame (such as the kinetic energy) is inf or NaN: `name`, at
+    `step`."""
+
+    def __init__(self, name: str, step: int) -> None:
+        super().__init__(f"{name} overflowed at step {step}")
+        self.name = name
+        self.step = step
 
 
 class RunInterrupted(KeyboardInterrupt):
@@ -57,10 +73,12 @@ class _Interrupts:
     a frame being written, or inside a weakref callback or __del__, where Python prints
     "Exception ignored" and carries on as if nothing happened (the run would then go on
     to the end). So once the first steps have been taken, a signal only sets a flag that
-    `check` turns into a KeyboardInterrupt; the run checks after every chunk of steps
-    (at most MAX_CHUNK). Before that (building the model, compiling or loading the
-    kernels: seconds without a check), and for a second signal, the handler raises at
-    once, except inside `held` (writing a frame or closing the file).
+    `check` turns into a KeyboardInterrupt; the run checks before and after every chunk
+    of steps (about CHUNK_SECONDS). Inside `engine(True)` (the compiled engine, which runs
+    the handlers between two of its steps) the handler raises at once: the chunk stops
+    after the step under way. Before the first check (building the model: seconds
+    without a check), and for a second signal, the handler raises at once too, except
+    inside `held` (writing a frame or closing the file).
 
     Handlers are installed only from the main thread, and only for signals whose current
     handler was set from Python and is not SIG_IGN (a run started with Ctrl-C ignored,
@@ -72,10 +90,11 @@ class _Interrupts:
         self.received = 0  # signals received so far
         self.stepping = False  # True once the first steps are done
         self.holding = False
+        self.in_engine = False  # inside an engine that takes a KeyboardInterrupt between steps
 
     def _handle(self, signum: int, frame: FrameType | None) -> None:
         self.received += 1
-        if not self.holding and (not self.stepping or self.received > 1):
+        if not self.holding and (not self.stepping or self.received > 1 or self.in_engine):
             raise KeyboardInterrupt
 
     def check(self) -> None:
@@ -84,6 +103,16 @@ class _Interrupts:
         self.stepping = True
         if self.received:
             raise KeyboardInterrupt
+
+    @contextmanager
+    def engine(self, interruptible: bool) -> Iterator[None]:
+        """Inside the block, with ``interruptible`` (an engine whose advance runs the
+        signal handlers between steps and stops at the exception), a signal raises at once."""
+        self.in_engine = interruptible
+        try:
+            yield
+        finally:
+            self.in_engine = False
 
     @contextmanager
     def held(self) -> Iterator[None]:
@@ -173,11 +202,15 @@ def parameters(scene: Scene, engine: str, settings: dict | None = None) -> dict[
 
 
 def write_frame(writer: TrajectoryWriter, world: Engine) -> None:
-    """Append the engine's current state as one frame. Observables that overflow (a
-    state racing towards infinity) are stored as inf without a numpy warning."""
+    """Append the engine's current state as one frame. An observable that overflows (a
+    state racing towards infinity) raises ObservableOverflow (without a numpy warning)
+    and the frame is not written."""
     s = world.read()
     with np.errstate(over="ignore", invalid="ignore"):
         obs = world.observables()
+    for name, value in obs.items():
+        if not np.all(np.isfinite(value)):
+            raise ObservableOverflow(name, world.step_index)
     writer.append(
         world.step_index,
         world.time,
@@ -202,8 +235,9 @@ def run_scene(
 
     Step 0 and every output.every-th step are written, and the last step always.
     progress(step, total) is called after each chunk of steps. The file is closed and
-    valid however the run ends: on a non-finite state it keeps the frames before that
-    step, with status "failed: ...", and RunFailed is raised; when one of `signals`
+    valid however the run ends: on a non-finite state (or a body beyond the engine's
+    region, or an observable that overflows) it keeps the frames before that step, with
+    status "failed: ...", and RunFailed is raised; when one of `signals`
     (or a KeyboardInterrupt) stops the run it keeps every frame so far, with status
     "interrupted", and RunInterrupted (a KeyboardInterrupt) is raised. Interrupted
     before the file is created (while the model is built), KeyboardInterrupt propagates
@@ -230,10 +264,18 @@ def run_scene(
         try:
             with interrupts.held():
                 write_frame(writer, world)
+            chunk = 1  # steps per chunk, from the last chunk's rate
+            interruptible = getattr(world, "interruptible", False)
             while world.step_index < total:
                 to_frame = every - world.step_index % every
-                n = min(to_frame, total - world.step_index, MAX_CHUNK)
-                world.advance(n)
+                n = min(to_frame, total - world.step_index, chunk)
+                interrupts.check()
+                started = time.perf_counter()
+                with interrupts.engine(interruptible):
+                    world.advance(n)
+                elapsed = time.perf_counter() - started
+                fit = int(n * CHUNK_SECONDS / elapsed) if elapsed > 0 else MAX_CHUNK
+                chunk = max(1, min(MAX_CHUNK, 2 * chunk, fit))
                 interrupts.check()
                 if world.step_index % every == 0 or world.step_index == total:
                     with interrupts.held():
@@ -243,11 +285,18 @@ def run_scene(
                     progress(world.step_index, total)
             status = "complete"
         except NonFiniteState as err:  # from a step, or from reading a frame (pymunk)
-            name = scene.bodies[err.body].name
-            status = f"failed: body {name!r} became non-finite at step {err.step}"
+            name = repr(scene.bodies[err.body].name)
+            what = err.describe(name)
+            status = f"failed: {what.removeprefix('the state of ')} at step {err.step}"
             raise RunFailed(
-                f"{scene.path}: the state of body {name!r} became non-finite at step "
-                f"{err.step} (t = {err.step * scene.world.dt:g} s); "
+                f"{scene.path}: {what} at step {err.step} (t = {err.step * scene.world.dt:g} s); "
+                f"{_frames(writer.frames_written)} before it kept in {out}"
+            ) from None
+        except ObservableOverflow as err:
+            status = f"failed: {err.name} overflowed at step {err.step}"
+            raise RunFailed(
+                f"{scene.path}: the {err.name.replace('_', ' ')} overflowed (inf or NaN) at "
+                f"step {err.step} (t = {err.step * scene.world.dt:g} s); "
                 f"{_frames(writer.frames_written)} before it kept in {out}"
             ) from None
         except KeyboardInterrupt:

@@ -9,6 +9,7 @@
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/tuple.h>
 
+#include <chrono>
 #include <cstring>
 #include <limits>
 #include <memory>
@@ -359,14 +360,32 @@ NB_MODULE(_core, mod) {
           [](World2& w, std::int64_t n) {
             if (n < 0) throw std::invalid_argument("n_steps must be >= 0");
             std::int64_t taken = 0, bad = -1;
-            Status status;
+            Status status = Status::Ok;
+            bool signalled = false;
             {
+              // one step at a time, with the signal handlers run every 20 ms between two
+              // steps (Ctrl-C stops a long chunk); the steps are the same as in one call
               nb::gil_scoped_release release;
-              status = w.advance(n, &taken, &bad);
+              auto checked = std::chrono::steady_clock::now();
+              while (taken < n && status == Status::Ok) {
+                std::int64_t one = 0;
+                status = w.advance(1, &one, &bad);
+                taken += one;
+                const auto now = std::chrono::steady_clock::now();
+                if (taken < n && now - checked > std::chrono::milliseconds(20)) {
+                  checked = now;
+                  nb::gil_scoped_acquire acquire;
+                  signalled = PyErr_CheckSignals() != 0;
+                  if (signalled) break;
+                }
+              }
             }
+            if (signalled) throw nb::python_error();  // a handler raised: the state is whole steps
             return std::make_tuple(static_cast<int>(status), taken, bad);
           },
-          "n_steps"_a, "Take up to n_steps steps; returns (status, steps taken, bad body).")
+          "n_steps"_a,
+          "Take up to n_steps steps; returns (status, steps taken, bad body). Between steps "
+          "the signal handlers run (every 20 ms); an exception one raises propagates.")
       .def("step", &World2::step, "One step; False when the contact store must grow first.")
       .def("grow", &World2::grow, "capacity"_a, "Room for `capacity` manifolds and pairs.")
       .def("stage", &run_stage, "name"_a, "args"_a = nb::dict(), "Run one stage (tests).")
@@ -421,6 +440,7 @@ NB_MODULE(_core, mod) {
           "separations (2,), ids (2,) int64); rows past count are NaN / -1.");
   // ---- end narrowphase test entry ----
   mod.attr("NON_FINITE") = static_cast<int>(Status::NonFinite);
+  mod.attr("POSITION_LIMIT") = POSITION_LIMIT;  // m: beyond it advance reports NON_FINITE
 
   // ---- tools outside the step: the penetration ruler (cpp/src/tools/separation.cpp) ----
   mod.def(

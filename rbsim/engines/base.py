@@ -54,6 +54,9 @@ class Engine:
     """
 
     name = ""
+    # advance runs Python's signal handlers between its steps and stops at the exception
+    # one raises (the compiled engine); else a run notices Ctrl-C between calls only
+    interruptible = False
 
     def __init__(self, scene: Scene) -> None:
         self.scene = scene

@@ -18,6 +18,7 @@ class RbsimEngine(Engine):
     state views and stages, for tests and tools that look inside."""
 
     name = "rbsim"
+    interruptible = True  # Ctrl-C stops advance between two steps (rbsim.core)
 
     def __init__(self, scene: Scene) -> None:
         super().__init__(scene)
