@@ -187,12 +187,18 @@ def main() -> None:
     help="Override a scene value, e.g. --set world.dt=0.005 (repeatable).",
 )
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+@click.option(
+    "--force",
+    is_flag=True,
+    help="Replace OUTPUT even when it is not an rbsim trajectory (or is SCENE itself).",
+)
 def run(
     scene: str | None,
     output: str | None,
     resume: str | None,
     overrides: tuple[str, ...],
     quiet: bool,
+    force: bool,
 ) -> None:
     """Step SCENE with rbsim's solver and write its trajectory."""
     started = _process_start()
@@ -200,6 +206,8 @@ def run(
         raise click.UsageError("--resume OUT.h5 takes no SCENE, -o or --set: the file has them")
     if resume is None and scene is None:
         raise click.UsageError("missing argument SCENE (or --resume OUT.h5)")
+    if output is not None:
+        _check_output(scene, output, force)
     main_thread = threading.current_thread() is threading.main_thread()
     if main_thread:  # SIGTERM ends a run like Ctrl-C (only the main thread may set it)
         previous = signal.signal(signal.SIGTERM, _raise_interrupt)
@@ -222,6 +230,47 @@ def run(
     progress.finish()
     if not quiet:
         click.echo(summary.line())
+
+
+def _check_output(scene: str, output: str, force: bool) -> None:
+    """Refuse an existing OUTPUT that the run must not replace: exit 1 for one that is no
+    regular file (/dev/null: HDF5 needs a file it can seek in), a usage error (2) for the
+    scene file itself or a file that is not an rbsim trajectory, unless `force`."""
+    out = Path(output)
+    if not out.exists():
+        return
+    if not out.is_file():  # a directory is click's usage error already
+        _fail(EXIT_RUNTIME, f"error: cannot write {out}: not a regular file")
+    if force:
+        return
+    try:
+        same = Path(scene).exists() and os.path.samefile(scene, out)
+    except OSError:
+        same = False
+    if same:
+        raise click.BadParameter(
+            f"{output} is the scene file itself; give another output file (or --force)",
+            param_hint="'-o' / '--output'",
+        )
+    if out.stat().st_size and not _is_trajectory(out):
+        raise click.BadParameter(
+            f"{output} exists and is not an rbsim trajectory; not replacing it without --force",
+            param_hint="'-o' / '--output'",
+        )
+
+
+def _is_trajectory(path: Path) -> bool:
+    """Whether `path` is an HDF5 file written by rbsim (its /h5md/creator says so)."""
+    import h5py
+
+    try:
+        if not h5py.is_hdf5(path):
+            return False
+        with h5py.File(path, "r", locking=False) as f:
+            creator = f.get("h5md/creator")
+            return creator is not None and creator.attrs.get("name") == "rbsim"
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
 
 
 def _run(
@@ -253,6 +302,9 @@ def _run(
         _fail(EXIT_SCENE, f"{scene}: {err}", progress)
     except RunFailed as err:
         _fail(EXIT_RUNTIME, f"error: {err}", progress)
+    except MemoryError:
+        message = f"error: {scene}: out of memory (the file keeps the frames before it: {out})"
+        _fail(EXIT_RUNTIME, message, progress)
     except FileExistsError:  # from mkdir: a file where a folder should be
         _fail(EXIT_RUNTIME, f"error: cannot write {out}: {out.parent} is not a folder", progress)
     except OSError as err:

@@ -11,12 +11,22 @@ from .scene.types import MIXING
 
 
 class NonFiniteState(RuntimeError):
-    """The state became NaN or infinite: `body` (index) at `step`."""
+    """The state of `body` (index) became NaN or infinite at `step`, or, with `beyond`
+    (m), the body left the region the engine simulates (|x| or |y| > beyond)."""
 
-    def __init__(self, body: int, step: int) -> None:
-        super().__init__(f"state of body {body} became non-finite at step {step}")
+    def __init__(self, body: int, step: int, beyond: float | None = None) -> None:
         self.body = body
         self.step = step
+        self.beyond = beyond
+        super().__init__(f"{self.describe(f'{body}')} at step {step}")
+
+    def describe(self, name: str) -> str:
+        """What happened to the body called `name`, as a sentence's start: "the state
+        of body 'b' became non-finite", "body 'b' left the simulated region (...)"."""
+        if self.beyond is None:
+            return f"the state of body {name} became non-finite"
+        limit = f"{self.beyond:g}".replace("e+0", "e").replace("e+", "e")
+        return f"body {name} left the simulated region (|x| or |y| > {limit} m)"
 
 
 class Config(NamedTuple):

@@ -22,6 +22,10 @@ from .scene.compile import Model, State, build
 CONSTANTS: dict = dict(_core.constants)
 # the status World2.advance and advance_recording return when a state turned non-finite
 NON_FINITE: int = _core.NON_FINITE
+# advance_recording's status when a signal handler raised between two steps
+INTERRUPTED: int = _core.INTERRUPTED
+# m: a body farther from the origin along x or y ends the run (cpp/include/rbsim/world.hpp)
+POSITION_LIMIT: float = float(_core.POSITION_LIMIT)
 
 
 def _model_arrays(model: Model) -> dict:
@@ -70,10 +74,20 @@ class CoreWorld:
         return self.step_index * self.config.dt
 
     def advance(self, n_steps: int) -> None:
-        """Take n_steps steps; raises NonFiniteState if the state blows up."""
+        """Take n_steps steps; raises NonFiniteState if the state blows up or a body
+        flies beyond POSITION_LIMIT. A signal handler that raises between two steps
+        stops it there (the exception propagates; the steps taken are kept)."""
         status, _taken, bad = self.engine.advance(int(n_steps))
         if status == _core.NON_FINITE:
-            raise NonFiniteState(int(bad), self.step_index)
+            raise self.non_finite(int(bad))
+
+    def non_finite(self, body: int) -> NonFiniteState:
+        """The NonFiniteState of `body` at the current step: its state is not finite, or
+        (all finite) it flew beyond POSITION_LIMIT."""
+        e = self.engine
+        values = (e.body_x[body], e.body_q[body], e.body_v[body], e.body_w[body])
+        beyond = POSITION_LIMIT if all(np.isfinite(v).all() for v in values) else None
+        return NonFiniteState(body, self.step_index, beyond)
 
     @property
     def contact_count(self) -> int:

@@ -53,7 +53,18 @@ def _frames(n: int) -> str:
 
 
 class RunFailed(RuntimeError):
-    """The state turned non-finite; the message names the body and the step."""
+    """The state turned non-finite (or a body flew off, or an observable overflowed);
+    the message names the body or the observable, and the step."""
+
+
+class ObservableOverflow(RuntimeError):
+    """An observable of a frame (such as the kinetic energy) is inf or NaN: `name`, at
+    `step`."""
+
+    def __init__(self, name: str, step: int) -> None:
+        super().__init__(f"{name} overflowed at step {step}")
+        self.name = name
+        self.step = step
 
 
 class RunInterrupted(KeyboardInterrupt):
@@ -76,10 +87,12 @@ class _Interrupts:
     a frame being written, or inside a weakref callback or __del__, where Python prints
     "Exception ignored" and carries on as if nothing happened (the run would then go on
     to the end). So once the first steps have been taken, a signal only sets a flag that
-    `check` turns into a KeyboardInterrupt; the run checks after every chunk of steps
-    (about CHUNK_SECONDS of wall time). Before that (building the model, compiling or loading the
-    kernels: seconds without a check), and for a second signal, the handler raises at
-    once, except inside `held` (writing a frame or closing the file).
+    `check` turns into a KeyboardInterrupt; the run checks before and after every call
+    of the engine (about CHUNK_SECONDS), and the compiled engine asks `pending` between
+    two of its steps (every 20 ms) and returns early, with every frame so far recorded.
+    Before the first check (building the model: seconds without a check), and for a
+    second signal, the handler raises at once, except inside `held` (writing a frame or
+    closing the file).
 
     Handlers are installed only from the main thread, and only for signals whose current
     handler was set from Python and is not SIG_IGN (a run started with Ctrl-C ignored,
@@ -103,6 +116,10 @@ class _Interrupts:
         self.stepping = True
         if self.received:
             raise KeyboardInterrupt
+
+    def pending(self) -> bool:
+        """Whether a signal has arrived (for an engine to ask between its steps)."""
+        return self.received > 0
 
     @contextmanager
     def held(self) -> Iterator[None]:
@@ -336,24 +353,36 @@ def _loop(
     last_step = start_step
     frames_per_call = 1
     checkpointed = False
+    committed_step = start_step
     try:
         if first_frame:
             with interrupts.held():
                 world.record(writer.block, writer.rows)
+                _good, overflow = _finite_rows(writer.block, writer.rows, 1)
+                if overflow is not None:
+                    raise overflow
                 writer.commit(1, write_when_full=False)
         while world.step_index < total:
             cur = world.step_index
             k = max(1, min(writer.rows_free, frames_per_call))
             target = min((cur // every + k) * every, total)
+            interrupts.check()
             call = time.perf_counter()
+            # the engine asks between its steps whether a signal came (the handler only
+            # counts it), and stops there with every frame so far recorded
             taken, written, err = world.advance_recording(
-                target - cur, every, total, writer.block, writer.rows
+                target - cur, every, total, writer.block, writer.rows, interrupts.pending
             )
             elapsed = time.perf_counter() - call
             with interrupts.held():
-                writer.commit(written, write_when_full=False)
+                good, overflow = _finite_rows(writer.block, writer.rows, written)
+                writer.commit(good, write_when_full=False)
+                committed_step = world.step_index
+            if overflow is not None:
+                raise overflow
+            if good:
+                last_step = int(writer.block["step"][writer.rows - 1 if writer.rows else -1])
             if written:
-                last_step = int(world.step_index) if err is None else last_step
                 per_frame = elapsed / written
                 frames_per_call = max(
                     1, min(BLOCK_MAX_FRAMES, int(CHUNK_SECONDS / max(per_frame, 1e-9)))
@@ -363,7 +392,7 @@ def _loop(
             if writer.flush_due() or (writer.rows_free == 0 and not checkpointed):
                 # frames and the engine's checkpoint: once a second, and with the first block
                 with interrupts.held():
-                    writer.flush(checkpoint=world.checkpoint())
+                    writer.flush(checkpoint=world.checkpoint(), step=world.step_index)
                 checkpointed = True
             elif writer.rows_free == 0:  # a full block: its frames only
                 with interrupts.held():
@@ -373,16 +402,23 @@ def _loop(
                 progress(world.step_index, total)
         status = "complete"
     except NonFiniteState as err:  # from a step, or from reading a frame (pymunk)
-        name = scene.bodies[err.body].name
-        status = f"failed: body {name!r} became non-finite at step {err.step}"
+        name = repr(scene.bodies[err.body].name)
+        what = err.describe(name)
+        status = f"failed: {what.removeprefix('the state of ')} at step {err.step}"
         raise RunFailed(
-            f"{scene.path}: the state of body {name!r} became non-finite at step "
-            f"{err.step} (t = {err.step * scene.world.dt:g} s); "
+            f"{scene.path}: {what} at step {err.step} (t = {err.step * scene.world.dt:g} s); "
+            f"{_frames(writer.frames_written)} before it kept in {out}"
+        ) from None
+    except ObservableOverflow as err:
+        status = f"failed: {err.name} overflowed at step {err.step}"
+        raise RunFailed(
+            f"{scene.path}: the {err.name.replace('_', ' ')} overflowed (inf or NaN) at "
+            f"step {err.step} (t = {err.step * scene.world.dt:g} s); "
             f"{_frames(writer.frames_written)} before it kept in {out}"
         ) from None
     except KeyboardInterrupt:
         status = "interrupted"
-        if world.step_index == last_step:  # the engine is at the last frame's state
+        if world.step_index == committed_step:  # every frame up to this state is kept
             checkpoint = world.checkpoint()
         raise RunInterrupted(str(out), writer.frames_written, last_step) from None
     except OSError as err:  # writing the file: a full disk, a vanished folder
@@ -417,6 +453,18 @@ def _loop(
     )
 
 
+def _finite_rows(
+    block: dict[str, np.ndarray], row: int, count: int
+) -> tuple[int, ObservableOverflow | None]:
+    """Of the `count` frames just recorded in `block` from `row` on: how many lead with
+    finite observables, and the ObservableOverflow of the first that does not (None)."""
+    for r in range(row, row + count):
+        for name in OBSERVABLES:
+            if not np.all(np.isfinite(block[name][r])):
+                return r - row, ObservableOverflow(name, int(block["step"][r]))
+    return count, None
+
+
 class ResumeError(ValueError):
     """A trajectory that cannot be resumed: complete, not rbsim's, or without a checkpoint."""
 
@@ -442,8 +490,6 @@ def resume_run(
             inside = f.get("parameters/rbsim/checkpoint")
             stored = bytes(inside[()].tobytes()) if inside is not None else None
             on_file = frame_count(f, closed=params.get("status", STATUS_RUNNING) != STATUS_RUNNING)
-            steps = f["particles/bodies/position/step"] if on_file else None
-            last_on_file = int(steps[on_file - 1]) if steps is not None else -1
     except TrajectoryError as err:
         raise ResumeError(str(err)) from None
     status = params.get("status", "")
@@ -456,7 +502,7 @@ def resume_run(
     if status == STATUS_RUNNING and sidecar is not None:
         frames, step, data = sidecar
     elif stored is not None:
-        frames, step, data = on_file, last_on_file, stored
+        frames, step, data = on_file, -1, stored
     if not data:
         raise ResumeError(
             f"{path}: no checkpoint to resume from (status {status!r}; a run killed before "

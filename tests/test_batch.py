@@ -293,16 +293,18 @@ def test_a_run_that_blows_up_is_recorded_as_failed_and_the_others_complete(
     tmp_path: Path,
 ) -> None:
     scene = tmp_path / "rocket.yaml"
-    scene.write_text(ROCKET)
-    force = "bodies.rocket.force=[[1,0],[3.9e+306,0],[2,0]]"
+    scene.write_text(ROCKET.replace("steps: 20", "steps: 50"))
+    # 7.8e5 N (within the force bound) takes the rocket out of the simulated region
+    force = "bodies.rocket.force=[[1,0],[7.8e+5,0],[2,0]]"
     done = batch(tmp_path, "rocket.yaml", "-o", "out", "--vary", force, "--workers", "1")
     assert done.returncode == 1, done.stderr
     assert "3 runs: 2 complete, 1 failed" in done.stdout
     rows = {r["bodies.rocket.force"]: r for r in summary(tmp_path / "out")}
-    bad = rows["[3.9e+306, 0]"]
-    assert bad["status"] == "failed: body 'rocket' became non-finite at step 9"
-    assert int(bad["steps"]) == 8  # the last finite frame
-    assert f"{bad['run_id']}: rocket.yaml bodies.rocket.force=[3.9e+306, 0]: failed" in done.stderr
+    bad = rows["[780000.0, 0]"]
+    assert bad["status"].startswith("failed: body 'rocket' left the simulated region")
+    assert bad["status"].endswith("at step 45")
+    assert int(bad["steps"]) == 44  # the last frame inside it
+    assert f"{bad['run_id']}: rocket.yaml bodies.rocket.force=[780000.0, 0]: failed" in done.stderr
     assert load_trajectory(tmp_path / "out" / f"{bad['run_id']}.h5").status.startswith("failed")
     for good in ("[1, 0]", "[2, 0]"):
         assert rows[good]["status"] == "complete"

@@ -71,15 +71,16 @@ bodies:
   - pyramid: {base: 20, size: [1, 1], origin: [0, 0.5]}
 """
 
-# A constant force of 3.9e306 N on a 0.785 kg disc (dt = 1 s): the position passes
-# 1.6e308 m at step 8 and overflows to inf at step 9. Every value is valid.
+# A constant force of 7.8e5 N on a 0.785 kg disc (9.9e5 m/s², within the bound of 1e6;
+# dt = 1 s): x = a (n² + n/4) / 2 after n steps of 4 substeps passes the engine's region
+# (1e9 m) at step 45. Every value is valid.
 BLOWUP = """\
 version: 1
 name: blowup
 world: {gravity: [0, 0], dt: 1, steps: 50}
 bodies:
   - name: rocket
-    force: [3.9e+306, 0]
+    force: [7.8e+5, 0]
     shape: {circle: {radius: 0.5}}
 """
 
@@ -180,19 +181,20 @@ def test_every_shipped_scene_runs(tmp_path: Path, scene: Path) -> None:
 # failures -----------------------------------------------------------------------------------
 
 
-def test_non_finite_state_exits_1_naming_body_and_step(tmp_path: Path) -> None:
+def test_body_leaving_the_region_exits_1_naming_body_and_step(tmp_path: Path) -> None:
     out = tmp_path / "blowup.h5"
     with warnings.catch_warnings():
         warnings.simplefilter("error", RuntimeWarning)  # no numpy overflow warnings either
         code, stdout, stderr = rbsim("run", write(tmp_path, "blowup.yaml", BLOWUP), "-o", out)
     assert code == 1
     assert stdout == ""
-    assert "'rocket'" in stderr and "step 9" in stderr, stderr
+    assert "body 'rocket' left the simulated region" in stderr and "step 45" in stderr, stderr
     tr = load_trajectory(out)
     assert tr.status.startswith("failed")
-    assert "'rocket'" in tr.status and "step 9" in tr.status
-    assert tr.step.tolist() == list(range(9))  # every frame before the failure
+    assert "'rocket'" in tr.status and "step 45" in tr.status
+    assert tr.step.tolist() == list(range(45))  # every frame before the failure
     assert np.isfinite(tr.position).all() and np.isfinite(tr.velocity).all()
+    assert np.abs(tr.position).max() <= 1e9
 
 
 @pytest.mark.parametrize("where", ["directory", "file_as_folder", "missing_proc_folder"])

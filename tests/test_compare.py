@@ -326,7 +326,7 @@ def test_statistics_flag_prints_the_table(tmp_path: Path):
     [
         ("compare.statistics.kinetic_energy=-1", "must be >= 0"),
         ("compare.statistics.heigths=1", "did you mean heights?"),
-        ("compare.iterations=0", "must be >= 1"),
+        ("compare.iterations=0", "must be between 1 and 1e6"),
     ],
 )
 def test_bad_compare_keys_exit_3_naming_the_key(tmp_path: Path, setting: str, message: str):

@@ -142,7 +142,7 @@ def test_misspelt_key_gets_a_did_you_mean_hint():
     version: 1
     materials:
       rubber: {density: 1, restitusion: 0.9}
-    bodies: []
+    bodies: [{shape: {circle: {radius: 1}}}]
     """
     message = errors(text)
     assert message == (
@@ -178,7 +178,7 @@ def test_every_error_is_reported_not_only_the_first():
     ]
     assert [e.line for e in info.value.errors] == [2, 2, 3, 3, 5, 6]
     assert all(str(e).startswith(f"test.yaml:{e.line}:{e.column}: ") for e in info.value.errors)
-    assert "world.dt: must be > 0, got -1" in str(info.value)
+    assert "world.dt: must be between 1e-9 and 1, got -1" in str(info.value)
 
 
 def test_missing_file_is_a_scene_error(tmp_path: Path):
@@ -193,7 +193,7 @@ def test_scene_error_issue_fields():
     (issue,) = info.value.errors
     assert (issue.file, issue.line, issue.column) == ("test.yaml", 6, 30)
     assert issue.key_path == "bodies[0].shape.circle.radius"
-    assert issue.message == "must be > 0, got 0"
+    assert issue.message == "must be between 1e-6 and 1e6, got 0"
 
 
 # --- materials, bodies, shapes ------------------------------------------------------------
@@ -441,7 +441,7 @@ def test_set_invalid_value_is_reported_as_from_the_command_line():
     (issue,) = info.value.errors
     assert (issue.line, issue.column, issue.override) == (None, None, "world.dt")
     assert issue.key_path == "world.dt"
-    assert str(issue) == "test.yaml: --set world.dt: must be > 0, got -1"
+    assert str(issue) == "test.yaml: --set world.dt: must be between 1e-9 and 1, got -1"
     with pytest.raises(SceneError) as info:
         load(BALL, ("bodies.ball.velocity=[1]",))
     assert str(info.value) == (
@@ -523,7 +523,7 @@ def test_json_schema_is_json_and_names_every_key():
     assert body["type"]["enum"] == ["dynamic", "static", "kinematic"]
     shape = defs["shape"]["properties"]
     assert {"circle", "box", "polygon", "segment", "material"} <= set(shape)
-    assert shape["circle"]["properties"]["radius"]["exclusiveMinimum"] == 0
+    assert shape["circle"]["properties"]["radius"]["minimum"] == 1e-6
     world = schema["properties"]["world"]["properties"]
     assert world["mixing"]["properties"]["friction"]["enum"] == ["sqrt", "multiply", "min", "max"]
     items = schema["properties"]["bodies"]["items"]["anyOf"]

@@ -9,6 +9,7 @@
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/tuple.h>
 
+#include <chrono>
 #include <cstring>
 #include <limits>
 #include <memory>
@@ -348,6 +349,9 @@ nb::tuple collide2d_py(int kind_a, int start_a, int count_a, double radius_a, in
 // velocity (B,N,2) float64, angle, angular_velocity (B,N) float64, kinetic_energy,
 // potential_energy, angular_momentum (B,) float64, linear_momentum (B,2) float64,
 // contact_count (B,) int64.
+// advance_recording's status when a signal handler raised (not an engine Status)
+constexpr int INTERRUPTED = 100;
+
 struct Block {
   std::int64_t rows = -1;
   std::int64_t* step = nullptr;
@@ -424,41 +428,78 @@ NB_MODULE(_core, mod) {
           [](World2& w, std::int64_t n) {
             if (n < 0) throw std::invalid_argument("n_steps must be >= 0");
             std::int64_t taken = 0, bad = -1;
-            Status status;
+            Status status = Status::Ok;
+            bool signalled = false;
             {
+              // one step at a time, with the signal handlers run every 20 ms between two
+              // steps (Ctrl-C stops a long chunk); the steps are the same as in one call
               nb::gil_scoped_release release;
-              status = w.advance(n, &taken, &bad);
+              auto checked = std::chrono::steady_clock::now();
+              while (taken < n && status == Status::Ok) {
+                std::int64_t one = 0;
+                status = w.advance(1, &one, &bad);
+                taken += one;
+                const auto now = std::chrono::steady_clock::now();
+                if (taken < n && now - checked > std::chrono::milliseconds(20)) {
+                  checked = now;
+                  nb::gil_scoped_acquire acquire;
+                  signalled = PyErr_CheckSignals() != 0;
+                  if (signalled) break;
+                }
+              }
             }
+            if (signalled) throw nb::python_error();  // a handler raised: the state is whole steps
             return std::make_tuple(static_cast<int>(status), taken, bad);
           },
-          "n_steps"_a, "Take up to n_steps steps; returns (status, steps taken, bad body).")
+          "n_steps"_a,
+          "Take up to n_steps steps; returns (status, steps taken, bad body). Between steps "
+          "the signal handlers run (every 20 ms); an exception one raises propagates.")
       .def(
           "advance_recording",
           [](World2& w, std::int64_t n, std::int64_t every, std::int64_t last, nb::dict block,
-             std::int64_t row) {
+             std::int64_t row, nb::object stop) {
             if (n < 0) throw std::invalid_argument("n_steps must be >= 0");
             if (every < 1) throw std::invalid_argument("every must be >= 1");
             Block b = make_block(w, block);
             if (row < 0 || row > b.rows) throw std::invalid_argument("row outside the block");
             std::int64_t taken = 0, bad = -1, written = 0;
             Status status = Status::Ok;
+            bool signalled = false;
             {
+              // the signal handlers run every 20 ms between two steps; one that raises
+              // (the run's, for Ctrl-C) ends the call after whole steps, with every
+              // frame recorded so far, and the call returns INTERRUPTED
               nb::gil_scoped_release release;
+              auto checked = std::chrono::steady_clock::now();
               while (taken < n && row + written < b.rows) {
                 std::int64_t one = 0;
                 status = w.advance(1, &one, &bad);
                 taken += one;
                 if (status != Status::Ok) break;
                 if (w.step_index % every == 0 || w.step_index == last) record_row(w, b, row + written++);
+                const auto now = std::chrono::steady_clock::now();
+                if (taken < n && now - checked > std::chrono::milliseconds(20)) {
+                  checked = now;
+                  nb::gil_scoped_acquire acquire;
+                  if (PyErr_CheckSignals() != 0) {
+                    PyErr_Clear();
+                    signalled = true;
+                  } else if (!stop.is_none()) {
+                    signalled = nb::cast<bool>(stop());
+                  }
+                  if (signalled) break;
+                }
               }
             }
-            return std::make_tuple(static_cast<int>(status), taken, written, bad);
+            const int code = signalled ? INTERRUPTED : static_cast<int>(status);
+            return std::make_tuple(code, taken, written, bad);
           },
-          "n_steps"_a, "every"_a, "last_step"_a, "block"_a, "row"_a,
+          "n_steps"_a, "every"_a, "last_step"_a, "block"_a, "row"_a, "stop"_a = nb::none(),
           "Take up to n_steps steps, recording a frame into block (a dict of arrays, rows "
           "from `row` on) after each step that is a multiple of `every` or is `last_step`; "
-          "stops early when the block is full. Returns (status, steps taken, frames "
-          "recorded, bad body).")
+          "stops early when the block is full, or with status INTERRUPTED when, between two "
+          "steps (every 20 ms), a signal handler raised or stop() is true. Returns (status, steps taken, "
+          "frames recorded, bad body).")
       .def(
           "record",
           [](World2& w, nb::dict block, std::int64_t row) {
@@ -535,6 +576,8 @@ NB_MODULE(_core, mod) {
           "separations (2,), ids (2,) int64); rows past count are NaN / -1.");
   // ---- end narrowphase test entry ----
   mod.attr("NON_FINITE") = static_cast<int>(Status::NonFinite);
+  mod.attr("INTERRUPTED") = INTERRUPTED;
+  mod.attr("POSITION_LIMIT") = POSITION_LIMIT;  // m: beyond it advance reports NON_FINITE
 
   // ---- tools outside the step: the penetration ruler (cpp/src/tools/separation.cpp) ----
   mod.def(

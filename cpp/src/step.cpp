@@ -174,14 +174,29 @@ bool finite(const T& v) {
   }
 }
 
+template <class T>
+bool within(const T& v, double limit) {
+  const double* p = reinterpret_cast<const double*>(&v);
+  for (std::size_t k = 0; k < sizeof(T) / sizeof(double); ++k)
+    if (!(std::abs(p[k]) <= limit)) return false;
+  return true;
+}
+
+// The body to blame for a bad state: the first dynamic body whose state is not finite
+// or has left POSITION_LIMIT. A static or kinematic body only goes bad through a dynamic
+// one (a non-finite impulse times its zero inverse mass), so it is named only when no
+// dynamic body is bad. -1: none.
 template <int D>
-std::int64_t first_non_finite(const State<D>& st) {
+std::int64_t first_bad_body(const Model<D>& model, const State<D>& st) {
+  std::int64_t other = -1;
   for (std::size_t i = 0; i < st.body_x.size(); ++i) {
-    if (!(finite(st.body_x[i]) && finite(st.body_v[i]) && finite(st.body_w[i]) &&
-          finite(st.body_q[i])))
-      return static_cast<std::int64_t>(i);
+    if (finite(st.body_v[i]) && finite(st.body_w[i]) && finite(st.body_q[i]) &&
+        within(st.body_x[i], POSITION_LIMIT))
+      continue;
+    if (model.is_dynamic(static_cast<int>(i))) return static_cast<std::int64_t>(i);
+    if (other < 0) other = static_cast<std::int64_t>(i);
   }
-  return -1;
+  return other;
 }
 
 }  // namespace
@@ -196,7 +211,7 @@ Status World<D>::advance(std::int64_t n_steps, std::int64_t* taken, std::int64_t
     }
     ++*taken;
     ++step_index;
-    std::int64_t bad = first_non_finite(state);
+    std::int64_t bad = first_bad_body(model, state);
     if (bad >= 0) {
       *bad_body = bad;
       return Status::NonFinite;

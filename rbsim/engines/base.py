@@ -8,6 +8,7 @@ rbsim.engines.ENGINES.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -118,12 +119,19 @@ class Engine:
         block["time"][row] = self.time
 
     def advance_recording(
-        self, n: int, every: int, last_step: int, block: dict[str, np.ndarray], row: int
-    ) -> tuple[int, int, NonFiniteState | None]:
+        self,
+        n: int,
+        every: int,
+        last_step: int,
+        block: dict[str, np.ndarray],
+        row: int,
+        stop: Callable[[], bool] | None = None,
+    ) -> tuple[int, int, BaseException | None]:
         """Take up to n steps, recording a frame into `block` from `row` on after each
         step that is a multiple of `every` or is `last_step`, stopping early when the
-        block is full. Returns (steps taken, frames recorded, the NonFiniteState that
-        stopped it or None)."""
+        block is full. An engine that can looks at stop() between steps (every 20 ms or
+        so) and stops when it is true. Returns (steps taken, frames recorded, and the
+        NonFiniteState or KeyboardInterrupt that stopped it, or None)."""
         taken = written = 0
         rows = len(block["step"])
         while taken < n and row + written < rows:

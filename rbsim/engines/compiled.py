@@ -4,15 +4,16 @@ model that rbsim.scene.compile builds."""
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 import numpy as np
 
-from ..core import NON_FINITE, CoreWorld
+from ..core import INTERRUPTED, NON_FINITE, CoreWorld
 from ..io.observables import observables
 from ..scene import Scene
 from ..scene import types as T
 from ..scene.compile import body_origin
-from .base import Engine, NonFiniteState, Snapshot
+from .base import Engine, Snapshot
 
 
 class RbsimEngine(Engine):
@@ -44,18 +45,26 @@ class RbsimEngine(Engine):
             self.step_time += time.perf_counter() - t0
 
     def advance_recording(
-        self, n: int, every: int, last_step: int, block: dict[str, np.ndarray], row: int
-    ) -> tuple[int, int, NonFiniteState | None]:
+        self,
+        n: int,
+        every: int,
+        last_step: int,
+        block: dict[str, np.ndarray],
+        row: int,
+        stop: Callable[[], bool] | None = None,
+    ) -> tuple[int, int, BaseException | None]:
         t0 = time.perf_counter()
         try:
             status, taken, written, bad = self.world.engine.advance_recording(
-                int(n), int(every), int(last_step), block, int(row)
+                int(n), int(every), int(last_step), block, int(row), stop
             )
         finally:
             self.step_time += time.perf_counter() - t0
-        err = None
+        err: BaseException | None = None
         if status == NON_FINITE:
-            err = NonFiniteState(int(bad), self.step_index)
+            err = self.world.non_finite(int(bad))
+        elif status == INTERRUPTED:
+            err = KeyboardInterrupt()
         return int(taken), int(written), err
 
     def record(self, block: dict[str, np.ndarray], row: int) -> None:

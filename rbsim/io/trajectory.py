@@ -744,14 +744,16 @@ class TrajectoryWriter:
         self._rows = 0
         self.frames_flushed = t0 + rows
 
-    def flush(self, checkpoint: bytes | None = None) -> None:
+    def flush(self, checkpoint: bytes | None = None, step: int | None = None) -> None:
         """Write every gathered frame to the file now, and `checkpoint` (the engine's
-        state at the last frame, bytes) beside it for `rbsim run --resume`."""
+        state at `step`, default the last frame's, bytes) beside it for `rbsim run
+        --resume`; the frames on file must be those up to that state."""
         if self._closed:
             return
         self._write_block()
         if checkpoint is not None and self.frames_flushed:
-            write_checkpoint(self.checkpoint_path, self.frames_flushed, self._last_step, checkpoint)
+            at = self._last_step if step is None else int(step)
+            write_checkpoint(self.checkpoint_path, self.frames_flushed, at, checkpoint)
         self._last_flush = _time.monotonic()
 
     def close(

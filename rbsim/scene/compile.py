@@ -111,10 +111,12 @@ def build(scene: Scene) -> tuple[Model, State]:
         com[i] = props.center
         if kind == T.BODY_DYNAMIC:
             if not (props.mass > 0.0 and props.inertia > 0.0):
-                raise ModelError(
-                    f"body {body.name!r}: a dynamic body needs a mass; its shapes have no "
-                    "area (thin segments): give it `mass:` or a segment radius"
-                )
+                if all(sh.kind == "segment" and sh.radius == 0 for sh in body.shapes):
+                    why = "its shapes have no area (thin segments): give it `mass:` or a radius"
+                else:
+                    why = f"its mass {props.mass:g} kg and inertia {props.inertia:g} kg·m² "
+                    why += "are not both positive"
+                raise ModelError(f"body {body.name!r}: a dynamic body needs a mass; {why}")
             mass[i], inertia[i] = props.mass, props.inertia
         else:
             mass[i], inertia[i] = math.inf, math.inf

@@ -10,8 +10,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-from .resolve import Body, Shape
+if TYPE_CHECKING:  # resolve uses this module to check forces against masses
+    from .resolve import Body, Shape
 
 Vec2 = tuple[float, float]
 
@@ -53,6 +55,8 @@ def polygon_area_moment(vertices: tuple[Vec2, ...]) -> tuple[float, Vec2, float]
         sy += a * (e1y + e2y) / 3.0
         dots = e1x * e1x + e1y * e1y + e1x * e2x + e1y * e2y + e2x * e2x + e2y * e2y
         moment_c += a / 6.0 * dots
+    if not area > 0.0:  # no area left to the rounding: the caller rejects a zero mass
+        return 0.0, (cx, cy), 0.0
     dx, dy = sx / area, sy / area
     # moment about the centroid: shift from c by the parallel-axis theorem
     moment = moment_c - area * (dx * dx + dy * dy)

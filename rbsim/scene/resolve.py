@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from . import schema
+from .mass import body_mass_properties
 from .schema import INVALID, Checked, did_you_mean
 from .types import SHAPE_KINDS
 from .yamlsrc import BROKEN, Mark, Problem, YList, YMap, format_path, load_yaml
@@ -382,8 +383,12 @@ def convex_ccw(points: Sequence[Vec2]) -> tuple[tuple[Vec2, ...], str | None]:
         if p in seen:
             return pts, f"vertices {seen[p]} and {i} are the same point"
         seen[p] = i
-    area2 = sum(pts[i - 1][0] * p[1] - p[0] * pts[i - 1][1] for i, p in enumerate(pts))
-    if abs(area2) / 2 <= 1e-12:
+    # about the first vertex, so that a small polygon far from the origin keeps its digits
+    x0, y0 = pts[0]
+    rel = [(x - x0, y - y0) for x, y in pts]
+    area2 = sum(rel[i - 1][0] * p[1] - p[0] * rel[i - 1][1] for i, p in enumerate(rel))
+    span = max(max(abs(x), abs(y)) for x, y in rel)
+    if abs(area2) / 2 <= 1e-12 * span * span:
         return pts, "the vertices enclose no area (all on one line?)"
     clockwise = area2 < 0
     if clockwise:
@@ -409,6 +414,70 @@ def convex_ccw(points: Sequence[Vec2]) -> tuple[tuple[Vec2, ...], str | None]:
     return pts, None
 
 
+def _num(x: float) -> str:
+    """A number for a message, to 3 digits: 1e-06 -> 1e-6, 1000000.0 -> 1e6, 0.25 ->
+    0.25, 1999.5 -> 2000."""
+    if 1000 <= abs(x) < 1e6:
+        return f"{x:.0f}"
+    return f"{x:.3g}".replace("e+0", "e").replace("e+", "e").replace("e-0", "e-")
+
+
+def _short_edge(ccw: Sequence[Vec2], written: Sequence[Vec2]) -> str | None:
+    """Why a convex polygon's edges are too short for the engine, or None."""
+    n = len(ccw)
+    for k in range(n):
+        (ax, ay), (bx, by) = ccw[k - 1], ccw[k]
+        length = math.hypot(bx - ax, by - ay)
+        if length < schema.LENGTH_MIN:
+            i, j = written.index(ccw[k - 1]), written.index(ccw[k])
+            return (
+                f"vertices {min(i, j)} and {max(i, j)} are {length:.3g} m apart, "
+                f"less than {_num(schema.LENGTH_MIN)} m"
+            )
+    return None
+
+
+def shape_bounds(shape: Shape) -> tuple[Vec2, Vec2]:
+    """The shape's bounding box in the body frame, radius included: (min, max), m."""
+    xs = [v[0] for v in shape.vertices]
+    ys = [v[1] for v in shape.vertices]
+    r = shape.radius
+    return (min(xs) - r, min(ys) - r), (max(xs) + r, max(ys) + r)
+
+
+def thinnest(shape: Shape) -> float:
+    """The shape's smallest width, m: 2r for a circle or a capsule, the smaller side of a
+    box, a polygon's least width over its edge directions; a thin segment (radius 0),
+    which has no width, counts with its length."""
+    if shape.kind == "circle":
+        return 2.0 * shape.radius
+    if shape.kind == "segment":
+        (ax, ay), (bx, by) = shape.vertices
+        return 2.0 * shape.radius if shape.radius > 0 else math.hypot(bx - ax, by - ay)
+    if shape.kind == "box":
+        return min(shape.size)
+    pts = shape.vertices
+    widths = []
+    for k in range(len(pts)):
+        (ax, ay), (bx, by) = pts[k - 1], pts[k]
+        length = math.hypot(bx - ax, by - ay)
+        widths.append(
+            max(abs((bx - ax) * (y - ay) - (by - ay) * (x - ax)) for x, y in pts) / length
+        )
+    return min(widths)
+
+
+def _grid_reach(n: int, step: float, size: float) -> int:
+    """How many neighbours along one axis of a grid (n bodies ``step`` apart) a body of
+    ``size`` across overlaps on one side."""
+    step = abs(step)
+    if n <= 1:
+        return 0
+    if step * (n - 1) < size:
+        return n - 1
+    return min(n - 1, math.ceil(size / step) - 1)
+
+
 class _Resolver:
     """Checked tree -> Scene. Checks the rules that tie several keys together and
     collects problems; a part that holds an INVALID value (already reported) is skipped."""
@@ -418,6 +487,8 @@ class _Resolver:
         self.materials: dict[str, Material | None] = {}  # None: invalid, already reported
         self.names: dict[str, tuple[str, Mark]] = {}  # body name -> (who, where)
         self.count = 0
+        self.substeps = self.iterations = self.per_shape = 1  # the solver's, once known
+        self.solver: Checked | Any = INVALID
 
     def error(self, mark: Mark, path: tuple[str | int, ...], message: str) -> None:
         self.problems.append(Problem(mark, path, message))
@@ -427,6 +498,10 @@ class _Resolver:
     def scene(self, c: Checked, text: str, path: str) -> Scene | None:
         for name, m in c["materials"].items() if _ok(c["materials"]) else ():
             self.materials[name] = Material(**m) if _ok(m) and _ok(*m.values()) else None
+        solver = self.solver = c["solver"]
+        if _ok(solver) and _ok(solver["substeps"], solver["iterations"]):
+            self.substeps, self.iterations = solver["substeps"], solver["iterations"]
+            self.per_shape = self.substeps * self.iterations
         bodies: list[Body] = []
         if _ok(c.get("bodies", INVALID)):
             for index, entry in enumerate(c["bodies"]):
@@ -438,6 +513,9 @@ class _Resolver:
                         bodies.append(body)
                 else:
                     bodies += self.generator(entry)
+        shapes = sum(len(b.shapes) for b in bodies)
+        if shapes * self.per_shape > schema.WORK_MAX and not self.problems:
+            self.work_error(shapes, c.mark_of("bodies"), c.path_of("bodies"))
         world, solver, output = self.world(c["world"]), c["solver"], c["output"]
         compare = c["compare"]
         parts = (world, solver, output, compare, c.get("version", INVALID), c.get("name"))
@@ -582,17 +660,34 @@ class _Resolver:
             shape = Shape(kind, corners, 0.0, material, size=size, offset=offset, angle=angle)
         elif kind == "polygon":
             vertices, problem = convex_ccw(spec["vertices"])
+            if not problem:
+                problem = _short_edge(vertices, spec["vertices"])
             if problem:
                 self.error(spec.mark_of("vertices"), spec.path_of("vertices"), problem)
                 return INVALID
             shape = Shape(kind, vertices, 0.0, material)
         else:
-            a, b = spec["a"], spec["b"]
+            a, b, radius = spec["a"], spec["b"], spec["radius"]
             if a == b:
                 message = "a segment needs two different ends a and b"
                 self.error(spec.mark_of("b"), spec.path_of("b"), message)
                 return INVALID
-            shape = Shape(kind, (a, b), spec["radius"], material)
+            length = math.hypot(b[0] - a[0], b[1] - a[1])
+            if length < schema.LENGTH_MIN:
+                message = (
+                    f"the ends are {length:.3g} m apart, less than {_num(schema.LENGTH_MIN)} m "
+                    "(a shorter capsule is a circle)"
+                )
+                self.error(spec.mark_of("b"), spec.path_of("b"), message)
+                return INVALID
+            if 0 < radius < schema.LENGTH_MIN:
+                message = (
+                    f"must be 0 (a thin segment) or at least {_num(schema.LENGTH_MIN)} m, "
+                    f"got {radius!r}"
+                )
+                self.error(spec.mark_of("radius"), spec.path_of("radius"), message)
+                return INVALID
+            shape = Shape(kind, (a, b), radius, material)
         return shape if _ok(material) else INVALID
 
     # bodies ------------------------------------------------------------------------------
@@ -651,7 +746,10 @@ class _Resolver:
                 "a dynamic body needs a shape with area (a segment with radius 0 has none)",
             )
             return None
-        return Body(
+        where = "shape" if "shape" in c else "shapes"
+        if not self.proportions(shapes, c.mark_of(where), c.path_of(where)):
+            return None
+        body = Body(
             name=name,
             type=kind,
             position=c["position"],
@@ -664,6 +762,62 @@ class _Resolver:
             force_point=c.get("force_point"),
             torque=c["torque"],
         )
+        if kind == "dynamic" and not self.accelerations(body, c):
+            return None
+        return body
+
+    def proportions(self, shapes: Sequence[Shape], mark: Mark, path: tuple) -> bool:
+        """Whether a body of ``shapes`` is within ASPECT_MAX (the larger side of its
+        bounding box over its thinnest shape's width); reports it at ``mark`` if not."""
+        boxes = [shape_bounds(sh) for sh in shapes]
+        width = max(hi[0] for _, hi in boxes) - min(lo[0] for lo, _ in boxes)
+        height = max(hi[1] for _, hi in boxes) - min(lo[1] for lo, _ in boxes)
+        extent = max(width, height)
+        thin = min(thinnest(sh) for sh in shapes)
+        if extent <= schema.ASPECT_MAX * thin * (1 + 1e-9):  # a ratio of exactly 1e6 passes
+            return True
+        self.error(
+            mark,
+            path,
+            f"the body is {_num(extent)} m across and its thinnest shape {_num(thin)} m wide: "
+            f"{_num(extent / thin)} times, more than {_num(schema.ASPECT_MAX)}",
+        )
+        return False
+
+    def accelerations(self, body: Body, c: Checked) -> bool:
+        """Whether the dynamic ``body``'s constant force and torque accelerate it (at its
+        centre of mass, and its points at the radius of gyration) by at most
+        ACCELERATION_MAX; reports the key if not."""
+        (fx, fy), torque = body.force, body.torque
+        if fx == fy == torque == 0.0:
+            return True
+        props = body_mass_properties(body)
+        mass, inertia = props.mass, props.inertia
+        if not (mass > 0.0 and inertia > 0.0):
+            return True  # no mass: rbsim.scene.compile says so
+        limit = schema.ACCELERATION_MAX
+        linear = math.hypot(fx, fy) / mass
+        if not linear <= limit:  # also catches an overflow to inf
+            message = (
+                f"accelerates the body by {_num(linear)} m/s² (its mass is {_num(mass)} kg), "
+                f"more than {_num(limit)} m/s²"
+            )
+            self.error(c.mark_of("force"), c.path_of("force"), message)
+            return False
+        if body.force_point is not None:
+            ax, ay = body.force_point[0] - props.center[0], body.force_point[1] - props.center[1]
+            torque += ax * fy - ay * fx
+        radius = math.sqrt(inertia / mass)  # of gyration, m
+        angular = abs(torque) / math.sqrt(inertia * mass)  # m/s² at that radius
+        if not angular <= limit:
+            key = "torque" if body.torque != 0.0 else "force_point"
+            message = (
+                f"the torque accelerates the body's points by {_num(angular)} m/s² (at its "
+                f"radius of gyration {_num(radius)} m), more than {_num(limit)} m/s²"
+            )
+            self.error(c.mark_of(key), c.path_of(key), message)
+            return False
+        return True
 
     def generator(self, c: Checked) -> list[Body]:
         """Expand a pyramid, stack or grid entry into bodies."""
@@ -678,13 +832,16 @@ class _Resolver:
         else:
             total = c["count"]
         self.count += total
+        key = "base" if tag == "pyramid" else "count"
         if self.count > MAX_BODIES:
-            key = "base" if tag == "pyramid" else "count"
             self.error(
                 c.mark_of(key),
                 c.path_of(key),
                 f"the scene would have more than {MAX_BODIES} bodies",
             )
+            return []
+        if self.count * self.per_shape > schema.WORK_MAX:  # before expanding it all
+            self.work_error(self.count, c.mark_of(key), c.path_of(key))
             return []
         material = self.material(c, DEFAULT_MATERIAL)
         if tag == "grid":
@@ -697,7 +854,22 @@ class _Resolver:
             )
         if not _ok(shape):
             return []
+        where = "shape" if tag == "grid" else "size"
+        if not self.proportions([shape], c.mark_of(where), c.path_of(where)):
+            return []
+        if tag == "grid" and not self.grid_apart(c, shape):
+            return []
         placed = list(getattr(self, "_" + tag)(c))  # [(name, position)]
+        far = max(max(abs(x), abs(y)) for _, (x, y) in placed)
+        if not far <= schema.LENGTH_MAX:
+            key = "spacing" if tag == "grid" or c["spacing"] > 0 else key
+            limit = _num(schema.LENGTH_MAX)
+            message = (
+                f"this {tag} places bodies {_num(far)} m from the world's origin, "
+                f"beyond the {limit} m that positions are bounded by"
+            )
+            self.error(c.mark_of(key), c.path_of(key), message)
+            return []
         mark = c.mark_of("name") if "name" in c.src else c.mark
         for name, _ in placed:
             owner = self.taken(name)
@@ -715,6 +887,44 @@ class _Resolver:
         velocity = c.get("velocity", (0.0, 0.0))
         shapes = (shape,)
         return [Body(name, "dynamic", xy, 0.0, velocity, 0.0, shapes) for name, xy in placed]
+
+    def grid_apart(self, c: Checked, shape: Shape) -> bool:
+        """Whether a grid's bodies overlap at most their immediate neighbours (a heap of
+        bodies inside each other makes a step cost the square of their number)."""
+        (nx, ny), (dx, dy) = c["count"], c["spacing"]
+        (x0, y0), (x1, y1) = shape_bounds(shape)
+        w, h = x1 - x0, y1 - y0
+        kx, ky = _grid_reach(nx, dx, w), _grid_reach(ny, dy, h)
+        overlapped = min(2 * kx + 1, nx) * min(2 * ky + 1, ny) - 1
+        if overlapped <= 8:
+            return True
+        message = (
+            f"the grid's bodies start inside each other: each overlaps up to {overlapped} "
+            f"others (bodies {_num(w)} x {_num(h)} m, {_num(abs(dx))} and {_num(abs(dy))} m "
+            "apart); at most its 8 neighbours may overlap it"
+        )
+        self.error(c.mark_of("spacing"), c.path_of("spacing"), message)
+        return False
+
+    def work_error(self, shapes: int, mark: Mark, path: tuple) -> None:
+        """Report a step above WORK_MAX: at the larger of solver.substeps and iterations
+        when the scene gives them, else at ``mark`` (the bodies that make it)."""
+        work = shapes * self.per_shape
+        message = (
+            f"a step would cost {shapes:,} shapes x {self.substeps:,} substeps x "
+            f"{self.iterations:,} iterations = {work:,} shape-iterations, more than the "
+            f"{schema.WORK_MAX:,} that keep one step to a fraction of a second"
+        )
+        solver = self.solver
+        given = [
+            k
+            for k in ("substeps", "iterations")
+            if _ok(solver) and k in solver.src and _ok(solver[k])
+        ]
+        if given:
+            key = max(given, key=lambda k: solver[k])
+            mark, path = solver.mark_of(key), solver.path_of(key)
+        self.error(mark, path, message)
 
     # Generator layouts: (name, position of the body origin) for each body, in order.
 

@@ -56,11 +56,12 @@ class Key:
     kind: number | integer | string | enum | fraction (a number or "a/b") | vec2 (two
         numbers) | int2 (two integers) | points (a list of vec2) | object (fixed keys) |
         map_of (names -> item) | list_of (items) | entry (a body or a one-key generator).
-    gt, ge, le: bounds on numbers (for vec2/int2/points: on every component).
+    gt, ge, le: bounds on numbers (for vec2/int2/points: on every component); within:
+        |x| <= within (the same, for a bound symmetric about 0).
     fields: an object's keys. exactly_one / at_most_one: groups of an object's keys.
     item: the value of a map_of, the item of a list_of, the plain body of an entry.
     variants: an entry's one-key alternatives (the generators).
-    min_items: fewest items of a list_of or points.
+    min_items, max_items: fewest and most items of a list_of or points.
     ref: name under ``$defs`` in the JSON Schema (for keys used in several places).
     """
 
@@ -71,14 +72,38 @@ class Key:
     gt: float | None = None
     ge: float | None = None
     le: float | None = None
+    within: float | None = None
     fields: Mapping[str, Key] = field(default_factory=dict)
     exactly_one: tuple[tuple[str, ...], ...] = ()
     at_most_one: tuple[tuple[str, ...], ...] = ()
     item: Key | None = None
     variants: Mapping[str, Key] = field(default_factory=dict)
     min_items: int = 0
+    max_items: int | None = None
     ref: str | None = None
 
+
+# ---------------------------------------------------------------------------------------
+# The range where the engine is meaningful. cli.md ("Bounds") gives each one's reason;
+# the table below and rbsim.scene.resolve (rules over several keys) apply them.
+# ---------------------------------------------------------------------------------------
+
+LENGTH_MAX = 1e6  # m: |coordinate| of positions, offsets, vertices, ends, origins; sizes
+LENGTH_MIN = 1e-6  # m: the smallest size (radius, side, edge, segment length, capsule radius)
+ASPECT_MAX = 1e6  # a body's extent over its thinnest shape dimension
+ANGLE_MAX = 1e6  # rad
+SPEED_MAX = 1e6  # m/s
+SPIN_MAX = 1e6  # rad/s
+ACCELERATION_MAX = 1e6  # m/s²: gravity, and what a constant force or torque gives a body
+DENSITY_MIN, DENSITY_MAX = 1e-6, 1e6  # kg/m²
+MASS_MIN, MASS_MAX = 1e-12, 1e18  # kg
+FRICTION_MAX = 1e3
+DAMPING_MAX = 1e6  # 1/s
+DT_MIN, DT_MAX = 1e-9, 1.0  # s
+POLYGON_VERTICES_MAX = 32
+# shapes x substeps x iterations of one step: about 0.25 µs each on one core (a pile
+# with its contacts), so that a step takes a fraction of a second
+WORK_MAX = 1_000_000
 
 # ---------------------------------------------------------------------------------------
 # The table
@@ -86,8 +111,8 @@ class Key:
 
 DEFAULT_MATERIAL = {"density": 1.0, "friction": 0.6, "restitution": 0.0}
 
-_density = Key("number", "Density per area, kg/m².", gt=0)
-_friction = Key("number", "Coulomb friction coefficient μ.", ge=0)
+_density = Key("number", "Density per area, kg/m².", ge=DENSITY_MIN, le=DENSITY_MAX)
+_friction = Key("number", "Coulomb friction coefficient μ.", ge=0, le=FRICTION_MAX)
 _restitution = Key("number", "Coefficient of restitution e (0: no bounce, 1: elastic).", ge=0, le=1)
 
 # Material keys that a body, a shape or a generator may carry inline. No defaults here:
@@ -115,17 +140,25 @@ SHAPE_KINDS = {
         "object",
         "A circle (disc).",
         fields={
-            "radius": Key("number", "Radius, m.", REQUIRED, gt=0),
-            "offset": Key("vec2", "Centre of the circle in the body frame, m.", (0.0, 0.0)),
+            "radius": Key("number", "Radius, m.", REQUIRED, ge=LENGTH_MIN, le=LENGTH_MAX),
+            "offset": Key(
+                "vec2", "Centre of the circle in the body frame, m.", (0.0, 0.0), within=LENGTH_MAX
+            ),
         },
     ),
     "box": Key(
         "object",
         "A rectangle.",
         fields={
-            "size": Key("vec2", "Full width and height, m.", REQUIRED, gt=0),
-            "offset": Key("vec2", "Centre of the box in the body frame, m.", (0.0, 0.0)),
-            "angle": Key("number", "Rotation of the box in the body frame, rad.", 0.0),
+            "size": Key(
+                "vec2", "Full width and height, m.", REQUIRED, ge=LENGTH_MIN, le=LENGTH_MAX
+            ),
+            "offset": Key(
+                "vec2", "Centre of the box in the body frame, m.", (0.0, 0.0), within=LENGTH_MAX
+            ),
+            "angle": Key(
+                "number", "Rotation of the box in the body frame, rad.", 0.0, within=ANGLE_MAX
+            ),
         },
     ),
     "polygon": Key(
@@ -133,7 +166,12 @@ SHAPE_KINDS = {
         "A convex polygon; clockwise vertices are reordered counter-clockwise.",
         fields={
             "vertices": Key(
-                "points", "Vertices [x, y] in the body frame, m.", REQUIRED, min_items=3
+                "points",
+                f"Vertices [x, y] in the body frame, m (3 to {POLYGON_VERTICES_MAX}).",
+                REQUIRED,
+                min_items=3,
+                max_items=POLYGON_VERTICES_MAX,
+                within=LENGTH_MAX,
             ),
         },
     ),
@@ -141,9 +179,15 @@ SHAPE_KINDS = {
         "object",
         "A line segment from a to b; with a radius > 0, a capsule.",
         fields={
-            "a": Key("vec2", "First end in the body frame, m.", REQUIRED),
-            "b": Key("vec2", "Second end in the body frame, m.", REQUIRED),
-            "radius": Key("number", "Radius around the segment, m.", 0.0, ge=0),
+            "a": Key("vec2", "First end in the body frame, m.", REQUIRED, within=LENGTH_MAX),
+            "b": Key("vec2", "Second end in the body frame, m.", REQUIRED, within=LENGTH_MAX),
+            "radius": Key(
+                "number",
+                "Radius around the segment (0 or at least 1e-6), m.",
+                0.0,
+                ge=0,
+                le=LENGTH_MAX,
+            ),
         },
     ),
 }
@@ -164,14 +208,23 @@ BODY = Key(
     fields={
         "name": Key("string", "Unique name; default body[i] with i the index in `bodies`."),
         "type": Key("enum", "How the body moves.", "dynamic", choices=T.BODY_TYPES),
-        "position": Key("vec2", "Body origin in the world, m.", (0.0, 0.0)),
-        "angle": Key("number", "Orientation, rad.", 0.0),
-        "velocity": Key("vec2", "Velocity of the centre of mass, m/s.", (0.0, 0.0)),
-        "angular_velocity": Key("number", "Angular velocity, rad/s.", 0.0),
+        "position": Key("vec2", "Body origin in the world, m.", (0.0, 0.0), within=LENGTH_MAX),
+        "angle": Key("number", "Orientation, rad.", 0.0, within=ANGLE_MAX),
+        "velocity": Key(
+            "vec2", "Velocity of the centre of mass, m/s.", (0.0, 0.0), within=SPEED_MAX
+        ),
+        "angular_velocity": Key("number", "Angular velocity, rad/s.", 0.0, within=SPIN_MAX),
         **INLINE_MATERIAL,
-        "mass": Key("number", "Mass, kg: overrides the density (inertia scales).", gt=0),
+        "mass": Key(
+            "number",
+            "Mass, kg: overrides the density (inertia scales).",
+            ge=MASS_MIN,
+            le=MASS_MAX,
+        ),
         "force": Key("vec2", "Constant force in the world frame, N.", (0.0, 0.0)),
-        "force_point": Key("vec2", "Where the force acts, body frame, m; default: the COM."),
+        "force_point": Key(
+            "vec2", "Where the force acts, body frame, m; default: the COM.", within=LENGTH_MAX
+        ),
         "torque": Key("number", "Constant torque, N·m.", 0.0),
         "shape": SHAPE,
         "shapes": Key("list_of", "Shapes of a compound body.", item=SHAPE, min_items=1),
@@ -180,8 +233,11 @@ BODY = Key(
     ref="body",
 )
 
-_size = Key("vec2", "Full width and height of each box, m.", (1.0, 1.0), gt=0)
-_spacing = Key("number", "Gap between neighbouring boxes, m.", 0.0, ge=0)
+_size = Key(
+    "vec2", "Full width and height of each box, m.", (1.0, 1.0), ge=LENGTH_MIN, le=LENGTH_MAX
+)
+_spacing = Key("number", "Gap between neighbouring boxes, m.", 0.0, ge=0, le=LENGTH_MAX)
+_origin = "Centre of the bottom row's middle, m; default [0, h/2]."
 
 GENERATORS = {
     "pyramid": Key(
@@ -190,7 +246,7 @@ GENERATORS = {
         fields={
             "base": Key("integer", "Number of boxes in the bottom row.", REQUIRED, ge=1),
             "size": _size,
-            "origin": Key("vec2", "Centre of the bottom row's middle, m; default [0, h/2]."),
+            "origin": Key("vec2", _origin, within=LENGTH_MAX),
             "spacing": _spacing,
             "name": Key("string", "Name prefix.", "pyramid"),
             **INLINE_MATERIAL,
@@ -202,7 +258,9 @@ GENERATORS = {
         fields={
             "count": Key("integer", "Number of boxes.", REQUIRED, ge=1),
             "size": _size,
-            "origin": Key("vec2", "Centre of the bottom box, m; default [0, h/2]."),
+            "origin": Key(
+                "vec2", "Centre of the bottom box, m; default [0, h/2].", within=LENGTH_MAX
+            ),
             "spacing": _spacing,
             "name": Key("string", "Name prefix.", "stack"),
             **INLINE_MATERIAL,
@@ -213,10 +271,14 @@ GENERATORS = {
         "nx by ny copies of one shape, body [i, j] at origin + (i dx, j dy), named name[i,j].",
         fields={
             "count": Key("int2", "[nx, ny], number of bodies along x and y.", REQUIRED, ge=1),
-            "spacing": Key("vec2", "[dx, dy], distance between body origins, m.", REQUIRED),
-            "origin": Key("vec2", "Position of body [0, 0], m.", (0.0, 0.0)),
+            "spacing": Key(
+                "vec2", "[dx, dy], distance between body origins, m.", REQUIRED, within=LENGTH_MAX
+            ),
+            "origin": Key("vec2", "Position of body [0, 0], m.", (0.0, 0.0), within=LENGTH_MAX),
             "shape": replace(SHAPE, default=REQUIRED),
-            "velocity": Key("vec2", "Initial velocity of every body, m/s.", (0.0, 0.0)),
+            "velocity": Key(
+                "vec2", "Initial velocity of every body, m/s.", (0.0, 0.0), within=SPEED_MAX
+            ),
             "name": Key("string", "Name prefix.", "grid"),
             **INLINE_MATERIAL,
         },
@@ -227,8 +289,14 @@ WORLD = Key(
     "Gravity, time step and length of the run, damping, mixing rules.",
     {},
     fields={
-        "gravity": Key("vec2", "Gravity, m/s².", (0.0, -9.81)),
-        "dt": Key("fraction", 'Time step, s; a fraction such as "1/60" is accepted.', 1 / 60, gt=0),
+        "gravity": Key("vec2", "Gravity, m/s².", (0.0, -9.81), within=ACCELERATION_MAX),
+        "dt": Key(
+            "fraction",
+            'Time step, s; a fraction such as "1/60" is accepted.',
+            1 / 60,
+            ge=DT_MIN,
+            le=DT_MAX,
+        ),
         "duration": Key("number", "Length of the run, s (default 10 when steps is absent).", gt=0),
         "steps": Key("integer", "Number of steps (instead of duration).", ge=1),
         "damping": Key(
@@ -236,8 +304,8 @@ WORLD = Key(
             "Velocity damping, 1/s.",
             {},
             fields={
-                "linear": Key("number", "Linear damping, 1/s.", 0.0, ge=0),
-                "angular": Key("number", "Angular damping, 1/s.", 0.0, ge=0),
+                "linear": Key("number", "Linear damping, 1/s.", 0.0, ge=0, le=DAMPING_MAX),
+                "angular": Key("number", "Angular damping, 1/s.", 0.0, ge=0, le=DAMPING_MAX),
             },
         ),
         "mixing": Key(
@@ -268,8 +336,8 @@ SOLVER = Key(
     "Solver settings; every key is optional.",
     {},
     fields={
-        "substeps": Key("integer", "Substeps per step.", 4, ge=1),
-        "iterations": Key("integer", "Velocity iterations per substep.", 1, ge=1),
+        "substeps": Key("integer", "Substeps per step.", 4, ge=1, le=WORK_MAX),
+        "iterations": Key("integer", "Velocity iterations per substep.", 1, ge=1, le=WORK_MAX),
         "integrator": Key(
             "enum",
             "Time integrator.",
@@ -283,7 +351,11 @@ SOLVER = Key(
             choices=T.ROTATIONS,
         ),
         "restitution_threshold": Key(
-            "number", "Approach speed below which contacts do not bounce, m/s.", 1.0, ge=0
+            "number",
+            "Approach speed below which contacts do not bounce, m/s.",
+            1.0,
+            ge=0,
+            le=SPEED_MAX,
         ),
     },
 )
@@ -326,7 +398,10 @@ COMPARE = Key(
         "angle": Key("number", "Angle, rad.", ge=0),
         "velocity": Key("number", "Velocity, m/s.", ge=0),
         "iterations": Key(
-            "integer", "pymunk solver iterations per pymunk step (default 10).", ge=1
+            "integer",
+            "pymunk solver iterations per pymunk step (default 10).",
+            ge=1,
+            le=WORK_MAX,
         ),
         "statistics": Key(
             "object",
@@ -377,9 +452,11 @@ REFERENCE = Key(
         "support": Key(
             "string", "slide, bounce: the static body below; default: the only static body."
         ),
-        "dt": Key("fraction", "converged: the reference run's time step, s.", gt=0),
-        "substeps": Key("integer", "converged: the reference run's substeps.", ge=1),
-        "iterations": Key("integer", "converged: the reference run's iterations.", ge=1),
+        "dt": Key("fraction", "converged: the reference run's time step, s.", ge=DT_MIN, le=DT_MAX),
+        "substeps": Key("integer", "converged: the reference run's substeps.", ge=1, le=WORK_MAX),
+        "iterations": Key(
+            "integer", "converged: the reference run's iterations.", ge=1, le=WORK_MAX
+        ),
     },
 )
 
@@ -398,6 +475,7 @@ SCENE = Key(
             "Bodies, and generators (pyramid, stack, grid) that expand into bodies.",
             REQUIRED,
             item=Key("entry", "A body or a generator.", item=BODY, variants=GENERATORS),
+            min_items=1,
         ),
         "compare": COMPARE,
         "reference": REFERENCE,
@@ -454,7 +532,8 @@ def describe(value: Any) -> str:
     if isinstance(value, str):
         return f"the string {value!r}"
     if isinstance(value, int):
-        return f"the integer {value}"
+        shown = _show(value)
+        return shown if shown.startswith("an integer") else f"the integer {shown}"
     if isinstance(value, float):
         return f"the number {value!r}"
     if isinstance(value, dict):
@@ -465,8 +544,17 @@ def describe(value: Any) -> str:
 
 
 def _show(x: float) -> str:
-    """A number as a user would write it: -1.0 -> '-1', 0.25 -> '0.25'."""
-    return str(int(x)) if isinstance(x, float) and x.is_integer() and abs(x) < 1e15 else repr(x)
+    """A number as a user would write it: -1.0 -> '-1', 0.25 -> '0.25'; an integer of
+    more than 20 digits by its length."""
+    if isinstance(x, int) and not isinstance(x, bool):
+        digits = str(abs(x))
+        return str(x) if len(digits) <= 20 else f"an integer of {len(digits)} digits"
+    return str(int(x)) if x.is_integer() and abs(x) < 1e15 else repr(x)
+
+
+def _bound(x: float) -> str:
+    """A bound as the format's tables write it: 1e6, 1e-6, 0.5, -1e6."""
+    return f"{x:g}".replace("e+0", "e").replace("e+", "e").replace("e-0", "e-")
 
 
 def did_you_mean(word: str, candidates: Any) -> str | None:
@@ -497,29 +585,49 @@ class Checker:
     def _number(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
         if isinstance(value, bool) or not isinstance(value, int | float):
             return self.error(mark, path, f"expected a number, got {describe(value)}")
-        return self._bounded(float(value), key, path, mark)
+        if isinstance(value, int):
+            # the bounds first: an integer beyond float range fails them, or float()
+            problem = self._out_of_bounds(value, key)
+            if problem:
+                return self.error(mark, path, problem)
+            try:
+                value = float(value)
+            except OverflowError:
+                message = f"is too large for a number (above 1.8e308), got {_show(value)}"
+                return self.error(mark, path, message)
+        return self._bounded(value, key, path, mark)
 
     def _integer(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
         if isinstance(value, bool) or not isinstance(value, int):
             return self.error(mark, path, f"expected an integer, got {describe(value)}")
         if key.choices and value not in key.choices:
             allowed = " or ".join(str(c) for c in key.choices)
-            return self.error(mark, path, f"must be {allowed}, got {value}")
+            return self.error(mark, path, f"must be {allowed}, got {_show(value)}")
         return self._bounded(value, key, path, mark)
 
     def _bounded(self, x: float, key: Key, path: Path, mark: Mark) -> Any:
-        if not math.isfinite(x):
+        if isinstance(x, float) and not math.isfinite(x):
             return self.error(mark, path, f"must be a finite number, got {x}")
+        problem = self._out_of_bounds(x, key)
+        return self.error(mark, path, problem) if problem else x
+
+    @staticmethod
+    def _out_of_bounds(x: float, key: Key) -> str | None:
+        """Why ``x`` (a finite float, or an int of any size) is outside ``key``'s bounds,
+        or None. Integers are compared exactly (no float conversion)."""
         shown = _show(x)
+        if key.within is not None and not -key.within <= x <= key.within:
+            w = _bound(key.within)
+            return f"must be between -{w} and {w}, got {shown}"
         if key.ge is not None and key.le is not None and not key.ge <= x <= key.le:
-            return self.error(mark, path, f"must be between {key.ge:g} and {key.le:g}, got {shown}")
+            return f"must be between {_bound(key.ge)} and {_bound(key.le)}, got {shown}"
         if key.gt is not None and not x > key.gt:
-            return self.error(mark, path, f"must be > {key.gt:g}, got {shown}")
+            return f"must be > {_bound(key.gt)}, got {shown}"
         if key.ge is not None and not x >= key.ge:
-            return self.error(mark, path, f"must be >= {key.ge:g}, got {shown}")
+            return f"must be >= {_bound(key.ge)}, got {shown}"
         if key.le is not None and not x <= key.le:
-            return self.error(mark, path, f"must be <= {key.le:g}, got {shown}")
-        return x
+            return f"must be <= {_bound(key.le)}, got {shown}"
+        return None
 
     def _fraction(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
         if isinstance(value, str):
@@ -584,6 +692,8 @@ class Checker:
             return self.error(
                 mark, path, f"needs at least {key.min_items} points, got {len(value)}"
             )
+        if key.max_items is not None and len(value) > key.max_items:
+            return self.error(mark, path, f"at most {key.max_items} points, got {len(value)}")
         points = tuple(
             self._vec2(v, key, path + (i,), value.item_marks[i]) for i, v in enumerate(value)
         )
@@ -736,6 +846,8 @@ def _json_bounds(key: Key, kind: str) -> dict[str, Any]:
         out["minimum"] = key.ge
     if key.le is not None:
         out["maximum"] = key.le
+    if key.within is not None:
+        out["minimum"], out["maximum"] = -key.within, key.within
     return out
 
 
@@ -766,8 +878,11 @@ def _json_body(key: Key, defs: dict[str, Any]) -> dict[str, Any]:
         item = _json_bounds(key, "number" if kind == "vec2" else "integer")
         out |= {"type": "array", "items": item, "minItems": 2, "maxItems": 2}
     elif kind == "points":
-        point = {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2}
+        item = _json_bounds(key, "number")
+        point = {"type": "array", "items": item, "minItems": 2, "maxItems": 2}
         out |= {"type": "array", "items": point, "minItems": key.min_items}
+        if key.max_items is not None:
+            out["maxItems"] = key.max_items
     elif kind == "object":
         out |= {
             "type": "object",

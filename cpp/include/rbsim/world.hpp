@@ -13,6 +13,12 @@
 
 namespace rbsim {
 
+// Farthest a body's centre of mass may go from the origin, m, per axis. Scenes start
+// within 1e6 m (rbsim.scene.schema.LENGTH_MAX); a body that flies beyond 1e9 m, where a
+// double resolves only 1.2e-7 m, has left the simulation: advance reports it as it does
+// a non-finite state, before the broadphase's integer cell indices could overflow.
+inline constexpr double POSITION_LIMIT = 1.0e9;
+
 // The stages as the step calls them, for the time spent in each (World::profile).
 enum class StageId : int {
   Transform, FindPairs, UpdateManifolds, Prepare, SupportOrder, Waves, IntegrateVelocities,
@@ -42,7 +48,9 @@ struct World {
   // state is then unchanged: grow and call again).
   bool step();
   // Up to n_steps steps, growing the contact store as needed. Returns Ok, or NonFinite
-  // with *bad_body set to the first body whose state is not finite; *taken = steps taken.
+  // with *bad_body set to a body whose state is not finite or beyond POSITION_LIMIT
+  // (the first dynamic one; a static or kinematic one only when no dynamic one is):
+  // *taken = steps taken.
   Status advance(std::int64_t n_steps, std::int64_t* taken, std::int64_t* bad_body);
   // Room for `capacity` manifolds and pairs, keeping what warm starting needs.
   void grow(std::int64_t capacity);

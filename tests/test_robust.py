@@ -1,0 +1,279 @@
+"""Issue 18, the front and the run loop: a scene `validate` accepts runs (those at the
+bounds included), `run -o` does not overwrite what it should not, a bad state names a
+dynamic body, overflowing observables fail the run, and a signal stops the engine
+between two steps of one long advance, without changing what the steps compute.
+
+The scenes the bounds reject are in tests/bad_scenes/ (one file each, with the message).
+"""
+
+from __future__ import annotations
+
+import math
+import signal
+import textwrap
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rbsim.core import POSITION_LIMIT, CoreWorld
+from rbsim.io.trajectory import load_trajectory
+from rbsim.run import RunFailed, run_scene
+
+from .conftest import rbsim, scene_from
+
+BALL = """\
+version: 1
+name: ball
+world: {steps: 10}
+bodies:
+  - {name: ground, type: static, shape: {segment: {a: [-10, 0], b: [10, 0]}}}
+  - {name: ball, position: [0, 0.5], shape: {circle: {radius: 0.5}}}
+"""
+
+
+def write(folder: Path, name: str, text: str) -> Path:
+    path = folder / name
+    path.write_text(textwrap.dedent(text))
+    return path
+
+
+# scenes at the bounds: validate accepts them, so run must step them -----------------------
+
+AT_THE_BOUNDS = {
+    # a 1 µm ball resting 1e6 m from the origin, on a 1 m box
+    "smallest_ball_farthest_out": """\
+        version: 1
+        world: {dt: 1.0e-4, steps: 3}
+        bodies:
+          - {name: ground, type: static, position: [999999, -0.5], shape: {box: {size: [1, 1]}}}
+          - {name: ball, position: [999999, 1.0e-6], shape: {circle: {radius: 1.0e-6}}}
+        """,
+    # a ground 1e6 m wide, a box 1e6 times longer than thick on it (aspect at the bound)
+    "largest_sizes": """\
+        version: 1
+        world: {steps: 3}
+        bodies:
+          - {name: ground, type: static, shape: {box: {size: [1.0e+6, 1], offset: [0, -0.5]}}}
+          - {name: plank, position: [0, 0.0005], shape: {box: {size: [1000, 0.001]}}}
+        """,
+    # 9.9e5 m/s² from a force, 9.9e5 m/s² at the radius of gyration from a torque
+    "strongest_force_and_torque": """\
+        version: 1
+        world: {gravity: [0, -1.0e+6], dt: 1, steps: 3}
+        bodies:
+          - {name: rocket, force: [7.8e+5, 0], torque: 2.7e+5, shape: {circle: {radius: 0.5}}}
+        """,
+    # the work bound exactly: 1 shape x 250,000 substeps x 4 iterations
+    "most_work": """\
+        version: 1
+        world: {steps: 2}
+        solver: {substeps: 250000, iterations: 4}
+        bodies:
+          - {name: ball, shape: {circle: {radius: 0.5}}}
+        """,
+    # a grid whose bodies overlap their 8 neighbours, the most allowed
+    "grid_overlapping_neighbours": """\
+        version: 1
+        world: {steps: 3}
+        bodies:
+          - {name: ground, type: static, shape: {segment: {a: [-10, 0], b: [10, 0]}}}
+          - grid: {count: [4, 4], spacing: [0.6, 0.6], origin: [0, 1], shape: {box: {size: [1, 1]}}}
+        """,
+    # 32 vertices, the shortest edges allowed, the smallest density and a tiny dt
+    "round_polygon_light_and_fine": """\
+        version: 1
+        world: {dt: 1.0e-9, steps: 3}
+        bodies:
+          - {name: ground, type: static, shape: {segment: {a: [-1, 0], b: [1, 0]}}}
+          - name: coin
+            density: 1.0e-6
+            position: [0, 0.0001]
+            shape: {polygon: {vertices: %s}}
+        """
+    % [
+        [
+            round(1e-4 * math.cos(math.tau * k / 32), 12),
+            round(1e-4 * math.sin(math.tau * k / 32), 12),
+        ]
+        for k in range(32)
+    ],
+}
+
+
+@pytest.mark.parametrize("name", sorted(AT_THE_BOUNDS))
+def test_a_scene_at_the_bounds_validates_and_runs(tmp_path: Path, name: str) -> None:
+    scene = write(tmp_path, f"{name}.yaml", AT_THE_BOUNDS[name])
+    code, _, stderr = rbsim("validate", scene)
+    assert code == 0, stderr
+    out = tmp_path / f"{name}.h5"
+    code, _, stderr = rbsim("run", scene, "-o", out, "-q")
+    assert code == 0, stderr
+    tr = load_trajectory(out)
+    assert tr.status == "complete"
+    assert np.isfinite(tr.position).all() and np.isfinite(tr.velocity).all()
+
+
+# run -o -----------------------------------------------------------------------------------
+
+
+def test_run_refuses_to_write_over_its_own_scene(tmp_path: Path) -> None:
+    scene = write(tmp_path, "ball.yaml", BALL)
+    code, stdout, stderr = rbsim("run", scene, "-o", scene)
+    assert code == 2, stderr
+    assert "is the scene file itself" in stderr and "--force" in stderr
+    assert scene.read_text() == BALL  # untouched
+    # the same file by another name is the same file
+    code, _, stderr = rbsim("run", scene, "-o", tmp_path / "." / "ball.yaml")
+    assert code == 2 and "is the scene file itself" in stderr
+
+
+def test_run_refuses_a_file_that_is_not_a_trajectory_unless_forced(tmp_path: Path) -> None:
+    scene = write(tmp_path, "ball.yaml", BALL)
+    notes = tmp_path / "notes.txt"
+    notes.write_text("my notes\n")
+    code, _, stderr = rbsim("run", scene, "-o", notes)
+    assert code == 2, stderr
+    assert "notes.txt exists and is not an rbsim trajectory" in stderr
+    assert notes.read_text() == "my notes\n"
+    code, _, stderr = rbsim("run", scene, "-o", notes, "-q", "--force")
+    assert code == 0, stderr
+    assert load_trajectory(notes).status == "complete"
+
+
+def test_run_replaces_a_trajectory_or_an_empty_file(tmp_path: Path) -> None:
+    scene = write(tmp_path, "ball.yaml", BALL)
+    out = tmp_path / "ball.h5"
+    out.touch()
+    for _ in range(2):  # an empty file, then the trajectory the first run wrote
+        code, _, stderr = rbsim("run", scene, "-o", out, "-q")
+        assert code == 0, stderr
+    assert load_trajectory(out).status == "complete"
+
+
+def test_run_to_dev_null_is_one_line_and_exit_1(tmp_path: Path) -> None:
+    if not Path("/dev/null").exists():
+        pytest.skip("no /dev/null")
+    scene = write(tmp_path, "ball.yaml", BALL)
+    for extra in ((), ("--force",)):
+        code, stdout, stderr = rbsim("run", scene, "-o", "/dev/null", *extra)
+        assert (code, stdout) == (1, "")
+        assert stderr == "error: cannot write /dev/null: not a regular file\n"
+
+
+def test_running_out_of_memory_is_one_line_and_exit_1(tmp_path: Path, monkeypatch) -> None:
+    def no_memory(*args, **kwargs):
+        raise MemoryError("std::bad_alloc")
+
+    monkeypatch.setattr("rbsim.run.run_scene", no_memory)
+    code, stdout, stderr = rbsim("run", write(tmp_path, "ball.yaml", BALL), "-o", tmp_path / "b.h5")
+    assert (code, stdout) == (1, "")
+    assert stderr.startswith("error: ") and "out of memory" in stderr
+    assert len(stderr.splitlines()) == 1
+
+
+# bad states and overflowing observables ----------------------------------------------------
+
+
+def test_a_bad_state_names_a_dynamic_body_before_a_static_one() -> None:
+    world = CoreWorld.from_scene(scene_from(BALL))
+    # the ground (body 0) and the ball (body 1) both bad: the ball is the one to blame
+    world.state.body_x[0] = np.nan
+    world.state.body_v[1] = np.nan
+    with pytest.raises(Exception) as info:
+        world.advance(1)
+    assert info.value.body == 1 and info.value.beyond is None
+
+
+def test_a_body_beyond_the_region_is_reported_as_such() -> None:
+    world = CoreWorld.from_scene(scene_from(BALL))
+    world.state.body_x[1] = (2 * POSITION_LIMIT, 0.5)  # finite, far out
+    with pytest.raises(Exception) as info:
+        world.advance(1)
+    assert info.value.body == 1 and info.value.beyond == POSITION_LIMIT
+    assert "left the simulated region" in info.value.describe("'ball'")
+
+
+def test_an_overflowing_observable_fails_the_run(tmp_path: Path) -> None:
+    # a velocity past the bounds (set after validation) whose kinetic energy is inf
+    scene = scene_from(BALL)
+    ball = replace(scene.bodies[1], velocity=(1e200, 0.0))
+    scene = replace(scene, bodies=(scene.bodies[0], ball))
+    out = tmp_path / "ke.h5"
+    with pytest.raises(RunFailed, match="kinetic energy overflowed"):
+        run_scene(scene, out)
+    tr = load_trajectory(out)
+    assert tr.status == "failed: kinetic_energy overflowed at step 0"
+    assert len(tr.step) == 0  # the frame with inf is not written
+
+
+# Ctrl-C between two steps of one advance ---------------------------------------------------
+
+PILE = """\
+version: 1
+world: {steps: 1000000}
+bodies:
+  - {name: ground, type: static, shape: {segment: {a: [-20, 0], b: [20, 0]}}}
+  - pyramid: {base: 10}
+"""
+
+
+class Stop(Exception):
+    pass
+
+
+class Alarm:
+    """SIGALRM after `seconds`, raising Stop from its handler while armed (disarmed on
+    leaving the block, so that a late alarm cannot raise outside the code under test)."""
+
+    def __init__(self) -> None:
+        self.armed = False
+
+    def _handle(self, signum, frame) -> None:
+        if self.armed:
+            raise Stop
+
+    def start(self, seconds: float) -> None:
+        self.armed = True
+        signal.setitimer(signal.ITIMER_REAL, seconds)
+
+    def __enter__(self) -> Alarm:
+        self.previous = signal.signal(signal.SIGALRM, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.armed = False
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, self.previous)
+
+
+def test_a_signal_stops_a_long_advance_between_two_steps() -> None:
+    world = CoreWorld.from_scene(scene_from(PILE))
+    n = 20_000  # seconds of steps; the alarm comes after about 50 ms of them
+    with Alarm() as alarm, pytest.raises(Stop):
+        alarm.start(0.05)
+        world.advance(n)
+    # stopped inside the call (without the check, all n steps are taken first, and the
+    # handler runs only after), between two whole steps
+    assert 0 < world.step_index < n
+    assert np.isfinite(world.state.body_x).all()
+
+
+def test_an_interrupted_advance_takes_the_same_steps() -> None:
+    n = 2000  # about 0.1 s of steps, stopped every 20 ms or so
+    whole = CoreWorld.from_scene(scene_from(PILE))
+    whole.advance(n)
+    parts = CoreWorld.from_scene(scene_from(PILE))
+    stops = 0
+    with Alarm() as alarm:
+        while parts.step_index < n:
+            try:
+                alarm.start(0.005)
+                parts.advance(n - parts.step_index)
+                alarm.armed = False
+            except Stop:
+                stops += 1
+    assert stops >= 1  # it was cut at least once
+    for a, b in zip(whole.state, parts.state, strict=True):
+        np.testing.assert_array_equal(a, b)  # bit for bit
