@@ -358,3 +358,28 @@ def test_run_from_python_returns_the_trajectory_in_memory(tmp_path) -> None:
     out = tmp_path / "kept.h5"
     on_file = rb.run(path, out)
     assert out.exists() and same_frames(traj, on_file, 91)
+
+
+def test_a_run_stopped_between_frames_resumes_bit_identically(tmp_path) -> None:
+    # output every 7th step: the stop lands between frames, and the checkpoint holds the
+    # state of the last whole step, past the last frame
+    scene = big_scene(tmp_path, 450)
+    ref = tmp_path / "ref7.h5"
+    code, _o, err = rbsim("run", scene, "-o", ref, "-q", "--set", "output.every=7")
+    assert code == 0, err
+    out = tmp_path / "stopped7.h5"
+    proc = start_run(scene, "-o", out, "--set", "output.every=7")
+    checkpoint = Path(f"{out}{CHECKPOINT_SUFFIX}")
+    deadline = time.monotonic() + 60
+    while not checkpoint.exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    time.sleep(0.13)
+    proc.send_signal(signal.SIGTERM)
+    proc.communicate(timeout=60)
+    if proc.returncode == 0:
+        pytest.skip("the run finished before SIGTERM arrived")
+    assert proc.returncode == 130
+    code, _o, err = rbsim("run", "--resume", out, "-q")
+    assert code == 0, err
+    a, b = load_trajectory(ref), load_trajectory(out)
+    assert len(b.step) == len(a.step) and same_frames(a, b, len(a.step))
