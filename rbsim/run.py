@@ -458,11 +458,15 @@ def _finite_rows(
 ) -> tuple[int, ObservableOverflow | None]:
     """Of the `count` frames just recorded in `block` from `row` on: how many lead with
     finite observables, and the ObservableOverflow of the first that does not (None)."""
-    for r in range(row, row + count):
-        for name in OBSERVABLES:
-            if not np.all(np.isfinite(block[name][r])):
-                return r - row, ObservableOverflow(name, int(block["step"][r]))
-    return count, None
+    first, culprit = count, None
+    for name in OBSERVABLES:
+        rows = block[name][row : row + count].reshape(count, -1)
+        bad = np.flatnonzero(~np.isfinite(rows).all(axis=1))
+        if bad.size and bad[0] < first:
+            first, culprit = int(bad[0]), name
+    if culprit is None:
+        return count, None
+    return first, ObservableOverflow(culprit, int(block["step"][row + first]))
 
 
 class ResumeError(ValueError):
