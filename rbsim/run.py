@@ -459,6 +459,8 @@ def _finite_rows(
     """Of the `count` frames just recorded in `block` from `row` on: how many lead with
     finite observables, and the ObservableOverflow of the first that does not (None)."""
     first, culprit = count, None
+    if count == 0:
+        return 0, None
     for name in OBSERVABLES:
         rows = block[name][row : row + count].reshape(count, -1)
         bad = np.flatnonzero(~np.isfinite(rows).all(axis=1))
