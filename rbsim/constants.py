@@ -9,6 +9,10 @@ from __future__ import annotations
 
 from .core import CONSTANTS as _ENGINE
 
+# the tolerances below hold for shapes of SCALE_LENGTH (m) and larger (constants.hpp)
+SCALE_LENGTH: float = _ENGINE["SCALE_LENGTH"]  # m
+STIFFNESS_LENGTH: float = _ENGINE["STIFFNESS_LENGTH"]  # m: smaller pairs are stiffer
+HEAVY_RATIO: float = _ENGINE["HEAVY_RATIO"]  # a heavy body on a light one
 SPECULATIVE_DISTANCE: float = _ENGINE["SPECULATIVE_DISTANCE"]  # m
 LINEAR_SLOP: float = _ENGINE["LINEAR_SLOP"]  # m, the collision tolerance
 AABB_MARGIN: float = _ENGINE["AABB_MARGIN"]  # m
@@ -22,6 +26,7 @@ STATIC_OVERLAP_LIMIT: float = _ENGINE["STATIC_OVERLAP_LIMIT"]  # m
 STILL_DISTANCE: float = _ENGINE["STILL_DISTANCE"]  # m
 STILL_ANGLE: float = _ENGINE["STILL_ANGLE"]  # rad
 RESTITUTION_PASSES: int = _ENGINE["RESTITUTION_PASSES"]
+IMPACT_GAP: float = _ENGINE["IMPACT_GAP"]  # m: an impact at a wall is resolved within it
 REFERENCE_FACE_TOLERANCE: float = _ENGINE["REFERENCE_FACE_TOLERANCE"]  # m
 SEGMENT_SKIN: float = _ENGINE["SEGMENT_SKIN"]  # m
 BIG_MAX: int = _ENGINE["BIG_MAX"]  # broadphase: shapes tested against every shape

@@ -278,6 +278,62 @@ def test_long_run_energy_drift_below_one_percent_with_symplectic_euler():
 
 
 # ---------------------------------------------------------------------------------------
+# Contacts at every scale (issue 18)
+# ---------------------------------------------------------------------------------------
+
+
+def test_millimetre_stack_holds_as_the_metre_stack_does():
+    must("stack_mm", "overlap", "<", 0.01)  # issue 18: overlaps below 1% of the 2 mm box
+    must("stack_mm", "vs_metre", "<", 2.0)  # issue 18: within 2x of the 1 m stack's, relative
+    must("stack_mm", "sideways", "<", 0.05)  # the 1 m stack's 5 cm, per box size
+    must("stack_mm", "sag", "<", 0.10)  # the 1 m stack's 10 cm, per box size
+
+
+def test_heavy_box_on_a_far_lighter_one_does_not_sink_in():
+    must("mass_ratio", "overlap", "<", 0.01)  # issue 18: below 1% of the 1 m boxes at rest
+
+
+# ---------------------------------------------------------------------------------------
+# Impacts with friction (issue 18)
+# ---------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("rate", [60, 120, 240])
+def test_oblique_impact_sticks_as_the_closed_form_at_every_dt(rate):
+    must("oblique_impact", f"tangential_{rate}", "<", 0.01)  # issue 18: v_t, ω within 1%
+    must("oblique_impact", f"normal_{rate}", "<", 0.01)  # v_n = −e v₀ within 1% of v₀
+    must("oblique_impact", f"short_{rate}", "<", LINEAR_SLOP)  # it reaches the wall
+
+
+@pytest.mark.parametrize("rate", [60, 120, 240])
+def test_spinning_disk_slides_on_the_wall_as_the_closed_form_at_every_dt(rate):
+    must("spin_impact", f"tangential_{rate}", "<", 0.01)  # issue 18: μ J_n, within 1%
+    must("spin_impact", f"short_{rate}", "<", LINEAR_SLOP)  # no bounce before the wall
+
+
+def test_disk_wall_impact_closed_form():
+    # sticking: the contact point stops, v_t + ω r = 0, whatever e
+    for e in (0.0, 0.5, 1.0):
+        vx, vy, w = hard.disk_wall_impact((4.0, 3.0), 0.0, 0.5, e, 0.69)
+        assert (vx, vy, w) == pytest.approx((-4.0 * e, 2.0, -4.0), abs=1e-12)
+    # sliding: the friction impulse is μ J_n
+    vx, vy, w = hard.disk_wall_impact((4.0, 0.0), 300.0, 0.5, 0.5, 0.69)
+    assert (vx, vy, w) == pytest.approx((-2.0, -4.14, 300.0 - 16.56), abs=1e-12)
+
+
+def test_turning_point_of_a_bounce_and_of_a_stop():
+    t = np.arange(0.0, 1.0, 0.1)
+    # moving at 2 m/s, turned back at x = 1 (t = 0.5) at 1 m/s: frames miss the turn
+    x = np.where(t < 0.5, 2.0 * t, 1.0 - (t - 0.5))
+    v = np.where(t < 0.5, 2.0, -1.0)
+    assert hard.turning_point(t, x, v) == pytest.approx(1.0)
+    # stopped at x = 0.9
+    x = np.minimum(2.0 * t, 0.9)
+    v = np.where(2.0 * t < 0.9, 2.0, 0.0)
+    assert hard.turning_point(t, x, v) == pytest.approx(0.9)
+
+
+# ---------------------------------------------------------------------------------------
 # Determinism
 # ---------------------------------------------------------------------------------------
 

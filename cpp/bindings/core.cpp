@@ -134,6 +134,7 @@ nb::dict storage(World2& w, nb::handle owner) {
   RBSIM_VIEW(pairs) RBSIM_VIEW(shape_a) RBSIM_VIEW(shape_b) RBSIM_VIEW(body_a) RBSIM_VIEW(body_b)
   RBSIM_VIEW(key) RBSIM_VIEW(normal) RBSIM_VIEW(points) RBSIM_VIEW(friction) RBSIM_VIEW(restitution)
   RBSIM_VIEW(anchor_a) RBSIM_VIEW(anchor_b) RBSIM_VIEW(base_separation) RBSIM_VIEW(ref_separation)
+  RBSIM_VIEW(sep_anchor_a) RBSIM_VIEW(sep_anchor_b)
   RBSIM_VIEW(feature) RBSIM_VIEW(normal_impulse) RBSIM_VIEW(start_impulse) RBSIM_VIEW(tangent_impulse)
   RBSIM_VIEW(normal_mass) RBSIM_VIEW(solver_row) RBSIM_VIEW(approach_velocity)
   RBSIM_VIEW(approach_separation) RBSIM_VIEW(max_normal_impulse) RBSIM_VIEW(prev_key)
@@ -251,7 +252,7 @@ nb::object run_stage(World2& w, const std::string& name, nb::dict args) {
     update_manifolds(m, st, c, w.grid, load_value<std::int64_t>(args, "n_pairs"), cf.friction_rule,
                      cf.restitution_rule, cf.dt);
   } else if (name == "prepare_contacts") {
-    prepare_contacts(m, st, c, cf.soft, cf.soft_static);
+    prepare_contacts(m, st, c, cf);
   } else if (name == "support_order") {
     return nb::int_(support_order(m, c));
   } else if (name == "deep_region") {
@@ -557,12 +558,13 @@ NB_MODULE(_core, mod) {
     RBSIM_CONSTANT(CONTACT_PUSH_MAX_VELOCITY) RBSIM_CONSTANT(DEEP_OVERLAP)
     RBSIM_CONSTANT(DEEP_RELAX_FACTOR) RBSIM_CONSTANT(DEEP_RELAX_REACH)
     RBSIM_CONSTANT(STATIC_OVERLAP_LIMIT) RBSIM_CONSTANT(STILL_DISTANCE) RBSIM_CONSTANT(STILL_ANGLE)
-    RBSIM_CONSTANT(RESTITUTION_PASSES) RBSIM_CONSTANT(TOI_TOLERANCE) RBSIM_CONSTANT(TOI_ITERATIONS)
+    RBSIM_CONSTANT(RESTITUTION_PASSES) RBSIM_CONSTANT(IMPACT_GAP) RBSIM_CONSTANT(TOI_TOLERANCE) RBSIM_CONSTANT(TOI_ITERATIONS)
     RBSIM_CONSTANT(TOI_FINISH) RBSIM_CONSTANT(REFERENCE_FACE_TOLERANCE) RBSIM_CONSTANT(SEGMENT_SKIN)
     RBSIM_CONSTANT(LINEAR_EPSILON) RBSIM_CONSTANT(SHOCK_COS) RBSIM_CONSTANT(SHOCK_MIN_APPROACH)
     RBSIM_CONSTANT(CELL_SIZES) RBSIM_CONSTANT(TABLE_PER_SHAPE) RBSIM_CONSTANT(BIG_MAX)
     RBSIM_CONSTANT(BIG_CELLS_MAX) RBSIM_CONSTANT(RADIX_BITS) RBSIM_CONSTANT(INSERTION_SORT_MAX)
-    RBSIM_CONSTANT(ATAN_SERIES_MAX)
+    RBSIM_CONSTANT(ATAN_SERIES_MAX) RBSIM_CONSTANT(SCALE_LENGTH) RBSIM_CONSTANT(STIFFNESS_LENGTH)
+    RBSIM_CONSTANT(HEAVY_RATIO)
 #undef RBSIM_CONSTANT
     mod.attr("constants") = k;
   }

@@ -2,7 +2,8 @@
 // only file that orders stages:
 //
 //   transform -> find_pairs -> update_manifolds -> prepare -> support_order -> waves
-//   -> [per substep: integrate_velocities -> warm_start -> solve -> integrate_positions
+//   -> [per substep: integrate_velocities -> warm_start -> solve (-> shock, while a heavy
+//       body rests on a light one) -> integrate_positions
 //       -> relax (-> extra relax passes near a deep overlap) -> restitution -> shock]
 //   -> limit_static_overlap -> store_impulses
 //
@@ -28,12 +29,23 @@ template <int D>
 void World<D>::allocate() {
   const int n_shapes = model.shape_count();
   const std::int64_t capacity = 4 * static_cast<std::int64_t>(n_shapes) + 16;
+  std::vector<double> size;  // m: each shape's half diagonal
   if constexpr (HAS_CONTACTS<D>) {
     std::vector<std::uint8_t> dynamic(n_shapes);
     for (int s = 0; s < n_shapes; ++s) dynamic[s] = model.is_dynamic(model.shape_body[s]);
-    grid.allocate(shape_extent(model), dynamic, capacity);
+    size = shape_extent(model);
+    grid.allocate(size, dynamic, capacity);
   }
   contacts.allocate(model.body_count(), n_shapes, model.vertex_count(), capacity);
+  // the contact tolerances' scale of every shape and body (constants.hpp, SCALE_LENGTH)
+  contacts.unit_scale = true;
+  for (int s = 0; s < static_cast<int>(size.size()); ++s) {
+    contacts.shape_size[s] = size[s];
+    contacts.shape_scale[s] = std::min(1.0, size[s] / C::SCALE_LENGTH);
+    double& body = contacts.body_scale[model.shape_body[s]];
+    body = std::min(body, contacts.shape_scale[s]);
+    contacts.unit_scale = contacts.unit_scale && contacts.shape_scale[s] == 1.0;
+  }
 }
 
 template <int D>
@@ -72,7 +84,7 @@ bool World<D>::collide() {
     update_manifolds(model, state, c, grid, n_pairs, cfg.friction_rule, cfg.restitution_rule,
                      cfg.dt);
   });
-  timed(S::Prepare, [&] { prepare_contacts(model, state, c, cfg.soft, cfg.soft_static); });
+  timed(S::Prepare, [&] { prepare_contacts(model, state, c, cfg); });
   timed(S::SupportOrder, [&] { c.count.shock_count = support_order(model, c); });
   timed(S::Waves, [&] { find_waves(model, c); });
   return true;
@@ -108,6 +120,10 @@ bool World<D>::step() {
         for (int it = 0; it < cfg.iterations; ++it)
           solve_waves(model, state, c, inv_h, true, 0.0, threshold);
       });
+    }
+    if (contacts_on && c.heavy_on_light) {
+      // a heavy body on a light one: its approach is taken out before the positions move
+      timed(S::Shock, [&] { propagate_shock(model, state, c, c.count.shock_count, inv_h, threshold); });
     }
     if (!cfg.explicit_euler) {
       if (contacts_on && cfg.elastic) keep_solve_impulses(c);

@@ -139,7 +139,7 @@ inline std::int64_t collide(World<2>& w) {
   w.contacts.count.pairs = n_pairs;
   update_manifolds(w.model, w.state, w.contacts, w.grid, n_pairs, cfg.friction_rule,
                    cfg.restitution_rule, cfg.dt);
-  prepare_contacts(w.model, w.state, w.contacts, cfg.soft, cfg.soft_static);
+  prepare_contacts(w.model, w.state, w.contacts, cfg);
   w.contacts.count.shock_count = support_order(w.model, w.contacts);
   for (auto& d : w.contacts.body_delta) d = BodyDelta<2>{};
   return w.contacts.count.manifolds;

@@ -102,4 +102,46 @@ TEST(coefficients_mix_by_the_rule) {
   }
 }
 
+// A circle's separation follows its centre (the core), not the contact point: the lever
+// arm reaches the surface, the separation anchor is the centre, and a turn of the ball
+// leaves the separation as it is (its surface does not move).
+TEST(circle_separation_follows_its_centre_not_its_turning_surface) {
+  SceneBuilder s;
+  s.ground();
+  const int ball = s.circle({0.0, 0.5 + 0.01}, 0.5, 1.0);  // 1 cm above the ground
+  World<2>& w = s.finish();
+  auto& c = w.contacts;
+  rbsim::test::collide(w);
+  CHECK(c.count.manifolds == 1 && c.points[0] == 1);
+  const bool a = c.body_a[0] == ball;
+  const Vec2 sep_anchor = a ? c.sep_anchor_a[0][0] : c.sep_anchor_b[0][0];
+  const Vec2 lever = a ? c.anchor_a[0][0] : c.anchor_b[0][0];
+  CHECK_NEAR(length(sep_anchor), 0.0, 1e-12);
+  CHECK_NEAR(lever.y, -0.5, 1e-12);  // to its surface, where it will touch the ground
+  CHECK_NEAR(lever.x, 0.0, 1e-12);
+  // the ball turned by a quarter since the step began: still 1 cm above the ground
+  c.body_delta[ball].dq = {0.0, 1.0};
+  const double sep = c.base_separation[0][0] +
+                     dot(c.normal[0], rotate(c.body_delta[c.body_a[0]].dq, c.sep_anchor_a[0][0]) -
+                                          rotate(c.body_delta[c.body_b[0]].dq, c.sep_anchor_b[0][0]));
+  CHECK_NEAR(sep, 0.01, 1e-12);
+}
+
+// The speculative distance is the pair's, scaled to its smaller shape: 2 mm boxes 1 mm
+// apart (at rest) are beyond their SPECULATIVE_DISTANCE times the scale (0.28 mm); 1 m
+// boxes 1 mm apart are within 2 cm. The manifold keeps the scale for the later stages.
+TEST(speculative_distance_follows_the_size_of_the_shapes) {
+  for (const double half : {0.001, 0.5}) {
+    SceneBuilder s;
+    s.world.model.gravity = {0.0, 0.0};
+    s.box({0.0, 0.0}, half, half, 1.0);
+    s.box({0.0, 2.0 * half + 0.001}, half, half, 1.0);
+    World<2>& w = s.finish();
+    rbsim::test::collide(w);
+    const double scale = std::min(1.0, std::hypot(half, half) / constants::SCALE_LENGTH);
+    CHECK(w.contacts.count.manifolds == (half == 0.5 ? 1 : 0));
+    if (half == 0.5) CHECK(w.contacts.scale[0] == scale);
+  }
+}
+
 RBSIM_TEST_MAIN

@@ -48,4 +48,19 @@ TEST(overlap_between_dynamic_bodies_is_left_to_the_solver) {
   CHECK(w.state.body_x[a].y == 0.0 && w.state.body_x[b].y == 0.9);
 }
 
+// The limit is the contact's, scaled to its smaller shape (SCALE_LENGTH): a box of 2 mm
+// 0.5 mm into the ground is moved out to 2 cm times its scale, a 1 m box 0.5 mm in is not.
+TEST(limit_follows_the_size_of_the_shapes) {
+  SceneBuilder s;
+  s.ground();
+  const int small = s.box({-3.0, 0.001 - 0.0005}, 0.001, 0.001, 1e-6);
+  const int big = s.box({3.0, 0.5 - 0.0005}, 0.5, 0.5, 1.0);
+  World<2>& w = s.finish();
+  rbsim::test::collide(w);
+  limit_static_overlap(w.model, w.state, w.contacts, LIMIT);
+  const double scale = std::hypot(0.001, 0.001) / constants::SCALE_LENGTH;
+  CHECK_NEAR(w.state.body_x[small].y, 0.001 - scale * LIMIT, 1e-12);
+  CHECK(w.state.body_x[big].y == 0.5 - 0.0005);
+}
+
 RBSIM_TEST_MAIN

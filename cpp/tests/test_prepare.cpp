@@ -66,4 +66,32 @@ TEST(static_contacts_take_the_stiffer_softness) {
   }
 }
 
+// At dt 1/60 (4 substeps) the quarter-of-the-substep-rate cap holds every contact at the
+// scene's softness, whatever its size; at a finer step a pair of 2 mm boxes is stiffer by
+// sqrt(STIFFNESS_LENGTH / size) (so that it sinks, relative to its size, as 1 m boxes do),
+// and a pair of 1 m boxes is not.
+TEST(small_shapes_are_stiffer_where_the_step_allows) {
+  for (const double dt : {1.0 / 60.0, 1e-4}) {
+    for (const double half : {0.001, 0.5}) {  // m: 2 mm and 1 m boxes
+      SceneBuilder s;
+      s.world.model.gravity = {0.0, 0.0};
+      s.box({0.0, 0.0}, half, half, 1.0);
+      s.box({0.0, 2.0 * half}, half, half, 1.0);
+      World<2>& w = s.finish(dt);
+      rbsim::test::collide(w);
+      const auto& row = w.contacts.solver_row[0];
+      const double h = dt / 4.0, cap = 0.25 / h;
+      const double size = std::hypot(half, half);  // the half diagonal
+      double hertz = std::min(constants::CONTACT_HERTZ, cap);
+      if (size < constants::STIFFNESS_LENGTH)
+        hertz = std::min(hertz * std::sqrt(constants::STIFFNESS_LENGTH / size), cap);
+      const Soft want = soft_parameters(hertz, constants::CONTACT_DAMPING_RATIO, h);
+      CHECK_NEAR(row.gamma, want.impulse_scale / want.mass_scale, 1e-15);
+      CHECK_NEAR(row.bias_rate, want.bias_rate, 1e-12 * want.bias_rate);
+      if (dt > 1e-3 || half == 0.5) CHECK(row.bias_rate == w.config.soft.bias_rate);
+      if (dt < 1e-3 && half == 0.001) CHECK(row.bias_rate > 10.0 * w.config.soft.bias_rate);
+    }
+  }
+}
+
 RBSIM_TEST_MAIN

@@ -1,5 +1,6 @@
 // solver/restitution.cpp: bounces by the restitution hypothesis, v_n⁺ = −e v_n⁻, through
 // whole steps of worlds without gravity.
+#include <algorithm>
 #include <cmath>
 
 #include "check.hpp"
@@ -70,6 +71,65 @@ TEST(impact_below_threshold_is_inelastic) {
   for (int k = 0; k < 10; ++k) CHECK(w.step());
   CHECK_NEAR(w.state.body_v[b1].x, 0.25, 1e-9);
   CHECK_NEAR(w.state.body_v[b2].x, 0.25, 1e-9);
+}
+
+// A disk (r = 0.5 m, 1 kg, v = (4, 3) m/s, no spin, μ = 0.69, e = 0.5) strikes a static
+// wall 2 cm away, less than a substep's travel after the next: the speculative push
+// stops it at the wall, and the bounce waits until it is there. The impact sticks: the
+// disk leaves with v = (−e 4, 2) m/s, ω = −4 rad/s (friction solved against the whole
+// normal impulse, 6 N·s, not the part the soft solve delivered), and it turned back at
+// the wall, not before it.
+TEST(wall_impact_waits_for_the_wall_and_takes_friction_with_its_whole_impulse) {
+  for (const double gap : {0.02, 0.013, 0.031}) {  // m: the impact in other substeps
+    SceneBuilder s;
+    s.world.model.gravity = {0.0, 0.0};
+    const Material rough{0.69, 0.5};
+    s.segment({2.0, -10.0}, {2.0, 10.0}, rough);
+    const int disk = s.circle({1.5 - gap, 0.0}, 0.5, 1.0, rough, {4.0, 3.0});
+    World<2>& w = s.finish();
+    const double dt = w.config.dt;
+    double x_before = 0.0, t_before = 0.0, t = 0.0;
+    for (int k = 0; k < 6; ++k) {
+      const double x = w.state.body_x[disk].x;
+      if (w.state.body_v[disk].x == 4.0) x_before = x, t_before = t;
+      CHECK(w.step());
+      t += dt;
+    }
+    const Vec2 v = w.state.body_v[disk];
+    CHECK_NEAR(v.x, -2.0, 1e-9);  // e = 0.5 of the 4 m/s approach
+    CHECK_NEAR(v.y, 2.0, 1e-9);  // the contact point stopped: v_t + ω r = 0
+    CHECK_NEAR(w.state.body_w[disk], -4.0, 1e-9);
+    // the turning point: the line before the impact meets the line after it
+    const double x_end = w.state.body_x[disk].x;
+    const double meet = (x_end - x_before - v.x * t + 4.0 * t_before) / (4.0 - v.x);
+    const double turn = x_before + 4.0 * (meet - t_before) + 0.5;  // m: the disk's surface
+    CHECK(turn > 2.0 - constants::IMPACT_GAP);
+  }
+}
+
+// A disk spinning at 300 rad/s into the same wall slides on it: friction takes μ times
+// the normal impulse, J_t = −0.69 (1 + e) 4 N·s, and with e = 0 the disk stays at the wall
+// (it once jumped back 9 cm: its turning contact point was taken for one that moves).
+TEST(spinning_disk_slides_on_the_wall_with_mu_times_the_normal_impulse) {
+  for (const double e : {0.0, 0.5}) {
+    SceneBuilder s;
+    s.world.model.gravity = {0.0, 0.0};
+    const Material rough{0.69, e};
+    s.segment({2.0, -10.0}, {2.0, 10.0}, rough);
+    const int disk = s.circle({1.45, 0.0}, 0.5, 1.0, rough, {4.0, 0.0}, 300.0);
+    World<2>& w = s.finish();
+    double x_max = 0.0;
+    for (int k = 0; k < 6; ++k) {
+      CHECK(w.step());
+      x_max = std::max(x_max, w.state.body_x[disk].x);
+      if (e == 0.0) CHECK(w.state.body_x[disk].x > x_max - 1e-9);  // never moves back
+    }
+    const double jt = -0.69 * (1.0 + e) * 4.0;  // N·s
+    CHECK_NEAR(w.state.body_v[disk].x, -4.0 * e, 1e-9);
+    CHECK_NEAR(w.state.body_v[disk].y, jt, 1e-9);
+    CHECK_NEAR(w.state.body_w[disk], 300.0 + jt * 0.5 / 0.125, 1e-9);  // Δω = J_t r / I
+    if (e == 0.0) CHECK(x_max > 1.5 - constants::IMPACT_GAP);  // it reached the wall
+  }
 }
 
 RBSIM_TEST_MAIN

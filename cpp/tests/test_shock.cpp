@@ -97,4 +97,19 @@ TEST(no_gravity_no_shock_pass) {
   CHECK(rbsim::test::same_bits(w.state, before));
 }
 
+// A body HEAVY_RATIO times heavier than the dynamic body it rests on marks the contact
+// store (the step then runs the shock pass before the positions move too); equal boxes,
+// and a heavy box on static ground, do not.
+TEST(heavy_body_on_a_light_one_is_found) {
+  for (const double top : {1.0, 5.0, 100.0}) {  // kg, on a 1 kg box on the ground
+    SceneBuilder s;
+    s.ground();
+    s.box({0.0, 0.5}, 0.5, 0.5, 1.0);
+    s.box({0.0, 1.5}, 0.5, 0.5, top);
+    World<2>& w = s.finish();
+    rbsim::test::collide(w);
+    CHECK(w.contacts.heavy_on_light == (top >= constants::HEAVY_RATIO));
+  }
+}
+
 RBSIM_TEST_MAIN

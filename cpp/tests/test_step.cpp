@@ -70,4 +70,23 @@ TEST(two_worlds_stepped_alike_are_bit_identical) {
   CHECK(w1.contact_count() > 4);  // the pile has settled onto the ground and each other
 }
 
+// A 100 kg box on a 0.01 kg box on the ground (mass ratio 10⁴): after 5 s at rest the
+// light box is not crushed, neither contact overlaps by 1% of the 1 m boxes (the soft
+// contacts, whose stiffness follows the light box's mass, let the heavy one sink in by
+// 33 cm), and neither box moved sideways.
+TEST(heavy_box_on_a_far_lighter_one_does_not_sink_in) {
+  SceneBuilder s;
+  s.ground();
+  const int light = s.box({0.0, 0.5}, 0.5, 0.5, 0.01);
+  const int heavy = s.box({0.0, 1.5}, 0.5, 0.5, 100.0);
+  World<2>& w = s.finish();
+  std::int64_t taken = 0, bad = -1;
+  CHECK(w.advance(300, &taken, &bad) == Status::Ok);
+  const double light_y = w.state.body_x[light].y, heavy_y = w.state.body_x[heavy].y;
+  CHECK(0.5 - light_y < 0.01);                 // m: into the ground
+  CHECK((light_y + 0.5) - (heavy_y - 0.5) < 0.01);  // m: the heavy box into the light one
+  CHECK(std::fabs(w.state.body_x[light].x) < 1e-9 && std::fabs(w.state.body_x[heavy].x) < 1e-9);
+  CHECK(length(w.state.body_v[heavy]) < 1e-3);  // m/s: at rest
+}
+
 RBSIM_TEST_MAIN

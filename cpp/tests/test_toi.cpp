@@ -27,7 +27,7 @@ Hit search(World<2>& w, int a, int b) {
   const ShapeRef2 sb{m.shape_kind[b], m.shape_vstart[b], m.shape_vcount[b], m.shape_radius[b]};
   Hit h{};
   h.start_points = collide2d(sa, sb, c.vert_world.data(), c.norm_world.data(), spec, h.m);
-  h.impact = time_of_impact(m, w.state, a, b, h.start_points, w.config.dt, spec,
+  h.impact = time_of_impact(m, w.state, a, b, h.start_points, w.config.dt, spec, 1.0,
                             c.toi_verts.data(), c.toi_norms.data(), h.m);
   return h;
 }
@@ -84,7 +84,7 @@ TEST(separating_or_slow_pair_stays_at_start) {
     const ShapeRef2 sa{m.shape_kind[0], m.shape_vstart[0], m.shape_vcount[0], 0.0};
     const ShapeRef2 sb{m.shape_kind[1], m.shape_vstart[1], 1, 0.25};
     CHECK(collide2d(sa, sb, c.vert_world.data(), c.norm_world.data(), 1.0, out) == 1);
-    const Impact hit = time_of_impact(m, w.state, 0, 1, 1, w.config.dt, 1.0, c.toi_verts.data(),
+    const Impact hit = time_of_impact(m, w.state, 0, 1, 1, w.config.dt, 1.0, 1.0, c.toi_verts.data(),
                                       c.toi_norms.data(), out);
     CHECK(hit.t == 0.0 && hit.points == 1);
     CHECK_NEAR(out.separation[0], 0.5, 1e-15);

@@ -310,6 +310,62 @@ def measure_stack(make: Maker) -> dict[str, float]:
     return out
 
 
+# -- the millimetre stack (issue 18) ------------------------------------------------
+
+MM_BOX = 0.002  # m: the box size of stack15_mm.yaml (stack15.yaml's are 1 m)
+
+
+def stack_figures(make: Maker, name: str, every: int) -> tuple[float, float, float]:
+    """A stack scene's deepest overlap (m, sampled every `every` steps) and its top box's
+    sideways shift and sag after the run (m)."""
+    sim = make(name)
+    geo = Geometry(sim.scene)
+    first = sim.read()
+    top = int(np.argmax(np.where(sim.dynamic, first.com[:, 1], -np.inf)))
+    out = {"overlap": 0.0}
+
+    def visit(sim: Engine, s: Snapshot) -> None:
+        out["overlap"] = max(out["overlap"], geo.max_overlap(s))
+
+    sample(sim, every, visit)
+    last = sim.read()
+    sideways = abs(float(last.com[top, 0] - first.com[top, 0]))
+    return out["overlap"], sideways, float(first.com[top, 1] - last.com[top, 1])
+
+
+@case(
+    "stack_mm",
+    "stack of 15 boxes of 2 mm, dt 1e-4",
+    ["stack15_mm.yaml"],
+    [
+        Rule("overlap", "max overlap / box size", "", "<", 0.01, "issue 18: below 1%"),
+        Rule(
+            "vs_metre",
+            "that / the 1 m stack's max overlap / its box size",
+            "",
+            "<",
+            2.0,
+            "issue 18: within 2x of the 1 m stack",
+        ),
+        Rule("sideways", "top box sideways / box size", "", "<", 0.05, "the 1 m stack's 5 cm"),
+        Rule("sag", "top box sag / box size", "", "<", 0.10, "the 1 m stack's 10 cm"),
+    ],
+    [Info("overlap_m", "max overlap", "m")],
+)
+def measure_stack_mm(make: Maker) -> dict[str, float]:
+    """The 2 mm stack's max overlap, sideways shift and sag per box size (0.005 s samples),
+    and its relative overlap over the 1 m stack's (stack15.yaml, 0.1 s samples)."""
+    overlap, sideways, sag = stack_figures(make, "stack15_mm.yaml", 50)
+    metre, _, _ = stack_figures(make, "stack15.yaml", 6)
+    return {
+        "overlap": overlap / MM_BOX,
+        "vs_metre": (overlap / MM_BOX) / (metre / 1.0) if metre > 0 else math.inf,
+        "sideways": sideways / MM_BOX,
+        "sag": sag / MM_BOX,
+        "overlap_m": overlap,
+    }
+
+
 # -- tall pyramids ---------------------------------------------------------------------
 
 
@@ -413,6 +469,39 @@ def measure_slab(make: Maker) -> dict[str, float]:
         out["light_tilt"] = max(out["light_tilt"], float(np.abs(s.angle[light]).max()))
 
     sample(sim, 1, visit)
+    return out
+
+
+@case(
+    "mass_ratio",
+    "mass ratio 10⁴: 100 kg box on a 0.01 kg box",
+    ["mass_ratio.yaml"],
+    [
+        Rule(
+            "overlap",
+            "max overlap at rest (last 2 s)",
+            "m",
+            "<",
+            0.01,
+            "issue 18: below 1% of the 1 m boxes",
+        )
+    ],
+    [Info("moved", "max box displacement", "m")],
+)
+def measure_mass_ratio(make: Maker) -> dict[str, float]:
+    """Max overlap (m) over the last 2 s, max box displacement (m) over the run."""
+    sim = make("mass_ratio.yaml")
+    geo = Geometry(sim.scene)
+    start = sim.read().com[sim.dynamic]
+    late = int(sim.scene.world.steps) - round(2.0 / sim.dt)
+    out = {"overlap": 0.0, "moved": 0.0}
+
+    def visit(sim: Engine, s: Snapshot) -> None:
+        out["moved"] = max(out["moved"], float(np.hypot(*(s.com[sim.dynamic] - start).T).max()))
+        if sim.step_index >= late:
+            out["overlap"] = max(out["overlap"], geo.max_overlap(s))
+
+    sample(sim, 6, visit)
     return out
 
 
@@ -612,6 +701,164 @@ def measure_cradle(make: Maker) -> dict[str, float]:
     out["first"] = float(np.hypot(*last.velocity[order[0]]))
     out["energy_left"] = kinetic_energy(sim, last) / ke0
     return out
+
+
+# -- impacts with friction (issue 18) -------------------------------------------------
+
+IMPACT_DTS = ((60, "1/60"), (120, "1/120"), (240, "1/240"))  # steps per second, the dt
+IMPACT_STARTS = (0.0, 0.01, 0.02, 0.03, 0.04)  # m: the disk's start x, against the step
+WALL_FACE = 2.0  # m: the wall's near face in both impact scenes
+# the friction of a contact from its two shapes', by the scene's world.mixing.friction
+MIXING: dict[str, Callable[[float, float], float]] = {
+    "sqrt": lambda a, b: math.sqrt(a * b),
+    "multiply": lambda a, b: a * b,
+    "min": min,
+    "max": max,
+}
+
+
+def disk_wall_impact(
+    v: tuple[float, float], w: float, radius: float, e: float, mu: float
+) -> tuple[float, float, float]:
+    """The closed form of a disk (I = m r²/2) hitting a static wall whose face is normal to
+    x, on the disk's +x side: (v_x, v_y, ω) after the impact, m/s and rad/s. The normal
+    impulse is J_n = (1 + e) m v_x; the tangential one stops the contact point's sliding,
+    v_y + ω r (each unit of J/m changes it by 3), but at most μ J_n (Coulomb)."""
+    jn = (1.0 + e) * v[0]  # per unit mass, m/s
+    slip = v[1] + w * radius  # m/s: the contact point's velocity along the wall
+    jt = min(max(-slip / 3.0, -mu * jn), mu * jn)
+    return -e * v[0], v[1] + jt, w + 2.0 * jt / radius
+
+
+def turning_point(t: np.ndarray, x: np.ndarray, vx: np.ndarray) -> float:
+    """Where (m) a body moving in straight lines before and after one impact turns back
+    along x: the meeting point of the line before (from the last frame at its first
+    velocity) and the line after (from the last frame); the final x if it stops."""
+    changed = np.flatnonzero(np.abs(vx - vx[0]) > 1e-9)
+    if not len(changed) or changed[0] == 0:
+        return float(np.max(x))
+    j = changed[0] - 1  # the last frame before the impact
+    v0, v1 = vx[0], vx[-1]
+    if v0 == v1:
+        return float(np.max(x))
+    meet = (x[-1] - x[j] - v1 * t[-1] + v0 * t[j]) / (v0 - v1)
+    return float(x[j] + v0 * (meet - t[j]))
+
+
+def disk_runs(make: Maker, name: str, overrides: Sequence[str]) -> dict[str, float]:
+    """One run of an impact scene: the disk's velocity (m/s) and ω (rad/s) at the end, its
+    start, and how far short of the wall's face it turned back or stopped (m, 0 if not)."""
+    sim = make(name, overrides)
+    disk = [b.name for b in sim.scene.bodies].index("disk")
+    radius = float(sim.scene.bodies[disk].shapes[0].radius)
+    ts, xs, vxs = [], [], []
+
+    def visit(sim: Engine, s: Snapshot) -> None:
+        ts.append(sim.time)
+        xs.append(float(s.com[disk, 0]))
+        vxs.append(float(s.velocity[disk, 0]))
+
+    first = sim.read()
+    sample(sim, 1, visit)
+    last = sim.read()
+    turn = turning_point(np.array(ts), np.array(xs), np.array(vxs)) + radius
+    return {
+        "v0": (float(first.velocity[disk, 0]), float(first.velocity[disk, 1])),
+        "w0": float(first.angular_velocity[disk]),
+        "v": (float(last.velocity[disk, 0]), float(last.velocity[disk, 1])),
+        "w": float(last.angular_velocity[disk]),
+        "radius": radius,
+        "mu": MIXING[sim.scene.world.friction_mixing](
+            *(b.shapes[0].material.friction for b in sim.scene.bodies)
+        ),
+        "short": max(0.0, WALL_FACE - turn),
+    }
+
+
+def measure_impacts(
+    make: Maker, name: str, restitutions: Sequence[float], spin: bool
+) -> dict[str, float]:
+    """Per dt (figures suffixed _60, _120, _240): the worst relative error of v_t and of ω
+    (the change of ω when `spin`) against disk_wall_impact, the worst error of v_n per
+    unit approach speed, and the most the disk turns back short of the wall (m), over
+    the restitutions and IMPACT_STARTS."""
+    out: dict[str, float] = {}
+    for rate, dt in IMPACT_DTS:
+        tangential = normal = short = 0.0
+        for e in restitutions:
+            for x0 in IMPACT_STARTS:
+                run = disk_runs(
+                    make,
+                    name,
+                    [
+                        f"world.dt={dt}",
+                        f"materials.rough.restitution={e}",
+                        f"bodies.disk.position=[{x0},0]",
+                    ],
+                )
+                vx, vy, w = disk_wall_impact(run["v0"], run["w0"], run["radius"], e, run["mu"])
+                dw = (run["w"] - run["w0"]) / (w - run["w0"]) - 1 if spin else run["w"] / w - 1
+                tangential = max(tangential, abs(run["v"][1] / vy - 1), abs(dw))
+                normal = max(normal, abs(run["v"][0] - vx) / abs(run["v0"][0]))
+                short = max(short, run["short"])
+        out[f"tangential_{rate}"] = tangential
+        out[f"normal_{rate}"] = normal
+        out[f"short_{rate}"] = short
+    return out
+
+
+def impact_rules(spin: bool) -> list[Rule]:
+    """The rules of an impact case, per dt."""
+    what = "v_t, Δω" if spin else "v_t, ω"
+    rules = []
+    for rate, dt in IMPACT_DTS:
+        rules.append(
+            Rule(
+                f"tangential_{rate}",
+                f"dt {dt}: worst |{what} / closed form − 1|",
+                "",
+                "<",
+                0.01,
+                "issue 18: ±1% at every dt and start",
+            )
+        )
+        if not spin:
+            rules.append(
+                Rule(
+                    f"normal_{rate}",
+                    f"dt {dt}: worst |v_n + e v₀| / v₀",
+                    "",
+                    "<",
+                    0.01,
+                    "issue 18: the normal part bounces by e",
+                )
+            )
+        rules.append(
+            Rule(
+                f"short_{rate}",
+                f"dt {dt}: turns back short of the wall by",
+                "m",
+                "<",
+                C.LINEAR_SLOP,
+                "never bounces from a wall it has not reached (LINEAR_SLOP)",
+            )
+        )
+    return rules
+
+
+case(
+    "oblique_impact",
+    "oblique impact, μ = 0.69, e = 0, 0.5, 1",
+    ["oblique_impact.yaml"],
+    impact_rules(spin=False),
+)(lambda make: measure_impacts(make, "oblique_impact.yaml", (0.0, 0.5, 1.0), spin=False))
+
+case(
+    "spin_impact",
+    "disk spinning at 300 rad/s hits a wall, e = 0, 0.5",
+    ["spin_impact.yaml"],
+    impact_rules(spin=True),
+)(lambda make: measure_impacts(make, "spin_impact.yaml", (0.0, 0.5), spin=True))
 
 
 # -- friction ramp ---------------------------------------------------------------------

@@ -7,18 +7,39 @@
 
 namespace rbsim::constants {
 
+// Contacts at every scale. The contact tolerances below (LINEAR_SLOP and what follows
+// it, SPECULATIVE_DISTANCE, AABB_MARGIN, DEEP_OVERLAP, STATIC_OVERLAP_LIMIT, IMPACT_GAP,
+// STILL_DISTANCE, TOI_TOLERANCE, TOI_FINISH) are their values for shapes of SCALE_LENGTH
+// and larger, m (a shape's size: the half diagonal of its bounding box, radius
+// included). A contact between smaller shapes takes each times s = (the smaller shape's
+// size) / SCALE_LENGTH, and the push-out speed CONTACT_PUSH_MAX_VELOCITY times sqrt(s); a
+// body is still within STILL_DISTANCE times its smallest shape's s. 0.1: every shape of
+// 10 cm or more (a 14 cm box) is as before; a 2 mm box has a slop of 71 µm.
+inline constexpr double SCALE_LENGTH = 0.1;
+
+// CONTACT_HERTZ is the stiffness of contacts between shapes of STIFFNESS_LENGTH and
+// larger, m (a 1 m box's size); smaller ones are stiffer by sqrt(STIFFNESS_LENGTH / size)
+// (still capped at a quarter of the substep rate), so that a pile of small boxes sinks
+// into itself, relative to its size, as a pile of 1 m boxes does (a contact under load F
+// overlaps by F / (m (2π hertz)²), and a small box's weight over its mass is the same g).
+// At dt 1/60 and 4 substeps the cap holds every contact at 60 Hz, as before.
+inline constexpr double STIFFNESS_LENGTH = 0.7071067811865476;
+
 // Contacts closer than this are created before the shapes touch, so that the solver can
 // stop an approaching body exactly at the surface (no tunnelling within one step).
-// m; typically 4 * LINEAR_SLOP. Larger values create more contacts (slower).
+// m (times a small pair's scale, SCALE_LENGTH); typically 4 * LINEAR_SLOP. Larger values
+// create more contacts (slower).
 inline constexpr double SPECULATIVE_DISTANCE = 0.02;
 
-// The collision tolerance, m; normally 0.5 cm. Gaps below it count as touching (no
+// The collision tolerance, m (times a small pair's scale, SCALE_LENGTH); normally 0.5 cm,
+// 71 µm between 2 mm boxes. Gaps below it count as touching (no
 // time-of-impact search); the narrowphase's face tolerance and the thin-segment skin
 // scale with it, and pymunk gets it as its collision_slop. The soft contacts push every
 // overlap out; they allow none.
 inline constexpr double LINEAR_SLOP = 0.005;
 
-// How far a shape's fat box reaches beyond its tight box, m. A shape is queried in the
+// How far a shape's fat box reaches beyond its tight box, m (times a small shape's scale,
+// SCALE_LENGTH). A shape is queried in the
 // broadphase again only once it has moved this far; larger keeps more candidate pairs
 // (each costs a box test per step), smaller re-queries moving shapes more often.
 inline constexpr double AABB_MARGIN = 0.02;
@@ -34,10 +55,12 @@ inline constexpr double CONTACT_HERTZ = 60.0;
 // removed without bounce.
 inline constexpr double CONTACT_DAMPING_RATIO = 10.0;
 
-// Fastest speed at which the soft contacts push an overlap out, m/s (bounded push-out).
+// Fastest speed at which the soft contacts push an overlap out, m/s (bounded push-out);
+// times the square root of a small pair's scale (SCALE_LENGTH): 0.36 m/s for 2 mm boxes.
 inline constexpr double CONTACT_PUSH_MAX_VELOCITY = 3.0;
 
-// An overlap deeper than this (m, 4 * LINEAR_SLOP) is being pushed out, not resting:
+// An overlap deeper than this (m, 4 * LINEAR_SLOP; scaled as it) is being pushed out, not
+// resting:
 // while one exists the contacts around it get DEEP_RELAX_FACTOR times as many relax
 // passes, so that the push-out velocity is taken back through a whole stack instead of
 // adding up from row to row. Resting contacts overlap by millimetres and never pay it.
@@ -48,7 +71,8 @@ inline constexpr int DEEP_RELAX_FACTOR = 4;
 // overlap at the bottom the top box's peak speed moved from 0.71 to 0.73 m/s.
 inline constexpr int DEEP_RELAX_REACH = 8;
 
-// Deepest overlap with a static or kinematic body left to the soft contacts, m; beyond
+// Deepest overlap with a static or kinematic body left to the soft contacts, m (scaled as
+// LINEAR_SLOP); beyond
 // it the body is moved out directly (limit_static_overlap). Bodies resting on static
 // ground overlap it by well under a millimetre; 4 * LINEAR_SLOP acts only when a pile
 // under pressure outruns the bounded push-out speed.
@@ -56,11 +80,18 @@ inline constexpr double STATIC_OVERLAP_LIMIT = 0.02;
 
 // A body that has moved less than this since its contacts were computed keeps them: the
 // narrowphase is skipped for pairs of such bodies and their manifolds are carried
-// forward (separations updated from the motion). m and rad; the geometry error this
-// allows (1e-4 m in a lever arm, 1e-4 rad in a normal) is far below LINEAR_SLOP. Zero
-// turns the reuse off.
+// forward (separations updated from the motion). m (times the body's smallest shape's
+// scale, SCALE_LENGTH) and rad; the geometry error this allows (1e-4 m in a lever arm,
+// 1e-4 rad in a normal) is far below LINEAR_SLOP. Zero turns the reuse off.
 inline constexpr double STILL_DISTANCE = 1.0e-4;
 inline constexpr double STILL_ANGLE = 1.0e-4;
+
+// An impact that engaged at a gap (a speculative push stops a fast body one substep
+// from what it hits) is resolved, bounce and friction, once the gap has closed to this,
+// m (0.25 * LINEAR_SLOP, scaled as it): no body bounces back from, or stops short of, a
+// wall it has not reached by more. Larger resolves impacts earlier, further from the surface;
+// smaller keeps more of them waiting for another substep.
+inline constexpr double IMPACT_GAP = 0.25 * LINEAR_SLOP;
 
 // Passes of the restitution stage over a cluster of bounces that share bodies: each
 // pass bounces every pair that still approaches. A row of n touching balls struck at
@@ -71,14 +102,15 @@ inline constexpr int RESTITUTION_PASSES = 16;
 // Time of impact by conservative advancement: stop when the gap is below TOI_TOLERANCE
 // (m) or after TOI_ITERATIONS advancements (each one narrowphase call, for approaching
 // speculative pairs only). Within TOI_FINISH (m) an impact just after the step is taken
-// at its end.
+// at its end. Both times a small pair's scale (SCALE_LENGTH).
 inline constexpr double TOI_TOLERANCE = 1.0e-9;
 inline constexpr int TOI_ITERATIONS = 12;
 inline constexpr double TOI_FINISH = 1.0e-6;
 
 // Narrowphase: a reference face is preferred unless another is deeper by more than
 // this, m (0.1 * LINEAR_SLOP: faces of a resting box do not flicker); a segment is
-// given this skin when clipped, m; lengths below LINEAR_EPSILON (m) are degenerate.
+// given this skin when clipped, m (both scaled as LINEAR_SLOP); lengths below
+// LINEAR_EPSILON (m) are degenerate.
 inline constexpr double REFERENCE_FACE_TOLERANCE = 0.1 * LINEAR_SLOP;
 inline constexpr double SEGMENT_SKIN = LINEAR_SLOP;
 inline constexpr double LINEAR_EPSILON = 1.0e-9;
@@ -89,6 +121,15 @@ inline constexpr double LINEAR_EPSILON = 1.0e-9;
 // substep) and cost no pass.
 inline constexpr double SHOCK_COS = 0.7071;
 inline constexpr double SHOCK_MIN_APPROACH = 1.0e-4;
+
+// Mass ratio of a heavy body resting on a light dynamic one, dimensionless: while a step
+// has a supported body at least this many times heavier than its (dynamic) supporter,
+// the shock pass also runs before the positions move (step.cpp), so that the light body,
+// kicked about in the one solve pass by impulses far above its mass, does not let the
+// heavy one sink through it (a 100 kg box on a 0.01 kg one sank into it 0.5 mm a step,
+// 33 cm in all). Smaller ratios are solved as before; lower values run the extra pass in
+// more scenes (one pass over the supported contacts per substep).
+inline constexpr double HEAVY_RATIO = 10.0;
 
 // Broadphase grid: cell size in median half-diagonals (plus two fat margins); hash
 // buckets per shape, at least; shapes made big (tested against every shape) while a

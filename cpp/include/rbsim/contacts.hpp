@@ -44,7 +44,7 @@ struct SolverRow<2> {
     double rta = 0, rtb = 0;  // m: r_a × t, r_b × t
     double kn = 0;            // 1/kg: the normal row's K
     double tangent_mass = 0;  // kg
-    Vec2 ra, rb;              // m: anchors from each COM
+    Vec2 ra, rb;              // m: separation anchors from each COM (sep_anchor_a, _b)
     double base = 0;          // m: base separation
   };
   Vec2 normal;              // from b towards a
@@ -53,7 +53,9 @@ struct SolverRow<2> {
   double bias_rate = 0;     // 1/s: the soft constraint's push-out rate
   double friction = 0;      // the mixed friction coefficient
   std::array<Point, 2> point;
-  double pad[4] = {0, 0, 0, 0};
+  double max_push = 0;      // m/s, < 0: the fastest push-out (CONTACT_PUSH_MAX_VELOCITY, scaled)
+  double deep = 0;          // m, < 0: a separation below it is a deep overlap (DEEP_OVERLAP)
+  double pad[2] = {0, 0};
 };
 static_assert(sizeof(SolverRow<2>) == 32 * sizeof(double));
 // 3D contact rows come with 3D contacts (issue 16); until then a 3D world stores none.
@@ -76,7 +78,13 @@ struct Contacts {
   std::vector<Vec> normal;                          // from b towards a
   std::vector<std::int32_t> points;                 // point count
   std::vector<double> friction, restitution;        // mixed coefficients
-  std::vector<PerPoint<Vec>> anchor_a, anchor_b;    // m, from each COM at the step's start
+  std::vector<double> scale;                         // the contact tolerances' scale s (SCALE_LENGTH)
+  std::vector<PerPoint<Vec>> anchor_a, anchor_b;    // m: lever arms, contact point from each COM
+  // m: the material points whose motion the separation follows, from each COM in its
+  // body's frame at the step's start: the anchors, but on a rounded shape the point of
+  // its core (a circle's centre: turning it does not move its surface) and, for a
+  // manifold moved to a time of impact, turned back to the step's start
+  std::vector<PerPoint<Vec>> sep_anchor_a, sep_anchor_b;
   std::vector<PerPoint<double>> base_separation;    // m: separation minus the anchors' part
   std::vector<PerPoint<double>> ref_separation;     // m: at both bodies' reference poses
   std::vector<PerPoint<std::int64_t>> feature;      // feature ids
@@ -95,6 +103,7 @@ struct Contacts {
   std::vector<PerPoint<double>> prev_normal_impulse, prev_tangent_impulse;
   std::vector<Vec> prev_normal;
   std::vector<PerPoint<Vec>> prev_anchor_a, prev_anchor_b;
+  std::vector<PerPoint<Vec>> prev_sep_anchor_a, prev_sep_anchor_b;
   std::vector<PerPoint<double>> prev_ref_separation;
   // per body (N,)
   std::vector<typename Dim<D>::RefPose> body_ref;  // reference pose; NaN until first taken
@@ -104,6 +113,9 @@ struct Contacts {
   std::vector<Vec> toi_verts, toi_norms;  // (V,) two shapes moved to their time of impact
   std::vector<Vec> vert_world, norm_world;  // (V,) shape geometry in the world this step
   std::vector<double> shape_margin;         // (S,) m: speculative reach this step
+  std::vector<double> shape_size;           // (S,) m: half its bounding box's diagonal
+  std::vector<double> shape_scale;          // (S,) min(1, size / SCALE_LENGTH)
+  std::vector<double> body_scale;           // (N,) its smallest shape's (1 without shapes)
   // the shock pass and the solve order (shock.cpp)
   std::vector<std::int64_t> body_level;     // (N,)
   std::vector<std::int8_t> shock_side;      // (M,)
@@ -122,6 +134,8 @@ struct Contacts {
   // the waves of the solve order (waves.cpp): groups of independent manifolds
   std::int64_t wave_count = 0;             // waves
   bool waves_valid = false;                 // the waves are this contact graph's
+  bool heavy_on_light = false;              // a body rests on one HEAVY_RATIO times lighter
+  bool unit_scale = true;                   // every shape's scale is 1 (SCALE_LENGTH)
   std::vector<std::int32_t> wave_order;    // (M,) the manifolds wave by wave
   std::vector<std::int32_t> manifold_wave;  // (M,) each manifold's wave (scratch)
   std::vector<std::int32_t> body_wave;      // (N,) the last wave that moved the body (scratch)
@@ -152,13 +166,16 @@ void Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   reset(carried, m); reset(pairs, m);
   reset(shape_a, m); reset(shape_b, m); reset(body_a, m); reset(body_b, m);
   reset(key, m); reset(normal, m); reset(points, m); reset(friction, m); reset(restitution, m);
+  reset(scale, m);
   reset(anchor_a, m); reset(anchor_b, m); reset(base_separation, m); reset(ref_separation, m);
+  reset(sep_anchor_a, m); reset(sep_anchor_b, m);
   reset(feature, m); reset(normal_impulse, m); reset(start_impulse, m);
   reset(tangent_impulse, m); reset(normal_mass, m); reset(solver_row, m);
   reset(approach_velocity, m); reset(approach_separation, m); reset(max_normal_impulse, m);
   reset(prev_key, m); reset(prev_points, m); reset(prev_feature, m);
   reset(prev_normal_impulse, m); reset(prev_tangent_impulse, m); reset(prev_normal, m);
   reset(prev_anchor_a, m); reset(prev_anchor_b, m); reset(prev_ref_separation, m);
+  reset(prev_sep_anchor_a, m); reset(prev_sep_anchor_b, m);
   typename Dim<D>::RefPose unset{};
   constexpr double nan = std::numeric_limits<double>::quiet_NaN();
   unset.x = nan * unset.x;
@@ -167,12 +184,14 @@ void Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   reset(body_still, n); reset(body_delta, n);
   reset(toi_verts, v < 2 ? 2 : v); reset(toi_norms, v < 2 ? 2 : v);
   reset(vert_world, v); reset(norm_world, v); reset(shape_margin, s);
+  shape_size.assign(s, 1.0); shape_scale.assign(s, 1.0); body_scale.assign(n, 1.0);
   reset(body_level, n); reset(shock_side, m); reset(shock_order, m); reset(solve_order, m);
   reset(adj_start, n + 1); reset(adj, 2 * m); reset(queue, n + 2);
   reset(bounce_kind, m); reset(body_mark, n); reset(solve_impulse, m);
   reset(bounce_list, 2 * m + 2); reset(relax_list, m); reset(body_reach, n);
   wave_count = 0;
   waves_valid = false;
+  heavy_on_light = false;
   reset(wave_order, m); reset(manifold_wave, m); reset(body_wave, n);
   reset(wave_start, m + 2); reset(wave_batch, m + 2); reset(wave_single, m + 1);
   reset(wave_single_batch, m + 1);
@@ -200,9 +219,15 @@ void Contacts<D>::grow(std::int64_t new_capacity) {
     prev_anchor_a[i] = old.prev_anchor_a[i];
     prev_anchor_b[i] = old.prev_anchor_b[i];
     prev_ref_separation[i] = old.prev_ref_separation[i];
+    prev_sep_anchor_a[i] = old.prev_sep_anchor_a[i];
+    prev_sep_anchor_b[i] = old.prev_sep_anchor_b[i];
   }
   body_ref = std::move(old.body_ref);
   body_still = std::move(old.body_still);
+  shape_size = std::move(old.shape_size);
+  shape_scale = std::move(old.shape_scale);
+  body_scale = std::move(old.body_scale);
+  unit_scale = old.unit_scale;
 }
 
 }  // namespace rbsim

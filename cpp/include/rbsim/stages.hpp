@@ -68,10 +68,12 @@ void update_manifolds(const Model<D>& model, const State<D>& state, Contacts<D>&
 template <int D>
 void store_impulses(Contacts<D>& contacts);
 
-// solver/prepare.cpp: effective masses, approach velocities and softness into the rows.
+// solver/prepare.cpp: effective masses, approach velocities and softness into the rows:
+// config's soft and soft_static, or stiffer for small shapes (STIFFNESS_LENGTH), and each
+// manifold's push-out speed and deep-overlap depth (SCALE_LENGTH).
 template <int D>
 void prepare_contacts(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
-                      Soft soft, Soft soft_static);
+                      const Config& config);
 
 // solver/shock.cpp: support levels and the solve order; returns the shock pass's count.
 template <int D>
@@ -133,8 +135,8 @@ template <int D>
 void apply_restitution(const Model<D>& model, State<D>& state, Contacts<D>& contacts,
                        double threshold, double h, double sign);
 
-// solver/overlap_limit.cpp: a body deeper than max_overlap (m) in a static or kinematic
-// body is moved out directly.
+// solver/overlap_limit.cpp: a body deeper than max_overlap (m; times the contact's scale,
+// SCALE_LENGTH) in a static or kinematic body is moved out directly.
 template <int D>
 void limit_static_overlap(const Model<D>& model, State<D>& state, Contacts<D>& contacts,
                           double max_overlap);

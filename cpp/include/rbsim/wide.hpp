@@ -43,6 +43,7 @@ struct WidePoint {
 struct WideBatch {
   Lanes nx, ny;              // the normal, from b towards a
   Lanes k01, gamma, bias_rate, friction;
+  Lanes max_push, deep;      // m/s and m, < 0: the rows' push-out bound and deep overlap
   Lanes ma, mb, ia, ib;      // inverse masses (1/kg) and inertias (1/(kg·m²))
   Lanes two;                 // 1 where the manifold has two points, else 0
   WidePoint p0, p1;          // a one-point manifold's p1 is all zero

@@ -100,6 +100,8 @@ template <int D>
 std::int64_t update_aabbs(const Model<D>& model, Grid<D>& grid, const Contacts<D>& contacts) {
   using Vec = typename Dim<D>::Vec;
   const Vec* vw = contacts.vert_world.data();
+  // half a pair's speculative distance on each side, at each shape's own scale (a pair
+  // takes the smaller of its two: the boxes reach at least that far)
   const double reach = 0.5 * C::SPECULATIVE_DISTANCE;
   const bool fresh = grid.meta.pairs_valid == 0;
   Aabb<D>* box = grid.shape_aabb.data();
@@ -112,14 +114,15 @@ std::int64_t update_aabbs(const Model<D>& model, Grid<D>& grid, const Contacts<D
       lo = vmin(lo, vw[k]);
       hi = vmax(hi, vw[k]);
     }
-    const Vec r = splat(lo, model.shape_radius[s] + contacts.shape_margin[s] + reach);
+    const double scale = contacts.unit_scale ? 1.0 : contacts.shape_scale[s];
+    const Vec r = splat(lo, model.shape_radius[s] + contacts.shape_margin[s] + scale * reach);
     lo = lo - r;
     hi = hi + r;
     box[s] = {lo, hi};
     const bool out = fresh || any_less(lo, fat[s].lo) || any_less(fat[s].hi, hi);
     grid.shape_moved[s] = out;
     if (out) {
-      const Vec m = splat(lo, C::AABB_MARGIN);
+      const Vec m = splat(lo, scale * C::AABB_MARGIN);
       fat[s] = {lo - m, hi + m};
       ++moved;
     }
@@ -409,8 +412,9 @@ std::int64_t find_pairs(const Model<D>& model, Grid<D>& grid, Contacts<D>& conta
 template std::int64_t find_pairs(const Model<2>&, Grid<2>&, Contacts<2>&);
 
 // The cell size is CELL_SIZES times the median half-diagonal (m) of the dynamic shapes
-// plus twice the fat margin, so a typical fat box fits in one cell with room to spare;
-// the table has at least TABLE_PER_SHAPE buckets per shape.
+// plus twice the fat margin (at that median's scale, SCALE_LENGTH), so a typical fat box
+// fits in one cell with room to spare; the table has at least TABLE_PER_SHAPE buckets
+// per shape.
 template <int D>
 void Grid<D>::allocate(const std::vector<double>& shape_size, const std::vector<std::uint8_t>& dynamic,
                        std::int64_t capacity) {
@@ -419,14 +423,15 @@ void Grid<D>::allocate(const std::vector<double>& shape_size, const std::vector<
   std::vector<double> dyn;
   for (std::size_t i = 0; i < s; ++i)
     if (dynamic[i]) dyn.push_back(shape_size[i]);
-  double size = 1.0;
+  double size = 1.0, scale = 1.0;
   if (!dyn.empty()) {  // the median as numpy takes it: the mean of the middle two
     std::sort(dyn.begin(), dyn.end());
     const std::size_t k = dyn.size();
     const double median = k % 2 ? dyn[k / 2] : 0.5 * (dyn[k / 2 - 1] + dyn[k / 2]);
     size = C::CELL_SIZES * median;
+    scale = std::min(1.0, median / C::SCALE_LENGTH);
   }
-  const double cell = std::max(size, 1e-3) + 2.0 * C::AABB_MARGIN;
+  const double cell = std::max(size, 1e-3 * scale) + 2.0 * scale * C::AABB_MARGIN;
   std::size_t table = 64;
   while (table < static_cast<std::size_t>(C::TABLE_PER_SHAPE) * s) table *= 2;
   const std::size_t e = std::max<std::size_t>(s, 1);

@@ -279,7 +279,8 @@ int collide_cores(const ShapeRef2& sa, const ShapeRef2& sb, const Vec2* verts,
   const auto [sep_b, edge_b] = max_separation(sb.start, sb.count, sa.start, sa.count, verts, norms);
   if (sep_b - radius > speculative) return 0;
 
-  const int ref_is_b = sep_b > sep_a + REFERENCE_FACE_TOLERANCE ? 1 : 0;
+  const double face_tolerance = std::min(sa.scale, sb.scale) * REFERENCE_FACE_TOLERANCE;
+  const int ref_is_b = sep_b > sep_a + face_tolerance ? 1 : 0;
   const ShapeRef2& ref = ref_is_b ? sb : sa;
   const ShapeRef2& inc = ref_is_b ? sa : sb;
   const int ref_edge = ref_is_b ? edge_b : edge_a;
@@ -359,7 +360,8 @@ int collide_segment_polygon(const ShapeRef2& sa, const ShapeRef2& sb, const Vec2
 // half on each.
 int collide_segment_segment(const ShapeRef2& sa, const ShapeRef2& sb, const Vec2* verts,
                             const Vec2* norms, double speculative, Manifold2& out) {
-  const double skin = 0.5 * std::max(SEGMENT_SKIN - sa.radius - sb.radius, 0.0);
+  const double skin_min = std::min(sa.scale, sb.scale) * SEGMENT_SKIN;  // m
+  const double skin = 0.5 * std::max(skin_min - sa.radius - sb.radius, 0.0);
   const ShapeRef2 a{sa.kind, sa.start, sa.count, sa.radius + skin};
   const ShapeRef2 b{sb.kind, sb.start, sb.count, sb.radius + skin};
   return collide_cores(a, b, verts, norms, speculative, out);

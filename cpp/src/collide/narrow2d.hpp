@@ -27,6 +27,9 @@ struct ShapeRef2 {
   int start;      // first vertex in verts/norms
   int count;      // vertex count
   double radius;  // m
+  // the pair's tolerance scale (constants.hpp, SCALE_LENGTH): the reference face's
+  // tolerance and a segment's skin are taken times the smaller of the two shapes'
+  double scale = 1.0;
 };
 
 struct Manifold2 {

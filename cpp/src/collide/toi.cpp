@@ -21,18 +21,21 @@ void place_shape(const Model<2>& model, const State<2>& st, int s, double t, int
 }
 
 // Conservative advancement: move both bodies freely by t = separation / approach speed,
-// collide again, repeat, until the gap is below TOI_TOLERANCE (m), the pair separates,
-// or TOI_ITERATIONS advancements were made (each one narrowphase call).
+// collide again, repeat, until the gap is below TOI_TOLERANCE (m, times the pair's scale),
+// the pair separates, or TOI_ITERATIONS advancements were made (each one narrowphase
+// call).
 Impact time_of_impact(const Model<2>& model, const State<2>& st, int a, int b, int npts,
-                      double dt, double spec, Vec2* tv, Vec2* tn, Manifold2& out) {
+                      double dt, double spec, double scale, Vec2* tv, Vec2* tn,
+                      Manifold2& out) {
   const int ba = model.shape_body[a], bb = model.shape_body[b];
   const int na = model.shape_vcount[a], nb = model.shape_vcount[b];
-  const ShapeRef2 sa{model.shape_kind[a], 0, na, model.shape_radius[a]};
-  const ShapeRef2 sb{model.shape_kind[b], na, nb, model.shape_radius[b]};
+  const ShapeRef2 sa{model.shape_kind[a], 0, na, model.shape_radius[a], scale};
+  const ShapeRef2 sb{model.shape_kind[b], na, nb, model.shape_radius[b], scale};
+  const double tolerance = scale * C::TOI_TOLERANCE, finish = scale * C::TOI_FINISH;  // m
   double t = 0.0;
   for (int it = 0; it < C::TOI_ITERATIONS; ++it) {
     const Approach ap = nearest_approach(out, npts, ba, bb, t, st);
-    if (ap.sep <= C::TOI_TOLERANCE || ap.vn >= 0.0) break;
+    if (ap.sep <= tolerance || ap.vn >= 0.0) break;
     double step = ap.sep / -ap.vn;  // s
     const bool last = t + step >= dt;
     if (last) {
@@ -42,7 +45,7 @@ Impact time_of_impact(const Model<2>& model, const State<2>& st, int a, int b, i
       // where it is (a turning body's arc is not in the estimate, and it may meet the
       // other before the step's end)
       step = dt - t;
-      if (step <= 0.0 || ap.sep > C::TOI_FINISH) break;
+      if (step <= 0.0 || ap.sep > finish) break;
     }
     t += step;
     place_shape(model, st, a, t, 0, tv, tn);

@@ -54,9 +54,11 @@ struct Impact {
 
 // Move the speculative manifold `out` (npts points, of shapes a and b at the step's
 // start) to the moment of impact: the manifold at the last t replaces `out` (normal,
-// points, separations, ids). spec: the narrowphase's speculative distance (m); tv, tn:
-// room for both shapes' vertices (the store's toi_verts, toi_norms).
+// points, separations, ids). spec: the narrowphase's speculative distance (m); scale:
+// the pair's tolerance scale (SCALE_LENGTH); tv, tn: room for both shapes' vertices (the
+// store's toi_verts, toi_norms).
 Impact time_of_impact(const Model<2>& model, const State<2>& st, int a, int b, int npts,
-                      double dt, double spec, Vec2* tv, Vec2* tn, Manifold2& out);
+                      double dt, double spec, double scale, Vec2* tv, Vec2* tn,
+                      Manifold2& out);
 
 }  // namespace rbsim

@@ -1,8 +1,9 @@
 // The shapes in the world for this step: world vertices and normals of every shape, each
 // shape's speculative reach, and which bodies are still near their reference pose.
 //
-// The reach (m) is how far the shape's surface can move in one step, dt (|v| + |ω| r),
-// so that contacts are created before a fast body can pass through another. A body
+// The reach (m) is how far the shape's surface can move in one step, dt (|v| + |ω| r)
+// with r the farthest core vertex from the centre of mass, so that contacts are created
+// before a fast body can pass through another. A body
 // within STILL_DISTANCE and STILL_ANGLE of its reference pose is "still": its contacts
 // may be carried from the last step; one that left it re-takes the reference pose here,
 // and its contacts are recomputed.
@@ -30,14 +31,16 @@ inline Vec3 world_point(Vec3 x, Quat q, Vec3 l) { return x + rotate(q, l); }
 inline double magnitude(double w) { return std::fabs(w); }
 inline double magnitude(Vec3 w) { return length(w); }
 
-// Whether body i is within STILL_DISTANCE (m) and STILL_ANGLE (rad) of its reference
-// pose; if not, the pose becomes its reference. 2D-specific: the angle is compared as
+// Whether body i is within STILL_DISTANCE (m, times the body's scale) and STILL_ANGLE
+// (rad) of its reference pose; if not, the pose becomes its reference. 2D-specific: the angle is compared as
 // the unwrapped angle (the 3D reference pose holds a quaternion; not ported yet).
 template <int D>
-bool near_reference(typename Dim<D>::RefPose& ref, const State<D>& state, std::size_t i) {
+bool near_reference(typename Dim<D>::RefPose& ref, const State<D>& state, std::size_t i,
+                    double scale) {
   static_assert(D == 2, "near_reference: the 3D still test (by quaternion) is not written");
   const Vec2 d = state.body_x[i] - ref.x;
-  const bool near = d.x * d.x + d.y * d.y < C::STILL_DISTANCE * C::STILL_DISTANCE &&
+  const double still = scale * C::STILL_DISTANCE;  // m
+  const bool near = d.x * d.x + d.y * d.y < still * still &&
                     std::fabs(state.body_angle[i] - ref.angle) < C::STILL_ANGLE;
   if (!near) ref = {state.body_x[i], state.body_angle[i]};
   return near;
@@ -51,7 +54,8 @@ void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>&
   using Vec = typename Dim<D>::Vec;
   auto& ref = contacts.body_ref;
   auto& still = contacts.body_still;
-  for (std::size_t i = 0; i < ref.size(); ++i) still[i] = near_reference<D>(ref[i], state, i);
+  for (std::size_t i = 0; i < ref.size(); ++i)
+    still[i] = near_reference<D>(ref[i], state, i, contacts.body_scale[i]);
 
   Vec* vw = contacts.vert_world.data();
   Vec* nw = contacts.norm_world.data();
@@ -61,7 +65,7 @@ void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>&
     const int i = model.shape_body[s];
     const auto q = state.body_q[i];
     const Vec x = state.body_x[i];
-    double reach = 0.0;  // m: the farthest vertex from the COM, then plus the radius
+    double reach = 0.0;  // m: the farthest core vertex from the COM
     const int k0 = model.shape_vstart[s], k1 = k0 + model.shape_vcount[s];
     for (int k = k0; k < k1; ++k) {
       vw[k] = world_point(x, q, vl[k]);
@@ -71,8 +75,9 @@ void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>&
     if (model.body_type[i] == BodyType::Static) {
       contacts.shape_margin[s] = 0.0;
     } else {
+      // turning moves a rounded shape's surface only as far as it moves its core (a
+      // circle about its centre does not move its surface at all)
       const double speed = length(state.body_v[i]);  // m/s
-      reach += model.shape_radius[s];
       contacts.shape_margin[s] = dt * (speed + magnitude(state.body_w[i]) * reach);
     }
   }

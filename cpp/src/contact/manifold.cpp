@@ -7,6 +7,7 @@
 // moved from their reference poses carries last step's manifold forward instead (only
 // its separation changes, by the bodies' motion since those poses). A speculative pair
 // that meets within the step is moved to its time of impact first (collide/toi.cpp).
+#include <algorithm>
 #include <cmath>
 
 #include "collide/narrow2d.hpp"
@@ -63,6 +64,8 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
     const bool matched = j < n_prev && c.prev_key[j] == key;
     const bool in_slot = matched && j == m && c.key[m] == key;
     const bool still = c.body_still[ba] && c.body_still[bb];
+    // the contact tolerances' scale: the smaller shape's (constants.hpp, SCALE_LENGTH)
+    const double scale = std::min(c.shape_scale[a], c.shape_scale[b]);
     // motion of the two bodies since their reference poses (m)
     const Vec dd = (st.body_x[ba] - c.body_ref[ba].x) - (st.body_x[bb] - c.body_ref[bb].x);
     if (in_slot && still) {
@@ -71,7 +74,7 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
       // this step's impulse records change
       const Vec n = c.normal[m];
       for (int k = 0; k < c.points[m]; ++k) {
-        const Vec ra = c.anchor_a[m][k], rb = c.anchor_b[m][k];
+        const Vec ra = c.sep_anchor_a[m][k], rb = c.sep_anchor_b[m][k];
         const double sep = c.ref_separation[m][k] + dot(n, dd);
         c.base_separation[m][k] = sep - dot(n, ra - rb);
         c.start_impulse[m][k] = c.normal_impulse[m][k];
@@ -88,9 +91,11 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
       n = c.prev_normal[j];
       npts = c.prev_points[j];
       for (int k = 0; k < npts; ++k) {
-        const Vec ra = c.prev_anchor_a[j][k], rb = c.prev_anchor_b[j][k];
-        c.anchor_a[m][k] = ra;
-        c.anchor_b[m][k] = rb;
+        c.anchor_a[m][k] = c.prev_anchor_a[j][k];
+        c.anchor_b[m][k] = c.prev_anchor_b[j][k];
+        const Vec ra = c.prev_sep_anchor_a[j][k], rb = c.prev_sep_anchor_b[j][k];
+        c.sep_anchor_a[m][k] = ra;
+        c.sep_anchor_b[m][k] = rb;
         const double ref_sep = c.prev_ref_separation[j][k];
         c.ref_separation[m][k] = ref_sep;
         const double sep = ref_sep + dot(n, dd);
@@ -102,11 +107,13 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
         c.max_normal_impulse[m][k] = 0.0;
       }
     } else {
-      const double spec = C::SPECULATIVE_DISTANCE + c.shape_margin[a] + c.shape_margin[b];
+      const double spec =
+          scale * C::SPECULATIVE_DISTANCE + c.shape_margin[a] + c.shape_margin[b];
       const ShapeRef2 sa{model.shape_kind[a], model.shape_vstart[a], model.shape_vcount[a],
-                         model.shape_radius[a]};
+                         model.shape_radius[a], scale};
       const ShapeRef2 sb{model.shape_kind[b], model.shape_vstart[b], model.shape_vcount[b],
-                         model.shape_radius[b]};
+                         model.shape_radius[b], scale};
+      const double radius_a = model.shape_radius[a], radius_b = model.shape_radius[b];  // m
       npts = collide2d(sa, sb, c.vert_world.data(), c.norm_world.data(), spec, out);
       double t = 0.0;  // s
       // only a pair that is clearly apart can turn its normal before the impact, and
@@ -114,13 +121,14 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
       // side by side), and their test is made here, as the search's first, so that they
       // skip the call
       bool meets = false;
-      if (npts > 0 && std::min(out.separation[0], out.separation[npts - 1]) > C::LINEAR_SLOP) {
+      if (npts > 0 &&
+          std::min(out.separation[0], out.separation[npts - 1]) > scale * C::LINEAR_SLOP) {
         const Approach ap = nearest_approach(out, npts, ba, bb, 0.0, st);
         meets = ap.vn < 0.0 && ap.sep / -ap.vn < dt;
       }
       if (meets) {
-        const Impact hit = time_of_impact(model, st, a, b, npts, dt, spec, c.toi_verts.data(),
-                                          c.toi_norms.data(), out);
+        const Impact hit = time_of_impact(model, st, a, b, npts, dt, spec, scale,
+                                          c.toi_verts.data(), c.toi_norms.data(), out);
         npts = hit.points;
         t = hit.t;
       }
@@ -134,18 +142,36 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
         qb = turn_by(t * st.body_w[bb]);
       }
       for (int k = 0; k < npts; ++k) {
-        // lever arms at the impact
-        const Vec ra = out.point[k] - st.body_x[ba] - da;
-        const Vec rb = out.point[k] - st.body_x[bb] - db;
+        // lever arms at the impact. The point lies midway between the surfaces; a rounded
+        // shape's arm reaches its own surface instead, half the separation on (a's along
+        // +n, b's along −n): where a ball will touch what it approaches, so that friction
+        // turns it as its surface is pushed (at the midpoint, a ball a few centimetres from
+        // a wall was turned as if it were larger)
+        const double half = 0.5 * std::max(out.separation[k], 0.0);  // m
+        Vec ra = out.point[k] - st.body_x[ba] - da;
+        Vec rb = out.point[k] - st.body_x[bb] - db;
+        if (radius_a > 0.0) ra = ra + half * n;
+        if (radius_b > 0.0) rb = rb - half * n;
         c.anchor_a[m][k] = ra;
         c.anchor_b[m][k] = rb;
-        // separation = base + n · (d_a + R(Δθ_a) r_a − d_b − R(Δθ_b) r_b) as the bodies
+        // the points the separation follows: on a rounded shape its core's, one radius
+        // inside its surface, in each body's frame at the step's start
+        Vec sa_k = ra, sb_k = rb;
+        if (radius_a > 0.0) sa_k = ra + radius_a * n;
+        if (radius_b > 0.0) sb_k = rb - radius_b * n;
+        if (t != 0.0) {
+          sa_k = inv_rotate(qa, sa_k);
+          sb_k = inv_rotate(qb, sb_k);
+        }
+        c.sep_anchor_a[m][k] = sa_k;
+        c.sep_anchor_b[m][k] = sb_k;
+        // separation = base + n · (d_a + R(Δθ_a) s_a − d_b − R(Δθ_b) s_b) as the bodies
         // move (d, Δθ: motion since the step's start); at the impact (d = v t, Δθ = ω t)
         // it equals the separation found there
-        const double moved = dot(n, da + rotate(qa, ra) - db - rotate(qb, rb));
+        const double moved = dot(n, da + rotate(qa, sa_k) - db - rotate(qb, sb_k));
         const double base = out.separation[k] - moved;
         c.base_separation[m][k] = base;
-        const double start = base + dot(n, ra - rb);
+        const double start = base + dot(n, sa_k - sb_k);
         c.ref_separation[m][k] = start - dot(n, dd);
         c.feature[m][k] = out.id[k];
         double jn = 0.0, jt = 0.0;  // N·s
@@ -175,6 +201,7 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
     c.friction[m] = mix(model.shape_friction[a], model.shape_friction[b], friction_rule);
     c.restitution[m] =
         mix(model.shape_restitution[a], model.shape_restitution[b], restitution_rule);
+    c.scale[m] = scale;
     ++m;
   }
   c.count.manifolds = m;

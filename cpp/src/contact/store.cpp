@@ -23,6 +23,8 @@ void store_impulses(Contacts<D>& c) {
     for (int k = 0; k < c.points[i]; ++k) {
       c.prev_anchor_a[i][k] = c.anchor_a[i][k];
       c.prev_anchor_b[i][k] = c.anchor_b[i][k];
+      c.prev_sep_anchor_a[i][k] = c.sep_anchor_a[i][k];
+      c.prev_sep_anchor_b[i][k] = c.sep_anchor_b[i][k];
       c.prev_ref_separation[i][k] = c.ref_separation[i][k];
       c.prev_feature[i][k] = c.feature[i][k];
       c.prev_normal_impulse[i][k] = c.normal_impulse[i][k];

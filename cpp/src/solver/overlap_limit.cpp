@@ -1,5 +1,6 @@
 // Move a dynamic body out of a static or kinematic one where it overlaps by more than
-// max_overlap (m), along the contact normal, without touching its velocity.
+// max_overlap (m, times the contact's scale: SCALE_LENGTH), along the contact normal,
+// without touching its velocity.
 //
 // The soft contacts push overlaps out at a bounded speed, which a pile under permanent
 // pressure (more bodies than fit in their box) can outrun: bodies were squeezed into the
@@ -28,7 +29,7 @@ void limit_static_overlap(const Model<D>& model, State<D>& st, Contacts<D>& c,
     double deepest = 0.0;
     const int npts = c.points[m];
     for (int k = 0; k < npts; ++k) deepest = std::min(deepest, point_separation(c, m, k, a, b, n));
-    const double push = -deepest - max_overlap;  // m
+    const double push = -deepest - c.scale[m] * max_overlap;  // m
     if (push <= 0.0) continue;
     const Vec d = push * n;
     if (b_fixed) {  // the normal points from b to a: a moves along +n

@@ -9,6 +9,10 @@
 //
 // and likewise along the tangent t. In 2D t = (n_y, −n_x) (the numba engine's convention:
 // −perp(n), the normal turned a quarter clockwise); cross(n, 1.0) is that vector.
+#include <algorithm>
+#include <cmath>
+
+#include "rbsim/constants.hpp"
 #include "rbsim/stages.hpp"
 #include "solver/row.hpp"
 
@@ -17,30 +21,44 @@ namespace rbsim {
 namespace {
 
 // Point k of manifold m's approach velocity (m/s) and separation (m) at the start of the
-// step, from its anchors ra, rb (m) and normal n.
+// step, from arms ra, rb (m), its separation anchors sa, sb (m) and the normal n. (The
+// normal velocity is the same at either: they differ along n, or, for a manifold moved
+// to a time of impact, by the turn of bodies that are not still.)
 template <int D>
 inline void approach_point(const State<D>& st, Contacts<D>& c, std::int64_t m, int k, int a,
                            int b, typename Dim<D>::Vec ra, typename Dim<D>::Vec rb,
+                           typename Dim<D>::Vec sa, typename Dim<D>::Vec sb,
                            typename Dim<D>::Vec n) {
   c.approach_velocity[m][k] = normal_velocity(st, a, b, ra, rb, n);
-  c.approach_separation[m][k] = c.base_separation[m][k] + dot(n, ra - rb);
+  c.approach_separation[m][k] = c.base_separation[m][k] + dot(n, sa - sb);
 }
 
 }  // namespace
 
-// soft, soft_static: (mass scale, impulse scale, bias rate) for contacts between two
-// dynamic bodies and for contacts with a static or kinematic body (stiffer).
+// config's soft and soft_static: (mass scale, impulse scale, bias rate) for contacts
+// between two dynamic bodies and for contacts with a static or kinematic body (stiffer),
+// both for shapes of STIFFNESS_LENGTH and larger; a contact between smaller shapes is
+// stiffer by sqrt(STIFFNESS_LENGTH / size) (the smaller shape's size), capped at a quarter
+// of the substep rate as config's are. The contact's scale (SCALE_LENGTH) sets its
+// fastest push-out and the depth of a deep overlap.
 template <int D>
-void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c, Soft soft,
-                      Soft soft_static) {
+void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c,
+                      const Config& config) {
   static_assert(D == 2, "the solver row is 2D (SolverRow<2>)");
+  namespace C = constants;
   using Vec = typename Dim<D>::Vec;
   const auto& im = model.body_inv_mass;
   const auto& ii = model.body_inv_inertia;
+  const Soft soft = config.soft, soft_static = config.soft_static;
   // γ/K of each soft constraint: mass scale K/(K+γ), impulse scale γ/(K+γ)
-  const double gamma = soft.mass_scale > 0.0 ? soft.impulse_scale / soft.mass_scale : 0.0;
-  const double gamma_static =
-      soft_static.mass_scale > 0.0 ? soft_static.impulse_scale / soft_static.mass_scale : 0.0;
+  auto gamma_of = [](Soft s) { return s.mass_scale > 0.0 ? s.impulse_scale / s.mass_scale : 0.0; };
+  const double gamma = gamma_of(soft), gamma_static = gamma_of(soft_static);
+  const double h = config.dt / config.substeps;            // s
+  const double hertz_cap = 0.25 / h;                       // Hz
+  const double hertz = std::min(C::CONTACT_HERTZ, hertz_cap);  // config's (step.cpp)
+  // whether the cap leaves room for a stiffer small pair (at dt 1/60 with 4 substeps it
+  // is the scene's 60 Hz itself, to rounding: none)
+  const bool stiffer = hertz < hertz_cap * (1.0 - 1e-9);
   const std::int64_t n_man = c.count.manifolds;
   for (std::int64_t m = 0; m < n_man; ++m) {
     const int a = c.body_a[m], b = c.body_b[m];
@@ -52,20 +70,28 @@ void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c,
       for (int k = 0; k < npts; ++k) {
         auto& pt = row.point[k];
         pt.base = c.base_separation[m][k];
-        approach_point(st, c, m, k, a, b, pt.ra, pt.rb, n);
+        approach_point(st, c, m, k, a, b, pt.ra, pt.rb, pt.ra, pt.rb, n);
       }
       continue;
     }
     const double ma = im[a], mb = im[b], ia = ii[a], ib = ii[b];
     const Vec t = cross(n, 1.0);  // (n_y, −n_x)
     row.normal = n;
-    if (ma == 0.0 || mb == 0.0) {
-      row.gamma = gamma_static;
-      row.bias_rate = soft_static.bias_rate;
-    } else {
-      row.gamma = gamma;
-      row.bias_rate = soft.bias_rate;
+    const bool fixed = ma == 0.0 || mb == 0.0;
+    row.gamma = fixed ? gamma_static : gamma;
+    row.bias_rate = fixed ? soft_static.bias_rate : soft.bias_rate;
+    double row_hertz = fixed ? 2.0 * hertz : hertz;  // Hz: config's soft or soft_static
+    bool own = false;  // the row's own soft constraint (rare): a small pair
+    const double size = std::min(c.shape_size[c.shape_a[m]], c.shape_size[c.shape_b[m]]);  // m
+    if (size < C::STIFFNESS_LENGTH && stiffer) {
+      // a small pair, and room under the cap: stiffer
+      const double stiff = std::min(hertz * std::sqrt(C::STIFFNESS_LENGTH / size), hertz_cap);
+      row_hertz = fixed ? 2.0 * stiff : stiff;
+      own = true;
     }
+    const double scale = c.scale[m];
+    row.max_push = -C::CONTACT_PUSH_MAX_VELOCITY * (scale < 1.0 ? std::sqrt(scale) : 1.0);
+    row.deep = -scale * C::DEEP_OVERLAP;
     row.friction = c.friction[m];
     for (int k = 0; k < npts; ++k) {
       auto& pt = row.point[k];
@@ -81,10 +107,15 @@ void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c,
       pt.rtb = rtb;
       pt.kn = kn;
       pt.tangent_mass = kt > 0.0 ? 1.0 / kt : 0.0;
-      pt.ra = ra;
-      pt.rb = rb;
+      pt.ra = c.sep_anchor_a[m][k];
+      pt.rb = c.sep_anchor_b[m][k];
       pt.base = c.base_separation[m][k];
-      approach_point(st, c, m, k, a, b, ra, rb, n);
+      approach_point(st, c, m, k, a, b, ra, rb, pt.ra, pt.rb, n);
+    }
+    if (own) {
+      const Soft s = soft_parameters(row_hertz, C::CONTACT_DAMPING_RATIO, h);
+      row.gamma = gamma_of(s);
+      row.bias_rate = s.bias_rate;
     }
     if (npts == 2) {
       // the off-diagonal of the two points' normal block (1/kg)
@@ -96,6 +127,6 @@ void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c,
   }
 }
 
-template void prepare_contacts(const Model<2>&, const State<2>&, Contacts<2>&, Soft, Soft);
+template void prepare_contacts(const Model<2>&, const State<2>&, Contacts<2>&, const Config&);
 
 }  // namespace rbsim

@@ -30,6 +30,16 @@
 // left to the next substep's solve. Clusters that also hold resting contacts (a ball
 // landing on a stack) keep the solve's impulses and get the targets from the recorded
 // approach.
+//
+// An impact is resolved where the bodies meet. A fast body engages a substep before it
+// reaches what it hits, through the speculative push that lets it close the gap and no
+// more; its impact then waits (listed again for the next call) until the gap is within
+// IMPACT_GAP, so that nothing bounces back from, or stops short of, a wall (a static or
+// kinematic body) it has not reached. (Between two dynamic bodies an impact is taken at once, at the gap: see
+// impact_state.) Every normal impulse this stage applies comes with its friction, Coulomb's
+// for that impulse (impact_friction): an impact's friction is then held to the normal
+// impulse the impact really delivered, in whichever substeps it fell, and does not depend
+// on the step.
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -53,6 +63,15 @@ enum BounceKind : std::int8_t {
   kJoined = 2,   // bounces within a cluster that also has resting or inelastic contacts
   kPushing = 3,  // pushes without bouncing (a resting or slow contact)
   kPassive = 4,  // elastic, pushed slowly, no load carried in: joins a lone cluster it touches
+  kWaiting = 5,  // its impacts engaged at a gap and have not met yet: looked at again later
+};
+
+// Where an impact of a point stands when the restitution stage looks at it.
+enum class Impact : std::int8_t {
+  None,     // no impact: the point did not engage faster than the threshold
+  Due,      // the bodies have met there: the impact is resolved now
+  Waiting,  // engaged at a gap (a speculative push) and still apart: resolved once they meet
+  Over,     // engaged at a gap, and no longer approaching there: it never struck
 };
 
 // body_mark bits: bit 1, something other than a lone cluster pushes the body; bit 2, the
@@ -85,6 +104,107 @@ inline double relative_acceleration(const Model<D>& model, int a, int b, typenam
   if (model.body_type[b] == BodyType::Dynamic)
     acc -= dot(model.gravity + model.body_inv_mass[b] * model.body_force[b], n);
   return acc;
+}
+
+// Where point k of manifold m (bodies a, b, normal n) stands. An impact against a static
+// or kinematic body is due once the separation is within IMPACT_GAP (times the contact's
+// scale, m) of touching, so that
+// no body bounces back from (or is stopped short of) a wall it has not reached; until
+// then it waits, with the approach it engaged with. The speculative push carries the
+// bodies together within a substep, following the separation linearly in each body's
+// motion, which a turning body's arc leaves by about |r| (ω h)² / 2 per substep (h in s):
+// when that exceeds tol the impact is taken now, as it stands.
+//
+// Between two dynamic bodies an impact is taken at once, at the gap, unless it is
+// inelastic and further than SPECULATIVE_DISTANCE (scaled): waiting, their speculative push would
+// reach what touches them (a row of balls struck at one end, a box struck into its
+// neighbours) in the solve before the positions move, and the lone clusters' exact redo
+// and a struck pile's contacts would see it too late. With explicit Euler the positions
+// move before the next solve could push: impacts are taken at once there too.
+template <int D>
+Impact impact_state(const Model<D>& model, const State<D>& st, const Contacts<D>& c,
+                    std::int64_t m, int k, int a, int b, typename Dim<D>::Vec n,
+                    double threshold, double h, bool explicit_euler) {
+  if (c.approach_velocity[m][k] >= -threshold || c.max_normal_impulse[m][k] == 0.0)
+    return Impact::None;
+  if (explicit_euler) return Impact::Due;
+  const double s_now = point_separation(c, m, k, a, b, n);
+  const double tol = c.scale[m] * C::IMPACT_GAP;  // m: how close counts as met
+  if (model.is_dynamic(a) && model.is_dynamic(b)) {
+    if (c.restitution[m] > 0.0 || s_now <= c.scale[m] * C::SPECULATIVE_DISTANCE)
+      return Impact::Due;
+  } else if (s_now <= tol) {
+    return Impact::Due;
+  }
+  if (normal_velocity(st, a, b, c.anchor_a[m][k], c.anchor_b[m][k], n) >= 0.0)
+    return Impact::Over;
+  const auto ta = st.body_w[a] * h, tb = st.body_w[b] * h;
+  double arc = ang_dot(ta, ta) * length(c.sep_anchor_a[m][k]);
+  arc += ang_dot(tb, tb) * length(c.sep_anchor_b[m][k]);
+  return 0.5 * arc < tol ? Impact::Waiting : Impact::Due;
+}
+
+// Take back this substep's impulses at point k of manifold m (bodies a, b), normal and
+// tangent, in a lone cluster that is redone exactly. A waiting point of the cluster (its
+// speculative push is no part of the impacts redone) is taken back too: the next
+// substep's solve pushes again before the positions move, and its impact is resolved once
+// the bodies meet.
+template <int D>
+void take_back(const Model<D>& model, State<D>& st, Contacts<D>& c, std::int64_t m, int k,
+               int a, int b) {
+  const auto n = c.normal[m];
+  const double j = c.normal_impulse[m][k];
+  c.normal_impulse[m][k] = 0.0;
+  push_point(model, st, a, b, c.anchor_a[m][k], c.anchor_b[m][k], n, -j);
+  const double jt = c.tangent_impulse[m][k];
+  if (jt != 0.0) {
+    c.tangent_impulse[m][k] = 0.0;
+    if constexpr (D == 2)
+      push_point(model, st, a, b, c.anchor_a[m][k], c.anchor_b[m][k], cross(n, 1.0), -jt);
+  }
+}
+
+// An impact that is over: a later approach engages afresh (see solve_contacts).
+template <int D>
+inline void end_impact(Contacts<D>& c, std::int64_t m, int k) {
+  c.approach_velocity[m][k] = kInf;
+}
+
+// Friction of an impact's normal impulse jn (N·s) at point k of manifold m (bodies a, b):
+// the tangential impulse that stops the sliding there, at most μ jn either way. The
+// solve's friction is held to the normal impulse it accumulates in a substep, which a
+// bounce is no part of; so every normal impulse this stage applies gets its own, and an
+// impact's friction is Coulomb's for the normal impulse it really delivered, whatever the
+// substep it fell in. Added to the point's tangent impulse (N·s).
+template <int D>
+void impact_friction(const Model<D>& model, State<D>& st, Contacts<D>& c, std::int64_t m, int k,
+                     int a, int b, double jn) {
+  static_assert(D == 2, "the solver row is 2D (SolverRow<2>)");
+  const double limit = c.friction[m] * jn;
+  if (!(limit > 0.0)) return;
+  const auto& row = c.solver_row[m];
+  const auto& pt = row.point[k];
+  const Vec2 t = cross(row.normal, 1.0);  // (n_y, −n_x), as the solve's
+  const double vt =
+      dot(st.body_v[a] - st.body_v[b], t) + (st.body_w[a] * pt.rta - st.body_w[b] * pt.rtb);
+  const double jt = std::fmin(std::fmax(-pt.tangent_mass * vt, -limit), limit);
+  if (jt == 0.0) return;
+  st.body_v[a] += (model.body_inv_mass[a] * jt) * t;
+  st.body_w[a] += model.body_inv_inertia[a] * (jt * pt.rta);
+  st.body_v[b] -= (model.body_inv_mass[b] * jt) * t;
+  st.body_w[b] -= model.body_inv_inertia[b] * (jt * pt.rtb);
+  c.tangent_impulse[m][k] += jt;
+}
+
+// The impulses left on a bounced point for the next substep's warm start: the load it
+// carried into the step at most (a bounce is not warm-started), and friction within μ of
+// that.
+template <int D>
+inline void drop_bounce(Contacts<D>& c, std::int64_t m, int k) {
+  const double jn = std::fmin(c.normal_impulse[m][k], c.start_impulse[m][k]);
+  c.normal_impulse[m][k] = jn;
+  const double limit = c.friction[m] * jn;
+  c.tangent_impulse[m][k] = std::fmin(std::fmax(c.tangent_impulse[m][k], -limit), limit);
 }
 
 // Energy the impact owes besides the bounce (see the passes below; zeros elsewhere): work
@@ -206,12 +326,17 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
   using Vec = typename Dim<D>::Vec;
   auto& count = c.count;
   const std::int64_t n_listed = count.bounce_count;
-  if (n_listed == count.bounce_carried) return;  // nothing engaged fast since the last call
+  // nothing engaged fast since the last call, and no impact waits for its bodies to meet
+  // (an inelastic impact between dynamic bodies deferred while far is left to the solve
+  // until something else engages)
+  if (n_listed == count.bounce_carried) return;
   count.bounce_count = count.bounce_carried = 0;
+  bool meeting = false;  // an impact waits for a wall: the next call looks again
   const std::int64_t n_man = count.manifolds;
   auto& kind = c.bounce_kind;
   auto& mark = c.body_mark;
   const auto& im = model.body_inv_mass;
+  const bool explicit_euler = sign < 0.0;
   // The manifolds that bounce are listed (some twice), after those left for later below;
   // while none in this step was elastic, each is ended on its own (in index order, as in
   // the full pass) and nothing else needs a look.
@@ -224,11 +349,18 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
   if (elastic_listed) std::fill(mark.begin(), mark.end(), std::int8_t{0});
   std::int64_t n_alone = 0;
   for (std::int64_t m = 0; m < (elastic_listed ? n_man : 0); ++m) {
-    int bouncing = 0, joining = 0, pushing = 0;
+    int bouncing = 0, waiting = 0, joining = 0, pushing = 0;
     const bool elastic = c.restitution[m] > 0.0;
+    const int a = c.body_a[m], b = c.body_b[m];
     for (int k = 0; k < c.points[m]; ++k) {
-      if (c.approach_velocity[m][k] < -threshold && c.max_normal_impulse[m][k] > 0.0) {
+      // (an impact over before its bodies met is still part of a lone cluster: redone
+      // exactly, it may approach again)
+      const Impact at =
+          impact_state(model, st, c, m, k, a, b, c.normal[m], threshold, h, explicit_euler);
+      if (at == Impact::Due || at == Impact::Over) {
         ++bouncing;
+      } else if (at == Impact::Waiting) {
+        ++waiting;
       } else if (c.normal_impulse[m][k] > 0.0) {
         // pushed, slower than the threshold: in an elastic contact that carried no load
         // into the step, it may be a passive part of an impact (a ball of a touching
@@ -239,18 +371,22 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
           ++pushing;
       }
     }
-    if (pushing == 0 && (bouncing > 0 || joining > 0) && elastic) {
-      kind[m] = bouncing > 0 ? kAlone : kPassive;
+    // (a waiting impact of a lone cluster is taken back with it, and left out of its
+    // passes: its own speculative push is no part of what the cluster redoes)
+    if (pushing == 0 && (bouncing > 0 || waiting > 0 || joining > 0) && elastic) {
+      kind[m] = bouncing + waiting > 0 ? kAlone : kPassive;
       ++n_alone;
       continue;
     }
     if (bouncing > 0)
       kind[m] = kJoined;
+    else if (waiting > 0)
+      kind[m] = kWaiting;
     else
       kind[m] = pushing + joining > 0 ? kPushing : kQuiet;
     if (kind[m] != kQuiet) {
-      mark[c.body_a[m]] |= kPushed;
-      mark[c.body_b[m]] |= kPushed;
+      mark[a] |= kPushed;
+      mark[b] |= kPushed;
     }
   }
   // a cluster that touches a pushed (dynamic) body joins it, until nothing changes
@@ -295,17 +431,12 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
   }
   for (std::int64_t m = 0; m < n_man; ++m) {
     if (kind[m] == kAlone) {
-      // take back this substep's impulses at the cluster's points
-      const int a = c.body_a[m], b = c.body_b[m];
-      const Vec n = c.normal[m];
-      for (int k = 0; k < c.points[m]; ++k) {
-        const double j = c.normal_impulse[m][k];
-        c.normal_impulse[m][k] = 0.0;
-        push_point(model, st, a, b, c.anchor_a[m][k], c.anchor_b[m][k], n, -j);
-      }
+      // take back this substep's impulses at the cluster's points, friction with them
+      for (int k = 0; k < c.points[m]; ++k)
+        take_back(model, st, c, m, k, c.body_a[m], c.body_b[m]);
       continue;
     }
-    if (kind[m] != kJoined) continue;
+    if (kind[m] != kJoined && kind[m] != kWaiting) continue;
     if (!elastic_listed) kind[m] = kQuiet;  // the next call's list starts clean
     const int a = c.body_a[m], b = c.body_b[m];
     const double e = c.restitution[m];
@@ -314,30 +445,25 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
     double t0 = 0.0, t1 = 0.0;
     bool bounce0 = false, bounce1 = false, deferred = false;
     for (int k = 0; k < c.points[m]; ++k) {
-      const double vn0 = c.approach_velocity[m][k];
-      if (vn0 >= -threshold || c.max_normal_impulse[m][k] == 0.0) continue;
-      const double s_now = point_separation(c, m, k, a, b, n);
-      if (s_now > C::SPECULATIVE_DISTANCE && e == 0.0) {
-        // Engaged through a speculative push while still far apart (a fast body one
-        // substep from a wall). With e = 0, ending the approach now would stop it short
-        // by up to a substep's travel: leave it to the solver, which stops it where the
-        // bodies meet, if the speculative separation can be trusted that far: it is
-        // linear in the motion, so a turning body's arc leaves it by about |r| (ω h)² / 2
-        // per substep. Closer, or turning faster, the impact is ended here, exactly by
-        // the formula above. (With e > 0 the bounce is taken now, a little early, so
-        // that the energy it returns is exact.)
-        const auto ta = st.body_w[a] * h, tb = st.body_w[b] * h;
-        double arc = ang_dot(ta, ta) * length(c.anchor_a[m][k]);
-        arc += ang_dot(tb, tb) * length(c.anchor_b[m][k]);
-        if (0.5 * arc < C::LINEAR_SLOP) {
-          deferred = true;
-          continue;
-        }
+      const Impact at =
+          impact_state(model, st, c, m, k, a, b, n, threshold, h, explicit_euler);
+      if (at == Impact::Waiting) {  // looked at again when the stage next runs
+        // an elastic one gives its speculative push back, as a lone cluster's do: kept,
+        // it would cost the bounce its approach should the bodies meet only after the
+        // step (the next step records the approach afresh); an inelastic one keeps it
+        if (e > 0.0) take_back(model, st, c, m, k, a, b);
+        deferred = true;
+        meeting = meeting || !(model.is_dynamic(a) && model.is_dynamic(b));
+        continue;
       }
+      if (at == Impact::Over) end_impact(c, m, k);
+      if (at != Impact::Due) continue;
       // one bounce per impact; should the bodies meet again within the step, the point
       // engages afresh (see solve_contacts) and records its new approach
-      c.approach_velocity[m][k] = kInf;
+      const double vn0 = c.approach_velocity[m][k];
       const double s0 = c.approach_separation[m][k];
+      end_impact(c, m, k);
+      const double s_now = point_separation(c, m, k, a, b, n);
       const double invariant = 0.5 * vn0 * vn0 - 0.5 * acc * h * vn0 - acc * s0;
       const double target = bounce_target(invariant, s_now, acc, e, h, sign);
       if (k == 0) {
@@ -348,7 +474,7 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
         t1 = target;
       }
     }
-    if (deferred) {  // looked at again when the stage next has something to do
+    if (deferred) {
       c.bounce_list[count.bounce_count] = static_cast<std::int32_t>(m);
       ++count.bounce_count;
     }
@@ -358,11 +484,14 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
     for (int k = 0; k < c.points[m]; ++k) {
       const double jk = k == 0 ? j.j0 : j.j1;
       c.max_normal_impulse[m][k] = std::fmax(c.max_normal_impulse[m][k], jk);
-      if (k == 0 ? bounce0 : bounce1)
-        c.normal_impulse[m][k] = std::fmin(c.normal_impulse[m][k], c.start_impulse[m][k]);
+      if (k == 0 ? bounce0 : bounce1) {
+        impact_friction(model, st, c, m, k, a, b, jk);
+        drop_bounce(c, m, k);
+      }
     }
   }
-  count.bounce_carried = count.bounce_count;  // the deferred ones, carried to the next call
+  // the waiting ones, carried to the next call
+  count.bounce_carried = meeting ? 0 : count.bounce_count;
   if (n_alone == 0) return;
   // the lone clusters, one pair's impact at a time
   for (int pass = 0; pass < C::RESTITUTION_PASSES; ++pass) {
@@ -380,6 +509,10 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
         const double vn = normal_velocity(st, a, b, c.anchor_a[m][k], c.anchor_b[m][k], n);
         if (vn >= 0.0) continue;
         const bool first = c.approach_velocity[m][k] < -threshold;
+        if (first &&
+            impact_state(model, st, c, m, k, a, b, n, threshold, h, explicit_euler) ==
+                Impact::Waiting)
+          continue;  // not met yet
         double target = 0.0, alone = 0.0, work = 0.0;
         if (first || vn < -threshold) {
           const double s_now = point_separation(c, m, k, a, b, n);
@@ -410,13 +543,14 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
       if (!(need0 || need1)) continue;
       // each impulse is a bounce against the velocity it meets (a block's two targets
       // are both taken from the velocities before it): e = 1 keeps the energy exactly,
-      // and a point left for later is taken up in the next pass
+      // and a point left for later is taken up in the next pass; each has its friction
       const Owed owed{total_work, e * e, sign * h * acc, u0, u1};
       const auto j = push_targets(model, st, c, m, a, b, need0, t0, need1, t1, true, owed);
       for (int k = 0; k < c.points[m]; ++k) {
         const double jk = k == 0 ? j.j0 : j.j1;
         const bool bounced = (k == 0 ? need0 : need1) && jk != 0.0;
-        if (bounced && (k == 0 ? u0 : u1) > 0.0) c.approach_velocity[m][k] = kInf;  // bounced
+        if (bounced) impact_friction(model, st, c, m, k, a, b, jk);
+        if (bounced && (k == 0 ? u0 : u1) > 0.0) end_impact(c, m, k);  // bounced
       }
       if (j.j0 > 0.0 || j.j1 > 0.0) struck = true;
     }
@@ -424,20 +558,31 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
   }
   for (std::int64_t m = 0; m < n_man; ++m) {
     if (kind[m] != kAlone) continue;
+    const int a = c.body_a[m], b = c.body_b[m];
+    bool deferred = false;
     for (int k = 0; k < c.points[m]; ++k) {
       const double total = c.normal_impulse[m][k];
       c.max_normal_impulse[m][k] = std::fmax(c.max_normal_impulse[m][k], total);
       if (c.approach_velocity[m][k] == kInf) {
         // a bounce is not warm-started; a point that only stopped an approach keeps its
         // impulse, as the solve's points do
-        c.normal_impulse[m][k] = std::fmin(total, c.start_impulse[m][k]);
+        drop_bounce(c, m, k);
+      } else if (impact_state(model, st, c, m, k, a, b, c.normal[m], threshold, h,
+                              explicit_euler) == Impact::Waiting) {
+        deferred = true;  // looked at again when the stage next runs
+        meeting = true;
       } else if (c.approach_velocity[m][k] < -threshold) {
         // its impact was met by the others' bounces before it struck: it is over (a
         // later approach engages afresh in the solve)
-        c.approach_velocity[m][k] = kInf;
+        end_impact(c, m, k);
       }
     }
+    if (deferred) {
+      c.bounce_list[count.bounce_count] = static_cast<std::int32_t>(m);
+      ++count.bounce_count;
+    }
   }
+  count.bounce_carried = meeting ? 0 : count.bounce_count;
 }
 
 template void keep_solve_impulses(Contacts<2>&);

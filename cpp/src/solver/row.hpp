@@ -48,15 +48,15 @@ inline double row_separation(const Point& pt, double moved, Vec na, Vec nb) {
   return moved + pt.base + dot(na, pt.ra) - dot(nb, pt.rb);
 }
 
-// Separation now (m) of point k of manifold m between bodies a and b: its anchors moved by
-// each body's motion since the step began (contacts.body_delta).
+// Separation now (m) of point k of manifold m between bodies a and b: its separation
+// anchors moved by each body's motion since the step began (contacts.body_delta).
 template <int D>
 inline double point_separation(const Contacts<D>& c, std::int64_t m, int k, int a, int b,
                                typename Dim<D>::Vec n) {
   const auto& da = c.body_delta[a];
   const auto& db = c.body_delta[b];
-  auto pa = rotate(da.dq, c.anchor_a[m][k]);
-  auto pb = rotate(db.dq, c.anchor_b[m][k]);
+  auto pa = rotate(da.dq, c.sep_anchor_a[m][k]);
+  auto pb = rotate(db.dq, c.sep_anchor_b[m][k]);
   return dot(da.dx - db.dx + pa - pb, n) + c.base_separation[m][k];
 }
 

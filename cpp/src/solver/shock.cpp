@@ -126,11 +126,16 @@ std::int64_t support_order(const Model<D>& model, Contacts<D>& c) {
     side[m] = 0;
     if (!same) solve_order[m] = static_cast<std::int32_t>(m);
   }
+  c.heavy_on_light = false;
   if (g == 0.0 || n_man == 0) return 0;
   const Vec up = (-1.0 / g) * gravity;
   if (!same) contact_levels(model, c);
-  // which side supports, and a counting sort by the supporter's level
+  // which side supports, and a counting sort by the supporter's level; whether a body
+  // rests on a far lighter dynamic one (the supported body's inverse mass HEAVY_RATIO
+  // times the supporter's, or less)
   std::int64_t max_level = 0;
+  bool heavy = false;
+  const auto& im = model.body_inv_mass;
   for (std::int64_t m = 0; m < n_man; ++m) {
     if (c.points[m] == 0) continue;
     const int a = c.body_a[m], b = c.body_b[m];
@@ -138,11 +143,14 @@ std::int64_t support_order(const Model<D>& model, Contacts<D>& c) {
     if (level[b] < level[a] && u >= C::SHOCK_COS && model.is_dynamic(a)) {
       side[m] = 2;
       max_level = std::max(max_level, level[b]);
+      heavy = heavy || C::HEAVY_RATIO * im[a] <= im[b];
     } else if (level[a] < level[b] && u <= -C::SHOCK_COS && model.is_dynamic(b)) {
       side[m] = 1;
       max_level = std::max(max_level, level[a]);
+      heavy = heavy || C::HEAVY_RATIO * im[b] <= im[a];
     }
   }
+  c.heavy_on_light = heavy;
   // every manifold, ordered by the lower of its two bodies' levels (ground first, bodies
   // not connected to the ground last): the order of the solver's passes, in which a pass
   // carries a push or a correction up a stack within one sweep

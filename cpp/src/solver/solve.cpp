@@ -9,7 +9,8 @@
 // threshold; a point that engages faster than it enters its manifold in bounce_list
 // (count.bounce_count entries), which the restitution stage works through. A manifold
 // with a point that overlaps deeper than DEEP_OVERLAP in the solve stage enters
-// relax_list (count.deep_count entries).
+// relax_list (count.deep_count entries). The depth and the push-out bound are each
+// manifold's (its row's, prepare_contacts: scaled to the shapes' size).
 //
 // Every manifold has one or two points, and each count has its own straight-line code
 // (no loop over points with selects of point 0 or 1). The body velocities are read once
@@ -86,8 +87,6 @@ void solve_contacts(const Model<D>& model, State<D>& st, Contacts<D>& c, double 
   double* w = st.body_w.data();
   const BodyDelta<D>* delta = c.body_delta.data();
   const SolverRow<D>* rows = c.solver_row.data();
-  const double max_push = -C::CONTACT_PUSH_MAX_VELOCITY;  // m/s
-  const double deep = -C::DEEP_OVERLAP;                   // m
   for (std::int64_t o = 0; o < n; ++o) {
     const std::int64_t m = order[o];
     const int a = c.body_a[m], b = c.body_b[m];
@@ -102,6 +101,7 @@ void solve_contacts(const Model<D>& model, State<D>& st, Contacts<D>& c, double 
     const BodyDelta<D>& da = delta[a];
     const BodyDelta<D>& db = delta[b];
     const double soft_gamma = row.gamma, bias_rate = row.bias_rate;
+    const double max_push = row.max_push, deep = row.deep;  // m/s, m
     const double moved = dot(nrm, da.dx - db.dx);
     const Vec na = inv_rotate(da.dq, nrm);
     const Vec nb = inv_rotate(db.dq, nrm);
@@ -324,7 +324,10 @@ void solve_batch(State<2>& st, Contacts<2>& c, const WideBatch& B, double inv_h,
   const Lanes nbx = dbc * nx + dbs * ny, nby = -dbs * nx + dbc * ny;
   const WidePoint& p0 = B.p0;
   const WidePoint& p1 = B.p1;
-  const Lanes max_push = splat(-C::CONTACT_PUSH_MAX_VELOCITY);
+  // each row's push-out bound and deep overlap, or, when every shape is of
+  // SCALE_LENGTH or more, the constants (a batch's two lane vectors not loaded)
+  const bool unit = c.unit_scale;
+  const Lanes max_push = unit ? splat(-C::CONTACT_PUSH_MAX_VELOCITY) : B.max_push;
   const Lanes inv_hv = splat(inv_h);
   const LaneMask bias_on = use_bias ? LaneMask{} == LaneMask{} : LaneMask{} != LaneMask{};
   // a point's separation and soft target (soft_target's bias m/s and γ 1/kg)
@@ -339,7 +342,7 @@ void solve_batch(State<2>& st, Contacts<2>& c, const WideBatch& B, double inv_h,
   target(p0, s0, b0, g0);
   if constexpr (TWO) target(p1, s1, b1, g1);
   if (use_bias) {  // a deep overlap: the manifold enters relax_list
-    const Lanes deep = splat(-C::DEEP_OVERLAP);
+    const Lanes deep = unit ? splat(-C::DEEP_OVERLAP) : B.deep;
     LaneMask is_deep = active & (s0 < deep);
     if constexpr (TWO) is_deep |= active & (s1 < deep);
     for (int l = 0; any(is_deep) && l < LANES; ++l) {

@@ -33,6 +33,7 @@ void pack_lane(const Model<D>& model, const Contacts<D>& c, WideBatch& w, int l,
     w.m[l] = -1;
     w.a[l] = w.b[l] = 0;
     w.nx[l] = w.ny[l] = w.k01[l] = w.gamma[l] = w.bias_rate[l] = w.friction[l] = 0.0;
+    w.max_push[l] = w.deep[l] = 0.0;
     w.ma[l] = w.mb[l] = w.ia[l] = w.ib[l] = w.two[l] = 0.0;
     for (WidePoint* p : {&w.p0, &w.p1}) {
       p->rna[l] = p->rnb[l] = p->rta[l] = p->rtb[l] = 0.0;
@@ -52,6 +53,10 @@ void pack_lane(const Model<D>& model, const Contacts<D>& c, WideBatch& w, int l,
   w.gamma[l] = row.gamma;
   w.bias_rate[l] = row.bias_rate;
   w.friction[l] = row.friction;
+  if (!c.unit_scale) {  // (else the solve takes the constants: solve_batch)
+    w.max_push[l] = row.max_push;
+    w.deep[l] = row.deep;
+  }
   w.ma[l] = model.body_inv_mass[a];
   w.mb[l] = model.body_inv_mass[b];
   w.ia[l] = model.body_inv_inertia[a];
