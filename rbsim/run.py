@@ -352,7 +352,6 @@ def _loop(
     setup = loop_start - t0
     last_step = start_step
     frames_per_call = 1
-    checkpointed = False
     committed_step = start_step
     try:
         if first_frame:
@@ -389,14 +388,12 @@ def _loop(
                 )
             if err is not None:
                 raise err
-            if writer.flush_due() or (writer.rows_free == 0 and not checkpointed):
-                # frames and the engine's checkpoint: once a second, and with the first block
+            if writer.flush_due():  # frames and the engine's checkpoint, once a second
                 with interrupts.held():
                     writer.flush(checkpoint=world.checkpoint(), step=world.step_index)
-                checkpointed = True
             elif writer.rows_free == 0:  # a full block: its frames only
                 with interrupts.held():
-                    writer.flush()
+                    writer.write_block()
             interrupts.check()
             if progress is not None:
                 progress(world.step_index, total)

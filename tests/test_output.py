@@ -85,7 +85,7 @@ def start_run(*args: str | Path) -> subprocess.Popen:
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory) -> tuple[Path, Path, object]:
     folder = tmp_path_factory.mktemp("reference")
-    scene = big_scene(folder, 450)
+    scene = big_scene(folder, 700)
     out = folder / "ref.h5"
     t0 = time.monotonic()
     proc = start_run(scene, "-o", out)
@@ -123,7 +123,7 @@ def test_sigkill_at_random_moments_leaves_a_plain_readable_prefix(reference, tmp
 
 def test_killed_runs_resume_bit_identically(reference, tmp_path) -> None:
     folder, scene, ref = reference
-    for k, delay in enumerate((0.0, 0.2)):
+    for k, delay in enumerate((0.0, 0.15)):
         out = tmp_path / f"resumed{k}.h5"
         proc = start_run(scene, "-o", out)
         checkpoint = Path(f"{out}{CHECKPOINT_SUFFIX}")

@@ -744,6 +744,12 @@ class TrajectoryWriter:
         self._rows = 0
         self.frames_flushed = t0 + rows
 
+    def write_block(self) -> None:
+        """Write the block's frames to the file now (a full block), without a
+        checkpoint: the flush clock (`flush_due`) runs on."""
+        if not self._closed:
+            self._write_block()
+
     def flush(self, checkpoint: bytes | None = None, step: int | None = None) -> None:
         """Write every gathered frame to the file now, and `checkpoint` (the engine's
         state at `step`, default the last frame's, bytes) beside it for `rbsim run
