@@ -411,7 +411,13 @@ for _base, _limit, _why in (
 )
 def measure_heavy_top(make: Maker) -> dict[str, float]:
     """Max overlap (m) over the last 2 s, max box displacement (m) over the run."""
-    sim = make("heavy_top.yaml")
+    return rest_overlap_and_motion(make, "heavy_top.yaml")
+
+
+def rest_overlap_and_motion(make: Maker, path: str) -> dict[str, float]:
+    """The scene `path`: max overlap (m) over its last 2 s ("overlap") and the largest
+    displacement of a dynamic body (m) over the run ("moved"), sampled every 6th step."""
+    sim = make(path)
     geo = Geometry(sim.scene)
     start = sim.read().com[sim.dynamic]
     late = int(sim.scene.world.steps) - round(2.0 / sim.dt)
@@ -490,19 +496,7 @@ def measure_slab(make: Maker) -> dict[str, float]:
 )
 def measure_mass_ratio(make: Maker) -> dict[str, float]:
     """Max overlap (m) over the last 2 s, max box displacement (m) over the run."""
-    sim = make("mass_ratio.yaml")
-    geo = Geometry(sim.scene)
-    start = sim.read().com[sim.dynamic]
-    late = int(sim.scene.world.steps) - round(2.0 / sim.dt)
-    out = {"overlap": 0.0, "moved": 0.0}
-
-    def visit(sim: Engine, s: Snapshot) -> None:
-        out["moved"] = max(out["moved"], float(np.hypot(*(s.com[sim.dynamic] - start).T).max()))
-        if sim.step_index >= late:
-            out["overlap"] = max(out["overlap"], geo.max_overlap(s))
-
-    sample(sim, 6, visit)
-    return out
+    return rest_overlap_and_motion(make, "mass_ratio.yaml")
 
 
 # -- overlap recovery ----------------------------------------------------------------------
