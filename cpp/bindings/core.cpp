@@ -350,6 +350,27 @@ nb::tuple collide2d_py(int kind_a, int start_a, int count_a, double radius_a, in
 // velocity (B,N,2) float64, angle, angular_velocity (B,N) float64, kinetic_energy,
 // potential_energy, angular_momentum (B,) float64, linear_momentum (B,2) float64,
 // contact_count (B,) int64.
+// Between two steps of a long call, every 20 ms: run Python's signal handlers (taking the
+// GIL for it) and ask `stop` (a callable, or None). True when a handler raised (its error
+// left set, or cleared with `clear`) or stop() is true.
+class SignalPoll {
+ public:
+  bool operator()(nb::handle stop, bool clear) {
+    const auto now = std::chrono::steady_clock::now();
+    if (now - checked_ <= std::chrono::milliseconds(20)) return false;
+    checked_ = now;
+    nb::gil_scoped_acquire acquire;
+    if (PyErr_CheckSignals() != 0) {
+      if (clear) PyErr_Clear();
+      return true;
+    }
+    return !stop.is_none() && nb::cast<bool>(stop());
+  }
+
+ private:
+  std::chrono::steady_clock::time_point checked_ = std::chrono::steady_clock::now();
+};
+
 // advance_recording's status when a signal handler raised (not an engine Status)
 constexpr int INTERRUPTED = 100;
 
@@ -435,17 +456,14 @@ NB_MODULE(_core, mod) {
               // one step at a time, with the signal handlers run every 20 ms between two
               // steps (Ctrl-C stops a long chunk); the steps are the same as in one call
               nb::gil_scoped_release release;
-              auto checked = std::chrono::steady_clock::now();
+              SignalPoll poll;
               while (taken < n && status == Status::Ok) {
                 std::int64_t one = 0;
                 status = w.advance(1, &one, &bad);
                 taken += one;
-                const auto now = std::chrono::steady_clock::now();
-                if (taken < n && now - checked > std::chrono::milliseconds(20)) {
-                  checked = now;
-                  nb::gil_scoped_acquire acquire;
-                  signalled = PyErr_CheckSignals() != 0;
-                  if (signalled) break;
+                if (taken < n && poll(nb::none(), false)) {
+                  signalled = true;
+                  break;
                 }
               }
             }
@@ -471,24 +489,16 @@ NB_MODULE(_core, mod) {
               // (the run's, for Ctrl-C) ends the call after whole steps, with every
               // frame recorded so far, and the call returns INTERRUPTED
               nb::gil_scoped_release release;
-              auto checked = std::chrono::steady_clock::now();
+              SignalPoll poll;
               while (taken < n && row + written < b.rows) {
                 std::int64_t one = 0;
                 status = w.advance(1, &one, &bad);
                 taken += one;
                 if (status != Status::Ok) break;
                 if (w.step_index % every == 0 || w.step_index == last) record_row(w, b, row + written++);
-                const auto now = std::chrono::steady_clock::now();
-                if (taken < n && now - checked > std::chrono::milliseconds(20)) {
-                  checked = now;
-                  nb::gil_scoped_acquire acquire;
-                  if (PyErr_CheckSignals() != 0) {
-                    PyErr_Clear();
-                    signalled = true;
-                  } else if (!stop.is_none()) {
-                    signalled = nb::cast<bool>(stop());
-                  }
-                  if (signalled) break;
+                if (taken < n && poll(stop, true)) {
+                  signalled = true;
+                  break;
                 }
               }
             }
