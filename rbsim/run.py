@@ -521,7 +521,10 @@ def resume_run(
     interrupts = _Interrupts(signals)
     with interrupts.installed():
         world = make_engine(engine, scene)
-        world.restore(data)
+        try:
+            world.restore(data)
+        except ValueError as err:  # the engine's check: not a checkpoint of this scene
+            raise ResumeError(f"{path}: {err}") from None
         if step >= 0 and world.step_index != step:
             raise ResumeError(f"{path}: the checkpoint is at step {world.step_index}, not {step}")
         params = {k: v for k, v in params.items() if k not in ("status", "wall_time", "checkpoint")}

@@ -237,6 +237,7 @@ def test_a_subset_of_bodies_keeps_their_rows_and_stores_the_rest_once(tmp_path) 
     # the static bodies left out are stored once, with their shapes and pose
     assert some.fixed is not None and some.fixed.bodies.name == ["ground", "wall"]
     np.testing.assert_array_equal(some.fixed.position, full.position[0, :2])
+    assert "and 2 static stored once" in summarize(path)
     moving, _ = run_pile(tmp_path, "moving", "output.bodies=moving")
     assert "ground" not in moving.bodies.name and len(moving.bodies) == len(full.bodies) - 2
 
@@ -383,3 +384,17 @@ def test_a_run_stopped_between_frames_resumes_bit_identically(tmp_path) -> None:
     assert code == 0, err
     a, b = load_trajectory(ref), load_trajectory(out)
     assert len(b.step) == len(a.step) and same_frames(a, b, len(a.step))
+
+
+def test_resume_from_a_damaged_checkpoint_is_a_message(reference, tmp_path) -> None:
+    folder, scene, _ref = reference
+    out = tmp_path / "damaged.h5"
+    code, _o, err = rbsim("run", scene, "-o", out, "-q", "--set", "world.steps=30")
+    assert code == 0, err
+    with h5py.File(out, "a") as f:  # as a killed run leaves it, with a cut checkpoint
+        f["parameters/rbsim/status"][()] = b"running"
+    Path(f"{out}{CHECKPOINT_SUFFIX}").write_bytes(
+        b"RBSIMRS1" + (31).to_bytes(8, "little") * 2 + b"RBSIMCK1"
+    )
+    code, _o, err = rbsim("run", "--resume", out)
+    assert code == 1 and "checkpoint" in err and "Traceback" not in err

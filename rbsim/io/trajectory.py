@@ -1074,6 +1074,7 @@ def summarize(path: str | os.PathLike) -> str:
     with open_for_reading(path) as f:
         params = read_parameters(f)
         types = _read_strings(f["particles/bodies/type"])
+        fixed = len(f["particles/static/name"]) if "particles/static/name" in f else 0
         t = frame_count(f, closed=params.get("status", STATUS_RUNNING) != STATUS_RUNNING)
         step = time = np.zeros(0)
         if t:
@@ -1096,6 +1097,8 @@ def summarize(path: str | os.PathLike) -> str:
     lines.append(f"  scene      {scene_name(params, path)}")
     counts = ", ".join(f"{types.count(k)} {k}" for k in BODY_TYPES if types.count(k))
     lines.append(f"  bodies     {len(types)}" + (f" ({counts})" if counts else ""))
+    if fixed:
+        lines[-1] += f"; and {fixed} static stored once (output.bodies)"
     if t:
         lines.append(
             f"  frames     {t} (steps {int(step[0])}..{int(step[-1])}, "
