@@ -55,7 +55,7 @@ def make_config(scene: Scene) -> Config:
         substeps=int(sol.substeps),
         iterations=int(sol.iterations),
         explicit=sol.integrator == "explicit_euler",
-        exact=sol.rotation == "exact",
+        exact=sol.rotation in ("exact", "split"),  # split is exact in 2D (one axis)
         restitution_threshold=float(sol.restitution_threshold),
         friction_rule=MIXING[scene.world.friction_mixing],
         restitution_rule=MIXING[scene.world.restitution_mixing],

@@ -23,6 +23,28 @@ SHAPE_KIND_CODE = {
     "segment": SHAPE_SEGMENT,
 }
 
+# 3D shape kinds as a scene writes them (world.dimension: 3). A plane is the solid
+# half-space n·x <= offset, static bodies only.
+SHAPE_KINDS_3D = ("sphere", "box", "capsule", "convex", "plane")
+
+# 3D shape kinds as stored in Model.shape_kind (after the 2D codes, so one table of
+# kinds serves both dimensions).
+SHAPE_SPHERE = 3
+SHAPE_BOX = 4
+SHAPE_CAPSULE = 5
+SHAPE_CONVEX = 6
+SHAPE_PLANE = 7
+SHAPE_KIND_CODE_3D = {
+    "sphere": SHAPE_SPHERE,
+    "box": SHAPE_BOX,
+    "capsule": SHAPE_CAPSULE,
+    "convex": SHAPE_CONVEX,
+    "plane": SHAPE_PLANE,
+}
+
+# world.dimension
+DIMENSIONS = (2, 3)
+
 # Body types as a scene writes them, and as stored in Model.body_type.
 BODY_TYPES = ("dynamic", "static", "kinematic")
 BODY_DYNAMIC = 0
@@ -32,7 +54,12 @@ BODY_TYPE_CODE = {"dynamic": BODY_DYNAMIC, "static": BODY_STATIC, "kinematic": B
 
 # solver.integrator and solver.rotation; the first of each is the default.
 INTEGRATORS = ("symplectic_euler", "explicit_euler")
-ROTATIONS = ("normalize", "exact")
+# normalize: the notes' q <- normalize(q + h ω×q) (2D), normalize(q + (h/2) ω q) (3D);
+# exact: q <- exp(h ω) q with ω held over the substep; split: the torque-free body split
+# symmetrically into exact rotations about its principal axes (keeps L, symplectic;
+# the same as exact in 2D). Codes as cpp/include/rbsim/types.hpp's Rotation.
+ROTATIONS = ("normalize", "exact", "split")
+ROTATION_CODE = {"normalize": 0, "exact": 1, "split": 2}
 
 # world.mixing: how a contact's friction and restitution come from its two shapes'
 # values (the first of each is the default), and the numbers the engines use for them.
