@@ -377,11 +377,17 @@ class Outcome:
 def run_one(job: Job) -> Outcome:
     """Run one spec with rbsim's engine (rbsim.run.run_scene) and measure its figures.
 
-    The trajectory is written to a hidden `.<run-id>.<random>.part` file and renamed to
+    The trajectory is written to a hidden `.<run-id>.part` file and renamed to
     `<run-id>.h5` once closed, so that a worker killed mid-run leaves no file that looks
-    finished. A non-finite state is a finished run with status "failed: ..." (the file
-    keeps the frames before it); any other error is raised for the batch to retry."""
-    from .run import RunFailed, run_scene
+    finished. In a folder shared with the batch (a local cluster), an attempt that finds
+    the part file of an earlier attempt killed mid-run, with its checkpoint, continues
+    it (rbsim.run.resume_run: the frames are those of an uninterrupted run, bit for bit)
+    instead of starting again; an flock on `.<run-id>.lock` keeps two live attempts of
+    one run from sharing a part file (the second writes its own). A non-finite state is
+    a finished run with status "failed: ..." (the file keeps the frames before it); any
+    other error is raised for the batch to retry."""
+    from .io.trajectory import CHECKPOINT_SUFFIX
+    from .run import ResumeError, RunFailed, resume_run, run_scene
 
     if job.version != __version__:
         import rbsim
@@ -392,15 +398,21 @@ def run_one(job: Job) -> Outcome:
         )
     spec = job.spec
     scene = spec.scene()
-    tag = uuid.uuid4().hex[:8]
     own_dir = None if job.out_dir is not None else tempfile.mkdtemp(prefix="rbsim-batch-")
     folder = Path(job.out_dir if job.out_dir is not None else own_dir)
-    part = folder / f".{spec.run_id}.{tag}.part"
+    lock = _claim(folder, spec.run_id) if own_dir is None else None
+    tag = "" if lock is not None else f".{uuid.uuid4().hex[:8]}"
+    part = folder / f".{spec.run_id}{tag}.part"
     try:
         try:
-            run_scene(
-                scene, part, progress=None, signals=(), engine=ENGINE, overrides=spec.overrides
-            )
+            try:
+                if lock is None or not part.exists():
+                    raise ResumeError("no earlier attempt")
+                resume_run(part, progress=None, signals=())
+            except ResumeError:
+                run_scene(
+                    scene, part, progress=None, signals=(), engine=ENGINE, overrides=spec.overrides
+                )
         except RunFailed:
             pass  # the file says which body and step; figures() reads it
         found = figures(part, scene)
@@ -413,6 +425,41 @@ def run_one(job: Job) -> Outcome:
             shutil.rmtree(own_dir, ignore_errors=True)
         else:
             part.unlink(missing_ok=True)
+            Path(f"{part}{CHECKPOINT_SUFFIX}").unlink(missing_ok=True)
+            if lock is not None:
+                _release(folder, spec.run_id, lock)
+
+
+def _lock_path(folder: Path, run_id: str) -> Path:
+    return folder / f".{run_id}.lock"
+
+
+def _claim(folder: Path, run_id: str) -> int | None:
+    """An exclusive flock on the run's lock file (its descriptor), or None when another
+    live attempt holds it. The kernel drops the lock of a killed process, so a retry
+    after a lost worker gets it."""
+    import fcntl
+
+    path = _lock_path(folder, run_id)
+    while True:
+        fd = os.open(path, os.O_CREAT | os.O_RDWR, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            return None
+        try:  # the holder before us may have removed the file we locked
+            if os.stat(path).st_ino == os.fstat(fd).st_ino:
+                return fd
+        except FileNotFoundError:
+            pass
+        os.close(fd)
+
+
+def _release(folder: Path, run_id: str, fd: int) -> None:
+    """Remove the run's lock file and drop the lock (the file first, while held)."""
+    _lock_path(folder, run_id).unlink(missing_ok=True)
+    os.close(fd)
 
 
 def figures(path: str | Path, scene: Scene) -> dict[str, Any]:
@@ -700,8 +747,8 @@ def run_batch(
     except KeyboardInterrupt:
         interrupted = True
     finally:
-        for spec in todo:
-            for part in out.glob(f".{spec.run_id}.*.part"):
+        for spec in todo:  # part files, their checkpoints and locks of unfinished attempts
+            for part in out.glob(f".{spec.run_id}.*"):
                 part.unlink(missing_ok=True)
     if interrupted:  # runs that workers finished after the last one recorded
         for spec in todo:

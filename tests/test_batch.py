@@ -457,6 +457,53 @@ def test_batch_on_a_scheduler_completes_every_run_when_a_worker_is_killed(tmp_pa
     assert fell and fell == [r["bodies.15.position.0"] for r in rows][len(rows) - len(fell) :]
 
 
+def test_a_retry_continues_the_run_its_killed_attempt_left(tmp_path: Path) -> None:
+    """A worker killed mid-run leaves `.<run-id>.part` and its checkpoint; the retry
+    (run_one again, as the batch sends it) continues from there and ends with the frames
+    of an uninterrupted run, bit for bit."""
+    from rbsim import __version__
+    from rbsim.batch import Job, run_one
+    from rbsim.io.trajectory import CHECKPOINT_SUFFIX
+    from rbsim.run import run_scene
+
+    sets = ["world.duration=120"]  # 7200 steps, about 0.7 s: killed at its first checkpoints
+    (spec,) = plan_batch([str(STACK)], sets, [parse_vary("bodies.15.position.0=[0.3]")]).runs()
+    out = tmp_path / "out"
+    out.mkdir()
+    part = out / f".{spec.run_id}.part"
+    attempt = textwrap.dedent(f"""
+        from rbsim.batch import RunSpec
+        from rbsim.run import run_scene
+        fields = {(spec.run_id, spec.scene_path, spec.source, spec.overrides, spec.varied)!r}
+        spec = RunSpec(*fields)
+        run_scene(spec.scene(), {str(part)!r}, progress=None, signals=(),
+                  overrides=spec.overrides, flush_seconds=0.05)
+    """)
+    proc = subprocess.Popen([sys.executable, "-c", attempt], stderr=subprocess.PIPE)
+    sidecar = Path(f"{part}{CHECKPOINT_SUFFIX}")
+    deadline = time.monotonic() + TIMEOUT
+    while not sidecar.exists():
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline, "the attempt wrote no checkpoint in time"
+        time.sleep(0.01)
+    proc.kill()  # the worker dies mid-run
+    proc.wait()
+    killed = load_trajectory(part)
+    assert 0 < len(killed.step) < 7201  # it died in the middle
+
+    outcome = run_one(Job(spec, str(out), __version__))  # the retry
+    assert outcome.figures["status"] == "complete"
+    got = load_trajectory(out / f"{spec.run_id}.h5")
+    assert got.parameters["resumed"] == "1"  # continued, not started again
+    fresh = tmp_path / "fresh.h5"
+    run_scene(spec.scene(), fresh, progress=None, signals=(), overrides=spec.overrides)
+    want = load_trajectory(fresh)
+    assert len(got.step) == len(want.step)
+    for key in ("position", "angle", "velocity", "angular_velocity"):
+        assert np.array_equal(getattr(got, key), getattr(want, key)), key
+    assert not list(out.glob(".*"))  # no part, checkpoint or lock file left
+
+
 # rbsim sweep on workers -------------------------------------------------------------------
 
 PROJECTILE = """\
