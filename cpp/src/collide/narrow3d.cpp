@@ -302,10 +302,16 @@ const Hull3& box_hull3() {
   return hull;
 }
 
-inline Vec3 box_corner(const ShapeRef3& box, int k) {
-  const Vec3 ex = box.half.x * box.axes[0], ey = box.half.y * box.axes[1], ez = box.half.z * box.axes[2];
-  return box.center + (k & 1 ? ex : -ex) + (k & 2 ? ey : -ey) + (k & 4 ? ez : -ez);
-}
+// A box's centre and half-extent vectors (m), for its corners.
+struct BoxCorners {
+  Vec3 c, ex, ey, ez;
+  explicit BoxCorners(const ShapeRef3& box)
+      : c(box.center), ex(box.half.x * box.axes[0]), ey(box.half.y * box.axes[1]),
+        ez(box.half.z * box.axes[2]) {}
+  // corner k: the signs of bits 0, 1, 2 of k along x, y, z
+  Vec3 operator[](int k) const { return c + (k & 1 ? ex : -ex) + (k & 2 ? ey : -ey) + (k & 4 ? ez : -ez); }
+};
+inline Vec3 box_corner(const ShapeRef3& box, int k) { return BoxCorners(box)[k]; }
 
 // A polytope as the hull code reads it: world vertices, world face normals, topology.
 struct Polytope {
@@ -839,64 +845,70 @@ int collide_box_box(const ShapeRef3& a, const ShapeRef3& b, double speculative, 
   const Vec3 d = a.center - b.center;  // b -> a
   const double ha[3] = {a.half.x, a.half.y, a.half.z};
   const double hb[3] = {b.half.x, b.half.y, b.half.z};
-  double abs_r[3][3];
+  // R[i][j] = a_i · b_j: b's axes in a's frame (its columns); t: d in a's frame
+  double rot[3][3], abs_r[3][3];
   for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) abs_r[i][j] = std::fabs(dot(a.axes[i], b.axes[j]));
+    for (int j = 0; j < 3; ++j) {
+      rot[i][j] = dot(a.axes[i], b.axes[j]);
+      abs_r[i][j] = std::fabs(rot[i][j]);
+    }
+  const double t[3] = {dot(d, a.axes[0]), dot(d, a.axes[1]), dot(d, a.axes[2])};
 
   double sep_a = -INF, sep_b = -INF, sep_e = -INF;
   int axis_a = 0, axis_b = 0, edge_i = -1, edge_j = -1;
-  double proj_a = 0.0, proj_b = 0.0;
-  Vec3 axis_e{};
   for (int i = 0; i < 3; ++i) {
-    const double proj = dot(d, a.axes[i]);
-    const double s = std::fabs(proj) - ha[i] -
+    const double s = std::fabs(t[i]) - ha[i] -
                      (hb[0] * abs_r[i][0] + hb[1] * abs_r[i][1] + hb[2] * abs_r[i][2]);
     if (s > speculative) return 0;
     if (s > sep_a) {
       sep_a = s;
       axis_a = i;
-      proj_a = proj;
     }
   }
+  double proj_b[3];
   for (int j = 0; j < 3; ++j) {
-    const double proj = dot(d, b.axes[j]);
-    const double s = std::fabs(proj) - hb[j] -
+    proj_b[j] = dot(d, b.axes[j]);
+    const double s = std::fabs(proj_b[j]) - hb[j] -
                      (ha[0] * abs_r[0][j] + ha[1] * abs_r[1][j] + ha[2] * abs_r[2][j]);
     if (s > speculative) return 0;
     if (s > sep_b) {
       sep_b = s;
       axis_b = j;
-      proj_b = proj;
     }
   }
+  // L = a_i × b_j in a's frame (i, i1, i2 and j, j1, j2 cyclic): |L|² = R[i1][j]² + R[i2][j]²,
+  // d · L = t[i2] R[i1][j] − t[i1] R[i2][j]; a's extent along L is
+  // ha[i1] |R[i2][j]| + ha[i2] |R[i1][j]|, b's hb[j1] |R[i][j2]| + hb[j2] |R[i][j1]|
+  double proj_e = 0.0, len_e = 1.0;
   for (int i = 0; i < 3; ++i) {
+    const int i1 = (i + 1) % 3, i2 = (i + 2) % 3;
     for (int j = 0; j < 3; ++j) {
-      const Vec3 L = cross(a.axes[i], b.axes[j]);
-      const double len = length(L);
-      if (len <= EDGE_PARALLEL_SIN) continue;
-      double ra = 0.0, rb = 0.0;
-      for (int k = 0; k < 3; ++k) {
-        if (k != i) ra += ha[k] * std::fabs(dot(a.axes[k], L));
-        if (k != j) rb += hb[k] * std::fabs(dot(b.axes[k], L));
-      }
-      const double proj = dot(d, L);
+      const int j1 = (j + 1) % 3, j2 = (j + 2) % 3;
+      const double len2 = rot[i1][j] * rot[i1][j] + rot[i2][j] * rot[i2][j];
+      if (len2 <= EDGE_PARALLEL_SIN * EDGE_PARALLEL_SIN) continue;
+      const double len = std::sqrt(len2);
+      const double ra = ha[i1] * abs_r[i2][j] + ha[i2] * abs_r[i1][j];
+      const double rb = hb[j1] * abs_r[i][j2] + hb[j2] * abs_r[i][j1];
+      const double proj = t[i2] * rot[i1][j] - t[i1] * rot[i2][j];
       const double s = (std::fabs(proj) - ra - rb) / len;
       if (s > speculative) return 0;
       if (s > sep_e) {
         sep_e = s;
         edge_i = i;
         edge_j = j;
-        axis_e = (proj >= 0.0 ? 1.0 / len : -1.0 / len) * L;  // b -> a
+        proj_e = proj;
+        len_e = len;
       }
     }
   }
+  const double proj_a = t[axis_a];
 
   const double tol = face_tolerance(a, b);
   const int ref_is_b = sep_b > sep_a + tol ? 1 : 0;
   const double face_sep = ref_is_b ? sep_b : sep_a;
   if (edge_i >= 0 && edge_wins(sep_e, face_sep, tol)) {
     // a's edge along axis i nearest b (towards −n), b's edge along axis j nearest a (+n)
-    const Vec3 n = axis_e;
+    const Vec3 n = (proj_e >= 0.0 ? 1.0 / len_e : -1.0 / len_e) * cross(a.axes[edge_i], b.axes[edge_j]);
     int corner_a = 0, corner_b = 0;  // the edges' lower corners (sign bits)
     for (int k = 0; k < 3; ++k) {
       if (k != edge_i && dot(n, a.axes[k]) < 0.0) corner_a |= 1 << k;
@@ -913,7 +925,7 @@ int collide_box_box(const ShapeRef3& a, const ShapeRef3& b, double speculative, 
   const ShapeRef3& inc = ref_is_b ? a : b;
   // the reference face faces the other box: on a, against d; on b, along d
   const int ri = ref_is_b ? axis_b : axis_a;
-  const bool ref_positive = ref_is_b ? proj_b >= 0.0 : proj_a < 0.0;
+  const bool ref_positive = ref_is_b ? proj_b[axis_b] >= 0.0 : proj_a < 0.0;
   const Vec3 n_ref = ref_positive ? ref.axes[ri] : -ref.axes[ri];
   const int ref_face = 2 * ri + (ref_positive ? 1 : 0);
   // the incident face: the other box's face most anti-parallel to n_ref
@@ -929,20 +941,22 @@ int collide_box_box(const ShapeRef3& a, const ShapeRef3& b, double speculative, 
   const bool inc_positive = dot(n_ref, inc.axes[ii]) < 0.0;
   const int inc_face = 2 * ii + (inc_positive ? 1 : 0);
   const HullView& topo = box_hull();
+  const BoxCorners ref_corner(ref), inc_corner(inc);
   Vec3 loop[4];
-  for (int k = 0; k < 4; ++k) loop[k] = box_corner(ref, BOX_LOOP[ref_face][k]);
+  for (int k = 0; k < 4; ++k) loop[k] = ref_corner[BOX_LOOP[ref_face][k]];
   ClipPolygon<8> poly;
   for (int k = 0; k < 4; ++k) {
     const int v = BOX_LOOP[inc_face][k];
-    poly.push(box_corner(inc, v), feature_id(FK::Vertex, 0, 0, v, 0),
+    poly.push(inc_corner[v], feature_id(FK::Vertex, 0, 0, v, 0),
               topo.face_edge[topo.face_start[inc_face] + k]);
   }
   return face_contact(loop, 4, n_ref, poly, ref_is_b, ref_face, speculative, out);
 }
 
 int collide_box_plane(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
+  const BoxCorners corner(a);
   Vec3 corners[8];
-  for (int k = 0; k < 8; ++k) corners[k] = box_corner(a, k);
+  for (int k = 0; k < 8; ++k) corners[k] = corner[k];
   return polytope_plane(corners, 8, b, speculative, out);
 }
 
@@ -1003,7 +1017,8 @@ const HullView& box_hull() {
 }
 
 void box_geometry(const ShapeRef3& box, Vec3* corners, Vec3* face_normals) {
-  for (int k = 0; k < 8; ++k) corners[k] = box_corner(box, k);
+  const BoxCorners corner(box);
+  for (int k = 0; k < 8; ++k) corners[k] = corner[k];
   for (int i = 0; i < 3; ++i) {
     face_normals[2 * i] = -box.axes[i];
     face_normals[2 * i + 1] = box.axes[i];
