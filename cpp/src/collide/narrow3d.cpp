@@ -122,7 +122,14 @@ inline Vec3 closest_on_segment(Vec3 x, Vec3 p, Vec3 q) {
 // and returns whether it is within reach. At most four are kept: the deepest, the one
 // farthest from it, the one spanning the largest triangle with those two (area seen
 // along the normal), and the one that adds most area to that triangle; they are written
-// in candidate order. Ties go to the lower index. Returns the point count.
+// in candidate order. Ties go to the lower index, also ties that round-off decides (a
+// box's face is a rectangle: its corners tie in depth, its opposite sides in area), so
+// that the same four are kept from step to step (REDUCE_TIE). Returns the point count.
+// Relative margin by which a candidate must beat the current pick in reduce_to_four (and
+// depth by LINEAR_EPSILON, m): far above the round-off of the same point computed along
+// another path (1e-16), far below any difference that matters.
+constexpr double REDUCE_TIE = 1.0e-9;
+
 template <class Get>
 int reduce_to_four(int n, const Get& get, Vec3 normal, Manifold3& out) {
   Vec3 p;
@@ -139,7 +146,7 @@ int reduce_to_four(int n, const Get& get, Vec3 normal, Manifold3& out) {
       out.id[kept] = id;
     }
     ++kept;
-    if (s < min_sep) {
+    if (s < min_sep - LINEAR_EPSILON) {
       min_sep = s;
       deepest = i;
     }
@@ -155,7 +162,7 @@ int reduce_to_four(int n, const Get& get, Vec3 normal, Manifold3& out) {
   for (int i = 0; i < n; ++i) {
     if (!get(i, p, s, id)) continue;
     const double d2 = length_squared(p - p0);
-    if (d2 > best) {
+    if (d2 > best * (1.0 + REDUCE_TIE)) {
       best = d2;
       pick[1] = i;
       p1 = p;
@@ -167,7 +174,7 @@ int reduce_to_four(int n, const Get& get, Vec3 normal, Manifold3& out) {
   for (int i = 0; i < n; ++i) {
     if (!get(i, p, s, id)) continue;
     const double area = dot(cross(p1 - p0, p - p0), normal);
-    if (std::fabs(area) > best) {
+    if (std::fabs(area) > best * (1.0 + REDUCE_TIE)) {
       best = std::fabs(area);
       pick[2] = i;
       p2 = p;
@@ -176,14 +183,15 @@ int reduce_to_four(int n, const Get& get, Vec3 normal, Manifold3& out) {
   }
   // the area a point adds outside the triangle: the most negative of its (oriented)
   // areas against the triangle's three edges
-  best = 0.0;
+  const double tie = REDUCE_TIE * best;  // best: twice the triangle's area
+  best = tie;
   for (int i = 0; i < n; ++i) {
     if (!get(i, p, s, id)) continue;
     const double a01 = orient * dot(cross(p1 - p0, p - p0), normal);
     const double a12 = orient * dot(cross(p2 - p1, p - p1), normal);
     const double a20 = orient * dot(cross(p0 - p2, p - p2), normal);
     const double added = -std::min(a01, std::min(a12, a20));
-    if (added > best) {
+    if (added > best + tie) {
       best = added;
       pick[3] = i;
     }
