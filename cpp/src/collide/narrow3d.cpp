@@ -26,6 +26,7 @@
 #include <cmath>
 #include <limits>
 
+#include "collide/segment_closest.hpp"
 #include "rbsim/constants.hpp"
 
 namespace rbsim {
@@ -78,34 +79,6 @@ inline int single_point(Vec3 a, double radius_a, Vec3 b, double radius_b, Vec3 n
   out.separation[0] = sep;
   out.id[0] = fid;
   return 1;
-}
-
-// Fractions (s, t) of the closest points p1 + s (q1 − p1) and p2 + t (q2 − p2) of two
-// segments. Parallel segments start from s = 0; a point-like segment has fraction 0.
-struct Fractions {
-  double s, t;
-};
-inline Fractions segment_closest_fractions(Vec3 p1, Vec3 q1, Vec3 p2, Vec3 q2) {
-  const Vec3 d1 = q1 - p1, d2 = q2 - p2, r = p1 - p2;
-  const double a = dot(d1, d1), e = dot(d2, d2), f = dot(d2, r);
-  constexpr double tiny = LINEAR_EPSILON * LINEAR_EPSILON;
-  if (a <= tiny && e <= tiny) return {0.0, 0.0};
-  if (a <= tiny) return {0.0, clamp01(f / e)};
-  const double c = dot(d1, r);
-  if (e <= tiny) return {clamp01(-c / a), 0.0};
-  const double b = dot(d1, d2);
-  const double denom = a * e - b * b;
-  double s = 0.0;
-  if (denom > 1.0e-12 * a * e) s = clamp01((b * f - c * e) / denom);
-  double t = (b * s + f) / e;
-  if (t < 0.0) {
-    t = 0.0;
-    s = clamp01(-c / a);
-  } else if (t > 1.0) {
-    t = 1.0;
-    s = clamp01((b - c) / a);
-  }
-  return {s, t};
 }
 
 inline Vec3 closest_on_segment(Vec3 x, Vec3 p, Vec3 q) {
@@ -429,35 +402,33 @@ inline int edge_contact(Vec3 p1, Vec3 q1, Vec3 p2, Vec3 q2, Vec3 n, std::int64_t
   return single_point(ca, 0.0, cb, 0.0, n, fid, speculative, out);
 }
 
+// The face of P that separates Q most (its deepest vertex below the face): separation
+// (m) and face. False as soon as one face separates them by more than `speculative`.
+inline bool deepest_face(const Polytope& P, const Polytope& Q, double speculative, double& sep,
+                         int& face) {
+  sep = -INF;
+  face = 0;
+  for (int f = 0; f < P.h->face_count; ++f) {
+    const Vec3 n = P.fn[f], o = face_origin(P, f);
+    double s = INF;
+    for (int j = 0; j < Q.h->vertex_count; ++j) s = std::min(s, dot(n, Q.v[j] - o));
+    if (s > speculative) return false;
+    if (s > sep) {
+      sep = s;
+      face = f;
+    }
+  }
+  return true;
+}
+
 // Two hulls (or boxes taken as hulls): SAT over both hulls' faces and their edge pairs.
 constexpr int HULL_CLIP = 2 * HULL_MAX_FACE_VERTICES;
 int collide_polytopes(const Polytope& A, const Polytope& B, double tol, double speculative,
                       Manifold3& out) {
-  // faces of A: the deepest vertex of B below each
-  double sep_a = -INF;
-  int face_a = 0;
-  for (int f = 0; f < A.h->face_count; ++f) {
-    const Vec3 n = A.fn[f], o = face_origin(A, f);
-    double s = INF;
-    for (int j = 0; j < B.h->vertex_count; ++j) s = std::min(s, dot(n, B.v[j] - o));
-    if (s > speculative) return 0;
-    if (s > sep_a) {
-      sep_a = s;
-      face_a = f;
-    }
-  }
-  double sep_b = -INF;
-  int face_b = 0;
-  for (int f = 0; f < B.h->face_count; ++f) {
-    const Vec3 n = B.fn[f], o = face_origin(B, f);
-    double s = INF;
-    for (int j = 0; j < A.h->vertex_count; ++j) s = std::min(s, dot(n, A.v[j] - o));
-    if (s > speculative) return 0;
-    if (s > sep_b) {
-      sep_b = s;
-      face_b = f;
-    }
-  }
+  double sep_a, sep_b;
+  int face_a, face_b;
+  if (!deepest_face(A, B, speculative, sep_a, face_a)) return 0;
+  if (!deepest_face(B, A, speculative, sep_b, face_b)) return 0;
   // edge pairs that make a face of the Minkowski difference
   Vec3 centroid_a{};
   for (int j = 0; j < A.h->vertex_count; ++j) centroid_a += A.v[j];
