@@ -197,19 +197,18 @@ struct ClipPolygon {
   }
 };
 
-// Keep the part of `in` on the inner side of the plane dot(normal, x − origin) <= 0
-// (reference side `side`). A convex polygon gains at most one point.
-template <int N>
-void clip_polygon(const ClipPolygon<N>& in, Vec3 normal, Vec3 origin, int side,
-                  ClipPolygon<N>& out) {
+// Keep the part of `in` on the inner side of a plane, dist(x) <= 0 (reference side
+// `side`; dist is affine in x). A convex polygon gains at most one point.
+template <int N, class Dist>
+void clip_polygon(const ClipPolygon<N>& in, const Dist& dist, int side, ClipPolygon<N>& out) {
   out.n = 0;
   if (in.n == 0) return;
   Vec3 P = in.p[0];
-  double dP = dot(normal, P - origin);
+  double dP = dist(P);
   for (int i = 0; i < in.n; ++i) {
     const int j = i + 1 < in.n ? i + 1 : 0;
     const Vec3 Q = in.p[j];
-    const double dQ = dot(normal, Q - origin);
+    const double dQ = dist(Q);
     const bool inP = dP <= 0.0, inQ = dQ <= 0.0;
     const int tag = in.tag[i];
     if (inP) out.push(P, in.id[i], tag);
@@ -243,7 +242,8 @@ int face_contact(const Vec3* ref, int ref_n, Vec3 n_ref, ClipPolygon<N>& inc, in
   for (int k = 0; k < ref_n && cur->n > 0; ++k) {
     const Vec3 v0 = ref[k];
     const Vec3 v1 = ref[k + 1 < ref_n ? k + 1 : 0];
-    clip_polygon(*cur, cross(v1 - v0, n_ref), v0, k, *nxt);
+    const Vec3 side = cross(v1 - v0, n_ref);
+    clip_polygon(*cur, [&](Vec3 x) { return dot(side, x - v0); }, k, *nxt);
     std::swap(cur, nxt);
   }
   const ClipPolygon<N>& poly = *cur;
@@ -265,6 +265,9 @@ int face_contact(const Vec3* ref, int ref_n, Vec3 n_ref, ClipPolygon<N>& inc, in
 constexpr std::int32_t BOX_LOOP[6][4] = {
     {0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6},
 };
+
+// The axis of a box edge from the xor of its corners' indices (one bit set).
+constexpr int BIT_AXIS[5] = {0, 0, 1, 0, 2};
 
 const Hull3& box_hull3() {
   static const Hull3 hull = [] {
@@ -919,17 +922,47 @@ int collide_box_box(const ShapeRef3& a, const ShapeRef3& b, double speculative, 
   }
   const bool inc_positive = dot(n_ref, inc.axes[ii]) < 0.0;
   const int inc_face = 2 * ii + (inc_positive ? 1 : 0);
+  // Clip in the reference box's frame: the incident corners' coordinates along its axes,
+  // so that each side plane is one coordinate against a half extent. Side k of the
+  // reference face's loop (corner k to k+1) is the plane of the axis both corners'
+  // other bit does not change: outward along that axis, with their sign on it.
   const HullView& topo = box_hull();
-  const BoxCorners ref_corner(ref), inc_corner(inc);
-  Vec3 loop[4];
-  for (int k = 0; k < 4; ++k) loop[k] = ref_corner[BOX_LOOP[ref_face][k]];
+  const BoxCorners inc_corner(inc);
+  const double hr[3] = {ref.half.x, ref.half.y, ref.half.z};
   ClipPolygon<8> poly;
   for (int k = 0; k < 4; ++k) {
     const int v = BOX_LOOP[inc_face][k];
-    poly.push(inc_corner[v], feature_id(FK::Vertex, 0, 0, v, 0),
-              topo.face_edge[topo.face_start[inc_face] + k]);
+    const Vec3 r = inc_corner[v] - ref.center;
+    poly.push({dot(r, ref.axes[0]), dot(r, ref.axes[1]), dot(r, ref.axes[2])},
+              feature_id(FK::Vertex, 0, 0, v, 0), topo.face_edge[topo.face_start[inc_face] + k]);
   }
-  return face_contact(loop, 4, n_ref, poly, ref_is_b, ref_face, speculative, out);
+  ClipPolygon<8> tmp;
+  ClipPolygon<8>* cur = &poly;
+  ClipPolygon<8>* nxt = &tmp;
+  for (int k = 0; k < 4 && cur->n > 0; ++k) {
+    const int c0 = BOX_LOOP[ref_face][k], c1 = BOX_LOOP[ref_face][(k + 1) & 3];
+    const int m = 3 - ri - BIT_AXIS[c0 ^ c1];  // neither the face's axis nor the edge's
+    const bool positive = (c0 >> m) & 1;
+    const double h = hr[m];
+    const auto dist = [m, positive, h](Vec3 x) {
+      const double u = m == 0 ? x.x : (m == 1 ? x.y : x.z);
+      return (positive ? u : -u) - h;
+    };
+    clip_polygon(*cur, dist, k, *nxt);
+    std::swap(cur, nxt);
+  }
+  const ClipPolygon<8>& clipped = *cur;
+  const std::int64_t ref_part = feature_id(FK::Single, ref_is_b, ref_face, 0, 0);
+  const double h_face = hr[ri];
+  const auto get = [&](int i, Vec3& p, double& s, std::int64_t& id) {
+    const Vec3 l = clipped.p[i];
+    const double along = ri == 0 ? l.x : (ri == 1 ? l.y : l.z);
+    s = (ref_positive ? along : -along) - h_face;
+    p = ref.center + l.x * ref.axes[0] + l.y * ref.axes[1] + l.z * ref.axes[2] - (0.5 * s) * n_ref;
+    id = ref_part | clipped.id[i];
+    return s <= speculative;
+  };
+  return reduce_to_four(clipped.n, get, ref_is_b ? n_ref : -n_ref, out);
 }
 
 int collide_box_plane(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
