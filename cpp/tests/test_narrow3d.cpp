@@ -312,6 +312,15 @@ TEST(capsule_lying_on_a_box) {
   CHECK_VEC(r.m.point[1], {0.7, 0.499, 0.3}, EPS, "end q");
   CHECK_NEAR(r.m.separation[0], -0.002, EPS);
   CHECK_NEAR(r.m.separation[1], -0.002, EPS);
+  // moved by 0.1 mm and turned by 0.1 mrad: the same ends, the same ids
+  const auto moved = collide(capsule_ref({-0.4999, 0.5981, 0.3}, {0.7001, 0.5980, 0.3001}, 0.1), box);
+  CHECK(moved.n == 2);
+  CHECK(moved.m.id == r.m.id);
+  // touching, and beyond reach
+  auto t0 = collide(capsule_ref({-0.5, 0.6, 0.3}, {0.7, 0.6, 0.3}, 0.1), box);
+  CHECK(t0.n == 2);
+  CHECK_NEAR(t0.m.separation[0], 0.0, EPS);
+  CHECK(collide(capsule_ref({-0.5, 0.6 + 1.5 * SPEC, 0.3}, {0.7, 0.6 + 1.5 * SPEC, 0.3}, 0.1), box).n == 0);
   // overlapping core (10 cm deep): still the face, two points
   r = collide(capsule_ref({-0.5, 0.5, 0.3}, {0.7, 0.5, 0.3}, 0.1), box);
   CHECK(r.n == 2);
@@ -371,6 +380,13 @@ TEST(box_on_a_plane_flat_and_tilted) {
   // tilted further by 1 µrad: the same corners, the same ids
   const auto t = collide(box_ref(c, axis_angle({0, 0, 1}, th + 1e-6), {0.5, 0.5, 0.5}), GROUND);
   CHECK(ids(t) == ids(r));
+  // touching, within and beyond reach
+  auto t0 = collide(box_ref({0, 0.5, 0}, {}, {0.5, 0.5, 0.5}), GROUND);
+  CHECK(t0.n == 4);
+  CHECK_NEAR(t0.m.separation[0], 0.0, EPS);
+  t0 = collide(box_ref({0, 0.5 + 0.5 * SPEC, 0}, {}, {0.5, 0.5, 0.5}), GROUND);
+  CHECK(t0.n == 4);
+  CHECK_NEAR(t0.m.separation[3], 0.5 * SPEC, EPS);
   CHECK(collide(box_ref({0, 0.5 + 1.5 * SPEC, 0}, {}, {0.5, 0.5, 0.5}), GROUND).n == 0);
   const auto m = collide(GROUND, box_ref({0.2, 0.499, -0.1}, {}, {0.5, 0.5, 0.5}));
   CHECK(m.n == 4);
@@ -486,6 +502,12 @@ TEST(tetrahedron_on_a_plane) {
   CHECK(r.n == 3);
   CHECK(has_point(r, {0, -0.0005, 0}, EPS) && has_point(r, {1, -0.0005, 0}, EPS) &&
         has_point(r, {0, -0.0005, 1}, EPS));
+  // within and beyond reach; moved by 0.1 mm: the same corners, the same ids
+  CHECK(collide(tet.at({0, 0.5 * SPEC, 0}), GROUND).n == 3);
+  CHECK(collide(tet.at({0, 1.5 * SPEC, 0}), GROUND).n == 0);
+  const auto moved = collide(tet.at({1e-4, -0.0011, 1e-4}), GROUND);
+  CHECK(moved.n == 3);
+  CHECK(moved.m.id == r.m.id);
   // the face x + y + z = 1 turned to face down: the origin vertex is up, the others down
   const Quat q = axis_angle(cross(Vec3{1, 1, 1}, Vec3{0, -1, 0}), std::acos(-1.0 / std::sqrt(3.0)));
   const Vec3 n = rotate(q, (1.0 / std::sqrt(3.0)) * Vec3{1, 1, 1});
