@@ -353,6 +353,21 @@ TEST(capsule_lying_on_a_box) {
 
 // ---- boxes -------------------------------------------------------------------------------
 
+// A box from its 8 corners in the model's order is the box they came from.
+TEST(box_from_its_corners) {
+  const Quat q = axis_angle({1, 2, -1}, 0.8);
+  const auto box = box_ref({0.3, -0.2, 1.0}, q, {0.5, 0.25, 0.1});
+  Vec3 corners[8], normals[6];
+  box_geometry(box, corners, normals);
+  const auto again = box_ref_from_corners(corners);
+  CHECK_VEC(again.center, box.center, EPS, "centre");
+  CHECK_VEC(again.half, box.half, EPS, "half extents");
+  for (int k = 0; k < 3; ++k) CHECK_VEC(again.axes[k], box.axes[k], EPS, "axis");
+  // corner k's sign on axis j is bit j of k
+  for (int k = 0; k < 8; ++k)
+    for (int j = 0; j < 3; ++j) CHECK((dot(corners[k] - box.center, box.axes[j]) > 0.0) == (((k >> j) & 1) == 1));
+}
+
 // A unit box resting flat on the ground plane 1 mm deep: its four bottom corners; tilted
 // about z so that one edge is lowest: the two corners of that edge; apart beyond reach: none.
 TEST(box_on_a_plane_flat_and_tilted) {

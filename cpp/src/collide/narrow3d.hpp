@@ -94,6 +94,18 @@ inline ShapeRef3 box_ref(Vec3 center, Quat rotation, Vec3 half) {
   s.half = half;
   return s;
 }
+// A box from its 8 world corners (m) in the model's order (corner k has the sign of bit
+// 0, 1, 2 of k along the box's x, y, z: rbsim/scene/geometry3d.py BOX_SIGNS).
+inline ShapeRef3 box_ref_from_corners(const Vec3* c) {
+  ShapeRef3 s;
+  s.kind = kind3::BOX;
+  s.center = 0.5 * (c[0] + c[7]);
+  const Vec3 e[3] = {0.5 * (c[1] - c[0]), 0.5 * (c[2] - c[0]), 0.5 * (c[4] - c[0])};
+  const double h[3] = {length(e[0]), length(e[1]), length(e[2])};
+  s.half = {h[0], h[1], h[2]};
+  for (int k = 0; k < 3; ++k) s.axes[k] = (1.0 / h[k]) * e[k];
+  return s;
+}
 inline ShapeRef3 capsule_ref(Vec3 p, Vec3 q, double radius) {
   ShapeRef3 s;
   s.kind = kind3::CAPSULE;
