@@ -141,6 +141,9 @@ int reduce_to_four(int n, const Get& get, Vec3 normal, Manifold3& out) {
       p1 = p;
     }
   }
+  int count = 1;
+  const double d01 = std::sqrt(best);  // m
+  if (d01 > LINEAR_EPSILON) count = 2;
   best = -1.0;
   Vec3 p2;
   double orient = 1.0;
@@ -154,6 +157,8 @@ int reduce_to_four(int n, const Get& get, Vec3 normal, Manifold3& out) {
       orient = area >= 0.0 ? 1.0 : -1.0;
     }
   }
+  // a triangle of height LINEAR_EPSILON (m) or less: the points are on one line
+  if (count == 2 && best > LINEAR_EPSILON * d01) count = 3;
   // the area a point adds outside the triangle: the most negative of its (oriented)
   // areas against the triangle's three edges
   const double tie = REDUCE_TIE * best;  // best: twice the triangle's area
@@ -169,7 +174,7 @@ int reduce_to_four(int n, const Get& get, Vec3 normal, Manifold3& out) {
       pick[3] = i;
     }
   }
-  const int count = pick[3] >= 0 ? 4 : 3;
+  if (count == 3 && pick[3] >= 0) count = 4;
   std::sort(pick.begin(), pick.begin() + count);
   for (int k = 0; k < count; ++k) {
     get(pick[k], out.point[k], out.separation[k], out.id[k]);
