@@ -192,35 +192,19 @@ def build(scene: Scene) -> tuple[Model, State]:
             shape_vcount.append(len(local))
 
     dynamic = body_type == T.BODY_DYNAMIC
-    inv_mass = np.where(dynamic, 1.0 / np.where(dynamic, mass, 1.0), 0.0)
     inv_inertia = np.where(dynamic, 1.0 / np.where(dynamic, inertia, 1.0), 0.0)
-    world = scene.world
-    model = Model(
-        body_type=body_type,
-        body_mass=mass,
-        body_inertia=inertia,
-        body_inv_mass=inv_mass,
-        body_inv_inertia=inv_inertia,
-        body_com=com,
-        body_force=force,
-        body_force_arm=force_arm,
-        body_torque=torque,
-        shape_body=np.asarray(shape_body, np.int32),
-        shape_kind=np.asarray(shape_kind, np.int32),
-        shape_radius=np.asarray(shape_radius, np.float64),
-        shape_vstart=np.asarray(shape_vstart, np.int32),
-        shape_vcount=np.asarray(shape_vcount, np.int32),
-        shape_friction=np.asarray(shape_friction, np.float64),
-        shape_restitution=np.asarray(shape_restitution, np.float64),
-        vertex_local=np.asarray(vertices, np.float64).reshape(-1, 2),
-        normal_local=np.asarray(normals, np.float64).reshape(-1, 2),
-        gravity=np.asarray(world.gravity, np.float64),
-        linear_damping=float(world.linear_damping),
-        angular_damping=float(world.angular_damping),
-        has_forces=bool(np.any(force != 0.0) or np.any(torque != 0.0)),
+    bodies_arrays = (body_type, mass, inertia, inv_inertia, com, force, force_arm, torque)
+    shapes = (shape_body, shape_kind, shape_radius, shape_vstart, shape_vcount)
+    shapes += (shape_friction, shape_restitution)
+    model = _model(
+        scene,
+        bodies_arrays,
+        shapes,
+        np.asarray(vertices, np.float64).reshape(-1, 2),
+        np.asarray(normals, np.float64).reshape(-1, 2),
         has_shapes=_contacts_possible(shape_body, body_type),
-        body_axes=np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)),
-        body_moments=np.zeros((n, 3)),
+        axes=np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)),
+        moments=np.zeros((n, 3)),
     )
     return model, State(x, q, angle, v, w)
 
@@ -288,37 +272,66 @@ def build_3d(scene: Scene) -> tuple[Model, State]:
     shape_friction = [s[2] for s in flat]
     shape_restitution = [s[3] for s in flat]
 
+    bodies_arrays = (body_type, mass, inertia, inv_inertia, com, force, force_arm, torque)
+    shapes = (shape_body, shape_kind, shape_radius, shape_vstart, shape_vcount)
+    shapes += (shape_friction, shape_restitution)
+    model = _model(
+        scene,
+        bodies_arrays,
+        shapes,
+        np.concatenate(vertices) if vertices else np.zeros((0, 3)),
+        np.concatenate(normals) if normals else np.zeros((0, 3)),
+        has_shapes=False,  # no contacts in 3D yet (issue 16)
+        axes=axes,
+        moments=moments,
+    )
+    return model, State(origin, q, np.zeros(0), v, w, ang)
+
+
+def _model(
+    scene: Scene,
+    bodies: tuple,
+    shapes: tuple,
+    vertex_local: np.ndarray,
+    normal_local: np.ndarray,
+    has_shapes: bool,
+    axes: np.ndarray,
+    moments: np.ndarray,
+) -> Model:
+    """The Model of either dimension from its columns: ``bodies`` = (type, mass,
+    inertia, inverse inertia, com, force, force arm, torque), ``shapes`` = (body, kind,
+    radius, vstart, vcount, friction, restitution)."""
+    body_type, mass, inertia, inv_inertia, com, force, force_arm, torque = bodies
     dynamic = body_type == T.BODY_DYNAMIC
-    inv_mass = np.where(dynamic, 1.0 / np.where(dynamic, mass, 1.0), 0.0)
     world = scene.world
-    model = Model(
+    body, kind, radius, vstart, vcount, friction, restitution = shapes
+    return Model(
         body_type=body_type,
         body_mass=mass,
         body_inertia=inertia,
-        body_inv_mass=inv_mass,
+        body_inv_mass=np.where(dynamic, 1.0 / np.where(dynamic, mass, 1.0), 0.0),
         body_inv_inertia=inv_inertia,
         body_com=com,
         body_force=force,
         body_force_arm=force_arm,
         body_torque=torque,
-        shape_body=np.asarray(shape_body, np.int32),
-        shape_kind=np.asarray(shape_kind, np.int32),
-        shape_radius=np.asarray(shape_radius, np.float64),
-        shape_vstart=np.asarray(shape_vstart, np.int32),
-        shape_vcount=np.asarray(shape_vcount, np.int32),
-        shape_friction=np.asarray(shape_friction, np.float64),
-        shape_restitution=np.asarray(shape_restitution, np.float64),
-        vertex_local=np.concatenate(vertices) if vertices else np.zeros((0, 3)),
-        normal_local=np.concatenate(normals) if normals else np.zeros((0, 3)),
+        shape_body=np.asarray(body, np.int32),
+        shape_kind=np.asarray(kind, np.int32),
+        shape_radius=np.asarray(radius, np.float64),
+        shape_vstart=np.asarray(vstart, np.int32),
+        shape_vcount=np.asarray(vcount, np.int32),
+        shape_friction=np.asarray(friction, np.float64),
+        shape_restitution=np.asarray(restitution, np.float64),
+        vertex_local=vertex_local,
+        normal_local=normal_local,
         gravity=np.asarray(world.gravity, np.float64),
         linear_damping=float(world.linear_damping),
         angular_damping=float(world.angular_damping),
         has_forces=bool(np.any(force != 0.0) or np.any(torque != 0.0)),
-        has_shapes=False,  # no contacts in 3D yet (issue 16)
+        has_shapes=has_shapes,
         body_axes=axes,
         body_moments=moments,
     )
-    return model, State(origin, q, np.zeros(0), v, w, ang)
 
 
 def _body_3d(body: Body, kind: int) -> tuple:
