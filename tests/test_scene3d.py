@@ -440,3 +440,14 @@ def test_json_schema_holds_each_dimension_to_its_own_format():
         "bodies": [{"position": [0, 0, 0], "shape": {"sphere": {"radius": 1}}}],
     }
     assert list(validator.iter_errors(deep_in_2d))
+
+
+def test_a_force_off_the_centre_is_bounded_by_its_torque():
+    # 1 kg unit cube: I = 1/6 kg·m², the least radius of gyration √(1/6) m; a force of
+    # 1e5 N (1e5 m/s², inside the bound) 10 m off the centre gives a torque of 1e6 N·m,
+    # which accelerates the points at that radius by 1e6/√(1/6) = 2.4e6 m/s²
+    text = "{force: [0, 1e5, 0], force_point: [10, 0, 0], shape: {box: {size: [1, 1, 1]}}}"
+    (line,) = errors(scene_with(text))
+    assert "bodies[0].force_point: the torque accelerates the body's points by 2.45e6" in line
+    assert "least radius of gyration 0.408 m" in line
+    load(scene_with(text.replace("[10, 0, 0]", "[0.1, 0, 0]")))  # 1e4 N·m: 2.4e4 m/s², fine
