@@ -56,7 +56,9 @@ class CoreWorld:
         """Compile the scene and build the engine's world from it (World2 or World3 by
         scene.world.dimension)."""
         model, state = build(scene)
-        return cls.from_arrays(model, state, make_config(scene), getattr(scene.world, 'dimension', 2), scene)  # TODO-merge
+        return cls.from_arrays(
+            model, state, make_config(scene), getattr(scene.world, "dimension", 2), scene
+        )  # TODO-merge
 
     @classmethod
     def from_arrays(

@@ -37,8 +37,8 @@ from .io.trajectory import (
     TrajectoryWriter,
     frame_count,
     load_trajectory,
-    open_for_reading,
     observables_spec,
+    open_for_reading,
     read_checkpoint,
     read_parameters,
 )

@@ -235,7 +235,9 @@ def test_3d_layout_round_trips_with_continuous_quaternion_sign(tmp_path) -> None
 
 def test_quaternion_sign_continues_across_resume(tmp_path) -> None:
     path = tmp_path / "t.h5"
-    w = TrajectoryWriter(path, bodies=table3d(), parameters={}, frames=20, observables=OBSERVABLES_3D)
+    w = TrajectoryWriter(
+        path, bodies=table3d(), parameters={}, frames=20, observables=OBSERVABLES_3D
+    )
     for k in range(12):
         w.append(**frame(turning(k), k))
     w.close(status="interrupted")

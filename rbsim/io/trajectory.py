@@ -100,6 +100,7 @@ def block_key(name: str) -> str:
     observable of the same name."""
     return "body_angular_momentum" if name == "angular_momentum" else name
 
+
 # Units of the observables rbsim writes; other observable names are stored without a unit.
 OBSERVABLE_UNITS = {
     "kinetic_energy": "J",
@@ -204,7 +205,9 @@ class BodyTable:
         self.shape_face_start = rows(self.shape_face_start, (-1,), np.int32)
         self.shape_face_count = rows(self.shape_face_count, (-1,), np.int32)
         faces = self.shape_faces
-        self.shape_faces = np.zeros((0, 3), np.int32) if faces is None else rows(faces, (-1, 3), np.int32)
+        self.shape_faces = (
+            np.zeros((0, 3), np.int32) if faces is None else rows(faces, (-1, 3), np.int32)
+        )
         self.shape_normal = rows(self.shape_normal, (-1, 3), np.float64)
         self._check()
 
@@ -303,7 +306,9 @@ class BodyTable:
             raise ValueError(f"BodyTable.shape_vertex_start/count: rows must lie in [0, {v})")
         nf = len(self.shape_faces)
         end = self.shape_face_start.astype(np.int64) + self.shape_face_count
-        if s and (self.shape_face_start.min() < 0 or self.shape_face_count.min() < 0 or end.max() > nf):
+        if s and (
+            self.shape_face_start.min() < 0 or self.shape_face_count.min() < 0 or end.max() > nf
+        ):
             raise ValueError(f"BodyTable.shape_face_start/count: rows must lie in [0, {nf})")
         for k in np.flatnonzero(self.shape_face_count):
             a, n = int(self.shape_face_start[k]), int(self.shape_face_count[k])
