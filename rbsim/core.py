@@ -56,9 +56,7 @@ class CoreWorld:
         """Compile the scene and build the engine's world from it (World2 or World3 by
         scene.world.dimension)."""
         model, state = build(scene)
-        return cls.from_arrays(
-            model, state, make_config(scene), getattr(scene.world, "dimension", 2), scene
-        )  # TODO-merge
+        return cls.from_arrays(model, state, make_config(scene), scene.world.dimension, scene)
 
     @classmethod
     def from_arrays(
@@ -87,8 +85,7 @@ class CoreWorld:
         (numpy views: no copy; they stay valid for the world's life). In 3D body_angle is
         empty and body_l the angular momentum (N,3); in 2D body_l is empty."""
         e = self.engine
-        values = (e.body_x, e.body_q, e.body_angle, e.body_v, e.body_w, e.body_l)
-        return State(*values[: len(State._fields)])  # TODO-merge
+        return State(e.body_x, e.body_q, e.body_angle, e.body_v, e.body_w, e.body_l)
 
     @property
     def step_index(self) -> int:

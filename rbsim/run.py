@@ -197,7 +197,7 @@ def frame_steps(total: int, every: int) -> int:
 
 def dimension(scene: Scene) -> int:
     """The scene's world dimension, 2 or 3."""
-    return int(getattr(scene.world, "dimension", 2))  # TODO-merge
+    return int(scene.world.dimension)
 
 
 def body_table(scene: Scene, engine: Engine) -> BodyTable:
