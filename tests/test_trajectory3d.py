@@ -323,3 +323,11 @@ def test_world3_checkpoint_restores_bit_for_bit() -> None:
         np.testing.assert_array_equal(x, y)
     with pytest.raises(ValueError, match="checkpoint"):
         b.engine.load_checkpoint(data[:-8])
+
+
+def test_world3_checks_config_values_as_they_cross() -> None:
+    good = box_world()
+    with pytest.raises(ValueError, match="substeps: not an integer"):
+        CoreWorld.from_arrays(good.model, good.state, good.config._replace(substeps="4"), 3)
+    with pytest.raises(ValueError, match="linear_damping: not a number"):
+        CoreWorld.from_arrays(good.model._replace(linear_damping=None), good.state, good.config, 3)

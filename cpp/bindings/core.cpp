@@ -15,6 +15,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "rbsim/constants.hpp"
@@ -119,7 +120,15 @@ void load(std::vector<T>& dst, nb::handle obj, const char* name, long n = -1) {
 template <class T>
 T load_value(nb::dict d, const char* key) {
   if (!d.contains(key)) throw std::invalid_argument(std::string("missing key ") + key);
-  return nb::cast<T>(d[key]);
+  T value{};
+  if (!nb::try_cast(d[key], value)) {
+    const char* kind = std::is_same_v<T, bool>       ? "a bool"
+                       : std::is_integral_v<T>       ? "an integer"
+                       : std::is_floating_point_v<T> ? "a number"
+                                                     : "a string";
+    throw std::invalid_argument(std::string(key) + ": not " + kind);
+  }
+  return value;
 }
 
 using World2 = World<2>;
