@@ -605,18 +605,12 @@ def run_sweep(
     else:
         ref_poses = ref.poses(np.arange(samples + 1) * sample_dt)
     total = 2 * len(settings)
-    if progress is not None and settings:
-        progress(0, total, settings[0])
     scenes, calls = [], []
     for s in settings:
         per = _steps(s.dt, sample_dt)
         scenes.append(scene_for(scene, s, per * samples))
         calls.append((scenes[-1], ref, s, per, samples))
-    sampled: list[_Sampled | None] = [None] * len(settings)
-    for done, (i, got) in enumerate(pool.map(sample_run, calls), start=1):
-        sampled[i] = got
-        if progress is not None:
-            progress(done, total, settings[i])
+    sampled = _map_runs(pool, sample_run, calls, settings, progress)
     points = []
     for k, (s, sc, got) in enumerate(zip(settings, scenes, sampled, strict=True)):
         assert got is not None
@@ -671,11 +665,35 @@ def _measure(
     point.error, point.position_error, point.angle_error = pose_error(
         got.poses, ref_poses, ref.gyration
     )
-    seconds, n = pool.alone(time_run, sc, s, repeats)
-    point.cpu = seconds / (sc.world.steps * sc.world.dt)
-    point.us_per_step = 1e6 * seconds / sc.world.steps
-    point.timed_runs = n
+    point.cpu, point.us_per_step, point.timed_runs = _cost(sc, s, repeats, pool)
     return point
+
+
+def _cost(sc: Scene, s: Setting, repeats: int, pool: Pool) -> tuple[float, float, int]:
+    """The cost of running `sc` with setting s, timed alone in the pool: CPU s per
+    simulated s, µs per step, and the number of timed runs."""
+    seconds, n = pool.alone(time_run, sc, s, repeats)
+    return seconds / (sc.world.steps * sc.world.dt), 1e6 * seconds / sc.world.steps, n
+
+
+def _map_runs(
+    pool: Pool,
+    fn: Callable[..., Any],
+    calls: Sequence[tuple],
+    settings: Sequence[Setting],
+    progress: Callable[[int, int, Setting], None] | None,
+) -> list[Any]:
+    """fn(*call) for every call through pool.map, in the order of `calls`; progress(k,
+    total, setting) after each, total being two per setting (the timed runs follow)."""
+    total = 2 * len(settings)
+    if progress is not None and settings:
+        progress(0, total, settings[0])
+    results: list[Any] = [None] * len(calls)
+    for done, (i, got) in enumerate(pool.map(fn, calls), start=1):
+        results[i] = got
+        if progress is not None:
+            progress(done, total, settings[i])
+    return results
 
 
 def _converged(
@@ -1108,24 +1126,17 @@ def run_rotation_sweep(
     settings = [
         Setting("rbsim", dt, sub, 1, scene.solver.integrator, rot) for rot, dt, sub, _ in runs
     ]
-    if progress is not None and runs:
-        progress(0, count, settings[0])
-    results: list[dict | None] = [None] * len(runs)
     calls = [(sc, rot, dt, sub, body) for rot, dt, sub, sc in runs]
-    for done, (i, got) in enumerate(pool.map(rotation_run, calls), start=1):
-        results[i] = got
-        if progress is not None:
-            progress(done, count, settings[i])
+    results = _map_runs(pool, rotation_run, calls, settings, progress)
     points = []
     for k, ((rot, dt, sub, sc), got, s) in enumerate(zip(runs, results, settings, strict=True)):
         assert got is not None
         p = RotationPoint(rot, dt, sub, status=got["status"])
         if p.status == "ok":
             p.energy_error, p.period_error = got["energy_error"], got["period_error"]
-            seconds, n = pool.alone(time_run, scene_for(sc, s, sc.world.steps), s, repeats)
-            p.cpu = seconds / (sc.world.steps * sc.world.dt)
-            p.us_per_step = 1e6 * seconds / sc.world.steps
-            p.timed_runs = n
+            p.cpu, p.us_per_step, p.timed_runs = _cost(
+                scene_for(sc, s, sc.world.steps), s, repeats, pool
+            )
         points.append(p)
         if progress is not None:
             progress(len(runs) + k + 1, count, s)
