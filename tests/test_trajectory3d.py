@@ -331,3 +331,16 @@ def test_world3_checks_config_values_as_they_cross() -> None:
         CoreWorld.from_arrays(good.model, good.state, good.config._replace(substeps="4"), 3)
     with pytest.raises(ValueError, match="linear_damping: not a number"):
         CoreWorld.from_arrays(good.model._replace(linear_damping=None), good.state, good.config, 3)
+
+
+def test_quaternion_sign_rule_at_a_half_turn_between_frames(tmp_path) -> None:
+    # frames a half turn apart (q·q_prev = 0 exactly): no sign is nearer, and the rule
+    # (negate only when the dot product is negative) keeps each as given
+    qs = [(1.0, 0, 0, 0), (0, 1.0, 0, 0), (-1.0, 0, 0, 0), (-0.6, 0.8, 0, 0), (0.6, -0.8, 0, 0)]
+    path = tmp_path / "t.h5"
+    with TrajectoryWriter(path, bodies=table3d(), parameters={}, frames=len(qs)) as w:
+        for k, q in enumerate(qs):
+            w.append(**frame(np.array(q), k))
+    got = load_trajectory(path).orientation[:, 0]
+    # the last is the previous one negated (dot −1): written with the previous sign
+    np.testing.assert_array_equal(got, [*qs[:4], qs[3]])

@@ -915,14 +915,25 @@ class TrajectoryWriter:
         q is negated where its dot product with the previous written q is negative (q
         and -q are one rotation). Returns a new array; remembers the last row."""
         q = np.array(q, np.float64)
-        last = self._last_q
-        for r in range(len(q)):
-            if last is not None:
-                flip = np.einsum("ij,ij->i", q[r], last) < 0.0
-                q[r, flip] = -q[r, flip]
-            last = q[r]
-        if len(q):
-            self._last_q = q[-1].copy()
+        if not len(q):
+            return q
+        prev = np.concatenate([q[:1] if self._last_q is None else self._last_q[None], q[:-1]])
+        dots = np.einsum("rij,rij->ri", q, prev)  # with the previous row as the engine held it
+        if np.any(dots == 0.0):
+            # a half turn between two frames exactly: the rule restarts there (+1), which
+            # a running product of signs does not express; row by row
+            last = self._last_q
+            for r in range(len(q)):
+                if last is not None:
+                    flip = np.einsum("ij,ij->i", q[r], last) < 0.0
+                    q[r, flip] = -q[r, flip]
+                last = q[r]
+        else:
+            # the written sign flips where the held one turned against the previous row
+            # (row 0 against the last written row: its sign is the written one already)
+            sign = np.cumprod(np.where(dots < 0.0, -1.0, 1.0), axis=0)
+            q *= sign[..., None]
+        self._last_q = q[-1].copy()
         return q
 
     def write_block(self) -> None:
