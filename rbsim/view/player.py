@@ -19,6 +19,7 @@ from importlib import resources
 
 import numpy as np
 
+from .mesh import AMBIENT, FOV, LIGHT, PITCH, YAW, body_meshes, fit_sphere
 from .render import (
     COLOURS,
     FrameReader,
@@ -32,10 +33,13 @@ from .render import (
     shape_outline,
     shape_vertices,
 )
+from .render3d import COLOURS_3D, fit_box, ground_for
 
 __all__ = ["HtmlResult", "render_html"]
 
 TEMPLATE = "player.html"
+# The view script pasted into the page, by dimension: the camera, drawing and hit test.
+VIEW_SCRIPTS = {2: "player2d.js", 3: "player3d.js"}
 # Frames per second above which a page only grows: browsers draw at most 60 per second
 # on common screens, and the player shows the latest frame due.
 HTML_MAX_FPS = 240.0
@@ -111,12 +115,71 @@ def _track(
     }
 
 
-def page_text(data: dict[str, object], title: str) -> str:
-    """The player page with `data` (the JSON the page reads) and `title` filled in."""
-    template = resources.files(__package__).joinpath(TEMPLATE).read_text(encoding="utf-8")
+def _track3d(
+    reader: FrameReader, idx: np.ndarray, overlay: bool, progress: Progress | None
+) -> dict[str, object]:
+    """One 3D trajectory for the page: its shapes as triangles in body frames (points
+    m to 1e-6 m, their bodies, three point indices per triangle), and the frames as
+    base64 of float32 (frame, body, [x, y, z, qw, qx, qy, qz]) (28 bytes per body and
+    frame); idx as for `_track`."""
+    uniq, inverse = np.unique(idx, return_inverse=True)
+    meshes = body_meshes(reader.bodies)  # type: ignore[arg-type]
+    n = len(reader.bodies)
+    out = np.empty((len(uniq), n, 7), dtype="<f4")
+    done = 0
+    for part, pos, rot in reader.batches(uniq):
+        k = len(part)
+        out[done : done + k, :, :3] = pos
+        out[done : done + k, :, 3:] = rot
+        done += k
+        if progress is not None:
+            progress(done, len(uniq))
+    return {
+        "label": reader.label,
+        "overlay": overlay,
+        "names": list(reader.bodies.name),
+        "types": list(reader.bodies.type),
+        "points": _round(meshes.points),
+        "point_body": [int(b) for b in meshes.point_body],
+        "tris": [int(i) for i in meshes.tris.reshape(-1)],
+        "frame_index": [int(i) for i in inverse],
+        "frames": base64.b64encode(out.tobytes()).decode("ascii"),
+    }
+
+
+def _scene3d(main: FrameReader, pairs: list[tuple[FrameReader, np.ndarray]]) -> dict[str, object]:
+    """The 3D page's camera (the sphere to show: target m, radius m; yaw, pitch, fov
+    rad), light (a unit vector towards it, world frame) and ambient brightness, colours,
+    and ground (plane patches and grid lines, world frame, m, flat lists)."""
+    lo, hi = fit_box(pairs)
+    centre, radius = fit_sphere(lo, hi)  # the page fits its distance to its own shape
+    ground = ground_for(main, lo, hi)
+    return {
+        "dimension": 3,
+        "camera": {
+            "target": [float(c) for c in centre],
+            "radius": radius,
+            "yaw": YAW,
+            "pitch": PITCH,
+            "fov": FOV,
+        },
+        "light": list(LIGHT),
+        "ambient": AMBIENT,
+        "colours": COLOURS_3D,
+        "ground": {"quads": _round(ground.quads), "lines": _round(ground.lines)},
+    }
+
+
+def page_text(data: dict[str, object], title: str, dimension: int = 2) -> str:
+    """The player page with `data` (the JSON the page reads), `title` and the view
+    script of `dimension` (2 or 3) filled in."""
+    files = resources.files(__package__)
+    template = files.joinpath(TEMPLATE).read_text(encoding="utf-8")
+    view = files.joinpath(VIEW_SCRIPTS[dimension]).read_text(encoding="utf-8")
     # "</" could end the <script> element early (a body named "</script>"): escape it.
     payload = json.dumps(data, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
-    return template.replace("{{TITLE}}", html.escape(title)).replace("{{DATA}}", payload)
+    page = template.replace("{{VIEW}}", view.rstrip("\n"))
+    return page.replace("{{TITLE}}", html.escape(title)).replace("{{DATA}}", payload)
 
 
 def render_html(
@@ -134,7 +197,9 @@ def render_html(
 
     fps: frames per second of simulated time stored in the page (the page plays in
     real time, at a speed the viewer picks). view: the world rectangle shown first (m);
-    default: fitted to the moving bodies. overlay: a second trajectory drawn over the
+    default: fitted to the moving bodies. A 3D trajectory gets the 3D view (`view`
+    must be None): shaded shapes over the ground, seen by a camera that orbits with the
+    mouse, first fitted to the moving bodies. overlay: a second trajectory drawn over the
     first in its own colour, at the frames nearest in time. start, end: s, the part of
     the run to store. progress(done, total) is called as frames are read. Raises
     RenderError (unreadable input) or ValueError (bad argument).
@@ -152,10 +217,20 @@ def render_html(
             if other is not None and not len(other.time):
                 raise RenderError(f"{other.path}: no frames to overlay")
             other_idx = match_frames(other.time, times) if other is not None else None
-            if view is None:
-                pairs = [(main, idx)]
-                if other is not None and other_idx is not None:
-                    pairs.append((other, np.unique(other_idx)))
+            if other is not None and other.dimension != main.dimension:
+                raise RenderError(
+                    f"{other.path}: a {other.dimension}D trajectory cannot be overlaid on "
+                    f"{main.path} ({main.dimension}D)"
+                )
+            if main.dimension == 3 and view is not None:
+                raise RenderError(
+                    f"{main.path}: a 3D trajectory: --view (a 2D rectangle) does not apply; "
+                    "the 3D camera is fitted to the moving bodies"
+                )
+            pairs = [(main, idx)]
+            if other is not None and other_idx is not None:
+                pairs.append((other, np.unique(other_idx)))
+            if view is None and main.dimension == 2:
                 view = fit_view(pairs)
             total = len(idx) + (len(np.unique(other_idx)) if other_idx is not None else 0)
 
@@ -164,23 +239,28 @@ def render_html(
                     return None
                 return lambda done, _n: progress(offset + done, total)
 
-            tracks = [_track(main, idx, False, step(0))]
+            track = _track if main.dimension == 2 else _track3d
+            tracks = [track(main, idx, False, step(0))]
             if other is not None and other_idx is not None:
-                tracks.append(_track(other, other_idx, True, step(len(idx))))
+                tracks.append(track(other, other_idx, True, step(len(idx))))
+            data: dict[str, object] = {
+                "version": 1,
+                "scene": main.scene,
+                "time": [float(t) for t in times],
+            }
+            if main.dimension == 2:
+                assert view is not None
+                data["view"] = [view.x0, view.y0, view.x1, view.y1]
+                data["colours"] = COLOURS
+            else:
+                data.update(_scene3d(main, pairs))
+            data["tracks"] = tracks
         finally:
             if other is not None:
                 other.close()
-        data = {
-            "version": 1,
-            "scene": main.scene,
-            "time": [float(t) for t in times],
-            "view": [view.x0, view.y0, view.x1, view.y1],
-            "colours": COLOURS,
-            "tracks": tracks,
-        }
         title = f"rbsim: {main.scene}"
         n = len(main.bodies)
-    text = page_text(data, title)
+    text = page_text(data, title, main.dimension)
     tmp = output + ".part"
     try:
         with open(tmp, "w", encoding="utf-8") as fh:

@@ -1,0 +1,285 @@
+"""3D trajectories as GIFs: every shape as triangles (rbsim.view.mesh), placed per frame
+by its body's origin and quaternion, flat-shaded from one light and drawn far to near
+(the painter's algorithm, back faces culled) onto a 2D matplotlib canvas in pixels,
+over the ground grid, from a fixed camera that frames every moving body's path.
+
+Units: lengths m, times s, image sizes pixels.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .mesh import (
+    AMBIENT,
+    BodyMeshes,
+    Camera,
+    Ground,
+    body_meshes,
+    body_reach3d,
+    fit_camera,
+    ground_grid,
+    quat_matrix,
+    shade,
+)
+from .render import (
+    COLOURS,
+    FrameReader,
+    GifWriter,
+    Progress,
+    clock_digits,
+    gif_delays,
+    gif_palette,
+)
+
+__all__ = [
+    "COLOURS_3D",
+    "SHADE_LEVELS",
+    "fit_box",
+    "frame_triangles",
+    "gif_palette3d",
+    "ground_for",
+    "shaded_rgb",
+    "write_gif3d",
+]
+
+# Colours of the 3D pictures besides the 2D ones (COLOURS): the ground patch and grid.
+COLOURS_3D = {**COLOURS, "ground_fill": "#eeeeee", "grid": "#b0b0b0"}
+# Brightness steps of each body colour in the GIF palette (3 colours x 60 + the rest
+# fits 256; 60 steps over [AMBIENT, 1] are 1.1% apart, below visible banding).
+SHADE_LEVELS = 60
+# Depth below which a point counts as behind the camera, m.
+NEAR = 1e-3
+
+
+def _rgb(colour: str) -> np.ndarray:
+    return np.array([int(colour[i : i + 2], 16) for i in (1, 3, 5)], dtype=float)
+
+
+def shade_level(brightness: np.ndarray) -> np.ndarray:
+    """The palette step (0..SHADE_LEVELS-1) nearest each brightness in [AMBIENT, 1]."""
+    u = (np.asarray(brightness, dtype=float) - AMBIENT) / (1.0 - AMBIENT)
+    return np.clip(np.rint(u * (SHADE_LEVELS - 1)), 0, SHADE_LEVELS - 1).astype(np.int64)
+
+
+def shaded_rgb(colour: str, brightness: np.ndarray) -> np.ndarray:
+    """(...,3) uint8: `colour` ("#rrggbb") at the GIF's palette step of each brightness
+    (shade()), the exact colour the GIF shows for a face of that brightness."""
+    level = shade_level(brightness)
+    b = AMBIENT + (1.0 - AMBIENT) * level / (SHADE_LEVELS - 1)
+    return np.rint(_rgb(colour) * b[..., None]).astype(np.uint8)
+
+
+def gif_palette3d() -> np.ndarray:
+    """The 256-colour palette of 3D GIFs, (256,3) uint8: SHADE_LEVELS steps of each body
+    type's fill colour, the ground, grid, text, overlay and background colours, and the
+    rest of the 2D palette (greys and the colour cube) for antialiased edges."""
+    steps = np.linspace(AMBIENT, 1.0, SHADE_LEVELS)
+    entries: list[tuple[int, int, int]] = []
+    for kind in ("dynamic", "static", "kinematic"):
+        entries += [tuple(c) for c in shaded_rgb(COLOURS_3D[f"{kind}_fill"], steps).tolist()]
+    for key in ("background", "ground_fill", "grid", "text", "overlay_edge"):
+        entries.append(tuple(int(c) for c in _rgb(COLOURS_3D[key])))
+    seen: set[tuple[int, int, int]] = set()
+    unique = [e for e in entries if not (e in seen or seen.add(e))]
+    for extra in gif_palette().tolist():
+        if len(unique) >= 256:
+            break
+        t = tuple(extra)
+        if t not in seen:
+            seen.add(t)
+            unique.append(t)
+    return np.array(unique[:256], dtype=np.uint8)
+
+
+def fit_box(readers: list[tuple[FrameReader, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi) m, world: a box holding every moving body of every (reader, frame
+    indices) pair at each of those frames, each body a ball of its reach about its
+    origin; the static bodies (planes left out) only when nothing moves."""
+    lo = np.full(3, np.inf)
+    hi = -lo
+    for moving_only in (True, False):
+        for reader, idx in readers:
+            reach = body_reach3d(reader.bodies)  # type: ignore[arg-type]
+            keep = np.array([t != "static" or not moving_only for t in reader.bodies.type])
+            if not moving_only:  # bodies made only of planes have no extent
+                keep &= reach > 0
+            if not keep.any() or len(idx) == 0:
+                continue
+            frames = idx if moving_only else idx[:1]
+            for _part, pos, _rot in reader.batches(frames):
+                p = pos[:, keep]
+                r = reach[keep][None, :, None]
+                finite = np.isfinite(p).all(axis=2)[..., None]
+                if finite.any():
+                    lo = np.minimum(lo, np.min(np.where(finite, p - r, np.inf), (0, 1)))
+                    hi = np.maximum(hi, np.max(np.where(finite, p + r, -np.inf), (0, 1)))
+        if np.all(np.isfinite(lo)):
+            break
+    if not np.all(np.isfinite(lo)):
+        lo, hi = -np.ones(3), np.ones(3)
+    return lo, hi
+
+
+def ground_for(reader: FrameReader, lo: np.ndarray, hi: np.ndarray) -> Ground:
+    """The ground under a scene filling [lo, hi] (m): the reader's planes (at their
+    bodies' first-frame poses; planes are static) as patches, else a floor grid."""
+    meshes = body_meshes(reader.bodies)  # type: ignore[arg-type]
+    planes = []
+    if meshes.planes:
+        pos, rot = reader.read(np.array([0]))
+        R = quat_matrix(rot[0])
+        for b, point, normal in meshes.planes:
+            planes.append((pos[0, b] + R[b] @ point, R[b] @ normal))
+    return ground_grid(planes, lo, hi)
+
+
+def frame_triangles(
+    meshes: BodyMeshes, pos: np.ndarray, rot: np.ndarray, camera: Camera, width: int, height: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The triangles to draw in one frame, far to near: (M,3,2) pixels, (M,) body of
+    each, (M,) brightness (shade() of its world normal). pos (N,3) m and rot (N,4)
+    (w, x, y, z): the frame's body origins and orientations. Faces turned away from the
+    camera and triangles reaching behind it are left out."""
+    if not len(meshes.tris):
+        return np.zeros((0, 3, 2)), np.zeros(0, dtype=np.int64), np.zeros(0)
+    R = quat_matrix(rot)
+    pb = meshes.point_body
+    world = pos[pb] + np.einsum("kij,kj->ki", R[pb], meshes.points)
+    px, depth = camera.project(world, width, height)
+    a, b, c = (world[meshes.tris[:, i]] for i in range(3))
+    normal = np.cross(b - a, c - a)
+    length = np.linalg.norm(normal, axis=1)
+    eye = camera.basis()[0]
+    facing = np.einsum("ij,ij->i", normal, eye - (a + b + c) / 3) > 0
+    keep = facing & (length > 0) & (depth[meshes.tris] > NEAR).all(axis=1)
+    tris = meshes.tris[keep]
+    order = np.argsort(-depth[tris].mean(axis=1), kind="stable")
+    tris = tris[order]
+    bright = shade(normal[keep][order] / length[keep][order][:, None])
+    return px[tris], meshes.tri_body[keep][order], bright
+
+
+def _segments(camera: Camera, lines: np.ndarray, width: int, height: int) -> np.ndarray:
+    """(L,2,2) pixels of world segments (L,2,3) m wholly in front of the camera."""
+    if not len(lines):
+        return np.zeros((0, 2, 2))
+    px, depth = camera.project(lines.reshape(-1, 3), width, height)
+    px, depth = px.reshape(-1, 2, 2), depth.reshape(-1, 2)
+    return px[(depth > NEAR).all(axis=1)]
+
+
+def write_gif3d(
+    main: FrameReader,
+    idx: np.ndarray,
+    other: FrameReader | None,
+    other_idx: np.ndarray | None,
+    output: str,
+    fps: float,
+    width: int,
+    height: int,
+    progress: Progress | None,
+) -> Camera:
+    """Draw frames idx of the 3D trajectory `main` (and the overlay `other` at frames
+    other_idx, as orange wireframes) into the GIF `output`, width x height pixels, each
+    frame shown until the next (fps: frames per second of simulated time). Returns the
+    camera used (fitted to the moving bodies over the frames shown)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.collections import LineCollection, PolyCollection
+    from matplotlib.figure import Figure
+
+    pairs = [(main, idx)]
+    if other is not None and other_idx is not None:
+        pairs.append((other, np.unique(other_idx)))
+    lo, hi = fit_box(pairs)
+    camera = fit_camera(lo, hi, width, height)
+    ground = ground_for(main, lo, hi)
+
+    dpi = 100
+    fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi, facecolor=COLOURS["background"])
+    canvas = FigureCanvasAgg(fig)
+    ax = fig.add_axes((0, 0, 1, 1))
+    ax.set_axis_off()
+    ax.set_xlim(0, width)
+    ax.set_ylim(height, 0)  # pixels, y down, as Camera.project gives them
+    if len(ground.quads):
+        qpx, qdepth = camera.project(ground.quads.reshape(-1, 3), width, height)
+        qpx, qdepth = qpx.reshape(-1, 4, 2), qdepth.reshape(-1, 4)
+        front = (qdepth > NEAR).all(axis=1)
+        ax.add_collection(
+            PolyCollection(
+                list(qpx[front]), facecolors=COLOURS_3D["ground_fill"], edgecolors="none", zorder=0
+            )
+        )
+    grid = _segments(camera, ground.lines, width, height)
+    ax.add_collection(
+        LineCollection(list(grid), colors=COLOURS_3D["grid"], linewidths=0.8, zorder=1)
+    )
+
+    body_colour = np.array([COLOURS_3D[f"{t}_fill"] for t in main.bodies.type], dtype=object)
+    main_meshes = body_meshes(main.bodies)  # type: ignore[arg-type]
+    faces = PolyCollection([], linewidths=0.6, zorder=2, antialiaseds=True)
+    ax.add_collection(faces)
+    other_meshes = body_meshes(other.bodies) if other is not None else None  # type: ignore[arg-type]
+    wire = PolyCollection(
+        [], facecolors="none", edgecolors=COLOURS["overlay_edge"], linewidths=0.7, zorder=3
+    )
+    ax.add_collection(wire)
+    clock = ax.text(
+        0.015, 0.975, "", transform=ax.transAxes, ha="left", va="top", family="monospace",
+        fontsize=10, color=COLOURS["text"], zorder=10,
+    )  # fmt: skip
+    if other is not None:
+        ax.text(
+            0.985, 0.975, f"{main.label}\n ", transform=ax.transAxes, ha="right", va="top",
+            fontsize=8, color=COLOURS["text"], zorder=10,
+        )  # fmt: skip
+        ax.text(
+            0.985, 0.975, " \n" + other.label, transform=ax.transAxes, ha="right", va="top",
+            fontsize=8, color=COLOURS["overlay_edge"], zorder=11,
+        )  # fmt: skip
+    # every face colour the palette holds, by body colour and step, as matplotlib RGBA
+    steps = np.linspace(AMBIENT, 1.0, SHADE_LEVELS)
+    tables = {
+        c: np.concatenate([shaded_rgb(c, steps) / 255.0, np.ones((SHADE_LEVELS, 1))], 1)
+        for c in set(body_colour.tolist())
+    }
+
+    delays = gif_delays(main.time[idx], 1.0 / fps)
+    digits = clock_digits(fps)
+    other_frames = None
+    if other is not None and other_idx is not None:
+        uniq, inverse = np.unique(other_idx, return_inverse=True)
+        other_frames = (uniq, inverse)
+    with GifWriter(output, gif_palette3d()) as gif:
+        k = 0
+        for _part, pos, rot in main.batches(idx):
+            for j in range(len(pos)):
+                tri_px, tri_body, bright = frame_triangles(
+                    main_meshes, pos[j], rot[j], camera, width, height
+                )
+                levels = np.rint((bright - AMBIENT) / (1 - AMBIENT) * (SHADE_LEVELS - 1)).astype(
+                    np.int64
+                )
+                colours = np.zeros((len(tri_body), 4))
+                for c, table in tables.items():
+                    mine = body_colour[tri_body] == c
+                    colours[mine] = table[levels[mine]]
+                faces.set_verts(list(tri_px))
+                faces.set_facecolor(colours)
+                faces.set_edgecolor(colours)  # the same colour: no seams between triangles
+                if other_meshes is not None and other_frames is not None:
+                    uniq, inverse = other_frames
+                    o = int(uniq[inverse[k]])
+                    opos, orot = other.read(np.array([o]))  # type: ignore[union-attr]
+                    wire_px, _b, _s = frame_triangles(
+                        other_meshes, opos[0], orot[0], camera, width, height
+                    )
+                    wire.set_verts(list(wire_px))
+                clock.set_text(f"t = {main.time[idx[k]]:.{digits}f} s")
+                canvas.draw()
+                gif.add(np.asarray(canvas.buffer_rgba())[:, :, :3], delays[k])
+                k += 1
+                if progress is not None:
+                    progress(k, len(idx))
+    return camera
