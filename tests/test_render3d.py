@@ -13,7 +13,7 @@ import h5py
 import numpy as np
 import pytest
 
-from rbsim.view.mesh import Camera, quat_matrix, shade
+from rbsim.view.mesh import Camera, quat_matrix, shade, shape_triangles
 from rbsim.view.render import FrameReader, render_gif
 from rbsim.view.render3d import COLOURS_3D, shaded_rgb
 from tests.conftest import rbsim
@@ -193,7 +193,7 @@ def test_reader_knows_a_3d_trajectory_and_its_shapes(tmp_path):
         pos, rot = r.read(np.array([0, 4]))
         assert pos.shape == (2, 5, 3) and rot.shape == (2, 5, 4)
         assert pos[1, 1, 0] == pytest.approx(-3 + SPEED * 4 * DT)
-        assert r.bodies.faces(1).shape == (12, 3)
+        assert shape_triangles(r.bodies, 1).shape == (12, 3)
 
 
 def test_quat_matrix_turns_x_into_y_about_z():

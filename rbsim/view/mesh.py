@@ -33,6 +33,8 @@ __all__ = [
     "read_bodies3d",
     "shade",
     "shape_mesh",
+    "shape_points",
+    "shape_triangles",
 ]
 
 # The light: a direction towards it, world frame (from above, in front, to the right).
@@ -119,15 +121,17 @@ class Bodies3D:
             shape_normal=cat([self.shape_normal, other.shape_normal]),
         )
 
-    def vertices(self, s: int) -> np.ndarray:
-        """Shape s's vertex rows, (k,3) m, body frame."""
-        a = int(self.shape_vertex_start[s])
-        return self.shape_vertices[a : a + int(self.shape_vertex_count[s])]
 
-    def faces(self, s: int) -> np.ndarray:
-        """Shape s's triangles, (m,3) indices into its vertex rows."""
-        a = int(self.shape_face_start[s])
-        return self.shape_faces[a : a + int(self.shape_face_count[s])]
+def shape_points(bodies: Bodies3D, s: int) -> np.ndarray:
+    """Shape s's vertex rows of a 3D body table, (k,3) m, body frame."""
+    a = int(bodies.shape_vertex_start[s])
+    return bodies.shape_vertices[a : a + int(bodies.shape_vertex_count[s])]
+
+
+def shape_triangles(bodies: Bodies3D, s: int) -> np.ndarray:
+    """Shape s's triangles of a 3D body table, (m,3) indices into its vertex rows."""
+    a = int(bodies.shape_face_start[s])
+    return np.asarray(bodies.shape_faces[a : a + int(bodies.shape_face_count[s])], dtype=np.int64)
 
 
 def _strings(ds: h5py.Dataset) -> list[str]:
@@ -331,11 +335,11 @@ def body_meshes(bodies: Bodies3D) -> BodyMeshes:
     count = 0
     for s, kind in enumerate(bodies.shape_kind):
         b = int(bodies.shape_body[s])
-        verts = bodies.vertices(s)
+        verts = shape_points(bodies, s)
         if kind == "plane":
             planes.append((b, verts[0].copy(), bodies.shape_normal[s].copy()))
             continue
-        mesh = shape_mesh(kind, verts, bodies.faces(s), float(bodies.shape_radius[s]))
+        mesh = shape_mesh(kind, verts, shape_triangles(bodies, s), float(bodies.shape_radius[s]))
         assert mesh is not None
         p, t = mesh
         points.append(p)
@@ -360,7 +364,7 @@ def body_reach3d(bodies: Bodies3D) -> np.ndarray:
     for s, kind in enumerate(bodies.shape_kind):
         if kind == "plane":
             continue
-        verts = bodies.vertices(s)
+        verts = shape_points(bodies, s)
         if len(verts):
             r = float(np.max(np.linalg.norm(verts, axis=1))) + float(bodies.shape_radius[s])
             b = int(bodies.shape_body[s])

@@ -265,7 +265,7 @@ def write_gif3d(
                 for c, table in tables.items():
                     mine = body_colour[tri_body] == c
                     colours[mine] = table[levels[mine]]
-                faces.set_verts(list(tri_px))
+                faces.set_verts(tri_px)  # an (M,3,2) array: matplotlib's fast path
                 faces.set_facecolor(colours)
                 faces.set_edgecolor(colours)  # the same colour: no seams between triangles
                 if other_meshes is not None and other_frames is not None:
@@ -275,7 +275,7 @@ def write_gif3d(
                     wire_px, _b, _s = frame_triangles(
                         other_meshes, opos[0], orot[0], camera, width, height
                     )
-                    wire.set_verts(list(wire_px))
+                    wire.set_verts(wire_px)
                 clock.set_text(f"t = {main.time[idx[k]]:.{digits}f} s")
                 canvas.draw()
                 gif.add(np.asarray(canvas.buffer_rgba())[:, :, :3], delays[k])
