@@ -29,6 +29,7 @@ __all__ = [
     "fit_camera",
     "fit_sphere",
     "ground_grid",
+    "merge_coplanar",
     "quat_matrix",
     "read_bodies3d",
     "shade",
@@ -211,6 +212,36 @@ def _outward(points: np.ndarray, tris: np.ndarray) -> np.ndarray:
     return out
 
 
+def merge_coplanar(points: np.ndarray, tris: np.ndarray) -> list[list[int]]:
+    """The faces of a convex solid from its triangles (counter-clockwise outside): the
+    triangles that lie in one plane merged into one polygon, its points in
+    counter-clockwise order seen from outside. A box's 12 triangles give its 6 sides."""
+    if not len(tris):
+        return []
+    a, b, c = points[tris[:, 0]], points[tris[:, 1]], points[tris[:, 2]]
+    n = np.cross(b - a, c - a)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    offset = np.einsum("ij,ij->i", n, a)
+    scale = max(float(np.max(np.abs(points))), 1e-12)
+    faces: list[list[int]] = []
+    used = np.zeros(len(tris), dtype=bool)
+    for i in range(len(tris)):
+        if used[i]:
+            continue
+        # the same plane: normals within 1e-9 rad, offsets within 1e-9 of the size
+        same = ~used & (n @ n[i] > 1 - 1e-9) & (np.abs(offset - offset[i]) <= 1e-9 * scale)
+        used |= same
+        corners = np.unique(tris[same].reshape(-1))
+        centre = points[corners].mean(axis=0)
+        e1 = points[corners[0]] - centre
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(n[i], e1)
+        rel = points[corners] - centre
+        angle = np.arctan2(rel @ e2, rel @ e1)
+        faces.append([int(k) for k in corners[np.argsort(angle, kind="stable")]])
+    return faces
+
+
 def _split_in_four(
     points: list[np.ndarray], tris: list[tuple[int, int, int]]
 ) -> list[tuple[int, int, int]]:
@@ -295,42 +326,53 @@ def capsule_mesh(a: np.ndarray, b: np.ndarray, r: float) -> tuple[np.ndarray, np
 
 def shape_mesh(
     kind: str, verts: np.ndarray, faces: np.ndarray, radius: float
-) -> tuple[np.ndarray, np.ndarray] | None:
-    """One shape as triangles in its body's frame: ((k,3) m points, (m,3) triangles,
-    counter-clockwise seen from outside), or None for a plane (drawn with the ground).
-    verts, faces: the shape's rows of the body table; radius: m."""
+) -> tuple[np.ndarray, list[list[int]], bool] | None:
+    """One shape as flat faces in its body's frame: ((k,3) m points, faces as lists of
+    point indices counter-clockwise seen from outside, whether the faces' edges are
+    drawn), or None for a plane (drawn with the ground). Boxes and hulls: their
+    triangles merged into polygons, edges drawn; spheres and capsules: triangles, no
+    edges (they stand for a round surface). verts, faces: the shape's rows of the body
+    table; radius: m."""
     if kind == "plane":
         return None
     if kind == "sphere":
         unit, tris = icosphere()
-        return np.asarray(verts[0], dtype=float) + float(radius) * unit, tris
+        return np.asarray(verts[0], dtype=float) + float(radius) * unit, tris.tolist(), False
     if kind == "capsule":
-        return capsule_mesh(verts[0], verts[1], float(radius))
+        points, tris = capsule_mesh(verts[0], verts[1], float(radius))
+        return points, tris.tolist(), False
     points = np.asarray(verts, dtype=float)
-    return points, _outward(points, np.asarray(faces, dtype=np.int64).reshape(-1, 3))
+    tris = _outward(points, np.asarray(faces, dtype=np.int64).reshape(-1, 3))
+    return points, merge_coplanar(points, tris), True
 
 
 @dataclass
 class BodyMeshes:
-    """Every shape of N bodies as triangles in each body's frame.
+    """Every shape of N bodies as flat faces in each body's frame.
 
-    points (P,3) m, body frame; point_body (P,); tris (M,3) indices into points;
-    tri_body (M,); planes: (body, point (3,) m, unit normal (3,)) in body frames.
+    points (P,3) m, body frame; point_body (P,); faces (M,K) point indices, each face's
+    first face_size[i] entries counter-clockwise seen from outside, padded with its last
+    point (so every row is a polygon of K corners); face_size (M,); face_body (M,);
+    face_outlined (M,) bool: its edges are drawn (boxes and hulls); planes: (body,
+    point (3,) m, unit normal (3,)) in body frames.
     """
 
     points: np.ndarray
     point_body: np.ndarray
-    tris: np.ndarray
-    tri_body: np.ndarray
+    faces: np.ndarray
+    face_size: np.ndarray
+    face_body: np.ndarray
+    face_outlined: np.ndarray
     planes: list[tuple[int, np.ndarray, np.ndarray]]
 
 
 def body_meshes(bodies: Bodies3D) -> BodyMeshes:
-    """The triangles of every shape of `bodies` (planes kept apart)."""
+    """The faces of every shape of `bodies` (planes kept apart)."""
     points: list[np.ndarray] = []
     point_body: list[np.ndarray] = []
-    tris: list[np.ndarray] = []
-    tri_body: list[np.ndarray] = []
+    faces: list[list[int]] = []
+    face_body: list[int] = []
+    outlined: list[bool] = []
     planes: list[tuple[int, np.ndarray, np.ndarray]] = []
     count = 0
     for s, kind in enumerate(bodies.shape_kind):
@@ -341,18 +383,23 @@ def body_meshes(bodies: Bodies3D) -> BodyMeshes:
             continue
         mesh = shape_mesh(kind, verts, shape_triangles(bodies, s), float(bodies.shape_radius[s]))
         assert mesh is not None
-        p, t = mesh
+        p, shape_faces, edges = mesh
         points.append(p)
         point_body.append(np.full(len(p), b, dtype=np.int64))
-        tris.append(t + count)
-        tri_body.append(np.full(len(t), b, dtype=np.int64))
+        faces += [[k + count for k in f] for f in shape_faces]
+        face_body += [b] * len(shape_faces)
+        outlined += [edges] * len(shape_faces)
         count += len(p)
-    cat = np.concatenate
+    size = np.array([len(f) for f in faces], dtype=np.int64)
+    k = int(size.max()) if len(size) else 3
+    padded = np.array([f + [f[-1]] * (k - len(f)) for f in faces], dtype=np.int64)
     return BodyMeshes(
-        points=cat(points) if points else np.zeros((0, 3)),
-        point_body=cat(point_body) if point_body else np.zeros(0, dtype=np.int64),
-        tris=cat(tris) if tris else np.zeros((0, 3), dtype=np.int64),
-        tri_body=cat(tri_body) if tri_body else np.zeros(0, dtype=np.int64),
+        points=np.concatenate(points) if points else np.zeros((0, 3)),
+        point_body=np.concatenate(point_body) if point_body else np.zeros(0, dtype=np.int64),
+        faces=padded.reshape(-1, k),
+        face_size=size,
+        face_body=np.array(face_body, dtype=np.int64),
+        face_outlined=np.array(outlined, dtype=bool),
         planes=planes,
     )
 

@@ -118,8 +118,9 @@ def _track(
 def _track3d(
     reader: FrameReader, idx: np.ndarray, overlay: bool, progress: Progress | None
 ) -> dict[str, object]:
-    """One 3D trajectory for the page: its shapes as triangles in body frames (points
-    m to 1e-6 m, their bodies, three point indices per triangle), and the frames as
+    """One 3D trajectory for the page: its shapes as flat faces in body frames (points
+    m to 1e-6 m, their bodies; each face's point indices, counter-clockwise outside,
+    their count, and whether its edges are drawn), and the frames as
     base64 of float32 (frame, body, [x, y, z, qw, qx, qy, qz]) (28 bytes per body and
     frame); idx as for `_track`."""
     uniq, inverse = np.unique(idx, return_inverse=True)
@@ -141,7 +142,11 @@ def _track3d(
         "types": list(reader.bodies.type),
         "points": _round(meshes.points),
         "point_body": [int(b) for b in meshes.point_body],
-        "tris": [int(i) for i in meshes.tris.reshape(-1)],
+        "faces": [
+            int(i) for f, k in zip(meshes.faces, meshes.face_size, strict=True) for i in f[:k]
+        ],
+        "face_size": [int(k) for k in meshes.face_size],
+        "face_outlined": [int(e) for e in meshes.face_outlined],
         "frame_index": [int(i) for i in inverse],
         "frames": base64.b64encode(out.tobytes()).decode("ascii"),
     }

@@ -1,5 +1,5 @@
   // The 3D view (rbsim/view/player3d.js, pasted into player.html by rbsim render): the
-  // shapes as triangles, placed per frame by each body's origin and quaternion, shaded
+  // shapes as flat faces, placed per frame by each body's origin and quaternion, shaded
   // flat from one light and painted far to near (back faces culled) over the ground,
   // seen by a camera that orbits its target. The same camera and light as the GIF
   // (rbsim/view/mesh.py).
@@ -25,18 +25,23 @@
   for (const kind of ["dynamic", "static", "kinematic"]) shadeStyles[kind] = shadeTable(colours[kind + "_fill"]);
 
   // Each track: one trajectory. frames: Float32Array of (frame, body, [x, y, z, qw, qx,
-  // qy, qz]); pts: body-frame points (m) of every shape's triangles, ptBody their body;
-  // tris: point indices, three per triangle, counter-clockwise seen from outside.
+  // qy, qz]); pts: body-frame points (m) of every shape's faces, ptBody their body;
+  // faces: point indices, face i's from faceStart[i] to faceStart[i + 1], counter-
+  // clockwise seen from outside; outlined[i]: its edges are drawn (boxes and hulls).
   const tracks = data.tracks.map(function (t) {
     const pts = Float64Array.from(t.points), ptBody = Int32Array.from(t.point_body);
-    const tris = Int32Array.from(t.tris), m = tris.length / 3;
-    const triBody = new Int32Array(m);
-    for (let i = 0; i < m; i++) triBody[i] = ptBody[tris[3 * i]];
+    const faces = Int32Array.from(t.faces), m = t.face_size.length;
+    const faceStart = new Int32Array(m + 1), faceBody = new Int32Array(m);
+    for (let i = 0; i < m; i++) {
+      faceStart[i + 1] = faceStart[i] + t.face_size[i];
+      faceBody[i] = ptBody[faces[faceStart[i]]];
+    }
     const p = pts.length / 3;
     return {
       label: t.label, names: t.names, types: t.types, overlay: t.overlay, n: t.names.length,
       frames: floats(t.frames), frameIndex: t.frame_index,
-      pts: pts, ptBody: ptBody, tris: tris, triBody: triBody,
+      pts: pts, ptBody: ptBody, faces: faces, faceStart: faceStart, faceBody: faceBody,
+      outlined: Uint8Array.from(t.face_outlined),
       world: new Float64Array(3 * p), scr: new Float64Array(2 * p), depth: new Float64Array(p),
     };
   });
@@ -117,34 +122,44 @@
     }
   }
 
-  // The triangles of the last picture, near to far last: per track the indices drawn
-  // (for names on hover), painted in this order.
+  // The faces of the last picture, far to near: per track [track, face indices], for
+  // names on hover.
   let drawn = [];
 
-  // Triangles of track t facing the camera and wholly in front of it, far to near, with
+  // Faces of track t facing the camera and wholly in front of it, far to near, with
   // their brightness: [indices, brightness].
   function visible(t) {
-    const tris = t.tris, w = t.world, depth = t.depth, m = tris.length / 3;
+    const faces = t.faces, fs = t.faceStart, w = t.world, depth = t.depth, m = fs.length - 1;
     const keep = [], key = new Float64Array(m), bright = new Float64Array(m);
     for (let i = 0; i < m; i++) {
-      const a = tris[3 * i], b = tris[3 * i + 1], c = tris[3 * i + 2];
-      if (depth[a] <= NEAR || depth[b] <= NEAR || depth[c] <= NEAR) continue;
-      const ux = w[3 * b] - w[3 * a], uy = w[3 * b + 1] - w[3 * a + 1], uz = w[3 * b + 2] - w[3 * a + 2];
-      const vx = w[3 * c] - w[3 * a], vy = w[3 * c + 1] - w[3 * a + 1], vz = w[3 * c + 2] - w[3 * a + 2];
+      let behind = false, sum = 0;
+      for (let j = fs[i]; j < fs[i + 1]; j++) {
+        if (depth[faces[j]] <= NEAR) { behind = true; break; }
+        sum += depth[faces[j]];
+      }
+      if (behind) continue;
+      const a = 3 * faces[fs[i]], b = 3 * faces[fs[i] + 1], c = 3 * faces[fs[i] + 2];
+      const ux = w[b] - w[a], uy = w[b + 1] - w[a + 1], uz = w[b + 2] - w[a + 2];
+      const vx = w[c] - w[a], vy = w[c + 1] - w[a + 1], vz = w[c + 2] - w[a + 2];
       const nx = uy * vz - uz * vy, ny = uz * vx - ux * vz, nz = ux * vy - uy * vx;
       const len = Math.hypot(nx, ny, nz);
       if (len === 0) continue;
-      const cx = (w[3 * a] + w[3 * b] + w[3 * c]) / 3 - eye[0];
-      const cy = (w[3 * a + 1] + w[3 * b + 1] + w[3 * c + 1]) / 3 - eye[1];
-      const cz = (w[3 * a + 2] + w[3 * b + 2] + w[3 * c + 2]) / 3 - eye[2];
-      if (nx * cx + ny * cy + nz * cz >= 0) continue;  // turned away from the camera
+      if (nx * (w[a] - eye[0]) + ny * (w[a + 1] - eye[1]) + nz * (w[a + 2] - eye[2]) >= 0) continue;
       const lit = Math.max(0, (nx * light[0] + ny * light[1] + nz * light[2]) / len);
-      bright[i] = ambient + (1 - ambient) * lit;
-      key[i] = depth[a] + depth[b] + depth[c];
+      bright[i] = ambient + (1 - ambient) * lit;  // turned away from the light: ambient
+      key[i] = sum / (fs[i + 1] - fs[i]);
       keep.push(i);
     }
     keep.sort(function (i, j) { return key[j] - key[i]; });
     return [keep, bright];
+  }
+  function facePath(path, t, i) {
+    const scr = t.scr, faces = t.faces, fs = t.faceStart;
+    for (let j = fs[i]; j < fs[i + 1]; j++) {
+      const p = 2 * faces[j];
+      if (j === fs[i]) path.moveTo(scr[p], scr[p + 1]); else path.lineTo(scr[p], scr[p + 1]);
+    }
+    path.closePath();
   }
 
   function drawGround() {
@@ -179,51 +194,49 @@
     ctx.lineJoin = "round";
     for (const t of tracks) {
       placeTrack(t);
-      const v = visible(t), order = v[0], bright = v[1], scr = t.scr, tris = t.tris;
+      const v = visible(t), order = v[0], bright = v[1];
       drawn.push([t, order]);
       if (t.overlay) {
         const wire = new Path2D();
-        for (const i of order) {
-          const a = 2 * tris[3 * i], b = 2 * tris[3 * i + 1], c = 2 * tris[3 * i + 2];
-          wire.moveTo(scr[a], scr[a + 1]); wire.lineTo(scr[b], scr[b + 1]);
-          wire.lineTo(scr[c], scr[c + 1]); wire.closePath();
-        }
+        for (const i of order) facePath(wire, t, i);
         ctx.lineWidth = 0.8;
         ctx.strokeStyle = colours.overlay_edge;
         ctx.stroke(wire);
         continue;
       }
-      ctx.lineWidth = 0.6;  // each triangle's edge in its own colour hides the seams
       for (const i of order) {
-        const a = 2 * tris[3 * i], b = 2 * tris[3 * i + 1], c = 2 * tris[3 * i + 2];
         const k = Math.round((bright[i] - ambient) / (1 - ambient) * (SHADES - 1));
-        const style = shadeStyles[t.types[t.triBody[i]]][k];
+        const type = t.types[t.faceBody[i]];
+        const style = shadeStyles[type][k];
         ctx.beginPath();
-        ctx.moveTo(scr[a], scr[a + 1]); ctx.lineTo(scr[b], scr[b + 1]); ctx.lineTo(scr[c], scr[c + 1]);
-        ctx.closePath();
+        facePath(ctx, t, i);
         ctx.fillStyle = style;
-        ctx.strokeStyle = style;
         ctx.fill();
+        // boxes and hulls outlined; round shapes' facets edged in their own colour,
+        // which hides the seams between them
+        ctx.lineWidth = t.outlined[i] ? 1 : 0.6;
+        ctx.strokeStyle = t.outlined[i] ? colours[type + "_edge"] : style;
         ctx.stroke();
       }
     }
   }
 
-  // --- names on hover: the nearest drawn triangle under the pointer ----------------------
-  function inTriangle(px, py, s, a, b, c) {
-    const d1 = (px - s[b]) * (s[a + 1] - s[b + 1]) - (s[a] - s[b]) * (py - s[b + 1]);
-    const d2 = (px - s[c]) * (s[b + 1] - s[c + 1]) - (s[b] - s[c]) * (py - s[c + 1]);
-    const d3 = (px - s[a]) * (s[c + 1] - s[a + 1]) - (s[c] - s[a]) * (py - s[a + 1]);
-    return !((d1 < 0 || d2 < 0 || d3 < 0) && (d1 > 0 || d2 > 0 || d3 > 0));
+  // --- names on hover: the nearest drawn face under the pointer --------------------------
+  function inFace(px, py, t, i) {  // inside the convex polygon: on one side of every edge
+    const s = t.scr, faces = t.faces, fs = t.faceStart;
+    let pos = false, neg = false;
+    for (let j = fs[i]; j < fs[i + 1]; j++) {
+      const a = 2 * faces[j], b = 2 * faces[j + 1 < fs[i + 1] ? j + 1 : fs[i]];
+      const cross = (s[b] - s[a]) * (py - s[a + 1]) - (s[b + 1] - s[a + 1]) * (px - s[a]);
+      if (cross > 0) pos = true; else if (cross < 0) neg = true;
+    }
+    return !(pos && neg);
   }
   function hitAt(px, py) {
     for (let k = drawn.length - 1; k >= 0; k--) {  // the overlay is drawn last, on top
-      const t = drawn[k][0], order = drawn[k][1], tris = t.tris;
+      const t = drawn[k][0], order = drawn[k][1];
       for (let j = order.length - 1; j >= 0; j--) {  // nearest first
-        const i = order[j];
-        if (inTriangle(px, py, t.scr, 2 * tris[3 * i], 2 * tris[3 * i + 1], 2 * tris[3 * i + 2])) {
-          return [t, t.triBody[i]];
-        }
+        if (inFace(px, py, t, order[j])) return [t, t.faceBody[order[j]]];
       }
     }
     return null;

@@ -36,7 +36,7 @@ __all__ = [
     "COLOURS_3D",
     "SHADE_LEVELS",
     "fit_box",
-    "frame_triangles",
+    "frame_faces",
     "gif_palette3d",
     "ground_for",
     "shaded_rgb",
@@ -78,7 +78,8 @@ def gif_palette3d() -> np.ndarray:
     entries: list[tuple[int, int, int]] = []
     for kind in ("dynamic", "static", "kinematic"):
         entries += [tuple(c) for c in shaded_rgb(COLOURS_3D[f"{kind}_fill"], steps).tolist()]
-    for key in ("background", "ground_fill", "grid", "text", "overlay_edge"):
+    edges = ("dynamic_edge", "static_edge", "kinematic_edge")
+    for key in ("background", "ground_fill", "grid", "text", "overlay_edge", *edges):
         entries.append(tuple(int(c) for c in _rgb(COLOURS_3D[key])))
     seen: set[tuple[int, int, int]] = set()
     unique = [e for e in entries if not (e in seen or seen.add(e))]
@@ -134,30 +135,31 @@ def ground_for(reader: FrameReader, lo: np.ndarray, hi: np.ndarray) -> Ground:
     return ground_grid(planes, lo, hi)
 
 
-def frame_triangles(
+def frame_faces(
     meshes: BodyMeshes, pos: np.ndarray, rot: np.ndarray, camera: Camera, width: int, height: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The triangles to draw in one frame, far to near: (M,3,2) pixels, (M,) body of
-    each, (M,) brightness (shade() of its world normal). pos (N,3) m and rot (N,4)
-    (w, x, y, z): the frame's body origins and orientations. Faces turned away from the
-    camera and triangles reaching behind it are left out."""
-    if not len(meshes.tris):
-        return np.zeros((0, 3, 2)), np.zeros(0, dtype=np.int64), np.zeros(0)
+    """The faces to draw in one frame, far to near: indices into meshes.faces (F,),
+    their corners' pixels (F,K,2) and brightness (F,) (shade() of the world normal).
+    pos (N,3) m and rot (N,4) (w, x, y, z): the frame's body origins and orientations.
+    Faces turned away from the camera and faces reaching behind it are left out."""
+    k = meshes.faces.shape[1]
+    if not len(meshes.faces):
+        return np.zeros(0, dtype=np.int64), np.zeros((0, k, 2)), np.zeros(0)
     R = quat_matrix(rot)
     pb = meshes.point_body
     world = pos[pb] + np.einsum("kij,kj->ki", R[pb], meshes.points)
     px, depth = camera.project(world, width, height)
-    a, b, c = (world[meshes.tris[:, i]] for i in range(3))
+    a, b, c = (world[meshes.faces[:, i]] for i in range(3))
     normal = np.cross(b - a, c - a)
     length = np.linalg.norm(normal, axis=1)
     eye = camera.basis()[0]
-    facing = np.einsum("ij,ij->i", normal, eye - (a + b + c) / 3) > 0
-    keep = facing & (length > 0) & (depth[meshes.tris] > NEAR).all(axis=1)
-    tris = meshes.tris[keep]
-    order = np.argsort(-depth[tris].mean(axis=1), kind="stable")
-    tris = tris[order]
-    bright = shade(normal[keep][order] / length[keep][order][:, None])
-    return px[tris], meshes.tri_body[keep][order], bright
+    facing = np.einsum("ij,ij->i", normal, eye - a) > 0
+    keep = np.flatnonzero(facing & (length > 0) & (depth[meshes.faces] > NEAR).all(axis=1))
+    corner = np.arange(k)[None, :] < meshes.face_size[keep][:, None]
+    mean_depth = np.where(corner, depth[meshes.faces[keep]], 0).sum(1) / meshes.face_size[keep]
+    keep = keep[np.argsort(-mean_depth, kind="stable")]
+    bright = shade(normal[keep] / length[keep][:, None])
+    return keep, px[meshes.faces[keep]], bright
 
 
 def _segments(camera: Camera, lines: np.ndarray, width: int, height: int) -> np.ndarray:
@@ -216,8 +218,9 @@ def write_gif3d(
         LineCollection(list(grid), colors=COLOURS_3D["grid"], linewidths=0.8, zorder=1)
     )
 
-    body_colour = np.array([COLOURS_3D[f"{t}_fill"] for t in main.bodies.type], dtype=object)
     main_meshes = body_meshes(main.bodies)  # type: ignore[arg-type]
+    types = np.array(main.bodies.type, dtype=object)
+    face_type = types[main_meshes.face_body] if len(main_meshes.face_body) else types[:0]
     faces = PolyCollection([], linewidths=0.6, zorder=2, antialiaseds=True)
     ax.add_collection(faces)
     other_meshes = body_meshes(other.bodies) if other is not None else None  # type: ignore[arg-type]
@@ -238,12 +241,14 @@ def write_gif3d(
             0.985, 0.975, " \n" + other.label, transform=ax.transAxes, ha="right", va="top",
             fontsize=8, color=COLOURS["overlay_edge"], zorder=11,
         )  # fmt: skip
-    # every face colour the palette holds, by body colour and step, as matplotlib RGBA
+    # every face colour the palette holds, by body type and step, as matplotlib RGBA
     steps = np.linspace(AMBIENT, 1.0, SHADE_LEVELS)
     tables = {
-        c: np.concatenate([shaded_rgb(c, steps) / 255.0, np.ones((SHADE_LEVELS, 1))], 1)
-        for c in set(body_colour.tolist())
-    }
+        t: np.concatenate([shaded_rgb(COLOURS_3D[f"{t}_fill"], steps) / 255.0,
+                           np.ones((SHADE_LEVELS, 1))], 1)
+        for t in set(types.tolist())
+    }  # fmt: skip
+    edge_rgba = {t: np.append(_rgb(COLOURS_3D[f"{t}_edge"]) / 255.0, 1.0) for t in tables}
 
     delays = gif_delays(main.time[idx], 1.0 / fps)
     digits = clock_digits(fps)
@@ -255,24 +260,28 @@ def write_gif3d(
         k = 0
         for _part, pos, rot in main.batches(idx):
             for j in range(len(pos)):
-                tri_px, tri_body, bright = frame_triangles(
+                shown, corners, bright = frame_faces(
                     main_meshes, pos[j], rot[j], camera, width, height
                 )
-                levels = np.rint((bright - AMBIENT) / (1 - AMBIENT) * (SHADE_LEVELS - 1)).astype(
-                    np.int64
-                )
-                colours = np.zeros((len(tri_body), 4))
-                for c, table in tables.items():
-                    mine = body_colour[tri_body] == c
-                    colours[mine] = table[levels[mine]]
-                faces.set_verts(tri_px)  # an (M,3,2) array: matplotlib's fast path
-                faces.set_facecolor(colours)
-                faces.set_edgecolor(colours)  # the same colour: no seams between triangles
+                levels = shade_level(bright)
+                fill = np.zeros((len(shown), 4))
+                edge = np.zeros((len(shown), 4))
+                for t, table in tables.items():
+                    mine = face_type[shown] == t
+                    fill[mine] = table[levels[mine]]
+                    # boxes and hulls outlined; round shapes' facets edged in their own
+                    # colour, which hides the seams between them
+                    outlined = mine & main_meshes.face_outlined[shown]
+                    edge[mine] = fill[mine]
+                    edge[outlined] = edge_rgba[t]
+                faces.set_verts(corners)  # an (F,K,2) array: matplotlib's fast path
+                faces.set_facecolor(fill)
+                faces.set_edgecolor(edge)
                 if other_meshes is not None and other_frames is not None:
                     uniq, inverse = other_frames
                     o = int(uniq[inverse[k]])
                     opos, orot = other.read(np.array([o]))  # type: ignore[union-attr]
-                    wire_px, _b, _s = frame_triangles(
+                    _shown, wire_px, _bright = frame_faces(
                         other_meshes, opos[0], orot[0], camera, width, height
                     )
                     wire.set_verts(wire_px)
