@@ -186,3 +186,22 @@ def test_player3d_page_of_100_bodies_by_300_frames_is_compact_and_plays(tmp_path
     page.evaluate("window.rbsimPlayer.pause()")
     assert errors == []
     page.close()
+
+
+def test_player3d_of_a_real_run_names_each_body_where_the_file_puts_it(tmp_path, browser):
+    from rbsim.io.trajectory import load_trajectory
+    from tests.test_render3d import run_every_kind
+
+    path = run_every_kind(tmp_path)
+    traj = load_trajectory(path)
+    page_path = tmp_path / "every.html"
+    code, _, err = rbsim("render", path, "-o", page_path, "--fps", "20")
+    assert code == 0, err
+    page, errors = open_page(browser, page_path)
+    last = page.evaluate("window.rbsimPlayer.frameCount") - 1
+    page.evaluate(f"window.rbsimPlayer.setFrame({last})")
+    for name in ("crate", "ball", "rod"):  # each body's origin is inside its shape
+        col, row = screen(page, traj.position[-1, traj.body(name)])
+        assert page.evaluate(f"window.rbsimPlayer.bodyAt({col}, {row})") == name
+    assert errors == []
+    page.close()

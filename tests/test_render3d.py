@@ -285,3 +285,86 @@ def test_plot_of_a_3d_trajectory_draws_three_momentum_components(tmp_path):
         assert lines[label][0] == panel
         np.testing.assert_array_equal(lines[label][1], value)
     assert lines["total"][0] == 0
+
+
+# ---------------------------------------------------------------------------------------
+# Real runs: a small 3D scene through the engine, the file through load_trajectory
+# ---------------------------------------------------------------------------------------
+
+EVERY_KIND = """
+    version: 1
+    name: every_kind
+    world: {dimension: 3, gravity: [0, -9.81, 0], dt: 0.01, duration: 0.5}
+    bodies:
+      - {name: ground, type: static, shape: {plane: {normal: [0, 1, 0], offset: 0}}}
+      - name: crate
+        position: [0, 2, 0]
+        angular_velocity: [0, 2, 0]
+        shape: {box: {size: [1, 0.6, 0.8]}}
+      - name: ball
+        position: [2, 2, 0]
+        velocity: [0, 3, 0]
+        angular_velocity: [0, 0, 4]
+        shape: {sphere: {radius: 0.4}}
+      - name: rod
+        position: [-2, 2, 0]
+        angular_velocity: [0, 0, 3]
+        shape: {capsule: {a: [-0.5, 0, 0], b: [0.5, 0, 0], radius: 0.15}}
+      - name: gem
+        position: [0, 2, -2]
+        angular_velocity: [1, 1, 0]
+        shape: {convex: {vertices: [[0, 0, 0], [0.6, 0, 0], [0, 0.6, 0], [0, 0, 0.6]]}}
+"""
+CRATE_HALF_HEIGHT = 0.3  # m, half the crate's y extent in EVERY_KIND
+
+
+def run_every_kind(tmp_path: Path) -> Path:
+    """EVERY_KIND run by the engine to tmp_path/every.h5."""
+    from rbsim.run import run_scene
+    from tests.conftest import scene_from
+
+    out = tmp_path / "every.h5"
+    run_scene(scene_from(EVERY_KIND), out)
+    return out
+
+
+def test_gif_of_a_real_3d_run_shows_the_falling_crate_where_the_file_puts_it(tmp_path):
+    from rbsim.io.trajectory import load_trajectory
+    from rbsim.view.render import sample_frames
+
+    path = run_every_kind(tmp_path)
+    traj = load_trajectory(path)
+    assert traj.dimension == 3
+    size = (480, 360)
+    gif = tmp_path / "every.gif"
+    code, _, err = rbsim("render", path, "-o", gif, "--fps", "20", "--size", *map(str, size))
+    assert code == 0, err
+    idx = sample_frames(traj.time, 20)
+    frames = frames_rgb(gif)
+    assert len(frames) == len(idx) == 11
+    camera = render_gif(path, tmp_path / "again.gif", fps=20, size=size).camera
+    # the crate turns about y only: its top face keeps the normal +y, so the same colour
+    top = shaded_rgb(COLOURS_3D["dynamic_fill"], shade(np.array([0.0, 1.0, 0.0])))
+    crate = traj.body("crate")
+    for k in (0, len(idx) - 1):
+        x, y, z = traj.position[idx[k], crate]
+        col, row = pixel_of(camera, size, (x, y + CRATE_HALF_HEIGHT, z))
+        assert np.array_equal(frames[k][row, col], top), (k, frames[k][row, col], top)
+    # it fell 1.2 m in 0.5 s: the first frame's top is not the crate's colour at the end
+    x, y, z = traj.position[idx[0], crate]
+    col, row = pixel_of(camera, size, (x, y + CRATE_HALF_HEIGHT, z))
+    assert not np.array_equal(frames[-1][row, col], top)
+
+
+def test_plot_of_a_real_3d_run_has_the_momenta_of_the_file(tmp_path):
+    from rbsim.io.trajectory import load_trajectory
+    from rbsim.view.plot import plot_lines, read_observables
+
+    path = run_every_kind(tmp_path)
+    code, _, err = rbsim("plot", path, "-o", tmp_path / "e.png")
+    assert code == 0, err
+    lines = {label: values for _p, label, _s, values in plot_lines(read_observables(path))}
+    traj = load_trajectory(path)
+    for j, axis in enumerate("xyz"):
+        np.testing.assert_array_equal(lines[f"p{axis}"], traj.observables["linear_momentum"][:, j])
+        np.testing.assert_array_equal(lines[f"L{axis}"], traj.observables["angular_momentum"][:, j])

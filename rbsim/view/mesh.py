@@ -11,14 +11,14 @@ q = (w, x, y, z). Units: lengths m, angles rad, image sizes pixels.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
-import h5py
 import numpy as np
+
+from ..io.trajectory import BodyTable
 
 __all__ = [
     "AMBIENT",
-    "Bodies3D",
     "BodyMeshes",
     "Camera",
     "FOV",
@@ -26,12 +26,12 @@ __all__ = [
     "Ground",
     "body_meshes",
     "body_reach3d",
+    "fit_box_shown",
     "fit_camera",
-    "fit_sphere",
+    "fit_distance",
     "ground_grid",
     "merge_coplanar",
     "quat_matrix",
-    "read_bodies3d",
     "shade",
     "shape_mesh",
     "shape_points",
@@ -53,116 +53,28 @@ ICOSPHERE_LEVEL = 1
 # A capsule: sides around its axis, and rings per round end.
 CAPSULE_SIDES = 16
 CAPSULE_RINGS = 4
-# Margin around the fitted bodies, as a fraction of their bounding sphere's radius.
-FIT_MARGIN = 0.1
-# Smallest radius of a fitted view, m, so that one small still body is not blown up.
-FIT_MIN_RADIUS = 1.0
+# Margin around the fitted bodies' box on each side, as a fraction of its largest side.
+FIT_MARGIN = 0.05
+# Smallest side of a fitted box, m, so that one small still body is not blown up.
+FIT_MIN_SIDE = 1.0
 # Lines of the ground grid across its patch (about; the spacing is a round number).
 GRID_LINES = 12
 # Half the side of the ground patch, as a multiple of the fitted radius.
 GRID_EXTENT = 1.6
 
 
-@dataclass
-class Bodies3D:
-    """Static data of N bodies of a 3D trajectory, with S shapes, V vertices, F faces.
-
-    name, type: (N,) strings. shape_body (S,): the body of each shape; shape_kind (S,)
-    "sphere" | "box" | "capsule" | "convex" | "plane"; shape_radius (S,) m;
-    shape_vertex_start, shape_vertex_count (S,): rows of shape_vertices (V,3) m (body
-    frame, from the body origin); shape_face_start, shape_face_count (S,): rows of
-    shape_faces (F,3) (triangles, indices local to the shape's vertex rows);
-    shape_normal (S,3): a plane's outward unit normal, body frame (zeros otherwise).
-    """
-
-    name: list[str]
-    type: list[str]
-    shape_body: np.ndarray
-    shape_kind: list[str]
-    shape_radius: np.ndarray
-    shape_vertex_start: np.ndarray
-    shape_vertex_count: np.ndarray
-    shape_vertices: np.ndarray
-    shape_face_start: np.ndarray
-    shape_face_count: np.ndarray
-    shape_faces: np.ndarray
-    shape_normal: np.ndarray
-
-    def __post_init__(self) -> None:
-        self.name = [str(s) for s in self.name]
-        self.type = [str(s) for s in self.type]
-        self.shape_kind = [str(s) for s in self.shape_kind]
-        ints = ("shape_body", "shape_vertex_start", "shape_vertex_count")
-        for key in (*ints, "shape_face_start", "shape_face_count"):
-            setattr(self, key, np.asarray(getattr(self, key), dtype=np.int64).reshape(-1))
-        self.shape_radius = np.asarray(self.shape_radius, dtype=float).reshape(-1)
-        self.shape_vertices = np.asarray(self.shape_vertices, dtype=float).reshape(-1, 3)
-        self.shape_faces = np.asarray(self.shape_faces, dtype=np.int64).reshape(-1, 3)
-        self.shape_normal = np.asarray(self.shape_normal, dtype=float).reshape(-1, 3)
-
-    def __len__(self) -> int:
-        return len(self.name)
-
-    def joined(self, other: Bodies3D) -> Bodies3D:
-        """This table's bodies followed by `other`'s, with their shapes."""
-        n, v, f = len(self), len(self.shape_vertices), len(self.shape_faces)
-        cat = np.concatenate
-        return Bodies3D(
-            name=self.name + other.name,
-            type=self.type + other.type,
-            shape_body=cat([self.shape_body, other.shape_body + n]),
-            shape_kind=self.shape_kind + other.shape_kind,
-            shape_radius=cat([self.shape_radius, other.shape_radius]),
-            shape_vertex_start=cat([self.shape_vertex_start, other.shape_vertex_start + v]),
-            shape_vertex_count=cat([self.shape_vertex_count, other.shape_vertex_count]),
-            shape_vertices=cat([self.shape_vertices, other.shape_vertices]),
-            shape_face_start=cat([self.shape_face_start, other.shape_face_start + f]),
-            shape_face_count=cat([self.shape_face_count, other.shape_face_count]),
-            shape_faces=cat([self.shape_faces, other.shape_faces]),
-            shape_normal=cat([self.shape_normal, other.shape_normal]),
-        )
-
-
-def shape_points(bodies: Bodies3D, s: int) -> np.ndarray:
+def shape_points(bodies: BodyTable, s: int) -> np.ndarray:
     """Shape s's vertex rows of a 3D body table, (k,3) m, body frame."""
     a = int(bodies.shape_vertex_start[s])
     return bodies.shape_vertices[a : a + int(bodies.shape_vertex_count[s])]
 
 
-def shape_triangles(bodies: Bodies3D, s: int) -> np.ndarray:
+def shape_triangles(bodies: BodyTable, s: int) -> np.ndarray:
     """Shape s's triangles of a 3D body table, (m,3) indices into its vertex rows."""
+    assert bodies.shape_face_start is not None and bodies.shape_face_count is not None
+    assert bodies.shape_faces is not None
     a = int(bodies.shape_face_start[s])
     return np.asarray(bodies.shape_faces[a : a + int(bodies.shape_face_count[s])], dtype=np.int64)
-
-
-def _strings(ds: h5py.Dataset) -> list[str]:
-    return [str(s) for s in ds.asstr()[()]]
-
-
-def read_bodies3d(group: h5py.Group) -> Bodies3D:
-    """The body table of an open 3D trajectory's /particles/bodies (or /particles/static)
-    group, as DESIGN.md lays it out."""
-    shapes = group["shapes"]
-    s = len(shapes["kind"])
-    zeros = np.zeros(s, dtype=np.int64)
-
-    def get(key: str, default: np.ndarray) -> np.ndarray:
-        return shapes[key][()] if key in shapes else default
-
-    return Bodies3D(
-        name=_strings(group["name"]),
-        type=_strings(group["type"]),
-        shape_body=shapes["body"][()],
-        shape_kind=_strings(shapes["kind"]),
-        shape_radius=shapes["radius"][()],
-        shape_vertex_start=shapes["vertex_start"][()],
-        shape_vertex_count=shapes["vertex_count"][()],
-        shape_vertices=shapes["vertices"][()],
-        shape_face_start=get("face_start", zeros),
-        shape_face_count=get("face_count", zeros),
-        shape_faces=get("faces", np.zeros((0, 3), dtype=np.int64)),
-        shape_normal=get("normal", np.zeros((s, 3))),
-    )
 
 
 # ---------------------------------------------------------------------------------------
@@ -366,7 +278,7 @@ class BodyMeshes:
     planes: list[tuple[int, np.ndarray, np.ndarray]]
 
 
-def body_meshes(bodies: Bodies3D) -> BodyMeshes:
+def body_meshes(bodies: BodyTable) -> BodyMeshes:
     """The faces of every shape of `bodies` (planes kept apart)."""
     points: list[np.ndarray] = []
     point_body: list[np.ndarray] = []
@@ -404,7 +316,7 @@ def body_meshes(bodies: Bodies3D) -> BodyMeshes:
     )
 
 
-def body_reach3d(bodies: Bodies3D) -> np.ndarray:
+def body_reach3d(bodies: BodyTable) -> np.ndarray:
     """(N,) m: the largest distance from each body's origin to a point of its shapes
     other than planes (0 for a body without such shapes), whatever its orientation."""
     reach = np.zeros(len(bodies))
@@ -459,24 +371,36 @@ class Camera:
         return px, z
 
 
-def fit_sphere(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:
-    """(centre (3,), radius) m of the sphere a fitted camera shows for the box [lo, hi]:
-    the box's bounding sphere with FIT_MARGIN, radius at least FIT_MIN_RADIUS."""
+def fit_box_shown(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The box a fitted camera shows for the box [lo, hi] (m): grown by FIT_MARGIN of its
+    largest side on every side, each side at least FIT_MIN_SIDE, about its centre."""
     lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
-    radius = max(float(np.linalg.norm(hi - lo)) / 2, FIT_MIN_RADIUS) * (1 + FIT_MARGIN)
-    return (lo + hi) / 2, radius
+    centre = (lo + hi) / 2
+    side = np.maximum(hi - lo, FIT_MIN_SIDE) + 2 * FIT_MARGIN * float(np.max(hi - lo))
+    return centre - side / 2, centre + side / 2
+
+
+def fit_distance(lo: np.ndarray, hi: np.ndarray, camera: Camera, width: int, height: int) -> float:
+    """The distance, m, from the box [lo, hi]'s centre at which `camera` (its yaw,
+    pitch and fov) shows all eight corners in a width x height image: for each corner
+    at (x, y, z) from the centre in the camera's axes, |x| <= tan(fov_w/2) (d + z) and
+    |y| <= tan(fov/2) (d + z). player3d.js computes the same."""
+    _eye, right, up, forward = camera.basis()
+    corners = np.array([[a, b, c] for a in (0, 1) for b in (0, 1) for c in (0, 1)], dtype=float)
+    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+    rel = lo + corners * (hi - lo) - (lo + hi) / 2
+    ty = math.tan(camera.fov / 2)
+    tx = ty * width / height
+    x, y, z = rel @ right, rel @ up, rel @ forward
+    return float(max(np.max(np.abs(x) / tx - z), np.max(np.abs(y) / ty - z)))
 
 
 def fit_camera(lo: np.ndarray, hi: np.ndarray, width: int, height: int) -> Camera:
-    """The camera at the default yaw and pitch that shows the box [lo, hi] (m, world) whole
-    in a width x height image: aimed at its centre, far enough back that its bounding
-    sphere (with FIT_MARGIN, radius at least FIT_MIN_RADIUS) fits the narrower field of
-    view."""
-    centre, radius = fit_sphere(lo, hi)
-    half = FOV / 2
-    half_h = math.atan(math.tan(half) * width / height)
-    distance = radius / math.sin(min(half, half_h))
-    return Camera(tuple(float(c) for c in centre), distance)  # type: ignore[arg-type]
+    """The camera at the default yaw and pitch that shows the box [lo, hi] (m, world;
+    with fit_box_shown's margin) whole in a width x height image, aimed at its centre."""
+    lo, hi = fit_box_shown(lo, hi)
+    aimed = Camera(tuple(float(c) for c in (lo + hi) / 2), 1.0)  # type: ignore[arg-type]
+    return replace(aimed, distance=fit_distance(lo, hi, aimed, width, height))
 
 
 # ---------------------------------------------------------------------------------------
@@ -537,7 +461,7 @@ def ground_grid(
     y = lo[1] under the box. Patches reach GRID_EXTENT times the box's radius."""
     lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
     centre = (lo + hi) / 2
-    half = GRID_EXTENT * max(float(np.linalg.norm(hi - lo)) / 2, FIT_MIN_RADIUS)
+    half = GRID_EXTENT * max(float(np.linalg.norm(hi - lo)) / 2, FIT_MIN_SIDE)
     quads, lines = [], []
     for point, normal in planes:
         n = np.asarray(normal, dtype=float)

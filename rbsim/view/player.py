@@ -19,7 +19,7 @@ from importlib import resources
 
 import numpy as np
 
-from .mesh import AMBIENT, FOV, LIGHT, PITCH, YAW, body_meshes, fit_sphere
+from .mesh import AMBIENT, FOV, LIGHT, PITCH, YAW, body_meshes, fit_box_shown
 from .render import (
     COLOURS,
     FrameReader,
@@ -124,7 +124,7 @@ def _track3d(
     base64 of float32 (frame, body, [x, y, z, qw, qx, qy, qz]) (28 bytes per body and
     frame); idx as for `_track`."""
     uniq, inverse = np.unique(idx, return_inverse=True)
-    meshes = body_meshes(reader.bodies)  # type: ignore[arg-type]
+    meshes = body_meshes(reader.bodies)
     n = len(reader.bodies)
     out = np.empty((len(uniq), n, 7), dtype="<f4")
     done = 0
@@ -153,17 +153,16 @@ def _track3d(
 
 
 def _scene3d(main: FrameReader, pairs: list[tuple[FrameReader, np.ndarray]]) -> dict[str, object]:
-    """The 3D page's camera (the sphere to show: target m, radius m; yaw, pitch, fov
-    rad), light (a unit vector towards it, world frame) and ambient brightness, colours,
+    """The 3D page's camera (the box to show whole: lo and hi corners, m; yaw, pitch,
+    fov rad), light (a unit vector towards it, world frame) and ambient brightness, colours,
     and ground (plane patches and grid lines, world frame, m, flat lists)."""
     lo, hi = fit_box(pairs)
-    centre, radius = fit_sphere(lo, hi)  # the page fits its distance to its own shape
     ground = ground_for(main, lo, hi)
+    shown_lo, shown_hi = fit_box_shown(lo, hi)  # the page fits its distance to its shape
     return {
         "dimension": 3,
         "camera": {
-            "target": [float(c) for c in centre],
-            "radius": radius,
+            "box": [float(c) for c in (*shown_lo, *shown_hi)],
             "yaw": YAW,
             "pitch": PITCH,
             "fov": FOV,

@@ -51,12 +51,24 @@
   const cam = { target: [0, 0, 0], distance: 10, yaw: 0, pitch: 0, fov: 0.7 };
   let eye = [0, 0, 0], right = [1, 0, 0], up = [0, 1, 0], fwd = [0, 0, -1], focal = 1;
 
+  // The camera at the first yaw and pitch, aimed at the centre of the box to show and
+  // just far enough back to show its eight corners (as mesh.py's fit_distance).
   function fitView() {
-    const c = data.camera;  // target, radius (m) of the sphere to show, yaw, pitch, fov
-    cam.target = c.target.slice();
-    cam.yaw = c.yaw; cam.pitch = c.pitch; cam.fov = c.fov;
-    const half = c.fov / 2, halfW = Math.atan(Math.tan(half) * cssW / cssH);
-    cam.distance = c.radius / Math.sin(Math.min(half, halfW));
+    const c = data.camera, box = c.box;  // box: lo (3), hi (3), m
+    cam.target = [0, 1, 2].map(function (i) { return (box[i] + box[i + 3]) / 2; });
+    cam.yaw = c.yaw; cam.pitch = c.pitch; cam.fov = c.fov; cam.distance = 1;
+    updateBasis();
+    const ty = Math.tan(c.fov / 2), tx = ty * cssW / cssH;
+    let d = 0;
+    for (let k = 0; k < 8; k++) {
+      const rel = [0, 1, 2].map(function (i) {
+        return ((k >> i) & 1 ? box[i + 3] : box[i]) - cam.target[i];
+      });
+      const dot = function (v) { return rel[0] * v[0] + rel[1] * v[1] + rel[2] * v[2]; };
+      const x = dot(right), y = dot(up), z = dot(fwd);
+      d = Math.max(d, Math.abs(x) / tx - z, Math.abs(y) / ty - z);
+    }
+    cam.distance = d;
   }
   function updateBasis() {
     const cp = Math.cos(cam.pitch), sp = Math.sin(cam.pitch);

@@ -27,7 +27,6 @@ from ..io.trajectory import (
     read_parameters,
     scene_name,
 )
-from .mesh import Bodies3D, read_bodies3d
 
 __all__ = [
     "FrameReader",
@@ -80,7 +79,7 @@ class FrameReader:
     """An open trajectory file that reads frames on demand.
 
     path: an rbsim trajectory (either engine, either dimension). Attributes: dimension
-    (2 or 3), bodies (static data: a BodyTable in 2D, a Bodies3D in 3D), time (T,) s
+    (2 or 3), bodies (static data, of that dimension), time (T,) s
     and step (T,) of the frames present, engine ("rbsim" / "pymunk" / ...), scene
     (scene name), status. Use as a context manager; `read(idx)` returns the body
     origins (k,N,D) m and orientations of frames idx: (k,N,2) = (cos θ, sin θ) in 2D,
@@ -104,14 +103,13 @@ class FrameReader:
             self.dimension = int(box.attrs.get("dimension", 2)) if box is not None else 2
             if self.dimension not in (2, 3):
                 raise ValueError(f"dimension {self.dimension}")
-            read_table = read_body_table if self.dimension == 2 else read_bodies3d
-            self.bodies: BodyTable | Bodies3D = read_table(f["particles/bodies"])
+            self.bodies: BodyTable = read_body_table(f["particles/bodies"])
             # static bodies stored once (output.bodies) are drawn too, after the others
             self._fixed: tuple[np.ndarray, np.ndarray] | None = None
             if "particles/static" in f:
                 fixed = f["particles/static"]
                 self._moving = len(self.bodies)
-                self.bodies = self.bodies.joined(read_table(fixed))  # type: ignore[arg-type]
+                self.bodies = self.bodies.joined(read_body_table(fixed))
                 self._fixed = (fixed["position"][()], fixed["orientation"][()])
             params = read_parameters(f)
             self.engine = params.get("engine", "unknown")

@@ -101,7 +101,7 @@ def fit_box(readers: list[tuple[FrameReader, np.ndarray]]) -> tuple[np.ndarray, 
     hi = -lo
     for moving_only in (True, False):
         for reader, idx in readers:
-            reach = body_reach3d(reader.bodies)  # type: ignore[arg-type]
+            reach = body_reach3d(reader.bodies)
             keep = np.array([t != "static" or not moving_only for t in reader.bodies.type])
             if not moving_only:  # bodies made only of planes have no extent
                 keep &= reach > 0
@@ -125,7 +125,7 @@ def fit_box(readers: list[tuple[FrameReader, np.ndarray]]) -> tuple[np.ndarray, 
 def ground_for(reader: FrameReader, lo: np.ndarray, hi: np.ndarray) -> Ground:
     """The ground under a scene filling [lo, hi] (m): the reader's planes (at their
     bodies' first-frame poses; planes are static) as patches, else a floor grid."""
-    meshes = body_meshes(reader.bodies)  # type: ignore[arg-type]
+    meshes = body_meshes(reader.bodies)
     planes = []
     if meshes.planes:
         pos, rot = reader.read(np.array([0]))
@@ -218,12 +218,12 @@ def write_gif3d(
         LineCollection(list(grid), colors=COLOURS_3D["grid"], linewidths=0.8, zorder=1)
     )
 
-    main_meshes = body_meshes(main.bodies)  # type: ignore[arg-type]
+    main_meshes = body_meshes(main.bodies)
     types = np.array(main.bodies.type, dtype=object)
     face_type = types[main_meshes.face_body] if len(main_meshes.face_body) else types[:0]
     faces = PolyCollection([], linewidths=0.6, zorder=2, antialiaseds=True)
     ax.add_collection(faces)
-    other_meshes = body_meshes(other.bodies) if other is not None else None  # type: ignore[arg-type]
+    other_meshes = body_meshes(other.bodies) if other is not None else None
     wire = PolyCollection(
         [], facecolors="none", edgecolors=COLOURS["overlay_edge"], linewidths=0.7, zorder=3
     )
