@@ -368,3 +368,17 @@ def test_plot_of_a_real_3d_run_has_the_momenta_of_the_file(tmp_path):
     for j, axis in enumerate("xyz"):
         np.testing.assert_array_equal(lines[f"p{axis}"], traj.observables["linear_momentum"][:, j])
         np.testing.assert_array_equal(lines[f"L{axis}"], traj.observables["angular_momentum"][:, j])
+
+
+def test_gif_3d_overlay_draws_the_second_run_as_orange_wireframes(tmp_path):
+    main = brick_scene(tmp_path / "a.h5", frames=6)
+    other = brick_scene(tmp_path / "b.h5", frames=6)
+    render_gif(main, tmp_path / "alone.gif", fps=10, size=(320, 240))
+    render_gif(main, tmp_path / "o.gif", fps=10, size=(320, 240), overlay=other)
+    alone = frames_rgb(tmp_path / "alone.gif")[0]
+    both = frames_rgb(tmp_path / "o.gif")[0]
+    edge = COLOURS_3D["overlay_edge"]
+    orange = np.array([int(edge[i : i + 2], 16) for i in (1, 3, 5)])
+    near = (np.abs(both - orange) <= 40).all(axis=2)  # antialiased 0.7 px lines: within 40
+    assert near.sum() > 200  # the edges of every body's facing faces
+    assert not (np.abs(alone - orange) <= 40).all(axis=2).any()  # and none without it

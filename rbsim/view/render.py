@@ -15,6 +15,7 @@ import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from types import TracebackType
+from typing import TYPE_CHECKING
 
 import h5py
 import numpy as np
@@ -27,6 +28,10 @@ from ..io.trajectory import (
     read_parameters,
     scene_name,
 )
+
+if TYPE_CHECKING:  # matplotlib is optional (the plot extra): types only
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.text import Text
 
 __all__ = [
     "FrameReader",
@@ -677,18 +682,47 @@ def _write_gif(
             zorder=11,
         )
 
+    def draw(pos: np.ndarray, rot: np.ndarray, other_pose: Pose | None) -> None:
+        update_main(pos, rot)
+        if update_other is not None and other_pose is not None:
+            update_other(*other_pose)
+
+    write_frames(main, idx, other, other_idx, output, gif_palette(), fps, canvas, clock, draw,
+                 progress)  # fmt: skip
+
+
+# One frame's body origins (N,D) m and orientations (N,2) or (N,4).
+Pose = tuple[np.ndarray, np.ndarray]
+
+
+def write_frames(
+    main: FrameReader,
+    idx: np.ndarray,
+    other: FrameReader | None,
+    other_idx: np.ndarray | None,
+    output: str,
+    palette: np.ndarray,
+    fps: float,
+    canvas: FigureCanvasAgg,
+    clock: Text,
+    draw: Callable[[np.ndarray, np.ndarray, Pose | None], None],
+    progress: Progress | None,
+) -> None:
+    """The GIF loop of both dimensions: for each frame idx of `main` (and the overlay's
+    frame other_idx at the same place), draw(origins, orientations, overlay pose or
+    None) updates the figure, the clock shows the time, and `canvas` is drawn into the
+    GIF `output` on `palette`, each frame shown until the next (fps: frames per second
+    of simulated time). progress(done, total) after each frame."""
     delays = gif_delays(main.time[idx], 1.0 / fps)
     digits = clock_digits(fps)
-    other_batches = None
+    others = None
     if other is not None and other_idx is not None:
-        other_batches = _reorder_reads(other, other_idx)
-    with GifWriter(output, gif_palette()) as gif:
+        others = _reorder_reads(other, other_idx)
+    with GifWriter(output, palette) as gif:
         k = 0
         for _part, pos, rot in main.batches(idx):
             for j in range(len(pos)):
-                update_main(pos[j], rot[j])
-                if update_other is not None and other_batches is not None:
-                    update_other(*next(other_batches))
+                draw(pos[j], rot[j], next(others) if others is not None else None)
                 clock.set_text(f"t = {main.time[idx[k]]:.{digits}f} s")
                 canvas.draw()
                 gif.add(np.asarray(canvas.buffer_rgba())[:, :, :3], delays[k])

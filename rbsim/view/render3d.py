@@ -25,11 +25,10 @@ from .mesh import (
 from .render import (
     COLOURS,
     FrameReader,
-    GifWriter,
+    Pose,
     Progress,
-    clock_digits,
-    gif_delays,
     gif_palette,
+    write_frames,
 )
 
 __all__ = [
@@ -250,45 +249,25 @@ def write_gif3d(
     }  # fmt: skip
     edge_rgba = {t: np.append(_rgb(COLOURS_3D[f"{t}_edge"]) / 255.0, 1.0) for t in tables}
 
-    delays = gif_delays(main.time[idx], 1.0 / fps)
-    digits = clock_digits(fps)
-    other_frames = None
-    if other is not None and other_idx is not None:
-        uniq, inverse = np.unique(other_idx, return_inverse=True)
-        other_frames = (uniq, inverse)
-    with GifWriter(output, gif_palette3d()) as gif:
-        k = 0
-        for _part, pos, rot in main.batches(idx):
-            for j in range(len(pos)):
-                shown, corners, bright = frame_faces(
-                    main_meshes, pos[j], rot[j], camera, width, height
-                )
-                levels = shade_level(bright)
-                fill = np.zeros((len(shown), 4))
-                edge = np.zeros((len(shown), 4))
-                for t, table in tables.items():
-                    mine = face_type[shown] == t
-                    fill[mine] = table[levels[mine]]
-                    # boxes and hulls outlined; round shapes' facets edged in their own
-                    # colour, which hides the seams between them
-                    outlined = mine & main_meshes.face_outlined[shown]
-                    edge[mine] = fill[mine]
-                    edge[outlined] = edge_rgba[t]
-                faces.set_verts(corners)  # an (F,K,2) array: matplotlib's fast path
-                faces.set_facecolor(fill)
-                faces.set_edgecolor(edge)
-                if other_meshes is not None and other_frames is not None:
-                    uniq, inverse = other_frames
-                    o = int(uniq[inverse[k]])
-                    opos, orot = other.read(np.array([o]))  # type: ignore[union-attr]
-                    _shown, wire_px, _bright = frame_faces(
-                        other_meshes, opos[0], orot[0], camera, width, height
-                    )
-                    wire.set_verts(wire_px)
-                clock.set_text(f"t = {main.time[idx[k]]:.{digits}f} s")
-                canvas.draw()
-                gif.add(np.asarray(canvas.buffer_rgba())[:, :, :3], delays[k])
-                k += 1
-                if progress is not None:
-                    progress(k, len(idx))
+    def draw(pos: np.ndarray, rot: np.ndarray, other_pose: Pose | None) -> None:
+        shown, corners, bright = frame_faces(main_meshes, pos, rot, camera, width, height)
+        levels = shade_level(bright)
+        fill = np.zeros((len(shown), 4))
+        edge = np.zeros((len(shown), 4))
+        for t, table in tables.items():
+            mine = face_type[shown] == t
+            fill[mine] = table[levels[mine]]
+            # boxes and hulls outlined; round shapes' facets edged in their own colour,
+            # which hides the seams between them
+            edge[mine] = fill[mine]
+            edge[mine & main_meshes.face_outlined[shown]] = edge_rgba[t]
+        faces.set_verts(corners)  # an (F,K,2) array: matplotlib's fast path
+        faces.set_facecolor(fill)
+        faces.set_edgecolor(edge)
+        if other_meshes is not None and other_pose is not None:
+            _shown, wire_px, _bright = frame_faces(other_meshes, *other_pose, camera, width, height)
+            wire.set_verts(wire_px)
+
+    write_frames(main, idx, other, other_idx, output, gif_palette3d(), fps, canvas, clock, draw,
+                 progress)  # fmt: skip
     return camera
