@@ -90,6 +90,17 @@ def test_player3d_dragging_orbits_the_camera_and_the_wheel_zooms(brick_page):
     # the brick's top, projected by the page itself, is still the brick from there
     col, row = (int(c) for c in screen(page, BRICK_TOP))
     assert page.evaluate(f"window.rbsimPlayer.bodyAt({col}, {row})") == "brick"
+    # shift-drag pans: the target moves, the orbit stays
+    target0 = page.evaluate("window.rbsimPlayer.camera().target")
+    yaw1 = page.evaluate("window.rbsimPlayer.camera().yaw")
+    page.keyboard.down("Shift")
+    page.mouse.move(*centre)
+    page.mouse.down()
+    page.mouse.move(centre[0] - 50, centre[1], steps=2)
+    page.mouse.up()
+    page.keyboard.up("Shift")
+    assert page.evaluate("window.rbsimPlayer.camera().target") != target0
+    assert page.evaluate("window.rbsimPlayer.camera().yaw") == yaw1
     # zoom in with the wheel: the camera comes nearer, the brick grows on screen
     corner = (BRICK_TOP[0] + BRICK[0] / 2, BRICK_TOP[1], BRICK_TOP[2])
     width0 = abs(screen(page, corner)[0] - screen(page, BRICK_TOP)[0])
