@@ -84,14 +84,16 @@ def _shapes(reader: FrameReader) -> dict[str, list]:
 
 
 def _frames_b64(reader: FrameReader, idx: np.ndarray, progress: Progress | None) -> str:
-    """Frames idx (increasing, distinct) as base64 of float32 (frame, body, [x, y, θ])."""
+    """Frames idx (increasing, distinct) as base64 of float32 (frame, body, pose): in 2D
+    [x, y, θ] (12 bytes per body and frame), in 3D [x, y, z, qw, qx, qy, qz] (28)."""
     n = len(reader.bodies)
-    out = np.empty((len(idx), n, 3), dtype="<f4")
+    out = np.empty((len(idx), n, 3 if reader.dimension == 2 else 7), dtype="<f4")
     done = 0
     for part, pos, rot in reader.batches(idx):
         k = len(part)
-        out[done : done + k, :, :2] = pos
-        out[done : done + k, :, 2] = np.arctan2(rot[..., 1], rot[..., 0])
+        if reader.dimension == 2:
+            rot = np.arctan2(rot[..., 1], rot[..., 0])[..., None]
+        out[done : done + k] = np.concatenate([pos, rot], axis=2)
         done += k
         if progress is not None:
             progress(done, len(idx))
@@ -125,16 +127,6 @@ def _track3d(
     frame); idx as for `_track`."""
     uniq, inverse = np.unique(idx, return_inverse=True)
     meshes = body_meshes(reader.bodies)
-    n = len(reader.bodies)
-    out = np.empty((len(uniq), n, 7), dtype="<f4")
-    done = 0
-    for part, pos, rot in reader.batches(uniq):
-        k = len(part)
-        out[done : done + k, :, :3] = pos
-        out[done : done + k, :, 3:] = rot
-        done += k
-        if progress is not None:
-            progress(done, len(uniq))
     return {
         "label": reader.label,
         "overlay": overlay,
@@ -148,7 +140,7 @@ def _track3d(
         "face_size": [int(k) for k in meshes.face_size],
         "face_outlined": [int(e) for e in meshes.face_outlined],
         "frame_index": [int(i) for i in inverse],
-        "frames": base64.b64encode(out.tobytes()).decode("ascii"),
+        "frames": _frames_b64(reader, uniq, progress),
     }
 
 
