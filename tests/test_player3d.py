@@ -109,6 +109,11 @@ def test_player3d_dragging_orbits_the_camera_and_the_wheel_zooms(brick_page):
     page.wait_for_timeout(100)
     assert page.evaluate("window.rbsimPlayer.camera().distance") < d0
     assert abs(screen(page, corner)[0] - screen(page, BRICK_TOP)[0]) > width0
+    # close in, the ground patch reaches behind the camera: it is clipped, still drawn
+    page.evaluate("window.rbsimPlayer.setCamera({distance: 2, pitch: 0.3})")
+    fill = page.evaluate("window.rbsimPlayer.colours.ground_fill")
+    ground = np.array([int(fill[i : i + 2], 16) for i in (1, 3, 5)])
+    assert (canvas_image(page) == ground).all(axis=2).mean() > 0.05
     assert errors == []
 
 

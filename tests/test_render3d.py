@@ -382,3 +382,18 @@ def test_gif_3d_overlay_draws_the_second_run_as_orange_wireframes(tmp_path):
     near = (np.abs(both - orange) <= 40).all(axis=2)  # antialiased 0.7 px lines: within 40
     assert near.sum() > 200  # the edges of every body's facing faces
     assert not (np.abs(alone - orange) <= 40).all(axis=2).any()  # and none without it
+
+
+def test_clip_near_keeps_the_part_of_the_ground_in_front_of_the_camera():
+    from rbsim.view.render3d import NEAR_FRACTION, clip_near
+
+    camera = Camera((0.0, 0.0, 0.0), 10.0, yaw=0.0, pitch=0.0)  # at z = 10, looking to -z
+    near = NEAR_FRACTION * camera.distance
+    square = np.array([[-1, 0, -5], [1, 0, -5], [1, 0, 20], [-1, 0, 20]], dtype=float)
+    part = clip_near(square, camera, closed=True)
+    depth = 10 - part[:, 2]
+    assert len(part) == 4 and depth.min() == pytest.approx(near, rel=1e-12)  # cut at near
+    assert depth.max() == pytest.approx(15.0)  # the far edge (z = -5) kept whole
+    line = clip_near(square[[1, 2]], camera, closed=False)
+    np.testing.assert_allclose(line, [[1, 0, -5], [1, 0, 10 - near]], rtol=1e-12)
+    assert len(clip_near(square + [0, 0, 20], camera, closed=True)) == 0  # all behind

@@ -6,7 +6,9 @@
   const DIMENSION = 3;
   const HELP = "drag: orbit, shift-drag or right-drag: pan, wheel: zoom, arrows: step";
   const SHADES = 64;  // brightness steps of each colour (each a cached fill style)
-  const NEAR = 1e-3;  // m: points nearer than this to the camera's plane are not drawn
+  // Depth of the near plane, as a fraction of the camera's distance to its target:
+  // nearer points are not drawn (nor faces reaching them; the ground is clipped there).
+  const NEAR_FRACTION = 0.05;
   const light = data.light, ambient = data.ambient, ground = data.ground;
 
   function rgbOf(hex) {
@@ -49,7 +51,7 @@
   // Camera: orbits `target` (m) at `distance` m, turned `yaw` rad about y from +z and
   // raised `pitch` rad above the horizontal; `fov` the vertical field of view, rad.
   const cam = { target: [0, 0, 0], distance: 10, yaw: 0, pitch: 0, fov: 0.7 };
-  let eye = [0, 0, 0], right = [1, 0, 0], up = [0, 1, 0], fwd = [0, 0, -1], focal = 1;
+  let eye = [0, 0, 0], right = [1, 0, 0], up = [0, 1, 0], fwd = [0, 0, -1], focal = 1, near = 0.5;
 
   // The camera at the first yaw and pitch, aimed at the centre of the box to show and
   // just far enough back to show its eight corners (as mesh.py's fit_distance).
@@ -80,6 +82,7 @@
     up = [right[1] * fwd[2] - right[2] * fwd[1], right[2] * fwd[0] - right[0] * fwd[2],
           right[0] * fwd[1] - right[1] * fwd[0]];
     focal = (cssH / 2) / Math.tan(cam.fov / 2);
+    near = NEAR_FRACTION * cam.distance;
   }
   // CSS pixels (x right, y down from the canvas's top-left corner) and depth (m) of a
   // world point.
@@ -146,7 +149,7 @@
     for (let i = 0; i < m; i++) {
       let behind = false, sum = 0;
       for (let j = fs[i]; j < fs[i + 1]; j++) {
-        if (depth[faces[j]] <= NEAR) { behind = true; break; }
+        if (depth[faces[j]] <= near) { behind = true; break; }
         sum += depth[faces[j]];
       }
       if (behind) continue;
@@ -174,25 +177,41 @@
     path.closePath();
   }
 
+  // The part beyond the near plane (depth > near) of the world polygon pts ([x, y, z]
+  // each; a segment when `closed` is false), as screen points (one plane's clipping).
+  function clipNear(pts, closed) {
+    const out = [], n = pts.length, depth = pts.map(function (p) {
+      return (p[0] - eye[0]) * fwd[0] + (p[1] - eye[1]) * fwd[1] + (p[2] - eye[2]) * fwd[2];
+    });
+    for (let i = 0; i < (closed ? n : n - 1); i++) {
+      const j = (i + 1) % n, a = pts[i], b = pts[j];
+      if (depth[i] > near) out.push(a);
+      if ((depth[i] > near) !== (depth[j] > near)) {  // the edge crosses the near plane
+        const u = (near - depth[i]) / (depth[j] - depth[i]);
+        out.push([a[0] + u * (b[0] - a[0]), a[1] + u * (b[1] - a[1]), a[2] + u * (b[2] - a[2])]);
+      }
+    }
+    if (!closed && depth[n - 1] > near) out.push(pts[n - 1]);
+    return out.map(function (p) { return project(p[0], p[1], p[2]); });
+  }
   function drawGround() {
     const q = ground.quads, l = ground.lines;
     ctx.fillStyle = colours.ground_fill;
     for (let i = 0; i < q.length; i += 12) {
-      const p = [];
-      for (let k = 0; k < 4; k++) p.push(project(q[i + 3 * k], q[i + 3 * k + 1], q[i + 3 * k + 2]));
-      if (p.some(function (s) { return s[2] <= NEAR; })) continue;
+      const p = clipNear([0, 1, 2, 3].map(function (k) { return q.slice(i + 3 * k, i + 3 * k + 3); }), true);
+      if (p.length < 3) continue;
       ctx.beginPath();
       ctx.moveTo(p[0][0], p[0][1]);
-      for (let k = 1; k < 4; k++) ctx.lineTo(p[k][0], p[k][1]);
+      for (let k = 1; k < p.length; k++) ctx.lineTo(p[k][0], p[k][1]);
       ctx.closePath();
       ctx.fill();
     }
     const grid = new Path2D();
     for (let i = 0; i < l.length; i += 6) {
-      const a = project(l[i], l[i + 1], l[i + 2]), b = project(l[i + 3], l[i + 4], l[i + 5]);
-      if (a[2] <= NEAR || b[2] <= NEAR) continue;
-      grid.moveTo(a[0], a[1]);
-      grid.lineTo(b[0], b[1]);
+      const p = clipNear([l.slice(i, i + 3), l.slice(i + 3, i + 6)], false);
+      if (p.length < 2) continue;
+      grid.moveTo(p[0][0], p[0][1]);
+      grid.lineTo(p[1][0], p[1][1]);
     }
     ctx.lineWidth = 1;
     ctx.strokeStyle = colours.grid;
@@ -289,4 +308,5 @@
     bodyAt: function (px, py) { const h = hitAt(px, py); return h ? h[0].names[h[1]] : null; },
     camera: function () { return JSON.parse(JSON.stringify(cam)); },
     setCamera: function (c) { Object.assign(cam, c); draw(); },
+    colours: colours,
   };

@@ -37,6 +37,7 @@ __all__ = [
     "fit_box",
     "frame_faces",
     "gif_palette3d",
+    "clip_near",
     "ground_for",
     "shaded_rgb",
     "write_gif3d",
@@ -47,8 +48,10 @@ COLOURS_3D = {**COLOURS, "ground_fill": "#eeeeee", "grid": "#b0b0b0"}
 # Brightness steps of each body colour in the GIF palette (3 colours x 60 + the rest
 # fits 256; 60 steps over [AMBIENT, 1] are 1.1% apart, below visible banding).
 SHADE_LEVELS = 60
-# Depth below which a point counts as behind the camera, m.
-NEAR = 1e-3
+# Depth of the near plane, as a fraction of the camera's distance to its target: nearer
+# points are not drawn (nor faces reaching them; the ground is clipped there). As in
+# player3d.js.
+NEAR_FRACTION = 0.05
 
 
 def _rgb(colour: str) -> np.ndarray:
@@ -153,7 +156,8 @@ def frame_faces(
     length = np.linalg.norm(normal, axis=1)
     eye = camera.basis()[0]
     facing = np.einsum("ij,ij->i", normal, eye - a) > 0
-    keep = np.flatnonzero(facing & (length > 0) & (depth[meshes.faces] > NEAR).all(axis=1))
+    near = NEAR_FRACTION * camera.distance
+    keep = np.flatnonzero(facing & (length > 0) & (depth[meshes.faces] > near).all(axis=1))
     corner = np.arange(k)[None, :] < meshes.face_size[keep][:, None]
     mean_depth = np.where(corner, depth[meshes.faces[keep]], 0).sum(1) / meshes.face_size[keep]
     keep = keep[np.argsort(-mean_depth, kind="stable")]
@@ -161,13 +165,42 @@ def frame_faces(
     return keep, px[meshes.faces[keep]], bright
 
 
-def _segments(camera: Camera, lines: np.ndarray, width: int, height: int) -> np.ndarray:
-    """(L,2,2) pixels of world segments (L,2,3) m wholly in front of the camera."""
-    if not len(lines):
-        return np.zeros((0, 2, 2))
-    px, depth = camera.project(lines.reshape(-1, 3), width, height)
-    px, depth = px.reshape(-1, 2, 2), depth.reshape(-1, 2)
-    return px[(depth > NEAR).all(axis=1)]
+def clip_near(points: np.ndarray, camera: Camera, closed: bool) -> np.ndarray:
+    """The part beyond the camera's near plane (depth > NEAR_FRACTION x its distance)
+    of a world polygon (k,3) m (a polyline when not `closed`), (j,3) m: one plane's
+    Sutherland-Hodgman clipping."""
+    eye, _right, _up, forward = camera.basis()
+    near = NEAR_FRACTION * camera.distance
+    depth = (points - eye) @ forward
+    out = []
+    n = len(points)
+    for i in range(n if closed else n - 1):
+        j = (i + 1) % n
+        if depth[i] > near:
+            out.append(points[i])
+        if (depth[i] > near) != (depth[j] > near):  # the edge crosses the near plane
+            u = (near - depth[i]) / (depth[j] - depth[i])
+            out.append(points[i] + u * (points[j] - points[i]))
+    if not closed and depth[-1] > near:
+        out.append(points[-1])
+    return np.array(out).reshape(-1, 3)
+
+
+def _ground_pixels(
+    camera: Camera, ground: Ground, width: int, height: int
+) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """The ground's patches (polygons) and grid lines (segments) in pixels, clipped at
+    the camera's near plane."""
+    quads, lines = [], []
+    for quad in ground.quads:
+        part = clip_near(quad, camera, closed=True)
+        if len(part) >= 3:
+            quads.append(camera.project(part, width, height)[0])
+    for line in ground.lines:
+        part = clip_near(line, camera, closed=False)
+        if len(part) == 2:
+            lines.append(camera.project(part, width, height)[0])
+    return quads, lines
 
 
 def write_gif3d(
@@ -203,19 +236,11 @@ def write_gif3d(
     ax.set_axis_off()
     ax.set_xlim(0, width)
     ax.set_ylim(height, 0)  # pixels, y down, as Camera.project gives them
-    if len(ground.quads):
-        qpx, qdepth = camera.project(ground.quads.reshape(-1, 3), width, height)
-        qpx, qdepth = qpx.reshape(-1, 4, 2), qdepth.reshape(-1, 4)
-        front = (qdepth > NEAR).all(axis=1)
-        ax.add_collection(
-            PolyCollection(
-                list(qpx[front]), facecolors=COLOURS_3D["ground_fill"], edgecolors="none", zorder=0
-            )
-        )
-    grid = _segments(camera, ground.lines, width, height)
+    quads, lines = _ground_pixels(camera, ground, width, height)
     ax.add_collection(
-        LineCollection(list(grid), colors=COLOURS_3D["grid"], linewidths=0.8, zorder=1)
+        PolyCollection(quads, facecolors=COLOURS_3D["ground_fill"], edgecolors="none", zorder=0)
     )
+    ax.add_collection(LineCollection(lines, colors=COLOURS_3D["grid"], linewidths=0.8, zorder=1))
 
     main_meshes = body_meshes(main.bodies)
     types = np.array(main.bodies.type, dtype=object)
