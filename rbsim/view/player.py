@@ -1,11 +1,14 @@
 """The self-contained HTML player: one file that plays a trajectory on a canvas.
 
-The page (template `rbsim/view/player.html`, package data) draws from the stored numbers, not from
-pictures: for each shown frame and body, x and y (m) and the angle (rad) as
-little-endian float32, base64-encoded (16 bytes per body and frame), plus each body's
-shapes once. Its size therefore grows with frames x bodies, not with pixels: 1000 bodies
-x 600 frames make a page of about 10 MB. No script, font or style is loaded from
-anywhere else, so it works offline.
+The page (template `rbsim/view/player.html` with the view script of the trajectory's
+dimension, player2d.js or player3d.js, package data) draws from the stored numbers,
+not from pictures: for each shown frame and body, in 2D x and y (m) and the angle (rad),
+in 3D x, y, z (m) and the quaternion (w, x, y, z), as little-endian float32,
+base64-encoded (16 bytes per body and frame in 2D, 37 in 3D), plus each body's shapes
+once (in 3D as flat faces). Its size therefore grows with frames x bodies, not with
+pixels: 1000 bodies x 600 frames make a 2D page of about 10 MB, 100 bodies x 300 frames
+a 3D page of about 1.4 MB. No script, font or style is loaded from anywhere else, so it
+works offline.
 """
 
 from __future__ import annotations
