@@ -266,8 +266,11 @@ def test_render_3d_cli_rejects_a_2d_view_and_a_2d_overlay(tmp_path):
     code, _, err = rbsim("render", path, "-o", tmp_path / "x.gif", "--view", "0", "0", "1", "1")
     assert code == 1 and "3D trajectory: --view" in err
     flat = write_trajectory(tmp_path / "flat.h5", frames=3)
-    code, _, err = rbsim("render", path, "--overlay", flat, "-o", tmp_path / "x.gif")
-    assert code == 1 and "2D trajectory cannot be overlaid" in err
+    for out in ("x.gif", "x.html"):
+        code, _, err = rbsim("render", path, "--overlay", flat, "-o", tmp_path / out)
+        assert code == 1 and "2D trajectory cannot be overlaid" in err
+    code, _, err = rbsim("render", path, "-o", tmp_path / "x.html", "--view", "0", "0", "1", "1")
+    assert code == 1 and "3D trajectory: --view" in err
 
 
 def test_plot_of_a_3d_trajectory_draws_three_momentum_components(tmp_path):

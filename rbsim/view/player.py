@@ -29,6 +29,7 @@ from .render import (
     Progress,
     RenderError,
     View,
+    check_dimensions,
     fit_view,
     match_frames,
     no_frames_message,
@@ -216,16 +217,7 @@ def render_html(
             if other is not None and not len(other.time):
                 raise RenderError(f"{other.path}: no frames to overlay")
             other_idx = match_frames(other.time, times) if other is not None else None
-            if other is not None and other.dimension != main.dimension:
-                raise RenderError(
-                    f"{other.path}: a {other.dimension}D trajectory cannot be overlaid on "
-                    f"{main.path} ({main.dimension}D)"
-                )
-            if main.dimension == 3 and view is not None:
-                raise RenderError(
-                    f"{main.path}: a 3D trajectory: --view (a 2D rectangle) does not apply; "
-                    "the 3D camera is fitted to the moving bodies"
-                )
+            check_dimensions(main, other, view)
             pairs = [(main, idx)]
             if other is not None and other_idx is not None:
                 pairs.append((other, np.unique(other_idx)))

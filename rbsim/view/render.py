@@ -28,6 +28,7 @@ from ..io.trajectory import (
     read_parameters,
     scene_name,
 )
+from .mesh import Camera
 
 if TYPE_CHECKING:  # matplotlib is optional (the plot extra): types only
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -496,7 +497,7 @@ def gif_delays(times: np.ndarray, last: float) -> list[int]:
 @dataclass
 class GifResult:
     """What render_gif wrote: path, frames, size (pixels), view (m; 2D, else None),
-    seconds shown, and in 3D the camera (rbsim.view.mesh.Camera; None in 2D)."""
+    seconds shown, and in 3D the camera (None in 2D)."""
 
     path: str
     frames: int
@@ -504,7 +505,7 @@ class GifResult:
     height: int
     view: View | None
     duration: float
-    camera: object = None
+    camera: Camera | None = None
 
 
 def render_gif(
@@ -547,20 +548,11 @@ def render_gif(
         try:
             if other is not None and not len(other.time):
                 raise RenderError(f"{other.path}: no frames to overlay")
-            if other is not None and other.dimension != main.dimension:
-                raise RenderError(
-                    f"{other.path}: a {other.dimension}D trajectory cannot be overlaid on "
-                    f"{main.path} ({main.dimension}D)"
-                )
+            check_dimensions(main, other, view)
             other_idx = match_frames(other.time, main.time[idx]) if other else None
             if main.dimension == 3:
                 from .render3d import write_gif3d
 
-                if view is not None:
-                    raise RenderError(
-                        f"{main.path}: a 3D trajectory: --view (a 2D rectangle) does not apply; "
-                        "the 3D camera is fitted to the moving bodies"
-                    )
                 camera = write_gif3d(
                     main, idx, other, other_idx, output, fps, width, height, progress
                 )
@@ -578,6 +570,21 @@ def render_gif(
                 other.close()
         duration = float(main.time[idx[-1]] - main.time[idx[0]]) + 1.0 / fps
     return GifResult(output, len(idx), width, height, view, duration)
+
+
+def check_dimensions(main: FrameReader, other: FrameReader | None, view: View | None) -> None:
+    """Raise RenderError when the overlay `other` is of another dimension than `main`,
+    or a view rectangle (2D) is given for a 3D trajectory."""
+    if other is not None and other.dimension != main.dimension:
+        raise RenderError(
+            f"{other.path}: a {other.dimension}D trajectory cannot be overlaid on "
+            f"{main.path} ({main.dimension}D)"
+        )
+    if main.dimension == 3 and view is not None:
+        raise RenderError(
+            f"{main.path}: a 3D trajectory: --view (a 2D rectangle) does not apply; "
+            "the 3D camera is fitted to the moving bodies"
+        )
 
 
 def no_frames_message(reader: FrameReader, start: float | None, end: float | None) -> str:
