@@ -235,18 +235,20 @@
         ctx.stroke(wire);
         continue;
       }
+      let fill = null, edge = null, width = 0;  // set on the context only when they change
       for (const i of order) {
         const k = Math.round((bright[i] - ambient) / (1 - ambient) * (SHADES - 1));
         const type = t.types[t.faceBody[i]];
         const style = shadeStyles[type][k];
         ctx.beginPath();
         facePath(ctx, t, i);
-        ctx.fillStyle = style;
+        if (style !== fill) ctx.fillStyle = fill = style;
         ctx.fill();
         // boxes and hulls outlined; round shapes' facets edged in their own colour,
         // which hides the seams between them
-        ctx.lineWidth = t.outlined[i] ? 1 : 0.6;
-        ctx.strokeStyle = t.outlined[i] ? colours[type + "_edge"] : style;
+        const w = t.outlined[i] ? 1 : 0.6, e = t.outlined[i] ? colours[type + "_edge"] : style;
+        if (w !== width) ctx.lineWidth = width = w;
+        if (e !== edge) ctx.strokeStyle = edge = e;
         ctx.stroke();
       }
     }
