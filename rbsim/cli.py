@@ -483,7 +483,7 @@ def compare(
     nargs=4,
     type=float,
     metavar="X0 Y0 X1 Y1",
-    help="World rectangle to show, m [default: fitted to the moving bodies].",
+    help="2D only: world rectangle to show, m [default: fitted to the moving bodies].",
 )
 @click.option(
     "--size",
