@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -48,7 +49,22 @@ QUANTITIES: dict[str, tuple[str, str, str]] = {
     "position": ("max_position", "m", "position difference"),
     "angle": ("max_angle", "rad", "angle difference"),
     "velocity": ("max_velocity", "m/s", "velocity difference"),
+    "angular_velocity": ("max_angular_velocity", "rad/s", "angular velocity difference"),
 }
+
+# Events (impacts): a frame-to-frame change of a body's velocity or angular velocity that
+# departs from the local trend (the median rate of change over the three intervals on either
+# side, so that gravity, forces, precession and resting contact are not events) by more
+# than the quantity's tolerance and more than EVENT_FRACTION of the body's largest speed
+# in either run (round-off and solver jitter are not events). Consecutive jump frames are
+# one event (an impact resolved over two steps).
+EVENT_FRACTION = 1e-3
+# The two engines' events are paired, in order, when their first jump frames are at most
+# EVENT_FRAMES frames apart: each engine resolves an impact within one of its steps of the
+# contact instant (a frame is one or more steps), so their jumps land in the same or the
+# next frame, and an impact spread over two steps adds one. An event without a partner is
+# a missed or an extra impact, reported when velocity or angular velocity is checked.
+EVENT_FRAMES = 3
 
 # Statistic -> (unit, words for the table and messages); see `statistics`.
 STATISTICS: dict[str, tuple[str, str]] = {
@@ -67,8 +83,13 @@ PENETRATION_FRAMES = 400
 
 @dataclass
 class BodyDiff:
-    """Differences rbsim - pymunk for one body over the run: positions of the body origin
-    (m), angles (rad), centre-of-mass velocities (m/s); `*_step` is where the max is."""
+    """Differences rbsim - the other engine for one body over the run: positions of the
+    body origin (m), angles (rad; in 3D the rotation angle between the two orientations),
+    centre-of-mass velocities (m/s), angular velocities (rad/s); `*_step` is where the max
+    is. Velocities and angular velocities are compared with the engines' impacts lined
+    up (see `aligned_difference`): `impacts` is how many impacts (events) were paired,
+    `max_offset` (s) the largest time offset between paired impacts (the other engine's
+    time minus rbsim's), `unmatched` one (engine, time s) per impact without a partner."""
 
     name: str
     max_position: float
@@ -79,6 +100,11 @@ class BodyDiff:
     max_position_step: int
     max_angle_step: int
     max_velocity_step: int
+    max_angular_velocity: float = 0.0
+    max_angular_velocity_step: int = 0
+    impacts: int = 0
+    max_offset: float = 0.0
+    unmatched: list[tuple[str, float]] = field(default_factory=list)
 
 
 @dataclass
@@ -138,14 +164,21 @@ class CompareResult:
         width = max([4, *(len(b.name) for b in shown)])
         head = (
             f"  {'body':<{width}}  {'pos max m':>10}  {'pos end m':>10}  {'ang max rad':>11}"
-            f"  {'ang end rad':>11}  {'vel max m/s':>11}"
+            f"  {'ang end rad':>11}  {'vel max m/s':>11}  {'ω max rad/s':>11}"
+            f"  {'impacts':>7}  {'Δt impact s':>11}"
         )
         lines.append(head)
         for b in shown:
+            impacts = f"{b.impacts}" + (f"+{len(b.unmatched)}?" if b.unmatched else "")
             lines.append(
                 f"  {b.name:<{width}}  {b.max_position:>10.3g}  {b.final_position:>10.3g}  "
-                f"{b.max_angle:>11.3g}  {b.final_angle:>11.3g}  {b.max_velocity:>11.3g}"
+                f"{b.max_angle:>11.3g}  {b.final_angle:>11.3g}  {b.max_velocity:>11.3g}  "
+                f"{b.max_angular_velocity:>11.3g}  {impacts:>7}  {b.max_offset:>11.3g}"
             )
+        lines.append(
+            "  (velocities compared with the engines' impacts lined up; Δt impact: the "
+            "largest time offset, other engine − rbsim; +n?: impacts only one engine has)"
+        )
         tol = ", ".join(f"{k} {v:g} {QUANTITIES[k][1]}" for k, v in self.tolerances.items())
         lines.append(f"  tolerance: {tol or 'none (nothing checked)'}")
         lines.append("")
@@ -201,26 +234,144 @@ def run_pymunk_to_file(scene: Scene, out: str | Path, settings: PymunkSettings) 
     return summary.step_time
 
 
-def _angle_diff(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """|a - b| for unwrapped angles (rad); both engines start from the scene's angle, so
-    the unwrapped difference is the physical one (a whole extra turn counts)."""
-    return np.abs(a - b)
+def _angle_diff(ra: Trajectory, pm: Trajectory) -> np.ndarray:
+    """(T, N) angle between the two engines' orientations, rad. 2D: |a - b| of the
+    unwrapped angles (both engines start from the scene's angle, so the unwrapped
+    difference is the physical one: a whole extra turn counts). 3D: the angle of the
+    rotation taking one orientation to the other, 2 acos |q1 · q2| (q and -q are the
+    same rotation), computed as 2 atan2(|q1 - s q2|, |q1 + s q2|) with s the sign of
+    q1 · q2, which keeps its accuracy near 0."""
+    if ra.angle is not None and pm.angle is not None:
+        return np.abs(ra.angle - pm.angle)
+    q1, q2 = ra.orientation, pm.orientation
+    sign = np.where(np.sum(q1 * q2, axis=-1, keepdims=True) < 0.0, -1.0, 1.0)
+    minus = np.linalg.norm(q1 - sign * q2, axis=-1)
+    plus = np.linalg.norm(q1 + sign * q2, axis=-1)
+    return 2.0 * np.arctan2(minus, plus)
 
 
-def body_diffs(ra: Trajectory, pm: Trajectory) -> list[BodyDiff]:
-    """Per-body differences between two trajectories with the same frames and bodies."""
+def _columns(series: np.ndarray) -> np.ndarray:
+    """(T, N, k) view of a (T, N) or (T, N, k) per-body series."""
+    return series[:, :, None] if series.ndim == 2 else series
+
+
+def jump_frames(time: np.ndarray, series: np.ndarray, threshold: float) -> np.ndarray:
+    """(T-1,) bool: whether the change of `series` (T, k) from frame i to i+1 departs from
+    the local trend by more than `threshold` (the series' unit). The trend is the median
+    rate of change (per second) of the three intervals on either side of i, times the
+    interval's length (time (T,) s), so a steady acceleration or a smooth turn is not a
+    jump (the trend is off by at most 2 |v''| h², at the ends), and neither is the
+    interval next to a jump spread over two intervals (two outliers of six)."""
+    change = np.diff(series, axis=0)
+    if len(change) == 0:
+        return np.zeros(0, bool)
+    span = np.diff(time)[:, None]
+    rate = change / span
+    padded = np.pad(rate, ((3, 3), (0, 0)), constant_values=np.nan)
+    n = len(rate)
+    around = np.stack([padded[k : k + n] for k in (0, 1, 2, 4, 5, 6)])
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN: fewer than 2 frames
+        trend = np.nan_to_num(np.nanmedian(around, axis=0))
+    return np.linalg.norm(change - trend * span, axis=1) > threshold
+
+
+def events(jumps: np.ndarray) -> list[tuple[int, int]]:
+    """The runs of consecutive True in `jumps` (T-1,) as (first, last) interval indices:
+    the state jumps between frames first and last + 1."""
+    out: list[tuple[int, int]] = []
+    for i in np.flatnonzero(jumps):
+        if out and out[-1][1] == i - 1:
+            out[-1] = (out[-1][0], int(i))
+        else:
+            out.append((int(i), int(i)))
+    return out
+
+
+def pair_events(
+    a: list[tuple[int, int]], b: list[tuple[int, int]], frames: int = EVENT_FRAMES
+) -> tuple[list[tuple[tuple[int, int], tuple[int, int]]], list[int], list[int]]:
+    """Pair two engines' events in time order: the next two pair when their first jump
+    frames are at most `frames` apart, else the earlier one has no partner. Returns
+    (pairs, indices of a's unpaired events, indices of b's)."""
+    pairs, lone_a, lone_b = [], [], []
+    i = j = 0
+    while i < len(a) and j < len(b):
+        if abs(a[i][0] - b[j][0]) <= frames:
+            pairs.append((a[i], b[j]))
+            i, j = i + 1, j + 1
+        elif a[i][0] < b[j][0]:
+            lone_a.append(i)
+            i += 1
+        else:
+            lone_b.append(j)
+            j += 1
+    return pairs, lone_a + list(range(i, len(a))), lone_b + list(range(j, len(b)))
+
+
+def aligned_difference(
+    a: np.ndarray, b: np.ndarray, pairs: list[tuple[tuple[int, int], tuple[int, int]]]
+) -> np.ndarray:
+    """(T,) |a - b| per frame for two (T, k) series, with paired jumps lined up: on the
+    frames between the two engines' jumps of a pair (one engine has jumped, the other
+    not yet), each engine's state is compared with the nearest state of the other over
+    the pair's frames (from the frame before the first jump to the frame after the last),
+    the larger of the two ways. Everywhere else, frame by frame: a wrong post-impact
+    velocity or a missed impact still shows in full after the pair's frames."""
+    diff = np.linalg.norm(a - b, axis=1)
+    for (a0, a1), (b0, b1) in pairs:
+        lo, hi = min(a0, b0) + 1, max(a1, b1)
+        window = slice(lo - 1, hi + 2)
+        for k in range(lo, hi + 1):
+            ab = np.linalg.norm(a[k] - b[window], axis=1).min()
+            ba = np.linalg.norm(b[k] - a[window], axis=1).min()
+            diff[k] = max(ab, ba)
+    return diff
+
+
+def body_diffs(
+    ra: Trajectory,
+    pm: Trajectory,
+    tolerances: dict[str, float] | None = None,
+    engines: tuple[str, str] = ("rbsim", "pymunk"),
+) -> list[BodyDiff]:
+    """Per-body differences between two trajectories with the same frames and bodies.
+    Velocity jumps (impacts) are found in each run (`jump_frames`, with the velocity and
+    angular_velocity `tolerances` as thresholds: the jumps of the checked ones among the
+    two, or of both when neither is checked), paired (`pair_events`) and lined up for the
+    velocity and angular velocity differences (`aligned_difference`).
+    `engines` names the two runs in `unmatched`."""
     if not np.array_equal(ra.step, pm.step):
         raise ValueError("the two trajectories have different frames")
+    tolerances = tolerances or {}
     dpos = np.linalg.norm(ra.position - pm.position, axis=2)  # (T, N)
-    dang = _angle_diff(ra.angle, pm.angle)
-    dvel = np.linalg.norm(ra.velocity - pm.velocity, axis=2)
+    dang = _angle_diff(ra, pm)
+    vel = (ra.velocity, pm.velocity)
+    omega = (_columns(ra.angular_velocity), _columns(pm.angular_velocity))
+    time = ra.time
+    # the quantities whose jumps are events: those checked, else both (for the report)
+    watched = [
+        (series, key)
+        for series, key in ((vel, "velocity"), (omega, "angular_velocity"))
+        if key in tolerances
+    ] or [(vel, "velocity"), (omega, "angular_velocity")]
     out = []
     for i, name in enumerate(ra.bodies.name):
-        ip, ia, iv = (
-            int(np.argmax(dpos[:, i])),
-            int(np.argmax(dang[:, i])),
-            int(np.argmax(dvel[:, i])),
-        )
+        jumps = [np.zeros(max(len(time) - 1, 0), bool) for _ in engines]
+        for series, key in watched:
+            scale = max(float(np.abs(s[:, i]).max(initial=0.0)) for s in series)
+            threshold = max(tolerances.get(key, 0.0), EVENT_FRACTION * scale)
+            for e in range(2):
+                jumps[e] |= jump_frames(time, series[e][:, i], threshold)
+        ev_ra, ev_pm = events(jumps[0]), events(jumps[1])
+        pairs, lone_ra, lone_pm = pair_events(ev_ra, ev_pm)
+        dvel = aligned_difference(vel[0][:, i], vel[1][:, i], pairs)
+        domg = aligned_difference(omega[0][:, i], omega[1][:, i], pairs)
+        offsets = [float(time[b[0]] - time[a[0]]) for a, b in pairs]
+        unmatched = [(engines[0], float(time[ev_ra[k][0] + 1])) for k in lone_ra] + [
+            (engines[1], float(time[ev_pm[k][0] + 1])) for k in lone_pm
+        ]
+        ip, ia, iv, iw = (int(np.argmax(d)) for d in (dpos[:, i], dang[:, i], dvel, domg))
         out.append(
             BodyDiff(
                 name=name,
@@ -228,17 +379,24 @@ def body_diffs(ra: Trajectory, pm: Trajectory) -> list[BodyDiff]:
                 final_position=float(dpos[-1, i]),
                 max_angle=float(dang[ia, i]),
                 final_angle=float(dang[-1, i]),
-                max_velocity=float(dvel[iv, i]),
+                max_velocity=float(dvel[iv]),
                 max_position_step=int(ra.step[ip]),
                 max_angle_step=int(ra.step[ia]),
                 max_velocity_step=int(ra.step[iv]),
+                max_angular_velocity=float(domg[iw]),
+                max_angular_velocity_step=int(ra.step[iw]),
+                impacts=len(pairs),
+                max_offset=max(offsets, key=abs, default=0.0),
+                unmatched=sorted(unmatched, key=lambda u: u[1]),
             )
         )
     return out
 
 
 def violations(bodies: list[BodyDiff], tolerances: dict[str, float]) -> list[str]:
-    """One message per body and checked quantity above its tolerance (NaN counts)."""
+    """One message per body and checked quantity above its tolerance (NaN counts), and,
+    when velocity or angular velocity is checked, one per impact that only one engine
+    has (a missed or an extra collision)."""
     found = []
     for b in bodies:
         for key, tol in tolerances.items():
@@ -249,6 +407,12 @@ def violations(bodies: list[BodyDiff], tolerances: dict[str, float]) -> list[str
                 found.append(
                     f"body {b.name!r}: max {words} {value:.4g} {unit} at step {step} "
                     f"exceeds the {key} tolerance {tol:g} {unit}"
+                )
+        if "velocity" in tolerances or "angular_velocity" in tolerances:
+            for engine, t in b.unmatched:
+                found.append(
+                    f"body {b.name!r}: a velocity jump (impact) at t = {t:.6g} s in {engine} "
+                    f"has no match in the other engine within {EVENT_FRAMES} frames"
                 )
     return found
 
@@ -419,8 +583,8 @@ def compare_scene(
     summary = run_scene(scene, files["rbsim"], engine=engine)
     pm_wall = run_pymunk_to_file(pm_scene, files["pymunk"], settings)
     ra, pm = load_trajectory(files["rbsim"]), load_trajectory(files["pymunk"])
-    bodies = body_diffs(ra, pm)
     tol = tolerances_for(scene, position=position, angle=angle, velocity=velocity)
+    bodies = body_diffs(ra, pm, tol)
     steps = int(scene.world.steps)
 
     def energy(tr: Trajectory) -> float:
