@@ -22,7 +22,7 @@ $(BUILD_DEPS): pyproject.toml
 # rbsim with its compiled engine (C++20 with the machine's g++), editable: Python files
 # are used in place, the engine is rebuilt when a C++ file changes
 $(STAMP): $(BUILD_DEPS) pyproject.toml $(ENGINE)
-	$(BIN)/pip install --quiet --no-build-isolation -e '.[test,plot]'
+	$(BIN)/pip install --quiet --no-build-isolation -e '.[test,plot,mujoco]'
 	touch $(STAMP)
 
 lint: $(STAMP)

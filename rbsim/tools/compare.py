@@ -1,4 +1,10 @@
-"""`rbsim compare`: the same scene in rbsim and in pymunk, and the differences between them.
+"""`rbsim compare`: the same scene in rbsim and in a reference engine, pymunk in 2D and
+MuJoCo in 3D (REFERENCE), and the differences between them.
+
+In 3D MuJoCo steps the scene as rbsim.engines.mujoco writes it (rbsim's own masses and
+inertia tensors, steps of dt / substeps), and the angle compared is the angle of the
+rotation between the two orientations, 2 acos |q1 · q2|; statistics are 2D only. What
+follows is said of pymunk and holds for MuJoCo alike.
 
 Both engines write a trajectory in the same H5MD layout (DESIGN.md), with frames at the
 same steps (0, every output.every-th, the last). pymunk takes steps of the same length as
@@ -27,8 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..engines import make_engine
-from ..engines.pymunk import PymunkSettings, PymunkWorld, UnsupportedScene
+from ..engines import UnsupportedScene, make_engine
+from ..engines.pymunk import PymunkSettings, PymunkWorld
 from ..io.trajectory import Trajectory, load_trajectory
 from ..run import run_scene
 from ..scene import Scene
@@ -74,6 +80,9 @@ STATISTICS: dict[str, tuple[str, str]] = {
     "penetration": ("m", "max penetration (whole run)"),
 }
 
+# The reference engine of each world.dimension
+REFERENCE = {2: "pymunk", 3: "mujoco"}
+
 TABLE_ROWS = 10  # bodies shown in the table when there are more
 
 # Frames on which the penetration is measured (evenly spread; every frame when fewer):
@@ -111,7 +120,9 @@ class BodyDiff:
 class CompareResult:
     """What `rbsim compare` reports. energy: total kinetic + potential at the end (J);
     momentum: linear momentum at the end (kg·m/s); us_per_step: wall time per scene step
-    in stepping alone (µs); violations: one message per checked quantity over tolerance."""
+    in stepping alone (µs); violations: one message per checked quantity over tolerance;
+    reference: the other engine ("pymunk" in 2D, "mujoco" in 3D), the key of its entries
+    beside "rbsim"; pymunk_settings: the reference engine's settings (MuJoCo's in 3D)."""
 
     scene: str
     steps: int
@@ -125,6 +136,7 @@ class CompareResult:
     violations: list[str] = field(default_factory=list)
     statistics: dict[str, dict[str, float]] | None = None
     statistics_tolerances: dict[str, float] = field(default_factory=dict)
+    reference: str = "pymunk"
 
     @property
     def ok(self) -> bool:
@@ -142,6 +154,7 @@ class CompareResult:
         return {
             "ok": self.ok,
             "scene": self.scene,
+            "reference": self.reference,
             "steps": self.steps,
             "tolerances": dict(self.tolerances),
             "bodies": [dataclasses.asdict(b) for b in self.bodies],
@@ -158,7 +171,8 @@ class CompareResult:
     def table(self) -> str:
         """The human-readable report."""
         shown = self.worst()
-        lines = [f"{self.scene}: rbsim against pymunk, {self.steps} steps"]
+        other = self.reference
+        lines = [f"{self.scene}: rbsim against {other}, {self.steps} steps"]
         if len(shown) < len(self.bodies):
             lines[0] += f" ({len(shown)} worst of {len(self.bodies)} bodies by position)"
         width = max([4, *(len(b.name) for b in shown)])
@@ -182,19 +196,19 @@ class CompareResult:
         tol = ", ".join(f"{k} {v:g} {QUANTITIES[k][1]}" for k, v in self.tolerances.items())
         lines.append(f"  tolerance: {tol or 'none (nothing checked)'}")
         lines.append("")
-        lines.append(f"  {'at the end':<22}  {'rbsim':>14}  {'pymunk':>14}")
+        lines.append(f"  {'at the end':<22}  {'rbsim':>14}  {other:>14}")
         lines.append(
             f"  {'energy (KE + PE) J':<22}  {self.energy['rbsim']:>14.6g}  "
-            f"{self.energy['pymunk']:>14.6g}"
+            f"{self.energy[other]:>14.6g}"
         )
-        for axis, k in (("x", 0), ("y", 1)):
+        for k, axis in enumerate("xyz"[: len(self.momentum["rbsim"])]):
             lines.append(
                 f"  {'momentum ' + axis + ' kg m/s':<22}  {self.momentum['rbsim'][k]:>14.6g}  "
-                f"{self.momentum['pymunk'][k]:>14.6g}"
+                f"{self.momentum[other][k]:>14.6g}"
             )
         lines.append(
             f"  {'wall time / step µs':<22}  {self.us_per_step['rbsim']:>14.2f}  "
-            f"{self.us_per_step['pymunk']:>14.2f}"
+            f"{self.us_per_step[other]:>14.2f}"
         )
         if self.statistics is not None:
             lines.append("")
@@ -209,7 +223,7 @@ class CompareResult:
                     f"  {words + ' ' + unit:<34}  {st['rbsim']:>11.4g}  {st['pymunk']:>11.4g}"
                     f"  {st['difference']:>11.4g}  {'-' if tol is None else f'{tol:g}':>9}"
                 )
-        lines.append(f"  files: {self.files['rbsim']}, {self.files['pymunk']}")
+        lines.append(f"  files: {self.files['rbsim']}, {self.files[other]}")
         lines.append("  ok" if self.ok else "  OUTSIDE TOLERANCE")
         return "\n".join(lines)
 
@@ -528,9 +542,14 @@ def statistics_violations(
     return found
 
 
-def _same_run(scene: Scene, other: Scene) -> None:
-    """Raise UnsupportedScene unless `other` (pymunk's scene) has the same bodies, steps,
-    step length and output frames as `scene`."""
+def reference_engine(scene: Scene) -> str:
+    """The engine rbsim is compared with: pymunk in 2D, MuJoCo in 3D (REFERENCE)."""
+    return REFERENCE[int(getattr(scene.world, "dimension", 2))]
+
+
+def _same_run(scene: Scene, other: Scene, reference: str = "pymunk") -> None:
+    """Raise UnsupportedScene unless `other` (the reference engine's scene) has the same
+    bodies, steps, step length and output frames as `scene`."""
     why = None
     if [b.name for b in scene.bodies] != [b.name for b in other.bodies]:
         why = "its bodies differ"
@@ -539,15 +558,25 @@ def _same_run(scene: Scene, other: Scene) -> None:
     elif scene.output.every != other.output.every:
         why = "its output.every differs"
     elif scene.solver.substeps != other.solver.substeps:
-        why = "its solver.substeps differ (pymunk's step length)"
+        why = f"its solver.substeps differ ({reference}'s step length)"
     if why:
-        raise UnsupportedScene(f"pymunk's scene must run the same frames as rbsim's: {why}")
+        raise UnsupportedScene(f"{reference}'s scene must run the same frames as rbsim's: {why}")
 
 
 def _warm_up(scene: Scene, engine: str) -> None:
     """Take one step of the scene on a throwaway world, so that loading rbsim's engine
     is not counted in its wall time per step."""
     make_engine(engine, scene).advance(1)
+
+
+def _reference_options(scene: Scene, reference: str, iterations: int | None) -> dict:
+    """The reference engine's options: pymunk steps as long as rbsim's substeps (and
+    `iterations`); MuJoCo takes solver.substeps steps of dt / substeps."""
+    if reference == "pymunk":
+        return {"settings": pymunk_settings_for(scene, iterations)}
+    from ..engines.mujoco import MujocoSettings
+
+    return {"settings": MujocoSettings(substeps=int(scene.solver.substeps))}
 
 
 def compare_scene(
@@ -562,29 +591,34 @@ def compare_scene(
     pymunk_scene: Scene | None = None,
     engine: str = "rbsim",
 ) -> CompareResult:
-    """Run `scene` in rbsim and pymunk, writing out_dir/<name>.rbsim.h5 and
-    out_dir/<name>.pymunk.h5, and compare them. Statistics (see `statistics`) are
-    computed when `with_statistics` or the scene has a compare.statistics block.
-    `pymunk_scene` (default `scene`) is what pymunk runs: the same scene with a setting
-    changed, to see how much that setting matters. Raises UnsupportedScene (pymunk cannot
-    express the scene) before running either engine, and whatever run_scene raises.
-    `engine` is rbsim's side (engines.RBSIM_ENGINES)."""
+    """Run `scene` in rbsim and in the reference engine (pymunk in 2D, MuJoCo in 3D),
+    writing out_dir/<name>.rbsim.h5 and out_dir/<name>.<reference>.h5, and compare them.
+    Statistics (see `statistics`, 2D only) are computed when `with_statistics` or the
+    scene has a compare.statistics block. `pymunk_scene` (default `scene`) is what the
+    reference engine runs: the same scene with a setting changed, to see how much that
+    setting matters. Raises UnsupportedScene (the reference engine cannot express the
+    scene) and EngineUnavailable (MuJoCo is not installed) before running either engine,
+    and whatever run_scene raises. `engine` is rbsim's side (engines.RBSIM_ENGINES)."""
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    reference = reference_engine(scene)
     pm_scene = scene if pymunk_scene is None else pymunk_scene
-    _same_run(scene, pm_scene)
-    settings = pymunk_settings_for(scene, iterations)
-    make_engine("pymunk", pm_scene, settings=settings)  # UnsupportedScene before any work
+    _same_run(scene, pm_scene, reference)
+    wanted = with_statistics or "statistics" in scene.compare
+    if wanted and reference != "pymunk":
+        raise UnsupportedScene("statistics are compared in 2D scenes only")
+    options = _reference_options(scene, reference, iterations)
+    make_engine(reference, pm_scene, **options)  # UnsupportedScene before any work
+    out_dir.mkdir(parents=True, exist_ok=True)
     files = {
         "rbsim": str(out_dir / f"{scene.name}.rbsim.h5"),
-        "pymunk": str(out_dir / f"{scene.name}.pymunk.h5"),
+        reference: str(out_dir / f"{scene.name}.{reference}.h5"),
     }
     _warm_up(scene, engine)
     summary = run_scene(scene, files["rbsim"], engine=engine)
-    pm_wall = run_pymunk_to_file(pm_scene, files["pymunk"], settings)
-    ra, pm = load_trajectory(files["rbsim"]), load_trajectory(files["pymunk"])
+    other = run_scene(pm_scene, files[reference], engine=reference, options=options)
+    ra, pm = load_trajectory(files["rbsim"]), load_trajectory(files[reference])
     tol = tolerances_for(scene, position=position, angle=angle, velocity=velocity)
-    bodies = body_diffs(ra, pm, tol)
+    bodies = body_diffs(ra, pm, tol, engines=("rbsim", reference))
     steps = int(scene.world.steps)
 
     def energy(tr: Trajectory) -> float:
@@ -595,7 +629,6 @@ def compare_scene(
         for k, v in (scene.compare.get("statistics") or {}).items()
         if k in STATISTICS and v is not None
     }
-    wanted = with_statistics or "statistics" in scene.compare
     stats = statistics(ra, pm, scene) if wanted else None
 
     def per_step(seconds: float) -> float:
@@ -606,15 +639,16 @@ def compare_scene(
         steps=steps,
         bodies=bodies,
         tolerances=tol,
-        energy={"rbsim": energy(ra), "pymunk": energy(pm)},
+        energy={"rbsim": energy(ra), reference: energy(pm)},
         momentum={
             "rbsim": [float(x) for x in ra.observables["linear_momentum"][-1]],
-            "pymunk": [float(x) for x in pm.observables["linear_momentum"][-1]],
+            reference: [float(x) for x in pm.observables["linear_momentum"][-1]],
         },
-        us_per_step={"rbsim": per_step(summary.step_time), "pymunk": per_step(pm_wall)},
+        us_per_step={"rbsim": per_step(summary.step_time), reference: per_step(other.step_time)},
         files=files,
-        pymunk_settings=dataclasses.asdict(settings),
+        pymunk_settings=dataclasses.asdict(options["settings"]),
         violations=violations(bodies, tol) + statistics_violations(stats or {}, stat_tol),
         statistics=stats,
         statistics_tolerances=stat_tol,
+        reference=reference,
     )
