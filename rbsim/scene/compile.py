@@ -6,6 +6,11 @@ unit complex rotation (cos θ, sin θ), `body_v` the COM velocity, `body_w` the 
 velocity. Shape geometry is stored in the body frame relative to the centre of mass,
 so a shape's world vertex is body_x + R(q) · vertex_local.
 
+A 3D scene (world.dimension: 3) gives the same two types with 3D shapes: body_q a unit
+quaternion (w, x, y, z), body_w and body_l (angular momentum about the COM) world-frame
+3-vectors, body_inertia the full body-frame tensor (N, 3, 3), and its principal axes
+(body_axes, body_moments) for the splitting rotation update.
+
 A static or kinematic body has zero inverse mass and inertia, so the solver treats
 every body alike (no branch on the body type inside the contact loops).
 """
@@ -18,7 +23,9 @@ from typing import NamedTuple
 import numpy as np
 
 from . import types as T
+from .geometry3d import quat_matrix
 from .mass import body_mass_properties
+from .mass3d import body_mass_properties_3d, principal_axes
 from .resolve import Scene
 
 
@@ -39,7 +46,19 @@ class Model(NamedTuple):
     the COM; normal_local (V,2) outward edge normals (polygons, segments);
     gravity (2,) m/s²; linear_damping, angular_damping 1/s; has_forces: any body
     carries a constant force or torque; has_shapes: the contact pipeline is needed
-    (two bodies have shapes and one of them is dynamic; a lone ball pays nothing for it).
+    (two bodies have shapes and one of them is dynamic; a lone ball pays nothing for it);
+    body_axes (N,4) rows (1, 0, 0, 0) and body_moments (N,3) zeros (used in 3D only).
+
+    In 3D: body_inertia (N,3,3) kg·m², the full symmetric tensor in body axes about the
+    COM (diag(inf) if not dynamic), body_inv_inertia (N,3,3) (0 if not dynamic);
+    body_com, body_force, body_force_arm, body_torque (N,3) (torque world frame);
+    body_axes (N,4) the unit quaternion (w, x, y, z) of P, the principal axes in the
+    body frame (I = P diag(body_moments) Pᵀ, right-handed), body_moments (N,3) kg·m²
+    ascending (inf if not dynamic); shape_kind codes types.SHAPE_SPHERE..SHAPE_PLANE;
+    vertex_local (V,3) m, body frame about the COM (sphere: centre; capsule: a, b; box:
+    8 corners; convex: hull points; plane: one point); normal_local (V,3) a plane's
+    unit normal on its vertex row, zeros elsewhere; gravity (3,); has_shapes False (no
+    contacts in 3D yet).
     """
 
     body_type: np.ndarray
@@ -65,17 +84,29 @@ class Model(NamedTuple):
     angular_damping: float
     has_forces: bool
     has_shapes: bool
+    body_axes: np.ndarray
+    body_moments: np.ndarray
+
+
+_NONE = np.zeros(0)
+_NONE.flags.writeable = False  # shared by every 2D State: nobody may write into it
 
 
 class State(NamedTuple):
     """Per-step state: body_x (N,2) m (COM), body_q (N,2) (cos θ, sin θ), body_angle (N,)
-    rad (accumulated, unwrapped), body_v (N,2) m/s (COM), body_w (N,) rad/s."""
+    rad (accumulated, unwrapped), body_v (N,2) m/s (COM), body_w (N,) rad/s; body_l (0,)
+    (empty: the angular momentum is a 3D state).
+
+    In 3D: body_x (N,3), body_q (N,4) unit quaternion (w, x, y, z), body_angle (0,),
+    body_v (N,3), body_w (N,3) rad/s world frame, body_l (N,3) kg·m²/s world-frame
+    angular momentum about the COM (L = R I_b Rᵀ ω; 0 if not dynamic)."""
 
     body_x: np.ndarray
     body_q: np.ndarray
     body_angle: np.ndarray
     body_v: np.ndarray
     body_w: np.ndarray
+    body_l: np.ndarray = _NONE
 
 
 def _rotate(c: float, s: float, p: tuple[float, float]) -> tuple[float, float]:
@@ -83,7 +114,10 @@ def _rotate(c: float, s: float, p: tuple[float, float]) -> tuple[float, float]:
 
 
 def build(scene: Scene) -> tuple[Model, State]:
-    """Turn a resolved scene into a Model and its initial State (SI units)."""
+    """Turn a resolved scene into a Model and its initial State (SI units), in the
+    scene's dimension (world.dimension)."""
+    if scene.world.dimension == 3:
+        return build_3d(scene)
     bodies = scene.bodies
     n = len(bodies)
     body_type = np.zeros(n, np.int8)
@@ -185,8 +219,108 @@ def build(scene: Scene) -> tuple[Model, State]:
         angular_damping=float(world.angular_damping),
         has_forces=bool(np.any(force != 0.0) or np.any(torque != 0.0)),
         has_shapes=_contacts_possible(shape_body, body_type),
+        body_axes=np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)),
+        body_moments=np.zeros((n, 3)),
     )
     return model, State(x, q, angle, v, w)
+
+
+def build_3d(scene: Scene) -> tuple[Model, State]:
+    """build() for a 3D scene: the arrays of Model and State in their 3D shapes."""
+    bodies = scene.bodies
+    n = len(bodies)
+    body_type = np.zeros(n, np.int8)
+    mass = np.full(n, math.inf)
+    inertia = np.tile(np.diag([math.inf] * 3), (n, 1, 1))
+    inv_inertia = np.zeros((n, 3, 3))
+    axes = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+    moments = np.full((n, 3), math.inf)
+    com, force, force_arm, torque = (np.zeros((n, 3)) for _ in range(4))
+    x, v, w, ang = (np.zeros((n, 3)) for _ in range(4))
+    q = np.zeros((n, 4))
+
+    shape_body, shape_kind, shape_radius, shape_vstart, shape_vcount = [], [], [], [], []
+    shape_friction, shape_restitution = [], []
+    vertices: list[np.ndarray] = []
+    normals: list[np.ndarray] = []
+    count = 0  # vertex rows so far
+
+    for i, body in enumerate(bodies):
+        kind = T.BODY_TYPE_CODE[body.type]
+        body_type[i] = kind
+        props = body_mass_properties_3d(body)
+        center = np.asarray(props.center)
+        com[i] = center
+        r = quat_matrix(body.orientation)
+        if kind == T.BODY_DYNAMIC:
+            axes_q, principal = principal_axes(props.inertia)
+            if not (props.mass > 0.0 and principal[0] > 0.0):
+                why = f"its mass {props.mass:g} kg and least principal moment "
+                why += f"{principal[0]:g} kg·m² are not both positive"
+                raise ModelError(f"body {body.name!r}: a dynamic body needs a mass; {why}")
+            mass[i], inertia[i] = props.mass, props.inertia
+            inv_inertia[i] = np.linalg.inv(props.inertia)
+            inv_inertia[i] = 0.5 * (inv_inertia[i] + inv_inertia[i].T)
+            axes[i], moments[i] = axes_q, principal
+        x[i] = np.asarray(body.position) + r @ center
+        q[i] = body.orientation
+        if kind != T.BODY_STATIC:
+            v[i] = body.velocity
+            w[i] = body.angular_velocity
+        if kind == T.BODY_DYNAMIC:
+            ang[i] = r @ props.inertia @ r.T @ w[i]
+        force[i] = body.force
+        fp = np.asarray(body.force_point) if body.force_point is not None else center
+        force_arm[i] = fp - center
+        torque[i] = body.torque
+
+        for shape in body.shapes:
+            shape_body.append(i)
+            shape_kind.append(T.SHAPE_KIND_CODE_3D[shape.kind])
+            shape_radius.append(shape.radius)
+            shape_friction.append(shape.material.friction)
+            shape_restitution.append(shape.material.restitution)
+            local = np.asarray(shape.vertices, np.float64).reshape(-1, 3) - center
+            rows = np.zeros_like(local)
+            if shape.kind == "plane":
+                rows[0] = shape.normal
+            shape_vstart.append(count)
+            shape_vcount.append(len(local))
+            vertices.append(local)
+            normals.append(rows)
+            count += len(local)
+
+    dynamic = body_type == T.BODY_DYNAMIC
+    inv_mass = np.where(dynamic, 1.0 / np.where(dynamic, mass, 1.0), 0.0)
+    world = scene.world
+    model = Model(
+        body_type=body_type,
+        body_mass=mass,
+        body_inertia=inertia,
+        body_inv_mass=inv_mass,
+        body_inv_inertia=inv_inertia,
+        body_com=com,
+        body_force=force,
+        body_force_arm=force_arm,
+        body_torque=torque,
+        shape_body=np.asarray(shape_body, np.int32),
+        shape_kind=np.asarray(shape_kind, np.int32),
+        shape_radius=np.asarray(shape_radius, np.float64),
+        shape_vstart=np.asarray(shape_vstart, np.int32),
+        shape_vcount=np.asarray(shape_vcount, np.int32),
+        shape_friction=np.asarray(shape_friction, np.float64),
+        shape_restitution=np.asarray(shape_restitution, np.float64),
+        vertex_local=np.concatenate(vertices) if vertices else np.zeros((0, 3)),
+        normal_local=np.concatenate(normals) if normals else np.zeros((0, 3)),
+        gravity=np.asarray(world.gravity, np.float64),
+        linear_damping=float(world.linear_damping),
+        angular_damping=float(world.angular_damping),
+        has_forces=bool(np.any(force != 0.0) or np.any(torque != 0.0)),
+        has_shapes=False,  # no contacts in 3D yet (issue 16)
+        body_axes=axes,
+        body_moments=moments,
+    )
+    return model, State(x, q, np.zeros(0), v, w, ang)
 
 
 def _contacts_possible(shape_body: list[int], body_type: np.ndarray) -> bool:
@@ -196,7 +330,13 @@ def _contacts_possible(shape_body: list[int], body_type: np.ndarray) -> bool:
 
 
 def body_origin(model: Model, state: State) -> np.ndarray:
-    """World position (N,2) m of each body origin as placed in the scene."""
+    """World position (N,2) or (N,3) m of each body origin as placed in the scene
+    (origin = x − R(q) com)."""
+    if state.body_q.shape[1] == 4:
+        w, u = state.body_q[:, :1], state.body_q[:, 1:]
+        c = model.body_com
+        t = 2.0 * np.cross(u, c)  # R c = c + w t + u × t for a unit quaternion (w, u)
+        return state.body_x - (c + w * t + np.cross(u, t))
     c, s = state.body_q[:, 0], state.body_q[:, 1]
     rx = c * model.body_com[:, 0] - s * model.body_com[:, 1]
     ry = s * model.body_com[:, 0] + c * model.body_com[:, 1]
