@@ -77,10 +77,11 @@ demo: $(STAMP)
 batch: $(STAMP)
 	$(BIN)/rbsim batch scenes/*.yaml -o out/
 
-COMPARE_SCENES := $(wildcard scenes/compare/*.yaml scenes/compare/statistics/*.yaml)
+COMPARE_SCENES := $(wildcard scenes/compare/*.yaml scenes/compare/statistics/*.yaml \
+	scenes/3d/compare/*.yaml)
 
-# rbsim against pymunk on every scene of scenes/compare/ (and its statistics/); fails if
-# any exits non-zero.
+# rbsim against pymunk on every scene of scenes/compare/ (and its statistics/), and
+# against MuJoCo on every scene of scenes/3d/compare/; fails if any exits non-zero.
 .PHONY: compare
 compare: $(STAMP)
 	@status=0; for s in $(COMPARE_SCENES); do \
