@@ -20,7 +20,7 @@ mujoco = pytest.importorskip("mujoco")
 
 from rbsim.engines import EngineUnavailable, UnsupportedScene, make_engine  # noqa: E402
 from rbsim.engines import mujoco as bridge  # noqa: E402
-from rbsim.engines.mujoco import MujocoEngine, quat_matrix  # noqa: E402
+from rbsim.engines.mujoco import MujocoEngine, MujocoSettings, quat_matrix  # noqa: E402
 from rbsim.scene import load_scene  # noqa: E402
 
 from .conftest import rbsim, scene_from  # noqa: E402
@@ -42,16 +42,18 @@ def test_the_3d_compare_scenes_exist():
 # -- the model as written -------------------------------------------------------------------
 
 
-def test_masses_inertia_com_gravity_timestep_as_written():
+@pytest.mark.parametrize("frame", ["com", "origin"])
+def test_masses_inertia_com_gravity_timestep_as_written(frame: str):
     scene = load_scene(COMPARE3D / "thrown_compound.yaml")
-    engine = MujocoEngine(scene)
+    engine = MujocoEngine(scene, MujocoSettings(frame=frame))
     m, model = engine.mj_model, engine.model
     # parsed back from the MJCF text, not taken from the engine's own arrays
     parsed = mujoco.MjModel.from_xml_string(engine.xml)
     for mm in (m, parsed):
         assert mm.nbody == 2 and mm.njnt == 1 and mm.jnt_type[0] == mujoco.mjtJoint.mjJNT_FREE
         assert mm.body_mass[1] == model.body_mass[0]  # repr() round-trips the double
-        np.testing.assert_array_equal(mm.body_ipos[1], model.body_com[0])
+        com = model.body_com[0] if frame == "origin" else np.zeros(3)
+        np.testing.assert_array_equal(mm.body_ipos[1], com)
         # MuJoCo keeps principal moments and the principal axes' rotation (body_iquat):
         # R diag(I) Rᵀ rebuilds rbsim's full tensor to its eigen-solver's round-off
         rot = quat_matrix(mm.body_iquat[1:])[0]
@@ -63,8 +65,35 @@ def test_masses_inertia_com_gravity_timestep_as_written():
         assert mm.opt.timestep == scene.world.dt / scene.solver.substeps
         assert mm.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER
         assert mm.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT
-    np.testing.assert_array_equal(engine.mj_data.qpos[:3], scene.bodies[0].position)
+    assert np.linalg.norm(model.body_com[0]) > 0.3  # the COM is well off the origin
+    point = model.body_com[0] if frame == "com" else np.zeros(3)
+    rot = quat_matrix(np.array([scene.bodies[0].orientation]))[0]
+    frame_at = np.asarray(scene.bodies[0].position) + rot @ point
+    np.testing.assert_array_equal(engine.mj_data.qpos[:3], frame_at)
     np.testing.assert_array_equal(engine.mj_data.qpos[3:], scene.bodies[0].orientation)
+    np.testing.assert_allclose(engine.read().origin[0], scene.bodies[0].position, atol=1e-15)
+
+
+def test_frame_at_the_com_keeps_the_com_on_rbsims_parabola():
+    """A free joint moves its frame's point: with the frame at the body origin a spinning
+    body whose COM is off it strays from the semi-implicit parabola x0 + v0 t + g t²/2 +
+    g h t/2 that rbsim's COM follows (first order: 0.12 m in 2 s here); at the COM it
+    follows it to round-off (the bridge's default)."""
+    scene = load_scene(COMPARE3D / "thrown_compound.yaml")
+    t = scene.world.steps * scene.world.dt
+    g = np.array([0.0, -9.81, 0.0])
+    strays = {}
+    for frame in ("com", "origin"):
+        engine = MujocoEngine(scene, MujocoSettings(frame=frame))
+        x0, v0 = engine.read().com[0], np.asarray(scene.bodies[0].velocity)
+        engine.advance(scene.world.steps)
+        s = engine.read()
+        parabola = x0 + v0 * t + g * t * t / 2 + g * H * t / 2
+        strays[frame] = np.linalg.norm(s.com[0] - parabola)
+        if frame == "com":
+            np.testing.assert_allclose(s.velocity[0], v0 + g * t, atol=1e-12)  # round-off
+    assert strays["com"] < 1e-12  # round-off of 480 steps
+    assert strays["origin"] > 0.05
 
 
 def test_static_bodies_are_not_written_and_kinematic_ones_move_as_prescribed():
@@ -109,12 +138,14 @@ bodies:
 """
 
 
-def test_free_joint_state_layout_measured():
-    """qpos: origin (world) + (w, x, y, z); qvel: the origin's world velocity, then the
-    angular velocity in the BODY frame (MuJoCo 4.0.0). Measured by finite differences
-    over one step of 1 µs: the differences are O(h) (a first-order step), 1e-5 here."""
+@pytest.mark.parametrize("frame", ["com", "origin"])
+def test_free_joint_state_layout_measured(frame: str):
+    """qpos: the frame's origin (world) + (w, x, y, z); qvel: the frame origin's world
+    velocity, then the angular velocity in the BODY frame (MuJoCo 4.0.0). Measured by
+    finite differences over one step of 1 µs: the differences are O(h) (a first-order
+    step), 1e-5 here."""
     scene = scene_from(SPINNER)
-    engine = MujocoEngine(scene)
+    engine = MujocoEngine(scene, MujocoSettings(frame=frame))
     d = engine.mj_data
     p0, v0 = d.qpos.copy(), d.qvel.copy()
     h = engine.h
@@ -126,7 +157,7 @@ def test_free_joint_state_layout_measured():
     body = bridge._quat_mul(conj, q1[None])[0]  # q0⁻¹ q1: the turn in the body frame
     np.testing.assert_allclose(2 * body[1:] / h, v0[3:], atol=1e-5)
     # rbsim's layout: the COM velocity and the world ω the scene gave
-    engine = MujocoEngine(scene)
+    engine = MujocoEngine(scene, MujocoSettings(frame=frame))
     s = engine.read()
     np.testing.assert_allclose(s.velocity[0], scene.bodies[0].velocity, atol=1e-15)
     np.testing.assert_allclose(s.angular_velocity[0], scene.bodies[0].angular_velocity, atol=1e-15)

@@ -1,9 +1,9 @@
 """The adapter of MuJoCo ("mujoco"), rbsim's reference engine in 3D.
 
 The scene is written as an MJCF model (`mjcf`): one body with a free joint per dynamic
-body, its body frame at the scene's body origin and orientation, and an `inertial`
-element with rbsim's own mass and full inertia tensor (`fullinertia`, about the centre of
-mass, at the COM's body-frame position `pos`), from rbsim's compiled Model: MuJoCo never
+body, with the scene body's orientation, and an `inertial` element with rbsim's own mass
+and full inertia tensor (`fullinertia`, about the centre of mass, at the COM's position
+`pos` in the MuJoCo body's frame), from rbsim's compiled Model: MuJoCo never
 computes mass properties itself (its meshes are float32: a hull's centre of mass comes
 out 3e-9 m off and its inertia 7e-8 relative). Static bodies are not written (nothing
 collides in 3D yet: contacts are disabled, `<flag contact="disable"/>`), kinematic
@@ -13,10 +13,22 @@ takes any vector; its z-up default does not apply). One scene step is
 `solver.substeps` MuJoCo steps of dt / substeps with MuJoCo's Euler integrator
 (semi-implicit: qvel += h qacc, then qpos moves with the new qvel).
 
+Where the MuJoCo body's frame sits (MujocoSettings.frame): "com" (the default) puts it
+at the centre of mass (inertial pos 0), "origin" at the scene's body origin (inertial
+pos = the COM's body-frame offset). A free joint moves its frame's point with that
+point's velocity, so with "origin" a spinning body whose COM is off its origin moves its
+COM by h v_origin + (R(h ω) − 1) R com per step instead of h v_com: a first-order error
+that rbsim (which moves the COM) does not have; measured on the thrown compound of
+scenes/3d/compare (COM 0.31 m off the origin, |ω| = 6.4 rad/s, h = 1/240 s), 0.12 m of
+COM position and 0.062 m/s of COM velocity off the semi-implicit parabola in 2 s
+(halving with h), against round-off with "com". The comparison wants the engines'
+methods, not that frame choice, to differ: "com".
+
 State, as MuJoCo 4.0.0 keeps it (tests/test_mujoco.py measures it): a free joint's
 qpos is the body frame's origin (3, world) and its orientation (w, x, y, z); qvel is the
-origin's velocity (world frame) followed by the angular velocity in the BODY frame.
-rbsim's layout is the COM's velocity v_origin + ω × (R com) and ω in the world frame.
+frame origin's velocity (world frame) followed by the angular velocity in the BODY frame.
+rbsim's layout: the body origin x − R p (p: the frame's point in rbsim's body frame, the
+COM or 0), the COM's velocity v_frame + ω × R (com − p) and ω in the world frame.
 
 Forces and torques go through xfrc_applied (world frame, at the COM): a scene force at
 a body point adds its torque (R arm) × f, evaluated at the start of each MuJoCo step as
@@ -61,12 +73,17 @@ INSTALL_HINT = (
 )
 
 
+FRAMES = ("com", "origin")
+
+
 @dataclass
 class MujocoSettings:
     """How the MuJoCo model is set up. substeps: MuJoCo steps per scene dt (each of
-    length dt / substeps, s); None: the scene's solver.substeps."""
+    length dt / substeps, s); None: the scene's solver.substeps. frame: where each MuJoCo
+    body's frame sits, "com" or "origin" (the module's docstring)."""
 
     substeps: int | None = None
+    frame: str = "com"
 
 
 def quat_matrix(q: np.ndarray) -> np.ndarray:
@@ -110,17 +127,22 @@ def _nums(values: np.ndarray) -> str:
 
 def mjcf(
     model: Model,
-    origins: np.ndarray,
+    positions: np.ndarray,
     orientations: np.ndarray,
     timestep: float,
     name: str = "rbsim",
     names: list[str] | None = None,
+    frame_points: np.ndarray | None = None,
 ) -> str:
-    """The MJCF text of a 3D rbsim Model: a body with a free joint per dynamic body at its
-    origin (N,3) m and orientation (N,4) (w, x, y, z), with rbsim's mass (kg) and full
-    inertia tensor (kg·m², body frame, about the COM, at the COM's body-frame position);
-    gravity (m/s²) as the model has it (y-up world); `timestep` (s) MuJoCo's step;
-    Euler integrator; contacts disabled. MuJoCo body i+1 is the i-th dynamic body."""
+    """The MJCF text of a 3D rbsim Model: a body with a free joint per dynamic body, its
+    frame at `positions` (N,3) m (world) with `orientations` (N,4) (w, x, y, z), with
+    rbsim's mass (kg) and full inertia tensor (kg·m², body frame, about the COM) at the
+    COM's position in that frame, body_com − frame_points (N,3) m (frame_points: where
+    the frame sits in rbsim's body frame; default the body origins, zeros); gravity
+    (m/s²) as the model has it (y-up world); `timestep` (s) MuJoCo's step; Euler
+    integrator; contacts disabled. MuJoCo body k+1 is the k-th dynamic body."""
+    if frame_points is None:
+        frame_points = np.zeros_like(model.body_com)
     lines = [
         f'<mujoco model="{name}">',
         '  <compiler angle="radian" inertiafromgeom="false"/>',
@@ -137,10 +159,11 @@ def mjcf(
         label = names[i] if names else f"body{i}"
         label = label.replace("&", "&amp;").replace('"', "&quot;").replace("<", "&lt;")
         lines += [
-            f'    <body name="{label}" pos="{_nums(origins[i])}" quat="{_nums(orientations[i])}">',
+            f'    <body name="{label}" pos="{_nums(positions[i])}"'
+            f' quat="{_nums(orientations[i])}">',
             "      <freejoint/>",
-            f'      <inertial pos="{_nums(model.body_com[i])}" mass="{_num(model.body_mass[i])}"'
-            f' fullinertia="{_nums(full)}"/>',
+            f'      <inertial pos="{_nums(model.body_com[i] - frame_points[i])}"'
+            f' mass="{_num(model.body_mass[i])}" fullinertia="{_nums(full)}"/>',
             "    </body>",
         ]
     lines += ["  </worldbody>", "</mujoco>", ""]
@@ -165,6 +188,9 @@ class MujocoEngine(Engine):
         self.model, state = build(scene)
         model = self.model
         settings = settings or MujocoSettings()
+        if settings.frame not in FRAMES:
+            raise ValueError(f"frame must be one of {FRAMES}, not {settings.frame!r}")
+        self.frame = settings.frame
         self.substeps = int(settings.substeps or scene.solver.substeps)
         self.h = self.dt / self.substeps
         self.mass = model.body_mass.copy()
@@ -178,20 +204,26 @@ class MujocoEngine(Engine):
         self._q0 = state.body_q.copy()
         self._v0 = state.body_v.copy()
         self._w0 = state.body_w.copy()
+        # the MuJoCo frame's point in rbsim's body frame, and the COM from it
+        self._point = (
+            model.body_com.copy() if self.frame == "com" else np.zeros_like(model.body_com)
+        )
+        self._arm_com = model.body_com - self._point
         self.xml = mjcf(
             model,
-            self._origin0,
+            self._origin0 + np.einsum("nij,nj->ni", rot0, self._point),
             self._q0,
             self.h,
             name=scene.name,
             names=[b.name for b in scene.bodies],
+            frame_points=self._point,
         )
         self.mj_model = mujoco.MjModel.from_xml_string(self.xml)
         self.mj_data = mujoco.MjData(self.mj_model)
         d, dyn = self.mj_data, self._dyn
         qpos = d.qpos.reshape(-1, 7)
         qvel = d.qvel.reshape(-1, 6)
-        r = np.einsum("nij,nj->ni", rot0[dyn], model.body_com[dyn])
+        r = np.einsum("nij,nj->ni", rot0[dyn], self._arm_com[dyn])
         qvel[:, :3] = self._v0[dyn] - np.cross(self._w0[dyn], r)
         qvel[:, 3:] = np.einsum("nji,nj->ni", rot0[dyn], self._w0[dyn])  # Rᵀ ω
         assert qpos.shape[0] == len(dyn)
@@ -210,6 +242,7 @@ class MujocoEngine(Engine):
             "timestep": self.h,
             "integrator": "Euler",
             "contacts": "disabled",
+            "frame": self.frame,
             "mujoco_version": mujoco.__version__,
         }
 
@@ -243,9 +276,9 @@ class MujocoEngine(Engine):
         return np.einsum("nij,nj->ni", rot, qvel[:, 3:])
 
     def _com_velocity(self, rot: np.ndarray) -> np.ndarray:
-        """(n,3) COM velocities of the dynamic bodies (m/s): v_origin + ω × (R com)."""
+        """(n,3) COM velocities of the dynamic bodies (m/s): v_frame + ω × R (com − p)."""
         qvel = self.mj_data.qvel.reshape(-1, 6)
-        r = np.einsum("nij,nj->ni", rot, self.model.body_com[self._dyn])
+        r = np.einsum("nij,nj->ni", rot, self._arm_com[self._dyn])
         return qvel[:, :3] + np.cross(self._world_omega(rot), r)
 
     def _momentum(self, rot: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -290,7 +323,7 @@ class MujocoEngine(Engine):
         qpos = self.mj_data.qpos.reshape(-1, 7)
         if len(dyn):
             rot = quat_matrix(qpos[:, 3:])
-            origin[dyn] = qpos[:, :3]
+            origin[dyn] = qpos[:, :3] - np.einsum("nij,nj->ni", rot, self._point[dyn])
             q[dyn] = qpos[:, 3:]
             v[dyn] = self._com_velocity(rot)
             w[dyn] = self._world_omega(rot)
