@@ -853,7 +853,7 @@ def _key_at(key: Key, path: Path) -> Key | None:
         if key.kind != "object" or part not in key.fields:
             return None
         key = key.fields[part]
-    return key
+    return key.item if key.kind == "entry" else key  # a body, not a generator
 
 
 class Checker:
