@@ -145,3 +145,22 @@ def test_pairing_and_alignment():
     assert aligned_difference(va, vb, [((10, 10), (11, 11))]).max() == 0.0
     vb_wrong = np.where(t > 11, -0.9, 2.0)[:, None]  # a different rebound
     assert aligned_difference(va, vb_wrong, [((10, 10), (11, 11))]).max() == pytest.approx(0.1)
+
+
+def test_3d_angle_is_the_rotation_between_the_orientations():
+    """2 acos |q1 · q2|: 0.3 rad about any axis, the same for -q2, accurate near 0."""
+    from types import SimpleNamespace
+
+    from rbsim.tools.compare import angle_difference
+
+    axis = np.array([1.0, 2.0, 2.0]) / 3.0
+    q1 = np.array([[[0.6, 0.0, 0.8, 0.0]]])
+    for angle in (0.3, 1e-9, 3.0):
+        turn = np.concatenate([[np.cos(angle / 2)], np.sin(angle / 2) * axis])
+        w1, v1 = q1[0, 0, 0], q1[0, 0, 1:]
+        w2, v2 = turn[0], turn[1:]
+        q2 = np.concatenate([[w2 * w1 - v2 @ v1], w2 * v1 + w1 * v2 + np.cross(v2, v1)])
+        for sign in (1.0, -1.0):
+            a = SimpleNamespace(angle=None, orientation=q1)
+            b = SimpleNamespace(angle=None, orientation=sign * q2[None, None])
+            assert angle_difference(a, b)[0, 0] == pytest.approx(angle, rel=1e-9)

@@ -20,7 +20,7 @@ mujoco = pytest.importorskip("mujoco")
 
 from rbsim.engines import EngineUnavailable, UnsupportedScene, make_engine  # noqa: E402
 from rbsim.engines import mujoco as bridge  # noqa: E402
-from rbsim.engines.mujoco import MujocoEngine, MujocoSettings, quat_matrix  # noqa: E402
+from rbsim.engines.mujoco import MujocoEngine, MujocoSettings, quat_matrix, quat_mul  # noqa: E402
 from rbsim.scene import load_scene  # noqa: E402
 
 from .conftest import rbsim, scene_from  # noqa: E402
@@ -154,7 +154,7 @@ def test_free_joint_state_layout_measured(frame: str):
     np.testing.assert_allclose((p1[:3] - p0[:3]) / h, v0[:3], atol=1e-5)
     q0, q1 = p0[3:], p1[3:]
     conj = np.array([[q0[0], -q0[1], -q0[2], -q0[3]]])
-    body = bridge._quat_mul(conj, q1[None])[0]  # q0⁻¹ q1: the turn in the body frame
+    body = quat_mul(conj, q1[None])[0]  # q0⁻¹ q1: the turn in the body frame
     np.testing.assert_allclose(2 * body[1:] / h, v0[3:], atol=1e-5)
     # rbsim's layout: the COM velocity and the world ω the scene gave
     engine = MujocoEngine(scene, MujocoSettings(frame=frame))
@@ -202,9 +202,7 @@ def test_constant_torque_about_a_principal_axis():
     s = engine.read()
     axis = np.asarray(scene.bodies[0].torque) / 0.5
     np.testing.assert_allclose(s.angular_velocity[0], alpha * t * axis, rtol=1e-7)  # torque digits
-    turn = bridge._quat_mul(
-        s.orientation, (np.asarray([scene.bodies[0].orientation]) * [1, -1, -1, -1])
-    )
+    turn = quat_mul(s.orientation, (np.asarray([scene.bodies[0].orientation]) * [1, -1, -1, -1]))
     angle = 2 * math.atan2(np.linalg.norm(turn[0, 1:]), abs(turn[0, 0]))
     assert angle == pytest.approx(alpha * t * t / 2 + alpha * H * t / 2, rel=1e-7)
 

@@ -64,7 +64,9 @@ __all__ = [
     "MujocoEngine",
     "MujocoSettings",
     "mjcf",
+    "quat_exp",
     "quat_matrix",
+    "quat_mul",
 ]
 
 INSTALL_HINT = (
@@ -99,7 +101,7 @@ def quat_matrix(q: np.ndarray) -> np.ndarray:
     )
 
 
-def _quat_exp(rotvec: np.ndarray) -> np.ndarray:
+def quat_exp(rotvec: np.ndarray) -> np.ndarray:
     """(N,4) unit quaternions exp(θ/2) of rotation vectors (N,3) (rad)."""
     angle = np.linalg.norm(rotvec, axis=1)
     half = 0.5 * angle
@@ -107,7 +109,7 @@ def _quat_exp(rotvec: np.ndarray) -> np.ndarray:
     return np.concatenate([np.cos(half)[:, None], k[:, None] * rotvec], axis=1)
 
 
-def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(N,4) Hamilton products a b of (N,4) quaternions (w, x, y, z)."""
     aw, av = a[:, :1], a[:, 1:]
     bw, bv = b[:, :1], b[:, 1:]
@@ -317,7 +319,7 @@ class MujocoEngine(Engine):
         kin = self.kinematic
         if kin.any():  # prescribed motion
             origin[kin] = self._origin0[kin] + t * self._v0[kin]
-            q[kin] = _quat_mul(_quat_exp(t * self._w0[kin]), self._q0[kin])
+            q[kin] = quat_mul(quat_exp(t * self._w0[kin]), self._q0[kin])
             v[kin], w[kin] = self._v0[kin], self._w0[kin]
         dyn = self._dyn
         qpos = self.mj_data.qpos.reshape(-1, 7)
