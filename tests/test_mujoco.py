@@ -305,3 +305,74 @@ def test_tightened_angle_tolerance_exits_4(tmp_path: Path):
         "compare", COMPARE3D / "free_spin.yaml", "-o", tmp_path, "--angle", "1e-6"
     )
     assert code == 4 and "body 'brick': max angle difference" in err
+
+
+def test_a_blown_up_spin_is_a_non_finite_state_not_a_reset():
+    """MuJoCo resets the state when its acceleration blows up; the bridge says so
+    (NonFiniteState) instead of reading the reset state as the body's. A box spun at
+    400 rad/s about its intermediate axis, with MuJoCo steps of 20 ms (|ω| h = 8)."""
+    from rbsim.engines import NonFiniteState
+
+    scene = scene_from(
+        """
+        version: 1
+        world: {dimension: 3, gravity: [0, 0, 0], dt: 0.02, steps: 200}
+        solver: {substeps: 1}
+        bodies:
+          - {name: brick, angular_velocity: [0.1, 400, 0.1],
+             shape: {box: {size: [0.3, 0.2, 0.1]}}}
+        """
+    )
+    engine = MujocoEngine(scene)
+    with pytest.raises(NonFiniteState) as info:
+        for _ in range(200):
+            engine.advance(1)
+    assert info.value.body == 0
+
+
+def _converged_spin(engine: MujocoEngine, t: float) -> np.ndarray:
+    """The orientation (w, x, y, z) at t (s) of the torque-free body of `engine`, from
+    Euler's equations in the body frame solved to rtol 1e-13 (scipy's DOP853)."""
+    from scipy.integrate import solve_ivp
+
+    inertia = engine.inertia[0]
+    inv = np.linalg.inv(inertia)
+    q0 = engine.read().orientation[0]
+    wb0 = quat_matrix(q0[None])[0].T @ engine.read().angular_velocity[0]
+
+    def rate(_t: float, y: np.ndarray) -> np.ndarray:
+        q, wb = y[:4], y[4:]
+        dq = 0.5 * quat_mul(q[None], np.r_[0.0, wb][None])[0]
+        return np.r_[dq, inv @ np.cross(inertia @ wb, wb)]
+
+    sol = solve_ivp(rate, (0.0, t), np.r_[q0, wb0], rtol=1e-13, atol=1e-13, method="DOP853")
+    q = sol.y[:4, -1]
+    return q / np.linalg.norm(q)
+
+
+def test_free_spin_tolerance_terms_first_and_second_order():
+    """The terms free_spin.yaml's angle tolerance adds up: MuJoCo's orientation error is
+    first order (4.042e-3 rad at h = 1/240 s, halving with h), rbsim's `split` second
+    order (a quarter with h/2), both against a converged solution."""
+    from types import SimpleNamespace
+
+    from rbsim.tools.compare import angle_difference
+
+    errors: dict[str, list[float]] = {"rbsim": [], "mujoco": []}
+    for dt in ("1/60", "1/120"):
+        scene = load_scene(COMPARE3D / "free_spin.yaml", [f"world.dt={dt}"])
+        exact = None
+        for name in errors:
+            engine = make_engine(name, scene)
+            if exact is None:
+                exact = _converged_spin(MujocoEngine(scene), 2.0)
+            engine.advance(scene.world.steps)
+            q = engine.read().orientation
+            a = SimpleNamespace(angle=None, orientation=q[None])
+            b = SimpleNamespace(angle=None, orientation=exact[None, None])
+            errors[name].append(float(angle_difference(a, b)[0, 0]))
+    mj, rb = errors["mujoco"], errors["rbsim"]
+    assert mj[0] == pytest.approx(4.042e-3, rel=1e-3)  # the comment's figure, 4 digits
+    assert mj[0] / mj[1] == pytest.approx(2.0, rel=0.02)  # first order
+    assert rb[0] / rb[1] == pytest.approx(4.0, rel=0.05)  # second order
+    assert rb[0] < 1e-3 * mj[0]

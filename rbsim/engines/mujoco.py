@@ -308,6 +308,14 @@ class MujocoEngine(Engine):
         bad |= ~np.isfinite(d.qvel.reshape(-1, 6)).all(axis=1)
         if bad.any():
             raise NonFiniteState(int(self._dyn[np.argmax(bad)]), self._steps)
+        # MuJoCo does not stop on a non-finite or huge (> 1e10) acceleration: it warns
+        # and resets the state to the model's initial one, which would read as a valid
+        # state. Its explicit Euler grows a fast spin's wobble exponentially (|ω| h near
+        # 1), so this is reachable.
+        warning = d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
+        if warning.number > 0:
+            dof = min(max(int(warning.lastinfo), 0), m.nv - 1)
+            raise NonFiniteState(int(self._dyn[int(m.dof_bodyid[dof]) - 1]), self._steps)
 
     def read(self) -> Snapshot:
         n = len(self.scene.bodies)
