@@ -307,11 +307,15 @@ def test_tightened_angle_tolerance_exits_4(tmp_path: Path):
     assert code == 4 and "body 'brick': max angle difference" in err
 
 
-def test_a_blown_up_spin_is_a_non_finite_state_not_a_reset():
+def test_a_blown_up_spin_is_a_non_finite_state_not_a_reset(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
     """MuJoCo resets the state when its acceleration blows up; the bridge says so
     (NonFiniteState) instead of reading the reset state as the body's. A box spun at
     400 rad/s about its intermediate axis, with MuJoCo steps of 20 ms (|ω| h = 8)."""
     from rbsim.engines import NonFiniteState
+
+    monkeypatch.chdir(tmp_path)  # MuJoCo's warning writes MUJOCO_LOG.TXT here
 
     scene = scene_from(
         """
