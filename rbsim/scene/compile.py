@@ -23,10 +23,10 @@ from typing import NamedTuple
 import numpy as np
 
 from . import types as T
-from .geometry3d import quat_matrix
+from .geometry3d import IDENTITY, quat_matrix
 from .mass import body_mass_properties
 from .mass3d import body_mass_properties_3d, principal_axes
-from .resolve import Scene
+from .resolve import Body, Scene
 
 
 class ModelError(ValueError):
@@ -192,35 +192,19 @@ def build(scene: Scene) -> tuple[Model, State]:
             shape_vcount.append(len(local))
 
     dynamic = body_type == T.BODY_DYNAMIC
-    inv_mass = np.where(dynamic, 1.0 / np.where(dynamic, mass, 1.0), 0.0)
     inv_inertia = np.where(dynamic, 1.0 / np.where(dynamic, inertia, 1.0), 0.0)
-    world = scene.world
-    model = Model(
-        body_type=body_type,
-        body_mass=mass,
-        body_inertia=inertia,
-        body_inv_mass=inv_mass,
-        body_inv_inertia=inv_inertia,
-        body_com=com,
-        body_force=force,
-        body_force_arm=force_arm,
-        body_torque=torque,
-        shape_body=np.asarray(shape_body, np.int32),
-        shape_kind=np.asarray(shape_kind, np.int32),
-        shape_radius=np.asarray(shape_radius, np.float64),
-        shape_vstart=np.asarray(shape_vstart, np.int32),
-        shape_vcount=np.asarray(shape_vcount, np.int32),
-        shape_friction=np.asarray(shape_friction, np.float64),
-        shape_restitution=np.asarray(shape_restitution, np.float64),
-        vertex_local=np.asarray(vertices, np.float64).reshape(-1, 2),
-        normal_local=np.asarray(normals, np.float64).reshape(-1, 2),
-        gravity=np.asarray(world.gravity, np.float64),
-        linear_damping=float(world.linear_damping),
-        angular_damping=float(world.angular_damping),
-        has_forces=bool(np.any(force != 0.0) or np.any(torque != 0.0)),
+    bodies_arrays = (body_type, mass, inertia, inv_inertia, com, force, force_arm, torque)
+    shapes = (shape_body, shape_kind, shape_radius, shape_vstart, shape_vcount)
+    shapes += (shape_friction, shape_restitution)
+    model = _model(
+        scene,
+        bodies_arrays,
+        shapes,
+        np.asarray(vertices, np.float64).reshape(-1, 2),
+        np.asarray(normals, np.float64).reshape(-1, 2),
         has_shapes=_contacts_possible(shape_body, body_type),
-        body_axes=np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)),
-        body_moments=np.zeros((n, 3)),
+        axes=np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)),
+        moments=np.zeros((n, 3)),
     )
     return model, State(x, q, angle, v, w)
 
@@ -229,98 +213,164 @@ def build_3d(scene: Scene) -> tuple[Model, State]:
     """build() for a 3D scene: the arrays of Model and State in their 3D shapes."""
     bodies = scene.bodies
     n = len(bodies)
-    body_type = np.zeros(n, np.int8)
+    body_type = np.array([T.BODY_TYPE_CODE[b.type] for b in bodies], np.int8).reshape(n)
     mass = np.full(n, math.inf)
     inertia = np.tile(np.diag([math.inf] * 3), (n, 1, 1))
     inv_inertia = np.zeros((n, 3, 3))
     axes = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
     moments = np.full((n, 3), math.inf)
-    com, force, force_arm, torque = (np.zeros((n, 3)) for _ in range(4))
-    x, v, w, ang = (np.zeros((n, 3)) for _ in range(4))
-    q = np.zeros((n, 4))
+    com, force_arm, ang = (np.zeros((n, 3)) for _ in range(3))
 
-    shape_body, shape_kind, shape_radius, shape_vstart, shape_vcount = [], [], [], [], []
-    shape_friction, shape_restitution = [], []
+    def column(values: list, width: int) -> np.ndarray:
+        return np.array(values, np.float64).reshape(n, width)
+
+    origin = column([b.position for b in bodies], 3)
+    q = column([b.orientation for b in bodies], 4)
+    moving = (body_type != T.BODY_STATIC)[:, None]
+    v = np.where(moving, column([b.velocity for b in bodies], 3), 0.0)
+    w = np.where(moving, column([b.angular_velocity for b in bodies], 3), 0.0)
+    force = column([b.force for b in bodies], 3)
+    torque = column([b.torque for b in bodies], 3)
+
+    shape_body: list[int] = []
+    parts: list[tuple] = []  # per body: its shapes' (kind, radius, friction, restitution)
     vertices: list[np.ndarray] = []
     normals: list[np.ndarray] = []
-    count = 0  # vertex rows so far
+    # generated bodies share one shape tuple: their mass properties and vertex rows are
+    # worked out once
+    known: dict[tuple, tuple] = {}
 
     for i, body in enumerate(bodies):
-        kind = T.BODY_TYPE_CODE[body.type]
-        body_type[i] = kind
-        props = body_mass_properties_3d(body)
-        center = np.asarray(props.center)
+        kind = int(body_type[i])
+        key = (body.shapes, body.mass, kind)
+        if key not in known:
+            known[key] = _body_3d(body, kind)
+        props, center, inverse, axes_q, principal, shapes, local, rows = known[key]
         com[i] = center
-        r = quat_matrix(body.orientation)
         if kind == T.BODY_DYNAMIC:
-            axes_q, principal = principal_axes(props.inertia)
-            if not (props.mass > 0.0 and principal[0] > 0.0):
-                why = f"its mass {props.mass:g} kg and least principal moment "
-                why += f"{principal[0]:g} kg·m² are not both positive"
-                raise ModelError(f"body {body.name!r}: a dynamic body needs a mass; {why}")
-            mass[i], inertia[i] = props.mass, props.inertia
-            inv_inertia[i] = np.linalg.inv(props.inertia)
-            inv_inertia[i] = 0.5 * (inv_inertia[i] + inv_inertia[i].T)
+            mass[i], inertia[i], inv_inertia[i] = props.mass, props.inertia, inverse
             axes[i], moments[i] = axes_q, principal
-        x[i] = np.asarray(body.position) + r @ center
-        q[i] = body.orientation
-        if kind != T.BODY_STATIC:
-            v[i] = body.velocity
-            w[i] = body.angular_velocity
-        if kind == T.BODY_DYNAMIC:
-            ang[i] = r @ props.inertia @ r.T @ w[i]
-        force[i] = body.force
-        fp = np.asarray(body.force_point) if body.force_point is not None else center
-        force_arm[i] = fp - center
-        torque[i] = body.torque
+        turned = body.orientation != IDENTITY
+        r = quat_matrix(body.orientation) if turned else None
+        if props.center != (0.0, 0.0, 0.0):
+            origin[i] += r @ center if turned else center
+        if kind == T.BODY_DYNAMIC and any(body.angular_velocity):
+            i_world = r @ props.inertia @ r.T if turned else props.inertia
+            ang[i] = i_world @ w[i]
+        if body.force_point is not None:
+            force_arm[i] = np.asarray(body.force_point) - center
+        shape_body.extend([i] * len(body.shapes))
+        parts.append(shapes)
+        vertices.append(local)
+        normals.append(rows)
 
-        for shape in body.shapes:
-            shape_body.append(i)
-            shape_kind.append(T.SHAPE_KIND_CODE_3D[shape.kind])
-            shape_radius.append(shape.radius)
-            shape_friction.append(shape.material.friction)
-            shape_restitution.append(shape.material.restitution)
-            local = np.asarray(shape.vertices, np.float64).reshape(-1, 3) - center
-            rows = np.zeros_like(local)
-            if shape.kind == "plane":
-                rows[0] = shape.normal
-            shape_vstart.append(count)
-            shape_vcount.append(len(local))
-            vertices.append(local)
-            normals.append(rows)
-            count += len(local)
+    flat = [s for shapes in parts for s in shapes]  # (kind, radius, friction, restitution, count)
+    shape_vcount = np.asarray([s[4] for s in flat], np.int32)
+    shape_vstart = (np.cumsum(shape_vcount) - shape_vcount).astype(np.int32)
+    shape_kind = [s[0] for s in flat]
+    shape_radius = [s[1] for s in flat]
+    shape_friction = [s[2] for s in flat]
+    shape_restitution = [s[3] for s in flat]
 
+    bodies_arrays = (body_type, mass, inertia, inv_inertia, com, force, force_arm, torque)
+    shapes = (shape_body, shape_kind, shape_radius, shape_vstart, shape_vcount)
+    shapes += (shape_friction, shape_restitution)
+    model = _model(
+        scene,
+        bodies_arrays,
+        shapes,
+        np.concatenate(vertices) if vertices else np.zeros((0, 3)),
+        np.concatenate(normals) if normals else np.zeros((0, 3)),
+        has_shapes=False,  # no contacts in 3D yet (issue 16)
+        axes=axes,
+        moments=moments,
+    )
+    return model, State(origin, q, np.zeros(0), v, w, ang)
+
+
+def _model(
+    scene: Scene,
+    bodies: tuple,
+    shapes: tuple,
+    vertex_local: np.ndarray,
+    normal_local: np.ndarray,
+    has_shapes: bool,
+    axes: np.ndarray,
+    moments: np.ndarray,
+) -> Model:
+    """The Model of either dimension from its columns: ``bodies`` = (type, mass,
+    inertia, inverse inertia, com, force, force arm, torque), ``shapes`` = (body, kind,
+    radius, vstart, vcount, friction, restitution)."""
+    body_type, mass, inertia, inv_inertia, com, force, force_arm, torque = bodies
     dynamic = body_type == T.BODY_DYNAMIC
-    inv_mass = np.where(dynamic, 1.0 / np.where(dynamic, mass, 1.0), 0.0)
     world = scene.world
-    model = Model(
+    body, kind, radius, vstart, vcount, friction, restitution = shapes
+    return Model(
         body_type=body_type,
         body_mass=mass,
         body_inertia=inertia,
-        body_inv_mass=inv_mass,
+        body_inv_mass=np.where(dynamic, 1.0 / np.where(dynamic, mass, 1.0), 0.0),
         body_inv_inertia=inv_inertia,
         body_com=com,
         body_force=force,
         body_force_arm=force_arm,
         body_torque=torque,
-        shape_body=np.asarray(shape_body, np.int32),
-        shape_kind=np.asarray(shape_kind, np.int32),
-        shape_radius=np.asarray(shape_radius, np.float64),
-        shape_vstart=np.asarray(shape_vstart, np.int32),
-        shape_vcount=np.asarray(shape_vcount, np.int32),
-        shape_friction=np.asarray(shape_friction, np.float64),
-        shape_restitution=np.asarray(shape_restitution, np.float64),
-        vertex_local=np.concatenate(vertices) if vertices else np.zeros((0, 3)),
-        normal_local=np.concatenate(normals) if normals else np.zeros((0, 3)),
+        shape_body=np.asarray(body, np.int32),
+        shape_kind=np.asarray(kind, np.int32),
+        shape_radius=np.asarray(radius, np.float64),
+        shape_vstart=np.asarray(vstart, np.int32),
+        shape_vcount=np.asarray(vcount, np.int32),
+        shape_friction=np.asarray(friction, np.float64),
+        shape_restitution=np.asarray(restitution, np.float64),
+        vertex_local=vertex_local,
+        normal_local=normal_local,
         gravity=np.asarray(world.gravity, np.float64),
         linear_damping=float(world.linear_damping),
         angular_damping=float(world.angular_damping),
         has_forces=bool(np.any(force != 0.0) or np.any(torque != 0.0)),
-        has_shapes=False,  # no contacts in 3D yet (issue 16)
+        has_shapes=has_shapes,
         body_axes=axes,
         body_moments=moments,
     )
-    return model, State(x, q, np.zeros(0), v, w, ang)
+
+
+def _body_3d(body: Body, kind: int) -> tuple:
+    """What build_3d needs of a body's shapes: (mass properties, COM (3,), inverse
+    tensor, principal axes, moments, each shape's (kind code, radius, friction,
+    restitution, vertex count), vertex rows about the COM (V, 3), normal rows (V, 3)).
+    Raises ModelError for a dynamic body without mass."""
+    props = body_mass_properties_3d(body)
+    center = np.asarray(props.center)
+    inverse = axes_q = principal = None
+    if kind == T.BODY_DYNAMIC:
+        axes_q, principal = principal_axes(props.inertia)
+        if not (props.mass > 0.0 and principal[0] > 0.0):
+            why = f"its mass {props.mass:g} kg and least principal moment "
+            why += f"{principal[0]:g} kg·m² are not both positive"
+            raise ModelError(f"body {body.name!r}: a dynamic body needs a mass; {why}")
+        inverse = np.linalg.inv(props.inertia)
+        inverse = 0.5 * (inverse + inverse.T)
+    shapes, local, rows = [], [], []
+    for shape in body.shapes:
+        m = shape.material
+        points = np.asarray(shape.vertices, np.float64).reshape(-1, 3) - center
+        normal = np.zeros_like(points)
+        if shape.kind == "plane":
+            normal[0] = shape.normal
+        code = T.SHAPE_KIND_CODE_3D[shape.kind]
+        shapes.append((code, shape.radius, m.friction, m.restitution, len(points)))
+        local.append(points)
+        rows.append(normal)
+    return (
+        props,
+        center,
+        inverse,
+        axes_q,
+        principal,
+        shapes,
+        np.concatenate(local),
+        np.concatenate(rows),
+    )
 
 
 def _contacts_possible(shape_body: list[int], body_type: np.ndarray) -> bool:

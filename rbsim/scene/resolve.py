@@ -16,8 +16,6 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from . import geometry3d as g3
 from . import schema
 from .geometry3d import IDENTITY, Quat
@@ -832,17 +830,25 @@ class _Resolver:
 
     def accelerations(self, body: Body, c: Checked) -> bool:
         """Whether the dynamic ``body``'s constant force and torque accelerate it (at its
-        centre of mass, and its points at the radius of gyration) by at most
-        ACCELERATION_MAX; reports the key if not."""
-        (fx, fy), torque = body.force, body.torque
-        if fx == fy == torque == 0.0:
+        centre of mass, and its points at the radius of gyration; in 3D the least one,
+        about the least principal axis) by at most ACCELERATION_MAX; reports the key if
+        not."""
+        force = body.force
+        torque = written = body.torque if isinstance(body.torque, tuple) else (body.torque,)
+        if not (any(force) or any(torque)):
             return True
-        props = body_mass_properties(body)
-        mass, inertia = props.mass, props.inertia
+        if len(force) == 3:
+            props3 = body_mass_properties_3d(body)
+            mass, inertia, center = props3.mass, principal_axes(props3.inertia)[1][0], props3.center
+            about = "least radius of gyration"
+        else:
+            props = body_mass_properties(body)
+            mass, inertia, center = props.mass, props.inertia, props.center
+            about = "radius of gyration"
         if not (mass > 0.0 and inertia > 0.0):
             return True  # no mass: rbsim.scene.compile says so
         limit = schema.ACCELERATION_MAX
-        linear = math.hypot(fx, fy) / mass
+        linear = math.hypot(*force) / mass
         if not linear <= limit:  # also catches an overflow to inf
             message = (
                 f"accelerates the body by {_num(linear)} m/s² (its mass is {_num(mass)} kg), "
@@ -850,16 +856,21 @@ class _Resolver:
             )
             self.error(c.mark_of("force"), c.path_of("force"), message)
             return False
-        if body.force_point is not None:
-            ax, ay = body.force_point[0] - props.center[0], body.force_point[1] - props.center[1]
-            torque += ax * fy - ay * fx
+        if body.force_point is not None:  # and the force's torque about the COM, r × F
+            r = [p - q for p, q in zip(body.force_point, center, strict=True)]
+            if len(force) == 3:
+                fx, fy, fz = force
+                arm = (r[1] * fz - r[2] * fy, r[2] * fx - r[0] * fz, r[0] * fy - r[1] * fx)
+                torque = tuple(t + a for t, a in zip(torque, arm, strict=True))
+            else:
+                torque = (torque[0] + (r[0] * force[1] - r[1] * force[0]),)
         radius = math.sqrt(inertia / mass)  # of gyration, m
-        angular = abs(torque) / math.sqrt(inertia * mass)  # m/s² at that radius
+        angular = math.hypot(*torque) / math.sqrt(inertia * mass)  # m/s² at that radius
         if not angular <= limit:
-            key = "torque" if body.torque != 0.0 else "force_point"
+            key = "torque" if any(written) else "force_point"
             message = (
                 f"the torque accelerates the body's points by {_num(angular)} m/s² (at its "
-                f"radius of gyration {_num(radius)} m), more than {_num(limit)} m/s²"
+                f"{about} {_num(radius)} m), more than {_num(limit)} m/s²"
             )
             self.error(c.mark_of(key), c.path_of(key), message)
             return False
@@ -1124,47 +1135,9 @@ class _Resolver:
             torque=c["torque"],
             orientation=q,
         )
-        if kind == "dynamic" and not self.accelerations_3d(body, c):
+        if kind == "dynamic" and not self.accelerations(body, c):
             return None
         return body
-
-    def accelerations_3d(self, body: Body, c: Checked) -> bool:
-        """As accelerations(), in 3D: the force over the mass, and the torque (with the
-        force's about the COM) over sqrt(I_min m), I_min the least principal moment."""
-        force, torque = np.asarray(body.force), np.asarray(body.torque)
-        if not (force.any() or torque.any()):
-            return True
-        props = body_mass_properties_3d(body)
-        _, moments = principal_axes(props.inertia)
-        mass, least = props.mass, moments[0]
-        if not (mass > 0.0 and least > 0.0):
-            return True  # no mass: rbsim.scene.compile says so
-        limit = schema.ACCELERATION_MAX
-        with np.errstate(over="ignore", invalid="ignore"):
-            linear = float(np.linalg.norm(force)) / mass
-        if not linear <= limit:  # also catches an overflow to inf
-            message = (
-                f"accelerates the body by {_num(linear)} m/s² (its mass is {_num(mass)} kg), "
-                f"more than {_num(limit)} m/s²"
-            )
-            self.error(c.mark_of("force"), c.path_of("force"), message)
-            return False
-        if body.force_point is not None:
-            arm = np.asarray(body.force_point) - np.asarray(props.center)
-            with np.errstate(over="ignore", invalid="ignore"):
-                torque = torque + np.cross(arm, force)
-        radius = math.sqrt(least / mass)  # of gyration about the least axis, m
-        with np.errstate(over="ignore", invalid="ignore"):
-            angular = float(np.linalg.norm(torque)) / math.sqrt(least * mass)
-        if not angular <= limit:
-            key = "torque" if any(body.torque) else "force_point"
-            message = (
-                f"the torque accelerates the body's points by {_num(angular)} m/s² (at its "
-                f"least radius of gyration {_num(radius)} m), more than {_num(limit)} m/s²"
-            )
-            self.error(c.mark_of(key), c.path_of(key), message)
-            return False
-        return True
 
     @staticmethod
     def _pyramid_3d(c: Checked) -> Iterable[tuple[str, Vec]]:
@@ -1281,7 +1254,9 @@ def _body_to_dict(body: Body) -> dict[str, Any]:
 def scene_to_dict(scene: Scene) -> dict[str, Any]:
     """The resolved scene as plain data (dicts, lists, str, int, float): every default
     filled in, generators expanded, materials inlined on each shape, `steps` instead of
-    `duration`. It is itself a valid version-1 scene that loads to an equal Scene."""
+    `duration`. It is itself a valid version-1 scene that loads to an equal Scene (but
+    for the point of a 3D plane whose normal is not along an axis, which it gives as
+    normal and offset again: that point may come back one rounding apart)."""
     w, s = scene.world, scene.solver
     return {
         "version": schema.SCENE_VERSION,

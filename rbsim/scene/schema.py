@@ -510,7 +510,9 @@ ROTATION = Key(
     "object",
     "A rotation by `angle` about `axis` (normalised on load; a zero axis is an error).",
     fields={
-        "axis": Key("vec3", "Axis of the rotation (any length but zero).", REQUIRED),
+        "axis": Key(
+            "vec3", "Axis of the rotation (any length but zero).", REQUIRED, within=LENGTH_MAX
+        ),
         "angle": Key("number", "Angle of the rotation, rad.", REQUIRED, within=ANGLE_MAX),
     },
     ref="rotation",
@@ -525,6 +527,7 @@ def _frame(what: str) -> dict[str, Key]:
             "quat",
             "Rotation of the shape in the body frame, unit quaternion [w, x, y, z] "
             "(normalised on load).",
+            within=LENGTH_MAX,
         ),
         "rotation": ROTATION,
     }
@@ -616,7 +619,9 @@ BODY_3D = Key(
         "type": BODY.fields["type"],
         "position": Key("vec3", "Body origin in the world, m.", _zero3, within=LENGTH_MAX),
         "orientation": Key(
-            "quat", "Orientation, unit quaternion [w, x, y, z] (normalised on load)."
+            "quat",
+            "Orientation, unit quaternion [w, x, y, z] (normalised on load).",
+            within=LENGTH_MAX,
         ),
         "rotation": replace(
             ROTATION,
