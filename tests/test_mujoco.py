@@ -380,3 +380,24 @@ def test_free_spin_tolerance_terms_first_and_second_order():
     assert mj[0] / mj[1] == pytest.approx(2.0, rel=0.02)  # first order
     assert rb[0] / rb[1] == pytest.approx(4.0, rel=0.05)  # second order
     assert rb[0] < 1e-3 * mj[0]
+
+
+def test_impacts_are_lined_up_in_3d_too(tmp_path: Path):
+    """The event alignment of `rbsim compare` on 3D trajectories: the two runs of the
+    projectile with a velocity jump put in by hand, one frame apart (an impact each
+    engine lands one step apart) is no difference; a different rebound is."""
+    from rbsim.io.trajectory import load_trajectory
+    from rbsim.tools.compare import body_diffs
+
+    code, _out, err = rbsim("compare", COMPARE3D / "projectile.yaml", "-o", tmp_path)
+    assert code == 0, err
+    tol = {"velocity": 1e-9, "angular_velocity": 1e-9}
+    for other_jump, expected in (([0, 8, 0], 0.0), ([0, 7.5, 0], 0.5)):
+        rb = load_trajectory(tmp_path / "projectile_3d.rbsim.h5")
+        mj = load_trajectory(tmp_path / "projectile_3d.mujoco.h5")
+        rb.velocity[60:, 0] += [0, 8, 0]  # a bounce between frames 59 and 60
+        mj.velocity[61:, 0] += other_jump  # ... and a frame later
+        (ball,) = body_diffs(rb, mj, tol, engines=("rbsim", "mujoco"))
+        assert ball.impacts == 1 and ball.unmatched == []
+        assert ball.max_offset == pytest.approx(1 / 60)
+        assert ball.max_velocity == pytest.approx(expected, abs=1e-9)  # round-off

@@ -122,7 +122,8 @@ class CompareResult:
     momentum: linear momentum at the end (kg·m/s); us_per_step: wall time per scene step
     in stepping alone (µs); violations: one message per checked quantity over tolerance;
     reference: the other engine ("pymunk" in 2D, "mujoco" in 3D), the key of its entries
-    beside "rbsim"; pymunk_settings: the reference engine's settings (MuJoCo's in 3D)."""
+    beside "rbsim"; pymunk_settings: the reference engine's settings (MuJoCo's in 3D);
+    angular_momentum: about the world origin at the end (kg·m²/s; one value in 2D)."""
 
     scene: str
     steps: int
@@ -137,6 +138,7 @@ class CompareResult:
     statistics: dict[str, dict[str, float]] | None = None
     statistics_tolerances: dict[str, float] = field(default_factory=dict)
     reference: str = "pymunk"
+    angular_momentum: dict[str, list[float]] = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
@@ -160,6 +162,7 @@ class CompareResult:
             "bodies": [dataclasses.asdict(b) for b in self.bodies],
             "energy": dict(self.energy),
             "linear_momentum": {k: list(v) for k, v in self.momentum.items()},
+            "angular_momentum": {k: list(v) for k, v in self.angular_momentum.items()},
             "us_per_step": dict(self.us_per_step),
             "files": dict(self.files),
             "pymunk_settings": dict(self.pymunk_settings),
@@ -205,6 +208,13 @@ class CompareResult:
             lines.append(
                 f"  {'momentum ' + axis + ' kg m/s':<22}  {self.momentum['rbsim'][k]:>14.6g}  "
                 f"{self.momentum[other][k]:>14.6g}"
+            )
+        spin = self.angular_momentum
+        for k in range(len(spin.get("rbsim", ()))):
+            axis = " " + "xyz"[k] if len(spin["rbsim"]) == 3 else ""
+            lines.append(
+                f"  {'ang. mom.' + axis + ' kg m²/s':<22}  {spin['rbsim'][k]:>14.6g}  "
+                f"{spin[other][k]:>14.6g}"
             )
         lines.append(
             f"  {'wall time / step µs':<22}  {self.us_per_step['rbsim']:>14.2f}  "
@@ -270,25 +280,32 @@ def _columns(series: np.ndarray) -> np.ndarray:
     return series[:, :, None] if series.ndim == 2 else series
 
 
-def jump_frames(time: np.ndarray, series: np.ndarray, threshold: float) -> np.ndarray:
-    """(T-1,) bool: whether the change of `series` (T, k) from frame i to i+1 departs from
-    the local trend by more than `threshold` (the series' unit). The trend is the median
-    rate of change (per second) of the three intervals on either side of i, times the
-    interval's length (time (T,) s), so a steady acceleration or a smooth turn is not a
-    jump (the trend is off by at most 2 |v''| h², at the ends), and neither is the
-    interval next to a jump spread over two intervals (two outliers of six)."""
+def trend(time: np.ndarray, series: np.ndarray) -> np.ndarray:
+    """(T-1, k) the local trend of `series` (T, k): per interval i (frame i to i+1), the
+    median rate of change (per second; time (T,) s) of the three intervals on either
+    side of it, i itself left out. A steady acceleration or a smooth turn follows it (off
+    by at most 2 |v''| h², at the ends), and a jump, even spread over two intervals (two
+    outliers of six), does not move it."""
     change = np.diff(series, axis=0)
     if len(change) == 0:
-        return np.zeros(0, bool)
-    span = np.diff(time)[:, None]
-    rate = change / span
+        return np.zeros((0, series.shape[1]))
+    rate = change / np.diff(time)[:, None]
     padded = np.pad(rate, ((3, 3), (0, 0)), constant_values=np.nan)
     n = len(rate)
     around = np.stack([padded[k : k + n] for k in (0, 1, 2, 4, 5, 6)])
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN: fewer than 2 frames
-        trend = np.nan_to_num(np.nanmedian(around, axis=0))
-    return np.linalg.norm(change - trend * span, axis=1) > threshold
+        return np.nan_to_num(np.nanmedian(around, axis=0))
+
+
+def jump_frames(time: np.ndarray, series: np.ndarray, threshold: float) -> np.ndarray:
+    """(T-1,) bool: whether the change of `series` (T, k) from frame i to i+1 departs from
+    its local `trend` times the interval's length by more than `threshold` (the series'
+    unit): a steady acceleration, a smooth turn or the interval next to a jump spread
+    over two intervals are not jumps."""
+    change = np.diff(series, axis=0)
+    span = np.diff(time)[:, None]
+    return np.linalg.norm(change - trend(time, series) * span, axis=1) > threshold
 
 
 def events(jumps: np.ndarray) -> list[tuple[int, int]]:
@@ -325,22 +342,41 @@ def pair_events(
 
 
 def aligned_difference(
-    a: np.ndarray, b: np.ndarray, pairs: list[tuple[tuple[int, int], tuple[int, int]]]
+    a: np.ndarray,
+    b: np.ndarray,
+    pairs: list[tuple[tuple[int, int], tuple[int, int]]],
+    time: np.ndarray | None = None,
 ) -> np.ndarray:
     """(T,) |a - b| per frame for two (T, k) series, with paired jumps lined up: on the
     frames between the two engines' jumps of a pair (one engine has jumped, the other
     not yet), each engine's state is compared with the nearest state of the other over
     the pair's frames (from the frame before the first jump to the frame after the last),
-    the larger of the two ways. Everywhere else, frame by frame: a wrong post-impact
-    velocity or a missed impact still shows in full after the pair's frames."""
+    carried to the frame's time along its local `trend` (so that gravity acting over the
+    offset is no difference; time (T,) s, None: no carrying), the larger of the two
+    ways. Everywhere else, frame by frame: a wrong post-impact velocity or a missed
+    impact still shows in full after the pair's frames."""
     diff = np.linalg.norm(a - b, axis=1)
+    if not pairs:
+        return diff
+    carry = time is not None and len(a) > 1
+
+    def nearest(x: np.ndarray, k: int, y: np.ndarray, rate: np.ndarray | None, w: range) -> float:
+        best = math.inf
+        for j in w:
+            guess = y[j]
+            if rate is not None and j != k:
+                interval = min(j, k) if j < k else j - 1  # the rate beside j, towards k
+                guess = y[j] + rate[interval] * (time[k] - time[j])
+            best = min(best, float(np.linalg.norm(x[k] - guess)))
+        return best
+
+    rate_a = trend(time, a) if carry else None
+    rate_b = trend(time, b) if carry else None
     for (a0, a1), (b0, b1) in pairs:
         lo, hi = min(a0, b0) + 1, max(a1, b1)
-        window = slice(lo - 1, hi + 2)
+        window = range(lo - 1, min(hi + 2, len(a)))
         for k in range(lo, hi + 1):
-            ab = np.linalg.norm(a[k] - b[window], axis=1).min()
-            ba = np.linalg.norm(b[k] - a[window], axis=1).min()
-            diff[k] = max(ab, ba)
+            diff[k] = max(nearest(a, k, b, rate_b, window), nearest(b, k, a, rate_a, window))
     return diff
 
 
@@ -380,8 +416,8 @@ def body_diffs(
                 jumps[e] |= jump_frames(time, series[e][:, i], threshold)
         ev_ra, ev_pm = events(jumps[0]), events(jumps[1])
         pairs, lone_ra, lone_pm = pair_events(ev_ra, ev_pm)
-        dvel = aligned_difference(vel[0][:, i], vel[1][:, i], pairs)
-        domg = aligned_difference(omega[0][:, i], omega[1][:, i], pairs)
+        dvel = aligned_difference(vel[0][:, i], vel[1][:, i], pairs, time)
+        domg = aligned_difference(omega[0][:, i], omega[1][:, i], pairs, time)
         offsets = [float(time[b[0]] - time[a[0]]) for a, b in pairs]
         unmatched = [(engines[0], float(time[ev_ra[k][0] + 1])) for k in lone_ra] + [
             (engines[1], float(time[ev_pm[k][0] + 1])) for k in lone_pm
@@ -646,6 +682,10 @@ def compare_scene(
             reference: [float(x) for x in pm.observables["linear_momentum"][-1]],
         },
         us_per_step={"rbsim": per_step(summary.step_time), reference: per_step(other.step_time)},
+        angular_momentum={
+            name: np.atleast_1d(tr.observables["angular_momentum"][-1]).astype(float).tolist()
+            for name, tr in (("rbsim", ra), (reference, pm))
+        },
         files=files,
         pymunk_settings=dataclasses.asdict(options["settings"]),
         violations=violations(bodies, tol) + statistics_violations(stats or {}, stat_tol),
