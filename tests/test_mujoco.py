@@ -401,3 +401,18 @@ def test_impacts_are_lined_up_in_3d_too(tmp_path: Path):
         assert ball.impacts == 1 and ball.unmatched == []
         assert ball.max_offset == pytest.approx(1 / 60)
         assert ball.max_velocity == pytest.approx(expected, abs=1e-9)  # round-off
+
+
+def test_checkpoint_restores_the_state():
+    scene = load_scene(COMPARE3D / "thrown_compound.yaml")
+    engine = MujocoEngine(scene)
+    engine.advance(30)
+    saved = engine.checkpoint()
+    engine.advance(30)
+    end = engine.read()
+    again = MujocoEngine(scene)
+    again.restore(saved)
+    assert again.step_index == 30
+    again.advance(30)
+    np.testing.assert_array_equal(again.read().orientation, end.orientation)  # bit for bit
+    np.testing.assert_array_equal(again.read().velocity, end.velocity)
