@@ -6,8 +6,6 @@ and 3D runs end to end (the contract's layout, resume after SIGTERM, determinism
 from __future__ import annotations
 
 import signal
-import subprocess
-import sys
 import textwrap
 import time
 
@@ -23,6 +21,7 @@ from rbsim.io.trajectory import Trajectory, load_trajectory
 
 from .conftest import rbsim as cli
 from .conftest import scene_from
+from .test_output import start_run
 
 # The tennis-racket flip: a free brick spun at 5 rad/s about its intermediate axis (y;
 # moments 0.05 : 0.10 : 0.13 kg·m²) with a 0.2% perturbation about the other two.
@@ -451,11 +450,7 @@ def test_3d_runs_are_deterministic_and_resume_after_sigterm_bit_identically(tmp_
     a = load_trajectory(ref)
     assert same_trajectories(a, load_trajectory(again))  # the same scene: the same bits
     stopped = tmp_path / "stopped.h5"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "rbsim", "run", str(scene), "-o", str(stopped), "-q"],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-    )
+    proc = start_run(scene, "-o", stopped)
     deadline = time.monotonic() + 60
     while not stopped.exists() and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.01)

@@ -19,48 +19,8 @@ from rbsim.io.trajectory import (
     load_trajectory,
     summarize,
 )
+from rbsim.scene.compile import Model, State
 from rbsim.scene.types import ROTATION_CODE, SHAPE_BOX
-
-
-class Model3(NamedTuple):
-    """The contract's compiled model fields (rbsim.scene.compile.Model in 3D)."""
-
-    body_type: np.ndarray
-    body_mass: np.ndarray
-    body_inertia: np.ndarray
-    body_inv_mass: np.ndarray
-    body_inv_inertia: np.ndarray
-    body_com: np.ndarray
-    body_axes: np.ndarray
-    body_moments: np.ndarray
-    body_force: np.ndarray
-    body_force_arm: np.ndarray
-    body_torque: np.ndarray
-    shape_body: np.ndarray
-    shape_kind: np.ndarray
-    shape_radius: np.ndarray
-    shape_vstart: np.ndarray
-    shape_vcount: np.ndarray
-    shape_friction: np.ndarray
-    shape_restitution: np.ndarray
-    vertex_local: np.ndarray
-    normal_local: np.ndarray
-    gravity: np.ndarray
-    linear_damping: float
-    angular_damping: float
-    has_forces: bool
-    has_shapes: bool
-
-
-class State3(NamedTuple):
-    """The contract's compiled state fields in 3D."""
-
-    body_x: np.ndarray
-    body_q: np.ndarray
-    body_angle: np.ndarray
-    body_v: np.ndarray
-    body_w: np.ndarray
-    body_l: np.ndarray
 
 
 def box_world(
@@ -72,11 +32,12 @@ def box_world(
     rotation: str = "split",
     dt: float = 1e-3,
 ) -> CoreWorld:
-    """One box (principal axes = body axes, COM off the origin) as compiled arrays."""
+    """One box (principal axes = body axes, COM off the origin) as compiled arrays,
+    built by hand as the contract lays them out (not by the scene compiler)."""
     a, b, c = size
     moments = mass / 12.0 * np.array([b * b + c * c, a * a + c * c, a * a + b * b])
     corners = np.array([[x, y, z] for x in (-a, a) for y in (-b, b) for z in (-c, c)]) / 2
-    model = Model3(
+    model = Model(
         body_type=np.zeros(1, np.int8),
         body_mass=np.array([mass]),
         body_inertia=np.diag(moments)[None],
@@ -104,7 +65,7 @@ def box_world(
         has_shapes=False,
     )
     w = np.array([omega])
-    state = State3(
+    state = State(
         body_x=np.array([com]) + np.array([[0.0, 1.0, 0.0]]),
         body_q=np.array([[1.0, 0.0, 0.0, 0.0]]),
         body_angle=np.zeros(0),
@@ -123,7 +84,7 @@ def box_world(
         restitution_rule=3,
         elastic=False,
     )
-    return CoreWorld.from_arrays(model, state, config, 3)  # type: ignore[arg-type]
+    return CoreWorld.from_arrays(model, state, config, 3)
 
 
 # a 1×1×1 box's 12 triangles, counter-clockwise from outside, over corners (x,y,z) in
@@ -343,7 +304,7 @@ def test_world3_checks_arrays_as_they_cross() -> None:
             CoreWorld.from_arrays(m, s, config, 3)
     with pytest.raises(ValueError, match="rotation must be"):
         CoreWorld.from_arrays(model, state, config._replace(rotation=3), 3)
-    short = NamedTuple("Short", [(k, object) for k in Model3._fields if k != "body_axes"])
+    short = NamedTuple("Short", [(k, object) for k in Model._fields if k != "body_axes"])
     fields = {k: v for k, v in model._asdict().items() if k != "body_axes"}
     with pytest.raises(ValueError, match="missing key body_axes"):
         CoreWorld.from_arrays(short(**fields), state, config, 3)  # type: ignore[arg-type]

@@ -133,7 +133,7 @@ def build(scene: Scene) -> tuple[Model, State]:
     v = np.zeros((n, 2))
     w = np.zeros(n)
 
-    shape_body, shape_kind, shape_radius, shape_vstart, shape_vcount = [], [], [], [], []
+    shape_body, shape_kind, shape_radius, shape_vcount = [], [], [], []
     shape_friction, shape_restitution = [], []
     vertices: list[tuple[float, float]] = []
     normals: list[tuple[float, float]] = []
@@ -172,7 +172,6 @@ def build(scene: Scene) -> tuple[Model, State]:
             shape_radius.append(shape.radius)
             shape_friction.append(shape.material.friction)
             shape_restitution.append(shape.material.restitution)
-            shape_vstart.append(len(vertices))
             local = [(p[0] - props.center[0], p[1] - props.center[1]) for p in shape.vertices]
             if shape.kind == "segment":
                 shape_kind.append(T.SHAPE_SEGMENT)
@@ -193,13 +192,13 @@ def build(scene: Scene) -> tuple[Model, State]:
 
     dynamic = body_type == T.BODY_DYNAMIC
     inv_inertia = np.where(dynamic, 1.0 / np.where(dynamic, inertia, 1.0), 0.0)
-    bodies_arrays = (body_type, mass, inertia, inv_inertia, com, force, force_arm, torque)
-    shapes = (shape_body, shape_kind, shape_radius, shape_vstart, shape_vcount)
-    shapes += (shape_friction, shape_restitution)
+    rows = zip(
+        shape_kind, shape_radius, shape_friction, shape_restitution, shape_vcount, strict=True
+    )
     model = _model(
         scene,
-        bodies_arrays,
-        shapes,
+        (body_type, mass, inertia, inv_inertia, com, force, force_arm, torque),
+        (shape_body, list(rows)),
         np.asarray(vertices, np.float64).reshape(-1, 2),
         np.asarray(normals, np.float64).reshape(-1, 2),
         has_shapes=_contacts_possible(shape_body, body_type),
@@ -233,7 +232,7 @@ def build_3d(scene: Scene) -> tuple[Model, State]:
     torque = column([b.torque for b in bodies], 3)
 
     shape_body: list[int] = []
-    parts: list[tuple] = []  # per body: its shapes' (kind, radius, friction, restitution)
+    parts: list[list] = []  # per body: its shapes' (kind, radius, friction, restitution, count)
     vertices: list[np.ndarray] = []
     normals: list[np.ndarray] = []
     # generated bodies share one shape tuple: their mass properties and vertex rows are
@@ -264,21 +263,10 @@ def build_3d(scene: Scene) -> tuple[Model, State]:
         vertices.append(local)
         normals.append(rows)
 
-    flat = [s for shapes in parts for s in shapes]  # (kind, radius, friction, restitution, count)
-    shape_vcount = np.asarray([s[4] for s in flat], np.int32)
-    shape_vstart = (np.cumsum(shape_vcount) - shape_vcount).astype(np.int32)
-    shape_kind = [s[0] for s in flat]
-    shape_radius = [s[1] for s in flat]
-    shape_friction = [s[2] for s in flat]
-    shape_restitution = [s[3] for s in flat]
-
-    bodies_arrays = (body_type, mass, inertia, inv_inertia, com, force, force_arm, torque)
-    shapes = (shape_body, shape_kind, shape_radius, shape_vstart, shape_vcount)
-    shapes += (shape_friction, shape_restitution)
     model = _model(
         scene,
-        bodies_arrays,
-        shapes,
+        (body_type, mass, inertia, inv_inertia, com, force, force_arm, torque),
+        (shape_body, [row for rows in parts for row in rows]),
         np.concatenate(vertices) if vertices else np.zeros((0, 3)),
         np.concatenate(normals) if normals else np.zeros((0, 3)),
         has_shapes=False,  # no contacts in 3D yet (issue 16)
@@ -299,12 +287,16 @@ def _model(
     moments: np.ndarray,
 ) -> Model:
     """The Model of either dimension from its columns: ``bodies`` = (type, mass,
-    inertia, inverse inertia, com, force, force arm, torque), ``shapes`` = (body, kind,
-    radius, vstart, vcount, friction, restitution)."""
+    inertia, inverse inertia, com, force, force arm, torque), ``shapes`` = (each
+    shape's body, each shape's (kind code, radius, friction, restitution, vertex
+    count)); a shape's vertices follow the previous shape's."""
     body_type, mass, inertia, inv_inertia, com, force, force_arm, torque = bodies
     dynamic = body_type == T.BODY_DYNAMIC
     world = scene.world
-    body, kind, radius, vstart, vcount, friction, restitution = shapes
+    body, rows = shapes
+    columns = [list(c) for c in zip(*rows, strict=True)] if rows else [[] for _ in range(5)]
+    kind, radius, friction, restitution, vcount = columns
+    vstart = np.cumsum(vcount, dtype=np.int64) - np.asarray(vcount, np.int64)
     return Model(
         body_type=body_type,
         body_mass=mass,

@@ -681,14 +681,14 @@ class _Resolver:
         """One resolved shape entry, or INVALID."""
         if not _ok(c):
             return INVALID
-        if self.dimension == 3:
-            return self.shape_3d(c, body_material)
-        kinds = [k for k in SHAPE_KINDS if k in c]
+        kinds = [k for k in (SHAPE_KINDS_3D if self.dimension == 3 else SHAPE_KINDS) if k in c]
         material = self.material(c, body_material) if _ok(body_material) else INVALID
         if len(kinds) != 1 or not _ok(c[kinds[0]]) or not _ok(*c[kinds[0]].values()):
             return INVALID
         kind = kinds[0]
         spec = c[kind]
+        if self.dimension == 3:
+            return self.shape_3d(kind, spec, material)
         if kind == "circle":
             offset = spec["offset"]
             shape = Shape(kind, (offset,), spec["radius"], material, offset=offset)
@@ -772,8 +772,9 @@ class _Resolver:
                     )
         if not _ok(*shapes):
             return None
-        if self.dimension == 3:
-            return self.body_3d(c, name, kind, shapes)
+        q = self.orientation(c) if self.dimension == 3 else IDENTITY
+        if not _ok(q) or (self.dimension == 3 and not self.planes_static(c, kind, shapes)):
+            return None
         if (
             kind == "dynamic"
             and "mass" not in c
@@ -793,7 +794,7 @@ class _Resolver:
             name=name,
             type=kind,
             position=c["position"],
-            angle=c["angle"],
+            angle=c.get("angle", 0.0),  # none in 3D
             velocity=c["velocity"],
             angular_velocity=c["angular_velocity"],
             shapes=tuple(shapes),
@@ -801,6 +802,7 @@ class _Resolver:
             force=c["force"],
             force_point=c.get("force_point"),
             torque=c["torque"],
+            orientation=q,
         )
         if kind == "dynamic" and not self.accelerations(body, c):
             return None
@@ -1057,14 +1059,8 @@ class _Resolver:
         message = f"a plane is for static bodies only ({why}): it is an unbounded half-space"
         self.error(spec.mark_of("plane"), spec.path_of("plane"), message)
 
-    def shape_3d(self, c: Checked, body_material: Material | Any) -> Shape | Any:
-        """One resolved 3D shape entry, or INVALID."""
-        kinds = [k for k in SHAPE_KINDS_3D if k in c]
-        material = self.material(c, body_material) if _ok(body_material) else INVALID
-        if len(kinds) != 1 or not _ok(c[kinds[0]]) or not _ok(*c[kinds[0]].values()):
-            return INVALID
-        kind = kinds[0]
-        spec = c[kind]
+    def shape_3d(self, kind: str, spec: Checked, material: Material | Any) -> Shape | Any:
+        """One resolved 3D shape of ``kind`` from its checked ``spec``, or INVALID."""
         if kind == "plane":
             n = self.unit(spec, "normal", "the normal of a plane")
             if not _ok(n, material):
@@ -1109,35 +1105,14 @@ class _Resolver:
             return INVALID
         return Shape(kind, vertices, 0.0, material, _ZERO3, _ZERO3, faces=faces)
 
-    def body_3d(self, c: Checked, name: str, kind: str, shapes: list[Shape]) -> Body | None:
-        """The rest of body() for a 3D body: orientation, planes, proportions, forces."""
-        q = self.orientation(c)
+    def planes_static(self, c: Checked, kind: str, shapes: list[Shape]) -> bool:
+        """Whether the body's planes, if any, are on a static body; reports one if not."""
         entries = [c["shape"]] if "shape" in c else c["shapes"]
-        if kind != "static":
-            for spec, sh in zip(entries, shapes, strict=True):
-                if sh.kind == "plane":
-                    self.plane_error(spec, f"this body is {kind}")
-                    return None
-        where = "shape" if "shape" in c else "shapes"
-        if not _ok(q) or not self.proportions(shapes, c.mark_of(where), c.path_of(where)):
-            return None
-        body = Body(
-            name=name,
-            type=kind,
-            position=c["position"],
-            angle=0.0,
-            velocity=c["velocity"],
-            angular_velocity=c["angular_velocity"],
-            shapes=tuple(shapes),
-            mass=c.get("mass"),
-            force=c["force"],
-            force_point=c.get("force_point"),
-            torque=c["torque"],
-            orientation=q,
-        )
-        if kind == "dynamic" and not self.accelerations(body, c):
-            return None
-        return body
+        for spec, sh in zip(entries, shapes, strict=True):
+            if sh.kind == "plane" and kind != "static":
+                self.plane_error(spec, f"this body is {kind}")
+                return False
+        return True
 
     @staticmethod
     def _pyramid_3d(c: Checked) -> Iterable[tuple[str, Vec]]:
