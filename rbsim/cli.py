@@ -383,7 +383,7 @@ def info(trajectory: str) -> None:
     type=click.Path(file_okay=False),
     default="out/compare",
     show_default=True,
-    help="Folder for <name>.rbsim.h5 and <name>.pymunk.h5.",
+    help="Folder for <name>.rbsim.h5 and <name>.pymunk.h5 (<name>.mujoco.h5 in 3D).",
 )
 @click.option("--set", "overrides", multiple=True, metavar="KEY.PATH=VALUE", help="As for run.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON dict instead of the table.")
@@ -403,10 +403,12 @@ def info(trajectory: str) -> None:
 )
 @click.option(
     "--pymunk-set",
+    "--reference-set",
     "pymunk_overrides",
     multiple=True,
     metavar="KEY.PATH=VALUE",
-    help="Override a scene value for pymunk only (after --set).",
+    help="Override a scene value for the reference engine only (pymunk in 2D, MuJoCo in "
+    "3D), after --set.",
 )
 def compare(
     scene: str,
@@ -420,12 +422,12 @@ def compare(
     with_statistics: bool,
     pymunk_overrides: tuple[str, ...],
 ) -> None:
-    """Run SCENE in rbsim and in pymunk and report their differences (exit 4 when a
-    difference exceeds its tolerance)."""
-    from .engines.pymunk import UnsupportedScene
+    """Run SCENE in rbsim and in a reference engine (pymunk in 2D, MuJoCo in 3D) and
+    report their differences (exit 4 when a difference exceeds its tolerance)."""
+    from .engines import EngineUnavailable, UnsupportedScene
     from .run import RunFailed
     from .scene.compile import ModelError
-    from .tools.compare import compare_scene
+    from .tools.compare import compare_scene, reference_engine
 
     sc = _load(scene, overrides)
     pm_sc = _load(scene, overrides + pymunk_overrides) if pymunk_overrides else None
@@ -442,7 +444,9 @@ def compare(
             pymunk_scene=pm_sc,
         )
     except UnsupportedScene as err:
-        _fail(EXIT_SCENE, f"{scene}: pymunk cannot express this scene: {err}")
+        _fail(EXIT_SCENE, f"{scene}: {reference_engine(sc)} cannot express this scene: {err}")
+    except EngineUnavailable as err:
+        _fail(EXIT_RUNTIME, f"{scene}: {err}")
     except ModelError as err:
         _fail(EXIT_SCENE, f"{scene}: {err}")
     except RunFailed as err:

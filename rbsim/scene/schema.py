@@ -405,6 +405,7 @@ COMPARE = Key(
         "position": Key("number", "Position, m.", ge=0),
         "angle": Key("number", "Angle, rad.", ge=0),
         "velocity": Key("number", "Velocity, m/s.", ge=0),
+        "angular_velocity": Key("number", "Angular velocity, rad/s.", ge=0),
         "iterations": Key(
             "integer",
             "pymunk solver iterations per pymunk step (default 10).",
