@@ -22,7 +22,7 @@ $(BUILD_DEPS): pyproject.toml
 # rbsim with its compiled engine (C++20 with the machine's g++), editable: Python files
 # are used in place, the engine is rebuilt when a C++ file changes
 $(STAMP): $(BUILD_DEPS) pyproject.toml $(ENGINE)
-	$(BIN)/pip install --quiet --no-build-isolation -e '.[test,plot]'
+	$(BIN)/pip install --quiet --no-build-isolation -e '.[test,plot,mujoco]'
 	touch $(STAMP)
 
 lint: $(STAMP)
@@ -77,10 +77,11 @@ demo: $(STAMP)
 batch: $(STAMP)
 	$(BIN)/rbsim batch scenes/*.yaml -o out/
 
-COMPARE_SCENES := $(wildcard scenes/compare/*.yaml scenes/compare/statistics/*.yaml)
+COMPARE_SCENES := $(wildcard scenes/compare/*.yaml scenes/compare/statistics/*.yaml \
+	scenes/3d/compare/*.yaml)
 
-# rbsim against pymunk on every scene of scenes/compare/ (and its statistics/); fails if
-# any exits non-zero.
+# rbsim against pymunk on every scene of scenes/compare/ (and its statistics/), and
+# against MuJoCo on every scene of scenes/3d/compare/; fails if any exits non-zero.
 .PHONY: compare
 compare: $(STAMP)
 	@status=0; for s in $(COMPARE_SCENES); do \

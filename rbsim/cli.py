@@ -383,7 +383,7 @@ def info(trajectory: str) -> None:
     type=click.Path(file_okay=False),
     default="out/compare",
     show_default=True,
-    help="Folder for <name>.rbsim.h5 and <name>.pymunk.h5.",
+    help="Folder for <name>.rbsim.h5 and <name>.pymunk.h5 (<name>.mujoco.h5 in 3D).",
 )
 @click.option("--set", "overrides", multiple=True, metavar="KEY.PATH=VALUE", help="As for run.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON dict instead of the table.")
@@ -403,10 +403,12 @@ def info(trajectory: str) -> None:
 )
 @click.option(
     "--pymunk-set",
+    "--reference-set",
     "pymunk_overrides",
     multiple=True,
     metavar="KEY.PATH=VALUE",
-    help="Override a scene value for pymunk only (after --set).",
+    help="Override a scene value for the reference engine only (pymunk in 2D, MuJoCo in "
+    "3D), after --set.",
 )
 def compare(
     scene: str,
@@ -420,12 +422,12 @@ def compare(
     with_statistics: bool,
     pymunk_overrides: tuple[str, ...],
 ) -> None:
-    """Run SCENE in rbsim and in pymunk and report their differences (exit 4 when a
-    difference exceeds its tolerance)."""
-    from .engines.pymunk import UnsupportedScene
+    """Run SCENE in rbsim and in a reference engine (pymunk in 2D, MuJoCo in 3D) and
+    report their differences (exit 4 when a difference exceeds its tolerance)."""
+    from .engines import EngineUnavailable, UnsupportedScene
     from .run import RunFailed
     from .scene.compile import ModelError
-    from .tools.compare import compare_scene
+    from .tools.compare import compare_scene, reference_engine
 
     sc = _load(scene, overrides)
     pm_sc = _load(scene, overrides + pymunk_overrides) if pymunk_overrides else None
@@ -442,7 +444,9 @@ def compare(
             pymunk_scene=pm_sc,
         )
     except UnsupportedScene as err:
-        _fail(EXIT_SCENE, f"{scene}: pymunk cannot express this scene: {err}")
+        _fail(EXIT_SCENE, f"{scene}: {reference_engine(sc)} cannot express this scene: {err}")
+    except EngineUnavailable as err:
+        _fail(EXIT_RUNTIME, f"{scene}: {err}")
     except ModelError as err:
         _fail(EXIT_SCENE, f"{scene}: {err}")
     except RunFailed as err:
@@ -483,7 +487,7 @@ def compare(
     nargs=4,
     type=float,
     metavar="X0 Y0 X1 Y1",
-    help="World rectangle to show, m [default: fitted to the moving bodies].",
+    help="2D only: world rectangle to show, m [default: fitted to the moving bodies].",
 )
 @click.option(
     "--size",
@@ -619,7 +623,9 @@ def plot(trajectories: tuple[str, ...], output: str | None) -> None:
 @click.option("--iterations", metavar="LIST", help="rbsim iterations per substep [default: 1,4].")
 @click.option("--integrator", metavar="LIST", help="rbsim integrators [default: symplectic_euler].")
 @click.option(
-    "--rotation", metavar="LIST", help="rbsim rotation updates [default: normalize,exact]."
+    "--rotation",
+    metavar="LIST",
+    help="rbsim rotation updates [default: normalize,exact in 2D; normalize,exact,split in 3D].",
 )
 @click.option("--pymunk-iterations", metavar="LIST", help="pymunk iterations [default: 5,10,30].")
 @click.option("--no-pymunk", is_flag=True, help="Sweep rbsim only.")
@@ -653,19 +659,29 @@ def sweep(
     """Speed against error: run SCENE over a grid of settings in rbsim and pymunk, print
     the table and write CSV, JSON and a log-log plot with each engine's Pareto front.
     With --workers or --scheduler the error runs go to a Dask cluster; the timed runs
-    still run one at a time, on one worker."""
+    still run one at a time, on one worker. A 3D scene sweeps the rotation updates
+    side by side over --dt, --substeps and --rotation instead (rbsim only): cost against
+    the energy error and the error of a torque-free body's period against its closed form."""
     from .batch import BatchError
     from .engines.pymunk import UnsupportedScene
     from .scene.compile import ModelError
+    from .scene.types import ROTATIONS
     from .tools.reference import ReferenceError
-    from .tools.sweep import Grid, PlotUnavailable, SweepError, parse_list, run_sweep
+    from .tools.sweep import (
+        Grid,
+        PlotUnavailable,
+        SweepError,
+        parse_list,
+        run_rotation_sweep,
+        run_sweep,
+    )
 
     lists = {
         "--dt": (dts, "dts", "dt"),
         "--substeps": (substeps, "substeps", "int"),
         "--iterations": (iterations, "iterations", "int"),
         "--integrator": (integrator, "integrators", ("symplectic_euler", "explicit_euler")),
-        "--rotation": (rotation, "rotations", ("normalize", "exact")),
+        "--rotation": (rotation, "rotations", ROTATIONS),
         "--pymunk-iterations": (pymunk_iterations, "pymunk_iterations", "int"),
     }
     grid_args = {}
@@ -695,7 +711,8 @@ def sweep(
                 if cluster.dashboard:
                     click.echo(f"dashboard: {cluster.dashboard}", err=True)
                 pool = DaskPool(cluster.client)
-            result = run_sweep(
+            sweep_fn = run_rotation_sweep if sc.world.dimension == 3 else run_sweep
+            result = sweep_fn(
                 sc, Grid(**grid_args), repeats=repeats, duration=duration, progress=step, pool=pool
             )
     except SweepError as err:

@@ -7,17 +7,21 @@ from __future__ import annotations
 from typing import NamedTuple
 
 from .scene import Scene
-from .scene.types import MIXING
+from .scene.types import MIXING, ROTATION_CODE
 
 
 class NonFiniteState(RuntimeError):
     """The state of `body` (index) became NaN or infinite at `step`, or, with `beyond`
-    (m), the body left the region the engine simulates (|x| or |y| > beyond)."""
+    (m), the body left the region the engine simulates (|x| or |y| > beyond; in a world
+    of `dimension` 3, |x|, |y| or |z|)."""
 
-    def __init__(self, body: int, step: int, beyond: float | None = None) -> None:
+    def __init__(
+        self, body: int, step: int, beyond: float | None = None, dimension: int = 2
+    ) -> None:
         self.body = body
         self.step = step
         self.beyond = beyond
+        self.dimension = dimension
         super().__init__(f"{self.describe(f'{body}')} at step {step}")
 
     def describe(self, name: str) -> str:
@@ -26,12 +30,15 @@ class NonFiniteState(RuntimeError):
         if self.beyond is None:
             return f"the state of body {name} became non-finite"
         limit = f"{self.beyond:g}".replace("e+0", "e").replace("e+", "e")
-        return f"body {name} left the simulated region (|x| or |y| > {limit} m)"
+        axes = "|x|, |y| or |z|" if self.dimension == 3 else "|x| or |y|"
+        return f"body {name} left the simulated region ({axes} > {limit} m)"
 
 
 class Config(NamedTuple):
     """Per-run numbers for the engine: dt (s), substeps, iterations per substep,
-    explicit (explicit Euler), exact (exact rotation), restitution_threshold (m/s),
+    explicit (explicit Euler), rotation (the rotation update's code,
+    scene.types.ROTATION_CODE: normalize 0, exact 1, split 2; in 2D split turns as exact
+    does, the rotation having one axis), restitution_threshold (m/s),
     friction_rule and restitution_rule (MIX_*), elastic (some material has
     restitution > 0). The engine derives the soft contacts' stiffness from dt and
     substeps itself (set_contact_softness in cpp/src/step.cpp)."""
@@ -40,7 +47,7 @@ class Config(NamedTuple):
     substeps: int
     iterations: int
     explicit: bool
-    exact: bool
+    rotation: int
     restitution_threshold: float
     friction_rule: int
     restitution_rule: int
@@ -55,7 +62,7 @@ def make_config(scene: Scene) -> Config:
         substeps=int(sol.substeps),
         iterations=int(sol.iterations),
         explicit=sol.integrator == "explicit_euler",
-        exact=sol.rotation in ("exact", "split"),  # split is exact in 2D (one axis)
+        rotation=ROTATION_CODE[sol.rotation],
         restitution_threshold=float(sol.restitution_threshold),
         friction_rule=MIXING[scene.world.friction_mixing],
         restitution_rule=MIXING[scene.world.restitution_mixing],

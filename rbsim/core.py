@@ -1,7 +1,8 @@
 """The compiled engine (rbsim._core, C++20) behind a World API.
 
 `CoreWorld.from_scene` compiles the scene into the model's flat arrays (model.build,
-the front's one flattener), hands them to the engine, and shows the
+the front's one flattener), hands them to the engine (World2 or World3, by the scene's
+world.dimension), and shows the
 engine's state as numpy views that share its memory: `world.state.body_x` is the
 engine's array, not a copy. This module is the only importer of rbsim._core.
 """
@@ -24,8 +25,12 @@ CONSTANTS: dict = dict(_core.constants)
 NON_FINITE: int = _core.NON_FINITE
 # advance_recording's status when a signal handler raised between two steps
 INTERRUPTED: int = _core.INTERRUPTED
-# m: a body farther from the origin along x or y ends the run (cpp/include/rbsim/world.hpp)
+# m: a body farther from the origin along any axis ends the run (cpp/include/rbsim/world.hpp)
 POSITION_LIMIT: float = float(_core.POSITION_LIMIT)
+
+
+# the engine's world class by dimension
+WORLDS = {2: _core.World2, 3: _core.World3}
 
 
 def _model_arrays(model: Model) -> dict:
@@ -37,31 +42,50 @@ def _model_arrays(model: Model) -> dict:
 
 @dataclass
 class CoreWorld:
-    """A scene ready to step in the compiled engine."""
+    """A scene ready to step in the compiled engine; `dimension` 2 or 3 (the engine is
+    a World2 or a World3)."""
 
-    scene: Scene
+    scene: Scene | None
     model: Model
     config: Config
-    engine: _core.World2
+    engine: _core.World2 | _core.World3
+    dimension: int = 2
 
     @classmethod
     def from_scene(cls, scene: Scene) -> CoreWorld:
-        """Compile the scene and build the engine's world from it."""
+        """Compile the scene and build the engine's world from it (World2 or World3 by
+        scene.world.dimension)."""
         model, state = build(scene)
-        config = make_config(scene)
-        engine = _core.World2(
+        return cls.from_arrays(model, state, make_config(scene), scene.world.dimension, scene)
+
+    @classmethod
+    def from_arrays(
+        cls,
+        model: Model,
+        state: State,
+        config: Config,
+        dimension: int,
+        scene: Scene | None = None,
+    ) -> CoreWorld:
+        """The engine's world of `dimension` (2 or 3) from compiled arrays (SI units, as
+        rbsim.scene.compile.build makes them); ValueError naming the array when one has
+        the wrong dtype or shape."""
+        if dimension not in WORLDS:
+            raise ValueError(f"dimension must be 2 or 3, got {dimension!r}")
+        engine = WORLDS[dimension](
             _model_arrays(model),
             {k: np.ascontiguousarray(v) for k, v in state._asdict().items()},
             config._asdict(),
         )
-        return cls(scene, model, config, engine)
+        return cls(scene, model, config, engine, dimension)
 
     @property
     def state(self) -> State:
         """The state, as a State tuple (rbsim.scene.compile) of the engine's own arrays
-        (numpy views: no copy; they stay valid for the world's life)."""
+        (numpy views: no copy; they stay valid for the world's life). In 3D body_angle is
+        empty and body_l the angular momentum (N,3); in 2D body_l is empty."""
         e = self.engine
-        return State(e.body_x, e.body_q, e.body_angle, e.body_v, e.body_w)
+        return State(e.body_x, e.body_q, e.body_angle, e.body_v, e.body_w, e.body_l)
 
     @property
     def step_index(self) -> int:
@@ -87,7 +111,7 @@ class CoreWorld:
         e = self.engine
         values = (e.body_x[body], e.body_q[body], e.body_v[body], e.body_w[body])
         beyond = POSITION_LIMIT if all(np.isfinite(v).all() for v in values) else None
-        return NonFiniteState(body, self.step_index, beyond)
+        return NonFiniteState(body, self.step_index, beyond, self.dimension)
 
     @property
     def contact_count(self) -> int:

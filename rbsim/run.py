@@ -37,6 +37,7 @@ from .io.trajectory import (
     TrajectoryWriter,
     frame_count,
     load_trajectory,
+    observables_spec,
     open_for_reading,
     read_checkpoint,
     read_parameters,
@@ -194,10 +195,17 @@ def frame_steps(total: int, every: int) -> int:
     return total // every + 1 + (1 if total % every else 0)
 
 
+def dimension(scene: Scene) -> int:
+    """The scene's world dimension, 2 or 3."""
+    return int(scene.world.dimension)
+
+
 def body_table(scene: Scene, engine: Engine) -> BodyTable:
     """Static per-body data for the trajectory file (body frame, SI units), with the
-    engine's own mass properties."""
+    engine's own mass properties; in 3D with each shape's faces and plane normal."""
+    d = dimension(scene)
     shape_body, kinds, radius, start, count, verts = [], [], [], [], [], []
+    face_start, face_count, faces, normals = [], [], [], []
     for i, body in enumerate(scene.bodies):
         for shape in body.shapes:
             shape_body.append(i)
@@ -206,6 +214,20 @@ def body_table(scene: Scene, engine: Engine) -> BodyTable:
             start.append(len(verts))
             count.append(len(shape.vertices))
             verts.extend(shape.vertices)
+            if d == 3:
+                face_start.append(len(faces))
+                face_count.append(len(shape.faces))
+                faces.extend(shape.faces)
+                normals.append(shape.normal if len(shape.normal) else (0.0, 0.0, 0.0))
+    extra = {}
+    if d == 3:
+        extra = {
+            "shape_face_start": np.asarray(face_start, np.int32),
+            "shape_face_count": np.asarray(face_count, np.int32),
+            "shape_faces": np.asarray(faces, np.int32).reshape(-1, 3),
+            "shape_normal": np.asarray(normals, np.float64).reshape(-1, 3),
+            "dimension": 3,
+        }
     return BodyTable(
         name=[b.name for b in scene.bodies],
         type=[b.type for b in scene.bodies],
@@ -217,7 +239,8 @@ def body_table(scene: Scene, engine: Engine) -> BodyTable:
         shape_radius=np.asarray(radius, np.float64),
         shape_vertex_start=np.asarray(start, np.int32),
         shape_vertex_count=np.asarray(count, np.int32),
-        shape_vertices=np.asarray(verts, np.float64).reshape(-1, 2),
+        shape_vertices=np.asarray(verts, np.float64).reshape(-1, d),
+        **extra,
     )
 
 
@@ -254,7 +277,7 @@ def output_layout(
             bodies=table.subset(fixed_rows),
             position=s.origin[fixed_rows],
             orientation=s.orientation[fixed_rows],
-            angle=s.angle[fixed_rows],
+            angle=s.angle[fixed_rows] if dimension(scene) == 2 else None,
         )
     return table.subset(chosen), np.asarray(chosen, np.intp), fixed
 
@@ -326,7 +349,7 @@ def _writer(
         select=select,
         block_bodies=len(scene.bodies),
         fixed=fixed,
-        observables=OBSERVABLES,
+        observables=observables_spec(dimension(scene)),
         keep=keep,
     )
 

@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import io
+import os
+import shutil
 import textwrap
 from pathlib import Path
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
@@ -45,3 +49,69 @@ def rbsim(*args: str | Path) -> tuple[int, str, str]:
     if result.exception is not None and not isinstance(result.exception, SystemExit):
         raise result.exception
     return result.exit_code, result.stdout, result.stderr
+
+
+# ---------------------------------------------------------------------------------------
+# The player pages in a real browser (Debian's chromium driven by playwright)
+# ---------------------------------------------------------------------------------------
+
+CHROMIUM = "/usr/bin/chromium"
+NO_BROWSER = (
+    "needs Debian's chromium at /usr/bin/chromium (apt-get install -y chromium) and the "
+    "playwright package (pip install -e '.[test]'); .ci/run installs both"
+)
+
+
+def _browser():
+    """A playwright Browser on Debian's chromium, or a pytest skip saying what to install."""
+    if not os.path.exists(CHROMIUM) and not shutil.which("chromium"):
+        pytest.skip(NO_BROWSER)
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        pytest.skip(NO_BROWSER)
+    manager = sync_playwright().start()
+    browser = manager.chromium.launch(
+        executable_path=CHROMIUM if os.path.exists(CHROMIUM) else shutil.which("chromium"),
+        args=[
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+        ],
+    )
+    return manager, browser
+
+
+@pytest.fixture(scope="module")
+def browser():
+    manager, b = _browser()
+    yield b
+    b.close()
+    manager.stop()
+
+
+def open_page(browser, page_path: Path):
+    """A page on `page_path` with its console errors and uncaught exceptions collected."""
+    page = browser.new_page(viewport={"width": 800, "height": 600})
+    errors: list[str] = []
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.goto(page_path.as_uri())
+    page.wait_for_function("window.rbsimPlayer && window.rbsimPlayer.ready", timeout=20000)
+    return page, errors
+
+
+def canvas_rgb(page, x: float, y: float) -> np.ndarray:
+    """The colour of the canvas around CSS pixel (x, y) from its top-left corner:
+    3 x 3 pixels of a screenshot."""
+    from PIL import Image
+
+    box = page.locator("#canvas").bounding_box()
+    png = page.screenshot(
+        clip={"x": box["x"] + x - 1, "y": box["y"] + y - 1, "width": 3, "height": 3}
+    )
+    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).reshape(-1, 3)

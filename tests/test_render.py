@@ -7,8 +7,6 @@ browser (Debian's chromium driven by playwright); without chromium those tests s
 
 from __future__ import annotations
 
-import os
-import shutil
 import sys
 from pathlib import Path
 
@@ -25,16 +23,10 @@ from rbsim.view.render import (
     render_gif,
     sample_frames,
 )
-from tests.conftest import rbsim, scene_from
+from tests.conftest import canvas_rgb, open_page, rbsim, scene_from
 
 PIL = pytest.importorskip("PIL", reason="the plot extra: pip install -e '.[plot]'")
 from PIL import Image  # noqa: E402
-
-CHROMIUM = "/usr/bin/chromium"
-NO_BROWSER = (
-    "needs Debian's chromium at /usr/bin/chromium (apt-get install -y chromium) and the "
-    "playwright package (pip install -e '.[test]'); .ci/run installs both"
-)
 
 DT = 0.05  # s between the synthetic frames
 SPEED = 2.0  # m/s of the box along x
@@ -333,80 +325,25 @@ def test_html_page_is_self_contained_and_grows_with_frames_times_bodies(tmp_path
     assert (tmp_path / "b.html").read_bytes() == (tmp_path / "c.html").read_bytes()
 
 
-def _browser():
-    """A playwright Browser on Debian's chromium, or a pytest skip saying what to install."""
-    if not os.path.exists(CHROMIUM) and not shutil.which("chromium"):
-        pytest.skip(NO_BROWSER)
-    try:
-        from playwright.sync_api import sync_playwright
-    except ImportError:
-        pytest.skip(NO_BROWSER)
-    manager = sync_playwright().start()
-    browser = manager.chromium.launch(
-        executable_path=CHROMIUM if os.path.exists(CHROMIUM) else shutil.which("chromium"),
-        args=[
-            "--no-sandbox",
-            "--disable-gpu",
-            "--disable-quic",
-            "--no-first-run",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--disable-sync",
-        ],
-    )
-    return manager, browser
-
-
-@pytest.fixture(scope="module")
-def browser():
-    manager, b = _browser()
-    yield b
-    b.close()
-    manager.stop()
-
-
-def _open(browser, page_path: Path):
-    """A page on `page_path` with its console errors and uncaught exceptions collected."""
-    page = browser.new_page(viewport={"width": 800, "height": 600})
-    errors: list[str] = []
-    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
-    page.on("pageerror", lambda e: errors.append(str(e)))
-    page.goto(page_path.as_uri())
-    page.wait_for_function("window.rbsimPlayer && window.rbsimPlayer.ready", timeout=20000)
-    return page, errors
-
-
-def _canvas_rgb(page, x: float, y: float) -> np.ndarray:
-    """The colour of the canvas around CSS pixel (x, y) from its top-left corner:
-    3 x 3 pixels of a screenshot."""
-    import io
-
-    box = page.locator("#canvas").bounding_box()
-    png = page.screenshot(
-        clip={"x": box["x"] + x - 1, "y": box["y"] + y - 1, "width": 3, "height": 3}
-    )
-    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).reshape(-1, 3)
-
-
 def test_html_player_draws_the_bodies_and_the_slider_moves_them(tmp_path, browser):
     path = write_trajectory(tmp_path / "t.h5", frames=41)
     page_path = tmp_path / "player.html"
     code, _, err = rbsim("render", path, "-o", page_path, "--fps", "10")
     assert code == 0, err
-    page, errors = _open(browser, page_path)
+    page, errors = open_page(browser, page_path)
     assert page.evaluate("window.rbsimPlayer.frameCount") == 21
     fill = hex_rgb(COLOURS["dynamic_fill"])
     background = hex_rgb(COLOURS["background"])
     start = page.evaluate("window.rbsimPlayer.worldToScreen(-3, 2)")
     end = page.evaluate(f"window.rbsimPlayer.worldToScreen({-3 + SPEED * 2}, 2)")
-    assert (_canvas_rgb(page, *start) == fill).all()
-    assert (_canvas_rgb(page, *end) == background).all()
+    assert (canvas_rgb(page, *start) == fill).all()
+    assert (canvas_rgb(page, *end) == background).all()
     # drag the slider to its end, as a person would: the box is drawn at its last place
     page.locator("#slider").fill("20")
     assert page.evaluate("window.rbsimPlayer.frame()") == 20
     page.wait_for_timeout(100)  # one animation frame to redraw
-    assert (_canvas_rgb(page, *end) == fill).all()
-    assert (_canvas_rgb(page, *start) == background).all()
+    assert (canvas_rgb(page, *end) == fill).all()
+    assert (canvas_rgb(page, *start) == background).all()
     assert "t = 2.000 s" in page.locator("#clock").inner_text()
     # names on hover
     page.mouse.move(*_page_xy(page, end))
@@ -432,11 +369,11 @@ def test_html_player_overlays_a_second_trajectory_in_its_own_colour(tmp_path, br
     page_path = tmp_path / "overlay.html"
     code, _, err = rbsim("render", main, "--overlay", other, "-o", page_path)
     assert code == 0, err
-    page, errors = _open(browser, page_path)
+    page, errors = open_page(browser, page_path)
     edge = hex_rgb(COLOURS["overlay_edge"])
     left = page.evaluate("window.rbsimPlayer.worldToScreen(-3.5, 4)")  # the other box's edge
     assert any(
-        (np.abs(px.astype(int) - edge) <= 40).all() for px in _canvas_rgb(page, *left)
+        (np.abs(px.astype(int) - edge) <= 40).all() for px in canvas_rgb(page, *left)
     )  # an antialiased 1.5 px line: a pixel within 40 of each channel of its colour
     assert page.evaluate("window.rbsimPlayer.bodyName(-3, 4)") == "box"
     legend = page.locator("#legend").inner_text()
@@ -483,12 +420,12 @@ def test_html_player_stays_usable_at_1000_bodies_by_600_frames(tmp_path, browser
     assert result.frames == frames
     # 16 bytes of base64 per body and frame, plus the names, shapes and times
     assert result.size < 16 * n * frames * 1.1
-    page, errors = _open(browser, page_path)
+    page, errors = open_page(browser, page_path)
     page.evaluate("window.rbsimPlayer.setFrame(599)")
     t = 599 / 60  # the last ball's centre less 0.2 m along its spoke (drawn dark)
     x, y = 39 - 0.2 * np.cos(t), 24 - t - 0.2 * np.sin(t)
     last = page.evaluate(f"window.rbsimPlayer.worldToScreen({x}, {y})")
     # the balls are 6 px in radius here: the 3 x 3 pixels 3 px from the centre are inside
-    assert (_canvas_rgb(page, *last) == hex_rgb(COLOURS["dynamic_fill"])).all()
+    assert (canvas_rgb(page, *last) == hex_rgb(COLOURS["dynamic_fill"])).all()
     assert errors == []
     page.close()

@@ -15,6 +15,7 @@ from rbsim.scene import SceneError, load_scene
 from rbsim.tools.reference import ReferenceError, make_reference
 from rbsim.tools.sweep import Grid, Point, Setting, fitted_slope, pareto_front, run_sweep
 from tests.conftest import rbsim, scene_from
+from tests.test_dynamics3d import BRICK
 
 ROOT = Path(__file__).parent.parent
 REFERENCE_SCENES = ROOT / "scenes" / "reference"
@@ -207,3 +208,55 @@ def test_reference_body_name_is_checked_with_its_location():
         scene_from(PROJECTILE.replace("{kind: projectile}", "{kind: projectile, body: bal}"))
     assert "inline.yaml:7:37: " in str(info.value)  # the line of `reference:`, the column of `bal`
     assert "reference.body: no body named 'bal'; did you mean ball?" in str(info.value)
+
+
+# the tumbling brick of the dynamics tests, for 17 s: two downward sign changes of ω_y
+# (3.7 and 16.6 s), one whole period of ω in the body
+BRICK_3D = BRICK.replace("duration: 40", "duration: 17")
+
+
+def test_3d_sweep_shows_the_rotation_updates_side_by_side(tmp_path: Path):
+    from rbsim.tools.sweep import run_rotation_sweep
+
+    scene = scene_from(BRICK_3D)
+    grid = Grid(dts=(0.004, 0.002), substeps=(1,))
+    result = run_rotation_sweep(scene, grid, repeats=1)
+    # two down-crossings of ω_y, at 3.7 and 16.6 s: one whole period; its closed form
+    # (the dynamics tests hold it against Euler's equations integrated to 1e-12)
+    assert result.period == pytest.approx(12.901246, rel=1e-6)
+    by = {(p.rotation, p.dt): p for p in result.points}
+    assert sorted({p.rotation for p in result.points}) == ["exact", "normalize", "split"]
+    assert all(p.status == "ok" and p.cpu > 0 and p.us_per_step > 0 for p in result.points)
+    for dt in (0.004, 0.002):
+        split, norm = by["split", dt], by["normalize", dt]
+        # split keeps the energy to its second-order error (measured 4.9e-6 at 4 ms)
+        assert split.energy_error < 1e-5 and norm.energy_error > 1e4 * split.energy_error
+        # and the period (measured 9.5e-6 at 4 ms), where normalize's flip comes early
+        assert split.period_error < 1e-4 and norm.period_error > 0.3
+    # split is second order: halving dt divides its errors by 4 (to a few per cent of
+    # the next term, (h|ω|)² smaller)
+    ratio = by["split", 0.004].energy_error / by["split", 0.002].energy_error
+    assert ratio == pytest.approx(4.0, rel=0.05)
+    text = result.table()
+    assert "closed-form period" in text and "split" in text and "12.9012 s" in text
+    paths = result.write(tmp_path, plot=False)
+    with open(paths["csv"]) as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 6 and {r["rotation"] for r in rows} == {"normalize", "exact", "split"}
+    data = json.loads(paths["json"].read_text())
+    assert data["closed_form_period_s"] == pytest.approx(result.period)
+
+
+def test_3d_sweep_from_the_command_line(tmp_path: Path):
+    scene = tmp_path / "brick.yaml"
+    scene.write_text(BRICK_3D)
+    code, out, err = rbsim(
+        "sweep", scene, "-o", tmp_path / "sw", "--dt", "0.004", "--rotation", "split,normalize",
+        "--repeats", "1", "--duration", "2", "--no-plot",
+    )  # fmt: skip
+    assert code == 0, err
+    assert "split" in out and "normalize" in out and "exact" not in out.split("front")[-1]
+    # 2 s is less than one period: no period errors, and the note says so
+    assert "shorter than one period" in out
+    code, _o, err = rbsim("sweep", scene, "--rotation", "splt")
+    assert code == 2 and "expected one of normalize, exact, split" in err

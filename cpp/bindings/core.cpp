@@ -15,6 +15,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "rbsim/constants.hpp"
@@ -119,7 +120,15 @@ void load(std::vector<T>& dst, nb::handle obj, const char* name, long n = -1) {
 template <class T>
 T load_value(nb::dict d, const char* key) {
   if (!d.contains(key)) throw std::invalid_argument(std::string("missing key ") + key);
-  return nb::cast<T>(d[key]);
+  T value{};
+  if (!nb::try_cast(d[key], value)) {
+    const char* kind = std::is_same_v<T, bool>       ? "a bool"
+                       : std::is_integral_v<T>       ? "an integer"
+                       : std::is_floating_point_v<T> ? "a number"
+                                                     : "a string";
+    throw std::invalid_argument(std::string(key) + ": not " + kind);
+  }
+  return value;
 }
 
 using World2 = World<2>;
@@ -167,35 +176,113 @@ nb::dict storage(World2& w, nb::handle owner) {
   return d;
 }
 
-std::unique_ptr<World2> make_world2(nb::dict model, nb::dict state, nb::dict config) {
-  auto w = std::make_unique<World2>();
-  auto& m = w->model;
-  load(m.body_type, model["body_type"], "body_type");
-  const long n = static_cast<long>(m.body_type.size());
-  load(m.body_mass, model["body_mass"], "body_mass", n);
-  load(m.body_inertia, model["body_inertia"], "body_inertia", n);
-  load(m.body_inv_mass, model["body_inv_mass"], "body_inv_mass", n);
-  load(m.body_inv_inertia, model["body_inv_inertia"], "body_inv_inertia", n);
-  load(m.body_com, model["body_com"], "body_com", n);
-  load(m.body_force, model["body_force"], "body_force", n);
-  load(m.body_force_arm, model["body_force_arm"], "body_force_arm", n);
-  load(m.body_torque, model["body_torque"], "body_torque", n);
-  load(m.shape_body, model["shape_body"], "shape_body");
-  const long s = static_cast<long>(m.shape_body.size());
-  load(m.shape_kind, model["shape_kind"], "shape_kind", s);
-  load(m.shape_radius, model["shape_radius"], "shape_radius", s);
-  load(m.shape_vstart, model["shape_vstart"], "shape_vstart", s);
-  load(m.shape_vcount, model["shape_vcount"], "shape_vcount", s);
-  load(m.shape_friction, model["shape_friction"], "shape_friction", s);
-  load(m.shape_restitution, model["shape_restitution"], "shape_restitution", s);
-  load(m.vertex_local, model["vertex_local"], "vertex_local");
-  const long nv = static_cast<long>(m.vertex_local.size());
-  load(m.normal_local, model["normal_local"], "normal_local", nv);
-  {
-    std::vector<double> g;
-    load(g, model["gravity"], "gravity", 2);
-    m.gravity = {g[0], g[1]};
+// A dict entry, or std::invalid_argument naming the missing key (a ValueError in Python).
+nb::handle item(nb::dict d, const char* key) {
+  if (!d.contains(key)) throw std::invalid_argument(std::string("missing key ") + key);
+  return d[key];
+}
+
+// A (D,) float64 array as a vector (gravity).
+template <int D>
+typename Dim<D>::Vec load_vector(nb::dict d, const char* key) {
+  std::vector<double> g;
+  load(g, item(d, key), key, D);
+  typename Dim<D>::Vec v{};
+  std::memcpy(static_cast<void*>(&v), g.data(), sizeof v);
+  return v;
+}
+
+// Inertia tensors (N,3,3) float64 into Sym3, checking that each is symmetric (to 1e-9
+// of its largest finite entry: a tensor built as P diag(moments) Pᵀ rounds its two
+// halves differently) with finite off-diagonal entries; the two halves are averaged.
+// Non-dynamic bodies carry diag(inf, inf, inf) (inertia) or zeros (inverse).
+void load_tensors(std::vector<Sym3>& dst, nb::handle obj, const char* name, long n) {
+  std::vector<std::array<std::array<double, 3>, 3>> a;
+  load(a, obj, name, n);
+  dst.resize(a.size());
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const auto& t = a[i];
+    double scale = 0.0;
+    for (const auto& r : t)
+      for (double x : r)
+        if (std::isfinite(x)) scale = std::max(scale, std::abs(x));
+    for (int j = 0; j < 3; ++j)
+      for (int k = j + 1; k < 3; ++k) {
+        if (!std::isfinite(t[j][k]) || !std::isfinite(t[k][j]) ||
+            std::abs(t[j][k] - t[k][j]) > 1e-9 * scale)
+          throw std::invalid_argument(std::string(name) + ": row " + std::to_string(i) +
+                                      " is not a symmetric tensor with finite off-diagonal entries");
+      }
+    dst[i] = {t[0][0], t[1][1], t[2][2], 0.5 * (t[0][1] + t[1][0]), 0.5 * (t[0][2] + t[2][0]),
+              0.5 * (t[1][2] + t[2][1])};
   }
+}
+
+// The model's mass properties by dimension: (N,) scalars in 2D; (N,3,3) tensors, the
+// principal axes (N,4) and moments (N,3) in 3D (the split rotation update turns about them).
+void load_inertia(Model<2>& m, nb::dict model, long n) {
+  load(m.body_inertia, item(model, "body_inertia"), "body_inertia", n);
+  load(m.body_inv_inertia, item(model, "body_inv_inertia"), "body_inv_inertia", n);
+}
+void load_inertia(Model<3>& m, nb::dict model, long n) {
+  load_tensors(m.body_inertia, item(model, "body_inertia"), "body_inertia", n);
+  load_tensors(m.body_inv_inertia, item(model, "body_inv_inertia"), "body_inv_inertia", n);
+  load(m.body_axes, item(model, "body_axes"), "body_axes", n);
+  load(m.body_moments, item(model, "body_moments"), "body_moments", n);
+  for (long i = 0; i < n; ++i) {
+    if (!m.is_dynamic(static_cast<int>(i))) continue;
+    const Quat p = m.body_axes[i];
+    const Vec3 k = m.body_moments[i];
+    if (!(std::abs(p.w * p.w + p.x * p.x + p.y * p.y + p.z * p.z - 1.0) < 1e-9))
+      throw std::invalid_argument("body_axes: row " + std::to_string(i) + " is not a unit quaternion");
+    if (!(k.x > 0.0 && k.y > 0.0 && k.z > 0.0 && std::isfinite(k.x + k.y + k.z)))
+      throw std::invalid_argument("body_moments: row " + std::to_string(i) +
+                                  " of a dynamic body must be positive and finite");
+  }
+}
+
+// The angular state: ω (and the unwrapped angle) in 2D; ω and L in 3D.
+void load_angular(State<2>& st, nb::dict state, long n) {
+  load(st.body_angle, item(state, "body_angle"), "body_angle", n);
+  load(st.body_w, item(state, "body_w"), "body_w", n);
+}
+void load_angular(State<3>& st, nb::dict state, long n) {
+  if (state.contains("body_angle")) load(st.body_angle, state["body_angle"], "body_angle", 0);
+  load(st.body_w, item(state, "body_w"), "body_w", n);
+  load(st.body_l, item(state, "body_l"), "body_l", n);
+}
+
+// A world of dimension D from the scene compiler's dicts (rbsim.scene.compile's Model and
+// State as dicts of arrays; config: rbsim.config.Config as a dict), every array checked.
+template <int D>
+std::unique_ptr<World<D>> make_world(nb::dict model, nb::dict state, nb::dict config) {
+  auto w = std::make_unique<World<D>>();
+  auto& m = w->model;
+  load(m.body_type, item(model, "body_type"), "body_type");
+  const long n = static_cast<long>(m.body_type.size());
+  for (long i = 0; i < n; ++i) {
+    int t = static_cast<int>(m.body_type[i]);
+    if (t < 0 || t > 2) throw std::invalid_argument("body_type out of range");
+  }
+  load(m.body_mass, item(model, "body_mass"), "body_mass", n);
+  load(m.body_inv_mass, item(model, "body_inv_mass"), "body_inv_mass", n);
+  load_inertia(m, model, n);
+  load(m.body_com, item(model, "body_com"), "body_com", n);
+  load(m.body_force, item(model, "body_force"), "body_force", n);
+  load(m.body_force_arm, item(model, "body_force_arm"), "body_force_arm", n);
+  load(m.body_torque, item(model, "body_torque"), "body_torque", n);
+  load(m.shape_body, item(model, "shape_body"), "shape_body");
+  const long s = static_cast<long>(m.shape_body.size());
+  load(m.shape_kind, item(model, "shape_kind"), "shape_kind", s);
+  load(m.shape_radius, item(model, "shape_radius"), "shape_radius", s);
+  load(m.shape_vstart, item(model, "shape_vstart"), "shape_vstart", s);
+  load(m.shape_vcount, item(model, "shape_vcount"), "shape_vcount", s);
+  load(m.shape_friction, item(model, "shape_friction"), "shape_friction", s);
+  load(m.shape_restitution, item(model, "shape_restitution"), "shape_restitution", s);
+  load(m.vertex_local, item(model, "vertex_local"), "vertex_local");
+  const long nv = static_cast<long>(m.vertex_local.size());
+  load(m.normal_local, item(model, "normal_local"), "normal_local", nv);
+  m.gravity = load_vector<D>(model, "gravity");
   m.linear_damping = load_value<double>(model, "linear_damping");
   m.angular_damping = load_value<double>(model, "angular_damping");
   m.has_forces = load_value<bool>(model, "has_forces");
@@ -203,21 +290,16 @@ std::unique_ptr<World2> make_world2(nb::dict model, nb::dict state, nb::dict con
   // the model's indices must stay inside the arrays they index
   for (long i = 0; i < s; ++i) {
     if (m.shape_body[i] < 0 || m.shape_body[i] >= n) throw std::invalid_argument("shape_body out of range");
-    int k = static_cast<int>(m.shape_kind[i]);
-    if (k < 0 || k >= SHAPE_KIND_COUNT) throw std::invalid_argument("shape_kind out of range");
+    if (!valid_shape_kind<D>(static_cast<int>(m.shape_kind[i])))
+      throw std::invalid_argument("shape_kind out of range for a " + std::to_string(D) + "D world");
     if (m.shape_vstart[i] < 0 || m.shape_vcount[i] < 1 || m.shape_vstart[i] + m.shape_vcount[i] > nv)
       throw std::invalid_argument("shape vertices out of range");
   }
-  for (long i = 0; i < n; ++i) {
-    int t = static_cast<int>(m.body_type[i]);
-    if (t < 0 || t > 2) throw std::invalid_argument("body_type out of range");
-  }
   auto& st = w->state;
-  load(st.body_x, state["body_x"], "body_x", n);
-  load(st.body_q, state["body_q"], "body_q", n);
-  load(st.body_angle, state["body_angle"], "body_angle", n);
-  load(st.body_v, state["body_v"], "body_v", n);
-  load(st.body_w, state["body_w"], "body_w", n);
+  load(st.body_x, item(state, "body_x"), "body_x", n);
+  load(st.body_q, item(state, "body_q"), "body_q", n);
+  load(st.body_v, item(state, "body_v"), "body_v", n);
+  load_angular(st, state, n);
   auto& cf = w->config;
   cf.dt = load_value<double>(config, "dt");
   cf.substeps = load_value<int>(config, "substeps");
@@ -225,7 +307,11 @@ std::unique_ptr<World2> make_world2(nb::dict model, nb::dict state, nb::dict con
   if (!(cf.dt > 0.0) || cf.substeps < 1 || cf.iterations < 1)
     throw std::invalid_argument("dt, substeps and iterations must be positive");
   cf.explicit_euler = load_value<bool>(config, "explicit");
-  cf.rotation = load_value<bool>(config, "exact") ? Rotation::Exact : Rotation::Normalize;
+  // the codes of rbsim.scene.types.ROTATION_CODE; in 2D split turns as exact does
+  const int rotation = load_value<int>(config, "rotation");
+  if (rotation < 0 || rotation > static_cast<int>(Rotation::Split))
+    throw std::invalid_argument("rotation must be 0 (normalize), 1 (exact) or 2 (split)");
+  cf.rotation = static_cast<Rotation>(rotation);
   cf.restitution_threshold = load_value<double>(config, "restitution_threshold");
   cf.friction_rule = static_cast<MixRule>(load_value<int>(config, "friction_rule"));
   cf.restitution_rule = static_cast<MixRule>(load_value<int>(config, "restitution_rule"));
@@ -345,11 +431,6 @@ nb::tuple collide2d_py(int kind_a, int start_a, int count_a, double radius_a, in
 // ---- end narrowphase test entry ---------------------------------------------------------
 
 // ---- output frames (the run loop's blocks) ----------------------------------------
-// A block of B frames of N bodies: a dict of C-contiguous arrays whose first dimension is
-// B. Keys (each optional): step (B,) int64, time (B,) float64 s, position, orientation,
-// velocity (B,N,2) float64, angle, angular_velocity (B,N) float64, kinetic_energy,
-// potential_energy, angular_momentum (B,) float64, linear_momentum (B,2) float64,
-// contact_count (B,) int64.
 // Between two steps of a long call, every 20 ms: run Python's signal handlers (taking the
 // GIL for it) and ask `stop` (a callable, or None). True when a handler raised (its error
 // left set, or cleared with `clear`) or stop() is true.
@@ -374,16 +455,18 @@ class SignalPoll {
 // advance_recording's status when a signal handler raised (not an engine Status)
 constexpr int INTERRUPTED = 100;
 
+// A block's arrays for a world of dimension D, as pointers at row 0.
+template <int D>
 struct Block {
   std::int64_t rows = -1;
   std::int64_t* step = nullptr;
   double* time = nullptr;
-  FrameRow2 base;  // pointers at row 0
+  FrameRow<D> base;  // pointers at row 0
   std::int64_t n = 0;
 };
 
-template <class S>
-S* block_array(nb::dict d, const char* key, Block& b, std::initializer_list<std::int64_t> trailing) {
+template <class S, int D>
+S* block_array(nb::dict d, const char* key, Block<D>& b, std::vector<std::int64_t> trailing) {
   if (!d.contains(key)) return nullptr;
   nb::ndarray<nb::c_contig, nb::device::cpu> a;
   if (!nb::try_cast(d[key], a)) throw std::invalid_argument(std::string("block ") + key + ": not a C-contiguous array");
@@ -398,56 +481,80 @@ S* block_array(nb::dict d, const char* key, Block& b, std::initializer_list<std:
   return static_cast<S*>(a.data());
 }
 
-Block make_block(World2& w, nb::dict d) {
-  Block b;
+// The trailing shape of a per-body series of k doubles per body: (N,) when k is 1 (2D
+// angles and angular velocities), else (N, k).
+std::vector<std::int64_t> per_body(std::int64_t n, int k) {
+  return k == 1 ? std::vector<std::int64_t>{n} : std::vector<std::int64_t>{n, k};
+}
+std::vector<std::int64_t> per_frame(int k) {
+  return k == 1 ? std::vector<std::int64_t>{} : std::vector<std::int64_t>{k};
+}
+
+// A block of B frames of N bodies: a dict of C-contiguous arrays whose first dimension is
+// B. Keys (each optional): step (B,) int64, time (B,) float64 s, position and velocity
+// (B,N,D), orientation (B,N,2) / (B,N,4), angular_velocity (B,N) / (B,N,3), in 2D angle
+// (B,N), in 3D body_angular_momentum (B,N,3), all float64; kinetic_energy,
+// potential_energy (B,), linear_momentum (B,D), angular_momentum (B,) / (B,3) float64;
+// contact_count (B,) int64.
+template <int D>
+Block<D> make_block(World<D>& w, nb::dict d) {
+  using Wd = FrameWidth<D>;
+  Block<D> b;
   const std::int64_t n = w.model.body_count();
   b.n = n;
   b.step = block_array<std::int64_t>(d, "step", b, {});
   b.time = block_array<double>(d, "time", b, {});
-  b.base.position = block_array<double>(d, "position", b, {n, 2});
-  b.base.orientation = block_array<double>(d, "orientation", b, {n, 2});
-  b.base.angle = block_array<double>(d, "angle", b, {n});
-  b.base.velocity = block_array<double>(d, "velocity", b, {n, 2});
-  b.base.angular_velocity = block_array<double>(d, "angular_velocity", b, {n});
+  b.base.position = block_array<double>(d, "position", b, {n, Wd::vec});
+  b.base.orientation = block_array<double>(d, "orientation", b, {n, Wd::rot});
+  if constexpr (D == 2) b.base.angle = block_array<double>(d, "angle", b, {n});
+  b.base.velocity = block_array<double>(d, "velocity", b, {n, Wd::vec});
+  b.base.angular_velocity = block_array<double>(d, "angular_velocity", b, per_body(n, Wd::ang));
+  if constexpr (D == 3)
+    b.base.body_angular_momentum = block_array<double>(d, "body_angular_momentum", b, {n, 3});
   b.base.kinetic_energy = block_array<double>(d, "kinetic_energy", b, {});
   b.base.potential_energy = block_array<double>(d, "potential_energy", b, {});
-  b.base.linear_momentum = block_array<double>(d, "linear_momentum", b, {2});
-  b.base.angular_momentum = block_array<double>(d, "angular_momentum", b, {});
+  b.base.linear_momentum = block_array<double>(d, "linear_momentum", b, {Wd::vec});
+  b.base.angular_momentum = block_array<double>(d, "angular_momentum", b, per_frame(Wd::ang));
   b.base.contact_count = block_array<std::int64_t>(d, "contact_count", b, {});
   if (b.rows < 0) b.rows = 0;
   return b;
 }
 
-void record_row(const World2& w, const Block& b, std::int64_t r) {
+template <int D>
+void record_row(const World<D>& w, const Block<D>& b, std::int64_t r) {
+  using Wd = FrameWidth<D>;
   auto at = [r](auto* p, std::int64_t width) { return p ? p + r * width : nullptr; };
-  FrameRow2 row{at(b.base.position, 2 * b.n), at(b.base.orientation, 2 * b.n),
-                at(b.base.angle, b.n), at(b.base.velocity, 2 * b.n),
-                at(b.base.angular_velocity, b.n), at(b.base.kinetic_energy, 1),
-                at(b.base.potential_energy, 1), at(b.base.linear_momentum, 2),
-                at(b.base.angular_momentum, 1), at(b.base.contact_count, 1)};
+  const std::int64_t n = b.n;
+  FrameRow<D> row{at(b.base.position, Wd::vec * n),  at(b.base.orientation, Wd::rot * n),
+                  at(b.base.angle, n),               at(b.base.velocity, Wd::vec * n),
+                  at(b.base.angular_velocity, Wd::ang * n),
+                  at(b.base.body_angular_momentum, 3 * n),
+                  at(b.base.kinetic_energy, 1),      at(b.base.potential_energy, 1),
+                  at(b.base.linear_momentum, Wd::vec), at(b.base.angular_momentum, Wd::ang),
+                  at(b.base.contact_count, 1)};
   record_frame(w, row);
   if (b.step) b.step[r] = w.step_index;
   if (b.time) b.time[r] = static_cast<double>(w.step_index) * w.config.dt;
 }
 // ---- end output frames ---------------------------------------------------------------
 
-}  // namespace
-}  // namespace rbsim
-
-NB_MODULE(_core, mod) {
-  using namespace rbsim;
-  mod.doc() = "rbsim's compiled engine (C++20). Built by the package; imported by rbsim.core only.";
-  nb::class_<World2>(mod, "World2", "A 2D scene ready to step: model, state and stage storage.")
-      .def("__init__",
-           [](World2* self, nb::dict model, nb::dict state, nb::dict config) {
-             auto w = make_world2(model, state, config);
-             new (self) World2(std::move(*w));
-           },
-           "model"_a, "state"_a, "config"_a,
-           "Build from the scene compiler's arrays (SI units); arrays are copied and checked.")
+// The methods World2 and World3 share: building, stepping, recording frames,
+// checkpoints, the step index, the state as views.
+template <int D>
+nb::class_<World<D>> bind_world(nb::module_& mod, const char* name, const char* doc) {
+  using W = World<D>;
+  nb::class_<W> cls(mod, name, doc);
+  cls.def("__init__",
+          [](W* self, nb::dict model, nb::dict state, nb::dict config) {
+            auto w = make_world<D>(model, state, config);
+            new (self) W(std::move(*w));
+          },
+          "model"_a, "state"_a, "config"_a,
+          "Build from the scene compiler's arrays (SI units); arrays are copied and checked "
+          "(ValueError naming the array when one has the wrong dtype or shape).")
       .def(
           "advance",
-          [](World2& w, std::int64_t n) {
+          [](W& w, std::int64_t n) {
             if (n < 0) throw std::invalid_argument("n_steps must be >= 0");
             std::int64_t taken = 0, bad = -1;
             Status status = Status::Ok;
@@ -475,11 +582,11 @@ NB_MODULE(_core, mod) {
           "the signal handlers run (every 20 ms); an exception one raises propagates.")
       .def(
           "advance_recording",
-          [](World2& w, std::int64_t n, std::int64_t every, std::int64_t last, nb::dict block,
+          [](W& w, std::int64_t n, std::int64_t every, std::int64_t last, nb::dict block,
              std::int64_t row, nb::object stop) {
             if (n < 0) throw std::invalid_argument("n_steps must be >= 0");
             if (every < 1) throw std::invalid_argument("every must be >= 1");
-            Block b = make_block(w, block);
+            Block<D> b = make_block(w, block);
             if (row < 0 || row > b.rows) throw std::invalid_argument("row outside the block");
             std::int64_t taken = 0, bad = -1, written = 0;
             Status status = Status::Ok;
@@ -513,15 +620,15 @@ NB_MODULE(_core, mod) {
           "frames recorded, bad body).")
       .def(
           "record",
-          [](World2& w, nb::dict block, std::int64_t row) {
-            Block b = make_block(w, block);
+          [](W& w, nb::dict block, std::int64_t row) {
+            Block<D> b = make_block(w, block);
             if (row < 0 || row >= b.rows) throw std::invalid_argument("row outside the block");
             record_row(w, b, row);
           },
           "block"_a, "row"_a, "Record the current state as frame `row` of block.")
       .def(
           "save_checkpoint",
-          [](const World2& w) {
+          [](const W& w) {
             auto bytes = save_checkpoint(w);
             return nb::bytes(reinterpret_cast<const char*>(bytes.data()), bytes.size());
           },
@@ -529,35 +636,59 @@ NB_MODULE(_core, mod) {
           "as bytes.")
       .def(
           "load_checkpoint",
-          [](World2& w, nb::bytes data) {
+          [](W& w, nb::bytes data) {
             load_checkpoint(w, reinterpret_cast<const std::uint8_t*>(data.c_str()), data.size());
           },
           "data"_a, "Restore a checkpoint of a world built from the same scene.")
-      .def("step", &World2::step, "One step; False when the contact store must grow first.")
-      .def("grow", &World2::grow, "capacity"_a, "Room for `capacity` manifolds and pairs.")
-      .def("stage", &run_stage, "name"_a, "args"_a = nb::dict(), "Run one stage (tests).")
-      .def("storage", [](nb::handle self) { return storage(nb::cast<World2&>(self), self); },
-           "The stages' storage arrays by name, as views (valid until the store grows).")
-      .def_prop_ro("contact_count", &World2::contact_count)
-      .def_rw("step_index", &World2::step_index)
-      .def_rw("profile", &World2::profile, "Accumulate each stage's wall time (stage_times).")
+      .def("step", &W::step, "One step; False when the contact store must grow first.")
+      .def("grow", &W::grow, "capacity"_a, "Room for `capacity` manifolds and pairs.")
+      .def_prop_ro("contact_count", &W::contact_count)
+      .def_rw("step_index", &W::step_index)
+      .def_rw("profile", &W::profile, "Accumulate each stage's wall time (stage_times).")
       .def(
           "stage_times",
-          [](World2& w) {
+          [](W& w) {
             nb::dict d;
             for (int k = 0; k < static_cast<int>(StageId::Count); ++k)
               d[STAGE_NAMES[k]] = w.stage_seconds[k];
             return d;
           },
-          "Seconds spent in each stage since profiling began.")
+          "Seconds spent in each stage since profiling began.");
+  // the state as views of the engine's arrays (no copies): body_angle is empty in 3D,
+  // body_l in 2D
 #define RBSIM_STATE(name, doc) \
-  .def_prop_ro(#name, [](nb::handle self) { return view(nb::cast<World2&>(self).state.name, self); }, doc)
-      RBSIM_STATE(body_x, "(N,2) m, COM positions (a view)")
-      RBSIM_STATE(body_q, "(N,2) (cos θ, sin θ) (a view)")
-      RBSIM_STATE(body_angle, "(N,) rad, unwrapped (a view)")
-      RBSIM_STATE(body_v, "(N,2) m/s, COM velocities (a view)")
-      RBSIM_STATE(body_w, "(N,) rad/s (a view)");
+  cls.def_prop_ro(#name, [](nb::handle self) { return view(nb::cast<W&>(self).state.name, self); }, doc);
+  if constexpr (D == 2) {
+    RBSIM_STATE(body_x, "(N,2) m, COM positions (a view)")
+    RBSIM_STATE(body_q, "(N,2) (cos θ, sin θ) (a view)")
+    RBSIM_STATE(body_angle, "(N,) rad, unwrapped (a view)")
+    RBSIM_STATE(body_v, "(N,2) m/s, COM velocities (a view)")
+    RBSIM_STATE(body_w, "(N,) rad/s (a view)")
+    RBSIM_STATE(body_l, "(0,): the 2D angular state is body_w (a view)")
+  } else {
+    RBSIM_STATE(body_x, "(N,3) m, COM positions (a view)")
+    RBSIM_STATE(body_q, "(N,4) unit quaternions (w, x, y, z) (a view)")
+    RBSIM_STATE(body_angle, "(0,): no unwrapped angle in 3D (a view)")
+    RBSIM_STATE(body_v, "(N,3) m/s, COM velocities (a view)")
+    RBSIM_STATE(body_w, "(N,3) rad/s, world frame, R I_b⁻¹ Rᵀ L (a view)")
+    RBSIM_STATE(body_l, "(N,3) kg m²/s, angular momentum, world frame about the COM (a view)")
+  }
 #undef RBSIM_STATE
+  return cls;
+}
+
+}  // namespace
+}  // namespace rbsim
+
+NB_MODULE(_core, mod) {
+  using namespace rbsim;
+  mod.doc() = "rbsim's compiled engine (C++20). Built by the package; imported by rbsim.core only.";
+  bind_world<2>(mod, "World2", "A 2D scene ready to step: model, state and stage storage.")
+      .def("stage", &run_stage, "name"_a, "args"_a = nb::dict(), "Run one stage (tests).")
+      .def("storage", [](nb::handle self) { return storage(nb::cast<World2&>(self), self); },
+           "The stages' storage arrays by name, as views (valid until the store grows).");
+  bind_world<3>(mod, "World3",
+                "A 3D scene ready to step: model and state (bodies fly free: no contacts yet).");
   {
     // the tuning constants, from the one header that defines them (units there)
     namespace C = rbsim::constants;

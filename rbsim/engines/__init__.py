@@ -4,8 +4,11 @@
 - "rbsim": rbsim's compiled engine (compiled.py, over rbsim.core).
 - "pymunk": pymunk (Chipmunk2D), the reference engine in 2D (pymunk.py; options:
   settings=PymunkSettings(...)).
+- "mujoco": MuJoCo, the reference engine in 3D (mujoco.py; options:
+  settings=MujocoSettings(...)); the optional extra `mujoco`: without it the adapter
+  raises EngineUnavailable.
 
-Adapters are imported when their engine is asked for: pymunk loads only then.
+Adapters are imported when their engine is asked for: pymunk and MuJoCo load only then.
 """
 
 from __future__ import annotations
@@ -13,12 +16,13 @@ from __future__ import annotations
 from importlib import import_module
 
 from ..scene import Scene
-from .base import Engine, NonFiniteState, Snapshot
+from .base import Engine, EngineUnavailable, NonFiniteState, Snapshot, UnsupportedScene
 
 # engine name -> (module, adapter class), relative to this package
 ENGINES = {
     "rbsim": (".compiled", "RbsimEngine"),
     "pymunk": (".pymunk", "PymunkEngine"),
+    "mujoco": (".mujoco", "MujocoEngine"),
 }
 DEFAULT_ENGINE = "rbsim"
 # the engines that are rbsim's own (they step rbsim's model; `rbsim run --engine`)
@@ -43,8 +47,10 @@ __all__ = [
     "ENGINES",
     "RBSIM_ENGINES",
     "Engine",
+    "EngineUnavailable",
     "NonFiniteState",
     "Snapshot",
+    "UnsupportedScene",
     "engine_class",
     "make_engine",
 ]

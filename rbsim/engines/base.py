@@ -16,18 +16,28 @@ import numpy as np
 from ..config import NonFiniteState
 from ..scene import Scene
 
-__all__ = ["Engine", "NonFiniteState", "Snapshot"]
+__all__ = ["Engine", "EngineUnavailable", "NonFiniteState", "Snapshot", "UnsupportedScene"]
+
+
+class UnsupportedScene(Exception):
+    """The scene uses something the engine cannot express; the message names the body or
+    the pair of bodies and what is missing."""
+
+
+class EngineUnavailable(RuntimeError):
+    """The engine's package is not installed; the message says how to install it."""
 
 
 @dataclass
 class Snapshot:
-    """One engine's state, scene body order: origin (N,2) m (the body origin as placed in
-    the scene), angle (N,) rad (unwrapped), orientation (N,2) the stored rotation (cos θ,
-    sin θ), com (N,2) m (centre of mass), velocity (N,2) m/s of the centre of mass,
-    angular_velocity (N,) rad/s."""
+    """One engine's state, scene body order, D = 2 or 3: origin (N,D) m (the body origin
+    as placed in the scene), angle (N,) rad (unwrapped; 2D only, None in 3D), orientation
+    the stored rotation: (N,2) (cos θ, sin θ) in 2D, (N,4) unit quaternion (w, x, y, z) in
+    3D, com (N,D) m (centre of mass), velocity (N,D) m/s of the centre of mass,
+    angular_velocity (N,) rad/s in 2D, (N,3) rad/s world frame in 3D."""
 
     origin: np.ndarray
-    angle: np.ndarray
+    angle: np.ndarray | None
     orientation: np.ndarray
     com: np.ndarray
     velocity: np.ndarray
@@ -36,7 +46,7 @@ class Snapshot:
     @property
     def q_norm(self) -> np.ndarray:
         """(N,) |q| of the stored orientation (1 for an exact unit rotation)."""
-        return np.hypot(self.orientation[:, 0], self.orientation[:, 1])
+        return np.linalg.norm(self.orientation, axis=1)
 
     def finite(self) -> bool:
         """Whether every position and velocity is finite."""
@@ -47,9 +57,10 @@ class Engine:
     """A scene being stepped by one engine.
 
     name: the engine's name as a trajectory records it. scene: the scene it steps.
-    dt (s): one step. mass (N,) kg and inertia (N,) kg·m² about the centre of mass (inf
-    for static and kinematic bodies), com_local (N,2) m the centre of mass in the body
-    frame, dynamic (N,) bool: each engine's own mass properties. settings: the engine's
+    dt (s): one step. mass (N,) kg and inertia about the centre of mass, (N,) kg·m² in
+    2D, (N,3,3) body frame in 3D (inf for static and kinematic bodies), com_local (N,D) m
+    the centre of mass in the body frame, dynamic (N,) bool: each engine's own mass
+    properties. settings: the engine's
     settings as a trajectory's /parameters records them. step_time (s): wall time spent
     stepping so far (time.perf_counter), as the engine measures it.
     """
@@ -113,7 +124,7 @@ class Engine:
             **obs,
         }
         for key, value in values.items():
-            if key in block:
+            if key in block and value is not None:
                 block[key][row] = value
         block["step"][row] = self.step_index
         block["time"][row] = self.time

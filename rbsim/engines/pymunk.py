@@ -44,7 +44,7 @@ import pymunk
 from ..config import NonFiniteState
 from ..constants import LINEAR_SLOP
 from ..scene import Body, Scene, Shape, World
-from .base import Engine, Snapshot
+from .base import Engine, Snapshot, UnsupportedScene
 
 try:  # pymunk's batch readback (experimental in pymunk 7); a per-body loop otherwise
     import pymunk.batch as _batch
@@ -80,11 +80,6 @@ MAX_MIXING_CLASSES = 512
 
 # Relative tolerance for a per-shape product to count as reproducing a mixing rule.
 MIXING_RTOL = 1e-12
-
-
-class UnsupportedScene(Exception):
-    """The scene uses something pymunk cannot express; the message names the body or the
-    pair of bodies and what is missing."""
 
 
 @dataclass

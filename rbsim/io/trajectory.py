@@ -14,6 +14,19 @@ Layout (the "Trajectory file" contract of DESIGN.md)::
     /observables/<name>                 step, time, value (T,) or (T,k)
     /parameters/rbsim/<key>             scalar utf-8 strings (scene, solver, engine, status, ...)
 
+In 3D (DESIGN.md "Trajectory in 3D") the box has dimension 3; position and velocity are
+(T,N,3), orientation (T,N,4) (w, x, y, z), angular_velocity (T,N,3) world frame, and
+angular_momentum (T,N,3) world frame about each centre of mass; there is no `angle`.
+moment_of_inertia is (N,3,3) (body frame, about the COM), center_of_mass (N,3), the shape
+vertices (V,3); the shapes add face_start, face_count (S,) int32 and faces (F,3) int32
+(triangles, counter-clockwise seen from outside, indices local to the shape's vertex
+rows) and normal (S,3) (a plane's outward normal, zeros otherwise). The observables
+linear_momentum and angular_momentum (about the world origin) are (T,3).
+
+A quaternion and its negative are one rotation: the writer makes the stored sign
+continuous from frame to frame (a frame's q is negated when its dot product with the
+previous written frame's is negative), whatever sign the engine holds.
+
 `step` and `time` are created once, under `position`, and hard-linked into every other
 time series group (H5MD allows shared step and time datasets).
 
@@ -43,7 +56,7 @@ from types import TracebackType
 import h5py
 import numpy as np
 
-from ..scene.types import BODY_TYPES, SHAPE_KINDS
+from ..scene.types import BODY_TYPES, SHAPE_KINDS, SHAPE_KINDS_3D
 
 __all__ = [
     "BodyTable",
@@ -64,6 +77,30 @@ BODY_SERIES: dict[str, tuple[int, str | None]] = {
     "velocity": (2, "m s-1"),
     "angular_velocity": (0, "rad s-1"),
 }
+# The same in 3D: orientation (w, x, y, z); no angle; the angular momentum per body.
+BODY_SERIES_3D: dict[str, tuple[int, str | None]] = {
+    "position": (3, "m"),
+    "orientation": (4, None),
+    "velocity": (3, "m s-1"),
+    "angular_velocity": (3, "rad s-1"),
+    "angular_momentum": (3, "kg m2 s-1"),
+}
+# Every per-body series name of either dimension.
+ALL_BODY_SERIES = tuple(dict.fromkeys([*BODY_SERIES, *BODY_SERIES_3D]))
+
+
+def body_series(dimension: int) -> dict[str, tuple[int, str | None]]:
+    """The per-body time series of a trajectory of `dimension` (2 or 3)."""
+    return BODY_SERIES_3D if dimension == 3 else BODY_SERIES
+
+
+def block_key(name: str) -> str:
+    """The key of the per-body series `name` in a writer's block: its name, except the
+    per-body angular momentum (3D), "body_angular_momentum", which would clash with the
+    observable of the same name."""
+    return "body_angular_momentum" if name == "angular_momentum" else name
+
+
 # Units of the observables rbsim writes; other observable names are stored without a unit.
 OBSERVABLE_UNITS = {
     "kinetic_energy": "J",
@@ -98,20 +135,30 @@ def _author() -> str:
 
 @dataclass
 class BodyTable:
-    """Static per-body data of N bodies made of S shapes with V vertices in all.
+    """Static per-body data of N bodies made of S shapes with V vertices in all, in a
+    world of `dimension` D (2 or 3).
 
     name: (N,) unique body names. type: (N,) "dynamic" | "static" | "kinematic".
     mass: (N,) kg, inf for static and kinematic bodies.
-    moment_of_inertia: (N,) kg m², about the centre of mass; inf likewise.
-    center_of_mass: (N,2) m, in the body frame (offset from the body origin).
+    moment_of_inertia: (N,) kg m² in 2D, (N,3,3) the full tensor in body axes in 3D,
+        about the centre of mass; inf (diag(inf, inf, inf) in 3D) likewise.
+    center_of_mass: (N,D) m, in the body frame (offset from the body origin).
     shape_body: (S,) int32, index of the body each shape belongs to.
-    shape_kind: (S,) "circle" | "box" | "polygon" | "segment".
-    shape_radius: (S,) m; circle radius, segment radius (capsule), 0 for polygons.
+    shape_kind: (S,) "circle" | "box" | "polygon" | "segment" (2D); "sphere" | "box" |
+        "capsule" | "convex" | "plane" (3D).
+    shape_radius: (S,) m; circle, sphere or capsule radius, segment radius, 0 otherwise.
     shape_vertex_start, shape_vertex_count: (S,) int32, each shape's rows of
-        shape_vertices (circle: its centre; segment: a, b; box/polygon: CCW corners).
-    shape_vertices: (V,2) m, body frame.
+        shape_vertices (circle, sphere: its centre; segment, capsule: a, b; box/polygon:
+        CCW corners; 3D box: its 8 corners; convex: its hull's vertices; plane: one point).
+    shape_vertices: (V,D) m, body frame (from the body origin).
+    shape_face_start, shape_face_count: (S,) int32, each shape's rows of shape_faces
+        (3D box and convex; 0 faces otherwise, and in 2D).
+    shape_faces: (F,3) int32, triangles as indices into the shape's own vertex rows,
+        counter-clockwise seen from outside.
+    shape_normal: (S,3) a plane's unit outward normal, body frame; zeros otherwise.
 
     Array fields are converted to numpy arrays of the stated dtypes on construction.
+    The face and normal fields default to none (2D, or shapes without faces).
     """
 
     name: list[str]
@@ -125,19 +172,43 @@ class BodyTable:
     shape_vertex_start: np.ndarray
     shape_vertex_count: np.ndarray
     shape_vertices: np.ndarray
+    shape_face_start: np.ndarray | None = None
+    shape_face_count: np.ndarray | None = None
+    shape_faces: np.ndarray | None = None
+    shape_normal: np.ndarray | None = None
+    dimension: int = 2
 
     def __post_init__(self) -> None:
+        d = int(self.dimension)
+        if d not in (2, 3):
+            raise ValueError(f"BodyTable.dimension must be 2 or 3, got {self.dimension!r}")
+        self.dimension = d
         self.name = [str(s) for s in self.name]
         self.type = [str(s) for s in self.type]
         self.shape_kind = [str(s) for s in self.shape_kind]
+        s = len(self.shape_kind)
+        inertia = (-1, 3, 3) if d == 3 else (-1,)
         self.mass = np.asarray(self.mass, dtype=np.float64).reshape(-1)
-        self.moment_of_inertia = np.asarray(self.moment_of_inertia, dtype=np.float64).reshape(-1)
-        self.center_of_mass = np.asarray(self.center_of_mass, dtype=np.float64).reshape(-1, 2)
+        self.moment_of_inertia = np.asarray(self.moment_of_inertia, np.float64).reshape(inertia)
+        self.center_of_mass = np.asarray(self.center_of_mass, dtype=np.float64).reshape(-1, d)
         self.shape_body = np.asarray(self.shape_body, dtype=np.int32).reshape(-1)
         self.shape_radius = np.asarray(self.shape_radius, dtype=np.float64).reshape(-1)
         self.shape_vertex_start = np.asarray(self.shape_vertex_start, dtype=np.int32).reshape(-1)
         self.shape_vertex_count = np.asarray(self.shape_vertex_count, dtype=np.int32).reshape(-1)
-        self.shape_vertices = np.asarray(self.shape_vertices, dtype=np.float64).reshape(-1, 2)
+        self.shape_vertices = np.asarray(self.shape_vertices, dtype=np.float64).reshape(-1, d)
+
+        def rows(value: np.ndarray | None, shape: tuple[int, ...], dtype: type) -> np.ndarray:
+            if value is None:
+                return np.zeros(tuple(s if k == -1 else k for k in shape), dtype)
+            return np.asarray(value, dtype=dtype).reshape(shape)
+
+        self.shape_face_start = rows(self.shape_face_start, (-1,), np.int32)
+        self.shape_face_count = rows(self.shape_face_count, (-1,), np.int32)
+        faces = self.shape_faces
+        self.shape_faces = (
+            np.zeros((0, 3), np.int32) if faces is None else rows(faces, (-1, 3), np.int32)
+        )
+        self.shape_normal = rows(self.shape_normal, (-1, 3), np.float64)
         self._check()
 
     def __len__(self) -> int:
@@ -145,7 +216,9 @@ class BodyTable:
 
     def joined(self, other: BodyTable) -> BodyTable:
         """This table's bodies followed by `other`'s, with their shapes."""
-        n, v = len(self), len(self.shape_vertices)
+        if other.dimension != self.dimension:
+            raise ValueError("BodyTable.joined: tables of different dimensions")
+        n, v, f = len(self), len(self.shape_vertices), len(self.shape_faces)
         return BodyTable(
             name=self.name + other.name,
             type=self.type + other.type,
@@ -160,6 +233,11 @@ class BodyTable:
             ),
             shape_vertex_count=np.concatenate([self.shape_vertex_count, other.shape_vertex_count]),
             shape_vertices=np.concatenate([self.shape_vertices, other.shape_vertices]),
+            shape_face_start=np.concatenate([self.shape_face_start, other.shape_face_start + f]),
+            shape_face_count=np.concatenate([self.shape_face_count, other.shape_face_count]),
+            shape_faces=np.concatenate([self.shape_faces, other.shape_faces]),
+            shape_normal=np.concatenate([self.shape_normal, other.shape_normal]),
+            dimension=self.dimension,
         )
 
     def subset(self, rows: list[int] | np.ndarray) -> BodyTable:
@@ -169,11 +247,15 @@ class BodyTable:
         for r in rows:
             shape_rows += [int(k) for k in np.flatnonzero(self.shape_body == r)]
         new_index = {r: i for i, r in enumerate(rows)}
-        starts, verts = [], []
+        starts, verts, face_starts, faces = [], [], [], []
         for k in shape_rows:
             a, n = int(self.shape_vertex_start[k]), int(self.shape_vertex_count[k])
             starts.append(sum(len(v) for v in verts))
             verts.append(self.shape_vertices[a : a + n])
+            a, n = int(self.shape_face_start[k]), int(self.shape_face_count[k])
+            face_starts.append(sum(len(f) for f in faces))
+            faces.append(self.shape_faces[a : a + n])
+        d = self.dimension
         return BodyTable(
             name=[self.name[r] for r in rows],
             type=[self.type[r] for r in rows],
@@ -185,7 +267,12 @@ class BodyTable:
             shape_radius=self.shape_radius[shape_rows],
             shape_vertex_start=starts,
             shape_vertex_count=self.shape_vertex_count[shape_rows],
-            shape_vertices=np.concatenate(verts) if verts else np.zeros((0, 2)),
+            shape_vertices=np.concatenate(verts) if verts else np.zeros((0, d)),
+            shape_face_start=face_starts,
+            shape_face_count=self.shape_face_count[shape_rows],
+            shape_faces=np.concatenate(faces) if faces else np.zeros((0, 3), np.int32),
+            shape_normal=self.shape_normal[shape_rows],
+            dimension=d,
         )
 
     def _check(self) -> None:
@@ -199,22 +286,38 @@ class BodyTable:
             ("shape_radius", len(self.shape_radius), s),
             ("shape_vertex_start", len(self.shape_vertex_start), s),
             ("shape_vertex_count", len(self.shape_vertex_count), s),
+            ("shape_face_start", len(self.shape_face_start), s),
+            ("shape_face_count", len(self.shape_face_count), s),
+            ("shape_normal", len(self.shape_normal), s),
         ):
             if length != expected:
                 raise ValueError(f"BodyTable.{field_name} has {length} rows, expected {expected}")
         bad_types = sorted(set(self.type) - set(BODY_TYPES))
         if bad_types:
             raise ValueError(f"BodyTable.type: unknown {bad_types}, expected one of {BODY_TYPES}")
-        bad_kinds = sorted(set(self.shape_kind) - set(SHAPE_KINDS))
+        kinds = SHAPE_KINDS_3D if self.dimension == 3 else SHAPE_KINDS
+        bad_kinds = sorted(set(self.shape_kind) - set(kinds))
         if bad_kinds:
-            raise ValueError(
-                f"BodyTable.shape_kind: unknown {bad_kinds}, expected one of {SHAPE_KINDS}"
-            )
+            raise ValueError(f"BodyTable.shape_kind: unknown {bad_kinds}, expected one of {kinds}")
         if s and (self.shape_body.min() < 0 or self.shape_body.max() >= n):
             raise ValueError(f"BodyTable.shape_body: indices must lie in [0, {n})")
         end = self.shape_vertex_start.astype(np.int64) + self.shape_vertex_count
         if s and (self.shape_vertex_start.min() < 0 or end.max() > v):
             raise ValueError(f"BodyTable.shape_vertex_start/count: rows must lie in [0, {v})")
+        nf = len(self.shape_faces)
+        end = self.shape_face_start.astype(np.int64) + self.shape_face_count
+        if s and (
+            self.shape_face_start.min() < 0 or self.shape_face_count.min() < 0 or end.max() > nf
+        ):
+            raise ValueError(f"BodyTable.shape_face_start/count: rows must lie in [0, {nf})")
+        for k in np.flatnonzero(self.shape_face_count):
+            a, n = int(self.shape_face_start[k]), int(self.shape_face_count[k])
+            tri = self.shape_faces[a : a + n]
+            if tri.min() < 0 or tri.max() >= self.shape_vertex_count[k]:
+                raise ValueError(
+                    f"BodyTable.shape_faces: shape {k}'s faces must index its "
+                    f"{int(self.shape_vertex_count[k])} vertices"
+                )
 
 
 def _write_body_table(group: h5py.Group, bodies: BodyTable) -> None:
@@ -230,6 +333,23 @@ def _write_body_table(group: h5py.Group, bodies: BodyTable) -> None:
     shapes.create_dataset("vertex_start", data=bodies.shape_vertex_start)
     shapes.create_dataset("vertex_count", data=bodies.shape_vertex_count)
     shapes.create_dataset("vertices", data=bodies.shape_vertices).attrs["unit"] = "m"
+    if bodies.dimension == 3:
+        shapes.create_dataset("face_start", data=bodies.shape_face_start)
+        shapes.create_dataset("face_count", data=bodies.shape_face_count)
+        shapes.create_dataset("faces", data=bodies.shape_faces)
+        shapes.create_dataset("normal", data=bodies.shape_normal)
+
+
+def _write_box(group: h5py.Group, dimension: int) -> None:
+    box = group.create_group("box")
+    box.attrs["dimension"] = np.int32(dimension)
+    box.attrs["boundary"] = np.array(["none"] * dimension, dtype=_STR)
+
+
+def _read_dimension(group: h5py.Group) -> int:
+    """The box's dimension of a particles group (2 when not recorded)."""
+    box = group.get("box")
+    return int(box.attrs.get("dimension", 2)) if box is not None else 2
 
 
 def _read_strings(dataset: h5py.Dataset) -> list[str]:
@@ -239,6 +359,15 @@ def _read_strings(dataset: h5py.Dataset) -> list[str]:
 def read_body_table(group: h5py.Group) -> BodyTable:
     """The per-body table of an open file's /particles/bodies group."""
     shapes = group["shapes"]
+    faces = {}
+    if _read_dimension(group) == 3:
+        faces = {
+            "shape_face_start": shapes["face_start"][()],
+            "shape_face_count": shapes["face_count"][()],
+            "shape_faces": shapes["faces"][()],
+            "shape_normal": shapes["normal"][()],
+            "dimension": 3,
+        }
     return BodyTable(
         name=_read_strings(group["name"]),
         type=_read_strings(group["type"]),
@@ -251,6 +380,7 @@ def read_body_table(group: h5py.Group) -> BodyTable:
         shape_vertex_start=shapes["vertex_start"][()],
         shape_vertex_count=shapes["vertex_count"][()],
         shape_vertices=shapes["vertices"][()],
+        **faces,
     )
 
 
@@ -266,6 +396,21 @@ OBSERVABLES: dict[str, tuple[tuple[int, ...], str]] = {
     "angular_momentum": ((), "f8"),
     "contact_count": ((), "i8"),
 }
+# The same in 3D: the momenta are vectors (angular momentum about the world origin).
+OBSERVABLES_3D: dict[str, tuple[tuple[int, ...], str]] = {
+    "kinetic_energy": ((), "f8"),
+    "potential_energy": ((), "f8"),
+    "linear_momentum": ((3,), "f8"),
+    "angular_momentum": ((3,), "f8"),
+    "contact_count": ((), "i8"),
+}
+
+
+def observables_spec(dimension: int) -> dict[str, tuple[tuple[int, ...], str]]:
+    """The standard observables of a trajectory of `dimension` (2 or 3)."""
+    return OBSERVABLES_3D if dimension == 3 else OBSERVABLES
+
+
 PRECISIONS = ("float64", "float32")
 COMPRESSIONS = ("none", "lzf", "gzip")
 # Frames the writer gathers before it writes them out: as many as fill BLOCK_BYTES of
@@ -309,13 +454,14 @@ def _dcpl(fill: float | int | None = None, dtype: str = "f8") -> h5py.h5p.PropDC
 @dataclass
 class FixedBodies:
     """Bodies stored once rather than in every frame (static bodies that `output.bodies`
-    leaves out): their table, and their pose: position (K,2) m, orientation (K,2),
-    angle (K,) rad. Stored under /particles/static, as time-independent H5MD elements."""
+    leaves out): their table, and their pose: position (K,D) m, orientation (K,2) (cos θ,
+    sin θ) / (K,4) (w, x, y, z), angle (K,) rad (None in 3D). Stored under
+    /particles/static, as time-independent H5MD elements."""
 
     bodies: BodyTable
     position: np.ndarray
     orientation: np.ndarray
-    angle: np.ndarray
+    angle: np.ndarray | None
 
 
 @dataclass
@@ -430,6 +576,11 @@ class TrajectoryWriter:
         self.precision = precision
         self.compression = compression
         self.fixed = fixed
+        self.dimension = bodies.dimension
+        self._body_series = body_series(self.dimension)
+        self._body_keys = {block_key(name) for name in self._body_series}
+        # the last orientation written per body (3D): the next frame's sign follows it
+        self._last_q: np.ndarray | None = None
         self._n = len(bodies)
         self._block_n = self._n if block_bodies is None else int(block_bodies)
         self._select = None if select is None else np.asarray(select, np.intp)
@@ -456,6 +607,10 @@ class TrajectoryWriter:
             self._layout(self._capacity, keep_from=None, series=False)
         else:
             self._layout(self._capacity, keep_from=self.path if keep else None, series=True)
+        if keep and self.dimension == 3:
+            with open_for_reading(self.path) as f:
+                q = f["particles/bodies/orientation/value"][self.frames_flushed - 1]
+            self._last_q = np.asarray(q, np.float64)
 
     # -- layout ---------------------------------------------------------------------------
 
@@ -464,9 +619,11 @@ class TrajectoryWriter:
         assert self._spec is not None
         body_dtype = np.dtype("<f4" if self.precision == "float32" else "<f8")
         plan = [_Series("particles/bodies/position/time", (), np.dtype("<f8"), "time")]
-        for name, (components, _unit) in BODY_SERIES.items():
+        for name, (components, _unit) in self._body_series.items():
             frame = (self._n, components) if components else (self._n,)
-            plan.append(_Series(f"particles/bodies/{name}/value", frame, body_dtype, name))
+            plan.append(
+                _Series(f"particles/bodies/{name}/value", frame, body_dtype, block_key(name))
+            )
         for name, (shape, dtype) in self._spec.items():
             dt = np.dtype("<i8") if np.dtype(dtype).kind in "iub" else np.dtype("<f8")
             plan.append(_Series(f"observables/{name}/value", tuple(shape), dt, name))
@@ -522,19 +679,16 @@ class TrajectoryWriter:
         creator.attrs["name"] = "rbsim"
         creator.attrs["version"] = _package_version()
         group = f.create_group("particles/bodies")
-        box = group.create_group("box")
-        box.attrs["dimension"] = np.int32(2)
-        box.attrs["boundary"] = np.array(["none", "none"], dtype=_STR)
+        _write_box(group, self.dimension)
         _write_body_table(group, self.bodies)
         if self.fixed is not None:
             fixed = f.create_group("particles/static")
-            box = fixed.create_group("box")
-            box.attrs["dimension"] = np.int32(2)
-            box.attrs["boundary"] = np.array(["none", "none"], dtype=_STR)
+            _write_box(fixed, self.dimension)
             _write_body_table(fixed, self.fixed.bodies)
             fixed.create_dataset("position", data=self.fixed.position).attrs["unit"] = "m"
             fixed.create_dataset("orientation", data=self.fixed.orientation)
-            fixed.create_dataset("angle", data=self.fixed.angle).attrs["unit"] = "rad"
+            if self.fixed.angle is not None:
+                fixed.create_dataset("angle", data=self.fixed.angle).attrs["unit"] = "rad"
         f.create_group("observables")
         rb = f.create_group("parameters/rbsim")
         for key, value in self.parameters.items():
@@ -557,7 +711,7 @@ class TrajectoryWriter:
     ) -> None:
         bodies = f["particles/bodies"]
         step_ds = time_ds = None
-        units = {name: unit for name, (_c, unit) in BODY_SERIES.items()}
+        units = {block_key(name): unit for name, (_c, unit) in self._body_series.items()}
         for s in self._series:
             shape = (capacity, *s.frame)
             if final:
@@ -590,7 +744,7 @@ class TrajectoryWriter:
                 ds.attrs["unit"] = OBSERVABLE_UNITS[s.key]
         assert step_ds is not None and time_ds is not None
         time_ds.attrs["unit"] = "s"
-        for name in BODY_SERIES:
+        for name in self._body_series:
             group = bodies[name]
             if name != "position":
                 group["step"], group["time"] = step_ds, time_ds  # hard links
@@ -601,22 +755,24 @@ class TrajectoryWriter:
     # -- frames ---------------------------------------------------------------------------
 
     def _block_rows(self) -> int:
-        frame_bytes = 8 * self._block_n * 8 + 64
+        per_body = sum(max(1, c) for c, _unit in self._body_series.values())
+        frame_bytes = 8 * self._block_n * per_body + 64
         return max(1, min(BLOCK_MAX_FRAMES, BLOCK_BYTES // frame_bytes))
 
     @property
     def block(self) -> dict[str, np.ndarray]:
         """The block that frames are gathered in: step (B,) int64, time (B,) s, position,
         orientation, velocity (B,M,2), angle, angular_velocity (B,M) float64 for the M
-        rows of an appended frame, and each observable (B, *shape). Fill rows from
-        `rows` on, then `commit` them."""
+        rows of an appended frame (3D: position, velocity, angular_velocity and
+        body_angular_momentum (B,M,3), orientation (B,M,4)), and each observable
+        (B, *shape). Fill rows from `rows` on, then `commit` them."""
         if self._block is None:
             if self._spec is None:
                 raise ValueError("the observables are not known yet: append a frame first")
             b, m = self._block_rows(), self._block_n
             block = {"step": np.full(b, -1, np.int64), "time": np.zeros(b)}
-            for name, (components, _unit) in BODY_SERIES.items():
-                block[name] = np.zeros((b, m, components) if components else (b, m))
+            for name, (components, _unit) in self._body_series.items():
+                block[block_key(name)] = np.zeros((b, m, components) if components else (b, m))
             for name, (shape, dtype) in self._spec.items():
                 kind = "i8" if np.dtype(dtype).kind in "iub" else "f8"
                 block[name] = np.zeros((b, *shape), dtype=kind)
@@ -653,17 +809,20 @@ class TrajectoryWriter:
         time: float,
         position: np.ndarray,
         orientation: np.ndarray,
-        angle: np.ndarray,
+        angle: np.ndarray | None,
         velocity: np.ndarray,
         angular_velocity: np.ndarray,
         observables: dict[str, float | np.ndarray],
+        angular_momentum: np.ndarray | None = None,
     ) -> None:
         """Append one frame; written out with its block, and flushed when `flush_seconds`
         have passed since the last flush.
 
         step: step number; time: s. position (M,2) m, body origin; orientation (M,2)
         (cos θ, sin θ); angle (M,) rad, unwrapped; velocity (M,2) m/s of the centre of
-        mass; angular_velocity (M,) rad/s (M = block_bodies). observables: name ->
+        mass; angular_velocity (M,) rad/s (M = block_bodies). In 3D: position, velocity,
+        angular_velocity (world frame) and angular_momentum (kg m²/s, world frame about
+        each COM) (M,3), orientation (M,4) (w, x, y, z), angle None. observables: name ->
         scalar or (k,) array; the first frame fixes the names unless the writer was told.
         """
         if self._closed:
@@ -688,13 +847,18 @@ class TrajectoryWriter:
                 f"unexpected {extra}"
             )
         block, r = self.block, self._rows
-        values = {
+        given = {
             "position": position,
             "orientation": orientation,
             "angle": angle,
             "velocity": velocity,
             "angular_velocity": angular_velocity,
+            "angular_momentum": angular_momentum,
         }
+        values = {block_key(name): given[name] for name in self._body_series}
+        for name, value in values.items():
+            if value is None:
+                raise ValueError(f"{name}: a {self.dimension}D frame needs it")
         values.update(observables)
         for key, value in values.items():
             target = block[key]
@@ -737,12 +901,40 @@ class TrajectoryWriter:
             if s.offset < 0:
                 continue
             data = block[s.key][:rows]
-            if self._select is not None and s.key in BODY_SERIES:
+            if self._select is not None and s.key in self._body_keys:
                 data = data[:, self._select]
+            if s.key == "orientation" and self.dimension == 3:
+                data = self._continuous(data)
             data = np.ascontiguousarray(data, dtype=s.dtype)
             _pwrite_all(self._fd, data, s.offset + t0 * s.frame_bytes, self.path)
         self._rows = 0
         self.frames_flushed = t0 + rows
+
+    def _continuous(self, q: np.ndarray) -> np.ndarray:
+        """Quaternion frames (rows, M, 4) with the sign of each made continuous: a row's
+        q is negated where its dot product with the previous written q is negative (q
+        and -q are one rotation). Returns a new array; remembers the last row."""
+        q = np.array(q, np.float64)
+        if not len(q):
+            return q
+        prev = np.concatenate([q[:1] if self._last_q is None else self._last_q[None], q[:-1]])
+        dots = np.einsum("rij,rij->ri", q, prev)  # with the previous row as the engine held it
+        if np.any(dots == 0.0):
+            # a half turn between two frames exactly: the rule restarts there (+1), which
+            # a running product of signs does not express; row by row
+            last = self._last_q
+            for r in range(len(q)):
+                if last is not None:
+                    flip = np.einsum("ij,ij->i", q[r], last) < 0.0
+                    q[r, flip] = -q[r, flip]
+                last = q[r]
+        else:
+            # the written sign flips where the held one turned against the previous row
+            # (row 0 against the last written row: its sign is the written one already)
+            sign = np.cumprod(np.where(dots < 0.0, -1.0, 1.0), axis=0)
+            q *= sign[..., None]
+        self._last_q = q[-1].copy()
+        return q
 
     def write_block(self) -> None:
         """Write the block's frames to the file now (a full block), without a
@@ -870,22 +1062,26 @@ def _pwrite_all(fd: int, data: np.ndarray, offset: int, path: str) -> None:
 
 @dataclass
 class Trajectory:
-    """A trajectory file in memory: T frames of N bodies.
+    """A trajectory file in memory: T frames of N bodies in a world of `dimension` D.
 
-    step (T,) int64; time (T,) s; position (T,N,2) m, body origin; orientation (T,N,2)
-    (cos θ, sin θ); angle (T,N) rad, unwrapped; velocity (T,N,2) m/s, centre of mass;
-    angular_velocity (T,N) rad/s; observables name -> (T,) or (T,k) (energies J, linear
-    momentum kg m/s, angular momentum kg m²/s, contact count); bodies: static data;
-    parameters: /parameters/rbsim as strings; engine: "rbsim" or "pymunk"; status:
-    "complete", "interrupted", "failed", or "running" (writer running or killed);
-    fixed: the static bodies stored once rather than per frame (output.bodies), or None.
+    step (T,) int64; time (T,) s; position (T,N,D) m, body origin; orientation (T,N,2)
+    (cos θ, sin θ) in 2D, (T,N,4) (w, x, y, z) in 3D, sign continuous from frame to
+    frame; angle (T,N) rad, unwrapped (2D; None in 3D); velocity (T,N,D) m/s, centre of
+    mass; angular_velocity (T,N) rad/s (2D) or (T,N,3) world frame (3D);
+    angular_momentum (T,N,3) kg m²/s, world frame about each centre of mass (3D; None in
+    2D); observables name -> (T,) or (T,k) (energies J, linear momentum kg m/s, angular
+    momentum kg m²/s about the world origin (T,) in 2D, (T,3) in 3D, contact count);
+    bodies: static data; parameters: /parameters/rbsim as strings; engine: "rbsim",
+    "pymunk", ...; status: "complete", "interrupted", "failed", or "running" (writer
+    running or killed); fixed: the static bodies stored once rather than per frame
+    (output.bodies), or None.
     """
 
     step: np.ndarray
     time: np.ndarray
     position: np.ndarray
     orientation: np.ndarray
-    angle: np.ndarray
+    angle: np.ndarray | None
     velocity: np.ndarray
     angular_velocity: np.ndarray
     observables: dict[str, np.ndarray]
@@ -894,6 +1090,8 @@ class Trajectory:
     engine: str
     status: str
     fixed: FixedBodies | None = None
+    dimension: int = 2
+    angular_momentum: np.ndarray | None = None
     _index: dict[str, int] | None = field(default=None, init=False, repr=False, compare=False)
 
     def body(self, name: str) -> int:
@@ -939,7 +1137,7 @@ def open_for_reading(path: str | os.PathLike) -> h5py.File:
 
 def _series_groups(f: h5py.File) -> tuple[list[str], list[str]]:
     """Paths of the body and observable time series groups present in the file."""
-    bodies = [f"particles/bodies/{n}" for n in BODY_SERIES if f"particles/bodies/{n}" in f]
+    bodies = [f"particles/bodies/{n}" for n in ALL_BODY_SERIES if f"particles/bodies/{n}" in f]
     obs = [f"observables/{n}" for n in f["observables"]] if "observables" in f else []
     return bodies, obs
 
@@ -978,11 +1176,11 @@ def load_trajectory(path: str | os.PathLike) -> Trajectory:
     all of them. Units as in `Trajectory`."""
     with open_for_reading(path) as f:
         bodies = read_body_table(f["particles/bodies"])
-        n = len(bodies)
+        n, dimension = len(bodies), bodies.dimension
         params = read_parameters(f)
         t = frame_count(f, closed=params.get("status", STATUS_RUNNING) != STATUS_RUNNING)
-        arrays: dict[str, np.ndarray] = {}
-        for name, (components, _unit) in BODY_SERIES.items():
+        arrays: dict[str, np.ndarray | None] = {"angle": None, "angular_momentum": None}
+        for name, (components, _unit) in body_series(dimension).items():
             key = f"particles/bodies/{name}/value"
             if t and key in f:
                 arrays[name] = f[key][:t]
@@ -1003,7 +1201,7 @@ def load_trajectory(path: str | os.PathLike) -> Trajectory:
                 bodies=read_body_table(g),
                 position=g["position"][()],
                 orientation=g["orientation"][()],
-                angle=g["angle"][()],
+                angle=g["angle"][()] if "angle" in g else None,
             )
     return Trajectory(
         step=step,
@@ -1014,6 +1212,7 @@ def load_trajectory(path: str | os.PathLike) -> Trajectory:
         engine=params.get("engine", "unknown"),
         status=params.get("status", "unknown"),
         fixed=fixed,
+        dimension=dimension,
         **arrays,
     )
 
@@ -1073,6 +1272,7 @@ def summarize(path: str | os.PathLike) -> str:
     path = os.fspath(path)
     with open_for_reading(path) as f:
         params = read_parameters(f)
+        dimension = _read_dimension(f["particles/bodies"])
         types = _read_strings(f["particles/bodies/type"])
         fixed = len(f["particles/static/name"]) if "particles/static/name" in f else 0
         t = frame_count(f, closed=params.get("status", STATUS_RUNNING) != STATUS_RUNNING)
@@ -1086,6 +1286,11 @@ def summarize(path: str | os.PathLike) -> str:
             unit = ds.attrs.get("unit", "")
             first_last[group.split("/", 1)[1]] = (ds[0], ds[t - 1], str(unit))
         creator_version = str(f["h5md/creator"].attrs.get("version", "?"))
+        series = []
+        for group in _series_groups(f)[0]:
+            shape = f[group]["value"].shape[1:]
+            dims = ",".join(["T", "N", *(str(k) for k in shape[1:])])
+            series.append(f"{group.rsplit('/', 1)[1]} ({dims})")
 
     lines = [f"rbsim trajectory {path} ({_human_bytes(os.path.getsize(path))})"]
     version = params.get("rbsim_version", creator_version)
@@ -1095,6 +1300,7 @@ def summarize(path: str | os.PathLike) -> str:
         status += " (not closed: the writer is still running or was killed)"
     lines.append(f"  status     {status}")
     lines.append(f"  scene      {scene_name(params, path)}")
+    lines.append(f"  dimension  {dimension}")
     counts = ", ".join(f"{types.count(k)} {k}" for k in BODY_TYPES if types.count(k))
     lines.append(f"  bodies     {len(types)}" + (f" ({counts})" if counts else ""))
     if fixed:
@@ -1114,6 +1320,8 @@ def summarize(path: str | os.PathLike) -> str:
         if isinstance(resolved, dict) and isinstance(resolved.get("world"), dict):
             dt = resolved["world"].get("dt")
     lines.append(f"  dt         {dt:.6g} s" if isinstance(dt, float | int) else "  dt         ?")
+    if series:
+        lines.append(f"  series     {', '.join(series)}")
     try:
         wall = float(params.get("wall_time", ""))
     except ValueError:

@@ -8,7 +8,10 @@ The bottom of the front: this package imports nothing else of rbsim.
 - schema: the format as data; validation and the JSON Schema come from it.
 - resolve: the resolver (defaults, materials, generators) into the Scene dataclasses.
 - mass: mass, centre of mass and moment of inertia from shapes and density.
-- compile: Scene -> Model and State arrays, the only flattener.
+- mass3d: the same in 3D: volume, centre of mass and full inertia tensor per shape kind,
+  compounds by the parallel-axis theorem, principal axes.
+- geometry3d: quaternions, box corners and faces, convex hulls (qhull via scipy).
+- compile: Scene -> Model and State arrays, the only flattener (2D and 3D).
 """
 
 from .resolve import (

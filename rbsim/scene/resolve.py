@@ -16,13 +16,18 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from . import geometry3d as g3
 from . import schema
+from .geometry3d import IDENTITY, Quat
 from .mass import body_mass_properties
+from .mass3d import body_mass_properties_3d, principal_axes
 from .schema import INVALID, Checked, did_you_mean
-from .types import SHAPE_KINDS
+from .types import SHAPE_KINDS, SHAPE_KINDS_3D
 from .yamlsrc import BROKEN, Mark, Problem, YList, YMap, format_path, load_yaml
 
 Vec2 = tuple[float, float]
+Vec = tuple[float, ...]  # a 2-vector in a 2D scene, a 3-vector in a 3D one
+_ZERO3 = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -38,23 +43,39 @@ class Material:
 class Shape:
     """One shape of a body, in the body frame (metres about the body origin).
 
-    kind: the kind as written in the scene ("circle", "box", "polygon", "segment").
+    kind: the kind as written in the scene ("circle", "box", "polygon", "segment" in
+        2D; "sphere", "box", "capsule", "convex", "plane" in 3D).
     vertices: circle -> ((cx, cy),), its centre; segment -> (a, b);
         box and polygon -> convex counter-clockwise vertices (a box is turned
         into its four corners with `offset` and `angle` applied).
+        3D: sphere -> (centre,); capsule -> (a, b); box -> its 8 corners (order of
+        geometry3d.BOX_SIGNS); convex -> its hull's extreme points, in the order given;
+        plane -> (the point of the plane nearest the body origin,). The shape's offset
+        and orientation are applied.
     radius: circle radius; segment radius (a capsule when > 0); 0 for polygons.
+        3D: sphere and capsule radius, 0 otherwise.
     size, offset, angle: the box as written (for output and the pymunk bridge);
-        size is (0, 0) for other kinds.
+        size is (0, 0) for other kinds. 3D: size (3,) of a box; offset (3,) and
+        orientation (w, x, y, z) as written for a sphere and a box; a capsule's and a
+        convex's are applied to their vertices (offset zero, orientation identity
+        here); angle is 0.
     material: resolved material of this shape.
+    faces: 3D box and convex: the hull's triangles, indices into `vertices`,
+        counter-clockwise seen from outside.
+    normal: 3D plane: unit outward normal in the body frame (the solid is
+        n·(x − vertices[0]) <= 0).
     """
 
     kind: str
-    vertices: tuple[Vec2, ...]
+    vertices: tuple[Vec, ...]
     radius: float
     material: Material
-    size: Vec2 = (0.0, 0.0)
-    offset: Vec2 = (0.0, 0.0)
+    size: Vec = (0.0, 0.0)
+    offset: Vec = (0.0, 0.0)
     angle: float = 0.0
+    faces: tuple[tuple[int, int, int], ...] = ()
+    normal: Vec = ()
+    orientation: Quat = IDENTITY
 
 
 @dataclass(frozen=True)
@@ -66,33 +87,40 @@ class Body:
     density-derived mass when not None (inertia scales with it). force (N) is a
     constant world-frame force applied at force_point (body frame, m) or at the
     centre of mass when force_point is None; torque (N·m) is constant.
+
+    In 3D, position, velocity, force and force_point are 3-vectors; angle is 0;
+    orientation is the unit quaternion (w, x, y, z) of the body frame (identity in 2D);
+    angular_velocity (rad/s) and torque (N·m) are world-frame 3-vectors.
     """
 
     name: str
     type: str
-    position: Vec2
+    position: Vec
     angle: float
-    velocity: Vec2
-    angular_velocity: float
+    velocity: Vec
+    angular_velocity: float | Vec
     shapes: tuple[Shape, ...]
     mass: float | None = None
-    force: Vec2 = (0.0, 0.0)
-    force_point: Vec2 | None = None
-    torque: float = 0.0
+    force: Vec = (0.0, 0.0)
+    force_point: Vec | None = None
+    torque: float | Vec = 0.0
+    orientation: Quat = IDENTITY
 
 
 @dataclass(frozen=True)
 class World:
     """gravity (m/s²), dt (s), steps (count; `duration` resolved to round(duration/dt)),
-    linear and angular damping (1/s), mixing rules for friction and restitution."""
+    linear and angular damping (1/s), mixing rules for friction and restitution;
+    dimension 2 or 3 (gravity is then a 3-vector)."""
 
-    gravity: Vec2 = (0.0, -9.81)
+    gravity: Vec = (0.0, -9.81)
     dt: float = 1.0 / 60.0
     steps: int = 600
     linear_damping: float = 0.0
     angular_damping: float = 0.0
     friction_mixing: str = "sqrt"  # sqrt | multiply | min | max
     restitution_mixing: str = "max"  # max | multiply | min
+    dimension: int = 2
 
 
 @dataclass(frozen=True)
@@ -437,20 +465,23 @@ def _short_edge(ccw: Sequence[Vec2], written: Sequence[Vec2]) -> str | None:
     return None
 
 
-def shape_bounds(shape: Shape) -> tuple[Vec2, Vec2]:
-    """The shape's bounding box in the body frame, radius included: (min, max), m."""
-    xs = [v[0] for v in shape.vertices]
-    ys = [v[1] for v in shape.vertices]
+def shape_bounds(shape: Shape) -> tuple[Vec, Vec]:
+    """The shape's bounding box in the body frame, radius included: (min, max), m (a
+    3D plane, which has none, gives its one point)."""
     r = shape.radius
-    return (min(xs) - r, min(ys) - r), (max(xs) + r, max(ys) + r)
+    axes = list(zip(*shape.vertices, strict=True))
+    return tuple(min(a) - r for a in axes), tuple(max(a) + r for a in axes)
 
 
 def thinnest(shape: Shape) -> float:
-    """The shape's smallest width, m: 2r for a circle or a capsule, the smaller side of a
-    box, a polygon's least width over its edge directions; a thin segment (radius 0),
-    which has no width, counts with its length."""
-    if shape.kind == "circle":
+    """The shape's smallest width, m: 2r for a circle, a sphere or a capsule, the smaller
+    side of a box, a polygon's least width over its edge directions (a convex hull's
+    over its face directions); a thin segment (radius 0), which has no width, counts
+    with its length."""
+    if shape.kind in ("circle", "sphere", "capsule"):
         return 2.0 * shape.radius
+    if shape.kind == "convex" or (shape.kind == "box" and len(shape.size) == 3):
+        return g3.hull_width(shape.vertices, shape.faces)
     if shape.kind == "segment":
         (ax, ay), (bx, by) = shape.vertices
         return 2.0 * shape.radius if shape.radius > 0 else math.hypot(bx - ax, by - ay)
@@ -489,6 +520,7 @@ class _Resolver:
         self.count = 0
         self.substeps = self.iterations = self.per_shape = 1  # the solver's, once known
         self.solver: Checked | Any = INVALID
+        self.dimension = 2
 
     def error(self, mark: Mark, path: tuple[str | int, ...], message: str) -> None:
         self.problems.append(Problem(mark, path, message))
@@ -498,6 +530,9 @@ class _Resolver:
     def scene(self, c: Checked, text: str, path: str) -> Scene | None:
         for name, m in c["materials"].items() if _ok(c["materials"]) else ():
             self.materials[name] = Material(**m) if _ok(m) and _ok(*m.values()) else None
+        w = c["world"]
+        if _ok(w) and _ok(w.get("dimension", 2)):
+            self.dimension = w.get("dimension", 2)
         solver = self.solver = c["solver"]
         if _ok(solver) and _ok(solver["substeps"], solver["iterations"]):
             self.substeps, self.iterations = solver["substeps"], solver["iterations"]
@@ -611,6 +646,7 @@ class _Resolver:
             angular_damping=damping["angular"],
             friction_mixing=mixing["friction"],
             restitution_mixing=mixing["restitution"],
+            dimension=w["dimension"],
         )
 
     # materials and shapes ----------------------------------------------------------------
@@ -645,12 +681,14 @@ class _Resolver:
         """One resolved shape entry, or INVALID."""
         if not _ok(c):
             return INVALID
-        kinds = [k for k in SHAPE_KINDS if k in c]
+        kinds = [k for k in (SHAPE_KINDS_3D if self.dimension == 3 else SHAPE_KINDS) if k in c]
         material = self.material(c, body_material) if _ok(body_material) else INVALID
         if len(kinds) != 1 or not _ok(c[kinds[0]]) or not _ok(*c[kinds[0]].values()):
             return INVALID
         kind = kinds[0]
         spec = c[kind]
+        if self.dimension == 3:
+            return self.shape_3d(kind, spec, material)
         if kind == "circle":
             offset = spec["offset"]
             shape = Shape(kind, (offset,), spec["radius"], material, offset=offset)
@@ -725,7 +763,7 @@ class _Resolver:
             )
         if kind == "static":
             for key in ("velocity", "angular_velocity", "force", "torque"):
-                if c[key] not in (0.0, (0.0, 0.0)):
+                if c[key] not in (0.0, (0.0, 0.0), (0.0, 0.0, 0.0)):
                     self.error(
                         c.mark_of(key),
                         c.path_of(key),
@@ -733,6 +771,9 @@ class _Resolver:
                         "(use type: kinematic for a body that moves on its own)",
                     )
         if not _ok(*shapes):
+            return None
+        q = self.orientation(c) if self.dimension == 3 else IDENTITY
+        if not _ok(q) or (self.dimension == 3 and not self.planes_static(c, kind, shapes)):
             return None
         if (
             kind == "dynamic"
@@ -753,7 +794,7 @@ class _Resolver:
             name=name,
             type=kind,
             position=c["position"],
-            angle=c["angle"],
+            angle=c.get("angle", 0.0),  # none in 3D
             velocity=c["velocity"],
             angular_velocity=c["angular_velocity"],
             shapes=tuple(shapes),
@@ -761,6 +802,7 @@ class _Resolver:
             force=c["force"],
             force_point=c.get("force_point"),
             torque=c["torque"],
+            orientation=q,
         )
         if kind == "dynamic" and not self.accelerations(body, c):
             return None
@@ -769,10 +811,14 @@ class _Resolver:
     def proportions(self, shapes: Sequence[Shape], mark: Mark, path: tuple) -> bool:
         """Whether a body of ``shapes`` is within ASPECT_MAX (the larger side of its
         bounding box over its thinnest shape's width); reports it at ``mark`` if not."""
+        shapes = [sh for sh in shapes if sh.kind != "plane"]  # a plane has no extent
+        if not shapes:
+            return True
         boxes = [shape_bounds(sh) for sh in shapes]
-        width = max(hi[0] for _, hi in boxes) - min(lo[0] for lo, _ in boxes)
-        height = max(hi[1] for _, hi in boxes) - min(lo[1] for lo, _ in boxes)
-        extent = max(width, height)
+        extent = max(
+            max(hi[k] for _, hi in boxes) - min(lo[k] for lo, _ in boxes)
+            for k in range(len(boxes[0][0]))
+        )
         thin = min(thinnest(sh) for sh in shapes)
         if extent <= schema.ASPECT_MAX * thin * (1 + 1e-9):  # a ratio of exactly 1e6 passes
             return True
@@ -786,17 +832,25 @@ class _Resolver:
 
     def accelerations(self, body: Body, c: Checked) -> bool:
         """Whether the dynamic ``body``'s constant force and torque accelerate it (at its
-        centre of mass, and its points at the radius of gyration) by at most
-        ACCELERATION_MAX; reports the key if not."""
-        (fx, fy), torque = body.force, body.torque
-        if fx == fy == torque == 0.0:
+        centre of mass, and its points at the radius of gyration; in 3D the least one,
+        about the least principal axis) by at most ACCELERATION_MAX; reports the key if
+        not."""
+        force = body.force
+        torque = written = body.torque if isinstance(body.torque, tuple) else (body.torque,)
+        if not (any(force) or any(torque)):
             return True
-        props = body_mass_properties(body)
-        mass, inertia = props.mass, props.inertia
+        if len(force) == 3:
+            props3 = body_mass_properties_3d(body)
+            mass, inertia, center = props3.mass, principal_axes(props3.inertia)[1][0], props3.center
+            about = "least radius of gyration"
+        else:
+            props = body_mass_properties(body)
+            mass, inertia, center = props.mass, props.inertia, props.center
+            about = "radius of gyration"
         if not (mass > 0.0 and inertia > 0.0):
             return True  # no mass: rbsim.scene.compile says so
         limit = schema.ACCELERATION_MAX
-        linear = math.hypot(fx, fy) / mass
+        linear = math.hypot(*force) / mass
         if not linear <= limit:  # also catches an overflow to inf
             message = (
                 f"accelerates the body by {_num(linear)} m/s² (its mass is {_num(mass)} kg), "
@@ -804,16 +858,21 @@ class _Resolver:
             )
             self.error(c.mark_of("force"), c.path_of("force"), message)
             return False
-        if body.force_point is not None:
-            ax, ay = body.force_point[0] - props.center[0], body.force_point[1] - props.center[1]
-            torque += ax * fy - ay * fx
+        if body.force_point is not None:  # and the force's torque about the COM, r × F
+            r = [p - q for p, q in zip(body.force_point, center, strict=True)]
+            if len(force) == 3:
+                fx, fy, fz = force
+                arm = (r[1] * fz - r[2] * fy, r[2] * fx - r[0] * fz, r[0] * fy - r[1] * fx)
+                torque = tuple(t + a for t, a in zip(torque, arm, strict=True))
+            else:
+                torque = (torque[0] + (r[0] * force[1] - r[1] * force[0]),)
         radius = math.sqrt(inertia / mass)  # of gyration, m
-        angular = abs(torque) / math.sqrt(inertia * mass)  # m/s² at that radius
+        angular = math.hypot(*torque) / math.sqrt(inertia * mass)  # m/s² at that radius
         if not angular <= limit:
-            key = "torque" if body.torque != 0.0 else "force_point"
+            key = "torque" if any(written) else "force_point"
             message = (
                 f"the torque accelerates the body's points by {_num(angular)} m/s² (at its "
-                f"radius of gyration {_num(radius)} m), more than {_num(limit)} m/s²"
+                f"{about} {_num(radius)} m), more than {_num(limit)} m/s²"
             )
             self.error(c.mark_of(key), c.path_of(key), message)
             return False
@@ -825,8 +884,9 @@ class _Resolver:
             return []
         tag, prefix = c.tag, c["name"]
         if tag == "grid":
-            nx, ny = c["count"]
-            total = nx * ny
+            total = math.prod(c["count"])
+        elif tag == "pyramid" and self.dimension == 3:
+            total = c["base"] * (c["base"] + 1) * (2 * c["base"] + 1) // 6
         elif tag == "pyramid":
             total = c["base"] * (c["base"] + 1) // 2
         else:
@@ -844,8 +904,17 @@ class _Resolver:
             self.work_error(self.count, c.mark_of(key), c.path_of(key))
             return []
         material = self.material(c, DEFAULT_MATERIAL)
+        d3 = self.dimension == 3
         if tag == "grid":
             shape = self.shape(c["shape"], material)
+            if d3 and _ok(shape) and shape.kind == "plane":
+                self.plane_error(c["shape"], "a grid's bodies are dynamic")
+                return []
+        elif d3:
+            size = c["size"]
+            corners = g3.box_corners_3d(size, _ZERO3, IDENTITY)
+            shape = Shape("box", corners, 0.0, material, size, _ZERO3, faces=g3.BOX_FACES)
+            shape = shape if _ok(material) else INVALID
         else:
             shape = (
                 Shape("box", box_corners(c["size"]), 0.0, material, size=c["size"])
@@ -859,8 +928,8 @@ class _Resolver:
             return []
         if tag == "grid" and not self.grid_apart(c, shape):
             return []
-        placed = list(getattr(self, "_" + tag)(c))  # [(name, position)]
-        far = max(max(abs(x), abs(y)) for _, (x, y) in placed)
+        placed = list(getattr(self, "_" + tag + ("_3d" if d3 else ""))(c))  # [(name, position)]
+        far = max(max(abs(x) for x in xyz) for _, xyz in placed)
         if not far <= schema.LENGTH_MAX:
             key = "spacing" if tag == "grid" or c["spacing"] > 0 else key
             limit = _num(schema.LENGTH_MAX)
@@ -884,24 +953,35 @@ class _Resolver:
         who = f"{tag} {format_path(c.path[:-1])}"
         for name, _ in placed:
             self.names[name] = (who, mark)
-        velocity = c.get("velocity", (0.0, 0.0))
         shapes = (shape,)
+        if d3:
+            velocity = c.get("velocity", _ZERO3)
+            return [
+                Body(
+                    name, "dynamic", xyz, 0.0, velocity, _ZERO3, shapes, None, _ZERO3, None, _ZERO3
+                )
+                for name, xyz in placed
+            ]
+        velocity = c.get("velocity", (0.0, 0.0))
         return [Body(name, "dynamic", xy, 0.0, velocity, 0.0, shapes) for name, xy in placed]
 
     def grid_apart(self, c: Checked, shape: Shape) -> bool:
         """Whether a grid's bodies overlap at most their immediate neighbours (a heap of
         bodies inside each other makes a step cost the square of their number)."""
-        (nx, ny), (dx, dy) = c["count"], c["spacing"]
-        (x0, y0), (x1, y1) = shape_bounds(shape)
-        w, h = x1 - x0, y1 - y0
-        kx, ky = _grid_reach(nx, dx, w), _grid_reach(ny, dy, h)
-        overlapped = min(2 * kx + 1, nx) * min(2 * ky + 1, ny) - 1
-        if overlapped <= 8:
+        counts, steps = c["count"], c["spacing"]
+        lo, hi = shape_bounds(shape)
+        sizes = [b - a for a, b in zip(lo, hi, strict=True)]
+        reach = [_grid_reach(n, d, w) for n, d, w in zip(counts, steps, sizes, strict=True)]
+        overlapped = math.prod(min(2 * k + 1, n) for k, n in zip(reach, counts, strict=True)) - 1
+        neighbours = 3 ** len(counts) - 1
+        if overlapped <= neighbours:
             return True
+        apart = [_num(abs(d)) for d in steps]
         message = (
             f"the grid's bodies start inside each other: each overlaps up to {overlapped} "
-            f"others (bodies {_num(w)} x {_num(h)} m, {_num(abs(dx))} and {_num(abs(dy))} m "
-            "apart); at most its 8 neighbours may overlap it"
+            f"others (bodies {' x '.join(_num(w) for w in sizes)} m, "
+            f"{', '.join(apart[:-1])} and {apart[-1]} m apart); at most its {neighbours} "
+            "neighbours may overlap it"
         )
         self.error(c.mark_of("spacing"), c.path_of("spacing"), message)
         return False
@@ -951,6 +1031,136 @@ class _Resolver:
             for j in range(ny):
                 yield f"{prefix}[{i},{j}]", (ox + i * dx, oy + j * dy)
 
+    # 3D ----------------------------------------------------------------------------------
+
+    def unit(self, spec: Checked, key: str, what: str) -> tuple[float, ...] | Any:
+        """``spec[key]`` normalised, or INVALID after reporting a zero ``what``."""
+        u = g3.normalized(spec[key])
+        if u is None:
+            self.error(spec.mark_of(key), spec.path_of(key), f"{what} must not be zero")
+            return INVALID
+        return u
+
+    def orientation(self, c: Checked) -> Quat | Any:
+        """The unit quaternion of ``c``'s `orientation` (normalised) or `rotation`
+        ({axis, angle}); the identity when it has neither; INVALID after an error."""
+        if "orientation" in c:
+            return self.unit(c, "orientation", "a quaternion (orientation)")
+        if "rotation" in c:
+            r = c["rotation"]
+            if not _ok(*r.values()):
+                return INVALID
+            axis = self.unit(r, "axis", "the axis of a rotation")
+            return g3.axis_angle(axis, r["angle"]) if _ok(axis) else INVALID
+        return IDENTITY
+
+    def plane_error(self, spec: Checked, why: str) -> None:
+        """Report a plane where only a static body may have one."""
+        message = f"a plane is for static bodies only ({why}): it is an unbounded half-space"
+        self.error(spec.mark_of("plane"), spec.path_of("plane"), message)
+
+    def shape_3d(self, kind: str, spec: Checked, material: Material | Any) -> Shape | Any:
+        """One resolved 3D shape of ``kind`` from its checked ``spec``, or INVALID."""
+        if kind == "plane":
+            n = self.unit(spec, "normal", "the normal of a plane")
+            if not _ok(n, material):
+                return INVALID
+            point = tuple(spec["offset"] * x for x in n)
+            return Shape(kind, (point,), 0.0, material, (0.0, 0.0, 0.0), _ZERO3, normal=n)
+        q = self.orientation(spec)
+        offset = spec["offset"]
+        if not _ok(q, material):
+            return INVALID
+        if kind == "sphere":
+            return Shape(kind, (offset,), spec["radius"], material, _ZERO3, offset, orientation=q)
+        if kind == "box":
+            size = spec["size"]
+            corners = g3.box_corners_3d(size, offset, q)
+            return Shape(
+                kind, corners, 0.0, material, size, offset, faces=g3.BOX_FACES, orientation=q
+            )
+        if kind == "capsule":
+            a, b = g3.transform((spec["a"], spec["b"]), offset, q)
+            length = math.dist(spec["a"], spec["b"])
+            if not length >= schema.LENGTH_MIN:
+                message = (
+                    f"the ends are {length:.3g} m apart, less than {_num(schema.LENGTH_MIN)} m "
+                    "(a shorter capsule is a sphere)"
+                )
+                self.error(spec.mark_of("b"), spec.path_of("b"), message)
+                return INVALID
+            return Shape(kind, (a, b), spec["radius"], material, _ZERO3, _ZERO3)
+        points = spec["vertices"]
+        try:
+            vertices, faces, given = g3.convex_hull(g3.transform(points, offset, q))
+        except g3.HullError as err:
+            self.error(spec.mark_of("vertices"), spec.path_of("vertices"), str(err))
+            return INVALID
+        problem = _short_hull_edge(vertices, faces, given)
+        if problem is None and not g3.hull_width(vertices, faces) >= schema.LENGTH_MIN:
+            width = g3.hull_width(vertices, faces)
+            problem = f"the hull is {width:.3g} m thin, less than {_num(schema.LENGTH_MIN)} m"
+        if problem:
+            self.error(spec.mark_of("vertices"), spec.path_of("vertices"), problem)
+            return INVALID
+        return Shape(kind, vertices, 0.0, material, _ZERO3, _ZERO3, faces=faces)
+
+    def planes_static(self, c: Checked, kind: str, shapes: list[Shape]) -> bool:
+        """Whether the body's planes, if any, are on a static body; reports one if not."""
+        entries = [c["shape"]] if "shape" in c else c["shapes"]
+        for spec, sh in zip(entries, shapes, strict=True):
+            if sh.kind == "plane" and kind != "static":
+                self.plane_error(spec, f"this body is {kind}")
+                return False
+        return True
+
+    @staticmethod
+    def _pyramid_3d(c: Checked) -> Iterable[tuple[str, Vec]]:
+        (w, h, d), gap, base, prefix = c["size"], c["spacing"], c["base"], c["name"]
+        ox, oy, oz = c.get("origin", (0.0, h / 2, 0.0))
+        for r in range(base):
+            n = base - r  # n x n boxes in layer r, centred on (ox, oz)
+            y = oy + r * (h + gap)
+            for i in range(n):
+                for j in range(n):
+                    x = ox + (i - (n - 1) / 2) * (w + gap)
+                    z = oz + (j - (n - 1) / 2) * (d + gap)
+                    yield f"{prefix}[{r},{i},{j}]", (x, y, z)
+
+    @staticmethod
+    def _stack_3d(c: Checked) -> Iterable[tuple[str, Vec]]:
+        h, gap, prefix = c["size"][1], c["spacing"], c["name"]
+        ox, oy, oz = c.get("origin", (0.0, h / 2, 0.0))
+        for i in range(c["count"]):
+            yield f"{prefix}[{i}]", (ox, oy + i * (h + gap), oz)
+
+    @staticmethod
+    def _grid_3d(c: Checked) -> Iterable[tuple[str, Vec]]:
+        (nx, ny, nz), (dx, dy, dz), prefix = c["count"], c["spacing"], c["name"]
+        ox, oy, oz = c["origin"]
+        for i in range(nx):
+            for j in range(ny):
+                for k in range(nz):
+                    yield f"{prefix}[{i},{j},{k}]", (ox + i * dx, oy + j * dy, oz + k * dz)
+
+
+def _short_hull_edge(
+    vertices: Sequence[Vec], faces: Sequence[tuple[int, int, int]], given: Sequence[int]
+) -> str | None:
+    """Why a convex hull's edges are too short for the engine, or None (the points are
+    numbered as written)."""
+    for face in faces:
+        for k in range(3):
+            i, j = face[k - 1], face[k]
+            length = math.dist(vertices[i], vertices[j])
+            if length < schema.LENGTH_MIN:
+                a, b = sorted((given[i], given[j]))
+                return (
+                    f"points {a} and {b} are {length:.3g} m apart, "
+                    f"less than {_num(schema.LENGTH_MIN)} m"
+                )
+    return None
+
 
 # ---------------------------------------------------------------------------------------
 # Resolved scene -> plain data
@@ -958,7 +1168,9 @@ class _Resolver:
 
 
 def _shape_to_dict(shape: Shape) -> dict[str, Any]:
-    if shape.kind == "circle":
+    if shape.kind in SHAPE_KINDS_3D and (shape.kind != "box" or len(shape.size) == 3):
+        spec = _shape_3d_spec(shape)
+    elif shape.kind == "circle":
         spec: dict[str, Any] = {"radius": shape.radius, "offset": list(shape.offset)}
     elif shape.kind == "box":
         spec = {"size": list(shape.size), "offset": list(shape.offset), "angle": shape.angle}
@@ -975,21 +1187,41 @@ def _shape_to_dict(shape: Shape) -> dict[str, Any]:
     }
 
 
+def _shape_3d_spec(shape: Shape) -> dict[str, Any]:
+    """A 3D shape's spec as a scene writes it (capsule and convex with their offset and
+    orientation applied to the points)."""
+    if shape.kind == "plane":
+        offset = sum(p * n for p, n in zip(shape.vertices[0], shape.normal, strict=True))
+        return {"normal": list(shape.normal), "offset": offset}
+    if shape.kind == "capsule":
+        a, b = shape.vertices
+        return {"a": list(a), "b": list(b), "radius": shape.radius}
+    if shape.kind == "convex":
+        return {"vertices": [list(v) for v in shape.vertices]}
+    frame = {"offset": list(shape.offset), "orientation": list(shape.orientation)}
+    if shape.kind == "sphere":
+        return {"radius": shape.radius, **frame}
+    return {"size": list(shape.size), **frame}
+
+
 def _body_to_dict(body: Body) -> dict[str, Any]:
+    d3 = isinstance(body.torque, tuple)
+    turn = {"orientation": list(body.orientation)} if d3 else {"angle": body.angle}
+    spin = body.angular_velocity
     out: dict[str, Any] = {
         "name": body.name,
         "type": body.type,
         "position": list(body.position),
-        "angle": body.angle,
+        **turn,
         "velocity": list(body.velocity),
-        "angular_velocity": body.angular_velocity,
+        "angular_velocity": list(spin) if isinstance(spin, tuple) else spin,
     }
     if body.mass is not None:
         out["mass"] = body.mass
     out["force"] = list(body.force)
     if body.force_point is not None:
         out["force_point"] = list(body.force_point)
-    out["torque"] = body.torque
+    out["torque"] = list(body.torque) if d3 else body.torque
     out["shapes"] = [_shape_to_dict(s) for s in body.shapes]
     return out
 
@@ -997,12 +1229,15 @@ def _body_to_dict(body: Body) -> dict[str, Any]:
 def scene_to_dict(scene: Scene) -> dict[str, Any]:
     """The resolved scene as plain data (dicts, lists, str, int, float): every default
     filled in, generators expanded, materials inlined on each shape, `steps` instead of
-    `duration`. It is itself a valid version-1 scene that loads to an equal Scene."""
+    `duration`. It is itself a valid version-1 scene that loads to an equal Scene (but
+    for the point of a 3D plane whose normal is not along an axis, which it gives as
+    normal and offset again: that point may come back one rounding apart)."""
     w, s = scene.world, scene.solver
     return {
         "version": schema.SCENE_VERSION,
         "name": scene.name,
         "world": {
+            **({"dimension": 3} if w.dimension == 3 else {}),
             "gravity": list(w.gravity),
             "dt": w.dt,
             "steps": w.steps,

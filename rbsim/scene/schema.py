@@ -53,10 +53,11 @@ INVALID: Any = _Invalid()  # stands for a value that failed its check (already r
 class Key:
     """One key of the format.
 
-    kind: number | integer | string | enum | fraction (a number or "a/b") | vec2 (two
-        numbers) | int2 (two integers) | points (a list of vec2) | object (fixed keys) |
+    kind: number | integer | string | enum | fraction (a number or "a/b") | vec2, vec3
+        (two, three numbers) | quat (four numbers w, x, y, z) | int2, int3 (two, three
+        integers) | points, points3 (a list of vec2, vec3) | object (fixed keys) |
         map_of (names -> item) | list_of (items) | entry (a body or a one-key generator).
-    gt, ge, le: bounds on numbers (for vec2/int2/points: on every component); within:
+    gt, ge, le: bounds on numbers (for vectors and points: on every component); within:
         |x| <= within (the same, for a bound symmetric about 0).
     fields: an object's keys. exactly_one / at_most_one: groups of an object's keys.
     item: the value of a map_of, the item of a list_of, the plain body of an entry.
@@ -289,6 +290,13 @@ WORLD = Key(
     "Gravity, time step and length of the run, damping, mixing rules.",
     {},
     fields={
+        "dimension": Key(
+            "integer",
+            "2 for a planar scene (the default), 3 for a 3D one (3-vectors, quaternions, "
+            "3D shape kinds).",
+            2,
+            choices=T.DIMENSIONS,
+        ),
         "gravity": Key("vec2", "Gravity, m/s².", (0.0, -9.81), within=ACCELERATION_MAX),
         "dt": Key(
             "fraction",
@@ -397,6 +405,7 @@ COMPARE = Key(
         "position": Key("number", "Position, m.", ge=0),
         "angle": Key("number", "Angle, rad.", ge=0),
         "velocity": Key("number", "Velocity, m/s.", ge=0),
+        "angular_velocity": Key("number", "Angular velocity, rad/s.", ge=0),
         "iterations": Key(
             "integer",
             "pymunk solver iterations per pymunk step (default 10).",
@@ -482,11 +491,268 @@ SCENE = Key(
     },
 )
 
+# ---------------------------------------------------------------------------------------
+# The same format in 3D (world.dimension: 3): 3-vectors, quaternions, the 3D shape kinds.
+# Keys that mean the same in both dimensions are the 2D table's own.
+# ---------------------------------------------------------------------------------------
+
+CONVEX_VERTICES_MAX = 256  # points given for one convex hull
+
+_density3 = Key("number", "Density per volume, kg/m³.", ge=DENSITY_MIN, le=DENSITY_MAX)
+INLINE_MATERIAL_3D = {**INLINE_MATERIAL, "density": _density3}
+MATERIAL_3D = replace(
+    MATERIAL,
+    fields={**MATERIAL.fields, "density": replace(_density3, default=DEFAULT_MATERIAL["density"])},
+    ref="material3d",
+)
+
+ROTATION = Key(
+    "object",
+    "A rotation by `angle` about `axis` (normalised on load; a zero axis is an error).",
+    fields={
+        "axis": Key(
+            "vec3", "Axis of the rotation (any length but zero).", REQUIRED, within=LENGTH_MAX
+        ),
+        "angle": Key("number", "Angle of the rotation, rad.", REQUIRED, within=ANGLE_MAX),
+    },
+    ref="rotation",
+)
+
+
+def _frame(what: str) -> dict[str, Key]:
+    """The `offset`, `orientation` and `rotation` keys of a 3D shape placed in its body."""
+    return {
+        "offset": Key("vec3", f"{what} in the body frame, m.", (0.0, 0.0, 0.0), within=LENGTH_MAX),
+        "orientation": Key(
+            "quat",
+            "Rotation of the shape in the body frame, unit quaternion [w, x, y, z] "
+            "(normalised on load).",
+            within=LENGTH_MAX,
+        ),
+        "rotation": ROTATION,
+    }
+
+
+SHAPE_KINDS_3D = {
+    "sphere": Key(
+        "object",
+        "A ball.",
+        fields={
+            "radius": Key("number", "Radius, m.", REQUIRED, ge=LENGTH_MIN, le=LENGTH_MAX),
+            **_frame("Centre of the sphere"),
+        },
+        at_most_one=(("orientation", "rotation"),),
+    ),
+    "box": Key(
+        "object",
+        "A rectangular box (cuboid).",
+        fields={
+            "size": Key(
+                "vec3", "Full extents along x, y, z, m.", REQUIRED, ge=LENGTH_MIN, le=LENGTH_MAX
+            ),
+            **_frame("Centre of the box"),
+        },
+        at_most_one=(("orientation", "rotation"),),
+    ),
+    "capsule": Key(
+        "object",
+        "The segment a-b swept by a ball of `radius` (a cylinder with two hemispherical caps).",
+        fields={
+            "a": Key("vec3", "First end of the axis, m.", REQUIRED, within=LENGTH_MAX),
+            "b": Key("vec3", "Second end of the axis, m.", REQUIRED, within=LENGTH_MAX),
+            "radius": Key("number", "Radius, m.", REQUIRED, ge=LENGTH_MIN, le=LENGTH_MAX),
+            **_frame("Where the capsule's own origin sits"),
+        },
+        at_most_one=(("orientation", "rotation"),),
+    ),
+    "convex": Key(
+        "object",
+        "The convex hull of the given points (points inside it are dropped).",
+        fields={
+            "vertices": Key(
+                "points3",
+                f"Points [x, y, z], m (4 to {CONVEX_VERTICES_MAX}, not all in one plane).",
+                REQUIRED,
+                min_items=4,
+                max_items=CONVEX_VERTICES_MAX,
+                within=LENGTH_MAX,
+            ),
+            **_frame("Where the points' origin sits"),
+        },
+        at_most_one=(("orientation", "rotation"),),
+    ),
+    "plane": Key(
+        "object",
+        "The solid half-space n·x <= offset in the body frame (static bodies only).",
+        fields={
+            "normal": Key(
+                "vec3",
+                "Outward normal (normalised on load; a zero normal is an error).",
+                (0.0, 1.0, 0.0),
+                within=LENGTH_MAX,
+            ),
+            "offset": Key(
+                "number",
+                "Distance of the plane from the body origin along n, m.",
+                0.0,
+                within=LENGTH_MAX,
+            ),
+        },
+    ),
+}
+
+SHAPE_3D = Key(
+    "object",
+    "One shape: exactly one of sphere, box, capsule, convex, plane, optionally with "
+    "material keys that override the body's for this shape.",
+    fields={**SHAPE_KINDS_3D, **INLINE_MATERIAL_3D},
+    exactly_one=(tuple(SHAPE_KINDS_3D),),
+    ref="shape3d",
+)
+
+_zero3 = (0.0, 0.0, 0.0)
+BODY_3D = Key(
+    "object",
+    "A rigid body with one shape (`shape`) or several (`shapes`, a compound body).",
+    fields={
+        "name": BODY.fields["name"],
+        "type": BODY.fields["type"],
+        "position": Key("vec3", "Body origin in the world, m.", _zero3, within=LENGTH_MAX),
+        "orientation": Key(
+            "quat",
+            "Orientation, unit quaternion [w, x, y, z] (normalised on load).",
+            within=LENGTH_MAX,
+        ),
+        "rotation": replace(
+            ROTATION,
+            description="Orientation as a rotation by `angle` about "
+            "`axis` (instead of `orientation`).",
+        ),
+        "velocity": Key("vec3", "Velocity of the centre of mass, m/s.", _zero3, within=SPEED_MAX),
+        "angular_velocity": Key(
+            "vec3", "Angular velocity in the world frame, rad/s.", _zero3, within=SPIN_MAX
+        ),
+        **INLINE_MATERIAL_3D,
+        "mass": BODY.fields["mass"],
+        "force": Key("vec3", "Constant force in the world frame, N.", _zero3),
+        "force_point": Key(
+            "vec3", "Where the force acts, body frame, m; default: the COM.", within=LENGTH_MAX
+        ),
+        "torque": Key("vec3", "Constant torque in the world frame, N·m.", _zero3),
+        "shape": SHAPE_3D,
+        "shapes": Key("list_of", "Shapes of a compound body.", item=SHAPE_3D, min_items=1),
+    },
+    exactly_one=(("shape", "shapes"),),
+    at_most_one=(("orientation", "rotation"),),
+    ref="body3d",
+)
+
+_size3 = Key(
+    "vec3",
+    "Full extents of each box along x, y, z, m.",
+    (1.0, 1.0, 1.0),
+    ge=LENGTH_MIN,
+    le=LENGTH_MAX,
+)
+
+GENERATORS_3D = {
+    "pyramid": Key(
+        "object",
+        "Boxes in square layers: layer r (from 0 at the bottom) holds (base - r)² boxes "
+        "centred over the origin, named name[r,i,j] (i along x, j along z).",
+        fields={
+            **GENERATORS["pyramid"].fields,
+            "size": _size3,
+            "origin": Key(
+                "vec3", "Centre of the bottom layer, m; default [0, h/2, 0].", within=LENGTH_MAX
+            ),
+            **INLINE_MATERIAL_3D,
+        },
+    ),
+    "stack": Key(
+        "object",
+        "A vertical column of boxes (along y), named name[i] from the bottom.",
+        fields={
+            **GENERATORS["stack"].fields,
+            "size": _size3,
+            "origin": Key(
+                "vec3", "Centre of the bottom box, m; default [0, h/2, 0].", within=LENGTH_MAX
+            ),
+            **INLINE_MATERIAL_3D,
+        },
+    ),
+    "grid": Key(
+        "object",
+        "nx by ny by nz copies of one shape, body [i, j, k] at origin + (i dx, j dy, k dz), "
+        "named name[i,j,k].",
+        fields={
+            "count": Key(
+                "int3", "[nx, ny, nz], number of bodies along x, y and z.", REQUIRED, ge=1
+            ),
+            "spacing": Key(
+                "vec3",
+                "[dx, dy, dz], distance between body origins, m.",
+                REQUIRED,
+                within=LENGTH_MAX,
+            ),
+            "origin": Key("vec3", "Position of body [0, 0, 0], m.", _zero3, within=LENGTH_MAX),
+            "shape": replace(SHAPE_3D, default=REQUIRED),
+            "velocity": Key(
+                "vec3", "Initial velocity of every body, m/s.", _zero3, within=SPEED_MAX
+            ),
+            "name": GENERATORS["grid"].fields["name"],
+            **INLINE_MATERIAL_3D,
+        },
+    ),
+}
+
+WORLD_3D = replace(
+    WORLD,
+    fields={
+        **WORLD.fields,
+        "gravity": Key("vec3", "Gravity, m/s².", (0.0, -9.81, 0.0), within=ACCELERATION_MAX),
+    },
+)
+
+SCENE_3D = replace(
+    SCENE,
+    description="An rbsim scene in 3D (world.dimension: 3), format version 1.",
+    fields={
+        **SCENE.fields,
+        "world": WORLD_3D,
+        "materials": replace(SCENE.fields["materials"], item=MATERIAL_3D),
+        "bodies": replace(
+            SCENE.fields["bodies"],
+            item=Key("entry", "A body or a generator.", item=BODY_3D, variants=GENERATORS_3D),
+        ),
+    },
+)
+
+# What a key of the other dimension's format is called here, for the message that
+# names it: (dimension the key belongs to, name) -> what to write instead.
+OTHER_DIMENSION_HINTS: dict[tuple[int, str], str] = {
+    (2, "angle"): "a 3D scene gives orientation: [w,x,y,z] or rotation: {axis, angle}",
+    (2, "circle"): "a 3D scene has sphere: {radius}",
+    (2, "polygon"): "a 3D scene has convex: {vertices: [[x,y,z], ...]}",
+    (2, "segment"): "a 3D scene has capsule: {a, b, radius}, or a static plane",
+    (3, "orientation"): "a 2D scene gives angle: (rad)",
+    (3, "rotation"): "a 2D scene gives angle: (rad)",
+    (3, "sphere"): "a 2D scene has circle: {radius}",
+    (3, "capsule"): "a 2D scene has segment: {a, b, radius}",
+    (3, "convex"): "a 2D scene has polygon: {vertices: [[x,y], ...]}",
+    (3, "plane"): "a 2D scene has a static segment for the ground",
+}
+
+SCENES_BY_DIMENSION = {2: SCENE, 3: SCENE_3D}
+_ALL_SHAPE_KINDS = {*SHAPE_KINDS, *SHAPE_KINDS_3D}
+
 # Every group of keys that exclude each other (a --set of one removes the others).
 EXCLUSIVE_GROUPS: tuple[tuple[str, ...], ...] = (
     *WORLD.at_most_one,
     *BODY.exactly_one,
     *SHAPE.exactly_one,
+    *SHAPE_3D.exactly_one,
+    *BODY_3D.at_most_one,
 )
 
 
@@ -563,11 +829,63 @@ def did_you_mean(word: str, candidates: Any) -> str | None:
     return close[0] if close else None
 
 
-class Checker:
-    """Checks values against :class:`Key` entries, collecting :class:`Problem` s."""
+def _vector_hint(wanted: int, given: int) -> str:
+    """What to say when a vector of the other dimension is given ('' if it is not one)."""
+    if wanted == 2 and given == 3:
+        return "; a 3-vector is for a 3D scene (world.dimension: 3)"
+    if wanted == 3 and given == 2:
+        return "; [x, y] is for a 2D scene, this one is 3D (world.dimension: 3)"
+    return ""
 
-    def __init__(self) -> None:
+
+def _key_at(key: Key, path: Path) -> Key | None:
+    """The key of the table ``key`` that ``path`` (a key path into a scene) leads to, or
+    None when the table has no such key."""
+    for part in path:
+        if isinstance(part, int):
+            if key.kind != "list_of" or key.item is None:
+                return None
+            key = key.item
+            continue
+        if key.kind == "entry":
+            if part in key.variants:
+                key = key.variants[part]
+                continue
+            key = key.item
+        if key.kind == "map_of" and key.item is not None:
+            key = key.item
+            continue
+        if key.kind != "object" or part not in key.fields:
+            return None
+        key = key.fields[part]
+    return key.item if key.kind == "entry" else key  # a body, not a generator
+
+
+class Checker:
+    """Checks values against :class:`Key` entries, collecting :class:`Problem` s.
+
+    ``dimension`` is the scene's (2 or 3): a key unknown here that the other
+    dimension's table has at the same place is named as the other dimension's.
+    """
+
+    def __init__(self, dimension: int = 2) -> None:
         self.problems: list[Problem] = []
+        self.dimension = dimension
+
+    def _other_dimension(self, name: str, path: Path) -> str | None:
+        """The message for ``name`` at ``path`` if it is a key of the other dimension."""
+        other = 5 - self.dimension  # 2 <-> 3
+        parent = _key_at(SCENES_BY_DIMENSION[other], path)
+        if parent is None or parent.kind != "object" or name not in parent.fields:
+            return None
+        what = "shape" if name in (SHAPE_KINDS, SHAPE_KINDS_3D)[other - 2] else "key"
+        message = f"`{name}` is a {other}D {what}"
+        if self.dimension == 2:
+            message += " (for a scene with world.dimension: 3)"
+        hint = OTHER_DIMENSION_HINTS.get((other, name))
+        if hint:
+            return f"{message}: {hint}"
+        return message if self.dimension == 2 else f"{message}, and this scene is 3D"
 
     def error(self, mark: Mark, path: Path, message: str) -> Any:
         """Record a problem; returns INVALID so that callers can ``return self.error(...)``."""
@@ -672,21 +990,44 @@ class Checker:
     # lists of numbers --------------------------------------------------------------------
 
     def _vec2(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
-        return self._pair(value, key, path, mark, self._number, "numbers")
+        return self._tuple(value, key, path, mark, self._number, "numbers", "[x, y]")
+
+    def _vec3(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
+        return self._tuple(value, key, path, mark, self._number, "numbers", "[x, y, z]")
+
+    def _quat(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
+        return self._tuple(value, key, path, mark, self._number, "numbers", "[w, x, y, z]")
 
     def _int2(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
-        return self._pair(value, key, path, mark, self._integer, "integers")
+        return self._tuple(value, key, path, mark, self._integer, "integers", "[x, y]")
 
-    def _pair(self, value: Any, key: Key, path: Path, mark: Mark, item: Any, what: str) -> Any:
-        if not isinstance(value, YList) or len(value) != 2:
-            return self.error(mark, path, f"expected [x, y], 2 {what}, got {describe(value)}")
+    def _int3(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
+        return self._tuple(value, key, path, mark, self._integer, "integers", "[x, y, z]")
+
+    def _tuple(
+        self, value: Any, key: Key, path: Path, mark: Mark, item: Any, what: str, shape: str
+    ) -> Any:
+        n = shape.count(",") + 1
+        if not isinstance(value, YList) or len(value) != n:
+            message = f"expected {shape}, {n} {what}, got {describe(value)}"
+            if isinstance(value, YList) and shape in ("[x, y]", "[x, y, z]"):
+                message += _vector_hint(n, len(value))
+            return self.error(mark, path, message)
         pair = tuple(item(v, key, path + (i,), value.item_marks[i]) for i, v in enumerate(value))
         return INVALID if INVALID in pair else pair
 
     def _points(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
+        return self._point_list(value, key, path, mark, self._vec2, "[x, y]")
+
+    def _points3(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
+        return self._point_list(value, key, path, mark, self._vec3, "[x, y, z]")
+
+    def _point_list(
+        self, value: Any, key: Key, path: Path, mark: Mark, point: Any, shape: str
+    ) -> Any:
         if not isinstance(value, YList):
             return self.error(
-                mark, path, f"expected a list of [x, y] points, got {describe(value)}"
+                mark, path, f"expected a list of {shape} points, got {describe(value)}"
             )
         if len(value) < key.min_items:
             return self.error(
@@ -694,9 +1035,7 @@ class Checker:
             )
         if key.max_items is not None and len(value) > key.max_items:
             return self.error(mark, path, f"at most {key.max_items} points, got {len(value)}")
-        points = tuple(
-            self._vec2(v, key, path + (i,), value.item_marks[i]) for i, v in enumerate(value)
-        )
+        points = tuple(point(v, key, path + (i,), value.item_marks[i]) for i, v in enumerate(value))
         return INVALID if INVALID in points else points
 
     # containers --------------------------------------------------------------------------
@@ -707,15 +1046,19 @@ class Checker:
         if not isinstance(value, YMap):
             return self.error(mark, path, f"expected a mapping (key: value), got {describe(value)}")
         out = Checked(value, path, mark)
+        foreign = False  # a shape kind of the other dimension (say nothing more of it)
         for name, item in value.items():
             field_key = key.fields.get(name)
             if field_key is None:
-                self.error(value.key_marks[name], path + (name,), _unknown_key(name, key))
+                message = self._other_dimension(name, path)
+                foreign = foreign or (message is not None and name in _ALL_SHAPE_KINDS)
+                message = message or _unknown_key(name, key)
+                self.error(value.key_marks[name], path + (name,), message)
             else:
                 out[name] = self.check(item, field_key, path + (name,), value.value_marks[name])
         for group in key.exactly_one:
             given = [name for name in group if name in value]
-            if not given:
+            if not given and not foreign:
                 self.error(mark, path, f"needs one of {', '.join(group)}")
             elif len(given) > 1:
                 self.error(mark, path, f"give only one of {', '.join(given)}")
@@ -799,7 +1142,7 @@ def check_scene(root: Any, mark: Mark) -> tuple[Any, list[Problem]]:
     Returns (checked tree or INVALID, problems). The checked tree has every default of
     the table filled in; keys whose value is wrong hold INVALID.
     """
-    checker = Checker()
+    checker = Checker(_dimension_of(root))
     if root is BROKEN:
         return INVALID, checker.problems
     if root is None:
@@ -809,7 +1152,16 @@ def check_scene(root: Any, mark: Mark) -> tuple[Any, list[Problem]]:
         message = f"the top level must be a mapping (version: 1, bodies: ...), got {describe(root)}"
         checker.error(mark, (), message)
         return INVALID, checker.problems
-    return checker.check(root, SCENE, (), mark), checker.problems
+    table = SCENES_BY_DIMENSION[checker.dimension]
+    return checker.check(root, table, (), mark), checker.problems
+
+
+def _dimension_of(root: Any) -> int:
+    """The scene's world.dimension as written (3 or 2; anything else, which the check
+    reports, is read as the default 2)."""
+    world = root.get("world") if isinstance(root, YMap) else None
+    dimension = world.get("dimension") if isinstance(world, YMap) else None
+    return 3 if type(dimension) is int and dimension == 3 else 2
 
 
 # ---------------------------------------------------------------------------------------
@@ -817,16 +1169,79 @@ def check_scene(root: Any, mark: Mark) -> tuple[Any, list[Problem]]:
 # ---------------------------------------------------------------------------------------
 
 
+_VECTOR_LENGTH = {"vec2": 2, "int2": 2, "vec3": 3, "int3": 3, "quat": 4}
+
+
 def json_schema() -> dict:
-    """The scene format as a JSON Schema (draft 2020-12) document."""
+    """The scene format as a JSON Schema (draft 2020-12) document.
+
+    The top level's `world` and `bodies` accept either dimension's keys (so that an
+    editor completes both); an if/then/else on world.dimension then holds a scene to its
+    own dimension's format."""
     defs: dict[str, Any] = {}
-    root = _json(SCENE, defs)
+    flat = _json(SCENE, defs)
+    deep = _json(SCENE_3D, defs)
+    props, props3 = flat["properties"], deep["properties"]
+    # the keys whose format differs between the dimensions (world, materials, bodies)
+    pinned = {k: (props[k], v) for k, v in props3.items() if v != props[k]}
+    is_3d = {"properties": {"dimension": {"const": 3}}, "required": ["dimension"]}
+    root = {
+        **flat,
+        "properties": {**props, **{k: _json_union(*v) for k, v in pinned.items()}},
+        "if": {"properties": {"world": is_3d}, "required": ["world"]},
+        "then": {"properties": {k: v[1] for k, v in pinned.items()}},
+        "else": {"properties": {k: v[0] for k, v in pinned.items()}},
+    }
     return {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "title": f"rbsim scene, format version {SCENE_VERSION}",
         **root,
         "$defs": dict(sorted(defs.items())),
     }
+
+
+def _json_union(a: dict[str, Any], b: dict[str, Any]) -> dict[str, Any]:
+    """A JSON Schema that accepts what ``a`` or ``b`` accepts, keeping the shape of ``a``
+    (an object's properties side by side, a list's alternatives side by side)."""
+    if a == b:
+        return a
+    if a.get("type") == b.get("type") == "object" and "properties" in a and "properties" in b:
+        pa, pb = a["properties"], b["properties"]
+        merged = {
+            k: _json_union(pa[k], pb[k]) if k in pa and k in pb else pa.get(k, pb.get(k))
+            for k in {**pa, **pb}
+        }
+        out = {k: v for k, v in a.items() if k not in ("allOf", "required", "default")}
+        return out | {"properties": merged}
+    if "anyOf" in a and "anyOf" in b and a.get("type") == b.get("type"):
+        alternatives = list(a["anyOf"])
+        for alt in b["anyOf"]:
+            name = next(iter(alt.get("properties", {})), None)
+            same = [
+                i for i, x in enumerate(alternatives) if name and name in x.get("properties", {})
+            ]
+            if same:
+                i = same[0]
+                alternatives[i] = {
+                    **alternatives[i],
+                    "properties": {
+                        name: {
+                            "anyOf": [alternatives[i]["properties"][name], alt["properties"][name]]
+                        }
+                    },
+                }
+            elif alt not in alternatives:
+                alternatives.append(alt)
+        return {**a, "anyOf": alternatives}
+    rest_a = {k: v for k, v in a.items() if k != "items"}
+    if (
+        a.get("type") == "array"
+        and "items" in a
+        and "items" in b
+        and rest_a == {k: v for k, v in b.items() if k != "items"}
+    ):
+        return {**a, "items": _json_union(a["items"], b["items"])}
+    return {"anyOf": [a, b]}
 
 
 def _json(key: Key, defs: dict[str, Any]) -> dict[str, Any]:
@@ -874,12 +1289,14 @@ def _json_body(key: Key, defs: dict[str, Any]) -> dict[str, Any]:
             _json_bounds(key, "number"),
             {"type": "string", "pattern": FRACTION_PATTERN},
         ]
-    elif kind in ("vec2", "int2"):
-        item = _json_bounds(key, "number" if kind == "vec2" else "integer")
-        out |= {"type": "array", "items": item, "minItems": 2, "maxItems": 2}
-    elif kind == "points":
+    elif kind in _VECTOR_LENGTH:
+        n = _VECTOR_LENGTH[kind]
+        item = _json_bounds(key, "integer" if kind.startswith("int") else "number")
+        out |= {"type": "array", "items": item, "minItems": n, "maxItems": n}
+    elif kind in ("points", "points3"):
+        n = 2 if kind == "points" else 3
         item = _json_bounds(key, "number")
-        point = {"type": "array", "items": item, "minItems": 2, "maxItems": 2}
+        point = {"type": "array", "items": item, "minItems": n, "maxItems": n}
         out |= {"type": "array", "items": point, "minItems": key.min_items}
         if key.max_items is not None:
             out["maxItems"] = key.max_items

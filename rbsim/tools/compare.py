@@ -1,4 +1,10 @@
-"""`rbsim compare`: the same scene in rbsim and in pymunk, and the differences between them.
+"""`rbsim compare`: the same scene in rbsim and in a reference engine, pymunk in 2D and
+MuJoCo in 3D (REFERENCE), and the differences between them.
+
+In 3D MuJoCo steps the scene as rbsim.engines.mujoco writes it (rbsim's own masses and
+inertia tensors, steps of dt / substeps), and the angle compared is the angle of the
+rotation between the two orientations, 2 acos |q1 · q2|; statistics are 2D only. What
+follows is said of pymunk and holds for MuJoCo alike.
 
 Both engines write a trajectory in the same H5MD layout (DESIGN.md), with frames at the
 same steps (0, every output.every-th, the last). pymunk takes steps of the same length as
@@ -21,13 +27,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from ..engines import make_engine
-from ..engines.pymunk import PymunkSettings, PymunkWorld, UnsupportedScene
+from ..engines import UnsupportedScene, make_engine
+from ..engines.pymunk import PymunkSettings, PymunkWorld
 from ..io.trajectory import Trajectory, load_trajectory
 from ..run import run_scene
 from ..scene import Scene
@@ -48,7 +55,22 @@ QUANTITIES: dict[str, tuple[str, str, str]] = {
     "position": ("max_position", "m", "position difference"),
     "angle": ("max_angle", "rad", "angle difference"),
     "velocity": ("max_velocity", "m/s", "velocity difference"),
+    "angular_velocity": ("max_angular_velocity", "rad/s", "angular velocity difference"),
 }
+
+# Events (impacts): a frame-to-frame change of a body's velocity or angular velocity that
+# departs from the local trend (the median rate of change over the three intervals on either
+# side, so that gravity, forces, precession and resting contact are not events) by more
+# than the quantity's tolerance and more than EVENT_FRACTION of the body's largest speed
+# in either run (round-off and solver jitter are not events). Consecutive jump frames are
+# one event (an impact resolved over two steps).
+EVENT_FRACTION = 1e-3
+# The two engines' events are paired, in order, when their first jump frames are at most
+# EVENT_FRAMES frames apart: each engine resolves an impact within one of its steps of the
+# contact instant (a frame is one or more steps), so their jumps land in the same or the
+# next frame, and an impact spread over two steps adds one. An event without a partner is
+# a missed or an extra impact, reported when velocity or angular velocity is checked.
+EVENT_FRAMES = 3
 
 # Statistic -> (unit, words for the table and messages); see `statistics`.
 STATISTICS: dict[str, tuple[str, str]] = {
@@ -57,6 +79,9 @@ STATISTICS: dict[str, tuple[str, str]] = {
     "heights": ("m", "final heights: spread | sorted gap"),
     "penetration": ("m", "max penetration (whole run)"),
 }
+
+# The reference engine of each world.dimension
+REFERENCE = {2: "pymunk", 3: "mujoco"}
 
 TABLE_ROWS = 10  # bodies shown in the table when there are more
 
@@ -67,8 +92,13 @@ PENETRATION_FRAMES = 400
 
 @dataclass
 class BodyDiff:
-    """Differences rbsim - pymunk for one body over the run: positions of the body origin
-    (m), angles (rad), centre-of-mass velocities (m/s); `*_step` is where the max is."""
+    """Differences rbsim - the other engine for one body over the run: positions of the
+    body origin (m), angles (rad; in 3D the rotation angle between the two orientations),
+    centre-of-mass velocities (m/s), angular velocities (rad/s); `*_step` is where the max
+    is. Velocities and angular velocities are compared with the engines' impacts lined
+    up (see `aligned_difference`): `impacts` is how many impacts (events) were paired,
+    `max_offset` (s) the largest time offset between paired impacts (the other engine's
+    time minus rbsim's), `unmatched` one (engine, time s) per impact without a partner."""
 
     name: str
     max_position: float
@@ -79,13 +109,21 @@ class BodyDiff:
     max_position_step: int
     max_angle_step: int
     max_velocity_step: int
+    max_angular_velocity: float = 0.0
+    max_angular_velocity_step: int = 0
+    impacts: int = 0
+    max_offset: float = 0.0
+    unmatched: list[tuple[str, float]] = field(default_factory=list)
 
 
 @dataclass
 class CompareResult:
     """What `rbsim compare` reports. energy: total kinetic + potential at the end (J);
     momentum: linear momentum at the end (kg·m/s); us_per_step: wall time per scene step
-    in stepping alone (µs); violations: one message per checked quantity over tolerance."""
+    in stepping alone (µs); violations: one message per checked quantity over tolerance;
+    reference: the other engine ("pymunk" in 2D, "mujoco" in 3D), the key of its entries
+    beside "rbsim"; pymunk_settings: the reference engine's settings (MuJoCo's in 3D);
+    angular_momentum: about the world origin at the end (kg·m²/s; one value in 2D)."""
 
     scene: str
     steps: int
@@ -99,6 +137,8 @@ class CompareResult:
     violations: list[str] = field(default_factory=list)
     statistics: dict[str, dict[str, float]] | None = None
     statistics_tolerances: dict[str, float] = field(default_factory=dict)
+    reference: str = "pymunk"
+    angular_momentum: dict[str, list[float]] = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
@@ -116,11 +156,13 @@ class CompareResult:
         return {
             "ok": self.ok,
             "scene": self.scene,
+            "reference": self.reference,
             "steps": self.steps,
             "tolerances": dict(self.tolerances),
             "bodies": [dataclasses.asdict(b) for b in self.bodies],
             "energy": dict(self.energy),
             "linear_momentum": {k: list(v) for k, v in self.momentum.items()},
+            "angular_momentum": {k: list(v) for k, v in self.angular_momentum.items()},
             "us_per_step": dict(self.us_per_step),
             "files": dict(self.files),
             "pymunk_settings": dict(self.pymunk_settings),
@@ -132,36 +174,51 @@ class CompareResult:
     def table(self) -> str:
         """The human-readable report."""
         shown = self.worst()
-        lines = [f"{self.scene}: rbsim against pymunk, {self.steps} steps"]
+        other = self.reference
+        lines = [f"{self.scene}: rbsim against {other}, {self.steps} steps"]
         if len(shown) < len(self.bodies):
             lines[0] += f" ({len(shown)} worst of {len(self.bodies)} bodies by position)"
         width = max([4, *(len(b.name) for b in shown)])
         head = (
             f"  {'body':<{width}}  {'pos max m':>10}  {'pos end m':>10}  {'ang max rad':>11}"
-            f"  {'ang end rad':>11}  {'vel max m/s':>11}"
+            f"  {'ang end rad':>11}  {'vel max m/s':>11}  {'ω max rad/s':>11}"
+            f"  {'impacts':>7}  {'Δt impact s':>11}"
         )
         lines.append(head)
         for b in shown:
+            impacts = f"{b.impacts}" + (f"+{len(b.unmatched)}?" if b.unmatched else "")
             lines.append(
                 f"  {b.name:<{width}}  {b.max_position:>10.3g}  {b.final_position:>10.3g}  "
-                f"{b.max_angle:>11.3g}  {b.final_angle:>11.3g}  {b.max_velocity:>11.3g}"
+                f"{b.max_angle:>11.3g}  {b.final_angle:>11.3g}  {b.max_velocity:>11.3g}  "
+                f"{b.max_angular_velocity:>11.3g}  {impacts:>7}  {b.max_offset:>11.3g}"
             )
+        lines.append(
+            "  (velocities compared with the engines' impacts lined up; Δt impact: the "
+            "largest time offset, other engine − rbsim; +n?: impacts only one engine has)"
+        )
         tol = ", ".join(f"{k} {v:g} {QUANTITIES[k][1]}" for k, v in self.tolerances.items())
         lines.append(f"  tolerance: {tol or 'none (nothing checked)'}")
         lines.append("")
-        lines.append(f"  {'at the end':<22}  {'rbsim':>14}  {'pymunk':>14}")
+        lines.append(f"  {'at the end':<22}  {'rbsim':>14}  {other:>14}")
         lines.append(
             f"  {'energy (KE + PE) J':<22}  {self.energy['rbsim']:>14.6g}  "
-            f"{self.energy['pymunk']:>14.6g}"
+            f"{self.energy[other]:>14.6g}"
         )
-        for axis, k in (("x", 0), ("y", 1)):
+        for k, axis in enumerate("xyz"[: len(self.momentum["rbsim"])]):
             lines.append(
                 f"  {'momentum ' + axis + ' kg m/s':<22}  {self.momentum['rbsim'][k]:>14.6g}  "
-                f"{self.momentum['pymunk'][k]:>14.6g}"
+                f"{self.momentum[other][k]:>14.6g}"
+            )
+        spin = self.angular_momentum
+        for k in range(len(spin.get("rbsim", ()))):
+            axis = " " + "xyz"[k] if len(spin["rbsim"]) == 3 else ""
+            lines.append(
+                f"  {'ang. mom.' + axis + ' kg m²/s':<22}  {spin['rbsim'][k]:>14.6g}  "
+                f"{spin[other][k]:>14.6g}"
             )
         lines.append(
             f"  {'wall time / step µs':<22}  {self.us_per_step['rbsim']:>14.2f}  "
-            f"{self.us_per_step['pymunk']:>14.2f}"
+            f"{self.us_per_step[other]:>14.2f}"
         )
         if self.statistics is not None:
             lines.append("")
@@ -176,7 +233,7 @@ class CompareResult:
                     f"  {words + ' ' + unit:<34}  {st['rbsim']:>11.4g}  {st['pymunk']:>11.4g}"
                     f"  {st['difference']:>11.4g}  {'-' if tol is None else f'{tol:g}':>9}"
                 )
-        lines.append(f"  files: {self.files['rbsim']}, {self.files['pymunk']}")
+        lines.append(f"  files: {self.files['rbsim']}, {self.files[other]}")
         lines.append("  ok" if self.ok else "  OUTSIDE TOLERANCE")
         return "\n".join(lines)
 
@@ -201,26 +258,171 @@ def run_pymunk_to_file(scene: Scene, out: str | Path, settings: PymunkSettings) 
     return summary.step_time
 
 
-def _angle_diff(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """|a - b| for unwrapped angles (rad); both engines start from the scene's angle, so
-    the unwrapped difference is the physical one (a whole extra turn counts)."""
-    return np.abs(a - b)
+def angle_difference(ra: Trajectory, pm: Trajectory) -> np.ndarray:
+    """(T, N) angle between the two engines' orientations, rad. 2D: |a - b| of the
+    unwrapped angles (both engines start from the scene's angle, so the unwrapped
+    difference is the physical one: a whole extra turn counts). 3D: the angle of the
+    rotation taking one orientation to the other, 2 acos |q1 · q2| (q and -q are the
+    same rotation), computed as 4 atan2(|q1 - s q2|, |q1 + s q2|) with s the sign of
+    q1 · q2 (|q1 ∓ q2| = 2 sin or 2 cos of a quarter of the angle), which keeps its
+    accuracy near 0 where acos loses half the digits."""
+    if ra.angle is not None and pm.angle is not None:
+        return np.abs(ra.angle - pm.angle)
+    q1, q2 = ra.orientation, pm.orientation
+    sign = np.where(np.sum(q1 * q2, axis=-1, keepdims=True) < 0.0, -1.0, 1.0)
+    minus = np.linalg.norm(q1 - sign * q2, axis=-1)
+    plus = np.linalg.norm(q1 + sign * q2, axis=-1)
+    return 4.0 * np.arctan2(minus, plus)
 
 
-def body_diffs(ra: Trajectory, pm: Trajectory) -> list[BodyDiff]:
-    """Per-body differences between two trajectories with the same frames and bodies."""
+def _columns(series: np.ndarray) -> np.ndarray:
+    """(T, N, k) view of a (T, N) or (T, N, k) per-body series."""
+    return series[:, :, None] if series.ndim == 2 else series
+
+
+def trend(time: np.ndarray, series: np.ndarray) -> np.ndarray:
+    """(T-1, k) the local trend of `series` (T, k): per interval i (frame i to i+1), the
+    median rate of change (per second; time (T,) s) of the three intervals on either
+    side of it, i itself left out. A steady acceleration or a smooth turn follows it (off
+    by at most 2 |v''| h², at the ends), and a jump, even spread over two intervals (two
+    outliers of six), does not move it."""
+    change = np.diff(series, axis=0)
+    if len(change) == 0:
+        return np.zeros((0, series.shape[1]))
+    rate = change / np.diff(time)[:, None]
+    padded = np.pad(rate, ((3, 3), (0, 0)), constant_values=np.nan)
+    n = len(rate)
+    around = np.stack([padded[k : k + n] for k in (0, 1, 2, 4, 5, 6)])
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN: fewer than 2 frames
+        return np.nan_to_num(np.nanmedian(around, axis=0))
+
+
+def jump_frames(time: np.ndarray, series: np.ndarray, threshold: float) -> np.ndarray:
+    """(T-1,) bool: whether the change of `series` (T, k) from frame i to i+1 departs from
+    its local `trend` times the interval's length by more than `threshold` (the series'
+    unit): a steady acceleration, a smooth turn or the interval next to a jump spread
+    over two intervals are not jumps."""
+    change = np.diff(series, axis=0)
+    span = np.diff(time)[:, None]
+    return np.linalg.norm(change - trend(time, series) * span, axis=1) > threshold
+
+
+def events(jumps: np.ndarray) -> list[tuple[int, int]]:
+    """The runs of consecutive True in `jumps` (T-1,) as (first, last) interval indices:
+    the state jumps between frames first and last + 1."""
+    out: list[tuple[int, int]] = []
+    for i in np.flatnonzero(jumps):
+        if out and out[-1][1] == i - 1:
+            out[-1] = (out[-1][0], int(i))
+        else:
+            out.append((int(i), int(i)))
+    return out
+
+
+def pair_events(
+    a: list[tuple[int, int]], b: list[tuple[int, int]], frames: int = EVENT_FRAMES
+) -> tuple[list[tuple[tuple[int, int], tuple[int, int]]], list[int], list[int]]:
+    """Pair two engines' events in time order: the next two pair when their first jump
+    frames are at most `frames` apart, else the earlier one has no partner. Returns
+    (pairs, indices of a's unpaired events, indices of b's)."""
+    pairs, lone_a, lone_b = [], [], []
+    i = j = 0
+    while i < len(a) and j < len(b):
+        if abs(a[i][0] - b[j][0]) <= frames:
+            pairs.append((a[i], b[j]))
+            i, j = i + 1, j + 1
+        elif a[i][0] < b[j][0]:
+            lone_a.append(i)
+            i += 1
+        else:
+            lone_b.append(j)
+            j += 1
+    return pairs, lone_a + list(range(i, len(a))), lone_b + list(range(j, len(b)))
+
+
+def aligned_difference(
+    a: np.ndarray,
+    b: np.ndarray,
+    pairs: list[tuple[tuple[int, int], tuple[int, int]]],
+    time: np.ndarray | None = None,
+) -> np.ndarray:
+    """(T,) |a - b| per frame for two (T, k) series, with paired jumps lined up: on the
+    frames between the two engines' jumps of a pair (one engine has jumped, the other
+    not yet), each engine's state is compared with the nearest state of the other over
+    the pair's frames (from the frame before the first jump to the frame after the last),
+    carried to the frame's time along its local `trend` (so that gravity acting over the
+    offset is no difference; time (T,) s, None: no carrying), the larger of the two
+    ways. Everywhere else, frame by frame: a wrong post-impact velocity or a missed
+    impact still shows in full after the pair's frames."""
+    diff = np.linalg.norm(a - b, axis=1)
+    if not pairs:
+        return diff
+    carry = time is not None and len(a) > 1
+
+    def nearest(x: np.ndarray, k: int, y: np.ndarray, rate: np.ndarray | None, w: range) -> float:
+        best = math.inf
+        for j in w:
+            guess = y[j]
+            if rate is not None and j != k:
+                interval = min(j, k) if j < k else j - 1  # the rate beside j, towards k
+                guess = y[j] + rate[interval] * (time[k] - time[j])
+            best = min(best, float(np.linalg.norm(x[k] - guess)))
+        return best
+
+    rate_a = trend(time, a) if carry else None
+    rate_b = trend(time, b) if carry else None
+    for (a0, a1), (b0, b1) in pairs:
+        lo, hi = min(a0, b0) + 1, max(a1, b1)
+        window = range(lo - 1, min(hi + 2, len(a)))
+        for k in range(lo, hi + 1):
+            diff[k] = max(nearest(a, k, b, rate_b, window), nearest(b, k, a, rate_a, window))
+    return diff
+
+
+def body_diffs(
+    ra: Trajectory,
+    pm: Trajectory,
+    tolerances: dict[str, float] | None = None,
+    engines: tuple[str, str] = ("rbsim", "pymunk"),
+) -> list[BodyDiff]:
+    """Per-body differences between two trajectories with the same frames and bodies.
+    Velocity jumps (impacts) are found in each run (`jump_frames`, with the velocity and
+    angular_velocity `tolerances` as thresholds: the jumps of the checked ones among the
+    two, or of both when neither is checked), paired (`pair_events`) and lined up for the
+    velocity and angular velocity differences (`aligned_difference`).
+    `engines` names the two runs in `unmatched`."""
     if not np.array_equal(ra.step, pm.step):
         raise ValueError("the two trajectories have different frames")
+    tolerances = tolerances or {}
     dpos = np.linalg.norm(ra.position - pm.position, axis=2)  # (T, N)
-    dang = _angle_diff(ra.angle, pm.angle)
-    dvel = np.linalg.norm(ra.velocity - pm.velocity, axis=2)
+    dang = angle_difference(ra, pm)
+    vel = (ra.velocity, pm.velocity)
+    omega = (_columns(ra.angular_velocity), _columns(pm.angular_velocity))
+    time = ra.time
+    # the quantities whose jumps are events: those checked, else both (for the report)
+    watched = [
+        (series, key)
+        for series, key in ((vel, "velocity"), (omega, "angular_velocity"))
+        if key in tolerances
+    ] or [(vel, "velocity"), (omega, "angular_velocity")]
     out = []
     for i, name in enumerate(ra.bodies.name):
-        ip, ia, iv = (
-            int(np.argmax(dpos[:, i])),
-            int(np.argmax(dang[:, i])),
-            int(np.argmax(dvel[:, i])),
-        )
+        jumps = [np.zeros(max(len(time) - 1, 0), bool) for _ in engines]
+        for series, key in watched:
+            scale = max(float(np.abs(s[:, i]).max(initial=0.0)) for s in series)
+            threshold = max(tolerances.get(key, 0.0), EVENT_FRACTION * scale)
+            for e in range(2):
+                jumps[e] |= jump_frames(time, series[e][:, i], threshold)
+        ev_ra, ev_pm = events(jumps[0]), events(jumps[1])
+        pairs, lone_ra, lone_pm = pair_events(ev_ra, ev_pm)
+        dvel = aligned_difference(vel[0][:, i], vel[1][:, i], pairs, time)
+        domg = aligned_difference(omega[0][:, i], omega[1][:, i], pairs, time)
+        offsets = [float(time[b[0]] - time[a[0]]) for a, b in pairs]
+        unmatched = [(engines[0], float(time[ev_ra[k][0] + 1])) for k in lone_ra] + [
+            (engines[1], float(time[ev_pm[k][0] + 1])) for k in lone_pm
+        ]
+        ip, ia, iv, iw = (int(np.argmax(d)) for d in (dpos[:, i], dang[:, i], dvel, domg))
         out.append(
             BodyDiff(
                 name=name,
@@ -228,17 +430,24 @@ def body_diffs(ra: Trajectory, pm: Trajectory) -> list[BodyDiff]:
                 final_position=float(dpos[-1, i]),
                 max_angle=float(dang[ia, i]),
                 final_angle=float(dang[-1, i]),
-                max_velocity=float(dvel[iv, i]),
+                max_velocity=float(dvel[iv]),
                 max_position_step=int(ra.step[ip]),
                 max_angle_step=int(ra.step[ia]),
                 max_velocity_step=int(ra.step[iv]),
+                max_angular_velocity=float(domg[iw]),
+                max_angular_velocity_step=int(ra.step[iw]),
+                impacts=len(pairs),
+                max_offset=max(offsets, key=abs, default=0.0),
+                unmatched=sorted(unmatched, key=lambda u: u[1]),
             )
         )
     return out
 
 
 def violations(bodies: list[BodyDiff], tolerances: dict[str, float]) -> list[str]:
-    """One message per body and checked quantity above its tolerance (NaN counts)."""
+    """One message per body and checked quantity above its tolerance (NaN counts), and,
+    when velocity or angular velocity is checked, one per impact that only one engine
+    has (a missed or an extra collision)."""
     found = []
     for b in bodies:
         for key, tol in tolerances.items():
@@ -249,6 +458,12 @@ def violations(bodies: list[BodyDiff], tolerances: dict[str, float]) -> list[str
                 found.append(
                     f"body {b.name!r}: max {words} {value:.4g} {unit} at step {step} "
                     f"exceeds the {key} tolerance {tol:g} {unit}"
+                )
+        if "velocity" in tolerances or "angular_velocity" in tolerances:
+            for engine, t in b.unmatched:
+                found.append(
+                    f"body {b.name!r}: a velocity jump (impact) at t = {t:.6g} s in {engine} "
+                    f"has no match in the other engine within {EVENT_FRAMES} frames"
                 )
     return found
 
@@ -364,9 +579,14 @@ def statistics_violations(
     return found
 
 
-def _same_run(scene: Scene, other: Scene) -> None:
-    """Raise UnsupportedScene unless `other` (pymunk's scene) has the same bodies, steps,
-    step length and output frames as `scene`."""
+def reference_engine(scene: Scene) -> str:
+    """The engine rbsim is compared with: pymunk in 2D, MuJoCo in 3D (REFERENCE)."""
+    return REFERENCE[int(getattr(scene.world, "dimension", 2))]
+
+
+def _same_run(scene: Scene, other: Scene, reference: str = "pymunk") -> None:
+    """Raise UnsupportedScene unless `other` (the reference engine's scene) has the same
+    bodies, steps, step length and output frames as `scene`."""
     why = None
     if [b.name for b in scene.bodies] != [b.name for b in other.bodies]:
         why = "its bodies differ"
@@ -375,15 +595,25 @@ def _same_run(scene: Scene, other: Scene) -> None:
     elif scene.output.every != other.output.every:
         why = "its output.every differs"
     elif scene.solver.substeps != other.solver.substeps:
-        why = "its solver.substeps differ (pymunk's step length)"
+        why = f"its solver.substeps differ ({reference}'s step length)"
     if why:
-        raise UnsupportedScene(f"pymunk's scene must run the same frames as rbsim's: {why}")
+        raise UnsupportedScene(f"{reference}'s scene must run the same frames as rbsim's: {why}")
 
 
 def _warm_up(scene: Scene, engine: str) -> None:
     """Take one step of the scene on a throwaway world, so that loading rbsim's engine
     is not counted in its wall time per step."""
     make_engine(engine, scene).advance(1)
+
+
+def _reference_options(scene: Scene, reference: str, iterations: int | None) -> dict:
+    """The reference engine's options: pymunk steps as long as rbsim's substeps (and
+    `iterations`); MuJoCo takes solver.substeps steps of dt / substeps."""
+    if reference == "pymunk":
+        return {"settings": pymunk_settings_for(scene, iterations)}
+    from ..engines.mujoco import MujocoSettings
+
+    return {"settings": MujocoSettings(substeps=int(scene.solver.substeps))}
 
 
 def compare_scene(
@@ -398,29 +628,34 @@ def compare_scene(
     pymunk_scene: Scene | None = None,
     engine: str = "rbsim",
 ) -> CompareResult:
-    """Run `scene` in rbsim and pymunk, writing out_dir/<name>.rbsim.h5 and
-    out_dir/<name>.pymunk.h5, and compare them. Statistics (see `statistics`) are
-    computed when `with_statistics` or the scene has a compare.statistics block.
-    `pymunk_scene` (default `scene`) is what pymunk runs: the same scene with a setting
-    changed, to see how much that setting matters. Raises UnsupportedScene (pymunk cannot
-    express the scene) before running either engine, and whatever run_scene raises.
-    `engine` is rbsim's side (engines.RBSIM_ENGINES)."""
+    """Run `scene` in rbsim and in the reference engine (pymunk in 2D, MuJoCo in 3D),
+    writing out_dir/<name>.rbsim.h5 and out_dir/<name>.<reference>.h5, and compare them.
+    Statistics (see `statistics`, 2D only) are computed when `with_statistics` or the
+    scene has a compare.statistics block. `pymunk_scene` (default `scene`) is what the
+    reference engine runs: the same scene with a setting changed, to see how much that
+    setting matters. Raises UnsupportedScene (the reference engine cannot express the
+    scene) and EngineUnavailable (MuJoCo is not installed) before running either engine,
+    and whatever run_scene raises. `engine` is rbsim's side (engines.RBSIM_ENGINES)."""
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    reference = reference_engine(scene)
     pm_scene = scene if pymunk_scene is None else pymunk_scene
-    _same_run(scene, pm_scene)
-    settings = pymunk_settings_for(scene, iterations)
-    make_engine("pymunk", pm_scene, settings=settings)  # UnsupportedScene before any work
+    _same_run(scene, pm_scene, reference)
+    wanted = with_statistics or "statistics" in scene.compare
+    if wanted and reference != "pymunk":
+        raise UnsupportedScene("statistics are compared in 2D scenes only")
+    options = _reference_options(scene, reference, iterations)
+    make_engine(reference, pm_scene, **options)  # UnsupportedScene before any work
+    out_dir.mkdir(parents=True, exist_ok=True)
     files = {
         "rbsim": str(out_dir / f"{scene.name}.rbsim.h5"),
-        "pymunk": str(out_dir / f"{scene.name}.pymunk.h5"),
+        reference: str(out_dir / f"{scene.name}.{reference}.h5"),
     }
     _warm_up(scene, engine)
     summary = run_scene(scene, files["rbsim"], engine=engine)
-    pm_wall = run_pymunk_to_file(pm_scene, files["pymunk"], settings)
-    ra, pm = load_trajectory(files["rbsim"]), load_trajectory(files["pymunk"])
-    bodies = body_diffs(ra, pm)
+    other = run_scene(pm_scene, files[reference], engine=reference, options=options)
+    ra, pm = load_trajectory(files["rbsim"]), load_trajectory(files[reference])
     tol = tolerances_for(scene, position=position, angle=angle, velocity=velocity)
+    bodies = body_diffs(ra, pm, tol, engines=("rbsim", reference))
     steps = int(scene.world.steps)
 
     def energy(tr: Trajectory) -> float:
@@ -431,7 +666,6 @@ def compare_scene(
         for k, v in (scene.compare.get("statistics") or {}).items()
         if k in STATISTICS and v is not None
     }
-    wanted = with_statistics or "statistics" in scene.compare
     stats = statistics(ra, pm, scene) if wanted else None
 
     def per_step(seconds: float) -> float:
@@ -442,15 +676,20 @@ def compare_scene(
         steps=steps,
         bodies=bodies,
         tolerances=tol,
-        energy={"rbsim": energy(ra), "pymunk": energy(pm)},
+        energy={"rbsim": energy(ra), reference: energy(pm)},
         momentum={
             "rbsim": [float(x) for x in ra.observables["linear_momentum"][-1]],
-            "pymunk": [float(x) for x in pm.observables["linear_momentum"][-1]],
+            reference: [float(x) for x in pm.observables["linear_momentum"][-1]],
         },
-        us_per_step={"rbsim": per_step(summary.step_time), "pymunk": per_step(pm_wall)},
+        us_per_step={"rbsim": per_step(summary.step_time), reference: per_step(other.step_time)},
+        angular_momentum={
+            name: np.atleast_1d(tr.observables["angular_momentum"][-1]).astype(float).tolist()
+            for name, tr in (("rbsim", ra), (reference, pm))
+        },
         files=files,
-        pymunk_settings=dataclasses.asdict(settings),
+        pymunk_settings=dataclasses.asdict(options["settings"]),
         violations=violations(bodies, tol) + statistics_violations(stats or {}, stat_tol),
         statistics=stats,
         statistics_tolerances=stat_tol,
+        reference=reference,
     )

@@ -41,11 +41,15 @@ __all__ = [
     "PlotUnavailable",
     "Point",
     "Pool",
+    "RotationPoint",
+    "RotationSweepResult",
     "SerialPool",
     "Setting",
     "SweepError",
     "SweepResult",
+    "free_body_period",
     "pareto_front",
+    "run_rotation_sweep",
     "run_sweep",
 ]
 
@@ -100,7 +104,7 @@ class Setting:
         integ = {"symplectic_euler": "symp", "explicit_euler": "expl"}.get(
             self.integrator, self.integrator
         )
-        rot = {"normalize": "norm", "exact": "exact"}.get(self.rotation, self.rotation)
+        rot = {"normalize": "norm"}.get(self.rotation, self.rotation)
         return f"rbsim s{self.substeps} it{self.iterations} {integ} {rot}"
 
 
@@ -142,13 +146,14 @@ def dt_text(dt: float) -> str:
 class Grid:
     """The settings to sweep: every combination of dts with rbsim's substeps,
     iterations, integrators and rotations, and of dts with pymunk's iterations (none: no
-    pymunk runs)."""
+    pymunk runs). rotations None: normalize and exact in 2D (split is exact there), all
+    three in 3D (run_rotation_sweep)."""
 
     dts: tuple[float, ...] = DEFAULT_DTS
     substeps: tuple[int, ...] = (1, 4)
     iterations: tuple[int, ...] = (1, 4)
     integrators: tuple[str, ...] = ("symplectic_euler",)
-    rotations: tuple[str, ...] = ("normalize", "exact")
+    rotations: tuple[str, ...] | None = None
     pymunk_iterations: tuple[int, ...] = (5, 10, 30)
 
     def settings(self) -> list[Setting]:
@@ -157,7 +162,7 @@ class Grid:
         for sub in self.substeps:
             for it in self.iterations:
                 for integ in self.integrators:
-                    for rot in self.rotations:
+                    for rot in self.rotations or ("normalize", "exact"):
                         for dt in sorted(self.dts, reverse=True):
                             out.append(Setting("rbsim", dt, sub, it, integ, rot))
         for it in self.pymunk_iterations:
@@ -336,19 +341,29 @@ class SweepResult:
         """Write <scene>.csv, <scene>.json and (plot=True) <scene>.png into out_dir;
         returns the paths written. Raises PlotUnavailable after writing CSV and JSON when
         matplotlib is missing."""
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        paths = {"csv": out / f"{self.scene}.csv", "json": out / f"{self.scene}.json"}
-        rows = [p.row() for p in self.points]
-        with open(paths["csv"], "w", newline="", encoding="utf-8") as f:
-            writer = csv.DictWriter(f, fieldnames=list(rows[0]) if rows else ["engine"])
-            writer.writeheader()
-            writer.writerows(rows)
-        paths["json"].write_text(json.dumps(_jsonable(self.to_dict()), indent=2) + "\n")
-        if plot:
-            paths["png"] = out / f"{self.scene}.png"
-            plot_sweep(self, paths["png"])
-        return paths
+        return _write_files(self, out_dir, plot_sweep if plot else None)
+
+
+def _write_files(
+    result: SweepResult | RotationSweepResult,
+    out_dir: str | Path,
+    plot: Callable[[Any, Path], None] | None,
+) -> dict[str, Path]:
+    """<scene>.csv (a row per point), <scene>.json (result.to_dict()) and, with `plot`,
+    <scene>.png into out_dir; the paths written."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {"csv": out / f"{result.scene}.csv", "json": out / f"{result.scene}.json"}
+    rows = [p.row() for p in result.points]
+    with open(paths["csv"], "w", newline="", encoding="utf-8") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]) if rows else ["engine"])
+        writer.writeheader()
+        writer.writerows(rows)
+    paths["json"].write_text(json.dumps(_jsonable(result.to_dict()), indent=2) + "\n")
+    if plot is not None:
+        paths["png"] = out / f"{result.scene}.png"
+        plot(result, paths["png"])
+    return paths
 
 
 def _finite(p: Point) -> bool:
@@ -590,18 +605,12 @@ def run_sweep(
     else:
         ref_poses = ref.poses(np.arange(samples + 1) * sample_dt)
     total = 2 * len(settings)
-    if progress is not None and settings:
-        progress(0, total, settings[0])
     scenes, calls = [], []
     for s in settings:
         per = _steps(s.dt, sample_dt)
         scenes.append(scene_for(scene, s, per * samples))
         calls.append((scenes[-1], ref, s, per, samples))
-    sampled: list[_Sampled | None] = [None] * len(settings)
-    for done, (i, got) in enumerate(pool.map(sample_run, calls), start=1):
-        sampled[i] = got
-        if progress is not None:
-            progress(done, total, settings[i])
+    sampled = _map_runs(pool, sample_run, calls, settings, progress)
     points = []
     for k, (s, sc, got) in enumerate(zip(settings, scenes, sampled, strict=True)):
         assert got is not None
@@ -656,11 +665,35 @@ def _measure(
     point.error, point.position_error, point.angle_error = pose_error(
         got.poses, ref_poses, ref.gyration
     )
-    seconds, n = pool.alone(time_run, sc, s, repeats)
-    point.cpu = seconds / (sc.world.steps * sc.world.dt)
-    point.us_per_step = 1e6 * seconds / sc.world.steps
-    point.timed_runs = n
+    point.cpu, point.us_per_step, point.timed_runs = _cost(sc, s, repeats, pool)
     return point
+
+
+def _cost(sc: Scene, s: Setting, repeats: int, pool: Pool) -> tuple[float, float, int]:
+    """The cost of running `sc` with setting s, timed alone in the pool: CPU s per
+    simulated s, µs per step, and the number of timed runs."""
+    seconds, n = pool.alone(time_run, sc, s, repeats)
+    return seconds / (sc.world.steps * sc.world.dt), 1e6 * seconds / sc.world.steps, n
+
+
+def _map_runs(
+    pool: Pool,
+    fn: Callable[..., Any],
+    calls: Sequence[tuple],
+    settings: Sequence[Setting],
+    progress: Callable[[int, int, Setting], None] | None,
+) -> list[Any]:
+    """fn(*call) for every call through pool.map, in the order of `calls`; progress(k,
+    total, setting) after each, total being two per setting (the timed runs follow)."""
+    total = 2 * len(settings)
+    if progress is not None and settings:
+        progress(0, total, settings[0])
+    results: list[Any] = [None] * len(calls)
+    for done, (i, got) in enumerate(pool.map(fn, calls), start=1):
+        results[i] = got
+        if progress is not None:
+            progress(done, total, settings[i])
+    return results
 
 
 def _converged(
@@ -857,6 +890,314 @@ def plot_scaling(points: Sequence[ScalingPoint], path: str | Path) -> None:
     ax.set_ylabel("CPU µs per step (median, dt 1/60)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+# --------------------------------------------------------------------------------------
+# 3D: the rotation updates side by side on a tumbling body
+
+
+@dataclass
+class RotationPoint:
+    """One run of a 3D rotation sweep: the update, dt (s) and substeps; its cost, cpu
+    (median CPU s per simulated s) and us_per_step (µs); energy_error, the largest
+    |E − E0| / E0 over the run (E the total energy); period_error, the first whole
+    period of ω in the body against the closed form, relative (nan when the body
+    makes no whole period or the scene has no closed form); status "ok" or why the run
+    failed; front: on the Pareto front of energy error against cost."""
+
+    rotation: str
+    dt: float
+    substeps: int
+    cpu: float = math.nan
+    us_per_step: float = math.nan
+    energy_error: float = math.inf
+    period_error: float = math.nan
+    timed_runs: int = 0
+    status: str = "ok"
+    front: bool = False
+
+    def row(self) -> dict:
+        """A flat dict for CSV and JSON (units in the keys)."""
+        return {
+            "rotation": self.rotation,
+            "dt_s": self.dt,
+            "substeps": self.substeps,
+            "cpu_s_per_sim_s": self.cpu,
+            "us_per_step": self.us_per_step,
+            "energy_error_rel": self.energy_error,
+            "period_error_rel": self.period_error,
+            "timed_runs": self.timed_runs,
+            "status": self.status,
+            "pareto_front": self.front,
+        }
+
+
+@dataclass
+class RotationSweepResult:
+    """A 3D sweep of the rotation updates: the scene, the tracked body, its closed-form
+    period of ω in the body (s; None without one), the points."""
+
+    scene: str
+    path: str
+    body: str
+    duration: float
+    period: float | None
+    points: list[RotationPoint]
+    notes: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        """JSON-ready: the header and every point."""
+        return {
+            "scene": self.scene,
+            "path": self.path,
+            "body": self.body,
+            "duration_s": self.duration,
+            "closed_form_period_s": self.period,
+            "cost": "median CPU time (s) per simulated second, compile and setup excluded",
+            "energy_error": "max over the run of |E - E0| / E0",
+            "period_error": "|T - T_closed| / T_closed, T the first whole period of ω in the body",
+            "notes": list(self.notes),
+            "points": [p.row() for p in self.points],
+        }
+
+    def table(self) -> str:
+        """The human-readable table."""
+        period = f"{self.period:.6g} s" if self.period is not None else "none (not torque-free)"
+        lines = [
+            f"{self.scene}: the rotation updates, work against error, {self.duration:g} s "
+            f"simulated, body {self.body!r}",
+            f"  closed-form period of ω in the body (Euler's equations, elliptic K): {period}",
+            "  energy err: max over the run of |E - E0| / E0; period err: the first whole "
+            "period against the closed form",
+            "  cost: median CPU time per simulated second, compile and setup excluded",
+        ]
+        lines += [f"  note: {n}" for n in self.notes]
+        lines.append(
+            f"  {'rotation':<9}  {'dt s':>7}  {'sub':>3}  {'cpu ms/s':>10}  {'us/step':>9}  "
+            f"{'energy err':>10}  {'period err':>10}  front"
+        )
+        for p in self.points:
+            mark = "*" if p.front else ""
+            if p.status != "ok":
+                mark = p.status
+            lines.append(
+                f"  {p.rotation:<9}  {dt_text(p.dt):>7}  {p.substeps:>3}  {1e3 * p.cpu:>10.4g}  "
+                f"{p.us_per_step:>9.4g}  {p.energy_error:>10.3g}  {p.period_error:>10.3g}  {mark}"
+            )
+        return "\n".join(lines)
+
+    def write(self, out_dir: str | Path, plot: bool = True) -> dict[str, Path]:
+        """Write <scene>.csv, <scene>.json and (plot=True) <scene>.png into out_dir, as
+        SweepResult.write does."""
+        return _write_files(self, out_dir, plot_rotation_sweep if plot else None)
+
+
+def _quat_inv_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rᵀ(q) v for rows of unit quaternions (w, x, y, z) and vectors."""
+    u, w = -q[..., 1:], q[..., :1]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def free_body_period(moments: np.ndarray, omega: np.ndarray) -> float | None:
+    """The period (s) of ω in the body of a torque-free rigid body with distinct
+    principal moments (kg·m²) and principal-axes angular velocity omega (rad/s): Landau
+    & Lifshitz §37, T = 4 K(k) sqrt(I1 I2 I3 / a) with a = (I3 − I2)(L² − 2E I1) and
+    k² = (I2 − I1)(2E I3 − L²) / a when L² > 2E I2 (I1 < I2 < I3), the roles of I1 and
+    I3 exchanged otherwise. None for a symmetric body, a spin about one principal axis
+    or the separatrix itself (no finite period)."""
+    from scipy.special import ellipk
+
+    i1, i2, i3 = np.sort(np.asarray(moments, float))
+    if not (i1 < i2 < i3) or not np.all(np.isfinite(moments)):
+        return None
+    e2 = float(np.sum(moments * omega**2))
+    l2 = float(np.sum((moments * omega) ** 2))
+    if l2 > e2 * i2:
+        a, b = (i3 - i2) * (l2 - e2 * i1), (i2 - i1) * (e2 * i3 - l2)
+    else:
+        a, b = (i2 - i1) * (e2 * i3 - l2), (i3 - i2) * (l2 - e2 * i1)
+    if not (a > 0 and 0 <= b < a):
+        return None
+    return float(4.0 * ellipk(b / a) * math.sqrt(i1 * i2 * i3 / a))
+
+
+def principal_omega(model: Any, body: int, q: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """The angular velocity (rad/s) in the principal axes of `body` of the model
+    (rbsim.scene.compile.Model, 3D), from its orientations q (..., 4) and world-frame
+    angular velocities w (..., 3)."""
+    axes = np.broadcast_to(model.body_axes[body], q.shape)
+    return _quat_inv_rotate(axes, _quat_inv_rotate(q, w))
+
+
+def _tracked_body(scene: Scene) -> int:
+    """The body the 3D sweep follows: the first dynamic body."""
+    for i, body in enumerate(scene.bodies):
+        if body.type == "dynamic":
+            return i
+    raise SweepError("the scene has no dynamic body to follow")
+
+
+def _torque_free(scene: Scene, i: int) -> bool:
+    """Whether body i turns free: no torque, no force (which may act off the COM), no
+    angular damping (gravity acts at the COM)."""
+    body = scene.bodies[i]
+    return not any(body.torque) and not any(body.force) and scene.world.angular_damping == 0.0
+
+
+def rotation_run(scene: Scene, rotation: str, dt: float, substeps: int, body: int) -> dict:
+    """One error run of the 3D rotation sweep: (status, energy error, period error). The
+    tracked body's frames are recorded by the engine every step."""
+    from ..core import CoreWorld
+
+    s = Setting("rbsim", dt, substeps, 1, scene.solver.integrator, rotation)
+    sc = scene_for(scene, s, scene.world.steps)
+    world = CoreWorld.from_scene(sc)
+    n = sc.world.steps
+    nb = len(sc.bodies)
+    block = {
+        "step": np.full(n, -1, np.int64),
+        "orientation": np.zeros((n, nb, 4)),
+        "angular_velocity": np.zeros((n, nb, 3)),
+        "kinetic_energy": np.zeros(n),
+        "potential_energy": np.zeros(n),
+    }
+    first = {k: v[:1].copy() for k, v in block.items()}
+    world.engine.record(first, 0)
+    status, _taken, written, _bad = world.engine.advance_recording(n, 1, n, block, 0, None)
+    if status != 0:
+        return {"status": f"non-finite at step {int(block['step'][max(0, written - 1)])}"}
+    e0 = float(first["kinetic_energy"][0] + first["potential_energy"][0])
+    energy = block["kinetic_energy"] + block["potential_energy"]
+    energy_error = float(np.max(np.abs(energy - e0)) / abs(e0)) if e0 else math.nan
+    # ω in the body's principal axes; its intermediate component changes sign twice a period
+    q = np.concatenate([first["orientation"][:, body], block["orientation"][:, body]])
+    w = np.concatenate([first["angular_velocity"][:, body], block["angular_velocity"][:, body]])
+    wp = principal_omega(world.model, body, q, w)
+    moments = world.model.body_moments[body]
+    period = free_body_period(moments, wp[0]) if _torque_free(sc, body) else None
+    period_error = math.nan
+    if period is not None:
+        k = int(np.argsort(moments)[1])
+        y = wp[:, k]
+        i = np.flatnonzero((y[:-1] > 0) & (y[1:] <= 0))
+        times = (i + y[i] / (y[i] - y[i + 1])) * dt  # frame k is at t = k dt
+        if len(times) >= 2:
+            period_error = float(abs(times[1] - times[0] - period) / period)
+    return {"status": "ok", "energy_error": energy_error, "period_error": period_error}
+
+
+def run_rotation_sweep(
+    scene: Scene,
+    grid: Grid | None = None,
+    *,
+    repeats: int = 3,
+    duration: float | None = None,
+    progress: Callable[[int, int, Setting], None] | None = None,
+    pool: Pool | None = None,
+) -> RotationSweepResult:
+    """The rotation updates of a 3D scene side by side: for every rotation of the grid
+    (default normalize, exact, split) and every dt and substep count, the energy error
+    and the error of the period of ω in the body of the first dynamic body against the
+    closed form (a torque-free body), and the cost (CPU time, as run_sweep measures
+    it). duration (s): simulated time, default the scene's. Iterations, integrators and
+    pymunk's settings of the grid do not apply (no contacts in 3D yet; the scene's
+    integrator is used)."""
+    pool = pool or SerialPool()
+    grid = grid or Grid()
+    if repeats < 1:
+        raise SweepError("repeats must be at least 1")
+    if not grid.dts:
+        raise SweepError("the grid has no dt")
+    rotations = grid.rotations or T.ROTATIONS
+    body = _tracked_body(scene)
+    total = scene.world.steps * scene.world.dt if duration is None else float(duration)
+    runs = []
+    for rot in rotations:
+        for sub in grid.substeps:
+            for dt in sorted(grid.dts, reverse=True):
+                steps = max(1, round(total / dt))
+                sc = replace(scene, world=replace(scene.world, dt=dt, steps=steps))
+                runs.append((rot, dt, sub, sc))
+    count = 2 * len(runs)
+    settings = [
+        Setting("rbsim", dt, sub, 1, scene.solver.integrator, rot) for rot, dt, sub, _ in runs
+    ]
+    calls = [(sc, rot, dt, sub, body) for rot, dt, sub, sc in runs]
+    results = _map_runs(pool, rotation_run, calls, settings, progress)
+    points = []
+    for k, ((rot, dt, sub, sc), got, s) in enumerate(zip(runs, results, settings, strict=True)):
+        assert got is not None
+        p = RotationPoint(rot, dt, sub, status=got["status"])
+        if p.status == "ok":
+            p.energy_error, p.period_error = got["energy_error"], got["period_error"]
+            p.cpu, p.us_per_step, p.timed_runs = _cost(
+                scene_for(sc, s, sc.world.steps), s, repeats, pool
+            )
+        points.append(p)
+        if progress is not None:
+            progress(len(runs) + k + 1, count, s)
+    ok = sorted(
+        (p for p in points if p.status == "ok" and math.isfinite(p.cpu)),
+        key=lambda p: (p.cpu, p.energy_error),
+    )
+    best = math.inf
+    for p in ok:
+        if p.energy_error < best:
+            p.front, best = True, p.energy_error
+    model_body = scene.bodies[body]
+    from ..core import CoreWorld
+
+    world = CoreWorld.from_scene(scene)
+    st = world.state
+    wp = principal_omega(world.model, body, st.body_q[body], st.body_w[body])
+    period = None
+    if _torque_free(scene, body):
+        period = free_body_period(world.model.body_moments[body], wp)
+    notes = []
+    if period is not None and total < period:
+        notes.append(
+            f"the run ({total:g} s) is shorter than one period ({period:.4g} s): no period "
+            "errors; use --duration"
+        )
+    return RotationSweepResult(
+        scene=scene.name,
+        path=str(scene.path),
+        body=model_body.name,
+        duration=total,
+        period=period,
+        points=points,
+        notes=notes,
+    )
+
+
+def plot_rotation_sweep(result: RotationSweepResult, path: str | Path) -> None:
+    """Two log-log panels, energy error and period error against CPU time per simulated
+    second, one curve per rotation update and substep count (dt varies along it)."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
+    curves: dict[tuple[str, int], list[RotationPoint]] = {}
+    for p in result.points:
+        if p.status == "ok" and math.isfinite(p.cpu):
+            curves.setdefault((p.rotation, p.substeps), []).append(p)
+    colors = {"normalize": "tab:red", "exact": "tab:orange", "split": "tab:blue"}
+    for (rot, sub), pts in curves.items():
+        pts = sorted(pts, key=lambda q: q.dt, reverse=True)
+        for ax, attr in zip(axes, ("energy_error", "period_error"), strict=True):
+            ys = [max(getattr(q, attr), 1e-16) for q in pts]
+            ax.plot([1e3 * q.cpu for q in pts], ys, "o-", color=colors.get(rot), ms=4,
+                    label=f"{rot} s{sub}")  # fmt: skip
+    for ax, label in zip(axes, ("energy error |E − E0| / E0", "period error"), strict=True):
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("CPU time per simulated second, ms")
+        ax.set_ylabel(label)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle(f"{result.scene}: rotation updates, work against error", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -16,7 +16,7 @@ import numpy as np
 from ..io.trajectory import frame_count, open_for_reading, read_parameters
 from .render import RenderError, need_matplotlib
 
-__all__ = ["Observables", "plot_observables", "read_observables"]
+__all__ = ["Observables", "plot_lines", "plot_observables", "read_observables"]
 
 # Energies, with their line style; the colour is the file's.
 ENERGIES = (
@@ -29,7 +29,8 @@ ENERGIES = (
 @dataclass
 class Observables:
     """The observables of one trajectory: time (T,) s, and name -> (T,) or (T,k)
-    (energies J, linear_momentum (T,2) kg m/s, angular_momentum kg m²/s), with
+    (energies J, linear_momentum (T,2) or (T,3) kg m/s, angular_momentum (T,) or
+    (T,3) kg m²/s), with
     total_energy = kinetic + potential added when the file has both."""
 
     path: str
@@ -63,12 +64,39 @@ def read_observables(path: str | os.PathLike) -> Observables:
     return Observables(path, f"{os.path.basename(path)} ({engine})", time, values)
 
 
+# Line styles of the x, y and z components of a vector series.
+COMPONENTS = (("x", "-"), ("y", "--"), ("z", "-."))
+
+
+def plot_lines(obs: Observables) -> list[tuple[int, str, str, np.ndarray]]:
+    """The lines `plot_observables` draws for one trajectory: (panel, label, line style,
+    (T,) values), panel 0 energies (J), 1 linear momentum (kg m/s), 2 angular momentum
+    (kg m²/s). Vector series give one line per component: px, py (and pz in 3D); L in
+    2D, Lx, Ly, Lz in 3D."""
+    lines: list[tuple[int, str, str, np.ndarray]] = []
+    for name, what, style in ENERGIES:
+        if name in obs.values:
+            lines.append((0, what, style, obs.values[name]))
+    p = obs.values.get("linear_momentum")
+    if p is not None and p.ndim == 2:
+        for j, (axis, style) in enumerate(COMPONENTS[: p.shape[1]]):
+            lines.append((1, f"p{axis}", style, p[:, j]))
+    ang = obs.values.get("angular_momentum")
+    if ang is not None and ang.ndim == 1:
+        lines.append((2, "L", "-", ang))
+    elif ang is not None and ang.ndim == 2:
+        for j, (axis, style) in enumerate(COMPONENTS[: ang.shape[1]]):
+            lines.append((2, f"L{axis}", style, ang[:, j]))
+    return lines
+
+
 def plot_observables(
     paths: list[str | os.PathLike], output: str | os.PathLike, *, size: tuple[float, float] = (8, 8)
 ) -> list[Observables]:
-    """Plot kinetic, potential and total energy (J), linear momentum x and y (kg m/s)
-    and angular momentum (kg m²/s) against time (s) for every trajectory in `paths`,
-    one colour per file, into `output` (format from its suffix: .png, .pdf, .svg).
+    """Plot kinetic, potential and total energy (J), linear momentum x and y, and z in
+    3D (kg m/s), and angular momentum (kg m²/s; its three components in 3D) against
+    time (s) for every trajectory in `paths`, one colour per file, into `output`
+    (format from its suffix: .png, .pdf, .svg).
     size: inches. Returns what was read. Raises RenderError."""
     need_matplotlib("rbsim plot")
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -82,27 +110,19 @@ def plot_observables(
             raise RenderError(f"{obs.path}: no observables to plot")
     fig = Figure(figsize=size, dpi=100, layout="constrained")
     FigureCanvasAgg(fig)
-    ax_e, ax_p, ax_l = fig.subplots(3, 1, sharex=True)
+    axes = fig.subplots(3, 1, sharex=True)
+    ax_e, ax_p, ax_l = axes
     colours = [f"C{i}" for i in range(10)]
     for i, obs in enumerate(data):
         colour = colours[i % len(colours)]
-        for name, what, style in ENERGIES:
-            if name in obs.values:
-                ax_e.plot(
-                    obs.time, obs.values[name], style, color=colour, label=f"{what}, {obs.label}"
-                )
-        p = obs.values.get("linear_momentum")
-        if p is not None and p.ndim == 2:
-            for j, (axis, style) in enumerate((("x", "-"), ("y", "--"))):
-                if j < p.shape[1]:
-                    ax_p.plot(obs.time, p[:, j], style, color=colour, label=f"p{axis}, {obs.label}")
-        ang = obs.values.get("angular_momentum")
-        if ang is not None and ang.ndim == 1:
-            ax_l.plot(obs.time, ang, "-", color=colour, label=f"L, {obs.label}")
+        for panel, label, style, values in plot_lines(obs):
+            axes[panel].plot(obs.time, values, style, color=colour, label=f"{label}, {obs.label}")
     ax_e.set_ylabel("energy (J)")
     ax_e.set_title("kinetic (dotted), potential (dashed), total (solid)", fontsize=9)
     ax_p.set_ylabel("linear momentum (kg m/s)")
-    ax_p.set_title("x (solid), y (dashed)", fontsize=9)
+    ax_p.set_title("x (solid), y (dashed), z (dash-dot)", fontsize=9)
+    if any(obs.values.get("angular_momentum", np.zeros(0)).ndim == 2 for obs in data):
+        ax_l.set_title("about the world origin: x (solid), y (dashed), z (dash-dot)", fontsize=9)
     ax_l.set_ylabel("angular momentum (kg m²/s)")
     ax_l.set_xlabel("time (s)")
     for ax in (ax_e, ax_p, ax_l):

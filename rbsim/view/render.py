@@ -15,6 +15,7 @@ import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from types import TracebackType
+from typing import TYPE_CHECKING
 
 import h5py
 import numpy as np
@@ -27,6 +28,11 @@ from ..io.trajectory import (
     read_parameters,
     scene_name,
 )
+from .mesh import Camera
+
+if TYPE_CHECKING:  # matplotlib is optional (the plot extra): types only
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.text import Text
 
 __all__ = [
     "FrameReader",
@@ -78,10 +84,12 @@ class RenderError(Exception):
 class FrameReader:
     """An open trajectory file that reads frames on demand.
 
-    path: an rbsim trajectory (either engine). Attributes: bodies (static data),
-    time (T,) s and step (T,) of the frames present, engine ("rbsim" / "pymunk"),
-    scene (scene name), status. Use as a context manager; `read(idx)` returns the
-    body origins (k,N,2) m and orientations (k,N,2) = (cos θ, sin θ) of frames idx.
+    path: an rbsim trajectory (either engine, either dimension). Attributes: dimension
+    (2 or 3), bodies (static data, of that dimension), time (T,) s
+    and step (T,) of the frames present, engine ("rbsim" / "pymunk" / ...), scene
+    (scene name), status. Use as a context manager; `read(idx)` returns the body
+    origins (k,N,D) m and orientations of frames idx: (k,N,2) = (cos θ, sin θ) in 2D,
+    (k,N,4) = (w, x, y, z) in 3D.
     """
 
     def __init__(self, path: str | os.PathLike) -> None:
@@ -96,6 +104,11 @@ class FrameReader:
             raise RenderError(f"{self.path}: cannot read: {err}") from None
         try:
             f = self._file
+            box = f.get("particles/bodies/box")
+            # 2 or 3: /particles/bodies/box's `dimension` (files without it are 2D)
+            self.dimension = int(box.attrs.get("dimension", 2)) if box is not None else 2
+            if self.dimension not in (2, 3):
+                raise ValueError(f"dimension {self.dimension}")
             self.bodies: BodyTable = read_body_table(f["particles/bodies"])
             # static bodies stored once (output.bodies) are drawn too, after the others
             self._fixed: tuple[np.ndarray, np.ndarray] | None = None
@@ -145,13 +158,15 @@ class FrameReader:
         return f"{os.path.basename(self.path)} ({self.engine})"
 
     def read(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Body origins (k,N,2) m and orientations (k,N,2) (cos θ, sin θ) of the frames
-        idx (increasing indices into `time`). A dense run of indices is read as one
-        slice; a sparse one frame by frame, so that nothing else is read."""
+        """Body origins (k,N,D) m and orientations (k,N,2) (cos θ, sin θ) in 2D,
+        (k,N,4) (w, x, y, z) in 3D, of the frames idx (increasing indices into
+        `time`). A dense run of indices is read as one slice; a sparse one frame by
+        frame, so that nothing else is read."""
         idx = np.asarray(idx, dtype=np.int64)
         n = len(self.bodies)
         if len(idx) == 0 or n == 0:
-            return np.zeros((len(idx), n, 2)), np.zeros((len(idx), n, 2))
+            d = self.dimension
+            return np.zeros((len(idx), n, d)), np.zeros((len(idx), n, 2 if d == 2 else 4))
         if self._fixed is not None:
             pos, rot = self._read(idx)
             k = len(idx)
@@ -481,14 +496,16 @@ def gif_delays(times: np.ndarray, last: float) -> list[int]:
 
 @dataclass
 class GifResult:
-    """What render_gif wrote: path, frames, size (pixels), view (m), seconds shown."""
+    """What render_gif wrote: path, frames, size (pixels), view (m; 2D, else None),
+    seconds shown, and in 3D the camera (None in 2D)."""
 
     path: str
     frames: int
     width: int
     height: int
-    view: View
+    view: View | None
     duration: float
+    camera: Camera | None = None
 
 
 def render_gif(
@@ -509,9 +526,11 @@ def render_gif(
     time. size: (width, height) pixels. view: the world rectangle shown (m), widened to
     the image's aspect ratio; default: fitted to the moving bodies over the frames shown.
     overlay: a second trajectory drawn over the first as orange outlines, at the same
-    times. start, end: s, the part of the run to show. progress(done, total) is called
-    after each frame. Frames are drawn and written one at a time (memory does not grow
-    with their number). Raises RenderError.
+    times. A 3D trajectory is drawn in perspective from a camera that frames every
+    moving body over the frames shown (`view` must then be None). start, end: s, the
+    part of the run to show. progress(done, total) is called after each frame. Frames
+    are drawn and written one at a time (memory does not grow with their number).
+    Raises RenderError.
     """
     need_matplotlib("rbsim render to a GIF")
     if not 0 < fps <= GIF_MAX_FPS:
@@ -529,7 +548,16 @@ def render_gif(
         try:
             if other is not None and not len(other.time):
                 raise RenderError(f"{other.path}: no frames to overlay")
+            check_dimensions(main, other, view)
             other_idx = match_frames(other.time, main.time[idx]) if other else None
+            if main.dimension == 3:
+                from .render3d import write_gif3d
+
+                camera = write_gif3d(
+                    main, idx, other, other_idx, output, fps, width, height, progress
+                )
+                duration = float(main.time[idx[-1]] - main.time[idx[0]]) + 1.0 / fps
+                return GifResult(output, len(idx), width, height, None, duration, camera)
             if view is None:
                 pairs = [(main, idx)]
                 if other is not None and other_idx is not None:
@@ -542,6 +570,21 @@ def render_gif(
                 other.close()
         duration = float(main.time[idx[-1]] - main.time[idx[0]]) + 1.0 / fps
     return GifResult(output, len(idx), width, height, view, duration)
+
+
+def check_dimensions(main: FrameReader, other: FrameReader | None, view: View | None) -> None:
+    """Raise RenderError when the overlay `other` is of another dimension than `main`,
+    or a view rectangle (2D) is given for a 3D trajectory."""
+    if other is not None and other.dimension != main.dimension:
+        raise RenderError(
+            f"{other.path}: a {other.dimension}D trajectory cannot be overlaid on "
+            f"{main.path} ({main.dimension}D)"
+        )
+    if main.dimension == 3 and view is not None:
+        raise RenderError(
+            f"{main.path}: a 3D trajectory: --view (a 2D rectangle) does not apply; "
+            "the 3D camera is fitted to the moving bodies"
+        )
 
 
 def no_frames_message(reader: FrameReader, start: float | None, end: float | None) -> str:
@@ -570,7 +613,6 @@ def _write_gif(
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.collections import LineCollection, PolyCollection
     from matplotlib.figure import Figure
-    from PIL import GifImagePlugin, Image
 
     dpi = 100
     fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi, facecolor=COLOURS["background"])
@@ -647,48 +689,108 @@ def _write_gif(
             zorder=11,
         )
 
-    palette = gif_palette()
-    to_palette = PaletteMapper(palette)
-    flat_palette = palette.reshape(-1).tobytes()
+    def draw(pos: np.ndarray, rot: np.ndarray, other_pose: Pose | None) -> None:
+        update_main(pos, rot)
+        if update_other is not None and other_pose is not None:
+            update_other(*other_pose)
+
+    write_frames(main, idx, other, other_idx, output, gif_palette(), fps, canvas, clock, draw,
+                 progress)  # fmt: skip
+
+
+# One frame's body origins (N,D) m and orientations (N,2) or (N,4).
+Pose = tuple[np.ndarray, np.ndarray]
+
+
+def write_frames(
+    main: FrameReader,
+    idx: np.ndarray,
+    other: FrameReader | None,
+    other_idx: np.ndarray | None,
+    output: str,
+    palette: np.ndarray,
+    fps: float,
+    canvas: FigureCanvasAgg,
+    clock: Text,
+    draw: Callable[[np.ndarray, np.ndarray, Pose | None], None],
+    progress: Progress | None,
+) -> None:
+    """The GIF loop of both dimensions: for each frame idx of `main` (and the overlay's
+    frame other_idx at the same place), draw(origins, orientations, overlay pose or
+    None) updates the figure, the clock shows the time, and `canvas` is drawn into the
+    GIF `output` on `palette`, each frame shown until the next (fps: frames per second
+    of simulated time). progress(done, total) after each frame."""
     delays = gif_delays(main.time[idx], 1.0 / fps)
-    digits = max(2, int(math.ceil(-math.log10(1.0 / fps))) if fps > 1 else 2)
-    other_batches = None
+    digits = clock_digits(fps)
+    others = None
     if other is not None and other_idx is not None:
-        other_batches = _reorder_reads(other, other_idx)
-    tmp = output + ".part"
-    try:
-        with open(tmp, "wb") as fh:
-            k = 0
-            previous: np.ndarray | None = None
-            for _part, pos, rot in main.batches(idx):
-                for j in range(len(pos)):
-                    update_main(pos[j], rot[j])
-                    if update_other is not None and other_batches is not None:
-                        update_other(*next(other_batches))
-                    clock.set_text(f"t = {main.time[idx[k]]:.{digits}f} s")
-                    canvas.draw()
-                    rgb = np.asarray(canvas.buffer_rgba())[:, :, :3]
-                    indices = to_palette(rgb)
-                    # after the first frame, only the rectangle that changed is stored
-                    x0, y0, x1, y1 = _changed_box(previous, indices)
-                    previous = indices
-                    part = np.ascontiguousarray(indices[y0:y1, x0:x1])
-                    frame = Image.frombytes("P", (x1 - x0, y1 - y0), part.tobytes())
-                    frame.putpalette(flat_palette)
-                    if k == 0:
-                        header, _ = GifImagePlugin.getheader(frame, None, {"loop": 0})
-                        fh.write(b"".join(header))
-                    data = GifImagePlugin.getdata(frame, (x0, y0), duration=delays[k])
-                    fh.write(b"".join(data))
-                    k += 1
-                    if progress is not None:
-                        progress(k, len(idx))
-            fh.write(b";")  # GIF trailer
-        os.replace(tmp, output)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
+        others = _reorder_reads(other, other_idx)
+    with GifWriter(output, palette) as gif:
+        k = 0
+        for _part, pos, rot in main.batches(idx):
+            for j in range(len(pos)):
+                draw(pos[j], rot[j], next(others) if others is not None else None)
+                clock.set_text(f"t = {main.time[idx[k]]:.{digits}f} s")
+                canvas.draw()
+                gif.add(np.asarray(canvas.buffer_rgba())[:, :, :3], delays[k])
+                k += 1
+                if progress is not None:
+                    progress(k, len(idx))
+
+
+def clock_digits(fps: float) -> int:
+    """Decimals of the clock shown on frames that are 1/fps s apart (at least 2)."""
+    return max(2, int(math.ceil(-math.log10(1.0 / fps))) if fps > 1 else 2)
+
+
+class GifWriter:
+    """An animated GIF written frame by frame to `output` (under `output`.part, renamed
+    when closed without error; removed otherwise). Every frame is mapped onto the one
+    global `palette` (K,3) uint8 (PaletteMapper), and after the first only the
+    rectangle that changed is stored (each frame is drawn over the one before)."""
+
+    def __init__(self, output: str, palette: np.ndarray) -> None:
+        from PIL import GifImagePlugin, Image
+
+        self._plugin, self._image = GifImagePlugin, Image
+        self.output = output
+        self._tmp = output + ".part"
+        self._to_palette = PaletteMapper(palette)
+        self._flat = np.asarray(palette, dtype=np.uint8).reshape(-1).tobytes()
+        self._previous: np.ndarray | None = None
+        self._fh = open(self._tmp, "wb")  # noqa: SIM115 (closed in close / __exit__)
+
+    def add(self, rgb: np.ndarray, delay: int) -> None:
+        """Append the (H,W,3) uint8 image rgb, shown for `delay` ms (whole 10 ms)."""
+        indices = self._to_palette(rgb)
+        x0, y0, x1, y1 = _changed_box(self._previous, indices)
+        first = self._previous is None
+        self._previous = indices
+        part = np.ascontiguousarray(indices[y0:y1, x0:x1])
+        frame = self._image.frombytes("P", (x1 - x0, y1 - y0), part.tobytes())
+        frame.putpalette(self._flat)
+        if first:
+            header, _ = self._plugin.getheader(frame, None, {"loop": 0})
+            self._fh.write(b"".join(header))
+        self._fh.write(b"".join(self._plugin.getdata(frame, (x0, y0), duration=delay)))
+
+    def __enter__(self) -> GifWriter:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        if exc_type is None:
+            self._fh.write(b";")  # GIF trailer
+            self._fh.close()
+            os.replace(self._tmp, self.output)
+        else:
+            self._fh.close()
+            if os.path.exists(self._tmp):
+                os.remove(self._tmp)
 
 
 def _changed_box(previous: np.ndarray | None, current: np.ndarray) -> tuple[int, int, int, int]:

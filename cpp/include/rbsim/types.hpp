@@ -7,8 +7,24 @@
 
 namespace rbsim {
 
-enum class ShapeKind : std::int32_t { Circle = 0, Polygon = 1, Segment = 2 };
+// Shape kinds as Model.shape_kind stores them: the 2D kinds first, then the 3D kinds
+// (rbsim/scene/types.py: SHAPE_KIND_CODE, SHAPE_KIND_CODE_3D).
+enum class ShapeKind : std::int32_t {
+  Circle = 0, Polygon = 1, Segment = 2,                         // 2D
+  Sphere = 3, Box = 4, Capsule = 5, Convex = 6, Plane = 7,      // 3D
+};
+// The 2D kinds are [0, SHAPE_KIND_COUNT): the 2D narrowphase's [kind][kind] table is
+// this size. The 3D kinds are [SHAPE_KIND_FIRST_3D, SHAPE_KIND_END_3D).
 inline constexpr int SHAPE_KIND_COUNT = 3;
+inline constexpr int SHAPE_KIND_FIRST_3D = 3;
+inline constexpr int SHAPE_KIND_END_3D = 8;
+
+// The shape kinds a world of dimension D takes.
+template <int D>
+constexpr bool valid_shape_kind(int kind) {
+  return D == 2 ? (kind >= 0 && kind < SHAPE_KIND_COUNT)
+                : (kind >= SHAPE_KIND_FIRST_3D && kind < SHAPE_KIND_END_3D);
+}
 
 enum class BodyType : std::int8_t { Dynamic = 0, Static = 1, Kinematic = 2 };
 

@@ -43,6 +43,7 @@ void visit(W& w, F&& f) {
 
 constexpr std::size_t VEC = sizeof(std::vector<int>);
 static_assert(sizeof(State<2>) == 6 * VEC, "State changed: update visit()");
+static_assert(sizeof(State<3>) == 6 * VEC, "State changed: update visit()");
 static_assert(sizeof(Grid<2>) == 8 + 16 * VEC + sizeof(Vec2) + sizeof(GridMeta<2>),
               "Grid changed: update visit()");
 static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 70 * VEC + 8 + 8,
@@ -143,5 +144,7 @@ void load_checkpoint(World<D>& world, const std::uint8_t* data, std::size_t size
 
 template std::vector<std::uint8_t> save_checkpoint(const World<2>&);
 template void load_checkpoint(World<2>&, const std::uint8_t*, std::size_t);
+template std::vector<std::uint8_t> save_checkpoint(const World<3>&);
+template void load_checkpoint(World<3>&, const std::uint8_t*, std::size_t);
 
 }  // namespace rbsim

@@ -2,6 +2,9 @@
 // origins and rotations, velocities, and the observables summed over the dynamic bodies.
 // The run loop fills a block of frames this way in one call (advance_recording), so that
 // writing every step costs no Python per frame.
+//
+// The quaternion's sign is written as the engine holds it; the trajectory writer makes
+// it continuous from frame to frame (rbsim/io/trajectory.py), for every engine alike.
 #pragma once
 
 #include <cstdint>
@@ -10,20 +13,33 @@
 
 namespace rbsim {
 
-// Row pointers for one frame of N bodies (2D). Each may be null (not recorded).
-struct FrameRow2 {
-  double* position = nullptr;          // (N,2) m, body origin: x - R(q) com
-  double* orientation = nullptr;       // (N,2) (cos θ, sin θ)
-  double* angle = nullptr;             // (N,) rad, unwrapped
-  double* velocity = nullptr;          // (N,2) m/s, centre of mass
-  double* angular_velocity = nullptr;  // (N,) rad/s
-  double* kinetic_energy = nullptr;    // J
-  double* potential_energy = nullptr;  // J, -m g·x
-  double* linear_momentum = nullptr;   // (2,) kg m/s
-  double* angular_momentum = nullptr;  // kg m²/s about the world origin
-  std::int64_t* contact_count = nullptr;
+// Doubles per body of each series, by dimension.
+template <int D>
+struct FrameWidth {
+  static constexpr int vec = D;                // position, velocity
+  static constexpr int rot = D == 2 ? 2 : 4;   // orientation: (cos θ, sin θ) / (w, x, y, z)
+  static constexpr int ang = D == 2 ? 1 : 3;   // angular velocity and momentum
 };
 
-void record_frame(const World<2>& world, const FrameRow2& row);
+// Row pointers for one frame of N bodies. Each may be null (not recorded).
+template <int D>
+struct FrameRow {
+  double* position = nullptr;          // (N,D) m, body origin: x - R(q) com
+  double* orientation = nullptr;       // (N,2) (cos θ, sin θ) / (N,4) (w, x, y, z)
+  double* angle = nullptr;             // (N,) rad, unwrapped (2D only)
+  double* velocity = nullptr;          // (N,D) m/s, centre of mass
+  double* angular_velocity = nullptr;  // (N,) / (N,3) rad/s, world frame
+  double* body_angular_momentum = nullptr;  // (N,3) kg m²/s, world frame about each COM (3D only)
+  double* kinetic_energy = nullptr;    // J: ½ m v² + ½ I ω² (2D) / ½ m v² + ½ ω·L (3D)
+  double* potential_energy = nullptr;  // J, -m g·x
+  double* linear_momentum = nullptr;   // (D,) kg m/s
+  double* angular_momentum = nullptr;  // (1,) / (3,) kg m²/s about the world origin: Σ x × p + spin
+  std::int64_t* contact_count = nullptr;
+};
+using FrameRow2 = FrameRow<2>;
+using FrameRow3 = FrameRow<3>;
+
+template <int D>
+void record_frame(const World<D>& world, const FrameRow<D>& row);
 
 }  // namespace rbsim
