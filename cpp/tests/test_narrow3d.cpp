@@ -712,8 +712,8 @@ TEST(mirrored_pairs_negate_the_normal) {
   int pairs = 0;
   for (const auto& a : shapes)
     for (const auto& b : others) {
-      if (a.kind == kind3::PLANE && b.kind == kind3::PLANE) continue;
-      if (a.kind == kind3::BOX && b.kind == kind3::BOX) continue;  // not swapped (ids by order)
+      if (a.kind == ShapeKind::Plane && b.kind == ShapeKind::Plane) continue;
+      if (a.kind == ShapeKind::Box && b.kind == ShapeKind::Box) continue;  // not swapped (ids by order)
       if (a.kind == b.kind) continue;
       const auto ab = collide(a, b), ba = collide(b, a);
       CHECK(ab.n > 0);
@@ -772,6 +772,11 @@ TEST(degenerate_input_gives_no_nan) {
       {capsule_ref({0, -1, 0}, {0, 1, 0}, 0.1), box},
       {box, box_ref({0, 0, 0}, {}, {0.5, 0.5, 0.5})},
   };
+  // a 2D kind is no 3D shape: no manifold
+  ShapeRef3 circle = sphere_ref({0, 0, 0}, 1.0);
+  circle.kind = ShapeKind::Circle;
+  CHECK(collide(circle, sphere_ref({0, 0, 0}, 1.0)).n == 0);
+  CHECK(collide(sphere_ref({0, 0, 0}, 1.0), circle).n == 0);
   for (const auto& [a, b] : cases) {
     const auto r = collide(a, b);
     CHECK(r.n >= 1);

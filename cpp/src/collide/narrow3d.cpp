@@ -1012,8 +1012,16 @@ int swapped(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold
   return n;
 }
 
-// [kind_a − FIRST][kind_b − FIRST], kinds in order: sphere, box, capsule, convex, plane.
-constexpr PairFn COLLIDE[kind3::COUNT][kind3::COUNT] = {
+// [kind_a − SHAPE_KIND_FIRST_3D][kind_b − SHAPE_KIND_FIRST_3D], kinds in ShapeKind order:
+// Sphere, Box, Capsule, Convex, Plane.
+constexpr int KINDS_3D = SHAPE_KIND_END_3D - SHAPE_KIND_FIRST_3D;
+static_assert(static_cast<int>(ShapeKind::Sphere) == SHAPE_KIND_FIRST_3D &&
+                  static_cast<int>(ShapeKind::Box) == SHAPE_KIND_FIRST_3D + 1 &&
+                  static_cast<int>(ShapeKind::Capsule) == SHAPE_KIND_FIRST_3D + 2 &&
+                  static_cast<int>(ShapeKind::Convex) == SHAPE_KIND_FIRST_3D + 3 &&
+                  static_cast<int>(ShapeKind::Plane) == SHAPE_KIND_FIRST_3D + 4 && KINDS_3D == 5,
+              "COLLIDE's rows and columns are the 3D kinds in ShapeKind order");
+constexpr PairFn COLLIDE[KINDS_3D][KINDS_3D] = {
     {collide_sphere_sphere, collide_sphere_box, collide_sphere_capsule, collide_sphere_convex,
      collide_sphere_plane},
     {swapped<collide_sphere_box>, collide_box_box, swapped<collide_capsule_box>,
@@ -1043,9 +1051,9 @@ void box_geometry(const ShapeRef3& box, Vec3* corners, Vec3* face_normals) {
 }
 
 int collide3d(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
-  const auto ka = static_cast<unsigned>(a.kind - kind3::FIRST);
-  const auto kb = static_cast<unsigned>(b.kind - kind3::FIRST);
-  if (ka >= static_cast<unsigned>(kind3::COUNT) || kb >= static_cast<unsigned>(kind3::COUNT)) return 0;
+  const auto ka = static_cast<unsigned>(static_cast<int>(a.kind) - SHAPE_KIND_FIRST_3D);
+  const auto kb = static_cast<unsigned>(static_cast<int>(b.kind) - SHAPE_KIND_FIRST_3D);
+  if (ka >= static_cast<unsigned>(KINDS_3D) || kb >= static_cast<unsigned>(KINDS_3D)) return 0;
   return COLLIDE[ka][kb](a, b, speculative, out);
 }
 
