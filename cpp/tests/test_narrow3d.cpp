@@ -341,16 +341,17 @@ TEST(capsule_lying_on_a_box) {
   auto cube_hull = box_as_hull({0.5, 0.5, 0.5});
   const ShapeRef3 cubes[] = {box_ref({0, 0, 0}, {}, {0.5, 0.5, 0.5}), cube_hull.at({0, 0, 0})};
   const Vec3 w = 0.3 * S2 * Vec3{0, 1, -1};
-  for (const ShapeRef3& cube : cubes)
-  for (const Vec3 e : {Vec3{0, 1, 1}, Vec3{0, -1, 1}, Vec3{0, 1, -1}, Vec3{0, -1, -1}}) {
-    const Vec3 mid{0.2, 0.45 * e.y, 0.45 * e.z};
-    const Vec3 ww{0, w.y * e.y, w.z * e.z};
-    const auto dug = collide(capsule_ref(mid - ww, mid + ww, 0.1), cube);
-    CHECK(dug.n == 1);
-    CHECK_VEC(dug.m.normal, S2 * e, EPS, "the edge's diagonal");
-    CHECK_NEAR(dug.m.separation[0], -0.05 * std::sqrt(2.0) - 0.1, EPS);
-    CHECK_VEC(dug.m.point[0], 0.5 * ((mid - 0.1 * S2 * e) + Vec3{0.2, 0.5 * e.y, 0.5 * e.z}), EPS,
-              "midway between the core's surface and the edge");
+  for (const ShapeRef3& cube : cubes) {
+    for (const Vec3 e : {Vec3{0, 1, 1}, Vec3{0, -1, 1}, Vec3{0, 1, -1}, Vec3{0, -1, -1}}) {
+      const Vec3 mid{0.2, 0.45 * e.y, 0.45 * e.z};
+      const Vec3 ww{0, w.y * e.y, w.z * e.z};
+      const auto dug = collide(capsule_ref(mid - ww, mid + ww, 0.1), cube);
+      CHECK(dug.n == 1);
+      CHECK_VEC(dug.m.normal, S2 * e, EPS, "the edge's diagonal");
+      CHECK_NEAR(dug.m.separation[0], -0.05 * std::sqrt(2.0) - 0.1, EPS);
+      CHECK_VEC(dug.m.point[0], 0.5 * ((mid - 0.1 * S2 * e) + Vec3{0.2, 0.5 * e.y, 0.5 * e.z}), EPS,
+                "midway between the core's surface and the edge");
+    }
   }
   // the first case on a turned box, turned: the same manifold, turned
   const Quat q = axis_angle({1, -1, 2}, 0.9);
