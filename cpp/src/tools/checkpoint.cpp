@@ -48,6 +48,8 @@ static_assert(sizeof(Grid<2>) == 8 + 16 * VEC + sizeof(Vec2) + sizeof(GridMeta<2
               "Grid changed: update visit()");
 static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 70 * VEC + 8 + 8,
               "Contacts changed: update visit()");
+static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 70 * VEC + 8 + 8,
+              "Contacts changed: update visit()");
 
 template <class T>
 struct is_vector : std::false_type {};
