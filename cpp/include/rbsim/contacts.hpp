@@ -144,6 +144,8 @@ struct Contacts {
   // per vertex / shape
   std::vector<Vec> toi_verts, toi_norms;  // (V,) two shapes moved to their time of impact
   std::vector<Vec> vert_world, norm_world;  // (V,) shape geometry in the world this step
+  std::vector<Vec> face_world;  // 3D: (Model::hull_face_count,) convex hulls' face normals
+                                // in the world this step (sized by World::allocate)
   std::vector<double> shape_margin;         // (S,) m: speculative reach this step
   std::vector<double> shape_size;           // (S,) m: half its bounding box's diagonal
   std::vector<double> shape_scale;          // (S,) min(1, size / SCALE_LENGTH)
@@ -254,6 +256,7 @@ void Contacts<D>::grow(std::int64_t new_capacity) {
     prev_sep_anchor_a[i] = old.prev_sep_anchor_a[i];
     prev_sep_anchor_b[i] = old.prev_sep_anchor_b[i];
   }
+  face_world = std::move(old.face_world);
   body_ref = std::move(old.body_ref);
   body_still = std::move(old.body_still);
   shape_size = std::move(old.shape_size);

@@ -1,0 +1,1052 @@
+// 3D narrowphase: the contact manifold between two shapes (see narrow3d.hpp for the
+// shapes, the manifold's conventions and the feature ids).
+//
+// One pure function per kind pair, dispatched from a [kind][kind] table at the end. A
+// pair that comes in the other order than its function's is swapped and its normal
+// negated back (the points and separations are the same; the ids are the function's).
+//
+// Polytopes (boxes and hulls) go through separating axes: the face normals of both and
+// the cross products of their edge directions. The reference face is a's best face
+// unless b's separates more by the face tolerance, and an edge pair wins only when it
+// separates more than that face by a relative margin, so that a resting contact keeps
+// its face (and its four points) instead of flickering to an edge. A face contact clips
+// the incident face (the other shape's face most anti-parallel to the reference normal)
+// against the reference face's side planes (Sutherland–Hodgman), keeps the points within
+// reach and reduces them to at most four: the deepest, the one farthest from it, the one
+// spanning the largest triangle with those, and the one adding the most area. An edge
+// contact is one point at the closest points of the two edges. Box–box runs the same
+// steps on the boxes' 15 axes directly (3 + 3 face normals, 9 edge cross products);
+// box–convex takes the box as a hull (box_hull()).
+//
+// Nothing here allocates: polygons are clipped in fixed arrays sized by the largest face
+// (HULL_MAX_FACE_VERTICES), and plane contacts reduce the vertices without storing them.
+#include "narrow3d.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "collide/segment_closest.hpp"
+#include "rbsim/constants.hpp"
+
+namespace rbsim {
+namespace {
+
+using constants::LINEAR_EPSILON;
+using constants::REFERENCE_FACE_TOLERANCE;
+
+constexpr double INF = std::numeric_limits<double>::infinity();
+
+// An edge pair becomes the contact only if it separates more than the best face by this
+// fraction of the face's |separation| (plus the face tolerance): a box resting face to
+// face keeps its four points although, rocking, an edge axis comes within round-off of
+// the face's. Dimensionless; larger prefers faces more (a true edge-edge crossing
+// separates far more than any face, so it still wins).
+constexpr double EDGE_RELATIVE_TOLERANCE = 0.05;
+
+// Edge directions whose cross product has a sine below this are parallel: their axis is
+// (up to round-off) a face normal already tested, and its length too small to normalise.
+constexpr double EDGE_PARALLEL_SIN = 1.0e-6;
+
+// Capsule segments within this sine of parallel touch along a line: two points at the
+// ends of their common stretch. Dimensionless; at 0.01 a 1 m capsule's ends drift 5 mm
+// sideways, and the separation error of the line contact is under 0.1 mm for r >= 0.1 m.
+constexpr double CAPSULE_PARALLEL_SIN = 1.0e-2;
+
+constexpr Vec3 UP{0.0, 1.0, 0.0};  // the normal when nothing else tells the direction
+
+using FK = FeatureKind;
+
+inline double clamp01(double x) { return std::min(std::max(x, 0.0), 1.0); }
+
+// A unit vector perpendicular to v (v need not be unit; zero gives UP's perpendicular).
+inline Vec3 perpendicular(Vec3 v) {
+  const double ax = std::fabs(v.x), ay = std::fabs(v.y), az = std::fabs(v.z);
+  // cross with the axis v is least aligned with
+  const Vec3 axis = ax <= ay && ax <= az ? Vec3{1, 0, 0} : (ay <= az ? Vec3{0, 1, 0} : Vec3{0, 0, 1});
+  const Vec3 c = cross(v, axis);
+  const double l = length(c);
+  return l > 0.0 ? (1.0 / l) * c : Vec3{1.0, 0.0, 0.0};
+}
+
+// One contact point between core points a and b (m) with unit normal n (b -> a). 0 or 1.
+inline int single_point(Vec3 a, double radius_a, Vec3 b, double radius_b, Vec3 n,
+                        std::int64_t fid, double speculative, Manifold3& out) {
+  const double sep = dot(a - b, n) - radius_a - radius_b;
+  if (sep > speculative) return 0;
+  out.normal = n;
+  out.point[0] = 0.5 * ((a - radius_a * n) + (b + radius_b * n));
+  out.separation[0] = sep;
+  out.id[0] = fid;
+  return 1;
+}
+
+inline Vec3 closest_on_segment(Vec3 x, Vec3 p, Vec3 q) {
+  const Vec3 d = q - p;
+  const double dd = dot(d, d);
+  const double t = dd > LINEAR_EPSILON * LINEAR_EPSILON ? clamp01(dot(x - p, d) / dd) : 0.0;
+  return p + t * d;
+}
+
+// ---------------------------------------------------------------------------------------
+// Reduction to four points
+
+// The manifold from n candidate points: get(i, point, separation, id) fills candidate i
+// and returns whether it is within reach. At most four are kept: the deepest, the one
+// farthest from it, the one spanning the largest triangle with those two (area seen
+// along the normal), and the one that adds most area to that triangle; they are written
+// in candidate order. Ties go to the lower index, also ties that round-off decides (a
+// box's face is a rectangle: its corners tie in depth, its opposite sides in area), so
+// that the same four are kept from step to step (REDUCE_TIE). Returns the point count.
+// Relative margin by which a candidate must beat the current pick in reduce_to_four (and
+// depth by LINEAR_EPSILON, m): far above the round-off of the same point computed along
+// another path (1e-16), far below any difference that matters.
+constexpr double REDUCE_TIE = 1.0e-9;
+
+template <class Get>
+int reduce_to_four(int n, const Get& get, Vec3 normal, Manifold3& out) {
+  Vec3 p;
+  double s;
+  std::int64_t id;
+  int kept = 0;
+  int deepest = -1;
+  double min_sep = INF;
+  for (int i = 0; i < n; ++i) {
+    if (!get(i, p, s, id)) continue;
+    if (kept < 4) {
+      out.point[kept] = p;
+      out.separation[kept] = s;
+      out.id[kept] = id;
+    }
+    ++kept;
+    if (s < min_sep - LINEAR_EPSILON) {
+      min_sep = s;
+      deepest = i;
+    }
+  }
+  out.normal = normal;
+  if (kept <= 4) return kept;
+
+  std::array<int, 4> pick{deepest, -1, -1, -1};
+  Vec3 p0;
+  get(deepest, p0, s, id);
+  double best = -1.0;
+  Vec3 p1;
+  for (int i = 0; i < n; ++i) {
+    if (!get(i, p, s, id)) continue;
+    const double d2 = length_squared(p - p0);
+    if (d2 > best * (1.0 + REDUCE_TIE)) {
+      best = d2;
+      pick[1] = i;
+      p1 = p;
+    }
+  }
+  int count = 1;
+  const double d01 = std::sqrt(best);  // m
+  if (d01 > LINEAR_EPSILON) count = 2;
+  best = -1.0;
+  Vec3 p2;
+  double orient = 1.0;
+  for (int i = 0; i < n; ++i) {
+    if (!get(i, p, s, id)) continue;
+    const double area = dot(cross(p1 - p0, p - p0), normal);
+    if (std::fabs(area) > best * (1.0 + REDUCE_TIE)) {
+      best = std::fabs(area);
+      pick[2] = i;
+      p2 = p;
+      orient = area >= 0.0 ? 1.0 : -1.0;
+    }
+  }
+  // a triangle of height LINEAR_EPSILON (m) or less: the points are on one line
+  if (count == 2 && best > LINEAR_EPSILON * d01) count = 3;
+  // the area a point adds outside the triangle: the most negative of its (oriented)
+  // areas against the triangle's three edges
+  const double tie = REDUCE_TIE * best;  // best: twice the triangle's area
+  best = tie;
+  for (int i = 0; i < n; ++i) {
+    if (!get(i, p, s, id)) continue;
+    const double a01 = orient * dot(cross(p1 - p0, p - p0), normal);
+    const double a12 = orient * dot(cross(p2 - p1, p - p1), normal);
+    const double a20 = orient * dot(cross(p0 - p2, p - p2), normal);
+    const double added = -std::min(a01, std::min(a12, a20));
+    if (added > best + tie) {
+      best = added;
+      pick[3] = i;
+    }
+  }
+  if (count == 3 && pick[3] >= 0) count = 4;
+  std::sort(pick.begin(), pick.begin() + count);
+  for (int k = 0; k < count; ++k) {
+    get(pick[k], out.point[k], out.separation[k], out.id[k]);
+  }
+  return count;
+}
+
+// ---------------------------------------------------------------------------------------
+// Face clipping
+
+// A polygon being clipped: its points (m), each point's feature id (kind, f1, f2; the
+// reference part is added at the end) and the tag of the side from point i to i+1: an
+// incident edge (>= 0) or a side plane of the reference face (−1 − side).
+template <int N>
+struct ClipPolygon {
+  int n = 0;
+  std::array<Vec3, N> p;
+  std::array<std::int64_t, N> id;
+  std::array<int, N> tag;
+  void push(Vec3 point, std::int64_t fid, int side_tag) {
+    p[n] = point;
+    id[n] = fid;
+    tag[n] = side_tag;
+    ++n;
+  }
+};
+
+// Keep the part of `in` on the inner side of a plane, dist(x) <= 0 (reference side
+// `side`; dist is affine in x). A convex polygon gains at most one point.
+template <int N, class Dist>
+void clip_polygon(const ClipPolygon<N>& in, const Dist& dist, int side, ClipPolygon<N>& out) {
+  out.n = 0;
+  if (in.n == 0) return;
+  Vec3 P = in.p[0];
+  double dP = dist(P);
+  for (int i = 0; i < in.n; ++i) {
+    const int j = i + 1 < in.n ? i + 1 : 0;
+    const Vec3 Q = in.p[j];
+    const double dQ = dist(Q);
+    const bool inP = dP <= 0.0, inQ = dQ <= 0.0;
+    const int tag = in.tag[i];
+    if (inP) out.push(P, in.id[i], tag);
+    if (inP != inQ) {
+      const double t = dP / (dP - dQ);
+      const Vec3 I = P + t * (Q - P);
+      std::int64_t fid;
+      if (tag >= 0) {
+        fid = feature_id(FK::EdgeSide, 0, 0, tag, side);
+      } else {
+        const int other = -1 - tag;
+        fid = feature_id(FK::SideSide, 0, 0, std::min(other, side), std::max(other, side));
+      }
+      out.push(I, fid, inP ? -1 - side : tag);
+    }
+    P = Q;
+    dP = dQ;
+  }
+}
+
+// Face contact: the incident polygon `inc` clipped against the reference face (its loop
+// `ref` of ref_n world points, CCW seen from outside, outward unit normal n_ref); each
+// surviving point's separation is its depth below the reference plane. ref_is_b and
+// ref_face make the ids' reference part. `inc` is used as scratch.
+template <int N>
+int face_contact(const Vec3* ref, int ref_n, Vec3 n_ref, ClipPolygon<N>& inc, int ref_is_b,
+                 int ref_face, double speculative, Manifold3& out) {
+  ClipPolygon<N> tmp;
+  ClipPolygon<N>* cur = &inc;
+  ClipPolygon<N>* nxt = &tmp;
+  for (int k = 0; k < ref_n && cur->n > 0; ++k) {
+    const Vec3 v0 = ref[k];
+    const Vec3 v1 = ref[k + 1 < ref_n ? k + 1 : 0];
+    const Vec3 side = cross(v1 - v0, n_ref);
+    clip_polygon(*cur, [&](Vec3 x) { return dot(side, x - v0); }, k, *nxt);
+    std::swap(cur, nxt);
+  }
+  const ClipPolygon<N>& poly = *cur;
+  const Vec3 origin = ref[0];
+  const std::int64_t ref_part = feature_id(FK::Single, ref_is_b, ref_face, 0, 0);
+  const auto get = [&](int i, Vec3& p, double& s, std::int64_t& id) {
+    s = dot(n_ref, poly.p[i] - origin);
+    p = poly.p[i] - (0.5 * s) * n_ref;
+    id = ref_part | poly.id[i];
+    return s <= speculative;
+  };
+  return reduce_to_four(poly.n, get, ref_is_b ? n_ref : -n_ref, out);
+}
+
+// ---------------------------------------------------------------------------------------
+// Boxes and hulls as polytopes
+
+// The box's topology (box_hull()): corners by sign bits, faces 2 axis + (positive).
+constexpr std::int32_t BOX_LOOP[6][4] = {
+    {0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6},
+};
+
+// The axis of a box edge from the xor of its corners' indices (one bit set).
+constexpr int BIT_AXIS[5] = {0, 0, 1, 0, 2};
+
+const Hull3& box_hull3() {
+  static const Hull3 hull = [] {
+    std::vector<Vec3> corners;
+    for (int k = 0; k < 8; ++k)
+      corners.push_back({k & 1 ? 1.0 : -1.0, k & 2 ? 1.0 : -1.0, k & 4 ? 1.0 : -1.0});
+    std::vector<std::array<std::int32_t, 3>> triangles;
+    for (const auto& l : BOX_LOOP) {
+      triangles.push_back({l[0], l[1], l[2]});
+      triangles.push_back({l[0], l[2], l[3]});
+    }
+    Hull3 h;
+    build_hull(corners, triangles, h);
+    return h;
+  }();
+  return hull;
+}
+
+// A box's centre and half-extent vectors (m), for its corners.
+struct BoxCorners {
+  Vec3 c, ex, ey, ez;
+  explicit BoxCorners(const ShapeRef3& box)
+      : c(box.center), ex(box.half.x * box.axes[0]), ey(box.half.y * box.axes[1]),
+        ez(box.half.z * box.axes[2]) {}
+  // corner k: the signs of bits 0, 1, 2 of k along x, y, z
+  Vec3 operator[](int k) const { return c + (k & 1 ? ex : -ex) + (k & 2 ? ey : -ey) + (k & 4 ? ez : -ez); }
+};
+inline Vec3 box_corner(const ShapeRef3& box, int k) { return BoxCorners(box)[k]; }
+
+// A polytope as the hull code reads it: world vertices, world face normals, topology.
+struct Polytope {
+  const Vec3* v;
+  const Vec3* fn;
+  const HullView* h;
+};
+
+// The hull's face f: its loop's first vertex.
+inline Vec3 face_origin(const Polytope& P, int f) { return P.v[P.h->face_vertex[P.h->face_start[f]]]; }
+
+// Whether x (on face f's plane) lies within face f's polygon.
+inline bool inside_face(const Polytope& P, int f, Vec3 x) {
+  const int s = P.h->face_start[f], e = P.h->face_start[f + 1];
+  const Vec3 n = P.fn[f];
+  for (int k = s; k < e; ++k) {
+    const Vec3 v0 = P.v[P.h->face_vertex[k]];
+    const Vec3 v1 = P.v[P.h->face_vertex[k + 1 < e ? k + 1 : s]];
+    if (dot(cross(v1 - v0, n), x - v0) > 0.0) return false;
+  }
+  return true;
+}
+
+// The closest point of a hull's surface to x: its point, the unit normal (out of the
+// hull towards x) and the signed distance (negative inside, then along the least deep face).
+struct SurfacePoint {
+  Vec3 point;
+  Vec3 normal;
+  double distance;
+};
+inline SurfacePoint closest_on_hull(const Polytope& P, Vec3 x) {
+  double best = -INF;
+  int face = 0;
+  for (int f = 0; f < P.h->face_count; ++f) {
+    const double s = dot(P.fn[f], x - face_origin(P, f));
+    if (s > best) {
+      best = s;
+      face = f;
+    }
+  }
+  const Vec3 n = P.fn[face];
+  const Vec3 y = x - best * n;
+  if (best <= 0.0 || inside_face(P, face, y)) return {y, n, best};
+  // outside, beyond the face's polygon: the closest point is on an edge (or a vertex)
+  double d2 = INF;
+  Vec3 c = y;
+  for (int e = 0; e < P.h->edge_count; ++e) {
+    const Vec3 k = closest_on_segment(x, P.v[P.h->edge[e].v0], P.v[P.h->edge[e].v1]);
+    const double dd = length_squared(x - k);
+    if (dd < d2) {
+      d2 = dd;
+      c = k;
+    }
+  }
+  const double dist = std::sqrt(d2);
+  // dist >= best > 0: the direction is defined
+  return {c, (1.0 / dist) * (x - c), dist};
+}
+
+// The incident polygon: face f of P as a ClipPolygon (vertex ids, edge tags).
+template <int N>
+inline void incident_polygon(const Polytope& P, int f, ClipPolygon<N>& poly) {
+  poly.n = 0;
+  for (int k = P.h->face_start[f]; k < P.h->face_start[f + 1]; ++k) {
+    const int v = P.h->face_vertex[k];
+    poly.push(P.v[v], feature_id(FK::Vertex, 0, 0, v, 0), P.h->face_edge[k]);
+  }
+}
+
+// The face of P most anti-parallel to n (first on ties).
+inline int incident_face(const Polytope& P, Vec3 n) {
+  double min_dot = INF;
+  int face = 0;
+  for (int f = 0; f < P.h->face_count; ++f) {
+    const double d = dot(n, P.fn[f]);
+    if (d < min_dot) {
+      min_dot = d;
+      face = f;
+    }
+  }
+  return face;
+}
+
+// Whether the arcs a-b (A's edge, between its faces' normals) and c-d (B's edge, its
+// faces' normals negated) cross on the Gauss map, i.e. the edge pair makes a face of the
+// Minkowski difference and its cross product is a candidate separating axis.
+// bxa = b × a and dxc = d × c (the edges' directions, up to sign and length).
+inline bool minkowski_face(Vec3 a, Vec3 b, Vec3 bxa, Vec3 c, Vec3 d, Vec3 dxc) {
+  const double cba = dot(c, bxa), dba = dot(d, bxa);
+  const double adc = dot(a, dxc), bdc = dot(b, dxc);
+  return cba * dba < 0.0 && adc * bdc < 0.0 && cba * bdc > 0.0;
+}
+
+// The tolerances of a pair: the face tolerance (m) at the smaller scale.
+inline double face_tolerance(const ShapeRef3& a, const ShapeRef3& b) {
+  return std::min(a.scale, b.scale) * REFERENCE_FACE_TOLERANCE;
+}
+inline bool edge_wins(double edge_sep, double face_sep, double tol) {
+  return edge_sep > face_sep + EDGE_RELATIVE_TOLERANCE * std::fabs(face_sep) + tol;
+}
+
+// One point at the closest points of edges p1-q1 (of a) and p2-q2 (of b), normal n (b -> a).
+inline int edge_contact(Vec3 p1, Vec3 q1, Vec3 p2, Vec3 q2, Vec3 n, std::int64_t fid,
+                        double speculative, Manifold3& out) {
+  const auto [s, t] = segment_closest_fractions(p1, q1, p2, q2);
+  const Vec3 ca = p1 + s * (q1 - p1), cb = p2 + t * (q2 - p2);
+  return single_point(ca, 0.0, cb, 0.0, n, fid, speculative, out);
+}
+
+// The face of P that separates Q most (its deepest vertex below the face): separation
+// (m) and face. False as soon as one face separates them by more than `speculative`.
+inline bool deepest_face(const Polytope& P, const Polytope& Q, double speculative, double& sep,
+                         int& face) {
+  sep = -INF;
+  face = 0;
+  for (int f = 0; f < P.h->face_count; ++f) {
+    const Vec3 n = P.fn[f], o = face_origin(P, f);
+    double s = INF;
+    for (int j = 0; j < Q.h->vertex_count; ++j) s = std::min(s, dot(n, Q.v[j] - o));
+    if (s > speculative) return false;
+    if (s > sep) {
+      sep = s;
+      face = f;
+    }
+  }
+  return true;
+}
+
+// Two hulls (or boxes taken as hulls): SAT over both hulls' faces and their edge pairs.
+constexpr int HULL_CLIP = 2 * HULL_MAX_FACE_VERTICES;
+int collide_polytopes(const Polytope& A, const Polytope& B, double tol, double speculative,
+                      Manifold3& out) {
+  double sep_a, sep_b;
+  int face_a, face_b;
+  if (!deepest_face(A, B, speculative, sep_a, face_a)) return 0;
+  if (!deepest_face(B, A, speculative, sep_b, face_b)) return 0;
+  // edge pairs that make a face of the Minkowski difference
+  Vec3 centroid_a{};
+  for (int j = 0; j < A.h->vertex_count; ++j) centroid_a += A.v[j];
+  centroid_a = (1.0 / A.h->vertex_count) * centroid_a;
+  double sep_e = -INF;
+  int edge_a = -1, edge_b = -1;
+  Vec3 axis_e{};
+  for (int i = 0; i < A.h->edge_count; ++i) {
+    const HullEdge& ea = A.h->edge[i];
+    const Vec3 pa = A.v[ea.v0], da = A.v[ea.v1] - pa;
+    const Vec3 na0 = A.fn[ea.f0], na1 = A.fn[ea.f1];
+    const Vec3 bxa = cross(na1, na0);
+    for (int j = 0; j < B.h->edge_count; ++j) {
+      const HullEdge& eb = B.h->edge[j];
+      const Vec3 nb0 = -B.fn[eb.f0], nb1 = -B.fn[eb.f1];
+      if (!minkowski_face(na0, na1, bxa, nb0, nb1, cross(nb1, nb0))) continue;
+      const Vec3 pb = B.v[eb.v0], db = B.v[eb.v1] - pb;
+      Vec3 L = cross(da, db);
+      const double len = length(L);
+      if (len <= EDGE_PARALLEL_SIN * length(da) * length(db)) continue;
+      if (dot(L, pa - centroid_a) < 0.0) L = -L;  // out of A
+      const double s = dot(L, pb - pa) / len;
+      if (s > speculative) return 0;
+      if (s > sep_e) {
+        sep_e = s;
+        edge_a = i;
+        edge_b = j;
+        axis_e = (1.0 / len) * L;
+      }
+    }
+  }
+
+  const int ref_is_b = sep_b > sep_a + tol ? 1 : 0;
+  const double face_sep = ref_is_b ? sep_b : sep_a;
+  if (edge_a >= 0 && edge_wins(sep_e, face_sep, tol)) {
+    const HullEdge& ea = A.h->edge[edge_a];
+    const HullEdge& eb = B.h->edge[edge_b];
+    return edge_contact(A.v[ea.v0], A.v[ea.v1], B.v[eb.v0], B.v[eb.v1], -axis_e,
+                        feature_id(FK::EdgeEdge, 0, 0, edge_a, edge_b), speculative, out);
+  }
+  const Polytope& ref = ref_is_b ? B : A;
+  const Polytope& inc = ref_is_b ? A : B;
+  const int rf = ref_is_b ? face_b : face_a;
+  const Vec3 n_ref = ref.fn[rf];
+  ClipPolygon<HULL_CLIP> poly;
+  incident_polygon(inc, incident_face(inc, n_ref), poly);
+  std::array<Vec3, HULL_MAX_FACE_VERTICES> loop;
+  const int s = ref.h->face_start[rf], e = ref.h->face_start[rf + 1];
+  for (int k = s; k < e; ++k) loop[k - s] = ref.v[ref.h->face_vertex[k]];
+  return face_contact(loop.data(), e - s, n_ref, poly, ref_is_b, rf, speculative, out);
+}
+
+// A box as a polytope: its corners and face normals in the caller's arrays.
+inline Polytope box_polytope(const ShapeRef3& box, Vec3* corners, Vec3* normals) {
+  box_geometry(box, corners, normals);
+  return {corners, normals, &box_hull()};
+}
+inline Polytope hull_polytope(const ShapeRef3& s) { return {s.verts, s.face_normals, &s.hull}; }
+
+// The corners of a polytope within reach of a plane (b): up to four, reduced.
+int polytope_plane(const Vec3* verts, int count, const ShapeRef3& plane, double speculative,
+                   Manifold3& out) {
+  const Vec3 n = plane.normal;
+  const auto get = [&](int i, Vec3& p, double& s, std::int64_t& id) {
+    s = dot(n, verts[i]) - plane.offset;
+    p = verts[i] - (0.5 * s) * n;
+    id = feature_id(FK::Vertex, 0, 0, i, 0);
+    return s <= speculative;
+  };
+  return reduce_to_four(count, get, n, out);
+}
+
+// ---------------------------------------------------------------------------------------
+// Pair functions (a, b): the normal from b towards a
+
+int collide_sphere_sphere(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
+  const Vec3 d = a.center - b.center;
+  const double dist = length(d);
+  if (dist - a.radius - b.radius > speculative) return 0;
+  // concentric: any direction separates them equally well
+  const Vec3 n = dist > LINEAR_EPSILON ? (1.0 / dist) * d : UP;
+  return single_point(a.center, a.radius, b.center, b.radius, n, 0, speculative, out);
+}
+
+int collide_sphere_plane(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
+  const Vec3 n = b.normal;
+  const double sep = dot(n, a.center) - b.offset - a.radius;
+  if (sep > speculative) return 0;
+  out.normal = n;
+  out.point[0] = a.center - (a.radius + 0.5 * sep) * n;
+  out.separation[0] = sep;
+  out.id[0] = 0;
+  return 1;
+}
+
+// Sphere a against box b: the closest point of the box to the centre; a centre inside
+// pushes out through the nearest face.
+int collide_sphere_box(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
+  const Vec3 r = a.center - b.center;
+  const double local[3] = {dot(r, b.axes[0]), dot(r, b.axes[1]), dot(r, b.axes[2])};
+  const double half[3] = {b.half.x, b.half.y, b.half.z};
+  double clamped[3];
+  bool outside = false;
+  for (int k = 0; k < 3; ++k) {
+    clamped[k] = std::min(std::max(local[k], -half[k]), half[k]);
+    outside = outside || clamped[k] != local[k];
+  }
+  if (outside) {
+    const Vec3 p = b.center + clamped[0] * b.axes[0] + clamped[1] * b.axes[1] + clamped[2] * b.axes[2];
+    const Vec3 d = a.center - p;
+    const double dist = length(d);
+    if (dist - a.radius > speculative) return 0;
+    // dist > 0 (some coordinate was clamped); at round-off size the face normal is as good
+    const int k = std::fabs(local[0]) - half[0] >= std::fabs(local[1]) - half[1]
+                      ? (std::fabs(local[0]) - half[0] >= std::fabs(local[2]) - half[2] ? 0 : 2)
+                      : (std::fabs(local[1]) - half[1] >= std::fabs(local[2]) - half[2] ? 1 : 2);
+    const Vec3 n = dist > LINEAR_EPSILON ? (1.0 / dist) * d
+                                         : (local[k] >= 0.0 ? b.axes[k] : -b.axes[k]);
+    return single_point(a.center, a.radius, p, 0.0, n, 0, speculative, out);
+  }
+  int k = 0;
+  double depth = INF;
+  for (int j = 0; j < 3; ++j) {
+    const double dj = half[j] - std::fabs(local[j]);
+    if (dj < depth) {
+      depth = dj;
+      k = j;
+    }
+  }
+  const Vec3 n = local[k] >= 0.0 ? b.axes[k] : -b.axes[k];
+  const Vec3 p = a.center + depth * n;  // on the face
+  return single_point(a.center, a.radius, p, 0.0, n, 0, speculative, out);
+}
+
+int collide_sphere_capsule(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
+  const Vec3 p = closest_on_segment(a.center, b.p, b.q);
+  const Vec3 d = a.center - p;
+  const double dist = length(d);
+  if (dist - a.radius - b.radius > speculative) return 0;
+  // centre on the core: any direction across the segment
+  const Vec3 n = dist > LINEAR_EPSILON ? (1.0 / dist) * d : perpendicular(b.q - b.p);
+  return single_point(a.center, a.radius, p, b.radius, n, 0, speculative, out);
+}
+
+int collide_sphere_convex(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
+  const SurfacePoint c = closest_on_hull(hull_polytope(b), a.center);
+  if (c.distance - a.radius > speculative) return 0;
+  return single_point(a.center, a.radius, c.point, 0.0, c.normal, 0, speculative, out);
+}
+
+// Capsule a against capsule b: one point at the segments' closest points, or two at the
+// ends of their common stretch when they lie parallel.
+int collide_capsule_capsule(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
+  const Vec3 d1 = a.q - a.p, d2 = b.q - b.p;
+  const auto [s, t] = segment_closest_fractions(a.p, a.q, b.p, b.q);
+  const Vec3 ca = a.p + s * d1, cb = b.p + t * d2;
+  const Vec3 d = ca - cb;
+  const double dist = length(d);
+  const double radius = a.radius + b.radius;
+  if (dist - radius > speculative) return 0;
+  const double l1 = dot(d1, d1), l2 = dot(d2, d2);
+  constexpr double tiny = LINEAR_EPSILON * LINEAR_EPSILON;
+  // the cores cross (or a core is a point on the other): across both, or across one
+  Vec3 n;
+  if (dist > LINEAR_EPSILON) {
+    n = (1.0 / dist) * d;
+  } else {
+    const Vec3 c = cross(d1, d2);
+    const double lc = length(c);
+    if (lc > LINEAR_EPSILON * LINEAR_EPSILON) {
+      n = (1.0 / lc) * c;
+      if (dot(n, (a.p + a.q) - (b.p + b.q)) < 0.0) n = -n;
+    } else {
+      n = perpendicular(l1 >= l2 ? d1 : d2);
+    }
+  }
+  const Vec3 c12 = cross(d1, d2);
+  if (l1 > tiny && l2 > tiny &&
+      dot(c12, c12) <= CAPSULE_PARALLEL_SIN * CAPSULE_PARALLEL_SIN * l1 * l2) {
+    // b's ends on a's line (fractions of a), their common stretch [lo, hi]
+    const double u0 = dot(b.p - a.p, d1) / l1, u1 = dot(b.q - a.p, d1) / l1;
+    const bool b_reversed = u1 < u0;
+    const double b_lo = b_reversed ? u1 : u0, b_hi = b_reversed ? u0 : u1;
+    const double lo = std::max(0.0, b_lo), hi = std::min(1.0, b_hi);
+    if ((hi - lo) * std::sqrt(l1) > LINEAR_EPSILON) {
+      int count = 0;
+      for (int k = 0; k < 2; ++k) {
+        const double u = k == 0 ? lo : hi;
+        const Vec3 xa = a.p + u * d1;
+        const Vec3 xb = closest_on_segment(xa, b.p, b.q);
+        const double sep = dot(xa - xb, n) - radius;
+        if (sep > speculative) continue;
+        // which end made this end of the stretch: a's own (1, 2) or b's (1, 2)
+        int end_a = 0, end_b = 0;
+        if (k == 0) {
+          if (lo == 0.0 && b_lo <= 0.0) end_a = 1;
+          else end_b = b_reversed ? 2 : 1;
+        } else {
+          if (hi == 1.0 && b_hi >= 1.0) end_a = 2;
+          else end_b = b_reversed ? 1 : 2;
+        }
+        out.point[count] = 0.5 * ((xa - a.radius * n) + (xb + b.radius * n));
+        out.separation[count] = sep;
+        out.id[count] = feature_id(FK::CapsuleEnd, 0, 0, end_a, end_b);
+        ++count;
+      }
+      out.normal = n;
+      return count;
+    }
+  }
+  return single_point(ca, a.radius, cb, b.radius, n, 0, speculative, out);
+}
+
+int collide_capsule_plane(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
+  const Vec3 n = b.normal;
+  // a point-like capsule is a sphere: one point
+  const int ends = length_squared(a.q - a.p) > LINEAR_EPSILON * LINEAR_EPSILON ? 2 : 1;
+  int count = 0;
+  for (int k = 0; k < ends; ++k) {
+    const Vec3 x = k == 0 ? a.p : a.q;
+    const double sep = dot(n, x) - b.offset - a.radius;
+    if (sep > speculative) continue;
+    out.point[count] = x - (a.radius + 0.5 * sep) * n;
+    out.separation[count] = sep;
+    out.id[count] = feature_id(FK::Vertex, 0, 0, k, 0);
+    ++count;
+  }
+  out.normal = n;
+  return count;
+}
+
+// Capsule a lying on face f of polytope B: its segment clipped to the face's side
+// planes, a point at each end of what is left (Cyrus–Beck). Returns -1 when nothing is
+// left (the segment is not over the face).
+int capsule_on_face(const ShapeRef3& a, const Polytope& B, int f, double speculative,
+                    Manifold3& out) {
+  const Vec3 d = a.q - a.p;
+  const Vec3 n = B.fn[f];
+  double lo = 0.0, hi = 1.0;
+  int side_lo = -1, side_hi = -1;  // the side plane that cut each end (-1: the segment's end)
+  const int s = B.h->face_start[f], e = B.h->face_start[f + 1];
+  for (int k = s; k < e; ++k) {
+    const Vec3 v0 = B.v[B.h->face_vertex[k]];
+    const Vec3 v1 = B.v[B.h->face_vertex[k + 1 < e ? k + 1 : s]];
+    const Vec3 side = cross(v1 - v0, n);
+    const double g0 = dot(side, a.p - v0), dg = dot(side, d);  // g(t) = g0 + t dg <= 0
+    if (dg == 0.0) {
+      if (g0 > 0.0) return -1;
+      continue;
+    }
+    const double t = -g0 / dg;
+    if (dg > 0.0) {
+      if (t < hi) { hi = t; side_hi = k - s; }
+    } else {
+      if (t > lo) { lo = t; side_lo = k - s; }
+    }
+  }
+  if (lo > hi) return -1;
+  const Vec3 o = B.v[B.h->face_vertex[s]];
+  const int ends = (hi - lo) * length(d) > LINEAR_EPSILON ? 2 : 1;
+  int count = 0;
+  for (int k = 0; k < ends; ++k) {
+    const double t = k == 0 ? lo : hi;
+    const int side = k == 0 ? side_lo : side_hi;
+    const Vec3 x = a.p + t * d;
+    const double depth = dot(n, x - o);
+    const double sep = depth - a.radius;
+    if (sep > speculative) continue;
+    out.point[count] = x - (0.5 * (a.radius + depth)) * n;
+    out.separation[count] = sep;
+    out.id[count] = side < 0 ? feature_id(FK::Vertex, 1, f, k, 0)
+                             : feature_id(FK::EdgeSide, 1, f, 0, side);
+    ++count;
+  }
+  out.normal = n;
+  return count;
+}
+
+// Capsule a against polytope B (a hull, or a box taken as one).
+//
+// Separating axes of the core: B's face normals and the cross products of the segment
+// with B's edges. A core apart from B is measured exactly (the closest points of segment
+// and hull); lying over a face (its closest point in the face's interior) it is clipped
+// to that face for up to two points, else one point at the closest points. A core in B
+// takes the axis that separates it least: a face (clipped) or an edge (one point).
+int capsule_polytope(const ShapeRef3& a, const Polytope& B, double tol, double speculative,
+                     Manifold3& out) {
+  const Vec3 p = a.p, q = a.q, d = q - p;
+  const double r = a.radius;
+  double sep_f = -INF;
+  int face = 0;
+  for (int f = 0; f < B.h->face_count; ++f) {
+    const Vec3 o = face_origin(B, f);
+    const double s = std::min(dot(B.fn[f], p - o), dot(B.fn[f], q - o));
+    if (s - r > speculative) return 0;
+    if (s > sep_f) {
+      sep_f = s;
+      face = f;
+    }
+  }
+  double sep_e = -INF;
+  int edge = -1;
+  Vec3 axis_e{};
+  const double ld = length(d);
+  for (int i = 0; i < B.h->edge_count; ++i) {
+    const Vec3 de = B.v[B.h->edge[i].v1] - B.v[B.h->edge[i].v0];
+    const Vec3 L = cross(d, de);
+    const double len = length(L);
+    if (len <= EDGE_PARALLEL_SIN * ld * length(de)) continue;
+    double hmin = INF, hmax = -INF;
+    for (int j = 0; j < B.h->vertex_count; ++j) {
+      const double h = dot(L, B.v[j]);
+      hmin = std::min(hmin, h);
+      hmax = std::max(hmax, h);
+    }
+    const double sp = dot(L, p), sq = dot(L, q);
+    const double above = std::min(sp, sq) - hmax;  // the capsule on B's +L side
+    const double below = hmin - std::max(sp, sq);  // on its −L side
+    const double s = std::max(above, below) / len;
+    if (s - r > speculative) return 0;
+    if (s > sep_e) {
+      sep_e = s;
+      edge = i;
+      axis_e = (above >= below ? 1.0 / len : -1.0 / len) * L;
+    }
+  }
+
+  if (std::max(sep_f, sep_e) > 0.0) {
+    // apart: the exact closest points (an end against the hull, or the segment against an edge)
+    double best = INF;
+    Vec3 xs{}, xh{};
+    for (int k = 0; k < 2; ++k) {
+      const Vec3 x = k == 0 ? p : q;
+      const SurfacePoint c = closest_on_hull(B, x);
+      if (c.distance < best) {
+        best = c.distance;
+        xs = x;
+        xh = c.point;
+      }
+    }
+    for (int i = 0; i < B.h->edge_count; ++i) {
+      const Vec3 e0 = B.v[B.h->edge[i].v0], e1 = B.v[B.h->edge[i].v1];
+      const auto [s, t] = segment_closest_fractions(p, q, e0, e1);
+      const Vec3 cs = p + s * d, ch = e0 + t * (e1 - e0);
+      const double dist = length(cs - ch);
+      if (dist < best) {
+        best = dist;
+        xs = cs;
+        xh = ch;
+      }
+    }
+    if (best - r > speculative) return 0;
+    // over the face's interior the face's separation is the distance
+    if (best <= sep_f + LINEAR_EPSILON) {
+      const int n = capsule_on_face(a, B, face, speculative, out);
+      if (n >= 0) return n;
+    }
+    const Vec3 dv = xs - xh;
+    const double dist = length(dv);
+    const Vec3 n = dist > LINEAR_EPSILON ? (1.0 / dist) * dv : B.fn[face];
+    return single_point(xs, r, xh, 0.0, n, 0, speculative, out);
+  }
+  if (edge >= 0 && edge_wins(sep_e, sep_f, tol)) {
+    const Vec3 e0 = B.v[B.h->edge[edge].v0], e1 = B.v[B.h->edge[edge].v1];
+    const auto [s, t] = segment_closest_fractions(p, q, e0, e1);
+    return single_point(p + s * d, r, e0 + t * (e1 - e0), 0.0, axis_e,
+                        feature_id(FK::EdgeEdge, 0, 0, 0, edge), speculative, out);
+  }
+  const int n = capsule_on_face(a, B, face, speculative, out);
+  if (n >= 0) return n;
+  // the core dips into the face's plane outside the face: its deeper end
+  const Vec3 o = face_origin(B, face);
+  const Vec3 nf = B.fn[face];
+  const int k = dot(nf, q - o) < dot(nf, p - o) ? 1 : 0;
+  const Vec3 x = k ? q : p;
+  return single_point(x, r, x - dot(nf, x - o) * nf, 0.0, nf,
+                      feature_id(FK::Vertex, 1, face, k, 0), speculative, out);
+}
+
+int collide_capsule_box(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
+  Vec3 corners[8], normals[6];
+  return capsule_polytope(a, box_polytope(b, corners, normals), face_tolerance(a, b),
+                          speculative, out);
+}
+
+int collide_capsule_convex(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
+  return capsule_polytope(a, hull_polytope(b), face_tolerance(a, b), speculative, out);
+}
+
+// Box a against box b: SAT over the 15 axes (3 + 3 face normals, 9 edge cross products),
+// then a face contact (the incident face clipped to the reference face) or one edge point.
+int collide_box_box(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
+  const Vec3 d = a.center - b.center;  // b -> a
+  const double ha[3] = {a.half.x, a.half.y, a.half.z};
+  const double hb[3] = {b.half.x, b.half.y, b.half.z};
+  // R[i][j] = a_i · b_j: b's axes in a's frame (its columns); t: d in a's frame
+  double rot[3][3], abs_r[3][3];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {
+      rot[i][j] = dot(a.axes[i], b.axes[j]);
+      abs_r[i][j] = std::fabs(rot[i][j]);
+    }
+  const double t[3] = {dot(d, a.axes[0]), dot(d, a.axes[1]), dot(d, a.axes[2])};
+
+  double sep_a = -INF, sep_b = -INF, sep_e = -INF;
+  int axis_a = 0, axis_b = 0, edge_i = -1, edge_j = -1;
+  for (int i = 0; i < 3; ++i) {
+    const double s = std::fabs(t[i]) - ha[i] -
+                     (hb[0] * abs_r[i][0] + hb[1] * abs_r[i][1] + hb[2] * abs_r[i][2]);
+    if (s > speculative) return 0;
+    if (s > sep_a) {
+      sep_a = s;
+      axis_a = i;
+    }
+  }
+  double proj_b[3];
+  for (int j = 0; j < 3; ++j) {
+    proj_b[j] = dot(d, b.axes[j]);
+    const double s = std::fabs(proj_b[j]) - hb[j] -
+                     (ha[0] * abs_r[0][j] + ha[1] * abs_r[1][j] + ha[2] * abs_r[2][j]);
+    if (s > speculative) return 0;
+    if (s > sep_b) {
+      sep_b = s;
+      axis_b = j;
+    }
+  }
+  // L = a_i × b_j in a's frame (i, i1, i2 and j, j1, j2 cyclic): |L|² = R[i1][j]² + R[i2][j]²,
+  // d · L = t[i2] R[i1][j] − t[i1] R[i2][j]; a's extent along L is
+  // ha[i1] |R[i2][j]| + ha[i2] |R[i1][j]|, b's hb[j1] |R[i][j2]| + hb[j2] |R[i][j1]|
+  double proj_e = 0.0, len_e = 1.0;
+  for (int i = 0; i < 3; ++i) {
+    const int i1 = (i + 1) % 3, i2 = (i + 2) % 3;
+    for (int j = 0; j < 3; ++j) {
+      const int j1 = (j + 1) % 3, j2 = (j + 2) % 3;
+      const double len2 = rot[i1][j] * rot[i1][j] + rot[i2][j] * rot[i2][j];
+      if (len2 <= EDGE_PARALLEL_SIN * EDGE_PARALLEL_SIN) continue;
+      const double len = std::sqrt(len2);
+      const double ra = ha[i1] * abs_r[i2][j] + ha[i2] * abs_r[i1][j];
+      const double rb = hb[j1] * abs_r[i][j2] + hb[j2] * abs_r[i][j1];
+      const double proj = t[i2] * rot[i1][j] - t[i1] * rot[i2][j];
+      const double s = (std::fabs(proj) - ra - rb) / len;
+      if (s > speculative) return 0;
+      if (s > sep_e) {
+        sep_e = s;
+        edge_i = i;
+        edge_j = j;
+        proj_e = proj;
+        len_e = len;
+      }
+    }
+  }
+  const double proj_a = t[axis_a];
+
+  const double tol = face_tolerance(a, b);
+  const int ref_is_b = sep_b > sep_a + tol ? 1 : 0;
+  const double face_sep = ref_is_b ? sep_b : sep_a;
+  if (edge_i >= 0 && edge_wins(sep_e, face_sep, tol)) {
+    // a's edge along axis i nearest b (towards −n), b's edge along axis j nearest a (+n)
+    const Vec3 n = (proj_e >= 0.0 ? 1.0 / len_e : -1.0 / len_e) * cross(a.axes[edge_i], b.axes[edge_j]);
+    int corner_a = 0, corner_b = 0;  // the edges' lower corners (sign bits)
+    for (int k = 0; k < 3; ++k) {
+      if (k != edge_i && dot(n, a.axes[k]) < 0.0) corner_a |= 1 << k;
+      if (k != edge_j && dot(n, b.axes[k]) > 0.0) corner_b |= 1 << k;
+    }
+    const int upper_a = corner_a | 1 << edge_i, upper_b = corner_b | 1 << edge_j;
+    return edge_contact(box_corner(a, corner_a), box_corner(a, upper_a), box_corner(b, corner_b),
+                        box_corner(b, upper_b), n,
+                        feature_id(FK::EdgeEdge, 0, 0, corner_a * 8 + upper_a, corner_b * 8 + upper_b),
+                        speculative, out);
+  }
+
+  const ShapeRef3& ref = ref_is_b ? b : a;
+  const ShapeRef3& inc = ref_is_b ? a : b;
+  // the reference face faces the other box: on a, against d; on b, along d
+  const int ri = ref_is_b ? axis_b : axis_a;
+  const bool ref_positive = ref_is_b ? proj_b[axis_b] >= 0.0 : proj_a < 0.0;
+  const Vec3 n_ref = ref_positive ? ref.axes[ri] : -ref.axes[ri];
+  const int ref_face = 2 * ri + (ref_positive ? 1 : 0);
+  // the incident face: the other box's face most anti-parallel to n_ref
+  int ii = 0;
+  double best = -1.0;
+  for (int k = 0; k < 3; ++k) {
+    const double c = std::fabs(dot(n_ref, inc.axes[k]));
+    if (c > best) {
+      best = c;
+      ii = k;
+    }
+  }
+  const bool inc_positive = dot(n_ref, inc.axes[ii]) < 0.0;
+  const int inc_face = 2 * ii + (inc_positive ? 1 : 0);
+  // Clip in the reference box's frame: the incident corners' coordinates along its axes,
+  // so that each side plane is one coordinate against a half extent. Side k of the
+  // reference face's loop (corner k to k+1) is the plane of the axis both corners'
+  // other bit does not change: outward along that axis, with their sign on it.
+  const HullView& topo = box_hull();
+  const BoxCorners inc_corner(inc);
+  const double hr[3] = {ref.half.x, ref.half.y, ref.half.z};
+  ClipPolygon<8> poly;
+  for (int k = 0; k < 4; ++k) {
+    const int v = BOX_LOOP[inc_face][k];
+    const Vec3 r = inc_corner[v] - ref.center;
+    poly.push({dot(r, ref.axes[0]), dot(r, ref.axes[1]), dot(r, ref.axes[2])},
+              feature_id(FK::Vertex, 0, 0, v, 0), topo.face_edge[topo.face_start[inc_face] + k]);
+  }
+  ClipPolygon<8> tmp;
+  ClipPolygon<8>* cur = &poly;
+  ClipPolygon<8>* nxt = &tmp;
+  for (int k = 0; k < 4 && cur->n > 0; ++k) {
+    const int c0 = BOX_LOOP[ref_face][k], c1 = BOX_LOOP[ref_face][(k + 1) & 3];
+    const int m = 3 - ri - BIT_AXIS[c0 ^ c1];  // neither the face's axis nor the edge's
+    const bool positive = (c0 >> m) & 1;
+    const double h = hr[m];
+    const auto dist = [m, positive, h](Vec3 x) {
+      const double u = m == 0 ? x.x : (m == 1 ? x.y : x.z);
+      return (positive ? u : -u) - h;
+    };
+    clip_polygon(*cur, dist, k, *nxt);
+    std::swap(cur, nxt);
+  }
+  const ClipPolygon<8>& clipped = *cur;
+  const std::int64_t ref_part = feature_id(FK::Single, ref_is_b, ref_face, 0, 0);
+  const double h_face = hr[ri];
+  const auto get = [&](int i, Vec3& p, double& s, std::int64_t& id) {
+    const Vec3 l = clipped.p[i];
+    const double along = ri == 0 ? l.x : (ri == 1 ? l.y : l.z);
+    s = (ref_positive ? along : -along) - h_face;
+    p = ref.center + l.x * ref.axes[0] + l.y * ref.axes[1] + l.z * ref.axes[2] - (0.5 * s) * n_ref;
+    id = ref_part | clipped.id[i];
+    return s <= speculative;
+  };
+  return reduce_to_four(clipped.n, get, ref_is_b ? n_ref : -n_ref, out);
+}
+
+int collide_box_plane(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
+  const BoxCorners corner(a);
+  Vec3 corners[8];
+  for (int k = 0; k < 8; ++k) corners[k] = corner[k];
+  return polytope_plane(corners, 8, b, speculative, out);
+}
+
+int collide_box_convex(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
+  Vec3 corners[8], normals[6];
+  return collide_polytopes(box_polytope(a, corners, normals), hull_polytope(b),
+                           face_tolerance(a, b), speculative, out);
+}
+
+int collide_convex_box(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
+  Vec3 corners[8], normals[6];
+  return collide_polytopes(hull_polytope(a), box_polytope(b, corners, normals),
+                           face_tolerance(a, b), speculative, out);
+}
+
+int collide_convex_convex(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
+  return collide_polytopes(hull_polytope(a), hull_polytope(b), face_tolerance(a, b),
+                           speculative, out);
+}
+
+int collide_convex_plane(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
+  return polytope_plane(a.verts, a.hull.vertex_count, b, speculative, out);
+}
+
+// Two half-spaces: no manifold (planes are static ground).
+int collide_none(const ShapeRef3&, const ShapeRef3&, double, Manifold3&) { return 0; }
+
+using PairFn = int (*)(const ShapeRef3&, const ShapeRef3&, double, Manifold3&);
+
+// A pair in the other order than its function's: the function with a and b swapped, the
+// normal negated back (b -> a of the caller's order).
+template <PairFn F>
+int swapped(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
+  const int n = F(b, a, speculative, out);
+  out.normal = -out.normal;
+  return n;
+}
+
+// [kind_a − FIRST][kind_b − FIRST], kinds in order: sphere, box, capsule, convex, plane.
+constexpr PairFn COLLIDE[kind3::COUNT][kind3::COUNT] = {
+    {collide_sphere_sphere, collide_sphere_box, collide_sphere_capsule, collide_sphere_convex,
+     collide_sphere_plane},
+    {swapped<collide_sphere_box>, collide_box_box, swapped<collide_capsule_box>,
+     collide_box_convex, collide_box_plane},
+    {swapped<collide_sphere_capsule>, collide_capsule_box, collide_capsule_capsule,
+     collide_capsule_convex, collide_capsule_plane},
+    {swapped<collide_sphere_convex>, collide_convex_box, swapped<collide_capsule_convex>,
+     collide_convex_convex, collide_convex_plane},
+    {swapped<collide_sphere_plane>, swapped<collide_box_plane>, swapped<collide_capsule_plane>,
+     swapped<collide_convex_plane>, collide_none},
+};
+
+}  // namespace
+
+const HullView& box_hull() {
+  static const HullView view = box_hull3().view();
+  return view;
+}
+
+void box_geometry(const ShapeRef3& box, Vec3* corners, Vec3* face_normals) {
+  const BoxCorners corner(box);
+  for (int k = 0; k < 8; ++k) corners[k] = corner[k];
+  for (int i = 0; i < 3; ++i) {
+    face_normals[2 * i] = -box.axes[i];
+    face_normals[2 * i + 1] = box.axes[i];
+  }
+}
+
+int collide3d(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
+  const auto ka = static_cast<unsigned>(a.kind - kind3::FIRST);
+  const auto kb = static_cast<unsigned>(b.kind - kind3::FIRST);
+  if (ka >= static_cast<unsigned>(kind3::COUNT) || kb >= static_cast<unsigned>(kind3::COUNT)) return 0;
+  return COLLIDE[ka][kb](a, b, speculative, out);
+}
+
+}  // namespace rbsim

@@ -1,0 +1,836 @@
+// collide/narrow3d.cpp: 3D contact manifolds of each kind pair on configurations whose
+// answer is known by hand (normal from b towards a, points midway between the surfaces,
+// signed separations with the radii included, at most four points, feature ids stable
+// while the same features touch), the mirrored dispatch, determinism, degenerate input,
+// and the box–box cost per call.
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <ctime>
+#include <string>
+#include <vector>
+
+#include "check.hpp"
+#include "collide/hull3d.hpp"
+#include "collide/narrow3d.hpp"
+#include "rbsim/constants.hpp"
+
+using namespace rbsim;
+
+namespace {
+
+constexpr double SPEC = constants::SPECULATIVE_DISTANCE;  // m
+constexpr double EPS = 1e-12;  // m, round-off of O(1) lengths
+const double S2 = std::sqrt(0.5);
+
+Quat axis_angle(Vec3 axis, double angle) {
+  const Vec3 u = (1.0 / length(axis)) * axis;
+  const double s = std::sin(0.5 * angle);
+  return {std::cos(0.5 * angle), s * u.x, s * u.y, s * u.z};
+}
+
+struct Result {
+  int n = 0;
+  Manifold3 m{};
+};
+Result collide(const ShapeRef3& a, const ShapeRef3& b, double spec = SPEC) {
+  Result r;
+  r.n = collide3d(a, b, spec, r.m);
+  return r;
+}
+
+void check_vec(const char* file, int line, Vec3 got, Vec3 want, double tol, const char* what) {
+  if (!(std::fabs(got.x - want.x) <= tol && std::fabs(got.y - want.y) <= tol &&
+        std::fabs(got.z - want.z) <= tol))
+    ::rbsim::test::fail(file, line,
+                        std::string(what) + ": (" + std::to_string(got.x) + ", " +
+                            std::to_string(got.y) + ", " + std::to_string(got.z) + ") != (" +
+                            std::to_string(want.x) + ", " + std::to_string(want.y) + ", " +
+                            std::to_string(want.z) + ")");
+}
+#define CHECK_VEC(...) check_vec(__FILE__, __LINE__, __VA_ARGS__)
+
+// Whether the manifold has a point within tol of p (any order).
+bool has_point(const Result& r, Vec3 p, double tol) {
+  for (int k = 0; k < r.n; ++k)
+    if (length(r.m.point[k] - p) <= tol) return true;
+  return false;
+}
+
+bool all_finite(const Result& r) {
+  bool ok = std::isfinite(r.m.normal.x) && std::isfinite(r.m.normal.y) && std::isfinite(r.m.normal.z);
+  for (int k = 0; k < r.n; ++k)
+    ok = ok && std::isfinite(r.m.point[k].x) && std::isfinite(r.m.point[k].y) &&
+         std::isfinite(r.m.point[k].z) && std::isfinite(r.m.separation[k]);
+  return ok && (r.n == 0 || std::fabs(length(r.m.normal) - 1.0) < 1e-12);
+}
+
+// The same manifold, bit for bit (normal, points, separations, ids).
+bool same_bits(const Result& x, const Result& y) {
+  if (x.n != y.n) return false;
+  if (x.n == 0) return true;
+  bool same = std::memcmp(&x.m.normal, &y.m.normal, sizeof(Vec3)) == 0;
+  for (int k = 0; k < x.n; ++k)
+    same = same && std::memcmp(&x.m.point[k], &y.m.point[k], sizeof(Vec3)) == 0 &&
+           std::memcmp(&x.m.separation[k], &y.m.separation[k], sizeof(double)) == 0 &&
+           x.m.id[k] == y.m.id[k];
+  return same;
+}
+
+// The same points (as sets, within tol), separations and normal.
+bool same_manifold(const Result& x, const Result& y, double tol) {
+  if (x.n != y.n || length(x.m.normal - y.m.normal) > tol) return false;
+  for (int k = 0; k < x.n; ++k) {
+    bool found = false;
+    for (int j = 0; j < y.n; ++j)
+      found = found || (length(x.m.point[k] - y.m.point[j]) <= tol &&
+                        std::fabs(x.m.separation[k] - y.m.separation[j]) <= tol);
+    if (!found) return false;
+  }
+  return true;
+}
+
+// The ids as a sorted list, to compare manifolds whose point order may differ.
+std::vector<std::int64_t> ids(const Result& r) {
+  std::vector<std::int64_t> v(r.m.id.begin(), r.m.id.begin() + r.n);
+  std::sort(v.begin(), v.end());
+  return v;
+}
+
+// A convex hull in the world: built once in its body frame from vertices and triangles,
+// its vertices and face normals moved to pose (c, q).
+struct WorldHull {
+  Hull3 hull;
+  std::vector<Vec3> v, n;
+  WorldHull(const std::vector<Vec3>& verts, const std::vector<std::array<std::int32_t, 3>>& tris) {
+    std::string error;
+    if (!build_hull(verts, tris, hull, &error)) std::printf("build_hull: %s\n", error.c_str());
+  }
+  ShapeRef3 at(Vec3 c, Quat q = {}) {
+    v.clear();
+    n.clear();
+    for (const Vec3& p : hull.vertex) v.push_back(c + rotate(q, p));
+    for (const Vec3& m : hull.face_normal) n.push_back(rotate(q, m));
+    return convex_ref(v.data(), n.data(), hull.view());
+  }
+};
+
+WorldHull box_as_hull(Vec3 half) {
+  std::vector<Vec3> c;
+  for (int k = 0; k < 8; ++k)
+    c.push_back({k & 1 ? half.x : -half.x, k & 2 ? half.y : -half.y, k & 4 ? half.z : -half.z});
+  // triangles in another order and split than box_hull()'s, as qhull might give them
+  return WorldHull(c, {{1, 3, 7}, {1, 7, 5}, {0, 4, 6}, {0, 6, 2}, {2, 6, 7}, {2, 7, 3},
+                       {0, 1, 5}, {0, 5, 4}, {4, 5, 7}, {4, 7, 6}, {0, 2, 3}, {0, 3, 1}});
+}
+
+WorldHull tetrahedron() {
+  return WorldHull({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}},
+                   {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}});
+}
+
+const ShapeRef3 GROUND = plane_ref({0, 1, 0}, 0.0);  // y <= 0 is solid
+
+}  // namespace
+
+// ---- spheres -----------------------------------------------------------------------------
+
+// Two balls stacked exactly touching, apart within and beyond the speculative distance,
+// and deep: the separation along the line of centres, the point midway.
+TEST(spheres_touching_apart_and_deep) {
+  const auto b = sphere_ref({0, 0, 0}, 0.5);
+  auto r = collide(sphere_ref({0, 1, 0}, 0.5), b);
+  CHECK(r.n == 1);
+  CHECK_VEC(r.m.normal, {0, 1, 0}, 0.0, "normal b -> a");
+  CHECK_NEAR(r.m.separation[0], 0.0, EPS);
+  CHECK_VEC(r.m.point[0], {0, 0.5, 0}, EPS, "point");
+  CHECK(r.m.id[0] == 0);
+  r = collide(sphere_ref({0, 0, 1 + 0.5 * SPEC}, 0.5), b);
+  CHECK(r.n == 1);
+  CHECK_NEAR(r.m.separation[0], 0.5 * SPEC, EPS);
+  CHECK_VEC(r.m.point[0], {0, 0, 0.5 + 0.25 * SPEC}, EPS, "mid-gap");
+  CHECK(collide(sphere_ref({0, 0, 1 + 1.5 * SPEC}, 0.5), b).n == 0);
+  r = collide(sphere_ref({0.6, 0.0, 0.8}, 0.5), b);  // centres 1 apart along (0.6, 0, 0.8)
+  CHECK(r.n == 1);
+  CHECK_VEC(r.m.normal, {0.6, 0, 0.8}, EPS, "line of centres");
+  r = collide(sphere_ref({0.3, 0.0, 0.4}, 0.5), b);  // 0.5 apart
+  CHECK_NEAR(r.m.separation[0], -0.5, EPS);
+  CHECK_VEC(r.m.point[0], 0.25 * Vec3{0.6, 0, 0.8}, EPS, "midway in the overlap");
+}
+
+// A ball on the ground plane: touching, apart, deep; the plane first gives the negated
+// normal and the same point.
+TEST(sphere_on_a_plane) {
+  auto r = collide(sphere_ref({1, 0.5, 2}, 0.5), GROUND);
+  CHECK(r.n == 1);
+  CHECK_VEC(r.m.normal, {0, 1, 0}, 0.0, "plane normal");
+  CHECK_NEAR(r.m.separation[0], 0.0, EPS);
+  CHECK_VEC(r.m.point[0], {1, 0, 2}, EPS, "on the plane");
+  r = collide(sphere_ref({1, 0.4, 2}, 0.5), GROUND);
+  CHECK_NEAR(r.m.separation[0], -0.1, EPS);
+  CHECK_VEC(r.m.point[0], {1, -0.05, 2}, EPS, "midway");
+  CHECK(collide(sphere_ref({1, 0.5 + 0.5 * SPEC, 2}, 0.5), GROUND).n == 1);
+  CHECK(collide(sphere_ref({1, 0.5 + 1.5 * SPEC, 2}, 0.5), GROUND).n == 0);
+  // a tilted plane through (0, 1, 0)
+  const Vec3 n{0.0, 0.8, 0.6};
+  const auto tilted = plane_ref(n, dot(n, Vec3{0, 1, 0}));
+  r = collide(sphere_ref(Vec3{0, 1, 0} + 0.49 * n, 0.5), tilted);
+  CHECK_VEC(r.m.normal, n, 0.0, "the plane's normal");
+  CHECK_NEAR(r.m.separation[0], -0.01, EPS);
+  const auto q = collide(tilted, sphere_ref(Vec3{0, 1, 0} + 0.49 * n, 0.5));
+  CHECK(q.n == 1);
+  CHECK_VEC(q.m.normal, -n, 0.0, "mirrored: negated");
+  CHECK_VEC(q.m.point[0], r.m.point[0], 0.0, "mirrored: same point");
+}
+
+// A ball against a turned box: on a face (the face normal), off an edge (the normal from
+// the edge to the centre), off a corner (from the corner), and with its centre inside
+// (out through the nearest face).
+TEST(sphere_on_a_box_face_edge_and_corner) {
+  const Quat q = axis_angle({1, 2, 3}, 0.7);
+  const Vec3 c{0.5, -1.0, 2.0}, half{0.5, 0.3, 0.2};
+  const auto box = box_ref(c, q, half);
+  const Vec3 ex = rotate(q, {1, 0, 0}), ey = rotate(q, {0, 1, 0}), ez = rotate(q, {0, 0, 1});
+  // face +y, 1 cm deep, off the face's centre
+  auto r = collide(sphere_ref(c + 0.1 * ex + (0.3 + 0.25 - 0.01) * ey, 0.25), box);
+  CHECK(r.n == 1);
+  CHECK_VEC(r.m.normal, ey, 1e-12, "face normal");
+  CHECK_NEAR(r.m.separation[0], -0.01, EPS);
+  CHECK_VEC(r.m.point[0], c + 0.1 * ex + 0.295 * ey, EPS, "midway below the face");
+  // edge +x +y (along z), 1 cm gap along the diagonal
+  const Vec3 edge = c + 0.5 * ex + 0.3 * ey + 0.05 * ez;
+  const Vec3 diag = S2 * (ex + ey);
+  r = collide(sphere_ref(edge + 0.26 * diag, 0.25), box);
+  CHECK(r.n == 1);
+  CHECK_VEC(r.m.normal, diag, 1e-12, "edge to centre");
+  CHECK_NEAR(r.m.separation[0], 0.01, EPS);
+  CHECK_VEC(r.m.point[0], edge + 0.005 * diag, EPS, "mid-gap");
+  // corner +x +y +z
+  const Vec3 corner = c + 0.5 * ex + 0.3 * ey + 0.2 * ez;
+  const Vec3 dir = (1.0 / std::sqrt(3.0)) * (ex + ey + ez);
+  r = collide(sphere_ref(corner + 0.24 * dir, 0.25), box);
+  CHECK(r.n == 1);
+  CHECK_VEC(r.m.normal, dir, 1e-12, "corner to centre");
+  CHECK_NEAR(r.m.separation[0], -0.01, EPS);
+  // 3 cm off the corner is beyond reach (a face's SAT would say less)
+  CHECK(collide(sphere_ref(corner + 0.28 * dir, 0.25), box).n == 0);
+  // centre inside, nearest the -z face (0.05 in)
+  r = collide(sphere_ref(c - 0.15 * ez, 0.1), box);
+  CHECK(r.n == 1);
+  CHECK_VEC(r.m.normal, -ez, 1e-12, "out through the nearest face");
+  CHECK_NEAR(r.m.separation[0], -0.15, EPS);
+}
+
+// A ball against a capsule's side and beyond its end; against a hull's face, edge, vertex.
+TEST(sphere_on_a_capsule_and_a_hull) {
+  const auto cap = capsule_ref({-1, 0, 0}, {1, 0, 0}, 0.2);
+  auto r = collide(sphere_ref({0.3, 0.0, 0.49}, 0.3), cap);
+  CHECK(r.n == 1);
+  CHECK_VEC(r.m.normal, {0, 0, 1}, EPS, "across the side");
+  CHECK_NEAR(r.m.separation[0], -0.01, EPS);
+  CHECK_VEC(r.m.point[0], {0.3, 0.0, 0.195}, EPS, "midway");
+  r = collide(sphere_ref({1.5, 0, 0}, 0.3), cap);
+  CHECK_VEC(r.m.normal, {1, 0, 0}, 0.0, "off the end");
+  CHECK_NEAR(r.m.separation[0], 0.0, EPS);
+  const auto q = collide(cap, sphere_ref({1.5, 0, 0}, 0.3));
+  CHECK_VEC(q.m.normal, {-1, 0, 0}, 0.0, "mirrored");
+
+  auto tet = tetrahedron();
+  const auto hull = tet.at({0, 0, 0});
+  r = collide(sphere_ref({0.2, -0.1, 0.2}, 0.11), hull);  // below face y = 0
+  CHECK(r.n == 1);
+  CHECK_VEC(r.m.normal, {0, -1, 0}, EPS, "face");
+  CHECK_NEAR(r.m.separation[0], -0.01, EPS);
+  r = collide(sphere_ref({-0.1, -0.1, 0.5}, 0.13), hull);  // off the edge along z
+  CHECK(r.n == 1);
+  CHECK_VEC(r.m.normal, S2 * Vec3{-1, -1, 0}, EPS, "edge");
+  CHECK_NEAR(r.m.separation[0], std::sqrt(0.02) - 0.13, EPS);
+  r = collide(sphere_ref({-0.1, -0.1, -0.1}, 0.2), hull);  // off the origin vertex
+  CHECK_VEC(r.m.normal, (-1.0 / std::sqrt(3.0)) * Vec3{1, 1, 1}, EPS, "vertex");
+  CHECK_NEAR(r.m.separation[0], std::sqrt(0.03) - 0.2, EPS);
+}
+
+// ---- capsules ----------------------------------------------------------------------------
+
+// Parallel capsules, one on the other: two points at the ends of their common stretch;
+// crossed: one point where they cross; apart beyond reach: none.
+TEST(capsules_parallel_two_points_crossed_one) {
+  const auto b = capsule_ref({0, 0, 0}, {2, 0, 0}, 0.1);
+  auto r = collide(capsule_ref({-1, 0.2, 0}, {1, 0.2, 0}, 0.1), b);
+  CHECK(r.n == 2);
+  CHECK_VEC(r.m.normal, {0, 1, 0}, EPS, "across both");
+  CHECK(has_point(r, {0, 0.1, 0}, EPS) && has_point(r, {1, 0.1, 0}, EPS));
+  CHECK_NEAR(r.m.separation[0], 0.0, EPS);
+  CHECK_NEAR(r.m.separation[1], 0.0, EPS);
+  CHECK(r.m.id[0] != r.m.id[1]);
+  // moved a little along and down: the same ends make the stretch, the same ids
+  auto moved = collide(capsule_ref({-0.99, 0.199, 0.001}, {1.01, 0.199, 0.001}, 0.1), b);
+  CHECK(moved.n == 2);
+  CHECK(ids(moved) == ids(r));
+  // the lines 0.199 apart vertically and 0.001 sideways
+  CHECK_NEAR(moved.m.separation[0], std::sqrt(0.199 * 0.199 + 1e-6) - 0.2, EPS);
+
+  r = collide(capsule_ref({0.5, 0.19, -1}, {0.5, 0.19, 1}, 0.1), b);
+  CHECK(r.n == 1);
+  CHECK_VEC(r.m.normal, {0, 1, 0}, EPS, "across both");
+  CHECK_VEC(r.m.point[0], {0.5, 0.095, 0}, EPS, "where they cross");
+  CHECK_NEAR(r.m.separation[0], -0.01, EPS);
+  CHECK(collide(capsule_ref({0.5, 0.2 + 1.5 * SPEC, -1}, {0.5, 0.2 + 1.5 * SPEC, 1}, 0.1), b).n == 0);
+}
+
+// A capsule lying on the ground: two points at its ends; standing on end: one; a
+// point-like capsule: one.
+TEST(capsule_on_a_plane) {
+  auto r = collide(capsule_ref({-0.5, 0.099, 0}, {0.5, 0.099, 0.2}, 0.1), GROUND);
+  CHECK(r.n == 2);
+  CHECK_VEC(r.m.normal, {0, 1, 0}, 0.0, "plane normal");
+  CHECK_VEC(r.m.point[0], {-0.5, -0.0005, 0}, EPS, "end p");
+  CHECK_VEC(r.m.point[1], {0.5, -0.0005, 0.2}, EPS, "end q");
+  CHECK_NEAR(r.m.separation[0], -0.001, EPS);
+  r = collide(capsule_ref({0, 0.1, 0}, {0, 1.1, 0}, 0.1), GROUND);
+  CHECK(r.n == 1);
+  CHECK_NEAR(r.m.separation[0], 0.0, EPS);
+  r = collide(capsule_ref({0, 0.05, 0}, {0, 0.05, 0}, 0.1), GROUND);
+  CHECK(r.n == 1);
+  CHECK_NEAR(r.m.separation[0], -0.05, EPS);
+  const auto q = collide(GROUND, capsule_ref({-0.5, 0.099, 0}, {0.5, 0.099, 0.2}, 0.1));
+  CHECK(q.n == 2);
+  CHECK_VEC(q.m.normal, {0, -1, 0}, 0.0, "mirrored");
+}
+
+// A capsule lying on a box's top face: two points at its ends; hanging over the box's
+// edge: clipped at the edge; over the edge's outside: one point at the edge; tilted on a
+// turned box: the same manifold turned.
+TEST(capsule_lying_on_a_box) {
+  const auto box = box_ref({0, 0, 0}, {}, {1, 0.5, 1});
+  auto r = collide(capsule_ref({-0.5, 0.598, 0.3}, {0.7, 0.598, 0.3}, 0.1), box);
+  CHECK(r.n == 2);
+  CHECK_VEC(r.m.normal, {0, 1, 0}, 0.0, "face normal");
+  CHECK_VEC(r.m.point[0], {-0.5, 0.499, 0.3}, EPS, "end p");
+  CHECK_VEC(r.m.point[1], {0.7, 0.499, 0.3}, EPS, "end q");
+  CHECK_NEAR(r.m.separation[0], -0.002, EPS);
+  CHECK_NEAR(r.m.separation[1], -0.002, EPS);
+  // moved by 0.1 mm and turned by 0.1 mrad: the same ends, the same ids
+  const auto moved = collide(capsule_ref({-0.4999, 0.5981, 0.3}, {0.7001, 0.5980, 0.3001}, 0.1), box);
+  CHECK(moved.n == 2);
+  CHECK(moved.m.id == r.m.id);
+  // touching, and beyond reach
+  auto t0 = collide(capsule_ref({-0.5, 0.6, 0.3}, {0.7, 0.6, 0.3}, 0.1), box);
+  CHECK(t0.n == 2);
+  CHECK_NEAR(t0.m.separation[0], 0.0, EPS);
+  CHECK(collide(capsule_ref({-0.5, 0.6 + 1.5 * SPEC, 0.3}, {0.7, 0.6 + 1.5 * SPEC, 0.3}, 0.1), box).n == 0);
+  // overlapping core (10 cm deep): still the face, two points
+  r = collide(capsule_ref({-0.5, 0.5, 0.3}, {0.7, 0.5, 0.3}, 0.1), box);
+  CHECK(r.n == 2);
+  CHECK_NEAR(r.m.separation[0], -0.1, EPS);
+  // hanging over the +x edge: the part over the face, from x = 0.5 to the edge
+  r = collide(capsule_ref({0.5, 0.6, 0}, {1.5, 0.6, 0}, 0.1), box);
+  CHECK(r.n == 2);
+  CHECK(has_point(r, {0.5, 0.5, 0}, EPS) && has_point(r, {1.0, 0.5, 0}, EPS));
+  // beyond the edge, diagonally above it: one point on the edge
+  const Vec3 dir = S2 * Vec3{1, 1, 0};
+  r = collide(capsule_ref(Vec3{1, 0.5, -0.5} + 0.105 * dir, Vec3{1, 0.5, 0.5} + 0.105 * dir, 0.1), box);
+  CHECK(r.n == 1);
+  CHECK_VEC(r.m.normal, dir, EPS, "edge to segment");
+  CHECK_NEAR(r.m.separation[0], 0.005, EPS);
+  // the first case on a turned box, turned: the same manifold, turned
+  const Quat q = axis_angle({1, -1, 2}, 0.9);
+  const Vec3 c{3, 1, -2};
+  const auto tb = box_ref(c, q, {1, 0.5, 1});
+  const auto t = collide(capsule_ref(c + rotate(q, {-0.5, 0.598, 0.3}), c + rotate(q, {0.7, 0.598, 0.3}), 0.1), tb);
+  CHECK(t.n == 2);
+  CHECK_VEC(t.m.normal, rotate(q, {0, 1, 0}), 1e-12, "turned normal");
+  CHECK(has_point(t, c + rotate(q, {-0.5, 0.499, 0.3}), 1e-12));
+  CHECK(has_point(t, c + rotate(q, {0.7, 0.499, 0.3}), 1e-12));
+  CHECK_NEAR(t.m.separation[0], -0.002, 1e-12);
+  // mirrored: the box first
+  const auto m = collide(box, capsule_ref({-0.5, 0.598, 0.3}, {0.7, 0.598, 0.3}, 0.1));
+  CHECK(m.n == 2);
+  CHECK_VEC(m.m.normal, {0, -1, 0}, 0.0, "mirrored");
+}
+
+// ---- boxes -------------------------------------------------------------------------------
+
+// A box from its 8 corners in the model's order is the box they came from.
+TEST(box_from_its_corners) {
+  const Quat q = axis_angle({1, 2, -1}, 0.8);
+  const auto box = box_ref({0.3, -0.2, 1.0}, q, {0.5, 0.25, 0.1});
+  Vec3 corners[8], normals[6];
+  box_geometry(box, corners, normals);
+  const auto again = box_ref_from_corners(corners);
+  CHECK_VEC(again.center, box.center, EPS, "centre");
+  CHECK_VEC(again.half, box.half, EPS, "half extents");
+  for (int k = 0; k < 3; ++k) CHECK_VEC(again.axes[k], box.axes[k], EPS, "axis");
+  // corner k's sign on axis j is bit j of k
+  for (int k = 0; k < 8; ++k)
+    for (int j = 0; j < 3; ++j) CHECK((dot(corners[k] - box.center, box.axes[j]) > 0.0) == (((k >> j) & 1) == 1));
+}
+
+// A unit box resting flat on the ground plane 1 mm deep: its four bottom corners; tilted
+// about z so that one edge is lowest: the two corners of that edge; apart beyond reach: none.
+TEST(box_on_a_plane_flat_and_tilted) {
+  auto r = collide(box_ref({0.2, 0.499, -0.1}, {}, {0.5, 0.5, 0.5}), GROUND);
+  CHECK(r.n == 4);
+  CHECK_VEC(r.m.normal, {0, 1, 0}, 0.0, "plane normal");
+  for (int k = 0; k < 4; ++k) {
+    CHECK_NEAR(r.m.separation[k], -0.001, EPS);
+    CHECK_NEAR(r.m.point[k].y, -0.0005, EPS);
+  }
+  CHECK(has_point(r, {-0.3, -0.0005, -0.6}, EPS) && has_point(r, {0.7, -0.0005, 0.4}, EPS));
+  const double th = 0.3;
+  const Quat q = axis_angle({0, 0, 1}, th);
+  // lowest corner: local (-0.5, -0.5) turned by th has y = -0.5 (cos + sin)... the corner
+  // (+0.5, -0.5) turned by +th: y = 0.5 sin − 0.5 cos; (−0.5, −0.5): y = −0.5 sin − 0.5 cos
+  const double low = 0.5 * (std::sin(th) + std::cos(th));
+  const Vec3 c{0, low - 0.001, 0};
+  r = collide(box_ref(c, q, {0.5, 0.5, 0.5}), GROUND);
+  CHECK(r.n == 2);
+  for (int z = 0; z < 2; ++z) {
+    const Vec3 corner = c + rotate(q, {-0.5, -0.5, z ? 0.5 : -0.5});
+    CHECK(has_point(r, corner - 0.5 * (corner.y) * Vec3{0, 1, 0}, EPS));
+  }
+  CHECK_NEAR(r.m.separation[0], -0.001, EPS);
+  // tilted further by 1 µrad: the same corners, the same ids
+  const auto t = collide(box_ref(c, axis_angle({0, 0, 1}, th + 1e-6), {0.5, 0.5, 0.5}), GROUND);
+  CHECK(ids(t) == ids(r));
+  // touching, within and beyond reach
+  auto t0 = collide(box_ref({0, 0.5, 0}, {}, {0.5, 0.5, 0.5}), GROUND);
+  CHECK(t0.n == 4);
+  CHECK_NEAR(t0.m.separation[0], 0.0, EPS);
+  t0 = collide(box_ref({0, 0.5 + 0.5 * SPEC, 0}, {}, {0.5, 0.5, 0.5}), GROUND);
+  CHECK(t0.n == 4);
+  CHECK_NEAR(t0.m.separation[3], 0.5 * SPEC, EPS);
+  CHECK(collide(box_ref({0, 0.5 + 1.5 * SPEC, 0}, {}, {0.5, 0.5, 0.5}), GROUND).n == 0);
+  const auto m = collide(GROUND, box_ref({0.2, 0.499, -0.1}, {}, {0.5, 0.5, 0.5}));
+  CHECK(m.n == 4);
+  CHECK_VEC(m.m.normal, {0, -1, 0}, 0.0, "mirrored");
+}
+
+// A unit box resting face to face on a wide box, 1 mm deep: four points at its bottom
+// corners, midway, each 1 mm deep; the normal is exactly the face normal; the ids stay
+// the same while it is moved slightly; exactly touching is separation 0.
+TEST(box_resting_on_a_box_four_points_stable_ids) {
+  const auto ground = box_ref({0, -0.5, 0}, {}, {3, 0.5, 3});  // top face y = 0
+  const auto r = collide(box_ref({0.1, 0.499, 0.2}, {}, {0.5, 0.5, 0.5}), ground);
+  CHECK(r.n == 4);
+  CHECK(r.m.normal.x == 0.0 && r.m.normal.y == 1.0 && r.m.normal.z == 0.0);
+  for (int k = 0; k < 4; ++k) {
+    CHECK_NEAR(r.m.separation[k], -0.001, EPS);
+    CHECK_NEAR(r.m.point[k].y, -0.0005, EPS);
+  }
+  for (double x : {-0.4, 0.6})
+    for (double z : {-0.3, 0.7}) CHECK(has_point(r, {x, -0.0005, z}, EPS));
+  for (int k = 0; k < 4; ++k)
+    for (int j = k + 1; j < 4; ++j) CHECK(r.m.id[k] != r.m.id[j]);
+  // moved by 0.1 mm in each direction: the same features, the same ids
+  for (const Vec3 d : {Vec3{1e-4, 0, 0}, Vec3{0, 1e-4, 0}, Vec3{0, -1e-4, 1e-4}, Vec3{-1e-4, 0, -1e-4}}) {
+    const auto m = collide(box_ref(Vec3{0.1, 0.499, 0.2} + d, {}, {0.5, 0.5, 0.5}), ground);
+    CHECK(m.n == 4);
+    CHECK(m.m.id == r.m.id);
+  }
+  // exactly touching; within and beyond reach
+  auto t = collide(box_ref({0.1, 0.5, 0.2}, {}, {0.5, 0.5, 0.5}), ground);
+  CHECK(t.n == 4);
+  CHECK_NEAR(t.m.separation[2], 0.0, EPS);
+  t = collide(box_ref({0.1, 0.5 + 0.5 * SPEC, 0.2}, {}, {0.5, 0.5, 0.5}), ground);
+  CHECK(t.n == 4);
+  CHECK_NEAR(t.m.separation[0], 0.5 * SPEC, EPS);
+  CHECK(collide(box_ref({0.1, 0.5 + 1.5 * SPEC, 0.2}, {}, {0.5, 0.5, 0.5}), ground).n == 0);
+  // deep: 0.3 m in, still the face
+  t = collide(box_ref({0.1, 0.2, 0.2}, {}, {0.5, 0.5, 0.5}), ground);
+  CHECK(t.n == 4);
+  CHECK_VEC(t.m.normal, {0, 1, 0}, 0.0, "face normal");
+  CHECK_NEAR(t.m.separation[1], -0.3, EPS);
+  // the pair the other way round: the negated normal and the same points
+  const auto m = collide(ground, box_ref({0.1, 0.499, 0.2}, {}, {0.5, 0.5, 0.5}));
+  CHECK(m.n == 4);
+  CHECK_VEC(m.m.normal, {0, -1, 0}, 0.0, "b -> a");
+  for (int k = 0; k < 4; ++k) CHECK(has_point(r, m.m.point[k], EPS));
+}
+
+// A box hanging over the ground box's edge: the overlap of the two faces (the part over
+// the ground), its four corners; rocked by 1 mrad about an axis: the ids stay.
+TEST(box_over_an_edge_and_rocking) {
+  const auto ground = box_ref({0, -0.5, 0}, {}, {1, 0.5, 1});
+  const auto r = collide(box_ref({1.0, 0.499, 0}, {}, {0.5, 0.5, 0.5}), ground);
+  CHECK(r.n == 4);
+  for (double x : {0.5, 1.0})
+    for (double z : {-0.5, 0.5}) CHECK(has_point(r, {x, -0.0005, z}, EPS));
+  // rocking: the ground's face becomes the reference (the box's bottom corners dip),
+  // and stays it while the box rocks on
+  const auto a = collide(box_ref({0.2, 0.499, 0}, axis_angle({1, 0, 1}, 1e-3), {0.5, 0.5, 0.5}), ground);
+  const auto b = collide(box_ref({0.2, 0.499, 0}, axis_angle({1, 0, 1}, 1.1e-3), {0.5, 0.5, 0.5}), ground);
+  CHECK(a.n == 4 && b.n == 4);
+  CHECK(ids(a) == ids(b));
+  CHECK_NEAR(a.m.normal.y, 1.0, 1e-6);  // a face normal, tilted by at most 1 mrad
+}
+
+// A box turned 45° about the vertical on an equal box: the faces overlap in an octagon,
+// whose 8 corners are reduced to 4, spanning at least the inscribed square's area.
+TEST(box_on_a_box_turned_reduces_an_octagon_to_four) {
+  const auto lower = box_ref({0, -0.5, 0}, {}, {0.5, 0.5, 0.5});
+  const auto r = collide(box_ref({0, 0.499, 0}, axis_angle({0, 1, 0}, M_PI / 4), {0.5, 0.5, 0.5}), lower);
+  CHECK(r.n == 4);
+  CHECK_VEC(r.m.normal, {0, 1, 0}, 1e-15, "face normal");
+  double area = 0.0;  // the quad's area (points in order around it)
+  for (int k = 0; k < 4; ++k) {
+    CHECK_NEAR(r.m.separation[k], -0.001, EPS);
+    const Vec3 p = r.m.point[k], q = r.m.point[(k + 1) % 4];
+    area += 0.5 * (p.z * q.x - p.x * q.z);
+    CHECK_NEAR(std::max(std::fabs(p.x), std::fabs(p.z)), 0.5, 1e-12);  // on the octagon's rim
+  }
+  // the octagon's area is 8 (√2 − 1) / 2 · ... ≈ 0.828; 4 of its corners span at least 0.5
+  CHECK(std::fabs(area) >= 0.5);
+}
+
+// Two boxes crossed at 90°, touching edge to edge: the lower turned 45° about z (its top
+// an edge along z), the upper 45° about x (its bottom an edge along x): one point where
+// the edges cross, the normal vertical.
+TEST(boxes_crossed_edge_to_edge_one_point) {
+  const double h = S2;  // a unit box's half diagonal
+  const auto lower = box_ref({0, 0, 0}, axis_angle({0, 0, 1}, M_PI / 4), {0.5, 0.5, 0.5});
+  for (double overlap : {0.0, 0.002, -0.5 * SPEC}) {
+    const auto r = collide(box_ref({0.1, 2 * h - overlap, -0.05}, axis_angle({1, 0, 0}, M_PI / 4), {0.5, 0.5, 0.5}), lower);
+    CHECK(r.n == 1);
+    CHECK_VEC(r.m.normal, {0, 1, 0}, 1e-12, "vertical");
+    CHECK_NEAR(r.m.separation[0], -overlap, 1e-12);
+    CHECK_VEC(r.m.point[0], {0, h - 0.5 * overlap, -0.05}, 1e-12, "where the edges cross");
+    CHECK((r.m.id[0] >> 60) == static_cast<std::int64_t>(FeatureKind::EdgeEdge));
+  }
+  // beyond reach
+  CHECK(collide(box_ref({0.1, 2 * h + 1.5 * SPEC, 0}, axis_angle({1, 0, 0}, M_PI / 4), {0.5, 0.5, 0.5}), lower).n == 0);
+  // after a tiny motion: the same edges, the same id
+  const auto a = collide(box_ref({0.1, 2 * h - 0.002, -0.05}, axis_angle({1, 0, 0}, M_PI / 4), {0.5, 0.5, 0.5}), lower);
+  const auto b = collide(box_ref({0.1001, 2 * h - 0.0021, -0.0501}, axis_angle({1, 0.1, 0}, M_PI / 4 + 1e-4), {0.5, 0.5, 0.5}), lower);
+  CHECK(a.n == 1 && b.n == 1 && a.m.id[0] == b.m.id[0]);
+}
+
+// ---- convex hulls ------------------------------------------------------------------------
+
+// A tetrahedron on the ground: face down, its three corners; vertex down (turned), one.
+TEST(tetrahedron_on_a_plane) {
+  auto tet = tetrahedron();
+  // the face y = 0 down, 1 mm in
+  auto r = collide(tet.at({0, -0.001, 0}), GROUND);
+  CHECK(r.n == 3);
+  CHECK(has_point(r, {0, -0.0005, 0}, EPS) && has_point(r, {1, -0.0005, 0}, EPS) &&
+        has_point(r, {0, -0.0005, 1}, EPS));
+  // within and beyond reach; moved by 0.1 mm: the same corners, the same ids
+  CHECK(collide(tet.at({0, 0.5 * SPEC, 0}), GROUND).n == 3);
+  CHECK(collide(tet.at({0, 1.5 * SPEC, 0}), GROUND).n == 0);
+  const auto moved = collide(tet.at({1e-4, -0.0011, 1e-4}), GROUND);
+  CHECK(moved.n == 3);
+  CHECK(moved.m.id == r.m.id);
+  // the face x + y + z = 1 turned to face down: the origin vertex is up, the others down
+  const Quat q = axis_angle(cross(Vec3{1, 1, 1}, Vec3{0, -1, 0}), std::acos(-1.0 / std::sqrt(3.0)));
+  const Vec3 n = rotate(q, (1.0 / std::sqrt(3.0)) * Vec3{1, 1, 1});
+  CHECK_VEC(n, {0, -1, 0}, 1e-12, "the slanted face turned down");
+  r = collide(tet.at({0, 1.0 / std::sqrt(3.0), 0}, q), GROUND);
+  CHECK(r.n == 3);
+  for (int k = 0; k < 3; ++k) CHECK_NEAR(r.m.separation[k], 0.0, 1e-12);
+  // turned over: standing on its origin vertex, 1 mm in
+  const auto up = collide(tet.at({0, -0.001, 0}, mul(axis_angle({1, 0, 0}, M_PI), q)), GROUND);
+  CHECK(up.n == 1);
+  CHECK_NEAR(up.m.separation[0], -0.001, 1e-12);
+}
+
+// A hull of a box's corners (triangulated as qhull might) against a box gives the box–box
+// manifold: resting face to face, turned, edge to edge, and the box first.
+TEST(hull_of_a_box_matches_box_box) {
+  auto hull = box_as_hull({0.5, 0.5, 0.5});
+  const auto ground = box_ref({0, -0.5, 0}, {}, {3, 0.5, 3});
+  const auto lower = box_ref({0, 0, 0}, axis_angle({0, 0, 1}, M_PI / 4), {0.5, 0.5, 0.5});
+  struct Pose {
+    Vec3 c;
+    Quat q;
+    const ShapeRef3* other;
+  };
+  const Pose poses[] = {
+      {{0.1, 0.499, 0.2}, {}, &ground},
+      {{0.1, 0.49, 0.2}, axis_angle({0, 1, 0}, 0.3), &ground},
+      {{0.1, 0.48, 0.2}, axis_angle({1, 0, 0.2}, 0.05), &ground},
+      {{0.1, 2 * S2 - 0.002, -0.05}, axis_angle({1, 0, 0}, M_PI / 4), &lower},
+  };
+  for (const Pose& p : poses) {
+    const auto box = collide(box_ref(p.c, p.q, {0.5, 0.5, 0.5}), *p.other);
+    const auto conv = collide(hull.at(p.c, p.q), *p.other);
+    CHECK(box.n > 0);
+    CHECK(same_manifold(box, conv, 1e-12));  // same arithmetic up to the order of sums
+    const auto box2 = collide(*p.other, box_ref(p.c, p.q, {0.5, 0.5, 0.5}));
+    const auto conv2 = collide(*p.other, hull.at(p.c, p.q));
+    CHECK(same_manifold(box2, conv2, 1e-12));
+  }
+  // hull against hull: the same again
+  auto base = box_as_hull({3, 0.5, 3});
+  const auto hh = collide(hull.at({0.1, 0.499, 0.2}), base.at({0, -0.5, 0}));
+  CHECK(same_manifold(hh, collide(box_ref({0.1, 0.499, 0.2}, {}, {0.5, 0.5, 0.5}), ground), 1e-12));
+}
+
+// Two tetrahedra edge to edge (one's top edge against the other's bottom edge, crossed):
+// one point; a tetrahedron on a box face down: three points.
+TEST(hulls_edge_to_edge_and_face_on_box) {
+  // a tetrahedron with a bottom edge along x and a top edge along z
+  WorldHull t({{-1, 0, 0}, {1, 0, 0}, {0, 1, -1}, {0, 1, 1}}, {{0, 1, 3}, {0, 3, 2}, {0, 2, 1}, {1, 2, 3}});
+  // the lower one is t (top edge along z at y = 1); the upper one t moved up: its bottom
+  // edge along x crosses the lower's top edge 1 mm deep
+  WorldHull u = t;
+  const auto lower = t.at({0, 0, 0});
+  const auto upper = u.at({0.2, 0.999, 0.1});
+  const auto r = collide(upper, lower);
+  CHECK(r.n == 1);
+  CHECK_VEC(r.m.normal, {0, 1, 0}, 1e-12, "vertical");
+  CHECK_NEAR(r.m.separation[0], -0.001, 1e-12);
+  CHECK_VEC(r.m.point[0], {0.0, 0.9995, 0.1}, 1e-12, "where the edges cross");
+  const auto m = collide(lower, upper);
+  CHECK(m.n == 1);
+  CHECK_VEC(m.m.normal, {0, -1, 0}, 1e-12, "the other order");
+  CHECK_VEC(m.m.point[0], r.m.point[0], 1e-12, "same point");
+  // a tetrahedron face down on a box
+  auto tet = tetrahedron();
+  const auto box = box_ref({0, -0.5, 0}, {}, {2, 0.5, 2});
+  const auto f = collide(tet.at({0.1, -0.001, 0.1}), box);
+  CHECK(f.n == 3);
+  for (int k = 0; k < 3; ++k) CHECK_NEAR(f.m.separation[k], -0.001, EPS);
+  CHECK(has_point(f, {1.1, -0.0005, 0.1}, EPS));
+}
+
+// Random poses of two boxes (fixed seed): the box–box function and the hull code path
+// (both boxes as hulls) find the same manifold, pose after pose: the same SAT over the
+// same axes (the hull path tests only the edge pairs that make Minkowski faces, which
+// hold the largest separation).
+TEST(random_box_pairs_match_the_hull_path) {
+  std::uint64_t seed = 12345;
+  const auto uniform = [&seed] {  // in [-1, 1)
+    seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+    return static_cast<double>(seed >> 11) * (2.0 / 9007199254740992.0) - 1.0;
+  };
+  const Vec3 ha{0.5, 0.3, 0.4}, hb{0.6, 0.5, 0.2};
+  auto hull_a = box_as_hull(ha), hull_b = box_as_hull(hb);
+  int contacts = 0, mismatches = 0;
+  for (int k = 0; k < 2000; ++k) {
+    const Quat qa = normalize(Quat{uniform(), uniform(), uniform(), uniform()});
+    const Quat qb = normalize(Quat{uniform(), uniform(), uniform(), uniform()});
+    const Vec3 ca{0.8 * uniform(), 0.8 * uniform(), 0.8 * uniform()};
+    const auto box = collide(box_ref(ca, qa, ha), box_ref({0, 0, 0}, qb, hb));
+    const auto hull = collide(hull_a.at(ca, qa), hull_b.at({0, 0, 0}, qb));
+    contacts += box.n > 0;
+    // 1e-9: the two paths sum the same terms in another order; a SAT tie within that
+    // would pick another axis, which a random pose meets with probability ~1e-9 (ties
+    // in the reduction to four go to the lower index on both paths)
+    if (!same_manifold(box, hull, 1e-9)) ++mismatches;
+  }
+  CHECK(contacts > 1000);
+  CHECK(mismatches == 0);
+}
+
+// Distance from x to a box (m, 0 inside): the clamped point, exact.
+double box_distance(const ShapeRef3& box, Vec3 x) {
+  const Vec3 r = x - box.center;
+  const double h[3] = {box.half.x, box.half.y, box.half.z};
+  double d2 = 0.0;
+  for (int k = 0; k < 3; ++k) {
+    const double u = dot(r, box.axes[k]);
+    const double e = std::fabs(u) - h[k];
+    if (e > 0.0) d2 += e * e;
+  }
+  return std::sqrt(d2);
+}
+
+// Random capsules and spheres near a turned box, some apart, some touching (fixed seed):
+// whenever the cores are apart, the deepest point's separation is the true distance
+// less the radius (the distance by ternary search along the segment: the distance to a
+// convex set is convex along a line), and there is a manifold exactly when that is within
+// reach. Through both the box and its hull (capsule–box and capsule–convex share the code,
+// sphere–box and sphere–convex do not).
+TEST(random_rounded_shapes_measure_the_true_distance_to_a_box) {
+  std::uint64_t seed = 777;
+  const auto uniform = [&seed] {  // in [-1, 1)
+    seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+    return static_cast<double>(seed >> 11) * (2.0 / 9007199254740992.0) - 1.0;
+  };
+  const Quat qb = normalize(Quat{0.3, -0.5, 0.7, 0.1});
+  const Vec3 half{0.5, 0.3, 0.4};
+  const auto box = box_ref({0.1, 0.2, -0.1}, qb, half);
+  auto hull = box_as_hull(half);
+  const auto convex = hull.at({0.1, 0.2, -0.1}, qb);
+  int measured = 0, wrong = 0, wrong_count = 0;
+  for (int k = 0; k < 3000; ++k) {
+    const Vec3 c{1.0 * uniform(), 1.0 * uniform(), 1.0 * uniform()};
+    const Vec3 dir{uniform(), uniform(), uniform()};
+    const double len = k % 3 == 0 ? 0.0 : 0.8 * (uniform() + 1.0);  // every third a sphere
+    const double r = 0.05 + 0.1 * (uniform() + 1.0);
+    const Vec3 p = c - (0.5 * len) * dir, q = c + (0.5 * len) * dir;
+    double lo = 0.0, hi = 1.0;
+    for (int it = 0; it < 200; ++it) {
+      const double m1 = lo + (hi - lo) / 3, m2 = hi - (hi - lo) / 3;
+      if (box_distance(box, p + m1 * (q - p)) <= box_distance(box, p + m2 * (q - p))) hi = m2;
+      else lo = m1;
+    }
+    const double dist = box_distance(box, p + (0.5 * (lo + hi)) * (q - p));
+    if (dist < 1e-3) continue;  // the cores touch or overlap: no distance to compare
+    const ShapeRef3 shape = len == 0.0 ? sphere_ref(c, r) : capsule_ref(p, q, r);
+    for (const ShapeRef3* other : {&box, &convex}) {
+      const auto m = collide(shape, *other);
+      const bool within = dist - r <= SPEC;
+      if ((m.n > 0) != within) {
+        ++wrong_count;
+        continue;
+      }
+      if (m.n == 0) continue;
+      ++measured;
+      double deepest = INFINITY;
+      for (int j = 0; j < m.n; ++j) deepest = std::min(deepest, m.m.separation[j]);
+      if (std::fabs(deepest - (dist - r)) > 1e-9) ++wrong;  // the search's 1e-12 and round-off
+    }
+  }
+  CHECK(measured > 300);
+  CHECK(wrong_count == 0);
+  CHECK(wrong == 0);
+}
+
+// ---- dispatch, determinism, degenerate input ---------------------------------------------
+
+// Every mirrored pair (b, a) gives the negated normal and the same points and separations.
+TEST(mirrored_pairs_negate_the_normal) {
+  auto tet = tetrahedron();
+  const ShapeRef3 shapes[] = {
+      sphere_ref({0.2, 0.55, 0.1}, 0.6),
+      box_ref({0.1, 0.45, 0.2}, axis_angle({1, 1, 0}, 0.2), {0.5, 0.3, 0.4}),
+      capsule_ref({-0.3, 0.55, 0}, {0.4, 0.6, 0.1}, 0.2),
+      tet.at({0.1, 0.3, 0.1}, axis_angle({0, 1, 1}, 0.4)),
+      plane_ref({0, 1, 0}, 0.35),
+  };
+  const ShapeRef3 others[] = {
+      sphere_ref({0, 0, 0}, 0.4),
+      box_ref({0, -0.1, 0}, {}, {1, 0.5, 1}),
+      capsule_ref({-1, 0.2, 0}, {1, 0.2, 0.2}, 0.2),
+      box_ref({0, 0, 0}, {}, {0.6, 0.4, 0.6}),
+      plane_ref({0, 1, 0}, 0.4),
+  };
+  int pairs = 0;
+  for (const auto& a : shapes)
+    for (const auto& b : others) {
+      if (a.kind == kind3::PLANE && b.kind == kind3::PLANE) continue;
+      if (a.kind == kind3::BOX && b.kind == kind3::BOX) continue;  // not swapped (ids by order)
+      if (a.kind == b.kind) continue;
+      const auto ab = collide(a, b), ba = collide(b, a);
+      CHECK(ab.n > 0);
+      CHECK(ab.n == ba.n);
+      if (ab.n != ba.n) continue;
+      CHECK_VEC(ba.m.normal, -ab.m.normal, 0.0, "negated");
+      for (int k = 0; k < ab.n; ++k) {
+        CHECK(has_point(ba, ab.m.point[k], 0.0));
+        CHECK(ba.m.separation[k] == ab.m.separation[k]);
+      }
+      ++pairs;
+    }
+  CHECK(pairs == 20);  // 25 less the 5 pairs of one kind
+}
+
+// The same input gives the same manifold to the bit, whatever was computed between.
+TEST(same_input_same_bits) {
+  auto tet = tetrahedron();
+  auto hull = box_as_hull({0.5, 0.5, 0.5});
+  const ShapeRef3 pairs[][2] = {
+      {box_ref({0.1, 0.35, 0.2}, axis_angle({1, 2, 3}, 0.1), {0.5, 0.4, 0.3}), box_ref({0, -0.5, 0}, {}, {3, 0.5, 3})},
+      {box_ref({0.1, 1.39, -0.05}, axis_angle({1, 0, 0}, M_PI / 4), {0.5, 0.5, 0.5}), box_ref({0, 0, 0}, axis_angle({0, 0, 1}, M_PI / 4), {0.5, 0.5, 0.5})},
+      {capsule_ref({-0.5, 0.59, 0.3}, {0.7, 0.6, 0.3}, 0.1), box_ref({0, 0, 0}, {}, {1, 0.5, 1})},
+      {tet.at({0, 0.01, 0}, axis_angle({1, 0, 0}, 0.3)), GROUND},
+      {hull.at({0, 0.45, 0}, axis_angle({1, 1, 1}, 0.2)), box_ref({0, -0.5, 0}, {}, {3, 0.5, 3})},
+      {sphere_ref({0.3, 0.6, 0.1}, 0.3), capsule_ref({-1, 0.3, 0}, {1, 0.3, 0}, 0.1)},
+  };
+  std::vector<Result> first;
+  for (const auto& p : pairs) first.push_back(collide(p[0], p[1]));
+  for (int round = 0; round < 3; ++round)
+    for (std::size_t i = 0; i < first.size(); ++i) {
+      const auto r = collide(pairs[i][0], pairs[i][1]);
+      CHECK(r.n > 0);
+      CHECK(same_bits(r, first[i]));
+    }
+}
+
+// Degenerate input gives finite manifolds: concentric spheres, a sphere centred on a
+// capsule's core or at a box's centre, zero-length capsules, coincident parallel capsules,
+// crossing capsule cores, a capsule core through a box's centre.
+TEST(degenerate_input_gives_no_nan) {
+  const auto box = box_ref({0, 0, 0}, {}, {0.5, 0.5, 0.5});
+  const auto point_cap = capsule_ref({0.1, 0.1, 0.3}, {0.1, 0.1, 0.3}, 0.2);
+  const std::pair<ShapeRef3, ShapeRef3> cases[] = {
+      {sphere_ref({1, 2, 3}, 0.3), sphere_ref({1, 2, 3}, 0.5)},
+      {sphere_ref({0.3, 0, 0}, 0.1), capsule_ref({-1, 0, 0}, {1, 0, 0}, 0.1)},
+      {sphere_ref({0, 0, 0}, 0.1), box},
+      {sphere_ref({0.1, 0.1, 0.3}, 0.1), point_cap},
+      {point_cap, capsule_ref({0.1, 0.1, 0.3}, {0.1, 0.1, 0.3}, 0.1)},
+      {point_cap, capsule_ref({-1, 0.1, 0.3}, {1, 0.1, 0.3}, 0.1)},
+      {point_cap, GROUND},
+      {point_cap, box},
+      {capsule_ref({-1, 0, 0}, {1, 0, 0}, 0.1), capsule_ref({-1, 0, 0}, {1, 0, 0}, 0.1)},
+      {capsule_ref({-1, 0, 0}, {1, 0, 0}, 0.1), capsule_ref({0, 0, -1}, {0, 0, 1}, 0.1)},
+      {capsule_ref({-1, 0, 0}, {1, 0, 0}, 0.1), box},
+      {capsule_ref({0, -1, 0}, {0, 1, 0}, 0.1), box},
+      {box, box_ref({0, 0, 0}, {}, {0.5, 0.5, 0.5})},
+  };
+  for (const auto& [a, b] : cases) {
+    const auto r = collide(a, b);
+    CHECK(r.n >= 1);
+    CHECK(all_finite(r));
+    for (int k = 0; k < r.n; ++k) CHECK(r.m.separation[k] < 0.0);
+  }
+}
+
+// Cost per call (this thread's CPU time: the machine is shared, and wall time counts the
+// others' turns): box–box on boxes resting face to face (4 points each, a stack's case)
+// and on a pile's mix of tilts (faces, edges, corners), and the other pairs on the same
+// tilted poses; each result is checked against the first, so the loop cannot be dropped.
+TEST(calls_per_second) {
+  const auto ground = box_ref({0, -0.5, 0}, {}, {3, 0.5, 3});
+  auto ground_hull = box_as_hull({3, 0.5, 3});
+  const auto ground_convex = ground_hull.at({0, -0.5, 0});
+  std::vector<ShapeRef3> resting, tilted, spheres, capsules, convex;
+  std::vector<WorldHull> hulls(64, box_as_hull({0.5, 0.5, 0.5}));
+  for (int k = 0; k < 64; ++k) {
+    resting.push_back(box_ref({0.01 * k, 0.499 - 1e-5 * k, -0.005 * k},
+                              axis_angle({0, 1, 0}, 0.02 * k), {0.5, 0.5, 0.5}));
+    const Vec3 c{0.01 * k, 0.45 + 0.001 * k, -0.005 * k};
+    const Quat q = axis_angle({std::sin(k), 1.0, std::cos(k)}, 0.05 * k);
+    tilted.push_back(box_ref(c, q, {0.5, 0.5, 0.5}));
+    spheres.push_back(sphere_ref(c, 0.495));
+    capsules.push_back(capsule_ref(c + rotate(q, {-0.3, -0.2, 0}), c + rotate(q, {0.3, -0.2, 0}), 0.3));
+    convex.push_back(hulls[k].at(c, q));
+  }
+  const auto cpu_ns = [] {
+    timespec t{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+    return 1e9 * static_cast<double>(t.tv_sec) + static_cast<double>(t.tv_nsec);
+  };
+  const auto bench = [&](const std::vector<ShapeRef3>& shapes, const ShapeRef3& other, int rounds,
+                         const char* what) {
+    std::vector<Result> want;
+    for (const auto& b : shapes) want.push_back(collide(b, other));
+    int wrong = 0, points = 0;
+    const double t0 = cpu_ns();
+    for (int r = 0; r < rounds; ++r)
+      for (std::size_t i = 0; i < shapes.size(); ++i) {
+        Manifold3 m;
+        const int n = collide3d(shapes[i], other, SPEC, m);
+        points += n;
+        wrong += n != want[i].n || (n > 0 && m.separation[0] != want[i].m.separation[0]);
+      }
+    const double ns = (cpu_ns() - t0) / (rounds * shapes.size());
+    CHECK(wrong == 0);
+    const double per_call = static_cast<double>(points) / (rounds * shapes.size());
+    std::printf("%-22s %5.0f ns per call (%.2f points per call)\n", what, ns, per_call);
+    return per_call;
+  };
+  CHECK(bench(resting, ground, 4000, "box-box resting:") == 4.0);
+  CHECK(bench(tilted, ground, 4000, "box-box tilted:") > 1.0);
+  CHECK(bench(tilted, GROUND, 4000, "box-plane tilted:") > 1.0);
+  CHECK(bench(spheres, ground, 4000, "sphere-box:") > 0.5);
+  CHECK(bench(capsules, ground, 1000, "capsule-box:") > 0.5);
+  CHECK(bench(convex, ground, 1000, "convex-box (box hull):") > 1.0);
+  CHECK(bench(convex, ground_convex, 1000, "convex-convex (boxes):") > 1.0);
+}
+
+RBSIM_TEST_MAIN
