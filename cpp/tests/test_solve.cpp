@@ -191,6 +191,26 @@ TEST(friction_3d_sliding_clamps_on_the_circle_against_the_slip) {
   CHECK(rbsim::test::point_velocity3(w, 0, 0).x > 0.0);  // still sliding
 }
 
+// Sliding off the centre of mass, where the point's tangent block is anisotropic (full
+// tensor, arm not along the normal): the friction impulse still points against the slip,
+// the point's sliding velocity that the normal impulse leaves (the same pass without
+// friction gives it), with magnitude μ λ_n.
+TEST(friction_3d_sliding_off_centre_points_against_the_slip) {
+  Strike free, t;
+  strike(free, 2.0, 0.0, 0.0);
+  strike(t, 2.0, 0.05, 0.0);
+  solve_pass3(free.s.world, false);
+  solve_pass3(t.s.world, false);
+  Vec3 slip = rbsim::test::point_velocity3(free.s.world, 0, 0);
+  slip.y = 0.0;  // the tangent plane's part (normal +y)
+  const Vec3 jt = t.s.world.contacts.tangent_impulse[0][0];
+  const double jn = t.s.world.contacts.normal_impulse[0][0];
+  CHECK_NEAR(jn, free.s.world.contacts.normal_impulse[0][0], 1e-14);  // N·s
+  CHECK_NEAR(length(jt), 0.05 * jn, 1e-14);
+  // round-off of unit vectors
+  CHECK_NEAR(length((1.0 / length(jt)) * jt + (1.0 / length(slip)) * slip), 0.0, 1e-14);
+}
+
 // Friction is isotropic: the same strike turned about the normal by any angle gives the
 // same impulses and velocities turned by that angle, to round-off, sticking or sliding
 // (the row's tangent basis does not turn with the scene).

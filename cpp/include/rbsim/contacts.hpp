@@ -76,6 +76,7 @@ struct SolverRow<3> {
     double base = 0;    // m: base separation
     // kg: the inverse of the point's 2×2 tangent block K_t (rows t1, t2), symmetric
     double tm11 = 0, tm12 = 0, tm22 = 0;
+    double tangent_mass = 0;  // kg: 2 / trace K_t, the sliding step's (friction_circle)
   };
   Vec3 normal;             // from b towards a
   Vec3 t1, t2;             // the tangent basis: t1 × t2 = n

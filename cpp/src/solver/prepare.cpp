@@ -79,6 +79,7 @@ void prepare_points_3d(const State<3>& st, Contacts<3>& c, std::int64_t m, int a
     } else {
       pt.tm11 = pt.tm12 = pt.tm22 = 0.0;  // two fixed bodies: no friction
     }
+    pt.tangent_mass = k11 + k22 > 0.0 ? 2.0 / (k11 + k22) : 0.0;
     pt.ra = c.sep_anchor_a[m][k];
     pt.rb = c.sep_anchor_b[m][k];
     pt.base = c.base_separation[m][k];

@@ -195,7 +195,7 @@ void impact_friction(const Model<D>& model, State<D>& st, Contacts<D>& c, std::i
     const Vec3 ra = c.anchor_a[m][k], rb = c.anchor_b[m][k];
     const Vec3 u = (st.body_v[a] + cross(st.body_w[a], ra)) - (st.body_v[b] + cross(st.body_w[b], rb));
     double j1 = 0.0, j2 = 0.0;
-    friction_circle(j1, j2, dot(u, row.t1), dot(u, row.t2), pt.tm11, pt.tm12, pt.tm22, limit);
+    friction_circle(j1, j2, dot(u, row.t1), dot(u, row.t2), pt.tm11, pt.tm12, pt.tm22, pt.tangent_mass, limit);
     if (j1 == 0.0 && j2 == 0.0) return;
     const Vec3 p = j1 * row.t1 + j2 * row.t2;
     push_impulse(model, st, a, b, ra, rb, p);

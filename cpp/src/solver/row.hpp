@@ -86,19 +86,29 @@ inline void tangent_basis(Vec3 n, Vec3& t1, Vec3& t2) {
   t2 = cross(n, t1);
 }
 
-// 3D: the friction impulse (N·s, components along t1, t2) that stops a point's sliding
-// velocity (vt1, vt2) (m/s) on top of the accumulated (l1, l2), with the inverse tangent
-// block (m11, m12, m22) (kg), clamped to Coulomb's circle of radius `limit` (N·s): the
-// accumulated impulse is scaled back onto the circle, whatever the basis.
+// 3D: Coulomb friction at a point, as the accumulated impulse (l1, l2) (N·s, components
+// along t1, t2) given the sliding velocity (vt1, vt2) (m/s) now. Sticking: the impulse
+// that stops the sliding at once, through the inverse of the point's 2×2 tangent block
+// (m11, m12, m22) (kg), if it lies within Coulomb's circle of radius `limit` (N·s).
+// Sliding (it does not): the step against the slip with the block's mean mass m (kg: 2 /
+// trace K_t), scaled back onto the circle. Clamping the block's own answer instead would
+// point the friction along K_t⁻¹ v_t, not against the slip: at a point off the centre of
+// mass K_t is anisotropic, and a box sliding on a slope on its four corners got friction
+// splayed 20° sideways at each corner and slid 4% fast. Both steps, and the circle, are
+// the same in any tangent basis.
 inline void friction_circle(double& l1, double& l2, double vt1, double vt2, double m11,
-                            double m12, double m22, double limit) {
+                            double m12, double m22, double m, double limit) {
   double n1 = l1 - (m11 * vt1 + m12 * vt2);
   double n2 = l2 - (m12 * vt1 + m22 * vt2);
-  const double sq = n1 * n1 + n2 * n2;
-  if (sq > limit * limit) {
-    const double k = sq > 0.0 ? limit / std::sqrt(sq) : 0.0;
-    n1 *= k;
-    n2 *= k;
+  if (n1 * n1 + n2 * n2 > limit * limit) {
+    n1 = l1 - m * vt1;
+    n2 = l2 - m * vt2;
+    const double sq = n1 * n1 + n2 * n2;
+    if (sq > limit * limit) {
+      const double k = sq > 0.0 ? limit / std::sqrt(sq) : 0.0;
+      n1 *= k;
+      n2 *= k;
+    }
   }
   l1 = n1;
   l2 = n2;

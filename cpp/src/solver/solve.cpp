@@ -211,7 +211,7 @@ void solve_contacts_3d(const Model<3>& model, State<3>& st, Contacts<3>& c, doub
         const Vec3 u = (va + cross(wa, pt.arm_a)) - (vb + cross(wb, pt.arm_b));
         const double l1 = dot(jt, t1), l2 = dot(jt, t2);
         double n1 = l1, n2 = l2;
-        friction_circle(n1, n2, dot(u, t1), dot(u, t2), pt.tm11, pt.tm12, pt.tm22, limit);
+        friction_circle(n1, n2, dot(u, t1), dot(u, t2), pt.tm11, pt.tm12, pt.tm22, pt.tangent_mass, limit);
         c.tangent_impulse[m][k] = n1 * t1 + n2 * t2;
         const Vec3 p = (n1 - l1) * t1 + (n2 - l2) * t2;
         const Vec3 ta = cross(pt.arm_a, p), tb = cross(pt.arm_b, p);
