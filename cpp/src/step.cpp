@@ -21,17 +21,17 @@ namespace rbsim {
 
 namespace C = constants;
 
-// Contacts between bodies exist in 2D; in 3D (issue 16) bodies fly free for now, and the
-// contact stages are not compiled for it.
+// Contacts between bodies exist in both dimensions (3D: issue 16). The step list is the
+// same; what 3D does not have yet it skips inside the stages (time of impact in
+// update_manifolds; the waves, whose batches hold 2D rows: the passes run in solve order).
 template <int D>
-inline constexpr bool HAS_CONTACTS = D == 2;
+inline constexpr bool HAS_CONTACTS = D == 2 || D == 3;
 
 template <int D>
 void World<D>::allocate() {
   const int n_shapes = model.shape_count();
   const std::int64_t capacity = 4 * static_cast<std::int64_t>(n_shapes) + 16;
-  // the collision stages' storage in both dimensions (the 3D contact stages run one
-  // by one through the bindings until the step takes them: HAS_CONTACTS)
+  // the collision stages' storage
   std::vector<std::uint8_t> dynamic(n_shapes);
   for (int s = 0; s < n_shapes; ++s) dynamic[s] = model.is_dynamic(model.shape_body[s]);
   const std::vector<double> size = shape_extent(model);  // m: each shape's half diagonal

@@ -46,7 +46,11 @@ static_assert(sizeof(State<2>) == 6 * VEC, "State changed: update visit()");
 static_assert(sizeof(State<3>) == 6 * VEC, "State changed: update visit()");
 static_assert(sizeof(Grid<2>) == 8 + 16 * VEC + sizeof(Vec2) + sizeof(GridMeta<2>),
               "Grid changed: update visit()");
+static_assert(sizeof(Grid<3>) == 8 + 16 * VEC + sizeof(Vec3) + sizeof(GridMeta<3>),
+              "Grid changed: update visit()");
 static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 71 * VEC + 8 + 8,
+              "Contacts changed: update visit()");
+static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 71 * VEC + 8 + 8,
               "Contacts changed: update visit()");
 
 template <class T>
