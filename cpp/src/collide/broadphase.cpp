@@ -542,7 +542,7 @@ void Grid<D>::allocate(const std::vector<double>& shape_size, const std::vector<
     std::sort(dyn.begin(), dyn.end());
     const std::size_t k = dyn.size();
     const double median = k % 2 ? dyn[k / 2] : 0.5 * (dyn[k / 2 - 1] + dyn[k / 2]);
-    size = C::CELL_SIZES * median;
+    size = (D == 2 ? C::CELL_SIZES : C::CELL_SIZES_3D) * median;
     scale = std::min(1.0, median / C::SCALE_LENGTH);
   }
   const double cell = std::max(size, 1e-3 * scale) + 2.0 * scale * C::AABB_MARGIN;
