@@ -212,7 +212,7 @@ TEST(pairs_in_space_equal_brute_force_on_dense_grid) {
   for (unsigned seed = 1; seed <= 5; ++seed) {
     std::mt19937 rng(seed);
     SceneBuilder3 s;
-    World<3>& w = random_layout3(s, rng, 150, 50, 4.0);
+    World<3>& w = random_layout3(s, rng, 150, 75, 3.0);
     const auto pairs = find3(w);
     CHECK(w.grid.meta.direct_buckets == 1);
     CHECK(w.grid.meta.big_count >= 2);  // the planes
@@ -290,7 +290,7 @@ TEST(pairs_in_space_are_deterministic) {
   for (int run = 0; run < 2; ++run) {
     std::mt19937 rng(3);
     SceneBuilder3 s;
-    World<3>& w = random_layout3(s, rng, 150, 50, 4.0);
+    World<3>& w = random_layout3(s, rng, 150, 75, 3.0);
     const auto pairs = find3(w);
     if (run == 0) first = pairs;
     else CHECK(pairs == first);
