@@ -286,7 +286,7 @@ bodies:
     assert model.shape_kind.tolist() == [7, 4, 3]  # plane, box, sphere (types.SHAPE_*)
     assert model.body_axes.shape == (2, 4) and model.body_moments[0].tolist() == [math.inf] * 3
     assert state.body_angle.shape == (0,) and model.gravity.tolist() == [0, -9.81, 0]
-    assert model.has_shapes is False  # no contacts in 3D yet
+    assert model.has_shapes is True  # a dynamic box and sphere can touch the ground plane
 
 
 def test_a_2d_build_keeps_its_arrays_and_gains_an_empty_angular_momentum():

@@ -61,10 +61,14 @@ RBSIM_FLAT_LAYOUT(Quat, double, 4)
 RBSIM_FLAT_LAYOUT(Sym3, double, 6)
 RBSIM_FLAT_LAYOUT(SolverRow<2>, double, 32)
 RBSIM_FLAT_LAYOUT(Aabb<2>, double, 4)
+RBSIM_FLAT_LAYOUT(Aabb<3>, double, 6)
 RBSIM_FLAT_LAYOUT(Dim<2>::RefPose, double, 3)
+RBSIM_FLAT_LAYOUT(Dim<3>::RefPose, double, 7)
 RBSIM_FLAT_LAYOUT(BodyDelta<2>, double, 4)
+RBSIM_FLAT_LAYOUT(BodyDelta<3>, double, 7)
 RBSIM_FLAT_LAYOUT(ContactCounts, std::int64_t, 10)
 RBSIM_FLAT_LAYOUT(GridMeta<2>, std::int64_t, 7)
+RBSIM_FLAT_LAYOUT(GridMeta<3>, std::int64_t, 9)
 #undef RBSIM_FLAT_LAYOUT
 template <>
 struct Layout<BodyType> : Layout<std::int8_t> {};
@@ -74,6 +78,9 @@ struct Layout<ShapeKind> : Layout<std::int32_t> {};
 static_assert(sizeof(Dim<2>::RefPose) == 3 * sizeof(double));
 static_assert(sizeof(BodyDelta<2>) == 4 * sizeof(double));
 static_assert(sizeof(GridMeta<2>) == 7 * sizeof(std::int64_t));
+static_assert(sizeof(Dim<3>::RefPose) == 7 * sizeof(double));
+static_assert(sizeof(BodyDelta<3>) == 7 * sizeof(double));
+static_assert(sizeof(GridMeta<3>) == 9 * sizeof(std::int64_t));
 static_assert(sizeof(ContactCounts) == 10 * sizeof(std::int64_t));
 
 using Array = nb::ndarray<nb::numpy>;
@@ -102,7 +109,7 @@ template <class T>
 void load(std::vector<T>& dst, nb::handle obj, const char* name, long n = -1) {
   using L = Layout<T>;
   using S = typename L::scalar;
-  nb::ndarray<nb::c_contig, nb::device::cpu> a;
+  nb::ndarray<nb::ro, nb::c_contig, nb::device::cpu> a;  // read only: it is copied
   if (!nb::try_cast(obj, a)) throw std::invalid_argument(std::string(name) + ": not a C-contiguous array");
   if (a.dtype() != nb::dtype<S>())
     throw std::invalid_argument(std::string(name) + ": wrong dtype");
@@ -133,8 +140,10 @@ T load_value(nb::dict d, const char* key) {
 
 using World2 = World<2>;
 
-// The storage arrays by name (the numba engine's names), for tests and diagnostics.
-nb::dict storage(World2& w, nb::handle owner) {
+// The storage arrays by name (the numba engine's names), for tests and diagnostics. In
+// 3D the solver's rows (SolverRow<3>) are left out.
+template <int D>
+nb::dict storage(World<D>& w, nb::handle owner) {
   nb::dict d;
   auto& c = w.contacts;
   d["count"] = view(&c.count, 1, owner, false);
@@ -145,7 +154,7 @@ nb::dict storage(World2& w, nb::handle owner) {
   RBSIM_VIEW(anchor_a) RBSIM_VIEW(anchor_b) RBSIM_VIEW(base_separation) RBSIM_VIEW(ref_separation)
   RBSIM_VIEW(sep_anchor_a) RBSIM_VIEW(sep_anchor_b)
   RBSIM_VIEW(feature) RBSIM_VIEW(normal_impulse) RBSIM_VIEW(start_impulse) RBSIM_VIEW(tangent_impulse)
-  RBSIM_VIEW(normal_mass) RBSIM_VIEW(solver_row) RBSIM_VIEW(approach_velocity)
+  RBSIM_VIEW(normal_mass) RBSIM_VIEW(approach_velocity)
   RBSIM_VIEW(approach_separation) RBSIM_VIEW(max_normal_impulse) RBSIM_VIEW(prev_key)
   RBSIM_VIEW(prev_points) RBSIM_VIEW(prev_feature) RBSIM_VIEW(prev_normal_impulse)
   RBSIM_VIEW(prev_tangent_impulse) RBSIM_VIEW(prev_normal) RBSIM_VIEW(prev_anchor_a)
@@ -156,7 +165,10 @@ nb::dict storage(World2& w, nb::handle owner) {
   RBSIM_VIEW(queue) RBSIM_VIEW(bounce_kind) RBSIM_VIEW(body_mark) RBSIM_VIEW(solve_impulse)
   RBSIM_VIEW(bounce_list) RBSIM_VIEW(relax_list) RBSIM_VIEW(body_reach)
   RBSIM_VIEW(wave_order) RBSIM_VIEW(manifold_wave) RBSIM_VIEW(wave_start) RBSIM_VIEW(wave_batch)
+  RBSIM_VIEW(shape_size) RBSIM_VIEW(shape_scale) RBSIM_VIEW(body_scale)
 #undef RBSIM_VIEW
+  if constexpr (D == 2) d["solver_row"] = view(c.solver_row, owner);
+  if constexpr (D == 3) d["face_world"] = view(c.face_world, owner);
   d["wave_count"] = view(&c.wave_count, 1, owner, false);
   d["body_still"] = view(c.body_still, owner, true);
   auto& g = w.grid;
@@ -241,6 +253,64 @@ void load_inertia(Model<3>& m, nb::dict model, long n) {
   }
 }
 
+// The 3D shapes' geometry as the narrowphase reads it, checked after the vertex ranges:
+// each kind's vertex count (sphere and plane 1, capsule 2, box 8, convex >= 4), a
+// plane's unit normal, a box's corners a box (three orthogonal edges of positive length
+// in BOX_SIGNS order, to 1e-9 of its size), a convex shape's triangles (face_local (F,3)
+// int32, shape_fstart / shape_fcount (S,) int32, or all three empty when no shape is
+// convex) inside its vertex rows and closing a convex surface; then the hull topology.
+// The shapes' kinds and vertex ranges are checked before.
+void load_shapes_3d(Model<3>& m, nb::dict model) {
+  const long s = m.shape_count();
+  if (model.contains("face_local")) load(m.face_local, model["face_local"], "face_local");
+  const long nf = static_cast<long>(m.face_local.size());
+  if (model.contains("shape_fstart") || model.contains("shape_fcount")) {
+    load(m.shape_fstart, item(model, "shape_fstart"), "shape_fstart");
+    const long rows = static_cast<long>(m.shape_fstart.size());
+    if (rows != s && !(rows == 0 && nf == 0))
+      throw std::invalid_argument("shape_fstart: expected " + std::to_string(s) + " rows");
+    load(m.shape_fcount, item(model, "shape_fcount"), "shape_fcount", rows);
+  }
+  const bool faces = !m.shape_fstart.empty();
+  auto where = [](long i) { return "shape " + std::to_string(i) + ": "; };
+  for (long i = 0; i < s; ++i) {
+    const int v0 = m.shape_vstart[i], count = m.shape_vcount[i];
+    const ShapeKind kind = m.shape_kind[i];
+    const int need = kind == ShapeKind::Capsule ? 2 : kind == ShapeKind::Box ? 8 : 1;
+    if (kind == ShapeKind::Convex ? count < 4 : count != need)
+      throw std::invalid_argument(where(i) + "wrong vertex count for its kind");
+    if (faces) {
+      const long f0 = m.shape_fstart[i], fc = m.shape_fcount[i];
+      if (f0 < 0 || fc < 0 || f0 + fc > nf) throw std::invalid_argument(where(i) + "triangles out of range");
+      for (long f = f0; f < f0 + fc; ++f)
+        for (int k = 0; k < 3; ++k)
+          if (m.face_local[f][k] < 0 || m.face_local[f][k] >= count)
+            throw std::invalid_argument(where(i) + "triangle vertex out of range");
+    }
+    const Vec3* p = m.vertex_local.data() + v0;
+    if (kind == ShapeKind::Plane) {
+      const Vec3 n = m.normal_local[v0];
+      if (!(std::abs(dot(n, n) - 1.0) < 1e-9)) throw std::invalid_argument(where(i) + "a plane's normal must be a unit vector");
+    }
+    if (kind == ShapeKind::Box) {
+      const Vec3 e[3] = {p[1] - p[0], p[2] - p[0], p[4] - p[0]};
+      const double size = length(p[7] - p[0]);  // m
+      bool ok = size > 0.0 && std::isfinite(size);
+      for (int a = 0; a < 3 && ok; ++a) {
+        ok = length(e[a]) > 1e-9 * size && std::abs(dot(e[a], e[(a + 1) % 3])) <= 1e-9 * size * size;
+      }
+      for (int k = 0; k < 8 && ok; ++k) {
+        const Vec3 corner = p[0] + (k & 1 ? 1.0 : 0.0) * e[0] + (k & 2 ? 1.0 : 0.0) * e[1] +
+                            (k & 4 ? 1.0 : 0.0) * e[2];
+        ok = length(corner - p[k]) <= 1e-9 * size;
+      }
+      if (!ok) throw std::invalid_argument(where(i) + "a box's 8 corners must be a box's, in BOX_SIGNS order");
+    }
+  }
+  std::string error;
+  if (!build_shape_hulls(m, &error)) throw std::invalid_argument(error);
+}
+
 // The angular state: ω (and the unwrapped angle) in 2D; ω and L in 3D.
 void load_angular(State<2>& st, nb::dict state, long n) {
   load(st.body_angle, item(state, "body_angle"), "body_angle", n);
@@ -295,6 +365,7 @@ std::unique_ptr<World<D>> make_world(nb::dict model, nb::dict state, nb::dict co
     if (m.shape_vstart[i] < 0 || m.shape_vcount[i] < 1 || m.shape_vstart[i] + m.shape_vcount[i] > nv)
       throw std::invalid_argument("shape vertices out of range");
   }
+  if constexpr (D == 3) load_shapes_3d(m, model);
   auto& st = w->state;
   load(st.body_x, item(state, "body_x"), "body_x", n);
   load(st.body_q, item(state, "body_q"), "body_q", n);
@@ -375,6 +446,31 @@ nb::object run_stage(World2& w, const std::string& name, nb::dict args) {
     store_impulses(c);
   } else {
     throw std::invalid_argument("no stage named " + name);
+  }
+  return nb::none();
+}
+
+// The collision stages of a 3D world by name (tests, and the measures of the 3D
+// broadphase and manifolds while the 3D step does not take them yet).
+nb::object run_stage3(World<3>& w, const std::string& name, nb::dict args) {
+  auto& c = w.contacts;
+  auto& cf = w.config;
+  if (name == "transform_shapes") {
+    transform_shapes(w.model, w.state, c, cf.dt);
+  } else if (name == "find_pairs") {
+    const std::int64_t n = find_pairs(w.model, w.grid, c);
+    c.count.pairs = n;
+    return nb::int_(n);
+  } else if (name == "update_manifolds") {
+    const std::int64_t n = load_value<std::int64_t>(args, "n_pairs");
+    if (n < 0 || n > c.capacity() || n > c.count.pairs) throw std::invalid_argument("n_pairs out of range");
+    update_manifolds(w.model, w.state, c, w.grid, n, cf.friction_rule, cf.restitution_rule, cf.dt);
+  } else if (name == "store_impulses") {
+    store_impulses(c);
+  } else if (name == "grow") {
+    w.grow(load_value<std::int64_t>(args, "capacity"));
+  } else {
+    throw std::invalid_argument("no 3D stage named " + name);
   }
   return nb::none();
 }
@@ -688,7 +784,13 @@ NB_MODULE(_core, mod) {
       .def("storage", [](nb::handle self) { return storage(nb::cast<World2&>(self), self); },
            "The stages' storage arrays by name, as views (valid until the store grows).");
   bind_world<3>(mod, "World3",
-                "A 3D scene ready to step: model and state (bodies fly free: no contacts yet).");
+                "A 3D scene ready to step: model, state and stage storage (the collision "
+                "stages also run one by one through `stage`, for tests).")
+      .def("stage", &run_stage3, "name"_a, "args"_a = nb::dict(),
+           "Run one collision stage (transform_shapes, find_pairs, update_manifolds, "
+           "store_impulses) or grow the store (tests).")
+      .def("storage", [](nb::handle self) { return storage(nb::cast<World<3>&>(self), self); },
+           "The stages' storage arrays by name, as views (valid until the store grows).");
   {
     // the tuning constants, from the one header that defines them (units there)
     namespace C = rbsim::constants;

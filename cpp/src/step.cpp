@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 
 #include "rbsim/constants.hpp"
 #include "rbsim/world.hpp"
@@ -20,23 +21,23 @@ namespace rbsim {
 
 namespace C = constants;
 
-// Contacts between bodies exist in 2D; in 3D (issue 16) bodies fly free for now, and the
-// contact stages are not compiled for it.
+// Contacts between bodies exist in both dimensions (3D: issue 16). The step list is the
+// same; what 3D does not have yet it skips inside the stages (time of impact in
+// update_manifolds; the waves, whose batches hold 2D rows: the passes run in solve order).
 template <int D>
-inline constexpr bool HAS_CONTACTS = D == 2;
+inline constexpr bool HAS_CONTACTS = D == 2 || D == 3;
 
 template <int D>
 void World<D>::allocate() {
   const int n_shapes = model.shape_count();
   const std::int64_t capacity = 4 * static_cast<std::int64_t>(n_shapes) + 16;
-  std::vector<double> size;  // m: each shape's half diagonal
-  if constexpr (HAS_CONTACTS<D>) {
-    std::vector<std::uint8_t> dynamic(n_shapes);
-    for (int s = 0; s < n_shapes; ++s) dynamic[s] = model.is_dynamic(model.shape_body[s]);
-    size = shape_extent(model);
-    grid.allocate(size, dynamic, capacity);
-  }
+  // the collision stages' storage
+  std::vector<std::uint8_t> dynamic(n_shapes);
+  for (int s = 0; s < n_shapes; ++s) dynamic[s] = model.is_dynamic(model.shape_body[s]);
+  const std::vector<double> size = shape_extent(model);  // m: each shape's half diagonal
+  grid.allocate(size, dynamic, capacity);
   contacts.allocate(model.body_count(), n_shapes, model.vertex_count(), capacity);
+  if constexpr (D == 3) contacts.face_world.assign(model.hull_face_count, Vec3{});
   // the contact tolerances' scale of every shape and body (constants.hpp, SCALE_LENGTH)
   contacts.unit_scale = true;
   for (int s = 0; s < static_cast<int>(size.size()); ++s) {
@@ -51,7 +52,7 @@ void World<D>::allocate() {
 template <int D>
 void World<D>::grow(std::int64_t capacity) {
   contacts.grow(capacity);
-  if constexpr (HAS_CONTACTS<D>) grid.grow(capacity);
+  grid.grow(capacity);
 }
 
 template <int D>
@@ -254,6 +255,9 @@ std::vector<double> shape_extent(const Model<D>& model) {
     auto span = hi - lo;
     if constexpr (D == 2) {
       ext[s] = 0.5 * std::hypot(span.x, span.y) + model.shape_radius[s];
+    } else if (model.shape_kind[s] == ShapeKind::Plane) {
+      // a half-space has no size: its contacts take the other shape's scale
+      ext[s] = std::numeric_limits<double>::infinity();
     } else {
       ext[s] = 0.5 * length(span) + model.shape_radius[s];
     }
@@ -280,5 +284,6 @@ void set_contact_softness(Config& cfg) {
 template struct World<2>;
 template struct World<3>;
 template std::vector<double> shape_extent(const Model<2>&);
+template std::vector<double> shape_extent(const Model<3>&);
 
 }  // namespace rbsim

@@ -3,11 +3,20 @@
 #include <cmath>
 #include <utility>
 
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <set>
+#include <type_traits>
+
 #include "check.hpp"
 #include "scene_builder.hpp"
+#include "scene_builder3d.hpp"
 
 using namespace rbsim;
 using rbsim::test::SceneBuilder;
+using rbsim::test::SceneBuilder3;
 
 // A box on the ground, its last step's points listed in the other order and one id
 // unknown: each point takes the impulses of last step's point with its feature id, and
@@ -142,6 +151,154 @@ TEST(speculative_distance_follows_the_size_of_the_shapes) {
     CHECK(w.contacts.count.manifolds == (half == 0.5 ? 1 : 0));
     if (half == 0.5) CHECK(w.contacts.scale[0] == scale);
   }
+}
+
+// ---- 3D ------------------------------------------------------------------------------
+
+namespace {
+// Write `value` into every double of a point's tangent impulse (one direction or two:
+// the 3D solver chooses; the manifold stage copies the whole record).
+template <class T>
+void set_tangent(T& t, double value) {
+  static_assert(sizeof(T) % sizeof(double) == 0);
+  double* p = reinterpret_cast<double*>(&t);
+  for (std::size_t k = 0; k < sizeof(T) / sizeof(double); ++k) p[k] = value + 0.01 * k;
+}
+template <class T>
+bool same_tangent(const T& a, const T& b) { return std::memcmp(&a, &b, sizeof(T)) == 0; }
+}  // namespace
+
+// A unit box resting on the ground plane: one manifold of four points at its bottom
+// corners, normal from the box (b) towards the plane (a), separations 0; after a move
+// that recomputes it the same four feature ids come back, and each point takes the
+// impulses of last step's point with its id (listed in another order).
+TEST(box_on_plane_has_four_points_with_stable_ids_and_carried_impulses) {
+  SceneBuilder3 s;
+  s.plane({0.0, 1.0, 0.0}, 0.0);
+  const int box = s.box({0.0, 0.5, 0.0}, {0.5, 0.5, 0.5}, 1.0);
+  World<3>& w = s.finish();
+  auto& c = w.contacts;
+  CHECK(test::collide3(w) == 1);
+  CHECK(c.points[0] == 4 && c.shape_a[0] == 0 && c.shape_b[0] == 1);
+  CHECK(c.normal[0].x == 0.0 && c.normal[0].y == -1.0 && c.normal[0].z == 0.0);
+  std::set<std::int64_t> ids;
+  for (int k = 0; k < 4; ++k) {
+    const double sep = c.base_separation[0][k] + dot(c.normal[0], c.sep_anchor_a[0][k] - c.sep_anchor_b[0][k]);
+    CHECK(std::fabs(sep) < 1e-12);  // m: round-off of the unit box's corners
+    CHECK(std::fabs(std::fabs(c.anchor_b[0][k].x) - 0.5) < 1e-12 && std::fabs(c.anchor_b[0][k].y + 0.5) < 1e-12);
+    ids.insert(c.feature[0][k]);
+  }
+  CHECK(ids.size() == 4);
+  CHECK(c.friction[0] == 0.6 && c.scale[0] == 1.0);
+  const auto first = c.feature[0];
+  for (int k = 0; k < 4; ++k) {
+    c.normal_impulse[0][k] = 1.0 + k;
+    set_tangent(c.tangent_impulse[0][k], 0.1 * (k + 1));
+  }
+  const auto tangents = c.tangent_impulse[0];
+  store_impulses(c);
+  std::reverse(c.prev_feature[0].begin(), c.prev_feature[0].end());
+  std::reverse(c.prev_normal_impulse[0].begin(), c.prev_normal_impulse[0].end());
+  std::reverse(c.prev_tangent_impulse[0].begin(), c.prev_tangent_impulse[0].end());
+  for (int step = 0; step < 3; ++step) {
+    w.state.body_x[box].x += 1e-3;  // moved: the narrowphase runs again
+    CHECK(test::collide3(w) == 1);
+    CHECK(c.carried[0] == 0 && c.points[0] == 4);
+    CHECK(c.feature[0] == first);
+    for (int k = 0; k < 4; ++k) {
+      CHECK(c.normal_impulse[0][k] == 1.0 + k && c.start_impulse[0][k] == 1.0 + k);
+      CHECK(same_tangent(c.tangent_impulse[0][k], tangents[k]));
+    }
+    store_impulses(c);
+  }
+  // a point whose id last step did not have starts from zero
+  c.prev_feature[0][2] = -5;
+  w.state.body_x[box].x += 1e-3;
+  test::collide3(w);
+  CHECK(c.normal_impulse[0][2] == 0.0 && c.normal_impulse[0][0] == 1.0);
+}
+
+// A ball resting 1 cm above the ground is one speculative point with that separation;
+// one 5 cm above it is out of reach; one sunk 1 cm in overlaps by 1 cm.
+TEST(sphere_over_plane_has_one_point_at_its_gap) {
+  for (double gap : {0.01, 0.05, -0.01}) {
+    SceneBuilder3 s;
+    s.plane({0.0, 1.0, 0.0}, 0.0);
+    s.sphere({0.3, 0.5 + gap, -0.2}, 0.5, 1.0);
+    World<3>& w = s.finish();
+    auto& c = w.contacts;
+    const std::int64_t n = test::collide3(w);
+    if (gap > constants::SPECULATIVE_DISTANCE) {
+      CHECK(n == 0);
+      continue;
+    }
+    CHECK(n == 1 && c.points[0] == 1);
+    const double sep = c.base_separation[0][0] + dot(c.normal[0], c.sep_anchor_a[0][0] - c.sep_anchor_b[0][0]);
+    CHECK(std::fabs(sep - gap) < 1e-12);
+    // apart, the ball's lever arm reaches its own surface and its separation anchor is
+    // its centre; overlapping, both are at the midpoint of the overlap (and one radius in)
+    const double arm = gap > 0.0 ? -0.5 : -0.5 - 0.5 * gap;  // m
+    CHECK(std::fabs(c.anchor_b[0][0].y - arm) < 1e-12 && std::fabs(c.anchor_b[0][0].x) < 1e-12);
+    CHECK(length(c.sep_anchor_b[0][0] - Vec3{0.0, arm + 0.5, 0.0}) < 1e-12);
+  }
+}
+
+// Still bodies in space keep their manifold (carried), the separation moved by the
+// bodies' motion since their reference poses.
+TEST(still_bodies_in_space_carry_their_manifold) {
+  SceneBuilder3 s;
+  s.plane({0.0, 1.0, 0.0}, 0.0);
+  const int box = s.box({0.0, 0.5, 0.0}, {0.5, 0.5, 0.5}, 1.0);
+  World<3>& w = s.finish();
+  auto& c = w.contacts;
+  test::collide3(w);  // takes the reference pose
+  c.normal_impulse[0] = {1.0, 2.0, 3.0, 4.0};
+  store_impulses(c);
+  w.state.body_x[box].y -= 0.5 * constants::STILL_DISTANCE;
+  test::collide3(w);
+  CHECK(c.carried[0] == 1 && c.points[0] == 4);
+  for (int k = 0; k < 4; ++k) {
+    CHECK(c.normal_impulse[0][k] == 1.0 + k);
+    const double sep = c.base_separation[0][k] + dot(c.normal[0], c.sep_anchor_a[0][k] - c.sep_anchor_b[0][k]);
+    CHECK(std::fabs(sep + 0.5 * constants::STILL_DISTANCE) < 1e-12);
+  }
+}
+
+// Not a test of speed (none is asserted): update_manifolds for a stack of 10 unit boxes
+// on the ground (10 manifolds of 4 points), recomputed each step (every box moved past
+// STILL_DISTANCE) and carried (at rest).
+TEST(measure_manifolds_of_a_10_box_stack) {
+  SceneBuilder3 s;
+  s.plane({0.0, 1.0, 0.0}, 0.0);
+  for (int i = 0; i < 10; ++i) s.box({0.0, 0.5 + i, 0.0}, {0.5, 0.5, 0.5}, 1.0);
+  World<3>& w = s.finish();
+  auto& c = w.contacts;
+  const Config& cfg = w.config;
+  CHECK(test::collide3(w) == 10);
+  for (std::int64_t m = 0; m < 10; ++m) CHECK(c.points[m] == 4);
+  using clock = std::chrono::steady_clock;
+  const int reps = 2000;
+  double moving = 0.0, still = 0.0;
+  for (int r = 0; r < reps; ++r) {
+    for (int i = 1; i <= 10; ++i) w.state.body_x[i].x += (r % 2 ? 1.0 : -1.0) * 2e-4;
+    transform_shapes(w.model, w.state, c, cfg.dt);
+    auto t0 = clock::now();
+    update_manifolds(w.model, w.state, c, w.grid, c.count.pairs, cfg.friction_rule,
+                     cfg.restitution_rule, cfg.dt);
+    moving += std::chrono::duration<double, std::micro>(clock::now() - t0).count();
+    store_impulses(c);
+  }
+  for (int r = 0; r < reps; ++r) {
+    transform_shapes(w.model, w.state, c, cfg.dt);
+    auto t0 = clock::now();
+    update_manifolds(w.model, w.state, c, w.grid, c.count.pairs, cfg.friction_rule,
+                     cfg.restitution_rule, cfg.dt);
+    still += std::chrono::duration<double, std::micro>(clock::now() - t0).count();
+    store_impulses(c);
+  }
+  std::printf("10-box stack: update_manifolds %.2f us per step recomputed, %.2f us carried\n",
+              moving / reps, still / reps);
+  CHECK(c.count.manifolds == 10 && c.carried[5] == 1);
 }
 
 RBSIM_TEST_MAIN

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "check.hpp"
+#include "contacts3d_builder.hpp"
 #include "scene_builder.hpp"
 
 using namespace rbsim;
@@ -130,6 +131,98 @@ TEST(spinning_disk_slides_on_the_wall_with_mu_times_the_normal_impulse) {
     CHECK_NEAR(w.state.body_w[disk], 300.0 + jt * 0.5 / 0.125, 1e-9);  // Δω = J_t r / I
     if (e == 0.0) CHECK(x_max > 1.5 - constants::IMPACT_GAP);  // it reached the wall
   }
+}
+
+namespace {
+
+// Two 3D bodies with full inertia tensors, turned, spinning, struck off-centre: a 2 kg
+// body and a 3 kg one meeting at a point away from both COMs, no gravity, no friction.
+struct OffCentre {
+  rbsim::test::Builder3 s;
+  int a = 0, b = 0;
+  Vec3 n, ra, rb;
+};
+void off_centre(OffCentre& o, double e) {
+  using rbsim::test::about;
+  const Sym3 ia{0.30, 0.45, 0.60, 0.05, -0.03, 0.02};  // kg·m², body frame, not diagonal
+  const Sym3 ib{0.80, 0.50, 0.70, -0.04, 0.06, 0.01};
+  o.a = o.s.body({0.1, 0.6, -0.2}, 2.0, ia, about({1, 2, 3}, 0.7), {0.3, -2.0, 0.5},
+                 {1.0, -0.5, 2.0});
+  o.b = o.s.body({-0.2, -0.5, 0.1}, 3.0, ib, about({-2, 1, 0.5}, 1.1), {-0.1, 1.0, 0.2},
+                 {-0.3, 0.8, 0.4});
+  World<3>& w = o.s.finish();
+  o.n = (1.0 / length(Vec3{0.1, 1.0, 0.05})) * Vec3{0.1, 1.0, 0.05};
+  const Vec3 p{0.35, 0.02, 0.25};  // the contact point (world, m)
+  o.s.manifold(o.a, o.b, o.n, {p}, 0.0, e);
+  o.ra = p - w.state.body_x[o.a];
+  o.rb = p - w.state.body_x[o.b];
+  o.s.prepare();
+}
+
+}  // namespace
+
+// An isolated collision of two 3D bodies, off-centre, with the full world inverse
+// inertia tensors: the restitution stage applies γ = −(1 + e) m_eff v_n⁻ with
+// m_eff⁻¹ = 1/m_a + 1/m_b + n·((I_a⁻¹(r_a×n))×r_a) + n·((I_b⁻¹(r_b×n))×r_b), and
+// v_n⁺ = −e v_n⁻, to round-off, for e = 0, 0.5 and 1.
+TEST(isolated_collision_3d_matches_restitution_formula) {
+  for (const double e : {0.0, 0.5, 1.0}) {
+    OffCentre o;
+    off_centre(o, e);
+    World<3>& w = o.s.world;
+    const auto& m = w.model;
+    const Vec3 n = o.n;
+    const Vec3 ka = cross(rbsim::test::world_apply(w.state.body_q[o.a], m.body_inv_inertia[o.a],
+                                                   cross(o.ra, n)), o.ra);
+    const Vec3 kb = cross(rbsim::test::world_apply(w.state.body_q[o.b], m.body_inv_inertia[o.b],
+                                                   cross(o.rb, n)), o.rb);
+    const double m_eff = 1.0 / (1.0 / 2.0 + 1.0 / 3.0 + dot(n, ka) + dot(n, kb));  // kg
+    const double vn_before = dot(rbsim::test::point_velocity3(w, 0, 0), n);
+    CHECK(vn_before < -1.0);  // faster than the restitution threshold
+    const Vec3 pa = 2.0 * w.state.body_v[o.a], la = w.state.body_l[o.a];
+    const Vec3 lb = w.state.body_l[o.b];
+    const double h = rbsim::test::substep(w);
+    const double threshold = 1.0;  // m/s
+    solve_contacts(w.model, w.state, w.contacts, 1.0 / h, true, 0.0, threshold,
+                   w.contacts.solve_order.data(), 1);
+    apply_restitution(w.model, w.state, w.contacts, threshold, h, 1.0);
+    const double gamma = -(1.0 + e) * m_eff * vn_before;  // N·s
+    const Vec3 dp = 2.0 * w.state.body_v[o.a] - pa;      // the impulse on a (N·s)
+    // round-off: the impulse is a few N·s, each of its terms a few ulps of its size
+    CHECK_NEAR(dot(dp, n), gamma, 1e-13 * std::fabs(gamma));
+    CHECK_NEAR(length(dp - dot(dp, n) * n), 0.0, 1e-13 * std::fabs(gamma));
+    CHECK_NEAR(dot(rbsim::test::point_velocity3(w, 0, 0), n), -e * vn_before, 1e-13);
+    // the angular impulses r × γn, into L; and ω = R I_b⁻¹ Rᵀ L
+    CHECK_NEAR(length(w.state.body_l[o.a] - la - cross(o.ra, gamma * n)), 0.0, 1e-13);
+    CHECK_NEAR(length(w.state.body_l[o.b] - lb + cross(o.rb, gamma * n)), 0.0, 1e-13);
+    const Vec3 wa = rbsim::test::world_apply(w.state.body_q[o.a], m.body_inv_inertia[o.a],
+                                             w.state.body_l[o.a]);
+    CHECK_NEAR(length(w.state.body_w[o.a] - wa), 0.0, 1e-14);
+    // momentum is kept (N·s)
+    const Vec3 p_total = 2.0 * w.state.body_v[o.a] + 3.0 * w.state.body_v[o.b];
+    CHECK_NEAR(length(p_total - Vec3{0.3, -1.0, 1.6}), 0.0, 1e-13);
+  }
+}
+
+// An e = 1 collision of the two 3D bodies keeps their kinetic energy, translational and
+// rotational (½ L·ω), to round-off.
+TEST(elastic_collision_3d_keeps_kinetic_energy) {
+  OffCentre o;
+  off_centre(o, 1.0);
+  World<3>& w = o.s.world;
+  auto energy = [&] {
+    double e = 0.0;
+    for (int i : {o.a, o.b})
+      e += 0.5 * w.model.body_mass[i] * dot(w.state.body_v[i], w.state.body_v[i]) +
+           0.5 * dot(w.state.body_l[i], w.state.body_w[i]);
+    return e;
+  };
+  const double before = energy();
+  const double h = rbsim::test::substep(w);
+  solve_contacts(w.model, w.state, w.contacts, 1.0 / h, true, 0.0, 1.0,
+                 w.contacts.solve_order.data(), 1);
+  apply_restitution(w.model, w.state, w.contacts, 1.0, h, 1.0);
+  CHECK_NEAR(energy(), before, 1e-13 * before);  // J: round-off of a few J
 }
 
 RBSIM_TEST_MAIN

@@ -4,6 +4,7 @@
 #include <limits>
 
 #include "check.hpp"
+#include "contacts3d_builder.hpp"
 #include "scene_builder.hpp"
 
 using namespace rbsim;
@@ -115,6 +116,167 @@ TEST(friction_impulse_is_clamped_to_coulomb_cone) {
       CHECK_NEAR(w.state.body_v[box].x, 0.0, 1e-9);  // m/s: stuck
     }
   }
+}
+
+namespace {
+
+using rbsim::test::about;
+using rbsim::test::Builder3;
+
+// One 3D pass over every manifold, rigid (the relax stage) unless use_bias.
+void solve_pass3(World<3>& w, bool use_bias) {
+  solve_contacts(w.model, w.state, w.contacts, 1.0 / rbsim::test::substep(w), use_bias, 0.0,
+                 NO_BOUNCE, w.contacts.solve_order.data(), w.contacts.count.manifolds);
+}
+
+// A body with a full inertia tensor, turned and spinning, striking the static ground
+// (normal +y) at a point off its centre, sliding along (1, 0, 1)/√2 (45° to the row's
+// tangents) at `slide` m/s; the whole scene turned by phi about the normal.
+struct Strike {
+  Builder3 s;
+  int body = 0, ground = 0;
+  Quat turn;
+};
+void strike(Strike& t, double slide, double mu, double phi) {
+  t.turn = about({0, 1, 0}, phi);
+  auto r = [&](Vec3 v) { return rotate(t.turn, v); };
+  const Sym3 inertia{0.30, 0.45, 0.60, 0.05, -0.03, 0.02};  // kg·m², body frame
+  const double k = slide / std::sqrt(2.0);
+  t.body = t.s.body(r({0.1, 0.5, -0.1}), 2.0, inertia, mul(t.turn, about({1, 2, 3}, 0.7)),
+                    r({k, -3.0, k}), r({0.4, -0.2, 0.3}));
+  t.ground = t.s.fixed({0, 0, 0});
+  t.s.finish();
+  t.s.manifold(t.body, t.ground, {0, 1, 0}, {r({0.3, 0.0, 0.1})}, mu, 0.0);
+  t.s.prepare();
+}
+
+}  // namespace
+
+// 3D friction at a sticking impact: the rigid pass stops the approach, then the point's
+// 2×2 friction block stops its sliding in both tangent directions at once, within the cone.
+TEST(friction_3d_sticking_impact_stops_the_slide) {
+  Strike t;
+  strike(t, 0.4, 1.0, 0.0);
+  World<3>& w = t.s.world;
+  solve_pass3(w, false);
+  const Vec3 u = rbsim::test::point_velocity3(w, 0, 0);
+  CHECK_NEAR(u.x, 0.0, 1e-14);  // m/s: round-off of velocities of a few m/s
+  CHECK_NEAR(u.z, 0.0, 1e-14);
+  const Vec3 jt = w.contacts.tangent_impulse[0][0];
+  CHECK(length(jt) > 0.0);
+  CHECK(length(jt) < 1.0 * w.contacts.normal_impulse[0][0]);  // inside the cone: sticking
+  CHECK(jt.y == 0.0);  // in the tangent plane
+}
+
+// 3D friction while sliding: the friction impulse is μ λ_n, on Coulomb's circle (a
+// four-sided pyramid would give √2 μ λ_n along this 45° slide), opposite the slip where
+// the point's tangent block is isotropic (arm along the normal, isotropic inertia).
+TEST(friction_3d_sliding_clamps_on_the_circle_against_the_slip) {
+  Builder3 s;
+  const double k = 2.0 / std::sqrt(2.0);
+  const int ball = s.body({0, 0.5, 0}, 2.0, Sym3{0.2, 0.2, 0.2, 0, 0, 0}, about({1, 2, 3}, 0.7),
+                          {k, -3.0, k});
+  const int ground = s.fixed({0, 0, 0});
+  World<3>& w = s.finish();
+  const double mu = 0.1;  // the slide needs 1.14 N·s to stop; μ λ_n is 0.6
+  s.manifold(ball, ground, {0, 1, 0}, {{0, 0, 0}}, mu, 0.0);
+  s.prepare();
+  solve_pass3(w, false);
+  const double jn = w.contacts.normal_impulse[0][0];
+  const Vec3 jt = w.contacts.tangent_impulse[0][0];
+  CHECK_NEAR(jn, 2.0 * 3.0, 1e-13);  // N·s: m v_n, the arm along n adds no turn
+  CHECK_NEAR(length(jt), mu * jn, 1e-13);
+  CHECK_NEAR(jt.x / length(jt), -1.0 / std::sqrt(2.0), 1e-15);  // against the slip
+  CHECK_NEAR(jt.z / length(jt), -1.0 / std::sqrt(2.0), 1e-15);
+  CHECK(rbsim::test::point_velocity3(w, 0, 0).x > 0.0);  // still sliding
+}
+
+// Sliding off the centre of mass, where the point's tangent block is anisotropic (full
+// tensor, arm not along the normal): the friction impulse still points against the slip,
+// the point's sliding velocity that the normal impulse leaves (the same pass without
+// friction gives it), with magnitude μ λ_n.
+TEST(friction_3d_sliding_off_centre_points_against_the_slip) {
+  Strike free, t;
+  strike(free, 2.0, 0.0, 0.0);
+  strike(t, 2.0, 0.05, 0.0);
+  solve_pass3(free.s.world, false);
+  solve_pass3(t.s.world, false);
+  Vec3 slip = rbsim::test::point_velocity3(free.s.world, 0, 0);
+  slip.y = 0.0;  // the tangent plane's part (normal +y)
+  const Vec3 jt = t.s.world.contacts.tangent_impulse[0][0];
+  const double jn = t.s.world.contacts.normal_impulse[0][0];
+  CHECK_NEAR(jn, free.s.world.contacts.normal_impulse[0][0], 1e-14);  // N·s
+  CHECK_NEAR(length(jt), 0.05 * jn, 1e-14);
+  // round-off of unit vectors
+  CHECK_NEAR(length((1.0 / length(jt)) * jt + (1.0 / length(slip)) * slip), 0.0, 1e-14);
+}
+
+// Friction is isotropic: the same strike turned about the normal by any angle gives the
+// same impulses and velocities turned by that angle, to round-off, sticking or sliding
+// (the row's tangent basis does not turn with the scene).
+TEST(friction_3d_is_the_same_for_any_tangent_basis) {
+  for (const double mu : {1.0, 0.2}) {
+    Strike t0;
+    strike(t0, 2.0, mu, 0.0);
+    solve_pass3(t0.s.world, false);
+    for (const double phi : {0.3, 0.785398, 1.9, -2.5}) {
+      Strike t;
+      strike(t, 2.0, mu, phi);
+      World<3>& w = t.s.world;
+      solve_pass3(w, false);
+      const auto& c0 = t0.s.world.contacts;
+      const State<3>& s0 = t0.s.world.state;
+      auto back = [&](Vec3 v) { return inv_rotate(t.turn, v); };
+      // round-off of impulses and velocities of a few N·s and m/s
+      CHECK_NEAR(w.contacts.normal_impulse[0][0], c0.normal_impulse[0][0], 1e-13);
+      CHECK_NEAR(length(back(w.contacts.tangent_impulse[0][0]) - c0.tangent_impulse[0][0]), 0.0, 1e-13);
+      CHECK_NEAR(length(back(w.state.body_v[0]) - s0.body_v[0]), 0.0, 1e-13);
+      CHECK_NEAR(length(back(w.state.body_w[0]) - s0.body_w[0]), 0.0, 1e-13);
+    }
+  }
+}
+
+// A 1 m box of 1 kg resting flat on the ground on its four corners (one manifold of four
+// points, solved as one block), turned about y by 0.4 rad: over 2 s of substeps (warm
+// start, solve, positions, relax) gravity's push is held, the box neither sinks nor turns.
+TEST(resting_box_3d_four_points_hold_it) {
+  Builder3 s;
+  s.world.model.gravity = {0.0, -9.81, 0.0};
+  const double I = 1.0 / 6.0;  // kg·m²: m (a² + a²) / 12 for a 1 m cube
+  const Quat q = about({0, 1, 0}, 0.4);
+  const int box = s.body({0, 0.5, 0}, 1.0, Sym3{I, I, I, 0, 0, 0}, q);
+  const int ground = s.fixed({0, 0, 0});
+  World<3>& w = s.finish();
+  std::vector<Vec3> corners;
+  for (const Vec3 c : {Vec3{-0.5, -0.5, -0.5}, Vec3{0.5, -0.5, -0.5}, Vec3{0.5, -0.5, 0.5},
+                       Vec3{-0.5, -0.5, 0.5}})
+    corners.push_back(w.state.body_x[box] + rotate(q, c));
+  s.manifold(box, ground, {0, 1, 0}, corners, 0.6, 0.0);
+  s.prepare();
+  const double h = rbsim::test::substep(w);
+  auto& c = w.contacts;
+  double max_vy = 0.0, max_w = 0.0;
+  for (int step = 0; step < 120; ++step) {
+    for (int sub = 0; sub < w.config.substeps; ++sub) {
+      integrate_velocities(w.model, w.state, h);
+      warm_start(w.model, w.state, c);
+      solve_pass3(w, true);
+      integrate_positions(w.model, w.state, c.body_delta, h, w.config.rotation);
+      solve_contacts(w.model, w.state, c, 1.0 / h, false, h, NO_BOUNCE, c.solve_order.data(), 1);
+    }
+    if (step >= 60) {  // after the first second, once the warm start has settled
+      max_vy = std::max(max_vy, std::fabs(w.state.body_v[box].y));
+      max_w = std::max(max_w, length(w.state.body_w[box]));
+    }
+  }
+  // at rest and not turning, to round-off (the points solved one after the other left a
+  // spin of 1e-8 rad/s and a drift of 3e-7 m in 2 s; gravity's substep is 0.04 m/s)
+  CHECK(max_vy < 1e-12);  // m/s
+  CHECK(max_w < 1e-12);   // rad/s
+  CHECK(std::fabs(w.state.body_x[box].y - 0.5) < 1e-3);  // m: the soft contact's sag, < 1 mm
+  CHECK(std::fabs(w.state.body_x[box].x) < 1e-12 && std::fabs(w.state.body_x[box].z) < 1e-12);
+  // each corner carries a quarter of the weight, m g h per substep (N·s)
+  for (int k = 0; k < 4; ++k) CHECK_NEAR(c.normal_impulse[0][k], 0.25 * 9.81 * h, 1e-6 * 9.81 * h);
 }
 
 RBSIM_TEST_MAIN

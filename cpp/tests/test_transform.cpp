@@ -5,12 +5,15 @@
 #include "check.hpp"
 #include "rbsim/constants.hpp"
 #include "scene_builder.hpp"
+#include "scene_builder3d.hpp"
 
 using namespace rbsim;
 using rbsim::test::SceneBuilder;
+using rbsim::test::SceneBuilder3;
 
 namespace {
 constexpr double EPS = 1e-14;  // m: round-off of O(1) coordinates
+rbsim::Vec3 normalize_axis(rbsim::Vec3 a) { return (1.0 / length(a)) * a; }
 }
 
 // A turned, moved box: each world vertex is x + R(θ) l, each world normal R(θ) n.
@@ -73,6 +76,95 @@ TEST(body_is_still_only_near_its_reference_pose) {
   CHECK(!c.body_still[b]);
   CHECK(c.body_ref[b].x.x == w.state.body_x[b].x);  // re-taken
   w.state.body_angle[b] += 2.0 * constants::STILL_ANGLE;  // turning alone also counts
+  transform_shapes(w.model, w.state, c, w.config.dt);
+  CHECK(!c.body_still[b]);
+}
+
+// ---- 3D ------------------------------------------------------------------------------
+
+namespace {
+// A unit quaternion for a turn of `angle` (rad) about the unit axis a.
+Quat turn(Vec3 a, double angle) {
+  const double s = std::sin(0.5 * angle);
+  return {std::cos(0.5 * angle), s * a.x, s * a.y, s * a.z};
+}
+}  // namespace
+
+// A turned, moved box, capsule and tetrahedron in space: each world vertex is x + R(q) l;
+// a plane's world normal and point are its body's; a hull's face normals are R(q) n_f.
+TEST(world_geometry_in_space_is_body_geometry_turned_and_moved) {
+  SceneBuilder3 s;
+  const int g = s.plane({0.0, 1.0, 0.0}, -0.5);
+  const Quat q = turn(normalize_axis({1.0, 2.0, 0.5}), 0.7);
+  const Vec3 x{1.5, 2.0, -0.5};
+  const int b = s.box(x, {0.5, 0.25, 0.1}, 1.0, {}, q);
+  const int cap = s.capsule({0, 4, 0}, {-0.3, 0, 0}, {0.3, 0, 0}, 0.1, 1.0, {}, q);
+  const std::vector<Vec3> tet{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  const int t = s.convex({3, 3, 3}, tet, {{{0, 2, 1}}, {{0, 1, 3}}, {{0, 3, 2}}, {{1, 2, 3}}}, 1.0, {}, q);
+  World<3>& w = s.finish();
+  transform_shapes(w.model, w.state, w.contacts, w.config.dt);
+  const auto& m = w.model;
+  for (int shape : {b, cap, t}) {
+    const int i = m.shape_body[shape];
+    for (int k = m.shape_vstart[shape]; k < m.shape_vstart[shape] + m.shape_vcount[shape]; ++k) {
+      const Vec3 want = w.state.body_x[i] + rotate(q, m.vertex_local[k]);
+      CHECK(length(w.contacts.vert_world[k] - want) < EPS);
+    }
+  }
+  const int k = m.shape_vstart[g];
+  CHECK(w.contacts.norm_world[k].y == 1.0 && w.contacts.vert_world[k].y == -0.5);
+  const Hull3& hull = m.shape_hull[t];
+  CHECK(hull.face_count() == 4 && m.hull_face_count == 4);
+  for (int f = 0; f < 4; ++f) {
+    const Vec3 want = rotate(q, hull.face_normal[f]);
+    CHECK(length(w.contacts.face_world[m.shape_hface[t] + f] - want) < EPS);
+  }
+  // the slanted face's world normal is (1, 1, 1)/√3 turned
+  const Vec3 slanted = rotate(q, (1.0 / std::sqrt(3.0)) * Vec3{1, 1, 1});
+  bool found = false;
+  for (int f = 0; f < 4; ++f)
+    found = found || length(w.contacts.face_world[m.shape_hface[t] + f] - slanted) < EPS;
+  CHECK(found);
+}
+
+// The reach in space: dt (|v| + |ω| r_max), |ω| the vector's length.
+TEST(speculative_reach_in_space_is_dt_times_surface_speed) {
+  SceneBuilder3 s;
+  const int g = s.plane({0.0, 1.0, 0.0}, 0.0);
+  const int ball = s.sphere({0, 3, 0}, 0.25, 1.0, {}, {3.0, -4.0, 0.0});
+  const int box = s.box({2, 3, 0}, {0.3, 0.4, 0.0}, 1.0, {}, {}, {0.0, 1.0, 0.0}, {6.0, 0.0, 8.0});
+  World<3>& w = s.finish(0.01);
+  transform_shapes(w.model, w.state, w.contacts, w.config.dt);
+  CHECK(w.contacts.shape_margin[g] == 0.0);
+  CHECK_NEAR(w.contacts.shape_margin[ball], 0.01 * 5.0, EPS);
+  CHECK_NEAR(w.contacts.shape_margin[box], 0.01 * (1.0 + 10.0 * 0.5), EPS);  // corner at 0.5 m
+}
+
+// Still in space: within STILL_DISTANCE and a turn of STILL_ANGLE (about any axis; q and
+// −q are one pose) of the reference pose.
+TEST(body_in_space_is_still_only_near_its_reference_pose) {
+  SceneBuilder3 s;
+  s.plane({0.0, 1.0, 0.0}, 0.0);
+  const int b = s.box({0, 0.5, 0}, {0.5, 0.5, 0.5}, 1.0);
+  World<3>& w = s.finish();
+  auto& c = w.contacts;
+  transform_shapes(w.model, w.state, c, w.config.dt);
+  CHECK(!c.body_still[b]);  // no reference pose yet (NaN)
+  transform_shapes(w.model, w.state, c, w.config.dt);
+  CHECK(c.body_still[b]);
+  w.state.body_x[b].z += 0.5 * constants::STILL_DISTANCE;
+  w.state.body_q[b] = turn(normalize_axis({0.0, 1.0, 1.0}), 0.5 * constants::STILL_ANGLE);
+  transform_shapes(w.model, w.state, c, w.config.dt);
+  CHECK(c.body_still[b]);
+  const Quat neg{-w.state.body_q[b].w, -w.state.body_q[b].x, -w.state.body_q[b].y, -w.state.body_q[b].z};
+  w.state.body_q[b] = neg;  // the same pose
+  transform_shapes(w.model, w.state, c, w.config.dt);
+  CHECK(c.body_still[b]);
+  w.state.body_q[b] = turn(normalize_axis({1.0, 0.0, 0.0}), 1.5 * constants::STILL_ANGLE);
+  transform_shapes(w.model, w.state, c, w.config.dt);
+  CHECK(!c.body_still[b]);  // turning alone counts
+  CHECK(c.body_ref[b].q.x == w.state.body_q[b].x);  // re-taken
+  w.state.body_x[b].z += 1.5 * constants::STILL_DISTANCE;
   transform_shapes(w.model, w.state, c, w.config.dt);
   CHECK(!c.body_still[b]);
 }

@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "check.hpp"
+#include "contacts3d_builder.hpp"
 #include "scene_builder.hpp"
 
 using namespace rbsim;
@@ -55,6 +56,46 @@ TEST(warm_start_leaves_static_body_alone) {
   CHECK_NEAR(w.state.body_v[box].y, 0.5, 1e-15);  // (0.5 + 0.5) N·s / 2 kg
   CHECK_NEAR(w.state.body_w[box], 0.0, 1e-15);    // mirror-image impulses: no spin
   CHECK(w.state.body_v[g].x == 0.0 && w.state.body_v[g].y == 0.0 && w.state.body_w[g] == 0.0);
+}
+
+// 3D warm start: each point's stored normal and friction impulses are applied again, as
+// momentum: Δv = Σ p / m and ΔL = Σ r × p on each body (ω from L), with the part of a
+// stored friction impulse along this step's normal dropped.
+TEST(warm_start_3d_applies_stored_impulses) {
+  using rbsim::test::about;
+  rbsim::test::Builder3 s;
+  const Sym3 ia{0.30, 0.45, 0.60, 0.05, -0.03, 0.02};
+  const Sym3 ib{0.80, 0.50, 0.70, -0.04, 0.06, 0.01};
+  const int a = s.body({0.0, 1.0, 0.0}, 2.0, ia, about({1, 2, 3}, 0.7), {0.1, 0.2, 0.3});
+  const int b = s.body({0.1, 0.0, 0.2}, 3.0, ib, about({0, 1, 1}, 0.4));
+  World<3>& w = s.finish();
+  const Vec3 n{0, 1, 0};
+  const std::vector<Vec3> p{{0.3, 0.5, 0.2}, {-0.2, 0.5, 0.1}};
+  s.manifold(a, b, n, p, 0.5, 0.0);
+  s.prepare();
+  auto& c = w.contacts;
+  c.normal_impulse[0][0] = 0.7;
+  c.normal_impulse[0][1] = 0.4;
+  c.tangent_impulse[0][0] = {0.1, 0.05, -0.2};  // its y part is no friction: dropped
+  c.tangent_impulse[0][1] = {-0.05, 0.0, 0.03};
+  const State<3> before = w.state;
+  warm_start(w.model, w.state, c);
+  Vec3 total{}, la{}, lb{};
+  for (int k = 0; k < 2; ++k) {
+    const Vec3 jt = c.tangent_impulse[0][k];
+    const Vec3 pk = c.normal_impulse[0][k] * n + Vec3{jt.x, 0.0, jt.z};
+    total += pk;
+    la += cross(p[k] - before.body_x[a], pk);
+    lb += cross(p[k] - before.body_x[b], pk);
+  }
+  // round-off of momenta below 1 N·s
+  CHECK_NEAR(length(w.state.body_v[a] - before.body_v[a] - 0.5 * total), 0.0, 1e-15);
+  CHECK_NEAR(length(w.state.body_v[b] - before.body_v[b] + (1.0 / 3.0) * total), 0.0, 1e-15);
+  CHECK_NEAR(length(w.state.body_l[a] - before.body_l[a] - la), 0.0, 1e-15);
+  CHECK_NEAR(length(w.state.body_l[b] - before.body_l[b] + lb), 0.0, 1e-15);
+  const Vec3 wa = rbsim::test::world_apply(w.state.body_q[a], w.model.body_inv_inertia[a],
+                                           w.state.body_l[a]);
+  CHECK_NEAR(length(w.state.body_w[a] - wa), 0.0, 1e-14);
 }
 
 RBSIM_TEST_MAIN

@@ -33,6 +33,13 @@ class ModelError(ValueError):
     """A scene that validates but cannot be simulated (for example a massless body)."""
 
 
+# a Model without triangles (2D, or 3D arrays built by hand): shared, read-only
+_NO_FACES = np.zeros((0, 3), np.int32)
+_NO_FACES.flags.writeable = False
+_NO_INDEX = np.zeros(0, np.int32)
+_NO_INDEX.flags.writeable = False
+
+
 class Model(NamedTuple):
     """Static data. N bodies, S shapes, V shape vertices.
 
@@ -57,8 +64,12 @@ class Model(NamedTuple):
     ascending (inf if not dynamic); shape_kind codes types.SHAPE_SPHERE..SHAPE_PLANE;
     vertex_local (V,3) m, body frame about the COM (sphere: centre; capsule: a, b; box:
     8 corners; convex: hull points; plane: one point); normal_local (V,3) a plane's
-    unit normal on its vertex row, zeros elsewhere; gravity (3,); has_shapes False (no
-    contacts in 3D yet).
+    unit normal on its vertex row, zeros elsewhere; gravity (3,); has_shapes as in 2D
+    (the 3D step takes contacts once its solver does); face_local (F,3) int32 the box
+    and convex shapes' triangles (the resolved Shape.faces, indices local to the shape's
+    vertex rows, counter-clockwise seen from outside), shape_fstart, shape_fcount (S,)
+    int32 each shape's rows of them (0 rows for the other kinds). In 2D the three are
+    empty.
     """
 
     body_type: np.ndarray
@@ -86,6 +97,9 @@ class Model(NamedTuple):
     has_shapes: bool
     body_axes: np.ndarray
     body_moments: np.ndarray
+    face_local: np.ndarray = _NO_FACES
+    shape_fstart: np.ndarray = _NO_INDEX
+    shape_fcount: np.ndarray = _NO_INDEX
 
 
 _NONE = np.zeros(0)
@@ -235,6 +249,8 @@ def build_3d(scene: Scene) -> tuple[Model, State]:
     parts: list[list] = []  # per body: its shapes' (kind, radius, friction, restitution, count)
     vertices: list[np.ndarray] = []
     normals: list[np.ndarray] = []
+    faces: list[np.ndarray] = []  # per body: its shapes' triangles (F, 3)
+    face_counts: list[list[int]] = []  # per body: each shape's triangle count
     # generated bodies share one shape tuple: their mass properties and vertex rows are
     # worked out once
     known: dict[tuple, tuple] = {}
@@ -244,7 +260,7 @@ def build_3d(scene: Scene) -> tuple[Model, State]:
         key = (body.shapes, body.mass, kind)
         if key not in known:
             known[key] = _body_3d(body, kind)
-        props, center, inverse, axes_q, principal, shapes, local, rows = known[key]
+        props, center, inverse, axes_q, principal, shapes, local, rows, tris, counts = known[key]
         com[i] = center
         if kind == T.BODY_DYNAMIC:
             mass[i], inertia[i], inv_inertia[i] = props.mass, props.inertia, inverse
@@ -262,16 +278,24 @@ def build_3d(scene: Scene) -> tuple[Model, State]:
         parts.append(shapes)
         vertices.append(local)
         normals.append(rows)
+        faces.append(tris)
+        face_counts.append(counts)
 
+    fcount = np.array([c for counts in face_counts for c in counts], np.int32)
     model = _model(
         scene,
         (body_type, mass, inertia, inv_inertia, com, force, force_arm, torque),
         (shape_body, [row for rows in parts for row in rows]),
         np.concatenate(vertices) if vertices else np.zeros((0, 3)),
         np.concatenate(normals) if normals else np.zeros((0, 3)),
-        has_shapes=False,  # no contacts in 3D yet (issue 16)
+        has_shapes=_contacts_possible(shape_body, body_type),
         axes=axes,
         moments=moments,
+    )
+    model = model._replace(
+        face_local=np.concatenate(faces).astype(np.int32) if faces else _NO_FACES,
+        shape_fstart=(np.cumsum(fcount, dtype=np.int64) - fcount).astype(np.int32),
+        shape_fcount=fcount,
     )
     return model, State(origin, q, np.zeros(0), v, w, ang)
 
@@ -329,7 +353,8 @@ def _model(
 def _body_3d(body: Body, kind: int) -> tuple:
     """What build_3d needs of a body's shapes: (mass properties, COM (3,), inverse
     tensor, principal axes, moments, each shape's (kind code, radius, friction,
-    restitution, vertex count), vertex rows about the COM (V, 3), normal rows (V, 3)).
+    restitution, vertex count), vertex rows about the COM (V, 3), normal rows (V, 3),
+    triangles (F, 3) int32 local to each shape's rows, each shape's triangle count).
     Raises ModelError for a dynamic body without mass."""
     props = body_mass_properties_3d(body)
     center = np.asarray(props.center)
@@ -342,7 +367,7 @@ def _body_3d(body: Body, kind: int) -> tuple:
             raise ModelError(f"body {body.name!r}: a dynamic body needs a mass; {why}")
         inverse = np.linalg.inv(props.inertia)
         inverse = 0.5 * (inverse + inverse.T)
-    shapes, local, rows = [], [], []
+    shapes, local, rows, tris, tri_counts = [], [], [], [], []
     for shape in body.shapes:
         m = shape.material
         points = np.asarray(shape.vertices, np.float64).reshape(-1, 3) - center
@@ -353,6 +378,8 @@ def _body_3d(body: Body, kind: int) -> tuple:
         shapes.append((code, shape.radius, m.friction, m.restitution, len(points)))
         local.append(points)
         rows.append(normal)
+        tris.append(np.asarray(shape.faces, np.int32).reshape(-1, 3))
+        tri_counts.append(len(shape.faces))
     return (
         props,
         center,
@@ -362,6 +389,8 @@ def _body_3d(body: Body, kind: int) -> tuple:
         shapes,
         np.concatenate(local),
         np.concatenate(rows),
+        np.concatenate(tris),
+        tri_counts,
     )
 
 

@@ -137,6 +137,9 @@ inline constexpr double HEAVY_RATIO = 10.0;
 // key sorted per radix pass; fewer new keys than INSERTION_SORT_MAX are sorted by
 // insertion.
 inline constexpr double CELL_SIZES = 4.0;
+// In space a query reads a block of cells, not a strip: cells of CELL_SIZES_3D median
+// half-diagonals (a ball's diameter at 2) test fewer entries per query.
+inline constexpr double CELL_SIZES_3D = 2.0;
 inline constexpr int TABLE_PER_SHAPE = 2;
 inline constexpr int BIG_MAX = 16;
 inline constexpr double BIG_CELLS_MAX = 16.0;

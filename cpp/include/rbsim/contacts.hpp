@@ -58,9 +58,39 @@ struct SolverRow<2> {
   double pad[2] = {0, 0};
 };
 static_assert(sizeof(SolverRow<2>) == 32 * sizeof(double));
-// 3D contact rows come with 3D contacts (issue 16); until then a 3D world stores none.
+// In 3D a manifold has up to four points and two friction directions t1, t2 (an
+// orthonormal basis of the tangent plane, any: the friction is solved as one 2×2 block
+// per point and clamped to Coulomb's circle, so the result does not depend on the basis).
+// A face's points are solved as one block (solve.cpp), whose K the row keeps.
+// The angular terms are vectors; the world inverse inertia tensors are taken at the
+// step's start (what the passes use to follow the bodies' velocities within a manifold;
+// a manifold writes each body's ω back from its angular momentum, see solve.cpp).
 template <>
-struct SolverRow<3> {};
+struct SolverRow<3> {
+  struct Point {
+    Vec3 ra, rb;        // m: separation anchors from each COM (sep_anchor_a, _b)
+    Vec3 arm_a, arm_b;  // m: lever arms, the contact point from each COM (anchor_a, _b)
+    Vec3 rna, rnb;      // m: r_a × n, r_b × n
+    Vec3 wna, wnb;      // 1/(kg·m): I_a⁻¹ (r_a × n), I_b⁻¹ (r_b × n), world frame
+    double kn = 0;      // 1/kg: the normal row's K
+    double base = 0;    // m: base separation
+    // kg: the inverse of the point's 2×2 tangent block K_t (rows t1, t2), symmetric
+    double tm11 = 0, tm12 = 0, tm22 = 0;
+    double tangent_mass = 0;  // kg: 2 / trace K_t, the sliding step's (friction_circle)
+  };
+  Vec3 normal;             // from b towards a
+  Vec3 t1, t2;             // the tangent basis: t1 × t2 = n
+  Sym3 inv_ia, inv_ib;     // 1/(kg·m²): world inverse inertia tensors at the step's start
+  double gamma = 0;        // γ/K of the soft constraint
+  double bias_rate = 0;    // 1/s: the soft constraint's push-out rate
+  double friction = 0;     // the mixed friction coefficient
+  double max_push = 0;     // m/s, < 0: the fastest push-out (CONTACT_PUSH_MAX_VELOCITY, scaled)
+  double deep = 0;         // m, < 0: a separation below it is a deep overlap (DEEP_OVERLAP)
+  // 1/kg: the points' normal block K (symmetric 4×4, rows 0..points-1), its upper
+  // triangle by rows: K00 K01 K02 K03 K11 K12 K13 K22 K23 K33
+  std::array<double, 10> k{};
+  std::array<Point, 4> point;
+};
 
 template <int D>
 struct Contacts {
@@ -90,7 +120,9 @@ struct Contacts {
   std::vector<PerPoint<std::int64_t>> feature;      // feature ids
   std::vector<PerPoint<double>> normal_impulse;     // N·s, per substep
   std::vector<PerPoint<double>> start_impulse;      // N·s carried into this step
-  std::vector<PerPoint<double>> tangent_impulse;    // N·s (2D: one direction)
+  using Tangent = typename Dim<D>::Tangent;
+  // N·s: 2D, along the one tangent; 3D, a world vector in the tangent plane
+  std::vector<PerPoint<Tangent>> tangent_impulse;
   std::vector<PerPoint<double>> normal_mass;        // kg
   std::vector<SolverRow<D>> solver_row;
   std::vector<PerPoint<double>> approach_velocity;  // m/s where the point engaged
@@ -100,7 +132,8 @@ struct Contacts {
   std::vector<std::int64_t> prev_key;
   std::vector<std::int32_t> prev_points;
   std::vector<PerPoint<std::int64_t>> prev_feature;
-  std::vector<PerPoint<double>> prev_normal_impulse, prev_tangent_impulse;
+  std::vector<PerPoint<double>> prev_normal_impulse;
+  std::vector<PerPoint<Tangent>> prev_tangent_impulse;
   std::vector<Vec> prev_normal;
   std::vector<PerPoint<Vec>> prev_anchor_a, prev_anchor_b;
   std::vector<PerPoint<Vec>> prev_sep_anchor_a, prev_sep_anchor_b;
@@ -112,6 +145,8 @@ struct Contacts {
   // per vertex / shape
   std::vector<Vec> toi_verts, toi_norms;  // (V,) two shapes moved to their time of impact
   std::vector<Vec> vert_world, norm_world;  // (V,) shape geometry in the world this step
+  std::vector<Vec> face_world;  // 3D: (Model::hull_face_count,) convex hulls' face normals
+                                // in the world this step (sized by World::allocate)
   std::vector<double> shape_margin;         // (S,) m: speculative reach this step
   std::vector<double> shape_size;           // (S,) m: half its bounding box's diagonal
   std::vector<double> shape_scale;          // (S,) min(1, size / SCALE_LENGTH)
@@ -222,6 +257,7 @@ void Contacts<D>::grow(std::int64_t new_capacity) {
     prev_sep_anchor_a[i] = old.prev_sep_anchor_a[i];
     prev_sep_anchor_b[i] = old.prev_sep_anchor_b[i];
   }
+  face_world = std::move(old.face_world);
   body_ref = std::move(old.body_ref);
   body_still = std::move(old.body_still);
   shape_size = std::move(old.shape_size);

@@ -6,6 +6,7 @@
 //   Rot      Rot2: unit complex (c, s)      Quat: unit quaternion (w, x, y, z)
 //   Ang      double (rad/s, N·m, kg·m²/s)   Vec3
 //   Inertia  double (kg·m²)                 Sym3: symmetric 3×3 (kg·m²)
+//   Tangent  double (along the one tangent)  Vec3 (in the tangent plane, world frame)
 //
 // Every type is a plain aggregate of doubles with no padding, so a std::vector of them
 // is a C array that numpy can view as (n, k) float64.
@@ -120,6 +121,8 @@ struct Dim<2> {
   using Rot = Rot2;
   using Ang = double;
   using Inertia = double;
+  // a contact point's friction impulse: along the manifold's one tangent (N·s)
+  using Tangent = double;
   // the pose a body is compared with to tell whether it moved: position and unwrapped angle
   struct RefPose {
     Vec2 x;
@@ -138,6 +141,9 @@ struct Dim<3> {
   using Rot = Quat;
   using Ang = Vec3;
   using Inertia = Sym3;
+  // a contact point's friction impulse: a world-frame vector in the tangent plane (N·s),
+  // so that warm starting needs no tangent basis carried from step to step
+  using Tangent = Vec3;
   struct RefPose {
     Vec3 x;
     Quat q;

@@ -5,8 +5,12 @@
 // so the solver treats every body alike.
 #pragma once
 
+#include <array>
+#include <cstdint>
+#include <string>
 #include <vector>
 
+#include "../../src/collide/hull3d.hpp"
 #include "math.hpp"
 #include "types.hpp"
 
@@ -40,7 +44,20 @@ struct Model {
   std::vector<double> shape_friction;     // (S,)
   std::vector<double> shape_restitution;  // (S,)
   std::vector<Vec> vertex_local;          // (V,) m, body frame about the COM
-  std::vector<Vec> normal_local;          // (V,) outward edge normals (polygons, segments)
+  std::vector<Vec> normal_local;          // (V,) outward edge normals (polygons, segments);
+                                          // 3D: a plane's outward normal on its one row
+  // 3D: box and convex shapes' triangles as the front gives them (indices local to the
+  // shape's vertex rows, counter-clockwise seen from outside); empty in 2D
+  std::vector<std::array<std::int32_t, 3>> face_local;  // (F,)
+  std::vector<std::int32_t> shape_fstart;  // (S,) first triangle in face_local
+  std::vector<std::int32_t> shape_fcount;  // (S,) its triangle count (0: none)
+  // 3D: built once from them (build_shape_hulls, collide/transform.cpp): a convex shape's
+  // topology (polygon faces, unique edges) and body-frame face normals; empty for the
+  // other kinds (a box's is box_hull()). shape_hface: first row of its face normals in
+  // Contacts::face_world; hull_face_count: the rows of all of them
+  std::vector<Hull3> shape_hull;           // (S,)
+  std::vector<std::int32_t> shape_hface;   // (S,)
+  int hull_face_count = 0;
   Vec gravity{};                          // m/s²
   double linear_damping = 0.0;            // 1/s
   double angular_damping = 0.0;           // 1/s

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
 
 #include "contacts.hpp"
 #include "grid.hpp"
@@ -49,6 +50,12 @@ void set_contact_softness(Config& config);
 template <int D>
 void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
                       double dt);
+
+// collide/transform.cpp: each convex shape's hull topology from model.face_local (once,
+// when a 3D world is built), and the rows of Contacts::face_world they need. Returns
+// false with a message in *error when a convex shape's triangles do not close a convex
+// surface (the shape's vertex and triangle ranges must already be checked).
+bool build_shape_hulls(Model<3>& model, std::string* error);
 
 // collide/broadphase.cpp: update contacts.pairs (sorted by (a, b), a < b) from the
 // shapes' boxes; returns the pair count, which exceeds the capacity when the store must

@@ -22,10 +22,13 @@
 // Pairs within one body, and pairs where neither body is dynamic, are skipped.
 //
 // Boxes, the fill and the sort are written for any D; the query's walk over the cells
-// (one run of entries per row) is 2D-specific for now (marked below).
+// is written per dimension (rows of cells in the plane; rows within layers in space, x
+// fastest in both). In 3D a plane (a half-space) is big: its box is unbounded but along
+// an axis its normal lies on, so it is tested against every other shape.
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 
 #include "rbsim/constants.hpp"
 #include "rbsim/stages.hpp"
@@ -94,6 +97,23 @@ inline std::int64_t pair_key(std::int32_t a, std::int32_t b, std::int64_t n) {
   return static_cast<std::int64_t>(std::min(a, b)) * n + std::max(a, b);
 }
 
+// The box of a plane's solid n·x <= n·p from the box [lo, hi] around its point p (m):
+// unbounded on every side but the one an axis-aligned normal faces (a ground y <= 0 is
+// bounded above by its point's box), infinite along an oblique normal.
+inline void plane_box(Vec3 n, Vec3& lo, Vec3& hi) {
+  constexpr double inf = std::numeric_limits<double>::infinity();
+  const double nn[3] = {n.x, n.y, n.z};
+  double* l = &lo.x;
+  double* h = &hi.x;
+  bool aligned = false;
+  for (int d = 0; d < 3; ++d) aligned = aligned || std::fabs(nn[d]) == 1.0;
+  for (int d = 0; d < 3; ++d) {
+    const bool faces = aligned && std::fabs(nn[d]) == 1.0;
+    if (!(faces && nn[d] > 0.0)) h[d] = inf;   // the solid reaches up along d
+    if (!(faces && nn[d] < 0.0)) l[d] = -inf;  // ... and down
+  }
+}
+
 // Tight boxes from world vertices, radius and speculative reach (m); fat boxes for the
 // shapes whose tight box left theirs. Returns how many shapes moved.
 template <int D>
@@ -118,6 +138,9 @@ std::int64_t update_aabbs(const Model<D>& model, Grid<D>& grid, const Contacts<D
     const Vec r = splat(lo, model.shape_radius[s] + contacts.shape_margin[s] + scale * reach);
     lo = lo - r;
     hi = hi + r;
+    if constexpr (D == 3) {
+      if (model.shape_kind[s] == ShapeKind::Plane) plane_box(contacts.norm_world[start], lo, hi);
+    }
     box[s] = {lo, hi};
     const bool out = fresh || any_less(lo, fat[s].lo) || any_less(fat[s].hi, hi);
     grid.shape_moved[s] = out;
@@ -322,6 +345,96 @@ std::int64_t query_moved(const Model<D>& model, Grid<D>& grid) {
   return count;
 }
 
+// query_moved for shapes in space: the walk over the cells is by layers iz of rows iy of
+// cells ix (in the direct buckets x is fastest, so a row's cells are one run of entries).
+std::int64_t query_moved(const Model<3>& model, Grid<3>& grid) {
+  constexpr int D = 3;
+  const std::int32_t* shape_body = model.shape_body.data();
+  const BodyType* body_type = model.body_type.data();
+  const std::int64_t* bucket_start = grid.bucket_start.data();
+  const std::int32_t* entry_shape = grid.entry_shape.data();
+  const Cell<D>* entry_cell = grid.entry_cell.data();
+  const Aabb<D>* entry_fat = grid.entry_fat.data();
+  const std::int32_t* entry_tag = grid.entry_tag.data();
+  const Aabb<D>* fat = grid.shape_fat.data();
+  const std::uint8_t* moved = grid.shape_moved.data();
+  const std::uint8_t* big = grid.shape_big.data();
+  const std::int32_t* big_list = grid.big_list.data();
+  std::int64_t* keys = grid.new_keys.data();
+  const Vec3 span = grid.span;  // m
+  const std::int64_t n_big = grid.meta.big_count;
+  const bool dense = grid.meta.direct_buckets != 0;
+  const Cell<D> g0 = grid.meta.first_cell, ext = grid.meta.extent;
+  const std::int32_t n = static_cast<std::int32_t>(grid.shape_fat.size());
+  const std::int64_t capacity = static_cast<std::int64_t>(grid.new_keys.size());
+  const std::int64_t mask = static_cast<std::int64_t>(grid.bucket_start.size()) - 2;
+  const double inv = grid.inv_cell;
+  std::int64_t count = 0;
+  for (std::int32_t a = 0; a < n; ++a) {
+    if (!moved[a]) continue;
+    const std::int32_t body_a = shape_body[a];
+    const bool dyn_a = body_type[body_a] == BodyType::Dynamic;
+    const std::int32_t tag_a = dyn_a ? body_a : -1 - body_a;
+    const Aabb<D> box = fat[a];
+    // candidates: every shape for a big shape; else the grid cells, then big shapes
+    const std::int64_t n_cand = big[a] ? n : n_big;
+    Cell<D> i0{}, i1{};
+    i1.fill(-1);
+    if (!big[a]) {
+      // a box overlapping a's has its min corner in [a's min - span, a's max]
+      i0 = cell_of(box.lo - span, inv);
+      i1 = cell_of(box.hi, inv);
+      if (dense) {  // clip to the occupied block
+        for (int d = 0; d < D; ++d) {
+          i0[d] = std::max(i0[d], g0[d]);
+          i1[d] = std::min(i1[d], g0[d] + ext[d] - 1);
+        }
+      }
+    }
+    for (std::int64_t iz = i0[2]; iz <= i1[2]; ++iz) {
+      for (std::int64_t iy = i0[1]; iy <= i1[1]; ++iy) {
+        // hashed: one bucket per cell; dense: a single pass reads the row's whole run
+        const std::int64_t ix_end = dense ? std::min(i0[0], i1[0]) : i1[0];
+        for (std::int64_t ix = i0[0]; ix <= ix_end; ++ix) {
+          std::int64_t k0, k1;
+          if (dense) {
+            const std::int64_t row = ((iz - g0[2]) * ext[1] + (iy - g0[1])) * ext[0] - g0[0];
+            k0 = bucket_start[row + i0[0]];
+            k1 = bucket_start[row + i1[0] + 1];
+          } else {
+            const std::int64_t bk = hash_bucket<D>(Cell<D>{ix, iy, iz}, mask);
+            k0 = bucket_start[bk];
+            k1 = bucket_start[bk + 1];
+          }
+          for (std::int64_t k = k0; k < k1; ++k) {
+            // a hashed bucket also holds other cells' entries
+            if (!dense && (entry_cell[k][0] != ix || entry_cell[k][1] != iy ||
+                           entry_cell[k][2] != iz))
+              continue;
+            if (separated<D>(box, entry_fat[k])) continue;
+            // the same body, or neither body dynamic (both tags below zero)
+            if (entry_tag[k] == tag_a || (tag_a & entry_tag[k]) < 0) continue;
+            const std::int32_t b = entry_shape[k];
+            if (b == a || (moved[b] && b < a)) continue;
+            if (count < capacity) keys[count] = pair_key(a, b, n);
+            ++count;
+          }
+        }
+      }
+    }
+    for (std::int64_t g = 0; g < n_cand; ++g) {
+      const std::int32_t b = big[a] ? static_cast<std::int32_t>(g) : big_list[g];
+      if (b == a || (moved[b] && b < a)) continue;
+      if (separated<D>(box, fat[b])) continue;
+      const std::int32_t body_b = shape_body[b];
+      if (body_b == body_a || !(dyn_a || body_type[body_b] == BodyType::Dynamic)) continue;
+      if (count < capacity) keys[count] = pair_key(a, b, n);
+      ++count;
+    }
+  }
+  return count;
+}
+
 // Sort the non-negative keys[0..n) in place: a few keys by insertion; more by a
 // least-significant-digit radix sort, RADIX_BITS per pass, through scratch (at least n
 // long) and count (2^RADIX_BITS + 1).
@@ -410,6 +523,7 @@ std::int64_t find_pairs(const Model<D>& model, Grid<D>& grid, Contacts<D>& conta
 }
 
 template std::int64_t find_pairs(const Model<2>&, Grid<2>&, Contacts<2>&);
+template std::int64_t find_pairs(const Model<3>&, Grid<3>&, Contacts<3>&);
 
 // The cell size is CELL_SIZES times the median half-diagonal (m) of the dynamic shapes
 // plus twice the fat margin (at that median's scale, SCALE_LENGTH), so a typical fat box
@@ -428,7 +542,7 @@ void Grid<D>::allocate(const std::vector<double>& shape_size, const std::vector<
     std::sort(dyn.begin(), dyn.end());
     const std::size_t k = dyn.size();
     const double median = k % 2 ? dyn[k / 2] : 0.5 * (dyn[k / 2 - 1] + dyn[k / 2]);
-    size = C::CELL_SIZES * median;
+    size = (D == 2 ? C::CELL_SIZES : C::CELL_SIZES_3D) * median;
     scale = std::min(1.0, median / C::SCALE_LENGTH);
   }
   const double cell = std::max(size, 1e-3 * scale) + 2.0 * scale * C::AABB_MARGIN;
@@ -466,5 +580,6 @@ void Grid<D>::grow(std::int64_t capacity) {
   meta.pairs_valid = 0;
 }
 template struct Grid<2>;
+template struct Grid<3>;
 
 }  // namespace rbsim

@@ -9,6 +9,7 @@
 // and its contacts are recomputed.
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 #include "rbsim/constants.hpp"
 #include "rbsim/stages.hpp"
@@ -32,17 +33,28 @@ inline double magnitude(double w) { return std::fabs(w); }
 inline double magnitude(Vec3 w) { return length(w); }
 
 // Whether body i is within STILL_DISTANCE (m, times the body's scale) and STILL_ANGLE
-// (rad) of its reference pose; if not, the pose becomes its reference. 2D-specific: the angle is compared as
-// the unwrapped angle (the 3D reference pose holds a quaternion; not ported yet).
-template <int D>
-bool near_reference(typename Dim<D>::RefPose& ref, const State<D>& state, std::size_t i,
-                    double scale) {
-  static_assert(D == 2, "near_reference: the 3D still test (by quaternion) is not written");
+// (rad) of its reference pose; if not, the pose becomes its reference. In 2D the angle is
+// compared as the unwrapped angle; in 3D as the angle of the rotation q ref⁻¹ between
+// the two poses, 2 asin |vector part of q ref*| (q and −q alike).
+inline bool near_reference(Dim<2>::RefPose& ref, const State<2>& state, std::size_t i,
+                           double scale) {
   const Vec2 d = state.body_x[i] - ref.x;
   const double still = scale * C::STILL_DISTANCE;  // m
   const bool near = d.x * d.x + d.y * d.y < still * still &&
                     std::fabs(state.body_angle[i] - ref.angle) < C::STILL_ANGLE;
   if (!near) ref = {state.body_x[i], state.body_angle[i]};
+  return near;
+}
+inline bool near_reference(Dim<3>::RefPose& ref, const State<3>& state, std::size_t i,
+                           double scale) {
+  const Vec3 d = state.body_x[i] - ref.x;
+  const double still = scale * C::STILL_DISTANCE;  // m
+  const Quat q = state.body_q[i];
+  const Quat turn = mul(q, Quat{ref.q.w, -ref.q.x, -ref.q.y, -ref.q.z});
+  // sin(θ/2) of the turn since the reference pose (NaN until the first pose is taken)
+  const double half_sin = std::sqrt(turn.x * turn.x + turn.y * turn.y + turn.z * turn.z);
+  const bool near = dot(d, d) < still * still && half_sin < std::sin(0.5 * C::STILL_ANGLE);
+  if (!near) ref = {state.body_x[i], q};
   return near;
 }
 
@@ -55,7 +67,7 @@ void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>&
   auto& ref = contacts.body_ref;
   auto& still = contacts.body_still;
   for (std::size_t i = 0; i < ref.size(); ++i)
-    still[i] = near_reference<D>(ref[i], state, i, contacts.body_scale[i]);
+    still[i] = near_reference(ref[i], state, i, contacts.body_scale[i]);
 
   Vec* vw = contacts.vert_world.data();
   Vec* nw = contacts.norm_world.data();
@@ -80,9 +92,41 @@ void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>&
       const double speed = length(state.body_v[i]);  // m/s
       contacts.shape_margin[s] = dt * (speed + magnitude(state.body_w[i]) * reach);
     }
+    if constexpr (D == 3) {
+      // a convex hull's face normals (the box's come from its corners, narrow3d.hpp)
+      const Hull3& hull = model.shape_hull[s];
+      Vec3* fw = contacts.face_world.data() + model.shape_hface[s];
+      for (int f = 0; f < hull.face_count(); ++f) fw[f] = rotate(q, hull.face_normal[f]);
+    }
   }
 }
 
+bool build_shape_hulls(Model<3>& model, std::string* error) {
+  const int n = model.shape_count();
+  model.shape_hull.assign(n, Hull3{});
+  model.shape_hface.assign(n, 0);
+  model.hull_face_count = 0;
+  const bool has_faces = !model.shape_fstart.empty();
+  for (int s = 0; s < n; ++s) {
+    model.shape_hface[s] = model.hull_face_count;
+    if (model.shape_kind[s] != ShapeKind::Convex) continue;
+    const int f0 = has_faces ? model.shape_fstart[s] : 0;
+    const int nf = has_faces ? model.shape_fcount[s] : 0;
+    const int v0 = model.shape_vstart[s], nv = model.shape_vcount[s];
+    std::vector<Vec3> vertices(model.vertex_local.begin() + v0, model.vertex_local.begin() + v0 + nv);
+    std::vector<std::array<std::int32_t, 3>> triangles(model.face_local.begin() + f0,
+                                                       model.face_local.begin() + f0 + nf);
+    std::string why;
+    if (!build_hull(vertices, triangles, model.shape_hull[s], &why)) {
+      if (error) *error = "shape " + std::to_string(s) + " (convex): " + why;
+      return false;
+    }
+    model.hull_face_count += model.shape_hull[s].face_count();
+  }
+  return true;
+}
+
 template void transform_shapes(const Model<2>&, const State<2>&, Contacts<2>&, double);
+template void transform_shapes(const Model<3>&, const State<3>&, Contacts<3>&, double);
 
 }  // namespace rbsim

@@ -7,10 +7,19 @@
 // moved from their reference poses carries last step's manifold forward instead (only
 // its separation changes, by the bodies' motion since those poses). A speculative pair
 // that meets within the step is moved to its time of impact first (collide/toi.cpp).
+//
+// In 3D the narrowphase is collide/narrow3d.cpp's, on each shape's world geometry from
+// the transform stage (ShapeRef3), with up to four points per manifold. Time of impact is
+// 2D only: a fast 3D pair relies on its speculative contacts alone (the reach dt (|v| +
+// |ω| r) of the transform stage widens the pair's speculative distance), which stop a
+// body at the surface it approaches but may miss a thin shape a body crosses within one
+// step.
 #include <algorithm>
 #include <cmath>
+#include <type_traits>
 
 #include "collide/narrow2d.hpp"
+#include "collide/narrow3d.hpp"
 #include "collide/toi.hpp"
 #include "rbsim/constants.hpp"
 #include "rbsim/stages.hpp"
@@ -40,6 +49,29 @@ inline bool disjoint(const Aabb<D>& a, const Aabb<D>& b) {
   return any_greater(a.lo, b.hi) || any_greater(b.lo, a.hi);
 }
 
+// A 3D shape as the narrowphase reads it: its world geometry this step (transform.cpp),
+// at the pair's tolerance scale.
+ShapeRef3 world_shape(const Model<3>& model, const Contacts<3>& c, int s, double scale) {
+  const int k = model.shape_vstart[s];
+  const Vec3* vw = c.vert_world.data() + k;
+  const double radius = model.shape_radius[s];  // m
+  ShapeRef3 r;
+  switch (model.shape_kind[s]) {
+    case ShapeKind::Sphere: r = sphere_ref(vw[0], radius); break;
+    case ShapeKind::Capsule: r = capsule_ref(vw[0], vw[1], radius); break;
+    case ShapeKind::Box: r = box_ref_from_corners(vw); break;
+    case ShapeKind::Convex:
+      r = convex_ref(vw, c.face_world.data() + model.shape_hface[s], model.shape_hull[s].view());
+      break;
+    default: {  // a plane: its normal and its point's offset along it
+      const Vec3 n = c.norm_world[k];
+      r = plane_ref(n, dot(n, vw[0]));
+    }
+  }
+  r.scale = scale;
+  return r;
+}
+
 }  // namespace
 
 template <int D>
@@ -51,7 +83,7 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
   const auto& box = grid.shape_aabb;
   const std::int64_t n_shapes = model.shape_count();
   const std::int64_t n_prev = c.count.manifolds_prev;
-  Manifold2 out;  // one narrowphase result
+  std::conditional_t<D == 2, Manifold2, Manifold3> out;  // one narrowphase result
   std::int64_t j = 0;  // merge pointer into last step's manifolds (both sorted by key)
   std::int64_t m = 0;
   bool same = true;  // every manifold so far is last step's pair in the same slot
@@ -109,37 +141,45 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
     } else {
       const double spec =
           scale * C::SPECULATIVE_DISTANCE + c.shape_margin[a] + c.shape_margin[b];
-      const ShapeRef2 sa{model.shape_kind[a], model.shape_vstart[a], model.shape_vcount[a],
-                         model.shape_radius[a], scale};
-      const ShapeRef2 sb{model.shape_kind[b], model.shape_vstart[b], model.shape_vcount[b],
-                         model.shape_radius[b], scale};
       const double radius_a = model.shape_radius[a], radius_b = model.shape_radius[b];  // m
-      npts = collide2d(sa, sb, c.vert_world.data(), c.norm_world.data(), spec, out);
       double t = 0.0;  // s
-      // only a pair that is clearly apart can turn its normal before the impact, and
-      // only if it meets within the step: most such pairs do not (two balls falling
-      // side by side), and their test is made here, as the search's first, so that they
-      // skip the call
-      bool meets = false;
-      if (npts > 0 &&
-          std::min(out.separation[0], out.separation[npts - 1]) > scale * C::LINEAR_SLOP) {
-        const Approach ap = nearest_approach(out, npts, ba, bb, 0.0, st);
-        meets = ap.vn < 0.0 && ap.sep / -ap.vn < dt;
-      }
-      if (meets) {
-        const Impact hit = time_of_impact(model, st, a, b, npts, dt, spec, scale,
-                                          c.toi_verts.data(), c.toi_norms.data(), out);
-        npts = hit.points;
-        t = hit.t;
+      if constexpr (D == 2) {
+        const ShapeRef2 sa{model.shape_kind[a], model.shape_vstart[a], model.shape_vcount[a],
+                           model.shape_radius[a], scale};
+        const ShapeRef2 sb{model.shape_kind[b], model.shape_vstart[b], model.shape_vcount[b],
+                           model.shape_radius[b], scale};
+        npts = collide2d(sa, sb, c.vert_world.data(), c.norm_world.data(), spec, out);
+        // only a pair that is clearly apart can turn its normal before the impact, and
+        // only if it meets within the step: most such pairs do not (two balls falling
+        // side by side), and their test is made here, as the search's first, so that they
+        // skip the call
+        bool meets = false;
+        if (npts > 0 &&
+            std::min(out.separation[0], out.separation[npts - 1]) > scale * C::LINEAR_SLOP) {
+          const Approach ap = nearest_approach(out, npts, ba, bb, 0.0, st);
+          meets = ap.vn < 0.0 && ap.sep / -ap.vn < dt;
+        }
+        if (meets) {
+          const Impact hit = time_of_impact(model, st, a, b, npts, dt, spec, scale,
+                                            c.toi_verts.data(), c.toi_norms.data(), out);
+          npts = hit.points;
+          t = hit.t;
+        }
+      } else {
+        // no time of impact in 3D: speculative contacts only (t = 0)
+        npts = collide3d(world_shape(model, c, a, scale), world_shape(model, c, b, scale),
+                         spec, out);
       }
       if (npts == 0) continue;
       n = out.normal;
       // the bodies' free motion to the impact (t = 0 unless it was moved there)
       const Vec da = t * st.body_v[ba], db = t * st.body_v[bb];
       Rot qa{}, qb{};  // the rotations by ω t; t = 0 is the common case, and then
-      if (t != 0.0) {  // costs no trigonometry
-        qa = turn_by(t * st.body_w[ba]);
-        qb = turn_by(t * st.body_w[bb]);
+      if constexpr (D == 2) {
+        if (t != 0.0) {  // costs no trigonometry
+          qa = turn_by(t * st.body_w[ba]);
+          qb = turn_by(t * st.body_w[bb]);
+        }
       }
       for (int k = 0; k < npts; ++k) {
         // lever arms at the impact. The point lies midway between the surfaces; a rounded
@@ -174,7 +214,8 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
         const double start = base + dot(n, sa_k - sb_k);
         c.ref_separation[m][k] = start - dot(n, dd);
         c.feature[m][k] = out.id[k];
-        double jn = 0.0, jt = 0.0;  // N·s
+        double jn = 0.0;  // N·s
+        std::remove_cvref_t<decltype(c.tangent_impulse[m][k])> jt{};  // N·s (2D: one direction)
         if (matched) {
           for (int kk = 0; kk < c.prev_points[j]; ++kk) {
             if (c.prev_feature[j][kk] == out.id[k]) {
@@ -209,6 +250,8 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
 }
 
 template void update_manifolds(const Model<2>&, const State<2>&, Contacts<2>&, const Grid<2>&,
+                               std::int64_t, MixRule, MixRule, double);
+template void update_manifolds(const Model<3>&, const State<3>&, Contacts<3>&, const Grid<3>&,
                                std::int64_t, MixRule, MixRule, double);
 
 }  // namespace rbsim

@@ -37,5 +37,6 @@ void store_impulses(Contacts<D>& c) {
 }
 
 template void store_impulses(Contacts<2>&);
+template void store_impulses(Contacts<3>&);
 
 }  // namespace rbsim

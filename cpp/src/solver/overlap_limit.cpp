@@ -43,5 +43,6 @@ void limit_static_overlap(const Model<D>& model, State<D>& st, Contacts<D>& c,
 }
 
 template void limit_static_overlap(const Model<2>&, State<2>&, Contacts<2>&, double);
+template void limit_static_overlap(const Model<3>&, State<3>&, Contacts<3>&, double);
 
 }  // namespace rbsim

@@ -9,6 +9,15 @@
 //
 // and likewise along the tangent t. In 2D t = (n_y, −n_x) (the numba engine's convention:
 // −perp(n), the normal turned a quarter clockwise); cross(n, 1.0) is that vector.
+//
+// In 3D, with the world inverse inertia tensors I⁻¹ = R I_b⁻¹ Rᵀ at the step's start,
+//
+//     K = 1/m_a + 1/m_b + n·((I_a⁻¹(r_a×n))×r_a) + n·((I_b⁻¹(r_b×n))×r_b)
+//       = 1/m_a + 1/m_b + (r_a×n)·I_a⁻¹(r_a×n) + (r_b×n)·I_b⁻¹(r_b×n),
+//
+// and friction acts along two tangents t1, t2 (tangent_basis) as one 2×2 block per point,
+// K_t[i][j] = (1/m_a + 1/m_b) δ_ij + (r_a×t_i)·I_a⁻¹(r_a×t_j) + (r_b×t_i)·I_b⁻¹(r_b×t_j),
+// whose inverse the row keeps.
 #include <algorithm>
 #include <cmath>
 
@@ -33,6 +42,64 @@ inline void approach_point(const State<D>& st, Contacts<D>& c, std::int64_t m, i
   c.approach_separation[m][k] = c.base_separation[m][k] + dot(n, sa - sb);
 }
 
+// The points of a 3D row: inverse masses ma, mb (1/kg), world inverse inertia tensors
+// ia, ib (1/(kg·m²)) at the step's start.
+void prepare_points_3d(const State<3>& st, Contacts<3>& c, std::int64_t m, int a, int b,
+                       double ma, double mb, const Sym3& ia, const Sym3& ib) {
+  auto& row = c.solver_row[m];
+  const Vec3 n = row.normal;
+  tangent_basis(n, row.t1, row.t2);
+  row.inv_ia = ia;
+  row.inv_ib = ib;
+  const Vec3 t1 = row.t1, t2 = row.t2;
+  for (int k = 0; k < c.points[m]; ++k) {
+    auto& pt = row.point[k];
+    const Vec3 ra = c.anchor_a[m][k], rb = c.anchor_b[m][k];
+    pt.arm_a = ra;
+    pt.arm_b = rb;
+    pt.rna = cross(ra, n);
+    pt.rnb = cross(rb, n);
+    pt.wna = ia * pt.rna;
+    pt.wnb = ib * pt.rnb;
+    const double kn = ma + mb + dot(pt.rna, pt.wna) + dot(pt.rnb, pt.wnb);
+    pt.kn = kn;
+    c.normal_mass[m][k] = kn > 0.0 ? 1.0 / kn : 0.0;
+    // the tangent block and its inverse (kg)
+    const Vec3 a1 = cross(ra, t1), a2 = cross(ra, t2), b1 = cross(rb, t1), b2 = cross(rb, t2);
+    const Vec3 ia1 = ia * a1, ia2 = ia * a2, ib1 = ib * b1, ib2 = ib * b2;
+    const double k11 = ma + mb + dot(a1, ia1) + dot(b1, ib1);
+    const double k22 = ma + mb + dot(a2, ia2) + dot(b2, ib2);
+    const double k12 = dot(a1, ia2) + dot(b1, ib2);
+    const double det = k11 * k22 - k12 * k12;
+    if (det > 1.0e-12 * k11 * k22 && det > 0.0) {
+      const double inv = 1.0 / det;
+      pt.tm11 = k22 * inv;
+      pt.tm12 = -k12 * inv;
+      pt.tm22 = k11 * inv;
+    } else {
+      pt.tm11 = pt.tm12 = pt.tm22 = 0.0;  // two fixed bodies: no friction
+    }
+    pt.tangent_mass = k11 + k22 > 0.0 ? 2.0 / (k11 + k22) : 0.0;
+    pt.ra = c.sep_anchor_a[m][k];
+    pt.rb = c.sep_anchor_b[m][k];
+    pt.base = c.base_separation[m][k];
+    approach_point(st, c, m, k, a, b, ra, rb, pt.ra, pt.rb, n);
+  }
+  // the normal block: K_ij = 1/m_a + 1/m_b + (r_a,i × n)·I_a⁻¹(r_a,j × n) + (b likewise)
+  int e = 0;
+  for (int i = 0; i < 4; ++i) {
+    for (int j = i; j < 4; ++j, ++e) {
+      if (i >= c.points[m] || j >= c.points[m]) {
+        row.k[e] = 0.0;
+        continue;
+      }
+      const auto& pi = row.point[i];
+      const auto& pj = row.point[j];
+      row.k[e] = i == j ? pi.kn : ma + mb + dot(pi.rna, pj.wna) + dot(pi.rnb, pj.wnb);
+    }
+  }
+}
+
 }  // namespace
 
 // config's soft and soft_static: (mass scale, impulse scale, bias rate) for contacts
@@ -44,7 +111,6 @@ inline void approach_point(const State<D>& st, Contacts<D>& c, std::int64_t m, i
 template <int D>
 void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c,
                       const Config& config) {
-  static_assert(D == 2, "the solver row is 2D (SolverRow<2>)");
   namespace C = constants;
   using Vec = typename Dim<D>::Vec;
   const auto& im = model.body_inv_mass;
@@ -74,8 +140,7 @@ void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c,
       }
       continue;
     }
-    const double ma = im[a], mb = im[b], ia = ii[a], ib = ii[b];
-    const Vec t = cross(n, 1.0);  // (n_y, −n_x)
+    const double ma = im[a], mb = im[b];
     row.normal = n;
     const bool fixed = ma == 0.0 || mb == 0.0;
     row.gamma = fixed ? gamma_static : gamma;
@@ -93,6 +158,12 @@ void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c,
     row.max_push = -C::CONTACT_PUSH_MAX_VELOCITY * (scale < 1.0 ? std::sqrt(scale) : 1.0);
     row.deep = -scale * C::DEEP_OVERLAP;
     row.friction = c.friction[m];
+    if constexpr (D == 3) {
+      prepare_points_3d(st, c, m, a, b, ma, mb, rotate_tensor(st.body_q[a], ii[a]),
+                        rotate_tensor(st.body_q[b], ii[b]));
+    } else {
+    const double ia = ii[a], ib = ii[b];
+    const Vec t = cross(n, 1.0);  // (n_y, −n_x)
     for (int k = 0; k < npts; ++k) {
       auto& pt = row.point[k];
       const Vec ra = c.anchor_a[m][k], rb = c.anchor_b[m][k];
@@ -112,11 +183,6 @@ void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c,
       pt.base = c.base_separation[m][k];
       approach_point(st, c, m, k, a, b, ra, rb, pt.ra, pt.rb, n);
     }
-    if (own) {
-      const Soft s = soft_parameters(row_hertz, C::CONTACT_DAMPING_RATIO, h);
-      row.gamma = gamma_of(s);
-      row.bias_rate = s.bias_rate;
-    }
     if (npts == 2) {
       // the off-diagonal of the two points' normal block (1/kg)
       const auto& p0 = row.point[0];
@@ -124,9 +190,16 @@ void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c,
       const double k01 = ma + mb + ia * p0.rna * p1.rna;
       row.k01 = k01 + ib * p0.rnb * p1.rnb;
     }
+    }
+    if (own) {
+      const Soft s = soft_parameters(row_hertz, C::CONTACT_DAMPING_RATIO, h);
+      row.gamma = gamma_of(s);
+      row.bias_rate = s.bias_rate;
+    }
   }
 }
 
 template void prepare_contacts(const Model<2>&, const State<2>&, Contacts<2>&, const Config&);
+template void prepare_contacts(const Model<3>&, const State<3>&, Contacts<3>&, const Config&);
 
 }  // namespace rbsim

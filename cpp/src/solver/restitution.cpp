@@ -41,6 +41,7 @@
 // impulse the impact really delivered, in whichever substeps it fell, and does not depend
 // on the step.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
@@ -156,11 +157,17 @@ void take_back(const Model<D>& model, State<D>& st, Contacts<D>& c, std::int64_t
   const double j = c.normal_impulse[m][k];
   c.normal_impulse[m][k] = 0.0;
   push_point(model, st, a, b, c.anchor_a[m][k], c.anchor_b[m][k], n, -j);
-  const double jt = c.tangent_impulse[m][k];
-  if (jt != 0.0) {
-    c.tangent_impulse[m][k] = 0.0;
-    if constexpr (D == 2)
+  const auto jt = c.tangent_impulse[m][k];
+  if constexpr (D == 2) {
+    if (jt != 0.0) {
+      c.tangent_impulse[m][k] = 0.0;
       push_point(model, st, a, b, c.anchor_a[m][k], c.anchor_b[m][k], cross(n, 1.0), -jt);
+    }
+  } else {
+    if (jt.x != 0.0 || jt.y != 0.0 || jt.z != 0.0) {
+      c.tangent_impulse[m][k] = Vec3{};
+      push_impulse(model, st, a, b, c.anchor_a[m][k], c.anchor_b[m][k], -jt);
+    }
   }
 }
 
@@ -179,11 +186,22 @@ inline void end_impact(Contacts<D>& c, std::int64_t m, int k) {
 template <int D>
 void impact_friction(const Model<D>& model, State<D>& st, Contacts<D>& c, std::int64_t m, int k,
                      int a, int b, double jn) {
-  static_assert(D == 2, "the solver row is 2D (SolverRow<2>)");
   const double limit = c.friction[m] * jn;
   if (!(limit > 0.0)) return;
   const auto& row = c.solver_row[m];
   const auto& pt = row.point[k];
+  if constexpr (D == 3) {
+    // the 2×2 tangent block, clamped to Coulomb's circle (solve.cpp)
+    const Vec3 ra = c.anchor_a[m][k], rb = c.anchor_b[m][k];
+    const Vec3 u = (st.body_v[a] + cross(st.body_w[a], ra)) - (st.body_v[b] + cross(st.body_w[b], rb));
+    double j1 = 0.0, j2 = 0.0;
+    friction_circle(j1, j2, dot(u, row.t1), dot(u, row.t2), pt.tm11, pt.tm12, pt.tm22, pt.tangent_mass, limit);
+    if (j1 == 0.0 && j2 == 0.0) return;
+    const Vec3 p = j1 * row.t1 + j2 * row.t2;
+    push_impulse(model, st, a, b, ra, rb, p);
+    c.tangent_impulse[m][k] += p;
+    return;
+  } else {
   const Vec2 t = cross(row.normal, 1.0);  // (n_y, −n_x), as the solve's
   const double vt =
       dot(st.body_v[a] - st.body_v[b], t) + (st.body_w[a] * pt.rta - st.body_w[b] * pt.rtb);
@@ -194,6 +212,7 @@ void impact_friction(const Model<D>& model, State<D>& st, Contacts<D>& c, std::i
   st.body_v[b] -= (model.body_inv_mass[b] * jt) * t;
   st.body_w[b] -= model.body_inv_inertia[b] * (jt * pt.rtb);
   c.tangent_impulse[m][k] += jt;
+  }
 }
 
 // The impulses left on a bounced point for the next substep's warm start: the load it
@@ -204,41 +223,55 @@ inline void drop_bounce(Contacts<D>& c, std::int64_t m, int k) {
   const double jn = std::fmin(c.normal_impulse[m][k], c.start_impulse[m][k]);
   c.normal_impulse[m][k] = jn;
   const double limit = c.friction[m] * jn;
-  c.tangent_impulse[m][k] = std::fmin(std::fmax(c.tangent_impulse[m][k], -limit), limit);
+  if constexpr (D == 2) {
+    c.tangent_impulse[m][k] = std::fmin(std::fmax(c.tangent_impulse[m][k], -limit), limit);
+  } else {  // onto Coulomb's circle
+    const Vec3 jt = c.tangent_impulse[m][k];
+    const double sq = dot(jt, jt);
+    if (sq > limit * limit) c.tangent_impulse[m][k] = (limit / std::sqrt(sq)) * jt;
+  }
 }
 
 // Energy the impact owes besides the bounce (see the passes below; zeros elsewhere): work
-// (J), e², h·sign·acc (m/s), and u0, u1 (m/s), each point's target alone with its own
+// (J), e², h·sign·acc (m/s), and u[k] (m/s), each point's target alone with its own
 // share of the work.
+template <int D>
 struct Owed {
-  double work = 0.0, e2 = 0.0, hsa = 0.0, u0 = 0.0, u1 = 0.0;
+  double work = 0.0, e2 = 0.0, hsa = 0.0;
+  std::array<double, Dim<D>::max_points> u{};
 };
 
-struct PointImpulses {
-  double j0 = 0.0, j1 = 0.0;  // N·s at points 0 and 1
-};
+template <int D>
+using PointImpulses = std::array<double, Dim<D>::max_points>;  // N·s at each point
+template <int D>
+using PointFlags = std::array<bool, Dim<D>::max_points>;
 
-// Raise the normal velocity of manifold m's points to their targets t0, t1 (m/s) where
-// need0, need1, by impulses added to normal_impulse (kept >= 0). Both points at once are
+// Raise the normal velocity of manifold m's points to their targets t[k] (m/s) where
+// need[k], by impulses added to normal_impulse (kept >= 0). In 2D both points at once are
 // one 2x2 block (a box landing flat gets mirror-image impulses; one after the other would
-// tip it). When the block would pull, one point at a time; with `single`, only the point
-// furthest below its target (the caller comes back for the other with a target from its
-// velocity then: the first point's impulse changes it). Returns the impulses applied.
+// tip it). When the block would pull, and in 3D, one point at a time; with `single`, only
+// the point furthest below its target (the caller comes back for the others with targets
+// from their velocities then: the first point's impulse changes them). Returns the
+// impulses applied.
 //
 // With owed.work != 0 the block raises both targets by the same c for which its impulses
-// do e² times that work; a single point takes u0 or u1, its own target with its own
-// share of the work. (The block is of a manifold's two points: 2D's face contact.)
+// do e² times that work; a single point takes u[k], its own target with its own share of
+// the work. (The block is of a manifold's two points: 2D's face contact.)
 template <int D>
-PointImpulses push_targets(const Model<D>& model, State<D>& st, Contacts<D>& c, std::int64_t m,
-                           int a, int b, bool need0, double t0, bool need1, double t1,
-                           bool single, const Owed& owed) {
+PointImpulses<D> push_targets(const Model<D>& model, State<D>& st, Contacts<D>& c,
+                              std::int64_t m, int a, int b, PointFlags<D> need,
+                              std::array<double, Dim<D>::max_points> t, bool single,
+                              const Owed<D>& owed) {
   using Vec = typename Dim<D>::Vec;
+  constexpr int P = Dim<D>::max_points;
   const Vec n = c.normal[m];
+  const bool need0 = need[0], need1 = need[1];
+  const double t0 = t[0], t1 = t[1];
   const double ima = model.body_inv_mass[a], imb = model.body_inv_mass[b];
   const auto& iia = model.body_inv_inertia[a];
   const auto& iib = model.body_inv_inertia[b];
   const auto qa = st.body_q[a], qb = st.body_q[b];
-  if (need0 && need1) {
+  if (D == 2 && need0 && need1) {
     const Vec r0a = c.anchor_a[m][0], r0b = c.anchor_b[m][0];
     const Vec r1a = c.anchor_a[m][1], r1b = c.anchor_b[m][1];
     // lever arms r × n (2D: m; 3D: vectors)
@@ -278,34 +311,44 @@ PointImpulses push_targets(const Model<D>& model, State<D>& st, Contacts<D>& c, 
         lam[1] += j1;
         const Vec p = (j0 + j1) * n;
         st.body_v[a] += ima * p;
-        st.body_w[a] += Dim<D>::apply_inv_inertia(iia, qa, j0 * ca0 + j1 * ca1);
+        add_angular(model, st, a, j0 * ca0 + j1 * ca1);
         st.body_v[b] -= imb * p;
-        st.body_w[b] -= Dim<D>::apply_inv_inertia(iib, qb, j0 * cb0 + j1 * cb1);
-        return {j0, j1};
+        add_angular(model, st, b, -(j0 * cb0 + j1 * cb1));
+        PointImpulses<D> out{};
+        out[0] = j0;
+        out[1] = j1;
+        return out;
       }
     }
   }
-  PointImpulses out;
-  t0 = owed.u0;
-  t1 = owed.u1;
-  if (single && need0 && need1) {
-    const double d0 = t0 - normal_velocity(st, a, b, c.anchor_a[m][0], c.anchor_b[m][0], n);
-    const double d1 = t1 - normal_velocity(st, a, b, c.anchor_a[m][1], c.anchor_b[m][1], n);
-    if (d0 >= d1)
-      need1 = false;
-    else
-      need0 = false;
+  PointImpulses<D> out{};
+  t = owed.u;
+  int needing = 0;
+  for (int k = 0; k < P; ++k) needing += need[k] ? 1 : 0;
+  if (single && needing > 1) {
+    // only the point furthest below its target (the first on a tie)
+    int best = -1;
+    double most = 0.0;
+    for (int k = 0; k < P; ++k) {
+      if (!need[k]) continue;
+      const double d = t[k] - normal_velocity(st, a, b, c.anchor_a[m][k], c.anchor_b[m][k], n);
+      if (best < 0 || d > most) {
+        best = k;
+        most = d;
+      }
+    }
+    for (int k = 0; k < P; ++k) need[k] = k == best;
   }
-  for (int k = 0; k < 2; ++k) {
-    if (!(k == 0 ? need0 : need1)) continue;
+  for (int k = 0; k < P; ++k) {
+    if (!need[k]) continue;
     const Vec ra = c.anchor_a[m][k], rb = c.anchor_b[m][k];
     const double vn = normal_velocity(st, a, b, ra, rb, n);
     const double lam = c.normal_impulse[m][k];
-    const double next = std::fmax(lam - c.normal_mass[m][k] * (vn - (k == 0 ? t0 : t1)), 0.0);
+    const double next = std::fmax(lam - c.normal_mass[m][k] * (vn - t[k]), 0.0);
     const double impulse = next - lam;
     c.normal_impulse[m][k] = next;
     push_point(model, st, a, b, ra, rb, n, impulse);
-    (k == 0 ? out.j0 : out.j1) = impulse;
+    out[k] = impulse;
   }
   return out;
 }
@@ -442,8 +485,9 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
     const double e = c.restitution[m];
     const Vec n = c.normal[m];
     const double acc = relative_acceleration(model, a, b, n);
-    double t0 = 0.0, t1 = 0.0;
-    bool bounce0 = false, bounce1 = false, deferred = false;
+    std::array<double, Dim<D>::max_points> target{};
+    PointFlags<D> bounce{};
+    bool deferred = false, any_bounce = false;
     for (int k = 0; k < c.points[m]; ++k) {
       const Impact at =
           impact_state(model, st, c, m, k, a, b, n, threshold, h, explicit_euler);
@@ -465,26 +509,21 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
       end_impact(c, m, k);
       const double s_now = point_separation(c, m, k, a, b, n);
       const double invariant = 0.5 * vn0 * vn0 - 0.5 * acc * h * vn0 - acc * s0;
-      const double target = bounce_target(invariant, s_now, acc, e, h, sign);
-      if (k == 0) {
-        bounce0 = true;
-        t0 = target;
-      } else {
-        bounce1 = true;
-        t1 = target;
-      }
+      bounce[k] = true;
+      any_bounce = true;
+      target[k] = bounce_target(invariant, s_now, acc, e, h, sign);
     }
     if (deferred) {
       c.bounce_list[count.bounce_count] = static_cast<std::int32_t>(m);
       ++count.bounce_count;
     }
-    if (!(bounce0 || bounce1)) continue;
-    const Owed owed{0.0, 0.0, 0.0, t0, t1};
-    const auto j = push_targets(model, st, c, m, a, b, bounce0, t0, bounce1, t1, false, owed);
+    if (!any_bounce) continue;
+    const Owed<D> owed{0.0, 0.0, 0.0, target};
+    const auto j = push_targets(model, st, c, m, a, b, bounce, target, false, owed);
     for (int k = 0; k < c.points[m]; ++k) {
-      const double jk = k == 0 ? j.j0 : j.j1;
+      const double jk = j[k];
       c.max_normal_impulse[m][k] = std::fmax(c.max_normal_impulse[m][k], jk);
-      if (k == 0 ? bounce0 : bounce1) {
+      if (bounce[k]) {
         impact_friction(model, st, c, m, k, a, b, jk);
         drop_bounce(c, m, k);
       }
@@ -503,8 +542,10 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
       const double e = c.restitution[m];
       const Vec n = c.normal[m];
       const double acc = relative_acceleration(model, a, b, n);
-      double t0 = 0.0, t1 = 0.0, u0 = 0.0, u1 = 0.0, total_work = 0.0;
-      bool need0 = false, need1 = false;
+      std::array<double, Dim<D>::max_points> t{}, u{};
+      PointFlags<D> need{};
+      double total_work = 0.0;
+      bool any_need = false;
       for (int k = 0; k < c.points[m]; ++k) {
         const double vn = normal_velocity(st, a, b, c.anchor_a[m][k], c.anchor_b[m][k], n);
         if (vn >= 0.0) continue;
@@ -530,29 +571,24 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
           }
         }
         total_work += work;
-        if (k == 0) {
-          need0 = true;
-          t0 = target;
-          u0 = alone;
-        } else {
-          need1 = true;
-          t1 = target;
-          u1 = alone;
-        }
+        need[k] = true;
+        any_need = true;
+        t[k] = target;
+        u[k] = alone;
       }
-      if (!(need0 || need1)) continue;
+      if (!any_need) continue;
       // each impulse is a bounce against the velocity it meets (a block's two targets
       // are both taken from the velocities before it): e = 1 keeps the energy exactly,
       // and a point left for later is taken up in the next pass; each has its friction
-      const Owed owed{total_work, e * e, sign * h * acc, u0, u1};
-      const auto j = push_targets(model, st, c, m, a, b, need0, t0, need1, t1, true, owed);
+      const Owed<D> owed{total_work, e * e, sign * h * acc, u};
+      const auto j = push_targets(model, st, c, m, a, b, need, t, true, owed);
       for (int k = 0; k < c.points[m]; ++k) {
-        const double jk = k == 0 ? j.j0 : j.j1;
-        const bool bounced = (k == 0 ? need0 : need1) && jk != 0.0;
+        const double jk = j[k];
+        const bool bounced = need[k] && jk != 0.0;
         if (bounced) impact_friction(model, st, c, m, k, a, b, jk);
-        if (bounced && (k == 0 ? u0 : u1) > 0.0) end_impact(c, m, k);  // bounced
+        if (bounced && u[k] > 0.0) end_impact(c, m, k);  // bounced
+        if (jk > 0.0) struck = true;
       }
-      if (j.j0 > 0.0 || j.j1 > 0.0) struck = true;
     }
     if (!struck) break;
   }
@@ -587,5 +623,7 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
 
 template void keep_solve_impulses(Contacts<2>&);
 template void apply_restitution(const Model<2>&, State<2>&, Contacts<2>&, double, double, double);
+template void keep_solve_impulses(Contacts<3>&);
+template void apply_restitution(const Model<3>&, State<3>&, Contacts<3>&, double, double, double);
 
 }  // namespace rbsim

@@ -28,16 +28,90 @@ inline double normal_velocity(const State<D>& st, int a, int b, typename Dim<D>:
   return dot(dv, n);
 }
 
+// Add the angular impulse dl (N·m·s, about the COM, world frame) to body i. 2D: ω += dl/I.
+// 3D: the angular momentum L is the state (integrate.cpp), so L += dl and ω is found
+// from it again, ω = R I_b⁻¹ Rᵀ L, at the body's rotation now: ω and L never disagree.
+// A static or kinematic body (zero inverse mass) is left alone.
+inline void add_angular(const Model<2>& model, State<2>& st, int i, double dl) {
+  st.body_w[i] += model.body_inv_inertia[i] * dl;
+}
+inline void add_angular(const Model<3>& model, State<3>& st, int i, Vec3 dl) {
+  if (model.body_inv_mass[i] == 0.0) return;
+  st.body_l[i] += dl;
+  st.body_w[i] = Dim<3>::apply_inv_inertia(model.body_inv_inertia[i], st.body_q[i], st.body_l[i]);
+}
+// 3D: body i's ω from its L after the passes changed L (a dynamic body only).
+inline void refresh_omega(const Model<3>& model, State<3>& st, int i) {
+  st.body_w[i] = Dim<3>::apply_inv_inertia(model.body_inv_inertia[i], st.body_q[i], st.body_l[i]);
+}
+
+// Apply the impulse p (N·s) at a point with arms ra, rb (m): +p on a, −p on b.
+template <int D>
+inline void push_impulse(const Model<D>& model, State<D>& st, int a, int b,
+                         typename Dim<D>::Vec ra, typename Dim<D>::Vec rb, typename Dim<D>::Vec p) {
+  st.body_v[a] += model.body_inv_mass[a] * p;
+  add_angular(model, st, a, cross(ra, p));
+  st.body_v[b] -= model.body_inv_mass[b] * p;
+  add_angular(model, st, b, -cross(rb, p));
+}
+
 // Apply the normal impulse j (N·s) at a point with arms ra, rb (m): +j n on a, −j n on b.
 template <int D>
 inline void push_point(const Model<D>& model, State<D>& st, int a, int b,
                        typename Dim<D>::Vec ra, typename Dim<D>::Vec rb,
                        typename Dim<D>::Vec n, double j) {
   auto p = j * n;
-  st.body_v[a] += model.body_inv_mass[a] * p;
-  st.body_w[a] += Dim<D>::apply_inv_inertia(model.body_inv_inertia[a], st.body_q[a], cross(ra, p));
-  st.body_v[b] -= model.body_inv_mass[b] * p;
-  st.body_w[b] -= Dim<D>::apply_inv_inertia(model.body_inv_inertia[b], st.body_q[b], cross(rb, p));
+  if constexpr (D == 2) {
+    st.body_v[a] += model.body_inv_mass[a] * p;
+    st.body_w[a] += model.body_inv_inertia[a] * cross(ra, p);
+    st.body_v[b] -= model.body_inv_mass[b] * p;
+    st.body_w[b] -= model.body_inv_inertia[b] * cross(rb, p);
+  } else {
+    push_impulse(model, st, a, b, ra, rb, p);
+  }
+}
+
+// 3D: an orthonormal tangent basis t1, t2 of the plane normal to the unit vector n, with
+// t1 × t2 = n: t1 across n from the world axis least along n (the lowest such axis on a
+// tie), so that the basis is a fixed function of n.
+inline void tangent_basis(Vec3 n, Vec3& t1, Vec3& t2) {
+  const double ax = std::fabs(n.x), ay = std::fabs(n.y), az = std::fabs(n.z);
+  Vec3 e{0.0, 0.0, 1.0};
+  if (ax <= ay && ax <= az)
+    e = {1.0, 0.0, 0.0};
+  else if (ay <= az)
+    e = {0.0, 1.0, 0.0};
+  Vec3 t = cross(n, e);
+  t1 = (1.0 / length(t)) * t;
+  t2 = cross(n, t1);
+}
+
+// 3D: Coulomb friction at a point, as the accumulated impulse (l1, l2) (N·s, components
+// along t1, t2) given the sliding velocity (vt1, vt2) (m/s) now. Sticking: the impulse
+// that stops the sliding at once, through the inverse of the point's 2×2 tangent block
+// (m11, m12, m22) (kg), if it lies within Coulomb's circle of radius `limit` (N·s).
+// Sliding (it does not): the step against the slip with the block's mean mass m (kg: 2 /
+// trace K_t), scaled back onto the circle. Clamping the block's own answer instead would
+// point the friction along K_t⁻¹ v_t, not against the slip: at a point off the centre of
+// mass K_t is anisotropic, and a box sliding on a slope on its four corners got friction
+// splayed 20° sideways at each corner and slid 4% fast. Both steps, and the circle, are
+// the same in any tangent basis.
+inline void friction_circle(double& l1, double& l2, double vt1, double vt2, double m11,
+                            double m12, double m22, double m, double limit) {
+  double n1 = l1 - (m11 * vt1 + m12 * vt2);
+  double n2 = l2 - (m12 * vt1 + m22 * vt2);
+  if (n1 * n1 + n2 * n2 > limit * limit) {
+    n1 = l1 - m * vt1;
+    n2 = l2 - m * vt2;
+    const double sq = n1 * n1 + n2 * n2;
+    if (sq > limit * limit) {
+      const double k = sq > 0.0 ? limit / std::sqrt(sq) : 0.0;
+      n1 *= k;
+      n2 *= k;
+    }
+  }
+  l1 = n1;
+  l2 = n2;
 }
 
 // Separation now (m) of a point of a solver row: n · (d_a − d_b + R_a r_a − R_b r_b) + base,

@@ -96,6 +96,64 @@ void contact_levels(const Model<D>& model, Contacts<D>& c) {
 // ω · (r × n) for a point's angular lever (2D: scalars; 3D: vectors).
 inline double angular_along(double w, double r) { return w * r; }
 
+// The 3D pass: the supported body's approach taken out point by point (a face's up to
+// four points, one after the other, each impulse λ >= 0 against the velocity it meets),
+// the supporter held still; the body's v and L changed, ω found again from L.
+void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
+                        std::int64_t n_order, double inv_h, double threshold) {
+  for (std::int64_t o = 0; o < n_order; ++o) {
+    const std::int32_t m = c.shock_order[o];
+    const int a = c.body_a[m], b = c.body_b[m];
+    const SolverRow<3>& row = c.solver_row[m];
+    const Vec3 n = row.normal;
+    const int npts = c.points[m];
+    const Vec3 va = st.body_v[a], vb = st.body_v[b], wa = st.body_w[a], wb = st.body_w[b];
+    double slowest = 0.0;  // m/s: the fastest approach among the points
+    for (int k = 0; k < npts; ++k) {
+      const auto& pt = row.point[k];
+      const double vel = dot(n, (va + cross(wa, pt.arm_a)) - (vb + cross(wb, pt.arm_b)));
+      slowest = std::min(slowest, vel);
+    }
+    // most supported points are not approaching: skip them before any other work
+    if (!(slowest < -C::SHOCK_MIN_APPROACH)) continue;
+    if (c.restitution[m] > 0.0 && slowest < -threshold) continue;
+    const BodyDelta<3>& da = c.body_delta[a];
+    const BodyDelta<3>& db = c.body_delta[b];
+    const double moved = dot(n, da.dx - db.dx);  // m
+    const Vec3 na = inv_rotate(da.dq, n);
+    const Vec3 nb = inv_rotate(db.dq, n);
+    // the supported body moves; the sign turns its push along +n (a) or -n (b)
+    const bool a_moves = c.shock_side[m] == 2;
+    const int u = a_moves ? a : b;
+    const double sgn = a_moves ? 1.0 : -1.0;
+    const double mu = model.body_inv_mass[u];
+    Vec3 vu = st.body_v[u], wu = st.body_w[u], dl{};
+    bool pushed = false;
+    for (int k = 0; k < npts; ++k) {
+      const auto& pt = row.point[k];
+      const Vec3 pa = a_moves ? vu + cross(wu, pt.arm_a) : va + cross(wa, pt.arm_a);
+      const Vec3 pb = a_moves ? vb + cross(wb, pt.arm_b) : vu + cross(wu, pt.arm_b);
+      const double vel = dot(n, pa - pb);
+      const double sep = row_separation(pt, moved, na, nb);
+      // how far the point is from allowed (m/s): a gap may close within the substep
+      const double need = (sep > 0.0 ? -sep * inv_h : 0.0) - vel;
+      const Vec3 rn = a_moves ? pt.rna : pt.rnb;  // m: the supported body's lever
+      const Vec3 wn = a_moves ? pt.wna : pt.wnb;
+      const double k_u = mu + dot(rn, wn);  // 1/kg
+      if (!(need > 0.0 && k_u > 0.0)) continue;
+      const double lam = need / k_u;  // N·s along the supported body's push direction
+      vu += (sgn * mu * lam) * n;
+      wu += (sgn * lam) * wn;
+      dl += (sgn * lam) * rn;
+      pushed = true;
+    }
+    if (!pushed) continue;
+    st.body_v[u] = vu;
+    st.body_l[u] += dl;
+    refresh_omega(model, st, u);
+  }
+}
+
 }  // namespace
 
 // Support level of every body, and the orders of the solver's and the shock pass.
@@ -254,6 +312,9 @@ std::int64_t deep_region(const Model<D>& model, Contacts<D>& c, int reach) {
 template <int D>
 void propagate_shock(const Model<D>& model, State<D>& st, Contacts<D>& c, std::int64_t n_order,
                      double inv_h, double threshold) {
+  if constexpr (D == 3) {
+    propagate_shock_3d(model, st, c, n_order, inv_h, threshold);
+  } else {
   using Vec = typename Dim<D>::Vec;
   auto& v = st.body_v;
   auto& w = st.body_w;
@@ -335,11 +396,16 @@ void propagate_shock(const Model<D>& model, State<D>& st, Contacts<D>& c, std::i
     v[u] += (sgn * mu * impulse) * n;
     w[u] += sgn * iu * (l0 * r0 + l1 * r1);
   }
+  }
 }
 
 template std::int64_t support_order(const Model<2>&, Contacts<2>&);
 template std::int64_t deep_region(const Model<2>&, Contacts<2>&, int);
 template void propagate_shock(const Model<2>&, State<2>&, Contacts<2>&, std::int64_t, double,
+                              double);
+template std::int64_t support_order(const Model<3>&, Contacts<3>&);
+template std::int64_t deep_region(const Model<3>&, Contacts<3>&, int);
+template void propagate_shock(const Model<3>&, State<3>&, Contacts<3>&, std::int64_t, double,
                               double);
 
 }  // namespace rbsim

@@ -20,6 +20,7 @@
 //
 // In 2D the tangent is t = (n_y, −n_x) = cross(n, 1.0), the numba engine's convention.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
@@ -73,13 +74,177 @@ inline void mark_deep(Contacts<D>& c, std::int64_t m) {
   }
 }
 
+// The 3D pass: a manifold's points (up to four) one after the other, normal rows first,
+// then each point's friction as one 2×2 block clamped to Coulomb's circle. The bodies'
+// velocities are followed through the manifold in local copies, with the row's world
+// inverse inertia tensors (the step's start); what the manifold changes is written back
+// once, as momentum: v += Δp/m, L += ΔL, and ω = R I_b⁻¹ Rᵀ L at the body's rotation now.
+//
+// A face's points (two to four) are solved as one block, as 2D solves its two: one after
+// the other, a box resting on four corners got unequal impulses and a slow spin (1e-8
+// rad/s) that friction turned into a drift. Four coplanar points make a rigid block of
+// rank 3 (a box on four corners is statically indeterminate): the soft rows' γ makes
+// the solve stage's block regular, and the relax stage's is regularised by BLOCK_EPS of
+// its diagonal, which picks the smallest change of the impulses (the right-hand side,
+// the rigid bodies' own normal velocities, lies in K's range). When the block would pull
+// (an impulse < 0: a face tipping), the points go one after the other, the solve stage
+// forward and the relax stage backward.
+constexpr double BLOCK_EPS = 1e-9;
+
+// Solve (K + diag(g) + BLOCK_EPS diag(K)) d = r for the n points (n <= 4) by LDLᵀ; false
+// when a pivot is not positive.
+inline bool solve_block(const std::array<double, 10>& k, const double* g, const double* r,
+                        int n, double* d) {
+  double A[4][4];
+  int e = 0;
+  for (int i = 0; i < 4; ++i)
+    for (int j = i; j < 4; ++j, ++e) A[i][j] = A[j][i] = k[e];
+  for (int i = 0; i < n; ++i) A[i][i] += g[i] + BLOCK_EPS * A[i][i];
+  double L[4][4] = {}, dg[4];
+  for (int j = 0; j < n; ++j) {
+    double v = A[j][j];
+    for (int p = 0; p < j; ++p) v -= L[j][p] * L[j][p] * dg[p];
+    if (!(v > 1e-12 * A[j][j])) return false;
+    dg[j] = v;
+    for (int i = j + 1; i < n; ++i) {
+      double x = A[i][j];
+      for (int p = 0; p < j; ++p) x -= L[i][p] * L[j][p] * dg[p];
+      L[i][j] = x / v;
+    }
+  }
+  double y[4];
+  for (int i = 0; i < n; ++i) {
+    y[i] = r[i];
+    for (int p = 0; p < i; ++p) y[i] -= L[i][p] * y[p];
+  }
+  for (int i = n - 1; i >= 0; --i) {
+    d[i] = y[i] / dg[i];
+    for (int p = i + 1; p < n; ++p) d[i] -= L[p][i] * d[p];
+  }
+  return true;
+}
+
+void solve_contacts_3d(const Model<3>& model, State<3>& st, Contacts<3>& c, double inv_h,
+                       bool use_bias, double shift, double threshold, const std::int32_t* order,
+                       std::int64_t n) {
+  const double* im = model.body_inv_mass.data();
+  Vec3* v = st.body_v.data();
+  Vec3* w = st.body_w.data();
+  Vec3* l = st.body_l.data();
+  const BodyDelta<3>* delta = c.body_delta.data();
+  for (std::int64_t o = 0; o < n; ++o) {
+    const std::int64_t m = order[o];
+    const int a = c.body_a[m], b = c.body_b[m];
+    const double ma = im[a], mb = im[b];
+    const SolverRow<3>& row = c.solver_row[m];
+    Vec3 va = v[a], vb = v[b], wa = w[a], wb = w[b];
+    Vec3 dla{}, dlb{};  // N·m·s: the angular impulses on each body
+    const Vec3 nrm = row.normal, t1 = row.t1, t2 = row.t2;
+    const BodyDelta<3>& da = delta[a];
+    const BodyDelta<3>& db = delta[b];
+    const double moved = dot(nrm, da.dx - db.dx);
+    const Vec3 na = inv_rotate(da.dq, nrm);
+    const Vec3 nb = inv_rotate(db.dq, nrm);
+    const int npts = c.points[m];
+    // the normal impulse jn (N·s) at a point, on the local velocities and L's change
+    auto push = [&](const SolverRow<3>::Point& pt, double jn) {
+      va += (ma * jn) * nrm;
+      wa += jn * pt.wna;
+      dla += jn * pt.rna;
+      vb -= (mb * jn) * nrm;
+      wb -= jn * pt.wnb;
+      dlb -= jn * pt.rnb;
+    };
+    bool deep = false;
+    bool block = false;
+    if (npts >= 2) {
+      // every point's target from the same velocities, one block
+      double sep[4], vn[4], gam[4], r[4], d[4];
+      for (int k = 0; k < npts; ++k) {
+        const auto& pt = row.point[k];
+        sep[k] = row_separation(pt, moved, na, nb);
+        const auto [bias, gamma] =
+            soft_target(sep[k], use_bias, inv_h, row.bias_rate, row.max_push, pt.kn, row.gamma);
+        deep = deep || sep[k] < row.deep;
+        const Vec3 u = (va + cross(wa, pt.arm_a)) - (vb + cross(wb, pt.arm_b));
+        vn[k] = dot(u, nrm);
+        gam[k] = gamma;
+        r[k] = -vn[k] - (bias + gamma * c.normal_impulse[m][k]);
+      }
+      if (solve_block(row.k, gam, r, npts, d)) {
+        block = true;
+        for (int k = 0; k < npts; ++k) block = block && c.normal_impulse[m][k] + d[k] >= 0.0;
+      }
+      if (block) {
+        for (int k = 0; k < npts; ++k) {
+          const auto& pt = row.point[k];
+          const double jn =
+              clamp_normal(c, m, k, c.normal_impulse[m][k], d[k], vn[k], sep[k], shift, threshold);
+          push(pt, jn);
+        }
+      }
+    }
+    for (int i = 0; i < (block ? 0 : npts); ++i) {
+      const int k = use_bias ? i : npts - 1 - i;  // forward in the solve, backward in relax
+      const auto& pt = row.point[k];
+      const double s = row_separation(pt, moved, na, nb);
+      const auto [bias, gamma] =
+          soft_target(s, use_bias, inv_h, row.bias_rate, row.max_push, pt.kn, row.gamma);
+      deep = deep || s < row.deep;
+      const Vec3 u = (va + cross(wa, pt.arm_a)) - (vb + cross(wb, pt.arm_b));
+      const double vn = dot(u, nrm);
+      const double lam = c.normal_impulse[m][k];
+      const double impulse = (-vn - (bias + gamma * lam)) * (1.0 / (pt.kn + gamma));
+      const double jn = clamp_normal(c, m, k, lam, impulse, vn, s, shift, threshold);
+      push(pt, jn);
+    }
+    if (use_bias && deep) mark_deep(c, m);
+    const double mu = row.friction;
+    if (mu > 0.0) {
+      for (int i = 0; i < npts; ++i) {
+        const int k = use_bias ? i : npts - 1 - i;
+        const auto& pt = row.point[k];
+        const double limit = mu * c.normal_impulse[m][k];
+        const Vec3 jt = c.tangent_impulse[m][k];
+        if (limit == 0.0 && jt.x == 0.0 && jt.y == 0.0 && jt.z == 0.0) continue;
+        const Vec3 u = (va + cross(wa, pt.arm_a)) - (vb + cross(wb, pt.arm_b));
+        const double l1 = dot(jt, t1), l2 = dot(jt, t2);
+        double n1 = l1, n2 = l2;
+        friction_circle(n1, n2, dot(u, t1), dot(u, t2), pt.tm11, pt.tm12, pt.tm22, pt.tangent_mass, limit);
+        c.tangent_impulse[m][k] = n1 * t1 + n2 * t2;
+        const Vec3 p = (n1 - l1) * t1 + (n2 - l2) * t2;
+        const Vec3 ta = cross(pt.arm_a, p), tb = cross(pt.arm_b, p);
+        va += ma * p;
+        wa += row.inv_ia * ta;
+        dla += ta;
+        vb -= mb * p;
+        wb -= row.inv_ib * tb;
+        dlb -= tb;
+      }
+    }
+    // a static or kinematic body is not written (its velocity does not change)
+    if (ma != 0.0) {
+      v[a] = va;
+      l[a] += dla;
+      refresh_omega(model, st, a);
+    }
+    if (mb != 0.0) {
+      v[b] = vb;
+      l[b] += dlb;
+      refresh_omega(model, st, b);
+    }
+  }
+}
+
 }  // namespace
 
 template <int D>
 void solve_contacts(const Model<D>& model, State<D>& st, Contacts<D>& c, double inv_h,
                     bool use_bias, double shift, double threshold, const std::int32_t* order,
                     std::int64_t n) {
-  static_assert(D == 2, "the solver row is 2D (SolverRow<2>)");
+  if constexpr (D == 3) {
+    solve_contacts_3d(model, st, c, inv_h, use_bias, shift, threshold, order, n);
+  } else {
   using Vec = typename Dim<D>::Vec;
   const double* im = model.body_inv_mass.data();
   const double* ii = model.body_inv_inertia.data();
@@ -231,9 +396,12 @@ void solve_contacts(const Model<D>& model, State<D>& st, Contacts<D>& c, double 
       w[b] = wb;
     }
   }
+  }
 }
 
 template void solve_contacts(const Model<2>&, State<2>&, Contacts<2>&, double, bool, double,
+                             double, const std::int32_t*, std::int64_t);
+template void solve_contacts(const Model<3>&, State<3>&, Contacts<3>&, double, bool, double,
                              double, const std::int32_t*, std::int64_t);
 
 namespace {
@@ -446,7 +614,12 @@ void solve_batch(State<2>& st, Contacts<2>& c, const WideBatch& B, double inv_h,
 template <int D>
 void solve_waves(const Model<D>& model, State<D>& st, Contacts<D>& c, double inv_h,
                    bool use_bias, double shift, double threshold) {
-  static_assert(D == 2, "the batches hold 2D solver rows");
+  if constexpr (D == 3) {
+    // 3D: no waves yet (the batches hold 2D rows): the scalar pass in solve order
+    solve_contacts(model, st, c, inv_h, use_bias, shift, threshold, c.solve_order.data(),
+                   c.count.manifolds);
+    return;
+  } else {
   for (std::int64_t g = 0; g < c.wave_count; ++g) {
     const std::int64_t single = c.wave_single_batch[g];  // the first batch of one-point ones
     for (std::int64_t i = c.wave_batch[g]; i < single; ++i)
@@ -454,9 +627,11 @@ void solve_waves(const Model<D>& model, State<D>& st, Contacts<D>& c, double inv
     for (std::int64_t i = single; i < c.wave_batch[g + 1]; ++i)
       solve_batch<false>(st, c, c.batches[i], inv_h, use_bias, shift, threshold);
   }
+  }
 }
 
 template void solve_waves(const Model<2>&, State<2>&, Contacts<2>&, double, bool, double, double);
+template void solve_waves(const Model<3>&, State<3>&, Contacts<3>&, double, bool, double, double);
 
 
 }  // namespace rbsim

@@ -7,9 +7,45 @@
 
 namespace rbsim {
 
+namespace {
+
+// 3D: each point's normal impulse and its friction impulse, a world vector in the tangent
+// plane (taken in the plane of this step's normal: the part along n is dropped, so that a
+// normal turned since the impulse was stored adds no push), on each body's v and L.
+void warm_start_3d(const Model<3>& model, State<3>& st, Contacts<3>& c) {
+  const auto& im = model.body_inv_mass;
+  const std::int64_t n_man = c.count.manifolds;
+  for (std::int64_t m = 0; m < n_man; ++m) {
+    const int a = c.body_a[m], b = c.body_b[m];
+    const auto& row = c.solver_row[m];
+    const Vec3 n = row.normal, t1 = row.t1, t2 = row.t2;
+    Vec3 p{}, la{}, lb{};  // N·s, and the moments on each body (N·m·s)
+    for (int k = 0; k < c.points[m]; ++k) {
+      const auto& pt = row.point[k];
+      const Vec3 jt = c.tangent_impulse[m][k];
+      const Vec3 pk = c.normal_impulse[m][k] * n + (dot(jt, t1) * t1 + dot(jt, t2) * t2);
+      p += pk;
+      la += cross(pt.arm_a, pk);
+      lb += cross(pt.arm_b, pk);
+    }
+    if (im[a] != 0.0) {
+      st.body_v[a] += im[a] * p;
+      add_angular(model, st, a, la);
+    }
+    if (im[b] != 0.0) {
+      st.body_v[b] -= im[b] * p;
+      add_angular(model, st, b, -lb);
+    }
+  }
+}
+
+}  // namespace
+
 template <int D>
 void warm_start(const Model<D>& model, State<D>& st, Contacts<D>& c) {
-  static_assert(D == 2, "the solver row is 2D (SolverRow<2>)");
+  if constexpr (D == 3) {
+    warm_start_3d(model, st, c);
+  } else {
   using Vec = typename Dim<D>::Vec;
   const auto& im = model.body_inv_mass;
   const auto& ii = model.body_inv_inertia;
@@ -41,9 +77,11 @@ void warm_start(const Model<D>& model, State<D>& st, Contacts<D>& c) {
       st.body_w[b] -= ib * tb;
     }
   }
+  }
 }
 
 template void warm_start(const Model<2>&, State<2>&, Contacts<2>&);
+template void warm_start(const Model<3>&, State<3>&, Contacts<3>&);
 
 namespace {
 
@@ -93,15 +131,20 @@ void warm_start_batch(State<2>& st, const Contacts<2>& c, const WideBatch& B) {
 
 template <int D>
 void warm_start_waves(const Model<D>& model, State<D>& st, Contacts<D>& c) {
-  static_assert(D == 2, "the batches hold 2D solver rows");
+  if constexpr (D == 3) {
+    warm_start(model, st, c);  // 3D: no waves yet (the batches hold 2D rows)
+    return;
+  } else {
   for (std::int64_t g = 0; g < c.wave_count; ++g) {
     const std::int64_t single = c.wave_single_batch[g];
     for (std::int64_t i = c.wave_batch[g]; i < single; ++i) warm_start_batch<true>(st, c, c.batches[i]);
     for (std::int64_t i = single; i < c.wave_batch[g + 1]; ++i)
       warm_start_batch<false>(st, c, c.batches[i]);
   }
+  }
 }
 
 template void warm_start_waves(const Model<2>&, State<2>&, Contacts<2>&);
+template void warm_start_waves(const Model<3>&, State<3>&, Contacts<3>&);
 
 }  // namespace rbsim

@@ -85,7 +85,13 @@ void pack_lane(const Model<D>& model, const Contacts<D>& c, WideBatch& w, int l,
 
 template <int D>
 std::int64_t find_waves(const Model<D>& model, Contacts<D>& c) {
-  static_assert(D == 2, "the batches hold 2D solver rows");
+  if constexpr (D == 3) {
+    // 3D rows are solved one manifold after another in solve order (solve_waves<3>):
+    // the batches hold 2D rows
+    c.wave_count = 0;
+    c.waves_valid = false;
+    return 0;
+  } else {
   const std::int64_t n_man = c.count.manifolds;
   if (c.count.graph_unchanged == 1 && c.waves_valid) {
     // last step's manifolds in the same slots and the same solve order (support_order
@@ -161,8 +167,10 @@ std::int64_t find_waves(const Model<D>& model, Contacts<D>& c) {
   c.wave_count = n_waves;
   c.waves_valid = true;
   return n_waves;
+  }
 }
 
 template std::int64_t find_waves(const Model<2>&, Contacts<2>&);
+template std::int64_t find_waves(const Model<3>&, Contacts<3>&);
 
 }  // namespace rbsim

@@ -1,0 +1,228 @@
+"""3D contacts end to end, through inline YAML scenes and the compiled engine: a sphere's
+bounces by the restitution hypothesis (e = 0.5 and e = 1), a box resting on a plane, a
+box on a 0.25 rad slope sliding and sticking, a stack of 10 unit boxes, and runs that
+are deterministic and resume from a checkpoint bit for bit."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from rbsim.core import CoreWorld
+
+from .conftest import scene_from
+
+G = 9.81  # m/s²
+
+BALL = """\
+version: 1
+world: {{dimension: 3, dt: {dt}, steps: {steps}}}
+solver: {{substeps: 4, restitution_threshold: 0.2}}
+materials:
+  floor: {{density: 1000, friction: 0.5, restitution: {e}}}
+bodies:
+  - name: ground
+    type: static
+    material: floor
+    shape: {{plane: {{normal: [0, 1, 0], offset: 0.0}}}}
+  - name: ball
+    position: [0, {h0}, 0]
+    material: floor
+    shape: {{sphere: {{radius: 0.1}}}}
+"""
+
+
+def run(text: str, steps: int, every: int = 1) -> tuple[CoreWorld, list]:
+    """The world after `steps` steps of the inline scene, and its state every `every`
+    steps (copies of x, v, w, q)."""
+    world = CoreWorld.from_scene(scene_from(text))
+    frames = []
+    for _ in range(steps // every):
+        world.advance(every)
+        st = world.state
+        frames.append((st.body_x.copy(), st.body_v.copy(), st.body_w.copy(), st.body_q.copy()))
+    return world, frames
+
+
+def apexes(y: np.ndarray) -> list[float]:
+    """The heights (m) of the local maxima of a trajectory sampled every step."""
+    return [float(y[i]) for i in range(1, len(y) - 1) if y[i - 1] < y[i] >= y[i + 1]]
+
+
+def test_sphere_bounce_with_e_half_has_apex_ratio_a_quarter() -> None:
+    h0, r = 1.0, 0.1  # m: drop height of the centre, radius
+    text = BALL.format(dt=1 / 240, steps=1200, e=0.5, h0=h0)
+    _w, frames = run(text, 1200)
+    y = np.array([f[0][1, 1] for f in frames])
+    tops = apexes(y)
+    assert len(tops) >= 2
+    ratio = (tops[0] - r) / (h0 - r)
+    # the issue's ±0.02: e² = 0.25 on the integrator's discrete energy
+    assert abs(ratio - 0.25) < 0.02, tops
+    assert abs((tops[1] - r) / (tops[0] - r) - 0.25) < 0.02, tops
+
+
+def test_elastic_sphere_keeps_its_apex_over_ten_bounces_and_never_gains_energy() -> None:
+    h0, r = 1.0, 0.1
+    text = BALL.format(dt=1 / 240, steps=2400, e=1.0, h0=h0)
+    _w, frames = run(text, 2400)
+    y = np.array([f[0][1, 1] for f in frames])
+    v = np.array([f[1][1] for f in frames])
+    tops = apexes(y)
+    assert len(tops) >= 10, tops
+    for top in tops[:10]:
+        assert abs(top - h0) < 0.02 * (h0 - r), tops  # the issue's 2% of the drop
+    # the energy per unit mass never above the start's, beyond the symplectic step's own
+    # oscillation (|g| h |v| / 2: the discrete invariant is not ½v² + g y)
+    energy = 0.5 * np.sum(v * v, axis=1) + G * y
+    wobble = 0.5 * G * (1 / 240 / 4) * np.max(np.abs(v[:, 1])) * 4
+    assert np.max(energy) <= G * h0 + wobble
+
+
+def on_ground(world: str, material: str, bodies: str) -> str:
+    """A 3D scene's YAML: `world` keys, one material `m` (`material` keys), a static
+    ground plane y = 0 of it, then `bodies` (YAML list items)."""
+    return (
+        f"version: 1\nworld: {{dimension: 3, {world}}}\nmaterials:\n  m: {{{material}}}\n"
+        "bodies:\n  - name: ground\n    type: static\n    material: m\n"
+        "    shape: {plane: {normal: [0, 1, 0], offset: 0.0}}\n" + bodies
+    )
+
+
+BOX_ON_PLANE = on_ground(
+    "dt: 0.016666666666666666, steps: 240",
+    "density: 1000, friction: 0.6, restitution: 0.0",
+    """\
+  - name: box
+    position: [0, 0.5, 0]
+    rotation: {axis: [0, 1, 0], angle: 0.4}
+    material: m
+    shape: {box: {size: [1, 1, 1]}}
+""",
+)
+
+
+def test_box_resting_on_a_plane_stays() -> None:
+    _w, frames = run(BOX_ON_PLANE, 240, every=10)
+    x = np.array([f[0][1] for f in frames])
+    assert np.all(0.5 - x[:, 1] < 1e-3)  # m: the issue's sag below 1 mm
+    assert np.all(np.abs(x[:, 1] - 0.5) < 1e-3)
+    assert np.max(np.hypot(x[:, 0], x[:, 2])) < 1e-6  # m: no drift
+    w = np.array([f[2][1] for f in frames])
+    assert np.max(np.abs(w)) < 1e-6  # rad/s: no turn
+
+
+SLOPE = """\
+version: 1
+world: {{dimension: 3, dt: 0.004166666666666667, steps: {steps}}}
+materials:
+  m: {{density: 1000, friction: {mu}, restitution: 0.0}}
+bodies:
+  - name: slope
+    type: static
+    material: m
+    shape: {{plane: {{normal: [{nx}, {ny}, 0], offset: 0.0}}}}
+  - name: box
+    position: [{px}, {py}, 0]
+    rotation: {{axis: [0, 0, 1], angle: {theta}}}
+    material: m
+    shape: {{box: {{size: [0.5, 0.5, 0.5]}}}}
+"""
+
+
+def slope_run(mu: float, seconds: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """A 0.5 m box resting on a plane tilted 0.25 rad about z (downhill: −x, down);
+    returns the times (s), its distances downhill (m) and the slope angle."""
+    theta = 0.25
+    n = (-math.sin(theta), math.cos(theta))  # the plane's normal, tilted about z
+    steps = round(seconds * 240)
+    text = SLOPE.format(
+        steps=steps, mu=mu, nx=n[0], ny=n[1], px=0.25 * n[0], py=0.25 * n[1], theta=theta
+    )
+    _w, frames = run(text, steps)
+    x = np.array([f[0][1] for f in frames])
+    down = np.array([-math.cos(theta), -math.sin(theta), 0.0])  # downhill along the slope
+    s = (x - x[0]) @ down
+    t = np.arange(1, steps + 1) / 240
+    return t, s, theta
+
+
+def test_box_slides_down_a_slope_at_g_sin_minus_mu_cos() -> None:
+    mu = 0.1  # < tan 0.25 = 0.255: it slides
+    t, s, theta = slope_run(mu, 2.0)
+    late = t > 0.5  # after the contact has settled
+    a = np.polyfit(t[late], s[late], 2)[0] * 2  # m/s²
+    expected = G * (math.sin(theta) - mu * math.cos(theta))
+    assert abs(a / expected - 1) < 0.05, a  # the issue's ±5%
+
+
+def test_box_sticks_on_a_slope_when_mu_is_above_tan_theta() -> None:
+    t, s, _theta = slope_run(0.4, 5.0)  # 0.4 > tan 0.25
+    assert np.max(np.abs(s)) < 0.01  # m: the issue's slip below 1 cm in 5 s
+
+
+STACK = on_ground(
+    "dt: 0.016666666666666666, steps: 600",
+    "density: 1000, friction: 0.6, restitution: 0.0",
+    "  - stack: {count: 10, size: [1, 1, 1], origin: [0, 0.5, 0], material: m}\n",
+)
+
+
+def test_stack_of_ten_boxes_stands_ten_seconds() -> None:
+    _w, frames = run(STACK, 600, every=30)
+    top = np.array([f[0][10] for f in frames])
+    assert np.max(np.hypot(top[:, 0], top[:, 2])) < 0.05  # m: the issue's 5 cm sideways
+    assert np.all(9.5 - top[:, 1] < 0.05)  # m: the issue's sag below 5 cm
+
+
+PILE = on_ground(
+    "dt: 0.016666666666666666, steps: 120",
+    "density: 1000, friction: 0.5, restitution: 0.3",
+    """\
+  - name: a
+    position: [0, 0.6, 0]
+    rotation: {axis: [1, 1, 0], angle: 0.5}
+    material: m
+    shape: {box: {size: [1, 0.5, 0.7]}}
+  - name: b
+    position: [0.3, 2.0, 0.2]
+    angular_velocity: [1, 2, 3]
+    material: m
+    shape: {sphere: {radius: 0.4}}
+  - name: c
+    position: [-0.2, 3.2, -0.1]
+    rotation: {axis: [0, 0, 1], angle: 0.3}
+    material: m
+    shape: {capsule: {a: [-0.4, 0, 0], b: [0.4, 0, 0], radius: 0.2}}
+""",
+)
+
+
+def state_bytes(world: CoreWorld) -> bytes:
+    st = world.state
+    return b"".join(np.ascontiguousarray(a).tobytes() for a in st)
+
+
+def test_3d_contact_runs_are_deterministic_and_resume_bit_identically() -> None:
+    a, _ = run(PILE, 120)
+    b, _ = run(PILE, 120)
+    assert a.contact_count > 0
+    assert state_bytes(a) == state_bytes(b)
+    half = CoreWorld.from_scene(scene_from(PILE))
+    half.advance(60)
+    saved = half.engine.save_checkpoint()
+    resumed = CoreWorld.from_scene(scene_from(PILE))
+    resumed.engine.load_checkpoint(saved)
+    resumed.advance(60)
+    assert state_bytes(resumed) == state_bytes(a)
+
+
+@pytest.mark.parametrize("e", [0.0])
+def test_sphere_with_e_zero_comes_to_rest_on_the_plane(e: float) -> None:
+    text = BALL.format(dt=1 / 240, steps=480, e=e, h0=1.0)
+    _w, frames = run(text, 480)
+    y = np.array([f[0][1, 1] for f in frames])
+    assert abs(y[-1] - 0.1) < 1e-3  # m: resting on its surface, within the soft sag
+    assert not apexes(y[len(y) // 2 :])  # no bounce
