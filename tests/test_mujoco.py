@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -105,18 +106,37 @@ def test_static_bodies_are_not_written_and_kinematic_ones_move_as_prescribed():
           - {name: ground, type: static, shape: {plane: {normal: [0, 1, 0]}}}
           - {name: belt, type: kinematic, velocity: [1, 0, 0], angular_velocity: [0, 2, 0],
              shape: {box: {size: [1, 1, 1]}}}
-          - {name: ball, position: [0, 3, 0], shape: {sphere: {radius: 0.5}}}
         """
     )
     engine = MujocoEngine(scene)
-    assert engine.mj_model.nbody == 2  # the world and the ball
+    assert engine.mj_model.nbody == 1  # the world alone
     engine.advance(100)
     s = engine.read()
     np.testing.assert_allclose(s.origin[1], [1.0, 0.0, 0.0], atol=1e-15)
     # turned by 2 rad about y: q = (cos 1, 0, sin 1, 0)
     np.testing.assert_allclose(s.orientation[1], [math.cos(1), 0, math.sin(1), 0], atol=1e-15)
     np.testing.assert_array_equal(s.origin[0], [0.0, 0.0, 0.0])
-    np.testing.assert_array_equal(s.origin[2], [0.0, 3.0, 0.0])
+
+
+BALL_OVER_PLANE = """
+version: 1
+world: {dimension: 3, dt: 0.01, steps: 100}
+bodies:
+  - {name: ground, type: static, shape: {plane: {normal: [0, 1, 0]}}}
+  - {name: ball, position: [0, 3, 0], shape: {sphere: {radius: 0.5}}}
+"""
+
+
+def test_a_scene_whose_bodies_can_touch_is_refused_plainly(tmp_path: Path):
+    """rbsim collides the ball with the plane; the bridge writes no MuJoCo contacts, so
+    it says it cannot express the scene (exit 3) instead of comparing other physics."""
+    with pytest.raises(UnsupportedScene, match="free bodies only"):
+        MujocoEngine(scene_from(BALL_OVER_PLANE))
+    path = tmp_path / "ball.yaml"
+    path.write_text(textwrap.dedent(BALL_OVER_PLANE))
+    code, _out, err = rbsim("compare", path, "-o", tmp_path)
+    assert code == 3, err
+    assert "cannot express this scene" in err and "Traceback" not in err
 
 
 # -- the state as MuJoCo keeps it ------------------------------------------------------------

@@ -5,8 +5,10 @@ body, with the scene body's orientation, and an `inertial` element with rbsim's 
 and full inertia tensor (`fullinertia`, about the centre of mass, at the COM's position
 `pos` in the MuJoCo body's frame), from rbsim's compiled Model: MuJoCo never
 computes mass properties itself (its meshes are float32: a hull's centre of mass comes
-out 3e-9 m off and its inertia 7e-8 relative). Static bodies are not written (nothing
-collides in 3D yet: contacts are disabled, `<flag contact="disable"/>`), kinematic
+out 3e-9 m off and its inertia 7e-8 relative). Static bodies are not written and contacts
+are disabled (`<flag contact="disable"/>`): the bridge takes only scenes whose bodies
+cannot touch (one body with shapes, or none dynamic) and refuses the others with
+UnsupportedScene, since rbsim collides them and MuJoCo would not; kinematic
 bodies move as prescribed (x0 + v t, exp(t ω / 2) q0; MuJoCo has nothing to compute
 for them). Gravity is written as the scene gives it, in rbsim's y-up world (MuJoCo
 takes any vector; its z-up default does not apply). One scene step is
@@ -189,6 +191,14 @@ class MujocoEngine(Engine):
         super().__init__(scene)
         self.model, state = build(scene)
         model = self.model
+        if model.has_shapes:
+            # rbsim collides in 3D; this bridge writes no MuJoCo contacts yet (issue 16:
+            # MuJoCo's soft contacts need per-pair solref/solimp to match a restitution),
+            # so a scene whose bodies can touch would compare different physics
+            raise UnsupportedScene(
+                "the MuJoCo bridge compares free bodies only: two bodies of this scene can "
+                "touch (rbsim collides them; the bridge writes no MuJoCo contacts yet)"
+            )
         settings = settings or MujocoSettings()
         if settings.frame not in FRAMES:
             raise ValueError(f"frame must be one of {FRAMES}, not {settings.frame!r}")
