@@ -290,8 +290,8 @@ TEST(measure_pairs_of_1000_spheres_in_a_box) {
   SceneBuilder3 s;
   s.plane({0.0, 1.0, 0.0}, 0.0);
   for (double n : {-1.0, 1.0}) {
-    s.plane({n, 0.0, 0.0}, 5.6);
-    s.plane({0.0, 0.0, n}, 5.6);
+    s.plane({n, 0.0, 0.0}, -5.6);  // the walls x <= -5.6, x >= 5.6
+    s.plane({0.0, 0.0, n}, -5.6);
   }
   for (int i = 0; i < 1000; ++i)
     s.sphere({1.02 * (i % 10) - 4.6, 0.5 + 1.02 * ((i / 10) % 10), 1.02 * (i / 100) - 4.6}, 0.5, 1.0);
