@@ -335,6 +335,24 @@ TEST(capsule_lying_on_a_box) {
   CHECK(r.n == 1);
   CHECK_VEC(r.m.normal, dir, EPS, "edge to segment");
   CHECK_NEAR(r.m.separation[0], 0.005, EPS);
+  // the core dug 7 cm into the box across its top +z edge (along x): the edge's axis, one
+  // point between the core and that edge (not another edge along x)
+  // (through the box and through its hull)
+  auto cube_hull = box_as_hull({0.5, 0.5, 0.5});
+  const ShapeRef3 cubes[] = {box_ref({0, 0, 0}, {}, {0.5, 0.5, 0.5}), cube_hull.at({0, 0, 0})};
+  const Vec3 w = 0.3 * S2 * Vec3{0, 1, -1};
+  for (const ShapeRef3& cube : cubes) {
+    for (const Vec3 e : {Vec3{0, 1, 1}, Vec3{0, -1, 1}, Vec3{0, 1, -1}, Vec3{0, -1, -1}}) {
+      const Vec3 mid{0.2, 0.45 * e.y, 0.45 * e.z};
+      const Vec3 ww{0, w.y * e.y, w.z * e.z};
+      const auto dug = collide(capsule_ref(mid - ww, mid + ww, 0.1), cube);
+      CHECK(dug.n == 1);
+      CHECK_VEC(dug.m.normal, S2 * e, EPS, "the edge's diagonal");
+      CHECK_NEAR(dug.m.separation[0], -0.05 * std::sqrt(2.0) - 0.1, EPS);
+      CHECK_VEC(dug.m.point[0], 0.5 * ((mid - 0.1 * S2 * e) + Vec3{0.2, 0.5 * e.y, 0.5 * e.z}), EPS,
+                "midway between the core's surface and the edge");
+    }
+  }
   // the first case on a turned box, turned: the same manifold, turned
   const Quat q = axis_angle({1, -1, 2}, 0.9);
   const Vec3 c{3, 1, -2};
@@ -712,8 +730,8 @@ TEST(mirrored_pairs_negate_the_normal) {
   int pairs = 0;
   for (const auto& a : shapes)
     for (const auto& b : others) {
-      if (a.kind == kind3::PLANE && b.kind == kind3::PLANE) continue;
-      if (a.kind == kind3::BOX && b.kind == kind3::BOX) continue;  // not swapped (ids by order)
+      if (a.kind == ShapeKind::Plane && b.kind == ShapeKind::Plane) continue;
+      if (a.kind == ShapeKind::Box && b.kind == ShapeKind::Box) continue;  // not swapped (ids by order)
       if (a.kind == b.kind) continue;
       const auto ab = collide(a, b), ba = collide(b, a);
       CHECK(ab.n > 0);
@@ -772,6 +790,11 @@ TEST(degenerate_input_gives_no_nan) {
       {capsule_ref({0, -1, 0}, {0, 1, 0}, 0.1), box},
       {box, box_ref({0, 0, 0}, {}, {0.5, 0.5, 0.5})},
   };
+  // a 2D kind is no 3D shape: no manifold
+  ShapeRef3 circle = sphere_ref({0, 0, 0}, 1.0);
+  circle.kind = ShapeKind::Circle;
+  CHECK(collide(circle, sphere_ref({0, 0, 0}, 1.0)).n == 0);
+  CHECK(collide(sphere_ref({0, 0, 0}, 1.0), circle).n == 0);
   for (const auto& [a, b] : cases) {
     const auto r = collide(a, b);
     CHECK(r.n >= 1);

@@ -722,8 +722,10 @@ int capsule_on_face(const ShapeRef3& a, const Polytope& B, int f, double specula
 // and hull); lying over a face (its closest point in the face's interior) it is clipped
 // to that face for up to two points, else one point at the closest points. A core in B
 // takes the axis that separates it least: a face (clipped) or an edge (one point).
-int capsule_polytope(const ShapeRef3& a, const Polytope& B, double tol, double speculative,
-                     Manifold3& out) {
+// The edge axes are those of axis_edges[0 .. count) (nullptr: edges 0 .. count), one
+// edge per direction being enough (a box: one per axis).
+int capsule_polytope(const ShapeRef3& a, const Polytope& B, const std::int32_t* axis_edges,
+                     int axis_edge_count, double tol, double speculative, Manifold3& out) {
   const Vec3 p = a.p, q = a.q, d = q - p;
   const double r = a.radius;
   double sep_f = -INF;
@@ -741,7 +743,8 @@ int capsule_polytope(const ShapeRef3& a, const Polytope& B, double tol, double s
   int edge = -1;
   Vec3 axis_e{};
   const double ld = length(d);
-  for (int i = 0; i < B.h->edge_count; ++i) {
+  for (int k = 0; k < axis_edge_count; ++k) {
+    const int i = axis_edges ? axis_edges[k] : k;
     const Vec3 de = B.v[B.h->edge[i].v1] - B.v[B.h->edge[i].v0];
     const Vec3 L = cross(d, de);
     const double len = length(L);
@@ -800,6 +803,20 @@ int capsule_polytope(const ShapeRef3& a, const Polytope& B, double tol, double s
     return single_point(xs, r, xh, 0.0, n, 0, speculative, out);
   }
   if (edge >= 0 && edge_wins(sep_e, sep_f, tol)) {
+    // the edge along the axis's direction that supports B towards the capsule (its
+    // parallel edges give the same axis)
+    const Vec3 de = B.v[B.h->edge[edge].v1] - B.v[B.h->edge[edge].v0];
+    double support = -INF;
+    for (int i = 0; i < B.h->edge_count; ++i) {
+      const Vec3 v0 = B.v[B.h->edge[i].v0], v1 = B.v[B.h->edge[i].v1];
+      const Vec3 c = cross(v1 - v0, de);
+      if (dot(c, c) > EDGE_PARALLEL_SIN * EDGE_PARALLEL_SIN * length_squared(v1 - v0) * dot(de, de)) continue;
+      const double h = dot(axis_e, v0 + v1);
+      if (h > support) {
+        support = h;
+        edge = i;
+      }
+    }
     const Vec3 e0 = B.v[B.h->edge[edge].v0], e1 = B.v[B.h->edge[edge].v1];
     const auto [s, t] = segment_closest_fractions(p, q, e0, e1);
     return single_point(p + s * d, r, e0 + t * (e1 - e0), 0.0, axis_e,
@@ -816,14 +833,26 @@ int capsule_polytope(const ShapeRef3& a, const Polytope& B, double tol, double s
                       feature_id(FK::Vertex, 1, face, k, 0), speculative, out);
 }
 
+// One box edge along each axis (edges of box_hull(), whose 12 edges come 4 to a direction).
+const std::array<std::int32_t, 3> BOX_AXIS_EDGES = [] {
+  std::array<std::int32_t, 3> first{-1, -1, -1};
+  const HullView& h = box_hull();
+  for (int e = 0; e < h.edge_count; ++e) {
+    const int axis = BIT_AXIS[h.edge[e].v0 ^ h.edge[e].v1];
+    if (first[axis] < 0) first[axis] = e;
+  }
+  return first;
+}();
+
 int collide_capsule_box(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
   Vec3 corners[8], normals[6];
-  return capsule_polytope(a, box_polytope(b, corners, normals), face_tolerance(a, b),
-                          speculative, out);
+  return capsule_polytope(a, box_polytope(b, corners, normals), BOX_AXIS_EDGES.data(), 3,
+                          face_tolerance(a, b), speculative, out);
 }
 
 int collide_capsule_convex(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
-  return capsule_polytope(a, hull_polytope(b), face_tolerance(a, b), speculative, out);
+  return capsule_polytope(a, hull_polytope(b), nullptr, b.hull.edge_count, face_tolerance(a, b),
+                          speculative, out);
 }
 
 // Box a against box b: SAT over the 15 axes (3 + 3 face normals, 9 edge cross products),
@@ -1012,8 +1041,16 @@ int swapped(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold
   return n;
 }
 
-// [kind_a − FIRST][kind_b − FIRST], kinds in order: sphere, box, capsule, convex, plane.
-constexpr PairFn COLLIDE[kind3::COUNT][kind3::COUNT] = {
+// [kind_a − SHAPE_KIND_FIRST_3D][kind_b − SHAPE_KIND_FIRST_3D], kinds in ShapeKind order:
+// Sphere, Box, Capsule, Convex, Plane.
+constexpr int KINDS_3D = SHAPE_KIND_END_3D - SHAPE_KIND_FIRST_3D;
+static_assert(static_cast<int>(ShapeKind::Sphere) == SHAPE_KIND_FIRST_3D &&
+                  static_cast<int>(ShapeKind::Box) == SHAPE_KIND_FIRST_3D + 1 &&
+                  static_cast<int>(ShapeKind::Capsule) == SHAPE_KIND_FIRST_3D + 2 &&
+                  static_cast<int>(ShapeKind::Convex) == SHAPE_KIND_FIRST_3D + 3 &&
+                  static_cast<int>(ShapeKind::Plane) == SHAPE_KIND_FIRST_3D + 4 && KINDS_3D == 5,
+              "COLLIDE's rows and columns are the 3D kinds in ShapeKind order");
+constexpr PairFn COLLIDE[KINDS_3D][KINDS_3D] = {
     {collide_sphere_sphere, collide_sphere_box, collide_sphere_capsule, collide_sphere_convex,
      collide_sphere_plane},
     {swapped<collide_sphere_box>, collide_box_box, swapped<collide_capsule_box>,
@@ -1043,9 +1080,9 @@ void box_geometry(const ShapeRef3& box, Vec3* corners, Vec3* face_normals) {
 }
 
 int collide3d(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
-  const auto ka = static_cast<unsigned>(a.kind - kind3::FIRST);
-  const auto kb = static_cast<unsigned>(b.kind - kind3::FIRST);
-  if (ka >= static_cast<unsigned>(kind3::COUNT) || kb >= static_cast<unsigned>(kind3::COUNT)) return 0;
+  const auto ka = static_cast<unsigned>(static_cast<int>(a.kind) - SHAPE_KIND_FIRST_3D);
+  const auto kb = static_cast<unsigned>(static_cast<int>(b.kind) - SHAPE_KIND_FIRST_3D);
+  if (ka >= static_cast<unsigned>(KINDS_3D) || kb >= static_cast<unsigned>(KINDS_3D)) return 0;
   return COLLIDE[ka][kb](a, b, speculative, out);
 }
 

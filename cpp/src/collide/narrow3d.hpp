@@ -27,20 +27,9 @@
 
 #include "collide/hull3d.hpp"
 #include "rbsim/math.hpp"
+#include "rbsim/types.hpp"
 
 namespace rbsim {
-
-// The 3D shape kinds, numbered as types.hpp's ShapeKind (Sphere = 3 .. Plane = 7) and the
-// model's shape_kind column (rbsim/scene/types.py SHAPE_KIND_CODE_3D).
-namespace kind3 {
-inline constexpr std::int32_t SPHERE = 3;
-inline constexpr std::int32_t BOX = 4;
-inline constexpr std::int32_t CAPSULE = 5;
-inline constexpr std::int32_t CONVEX = 6;
-inline constexpr std::int32_t PLANE = 7;
-inline constexpr std::int32_t FIRST = 3;  // the table covers [FIRST, FIRST + COUNT)
-inline constexpr int COUNT = 5;
-}  // namespace kind3
 
 // What a feature id's f1 and f2 name.
 enum class FeatureKind : std::int64_t {
@@ -61,74 +50,52 @@ inline constexpr std::int64_t feature_id(FeatureKind kind, int ref_is_b, int fac
 
 // One shape in the world frame this step. Only the fields of its kind are read.
 struct ShapeRef3 {
-  std::int32_t kind = kind3::SPHERE;
+  ShapeKind kind = ShapeKind::Sphere;  // Sphere .. Plane (the 3D kinds)
   double radius = 0.0;  // m: sphere, capsule (0 for the others)
   // the pair's tolerance scale (constants.hpp, SCALE_LENGTH): the reference face's
   // tolerance is taken times the smaller of the two shapes'
   double scale = 1.0;
-  Vec3 center;                 // m: sphere's centre, box's centre
+  Vec3 center{};               // m: sphere's centre, box's centre
   std::array<Vec3, 3> axes{};  // box: its unit axes in the world (the columns of R)
-  Vec3 half;                   // m: box's half extents along axes
-  Vec3 p, q;                   // m: capsule's segment ends
-  Vec3 normal;                 // plane: unit outward normal (out of the solid)
+  Vec3 half{};                 // m: box's half extents along axes
+  Vec3 p{}, q{};               // m: capsule's segment ends
+  Vec3 normal{};               // plane: unit outward normal (out of the solid)
   double offset = 0.0;         // m: plane: the solid is normal·x <= offset
   const Vec3* verts = nullptr;         // convex: (V,) m, world vertices (hull's order)
   const Vec3* face_normals = nullptr;  // convex: (F,) world outward unit normals
-  HullView hull;                       // convex: topology
+  HullView hull{};                     // convex: topology
 };
 
 inline ShapeRef3 sphere_ref(Vec3 center, double radius) {
-  ShapeRef3 s;
-  s.kind = kind3::SPHERE;
-  s.center = center;
-  s.radius = radius;
-  return s;
+  return {.kind = ShapeKind::Sphere, .radius = radius, .center = center};
 }
 // A box centred at center (m), turned by the unit quaternion rotation, half extents (m).
 inline ShapeRef3 box_ref(Vec3 center, Quat rotation, Vec3 half) {
-  ShapeRef3 s;
-  s.kind = kind3::BOX;
-  s.center = center;
-  s.axes = {rotate(rotation, Vec3{1, 0, 0}), rotate(rotation, Vec3{0, 1, 0}),
-            rotate(rotation, Vec3{0, 0, 1})};
-  s.half = half;
-  return s;
+  return {.kind = ShapeKind::Box,
+          .center = center,
+          .axes = {rotate(rotation, Vec3{1, 0, 0}), rotate(rotation, Vec3{0, 1, 0}),
+                   rotate(rotation, Vec3{0, 0, 1})},
+          .half = half};
 }
 // A box from its 8 world corners (m) in the model's order (corner k has the sign of bit
 // 0, 1, 2 of k along the box's x, y, z: rbsim/scene/geometry3d.py BOX_SIGNS).
 inline ShapeRef3 box_ref_from_corners(const Vec3* c) {
-  ShapeRef3 s;
-  s.kind = kind3::BOX;
-  s.center = 0.5 * (c[0] + c[7]);
   const Vec3 e[3] = {0.5 * (c[1] - c[0]), 0.5 * (c[2] - c[0]), 0.5 * (c[4] - c[0])};
   const double h[3] = {length(e[0]), length(e[1]), length(e[2])};
-  s.half = {h[0], h[1], h[2]};
-  for (int k = 0; k < 3; ++k) s.axes[k] = (1.0 / h[k]) * e[k];
-  return s;
+  return {.kind = ShapeKind::Box,
+          .center = 0.5 * (c[0] + c[7]),
+          .axes = {(1.0 / h[0]) * e[0], (1.0 / h[1]) * e[1], (1.0 / h[2]) * e[2]},
+          .half = {h[0], h[1], h[2]}};
 }
 inline ShapeRef3 capsule_ref(Vec3 p, Vec3 q, double radius) {
-  ShapeRef3 s;
-  s.kind = kind3::CAPSULE;
-  s.p = p;
-  s.q = q;
-  s.radius = radius;
-  return s;
+  return {.kind = ShapeKind::Capsule, .radius = radius, .p = p, .q = q};
 }
 inline ShapeRef3 plane_ref(Vec3 normal, double offset) {
-  ShapeRef3 s;
-  s.kind = kind3::PLANE;
-  s.normal = normal;
-  s.offset = offset;
-  return s;
+  return {.kind = ShapeKind::Plane, .normal = normal, .offset = offset};
 }
 // verts and face_normals are the hull's, in the world frame, and must outlive the call.
 inline ShapeRef3 convex_ref(const Vec3* verts, const Vec3* face_normals, HullView hull) {
-  ShapeRef3 s;
-  s.kind = kind3::CONVEX;
-  s.verts = verts;
-  s.face_normals = face_normals;
-  s.hull = hull;
-  return s;
+  return {.kind = ShapeKind::Convex, .verts = verts, .face_normals = face_normals, .hull = hull};
 }
 
 struct Manifold3 {
@@ -140,7 +107,7 @@ struct Manifold3 {
 
 // Manifold between shapes a and b; returns the point count 0..4 (only those rows of out
 // are written; the normal is written whenever a point is). Points farther apart than
-// `speculative` (m) are dropped. Kinds outside kind3 and plane–plane give 0 points.
+// `speculative` (m) are dropped. 2D kinds and plane–plane give 0 points.
 // Allocates nothing.
 int collide3d(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out);
 
