@@ -81,22 +81,27 @@ def test_elastic_sphere_keeps_its_apex_over_ten_bounces_and_never_gains_energy()
     assert np.max(energy) <= G * h0 + wobble
 
 
-BOX_ON_PLANE = """\
-version: 1
-world: {dimension: 3, dt: 0.016666666666666666, steps: 240}
-materials:
-  wood: {density: 1000, friction: 0.6, restitution: 0.0}
-bodies:
-  - name: ground
-    type: static
-    material: wood
-    shape: {plane: {normal: [0, 1, 0], offset: 0.0}}
+def on_ground(world: str, material: str, bodies: str) -> str:
+    """A 3D scene's YAML: `world` keys, one material `m` (`material` keys), a static
+    ground plane y = 0 of it, then `bodies` (YAML list items)."""
+    return (
+        f"version: 1\nworld: {{dimension: 3, {world}}}\nmaterials:\n  m: {{{material}}}\n"
+        "bodies:\n  - name: ground\n    type: static\n    material: m\n"
+        "    shape: {plane: {normal: [0, 1, 0], offset: 0.0}}\n" + bodies
+    )
+
+
+BOX_ON_PLANE = on_ground(
+    "dt: 0.016666666666666666, steps: 240",
+    "density: 1000, friction: 0.6, restitution: 0.0",
+    """\
   - name: box
     position: [0, 0.5, 0]
     rotation: {axis: [0, 1, 0], angle: 0.4}
-    material: wood
+    material: m
     shape: {box: {size: [1, 1, 1]}}
-"""
+""",
+)
 
 
 def test_box_resting_on_a_plane_stays() -> None:
@@ -158,18 +163,11 @@ def test_box_sticks_on_a_slope_when_mu_is_above_tan_theta() -> None:
     assert np.max(np.abs(s)) < 0.01  # m: the issue's slip below 1 cm in 5 s
 
 
-STACK = """\
-version: 1
-world: {dimension: 3, dt: 0.016666666666666666, steps: 600}
-materials:
-  wood: {density: 1000, friction: 0.6, restitution: 0.0}
-bodies:
-  - name: ground
-    type: static
-    material: wood
-    shape: {plane: {normal: [0, 1, 0], offset: 0.0}}
-  - stack: {count: 10, size: [1, 1, 1], origin: [0, 0.5, 0], material: wood}
-"""
+STACK = on_ground(
+    "dt: 0.016666666666666666, steps: 600",
+    "density: 1000, friction: 0.6, restitution: 0.0",
+    "  - stack: {count: 10, size: [1, 1, 1], origin: [0, 0.5, 0], material: m}\n",
+)
 
 
 def test_stack_of_ten_boxes_stands_ten_seconds() -> None:
@@ -179,16 +177,10 @@ def test_stack_of_ten_boxes_stands_ten_seconds() -> None:
     assert np.all(9.5 - top[:, 1] < 0.05)  # m: the issue's sag below 5 cm
 
 
-PILE = """\
-version: 1
-world: {dimension: 3, dt: 0.016666666666666666, steps: 120}
-materials:
-  m: {density: 1000, friction: 0.5, restitution: 0.3}
-bodies:
-  - name: ground
-    type: static
-    material: m
-    shape: {plane: {normal: [0, 1, 0], offset: 0.0}}
+PILE = on_ground(
+    "dt: 0.016666666666666666, steps: 120",
+    "density: 1000, friction: 0.5, restitution: 0.3",
+    """\
   - name: a
     position: [0, 0.6, 0]
     rotation: {axis: [1, 1, 0], angle: 0.5}
@@ -204,7 +196,8 @@ bodies:
     rotation: {axis: [0, 0, 1], angle: 0.3}
     material: m
     shape: {capsule: {a: [-0.4, 0, 0], b: [0.4, 0, 0], radius: 0.2}}
-"""
+""",
+)
 
 
 def state_bytes(world: CoreWorld) -> bytes:

@@ -141,7 +141,7 @@ T load_value(nb::dict d, const char* key) {
 using World2 = World<2>;
 
 // The storage arrays by name (the numba engine's names), for tests and diagnostics. In
-// 3D the solver's rows are left out (their layout comes with the 3D solver).
+// 3D the solver's rows (SolverRow<3>) are left out.
 template <int D>
 nb::dict storage(World<D>& w, nb::handle owner) {
   nb::dict d;
@@ -784,8 +784,8 @@ NB_MODULE(_core, mod) {
       .def("storage", [](nb::handle self) { return storage(nb::cast<World2&>(self), self); },
            "The stages' storage arrays by name, as views (valid until the store grows).");
   bind_world<3>(mod, "World3",
-                "A 3D scene ready to step: model and state (bodies fly free: the step takes "
-                "no contacts yet; the collision stages run one by one through `stage`).")
+                "A 3D scene ready to step: model, state and stage storage (the collision "
+                "stages also run one by one through `stage`, for tests).")
       .def("stage", &run_stage3, "name"_a, "args"_a = nb::dict(),
            "Run one collision stage (transform_shapes, find_pairs, update_manifolds, "
            "store_impulses) or grow the store (tests).")

@@ -146,6 +146,15 @@ void solve_contacts_3d(const Model<3>& model, State<3>& st, Contacts<3>& c, doub
     const Vec3 na = inv_rotate(da.dq, nrm);
     const Vec3 nb = inv_rotate(db.dq, nrm);
     const int npts = c.points[m];
+    // the normal impulse jn (N·s) at a point, on the local velocities and L's change
+    auto push = [&](const SolverRow<3>::Point& pt, double jn) {
+      va += (ma * jn) * nrm;
+      wa += jn * pt.wna;
+      dla += jn * pt.rna;
+      vb -= (mb * jn) * nrm;
+      wb -= jn * pt.wnb;
+      dlb -= jn * pt.rnb;
+    };
     bool deep = false;
     bool block = false;
     if (npts >= 2) {
@@ -171,12 +180,7 @@ void solve_contacts_3d(const Model<3>& model, State<3>& st, Contacts<3>& c, doub
           const auto& pt = row.point[k];
           const double jn =
               clamp_normal(c, m, k, c.normal_impulse[m][k], d[k], vn[k], sep[k], shift, threshold);
-          va += (ma * jn) * nrm;
-          wa += jn * pt.wna;
-          dla += jn * pt.rna;
-          vb -= (mb * jn) * nrm;
-          wb -= jn * pt.wnb;
-          dlb -= jn * pt.rnb;
+          push(pt, jn);
         }
       }
     }
@@ -192,12 +196,7 @@ void solve_contacts_3d(const Model<3>& model, State<3>& st, Contacts<3>& c, doub
       const double lam = c.normal_impulse[m][k];
       const double impulse = (-vn - (bias + gamma * lam)) * (1.0 / (pt.kn + gamma));
       const double jn = clamp_normal(c, m, k, lam, impulse, vn, s, shift, threshold);
-      va += (ma * jn) * nrm;
-      wa += jn * pt.wna;
-      dla += jn * pt.rna;
-      vb -= (mb * jn) * nrm;
-      wb -= jn * pt.wnb;
-      dlb -= jn * pt.rnb;
+      push(pt, jn);
     }
     if (use_bias && deep) mark_deep(c, m);
     const double mu = row.friction;
