@@ -162,7 +162,8 @@ inline std::int64_t collide3(World<3>& w) {
   transform_shapes(w.model, w.state, w.contacts, cfg.dt);
   std::int64_t n_pairs = find_pairs(w.model, w.grid, w.contacts);
   while (n_pairs > w.contacts.capacity()) {
-    w.grow(2 * n_pairs);
+    w.grow(2 * n_pairs);  // the store is made anew: the world geometry too, as in the step
+    transform_shapes(w.model, w.state, w.contacts, cfg.dt);
     n_pairs = find_pairs(w.model, w.grid, w.contacts);
   }
   w.contacts.count.pairs = n_pairs;

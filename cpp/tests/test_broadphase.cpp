@@ -22,8 +22,9 @@ namespace {
 using Pair = std::array<std::int32_t, 2>;
 
 // Every pair (a < b) of shapes whose fat boxes overlap (touching counts), on different
-// bodies, one of them dynamic: what find_pairs must return.
-std::vector<Pair> brute_force(const World<2>& w) {
+// bodies, one of them dynamic: what find_pairs must return (in the plane or in space).
+template <int D>
+std::vector<Pair> brute_force(const World<D>& w) {
   const auto& m = w.model;
   const auto& fat = w.grid.shape_fat;
   std::vector<Pair> out;
@@ -31,8 +32,12 @@ std::vector<Pair> brute_force(const World<2>& w) {
     for (int b = a + 1; b < m.shape_count(); ++b) {
       const int ba = m.shape_body[a], bb = m.shape_body[b];
       if (ba == bb || !(m.is_dynamic(ba) || m.is_dynamic(bb))) continue;
-      const bool apart = fat[b].lo.x > fat[a].hi.x || fat[a].lo.x > fat[b].hi.x ||
-                         fat[b].lo.y > fat[a].hi.y || fat[a].lo.y > fat[b].hi.y;
+      const double* lo_a = &fat[a].lo.x;
+      const double* hi_a = &fat[a].hi.x;
+      const double* lo_b = &fat[b].lo.x;
+      const double* hi_b = &fat[b].hi.x;
+      bool apart = false;
+      for (int d = 0; d < D; ++d) apart = apart || lo_b[d] > hi_a[d] || lo_a[d] > hi_b[d];
       if (!apart) out.push_back({a, b});
     }
   }
@@ -149,25 +154,6 @@ TEST(store_too_small_returns_the_pair_count_needed) {
 
 namespace {
 
-// Every pair (a < b) of shapes whose fat boxes overlap in space, on different bodies, one
-// of them dynamic.
-std::vector<Pair> brute_force3(const World<3>& w) {
-  const auto& m = w.model;
-  const auto& fat = w.grid.shape_fat;
-  std::vector<Pair> out;
-  for (int a = 0; a < m.shape_count(); ++a) {
-    for (int b = a + 1; b < m.shape_count(); ++b) {
-      const int ba = m.shape_body[a], bb = m.shape_body[b];
-      if (ba == bb || !(m.is_dynamic(ba) || m.is_dynamic(bb))) continue;
-      const auto &p = fat[a], &q = fat[b];
-      const bool apart = q.lo.x > p.hi.x || p.lo.x > q.hi.x || q.lo.y > p.hi.y ||
-                         p.lo.y > q.hi.y || q.lo.z > p.hi.z || p.lo.z > q.hi.z;
-      if (!apart) out.push_back({a, b});
-    }
-  }
-  return out;
-}
-
 std::vector<Pair> find3(World<3>& w) {
   test::collide3(w);
   return {w.contacts.pairs.begin(), w.contacts.pairs.begin() + w.contacts.count.pairs};
@@ -216,7 +202,7 @@ TEST(pairs_in_space_equal_brute_force_on_dense_grid) {
     const auto pairs = find3(w);
     CHECK(w.grid.meta.direct_buckets == 1);
     CHECK(w.grid.meta.big_count >= 2);  // the planes
-    CHECK(pairs == brute_force3(w));
+    CHECK(pairs == brute_force(w));
     CHECK(pairs.size() > 50);
     int with_plane = 0;
     for (const Pair& p : pairs) with_plane += p[0] < 2;
@@ -232,7 +218,7 @@ TEST(pairs_in_space_equal_brute_force_on_hashed_grid) {
     World<3>& w = random_layout3(s, rng, 200, 8, 300.0);
     const auto pairs = find3(w);
     CHECK(w.grid.meta.direct_buckets == 0);
-    CHECK(pairs == brute_force3(w));
+    CHECK(pairs == brute_force(w));
     CHECK(pairs.size() > 20);
   }
 }
@@ -271,7 +257,7 @@ TEST(kept_pairs_in_space_after_motion_equal_brute_force_sorted) {
     int unmoved = 0;
     for (auto moved : w.grid.shape_moved) unmoved += !moved;
     some_kept += unmoved > 0;
-    exact = exact && pairs == brute_force3(w);
+    exact = exact && pairs == brute_force(w);
     for (std::size_t p = 0; p < pairs.size(); ++p) {
       sorted = sorted && pairs[p][0] < pairs[p][1];
       if (p > 0) sorted = sorted && (pairs[p - 1][0] < pairs[p][0] ||
@@ -304,8 +290,8 @@ TEST(measure_pairs_of_1000_spheres_in_a_box) {
   SceneBuilder3 s;
   s.plane({0.0, 1.0, 0.0}, 0.0);
   for (double n : {-1.0, 1.0}) {
-    s.plane({n, 0.0, 0.0}, 5.6);
-    s.plane({0.0, 0.0, n}, 5.6);
+    s.plane({n, 0.0, 0.0}, -5.6);  // the walls x <= -5.6, x >= 5.6
+    s.plane({0.0, 0.0, n}, -5.6);
   }
   for (int i = 0; i < 1000; ++i)
     s.sphere({1.02 * (i % 10) - 4.6, 0.5 + 1.02 * ((i / 10) % 10), 1.02 * (i / 100) - 4.6}, 0.5, 1.0);
@@ -342,7 +328,7 @@ TEST(measure_pairs_of_1000_spheres_in_a_box) {
               transform / reps, still / reps, moving / reps,
               static_cast<long long>(w.contacts.count.pairs));
   CHECK(n_still == w.contacts.count.pairs);
-  CHECK(find3(w) == brute_force3(w));
+  CHECK(find3(w) == brute_force(w));
 }
 
 RBSIM_TEST_MAIN

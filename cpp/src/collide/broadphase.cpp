@@ -249,6 +249,30 @@ void fill_grid(const Model<D>& model, Grid<D>& grid) {
   }
 }
 
+// The pairs of moved shape a with the big shapes (with every shape when a is big itself),
+// appended to keys[count..) as query_moved records them; returns the new count.
+template <int D>
+inline std::int64_t pair_with_big(const Model<D>& model, const Grid<D>& grid, std::int32_t a,
+                                  std::int64_t* keys, std::int64_t capacity, std::int64_t count) {
+  const std::int32_t n = static_cast<std::int32_t>(grid.shape_fat.size());
+  const std::uint8_t* moved = grid.shape_moved.data();
+  const bool a_big = grid.shape_big[a] != 0;
+  const std::int64_t n_cand = a_big ? n : grid.meta.big_count;
+  const std::int32_t body_a = model.shape_body[a];
+  const bool dyn_a = model.body_type[body_a] == BodyType::Dynamic;
+  const Aabb<D>& box = grid.shape_fat[a];
+  for (std::int64_t g = 0; g < n_cand; ++g) {
+    const std::int32_t b = a_big ? static_cast<std::int32_t>(g) : grid.big_list[g];
+    if (b == a || (moved[b] && b < a)) continue;
+    if (separated<D>(box, grid.shape_fat[b])) continue;
+    const std::int32_t body_b = model.shape_body[b];
+    if (body_b == body_a || !(dyn_a || model.body_type[body_b] == BodyType::Dynamic)) continue;
+    if (count < capacity) keys[count] = pair_key(a, b, n);
+    ++count;
+  }
+  return count;
+}
+
 // Keys a·S + b of the pairs that involve a moved shape, unsorted; returns the count
 // (which may exceed the key storage: the caller then grows it).
 //
@@ -268,10 +292,8 @@ std::int64_t query_moved(const Model<D>& model, Grid<D>& grid) {
   const Aabb<D>* fat = grid.shape_fat.data();
   const std::uint8_t* moved = grid.shape_moved.data();
   const std::uint8_t* big = grid.shape_big.data();
-  const std::int32_t* big_list = grid.big_list.data();
   std::int64_t* keys = grid.new_keys.data();
   const double wide = grid.span.x, tall = grid.span.y;  // m
-  const std::int64_t n_big = grid.meta.big_count;
   const bool dense = grid.meta.direct_buckets != 0;
   const std::int64_t gx0 = grid.meta.first_cell[0], gy0 = grid.meta.first_cell[1];
   const std::int64_t nx = grid.meta.extent[0], ny = grid.meta.extent[1];
@@ -288,7 +310,6 @@ std::int64_t query_moved(const Model<D>& model, Grid<D>& grid) {
     const Aabb<D> box = fat[a];
     const double ax0 = box.lo.x, ay0 = box.lo.y, ax1 = box.hi.x, ay1 = box.hi.y;
     // candidates: every shape for a big shape; else the grid cells, then big shapes
-    const std::int64_t n_cand = big[a] ? n : n_big;
     std::int64_t ix0 = 0, ix1 = -1, iy0 = 0, iy1 = -1;
     if (!big[a]) {
       // a box overlapping a's has its min corner in [a's min - span, a's max]
@@ -332,15 +353,7 @@ std::int64_t query_moved(const Model<D>& model, Grid<D>& grid) {
         }
       }
     }
-    for (std::int64_t g = 0; g < n_cand; ++g) {
-      const std::int32_t b = big[a] ? static_cast<std::int32_t>(g) : big_list[g];
-      if (b == a || (moved[b] && b < a)) continue;
-      if (separated<D>(box, fat[b])) continue;
-      const std::int32_t body_b = shape_body[b];
-      if (body_b == body_a || !(dyn_a || body_type[body_b] == BodyType::Dynamic)) continue;
-      if (count < capacity) keys[count] = pair_key(a, b, n);
-      ++count;
-    }
+    count = pair_with_big(model, grid, a, keys, capacity, count);
   }
   return count;
 }
@@ -359,10 +372,8 @@ std::int64_t query_moved(const Model<3>& model, Grid<3>& grid) {
   const Aabb<D>* fat = grid.shape_fat.data();
   const std::uint8_t* moved = grid.shape_moved.data();
   const std::uint8_t* big = grid.shape_big.data();
-  const std::int32_t* big_list = grid.big_list.data();
   std::int64_t* keys = grid.new_keys.data();
   const Vec3 span = grid.span;  // m
-  const std::int64_t n_big = grid.meta.big_count;
   const bool dense = grid.meta.direct_buckets != 0;
   const Cell<D> g0 = grid.meta.first_cell, ext = grid.meta.extent;
   const std::int32_t n = static_cast<std::int32_t>(grid.shape_fat.size());
@@ -377,7 +388,6 @@ std::int64_t query_moved(const Model<3>& model, Grid<3>& grid) {
     const std::int32_t tag_a = dyn_a ? body_a : -1 - body_a;
     const Aabb<D> box = fat[a];
     // candidates: every shape for a big shape; else the grid cells, then big shapes
-    const std::int64_t n_cand = big[a] ? n : n_big;
     Cell<D> i0{}, i1{};
     i1.fill(-1);
     if (!big[a]) {
@@ -422,15 +432,7 @@ std::int64_t query_moved(const Model<3>& model, Grid<3>& grid) {
         }
       }
     }
-    for (std::int64_t g = 0; g < n_cand; ++g) {
-      const std::int32_t b = big[a] ? static_cast<std::int32_t>(g) : big_list[g];
-      if (b == a || (moved[b] && b < a)) continue;
-      if (separated<D>(box, fat[b])) continue;
-      const std::int32_t body_b = shape_body[b];
-      if (body_b == body_a || !(dyn_a || body_type[body_b] == BodyType::Dynamic)) continue;
-      if (count < capacity) keys[count] = pair_key(a, b, n);
-      ++count;
-    }
+    count = pair_with_big(model, grid, a, keys, capacity, count);
   }
   return count;
 }

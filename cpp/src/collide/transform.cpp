@@ -51,9 +51,12 @@ inline bool near_reference(Dim<3>::RefPose& ref, const State<3>& state, std::siz
   const double still = scale * C::STILL_DISTANCE;  // m
   const Quat q = state.body_q[i];
   const Quat turn = mul(q, Quat{ref.q.w, -ref.q.x, -ref.q.y, -ref.q.z});
-  // sin(θ/2) of the turn since the reference pose (NaN until the first pose is taken)
-  const double half_sin = std::sqrt(turn.x * turn.x + turn.y * turn.y + turn.z * turn.z);
-  const bool near = dot(d, d) < still * still && half_sin < std::sin(0.5 * C::STILL_ANGLE);
+  // sin²(θ/2) of the turn θ since the reference pose, against that of STILL_ANGLE (its
+  // series to s⁵: the next term is below 1e-30 of it)
+  constexpr double s = 0.5 * C::STILL_ANGLE;
+  constexpr double sin_s = s - s * s * s / 6.0 + s * s * s * s * s / 120.0;
+  const double turned = turn.x * turn.x + turn.y * turn.y + turn.z * turn.z;
+  const bool near = dot(d, d) < still * still && turned < sin_s * sin_s;
   if (!near) ref = {state.body_x[i], q};
   return near;
 }
@@ -81,7 +84,8 @@ void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>&
     const int k0 = model.shape_vstart[s], k1 = k0 + model.shape_vcount[s];
     for (int k = k0; k < k1; ++k) {
       vw[k] = world_point(x, q, vl[k]);
-      nw[k] = rotate(q, nl[k]);
+      // in 3D only a plane has a normal row (the others' stay zero)
+      if (D == 2 || model.shape_kind[s] == ShapeKind::Plane) nw[k] = rotate(q, nl[k]);
       reach = std::max(reach, length(vl[k]));
     }
     if (model.body_type[i] == BodyType::Static) {
