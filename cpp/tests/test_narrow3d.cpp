@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "check.hpp"
-#include "collide/hull3d.hpp"
+#include "rbsim/hull3d.hpp"
 #include "collide/narrow3d.hpp"
 #include "rbsim/constants.hpp"
 

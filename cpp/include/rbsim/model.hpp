@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "../../src/collide/hull3d.hpp"
+#include "hull3d.hpp"
 #include "math.hpp"
 #include "types.hpp"
 

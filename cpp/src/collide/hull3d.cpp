@@ -1,6 +1,6 @@
 // Convex hull topology: triangles merged into polygon faces, face loops, unique edges
 // (see hull3d.hpp). Runs once per convex shape when a model is built; it allocates.
-#include "hull3d.hpp"
+#include "rbsim/hull3d.hpp"
 
 #include <algorithm>
 #include <array>

@@ -25,7 +25,7 @@
 #include <array>
 #include <cstdint>
 
-#include "collide/hull3d.hpp"
+#include "rbsim/hull3d.hpp"
 #include "rbsim/math.hpp"
 #include "rbsim/types.hpp"
 
