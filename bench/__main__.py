@@ -10,7 +10,8 @@ end to end (frames written every step, and only the first and last) beside the e
 alone and pymunk alone, and the writer's own cost per frame. The from-rest scenes (FROM_REST) are
 timed instead over their whole run from step 0, which a settled window leaves out (a
 pyramid settling, a pile forming): the median of REST_REPEATS fresh runs. Timings report;
-they do not fail.
+they do not fail. After them, the 3D table (bench/bench3d.py): rbsim against MuJoCo and
+PyBullet (where installed) on 3D contact scenes at dt = 1/240 s.
 """
 
 from __future__ import annotations
@@ -26,6 +27,8 @@ from rbsim.engines import Engine, make_engine
 from rbsim.engines.pymunk import PymunkSettings
 from rbsim.scene import load_scene
 from rbsim.tools.measure import block_times
+
+from . import bench3d
 
 HERE = Path(__file__).parent
 SCENES = ["pyramid20", "circles1000", "pyramid40", "pyramids4x4", "pyramid30", "rain800"]
@@ -119,7 +122,12 @@ def end_to_end(name: str, iterations: int) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Print the benchmark table; return 0."""
     parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__)
-    parser.add_argument("scenes", nargs="*", default=SCENES, help="bench/scenes/<name>.yaml")
+    parser.add_argument(
+        "scenes",
+        nargs="*",
+        default=SCENES + list(bench3d.SCENES),
+        help=f"bench/scenes/<name>.yaml, or a 3D scene: {', '.join(bench3d.SCENES)}",
+    )
     parser.add_argument("--iterations", type=int, default=10, help="pymunk iterations")
     args = parser.parse_args(argv)
     header = (
@@ -127,7 +135,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     print(header)
     print("-" * len(header))
-    for name in args.scenes:
+    scenes3d = [name for name in args.scenes if name in bench3d.SCENES]
+    for name in [name for name in args.scenes if name not in bench3d.SCENES]:
         scene = load_scene(HERE / "scenes" / f"{name}.yaml")
         if name in FROM_REST:
             rb, rb_contacts = time_from_rest(lambda s=scene: make_engine("rbsim", s))
@@ -150,8 +159,15 @@ def main(argv: list[str] | None = None) -> int:
     print(header)
     print("-" * len(header))
     for name in END_TO_END:
-        if not args.scenes or name in args.scenes or args.scenes == SCENES:
+        if name in args.scenes:
             print(end_to_end(name, args.iterations), flush=True)
+    if scenes3d:
+        print()
+        print(
+            f"3D, dt = 1/240 s, µs per step after {bench3d.WARMUP} steps from rest (median of "
+            f"{bench3d.REPEATS} blocks of {bench3d.STEPS}); settings: bench/bench3d.py"
+        )
+        bench3d.table(scenes3d)
     return 0
 
 
