@@ -326,29 +326,18 @@ class BulletRunner(Runner):
                 raise ValueError("the bench's PyBullet writer takes one shape per body")
             shape = body.shapes[0]
             if shape.kind == "sphere":
-                col = p.createCollisionShape(
-                    p.GEOM_SPHERE,
-                    radius=shape.radius,
-                    collisionFramePosition=shape.vertices[0],
-                    physicsClientId=c,
-                )
+                geom = {"shapeType": p.GEOM_SPHERE, "radius": shape.radius}
+                geom["collisionFramePosition"] = shape.vertices[0]
             elif shape.kind == "box":
-                col = p.createCollisionShape(
-                    p.GEOM_BOX,
-                    halfExtents=[0.5 * s for s in shape.size],
-                    collisionFramePosition=shape.offset,
-                    collisionFrameOrientation=_xyzw(shape.orientation),
-                    physicsClientId=c,
-                )
+                geom = {"shapeType": p.GEOM_BOX, "halfExtents": [0.5 * s for s in shape.size]}
+                geom["collisionFramePosition"] = shape.offset
+                geom["collisionFrameOrientation"] = _xyzw(shape.orientation)
             elif shape.kind == "plane":
-                col = p.createCollisionShape(
-                    p.GEOM_PLANE,
-                    planeNormal=shape.normal,
-                    collisionFramePosition=shape.vertices[0],
-                    physicsClientId=c,
-                )
+                geom = {"shapeType": p.GEOM_PLANE, "planeNormal": shape.normal}
+                geom["collisionFramePosition"] = shape.vertices[0]
             else:
                 raise ValueError(f"the bench's PyBullet writer has no {shape.kind!r}")
+            col = p.createCollisionShape(**geom, physicsClientId=c)
             dynamic = int(model.body_type[i]) == T.BODY_DYNAMIC
             uid = p.createMultiBody(
                 baseMass=float(model.body_mass[i]) if dynamic else 0.0,
