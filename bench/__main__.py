@@ -119,32 +119,23 @@ def end_to_end(name: str, iterations: int) -> str:
     )
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Print the benchmark table; return 0."""
-    parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__)
-    parser.add_argument(
-        "scenes",
-        nargs="*",
-        default=SCENES + list(bench3d.SCENES),
-        help=f"bench/scenes/<name>.yaml, or a 3D scene: {', '.join(bench3d.SCENES)}",
-    )
-    parser.add_argument("--iterations", type=int, default=10, help="pymunk iterations")
-    args = parser.parse_args(argv)
+def table2d(names: list[str], iterations: int) -> None:
+    """Print the 2D tables (rbsim against pymunk with `iterations`) of the scenes
+    `names` of bench/scenes."""
     header = (
         f"{'scene':<17}{'bodies':>5}{'contacts':>10}{'rbsim us':>11}{'pymunk us':>11}{'ratio':>8}"
     )
     print(header)
     print("-" * len(header))
-    scenes3d = [name for name in args.scenes if name in bench3d.SCENES]
-    for name in [name for name in args.scenes if name not in bench3d.SCENES]:
+    for name in names:
         scene = load_scene(HERE / "scenes" / f"{name}.yaml")
         if name in FROM_REST:
             rb, rb_contacts = time_from_rest(lambda s=scene: make_engine("rbsim", s))
-            pm, _ = time_from_rest(lambda s=scene: pymunk_engine(s, args.iterations))
+            pm, _ = time_from_rest(lambda s=scene: pymunk_engine(s, iterations))
             name = f"{name} (rest)"
         else:
             rb, rb_contacts = time_engine(make_engine("rbsim", scene))
-            pm, _ = time_engine(pymunk_engine(scene, args.iterations))
+            pm, _ = time_engine(pymunk_engine(scene, iterations))
         row = (
             f"{name:<17}{len(scene.bodies):>5}{rb_contacts:>10}{rb:>11.1f}{pm:>11.1f}"
             f"{rb / pm:>8.2f}"
@@ -159,12 +150,30 @@ def main(argv: list[str] | None = None) -> int:
     print(header)
     print("-" * len(header))
     for name in END_TO_END:
-        if name in args.scenes:
-            print(end_to_end(name, args.iterations), flush=True)
+        if name in names:
+            print(end_to_end(name, iterations), flush=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Print the benchmark table; return 0."""
+    parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__)
+    parser.add_argument(
+        "scenes",
+        nargs="*",
+        default=SCENES + list(bench3d.SCENES),
+        help=f"bench/scenes/<name>.yaml, or a 3D scene: {', '.join(bench3d.SCENES)}",
+    )
+    parser.add_argument("--iterations", type=int, default=10, help="pymunk iterations")
+    args = parser.parse_args(argv)
+    scenes2d = [name for name in args.scenes if name not in bench3d.SCENES]
+    scenes3d = [name for name in args.scenes if name in bench3d.SCENES]
+    if scenes2d:
+        table2d(scenes2d, args.iterations)
     if scenes3d:
-        print()
+        if scenes2d:
+            print()
         print(
-            f"3D, dt = 1/240 s, µs per step after {bench3d.WARMUP} steps from rest (median of "
+            f"3D, dt = 1/240 s, CPU µs per step after {bench3d.WARMUP} steps from rest (median of "
             f"{bench3d.REPEATS} blocks of {bench3d.STEPS}); settings: bench/bench3d.py"
         )
         bench3d.table(scenes3d)

@@ -8,8 +8,9 @@ pyramid of unit boxes (55), 100 boxes of 0.5 m dropped tumbling in a heap, 1000 
 of radius 0.1 m poured into a 4 m box, and a 10 × 10 grid of stacks of 3 boxes of 0.5 m.
 
 Each engine steps the scene from rest: WARMUP steps (untimed), then REPEATS timed blocks
-of STEPS steps (wall time, median reported); the state at the end of that window is the
-"end" of the table. Settings, each engine's own defaults at that dt:
+of STEPS steps (the process's CPU time, median reported: on a shared machine less noisy
+than wall time; each engine here steps on one thread); the state at the end of that
+window is the "end" of the table. Settings, each engine's own defaults at that dt:
 - rbsim: the scene's solver (4 substeps × (1 solve + 1 relax)), its 0.5 cm slop.
 - MuJoCo (`mjcf_contacts`): one mj_step per step, its defaults: Euler integrator,
   Newton solver, 100 iterations, tolerance 1e-8, pyramidal cone, condim 3, solref
@@ -399,17 +400,17 @@ def measure(
     steps: int = STEPS,
     repeats: int = REPEATS,
 ) -> dict:
-    """One engine on one scene: µs per step (the median of `repeats` blocks of `steps`
-    after `warmup`), contact points at the end, and the top bodies' largest sideways move
+    """One engine on one scene: CPU µs per step (the median of `repeats` blocks of
+    `steps` after `warmup`), contact points at the end, and the top bodies' largest sideways move
     and sag (m) from the start."""
     runner = make(scene)
     start = runner.positions()
     runner.advance(warmup)
     samples = []
     for _ in range(repeats):
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         runner.advance(steps)
-        samples.append((time.perf_counter() - t0) / steps * 1e6)
+        samples.append((time.process_time() - t0) / steps * 1e6)
     end = runner.positions()
     top = tops(scene)
     d = end[top] - start[top]
