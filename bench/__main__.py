@@ -10,7 +10,8 @@ end to end (frames written every step, and only the first and last) beside the e
 alone and pymunk alone, and the writer's own cost per frame. The from-rest scenes (FROM_REST) are
 timed instead over their whole run from step 0, which a settled window leaves out (a
 pyramid settling, a pile forming): the median of REST_REPEATS fresh runs. Timings report;
-they do not fail.
+they do not fail. After them, the 3D table (bench/bench3d.py): rbsim against MuJoCo and
+PyBullet (where installed) on 3D contact scenes at dt = 1/240 s.
 """
 
 from __future__ import annotations
@@ -26,6 +27,8 @@ from rbsim.engines import Engine, make_engine
 from rbsim.engines.pymunk import PymunkSettings
 from rbsim.scene import load_scene
 from rbsim.tools.measure import block_times
+
+from . import bench3d
 
 HERE = Path(__file__).parent
 SCENES = ["pyramid20", "circles1000", "pyramid40", "pyramids4x4", "pyramid30", "rain800"]
@@ -116,26 +119,23 @@ def end_to_end(name: str, iterations: int) -> str:
     )
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Print the benchmark table; return 0."""
-    parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__)
-    parser.add_argument("scenes", nargs="*", default=SCENES, help="bench/scenes/<name>.yaml")
-    parser.add_argument("--iterations", type=int, default=10, help="pymunk iterations")
-    args = parser.parse_args(argv)
+def table2d(names: list[str], iterations: int) -> None:
+    """Print the 2D tables (rbsim against pymunk with `iterations`) of the scenes
+    `names` of bench/scenes."""
     header = (
         f"{'scene':<17}{'bodies':>5}{'contacts':>10}{'rbsim us':>11}{'pymunk us':>11}{'ratio':>8}"
     )
     print(header)
     print("-" * len(header))
-    for name in args.scenes:
+    for name in names:
         scene = load_scene(HERE / "scenes" / f"{name}.yaml")
         if name in FROM_REST:
             rb, rb_contacts = time_from_rest(lambda s=scene: make_engine("rbsim", s))
-            pm, _ = time_from_rest(lambda s=scene: pymunk_engine(s, args.iterations))
+            pm, _ = time_from_rest(lambda s=scene: pymunk_engine(s, iterations))
             name = f"{name} (rest)"
         else:
             rb, rb_contacts = time_engine(make_engine("rbsim", scene))
-            pm, _ = time_engine(pymunk_engine(scene, args.iterations))
+            pm, _ = time_engine(pymunk_engine(scene, iterations))
         row = (
             f"{name:<17}{len(scene.bodies):>5}{rb_contacts:>10}{rb:>11.1f}{pm:>11.1f}"
             f"{rb / pm:>8.2f}"
@@ -150,8 +150,33 @@ def main(argv: list[str] | None = None) -> int:
     print(header)
     print("-" * len(header))
     for name in END_TO_END:
-        if not args.scenes or name in args.scenes or args.scenes == SCENES:
-            print(end_to_end(name, args.iterations), flush=True)
+        if name in names:
+            print(end_to_end(name, iterations), flush=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Print the benchmark table; return 0."""
+    parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__)
+    parser.add_argument(
+        "scenes",
+        nargs="*",
+        default=SCENES + list(bench3d.SCENES),
+        help=f"bench/scenes/<name>.yaml, or a 3D scene: {', '.join(bench3d.SCENES)}",
+    )
+    parser.add_argument("--iterations", type=int, default=10, help="pymunk iterations")
+    args = parser.parse_args(argv)
+    scenes2d = [name for name in args.scenes if name not in bench3d.SCENES]
+    scenes3d = [name for name in args.scenes if name in bench3d.SCENES]
+    if scenes2d:
+        table2d(scenes2d, args.iterations)
+    if scenes3d:
+        if scenes2d:
+            print()
+        print(
+            f"3D, dt = 1/240 s, CPU µs per step after {bench3d.WARMUP} steps from rest (median of "
+            f"{bench3d.REPEATS} blocks of {bench3d.STEPS}); settings: bench/bench3d.py"
+        )
+        bench3d.table(scenes3d)
     return 0
 
 

@@ -1,0 +1,461 @@
+"""The 3D part of `make bench`: µs per step of rbsim, MuJoCo and PyBullet on the same
+3D contact scenes, and the ratios rbsim / MuJoCo and rbsim / PyBullet, in one process.
+
+Scenes (SCENES, written here as YAML text; every one on the plane y = 0, gravity
+9.81 m/s² down y, friction 0.6, restitution 0, density 1000 kg/m³, dt = 1/240 s, the
+step MuJoCo was measured at in issue 16): a stack of 10 unit boxes, a 5-layer square
+pyramid of unit boxes (55), 100 boxes of 0.5 m dropped tumbling in a heap, 1000 spheres
+of radius 0.1 m poured into a 4 m box, and a 10 × 10 grid of stacks of 3 boxes of 0.5 m.
+
+Each engine steps the scene from rest: WARMUP steps (untimed), then REPEATS timed blocks
+of STEPS steps (the process's CPU time, median reported: on a shared machine less noisy
+than wall time; each engine here steps on one thread); the state at the end of that
+window is the "end" of the table. Settings, each engine's own defaults at that dt:
+- rbsim: the scene's solver (4 substeps × (1 solve + 1 relax)), its 0.5 cm slop.
+- MuJoCo (`mjcf_contacts`): one mj_step per step, its defaults: Euler integrator,
+  Newton solver, 100 iterations, tolerance 1e-8, pyramidal cone, condim 3, solref
+  (0.02, 1), solimp (0.9, 0.95, 0.001, 0.5, 2), margin 0; friction (μ, 0.005, 0.0001)
+  per geom (MuJoCo takes the larger of a pair; one material here).
+- PyBullet (if installed): one stepSimulation per step at fixedTimeStep = dt, its
+  defaults: 50 solver iterations, no substeps; friction μ, restitution 0 per body.
+Masses and inertias are rbsim's (the MJCF's `inertial`, PyBullet's baseMass and the
+shapes' own inertia, which for boxes and spheres of uniform density are the same).
+"Stands" (stack scenes): the top boxes' largest sideways move (m, in x and z) and sag
+(m, down y) at the end of the window; "contacts": contact points at the end (rbsim's
+manifold points, MuJoCo's d.ncon, PyBullet's getContactPoints).
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from rbsim.engines import make_engine
+from rbsim.scene import Scene, load_scene_text
+from rbsim.scene import types as T
+from rbsim.scene.compile import build
+
+try:
+    import mujoco
+except ImportError:  # the optional extra `mujoco`
+    mujoco = None
+try:
+    import pybullet
+except ImportError:  # not a dependency of rbsim: `pip install pybullet`
+    pybullet = None
+
+DT = "1/240"
+WARMUP = 240
+STEPS = 60
+REPEATS = 5
+FRICTION = 0.6
+
+HEAD = f"""\
+version: 1
+name: {{name}}
+world: {{{{dimension: 3, gravity: [0, -9.81, 0], dt: {DT}, duration: 10}}}}
+materials:
+  wood: {{{{density: 1000, friction: {FRICTION}, restitution: 0.0}}}}
+bodies:
+  - name: ground
+    type: static
+    shape: {{{{plane: {{{{normal: [0, 1, 0], offset: 0.0}}}}}}}}
+    material: wood
+"""
+
+
+def _head(name: str) -> str:
+    return HEAD.format(name=name)
+
+
+def stack10() -> str:
+    """A stack of 10 unit boxes resting on the plane."""
+    return _head("stack10") + (
+        "  - stack: {count: 10, size: [1, 1, 1], origin: [0, 0.5, 0], material: wood}\n"
+    )
+
+
+def pyramid55() -> str:
+    """A square pyramid of 5 layers of unit boxes (25 + 16 + 9 + 4 + 1 = 55)."""
+    return _head("pyramid55") + (
+        "  - pyramid: {base: 5, size: [1, 1, 1], origin: [0, 0.5, 0], material: wood}\n"
+    )
+
+
+def tumble100() -> str:
+    """100 boxes of 0.5 m in a 5 × 4 × 5 heap, each turned by its own angle about its own
+    axis (a fixed sequence), dropped from 0.5 m up onto the plane."""
+    lines = []
+    k = 0
+    for i in range(5):
+        for j in range(4):
+            for m in range(5):
+                axis = [math.sin(1.3 * k + 0.2), math.cos(0.7 * k), math.sin(2.1 * k + 1.0)]
+                angle = 0.37 * k % math.pi
+                x, y, z = -1.8 + 0.9 * i, 0.9 + 0.9 * j, -1.8 + 0.9 * m
+                lines.append(
+                    f"  - name: box{k}\n"
+                    f"    position: [{x:.3f}, {y:.3f}, {z:.3f}]\n"
+                    f"    rotation: {{axis: [{axis[0]:.4f}, {axis[1]:.4f}, {axis[2]:.4f}],"
+                    f" angle: {angle:.4f}}}\n"
+                    "    shape: {box: {size: [0.5, 0.5, 0.5]}}\n"
+                    "    material: wood\n"
+                )
+                k += 1
+    return _head("tumble100") + "".join(lines)
+
+
+def spheres1000() -> str:
+    """1000 spheres of radius 0.1 m in a 10 × 10 × 10 block, 0.3 m apart, poured into a
+    4 m × 4 m box (four static walls 0.2 m thick, 4 m high)."""
+    walls = []
+    for name, pos, size in (
+        ("wall_x0", (-2.1, 2, 0), (0.2, 4, 4.4)),
+        ("wall_x1", (2.1, 2, 0), (0.2, 4, 4.4)),
+        ("wall_z0", (0, 2, -2.1), (4.0, 4, 0.2)),
+        ("wall_z1", (0, 2, 2.1), (4.0, 4, 0.2)),
+    ):
+        walls.append(
+            f"  - name: {name}\n    type: static\n    position: [{pos[0]}, {pos[1]}, {pos[2]}]\n"
+            f"    shape: {{box: {{size: [{size[0]}, {size[1]}, {size[2]}]}}}}\n"
+            "    material: wood\n"
+        )
+    spheres = []
+    for k in range(1000):
+        i, j, m = k // 100, k // 10 % 10, k % 10
+        # each sphere shifted up to 5 cm sideways (a fixed sequence): aligned columns
+        # would land exactly on top of each other and stand as 100 towers
+        dx, dz = 0.05 * math.sin(2.3 * k + 0.4), 0.05 * math.cos(1.7 * k + 0.9)
+        x, y, z = -1.35 + 0.3 * i + dx, 0.4 + 0.3 * j, -1.35 + 0.3 * m + dz
+        spheres.append(
+            f"  - name: ball{k}\n    position: [{x:.4f}, {y:.4f}, {z:.4f}]\n"
+            "    shape: {sphere: {radius: 0.1}}\n    material: wood\n"
+        )
+    return _head("spheres1000") + "".join(walls) + "".join(spheres)
+
+
+def stacks100() -> str:
+    """A 10 × 10 grid of stacks of 3 boxes of 0.5 m, 1 m apart."""
+    return _head("stacks3x100") + (
+        "  - grid:\n      count: [10, 3, 10]\n      spacing: [1.0, 0.5, 1.0]\n"
+        "      origin: [-4.5, 0.25, -4.5]\n      shape: {box: {size: [0.5, 0.5, 0.5]}}\n"
+        "      material: wood\n"
+    )
+
+
+SCENES: dict[str, Callable[[], str]] = {
+    "stack10": stack10,
+    "pyramid55": pyramid55,
+    "tumble100": tumble100,
+    "spheres1000": spheres1000,
+    "stacks3x100": stacks100,
+}
+# MuJoCo options other than its defaults, per scene (stated in the table): on the 1000
+# spheres its default Newton solver took 340 ms per step at 1764 contacts and climbing
+# (2.25 s in), its CG solver 40-80 ms with 2400 (measured here, 2026-12-02)
+MUJOCO_OPTIONS = {"spheres1000": {"solver": "CG"}}
+# scenes whose top boxes should stand: the table reports their move and sag
+STANDING = {"stack10", "pyramid55", "stacks3x100"}
+
+
+def load(name: str, overrides: list[str] | None = None) -> Scene:
+    """The bench scene `name` (a key of SCENES), resolved."""
+    return load_scene_text(SCENES[name](), f"bench3d/{name}.yaml", overrides or ())
+
+
+def _num(x: float) -> str:
+    return repr(float(x))
+
+
+def _nums(values: np.ndarray) -> str:
+    return " ".join(_num(v) for v in np.ravel(values))
+
+
+def quat_from_z(n: np.ndarray) -> np.ndarray:
+    """The unit quaternion (w, x, y, z) of the shortest rotation taking +z to unit n."""
+    z = np.array([0.0, 0.0, 1.0])
+    c = float(np.dot(z, n))
+    if c < -1.0 + 1e-12:
+        return np.array([0.0, 1.0, 0.0, 0.0])
+    q = np.concatenate([[1.0 + c], np.cross(z, n)])
+    return q / np.linalg.norm(q)
+
+
+def _geoms(shape, friction: str) -> list[str]:  # noqa: ANN001 - a resolved Shape
+    """MJCF geom lines of one resolved 3D shape, in its body's frame (m)."""
+    f = f' friction="{friction}"'
+    if shape.kind == "sphere":
+        return [
+            f'<geom type="sphere" size="{_num(shape.radius)}" pos="{_nums(shape.vertices[0])}"{f}/>'
+        ]
+    if shape.kind == "box":
+        half = 0.5 * np.asarray(shape.size)
+        return [
+            f'<geom type="box" size="{_nums(half)}" pos="{_nums(shape.offset)}"'
+            f' quat="{_nums(shape.orientation)}"{f}/>'
+        ]
+    if shape.kind == "capsule":
+        a, b = shape.vertices
+        return [
+            f'<geom type="capsule" size="{_num(shape.radius)}" fromto="{_nums(a)} {_nums(b)}"{f}/>'
+        ]
+    if shape.kind == "plane":
+        q = quat_from_z(np.asarray(shape.normal, float))
+        return [
+            f'<geom type="plane" size="0 0 1" pos="{_nums(shape.vertices[0])}"'
+            f' quat="{_nums(q)}"{f}/>'
+        ]
+    raise ValueError(f"the bench's MJCF writer has no {shape.kind!r} geom")
+
+
+def mjcf_contacts(scene: Scene, options: dict[str, str] | None = None) -> str:
+    """The MJCF text of a 3D scene WITH contacts (MuJoCo's defaults, the module's
+    docstring): every body a MuJoCo body at its origin with its orientation, dynamic
+    ones with a free joint and rbsim's mass (kg) and inertia (kg·m², about the COM);
+    static ones welded to the world; one step of the scene's dt (s); `options`: more
+    attributes of MJCF's <option> (e.g. {"solver": "CG"})."""
+    model, _ = build(scene)
+    extra = "".join(f' {k}="{v}"' for k, v in (options or {}).items())
+    lines = [
+        f'<mujoco model="{scene.name}">',
+        '  <compiler angle="radian" inertiafromgeom="false"/>',
+        f'  <option timestep="{_num(scene.world.dt)}" gravity="{_nums(model.gravity)}"{extra}/>',
+        "  <worldbody>",
+    ]
+    for i, body in enumerate(scene.bodies):
+        kind = int(model.body_type[i])
+        if kind == T.BODY_KINEMATIC:
+            raise ValueError("the bench's MJCF writer takes no kinematic bodies")
+        lines.append(
+            f'    <body name="b{i}" pos="{_nums(body.position)}" quat="{_nums(body.orientation)}">'
+        )
+        if kind == T.BODY_DYNAMIC:
+            inertia = model.body_inertia[i]
+            full = [inertia[0, 0], inertia[1, 1], inertia[2, 2]]
+            full += [inertia[0, 1], inertia[0, 2], inertia[1, 2]]
+            lines += [
+                "      <freejoint/>",
+                f'      <inertial pos="{_nums(model.body_com[i])}"'
+                f' mass="{_num(model.body_mass[i])}" fullinertia="{_nums(full)}"/>',
+            ]
+        for shape in body.shapes:
+            friction = f"{_num(shape.material.friction)} 0.005 0.0001"
+            lines += ["      " + g for g in _geoms(shape, friction)]
+        lines.append("    </body>")
+    lines += ["  </worldbody>", "</mujoco>", ""]
+    return "\n".join(lines)
+
+
+class Runner:
+    """One engine stepping one scene: advance(n) steps (each of the scene's dt),
+    positions() the body origins (N,3) m, contacts() the contact points now."""
+
+    name = ""
+
+    def advance(self, n: int) -> None:
+        raise NotImplementedError
+
+    def positions(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def contacts(self) -> int:
+        raise NotImplementedError
+
+
+class RbsimRunner(Runner):
+    """rbsim's compiled engine with the scene's own solver settings."""
+
+    name = "rbsim"
+
+    def __init__(self, scene: Scene) -> None:
+        self.engine = make_engine("rbsim", scene)
+
+    def advance(self, n: int) -> None:
+        self.engine.advance(n)
+
+    def positions(self) -> np.ndarray:
+        return np.asarray(self.engine.read().origin)
+
+    def contacts(self) -> int:
+        return int(self.engine.contact_count)
+
+
+class MujocoRunner(Runner):
+    """MuJoCo stepping `mjcf_contacts(scene)` (with the scene's MUJOCO_OPTIONS): one
+    mj_step per scene step."""
+
+    name = "mujoco"
+
+    def __init__(self, scene: Scene) -> None:
+        options = MUJOCO_OPTIONS.get(scene.name)
+        self.model = mujoco.MjModel.from_xml_string(mjcf_contacts(scene, options))
+        self.data = mujoco.MjData(self.model)
+        mujoco.mj_forward(self.model, self.data)
+
+    def advance(self, n: int) -> None:
+        step, m, d = mujoco.mj_step, self.model, self.data
+        for _ in range(n):
+            step(m, d)
+
+    def positions(self) -> np.ndarray:
+        return np.array(self.data.xpos[1:])  # body 0 is MuJoCo's world
+
+    def contacts(self) -> int:
+        return int(self.data.ncon)
+
+
+class BulletRunner(Runner):
+    """PyBullet (DIRECT, no GUI) with the scene's bodies as multibodies of one link,
+    one stepSimulation of dt per step, its default 50 solver iterations."""
+
+    name = "pybullet"
+
+    def __init__(self, scene: Scene) -> None:
+        model, _ = build(scene)
+        p = pybullet
+        self.client = p.connect(p.DIRECT)
+        c = self.client
+        p.setGravity(*model.gravity, physicsClientId=c)
+        p.setPhysicsEngineParameter(fixedTimeStep=scene.world.dt, physicsClientId=c)
+        self.ids = []
+        for i, body in enumerate(scene.bodies):
+            if len(body.shapes) != 1:
+                raise ValueError("the bench's PyBullet writer takes one shape per body")
+            shape = body.shapes[0]
+            if shape.kind == "sphere":
+                geom = {"shapeType": p.GEOM_SPHERE, "radius": shape.radius}
+                geom["collisionFramePosition"] = shape.vertices[0]
+            elif shape.kind == "box":
+                geom = {"shapeType": p.GEOM_BOX, "halfExtents": [0.5 * s for s in shape.size]}
+                geom["collisionFramePosition"] = shape.offset
+                geom["collisionFrameOrientation"] = _xyzw(shape.orientation)
+            elif shape.kind == "plane":
+                geom = {"shapeType": p.GEOM_PLANE, "planeNormal": shape.normal}
+                geom["collisionFramePosition"] = shape.vertices[0]
+            else:
+                raise ValueError(f"the bench's PyBullet writer has no {shape.kind!r}")
+            col = p.createCollisionShape(**geom, physicsClientId=c)
+            dynamic = int(model.body_type[i]) == T.BODY_DYNAMIC
+            uid = p.createMultiBody(
+                baseMass=float(model.body_mass[i]) if dynamic else 0.0,
+                baseCollisionShapeIndex=col,
+                basePosition=body.position,
+                baseOrientation=_xyzw(body.orientation),
+                physicsClientId=c,
+            )
+            p.changeDynamics(
+                uid,
+                -1,
+                lateralFriction=shape.material.friction,
+                restitution=shape.material.restitution,
+                physicsClientId=c,
+            )
+            self.ids.append(uid)
+
+    def advance(self, n: int) -> None:
+        step, c = pybullet.stepSimulation, self.client
+        for _ in range(n):
+            step(physicsClientId=c)
+
+    def positions(self) -> np.ndarray:
+        get, c = pybullet.getBasePositionAndOrientation, self.client
+        return np.array([get(uid, physicsClientId=c)[0] for uid in self.ids])
+
+    def contacts(self) -> int:
+        return len(pybullet.getContactPoints(physicsClientId=self.client))
+
+    def close(self) -> None:
+        pybullet.disconnect(physicsClientId=self.client)
+
+
+def _xyzw(q) -> list[float]:  # noqa: ANN001 - (w, x, y, z)
+    return [float(q[1]), float(q[2]), float(q[3]), float(q[0])]
+
+
+def runners() -> list[type[Runner]]:
+    """The engines installed here: rbsim, then MuJoCo and PyBullet if importable."""
+    out: list[type[Runner]] = [RbsimRunner]
+    if mujoco is not None:
+        out.append(MujocoRunner)
+    if pybullet is not None:
+        out.append(BulletRunner)
+    return out
+
+
+def tops(scene: Scene) -> np.ndarray:
+    """Indices of the dynamic bodies that start highest (the tops of stacks), within 1 mm
+    (the generators place them at one height)."""
+    y = np.array([b.position[1] if b.type == "dynamic" else -np.inf for b in scene.bodies])
+    return np.flatnonzero(y > y.max() - 1e-3)
+
+
+def measure(
+    scene: Scene,
+    make: type[Runner],
+    warmup: int = WARMUP,
+    steps: int = STEPS,
+    repeats: int = REPEATS,
+) -> dict:
+    """One engine on one scene: CPU µs per step (the median of `repeats` blocks of
+    `steps` after `warmup`), contact points at the end, and the top bodies' largest sideways move
+    and sag (m) from the start."""
+    runner = make(scene)
+    start = runner.positions()
+    runner.advance(warmup)
+    samples = []
+    for _ in range(repeats):
+        t0 = time.process_time()
+        runner.advance(steps)
+        samples.append((time.process_time() - t0) / steps * 1e6)
+    end = runner.positions()
+    top = tops(scene)
+    d = end[top] - start[top]
+    out = {
+        "us": statistics.median(samples),
+        "contacts": runner.contacts(),
+        "move": float(np.max(np.hypot(d[:, 0], d[:, 2]))),
+        "sag": float(np.max(-d[:, 1])),
+    }
+    if hasattr(runner, "close"):
+        runner.close()
+    return out
+
+
+def table(names: list[str] | None = None) -> list[str]:
+    """The 3D table's lines, printed as they are measured."""
+    makes = runners()
+    others = [m for m in makes if m is not RbsimRunner]
+    header = f"{'scene':<13}{'bodies':>7}"
+    for m in makes:
+        header += f"{m.name + ' us':>13}{'contacts':>9}"
+    for m in others:
+        header += f"{'/' + m.name:>10}"
+    header += "   stands: top move / sag, m (each engine)"
+    lines = [header, "-" * len(header)]
+    for module, hint in (
+        (mujoco, "mujoco: the extra `mujoco`"),
+        (pybullet, "pybullet: the extra `bench` (pip install pybullet)"),
+    ):
+        if module is None:
+            lines.insert(0, f"(not installed, left out: {hint})")
+    print("\n".join(lines))
+    for name in names or list(SCENES):
+        scene = load(name)
+        rows = [measure(scene, m) for m in makes]
+        dynamic = sum(b.type == "dynamic" for b in scene.bodies)
+        line = f"{name:<13}{dynamic:>7}"
+        for r in rows:
+            line += f"{r['us']:>13.1f}{r['contacts']:>9}"
+        for r in rows[1:]:
+            line += f"{rows[0]['us'] / r['us']:>10.2f}"
+        if name in STANDING:
+            line += "   " + "  ".join(f"{r['move']:.3f}/{r['sag']:.3f}" for r in rows)
+        if mujoco is not None and name in MUJOCO_OPTIONS:
+            line += "   mujoco: " + " ".join(f"{k}={v}" for k, v in MUJOCO_OPTIONS[name].items())
+        print(line, flush=True)
+        lines.append(line)
+    return lines
