@@ -36,6 +36,7 @@ import numpy as np
 from .. import constants as C
 from ..engines import ENGINES as ENGINE_NAMES
 from ..engines import RBSIM_ENGINES, Engine, NonFiniteState, Snapshot, make_engine
+from ..engines.mujoco import quat_matrix  # numpy only: mujoco itself loads on use
 from ..engines.pymunk import PymunkSettings, UnsupportedScene
 from ..scene import Scene, load_scene
 from ..scene.library import scenes_dir
@@ -99,23 +100,10 @@ def kinetic_energy(sim: Engine, s: Snapshot) -> float:
     linear = 0.5 * (sim.mass[d] * (v * v).sum(axis=1)).sum()
     if sim.inertia.ndim == 1:
         return float(linear + 0.5 * (sim.inertia[d] * w * w).sum())
-    r = rotation_matrices(s.orientation[d])
+    r = quat_matrix(s.orientation[d])
     w_body = np.einsum("nji,nj->ni", r, w)  # Rᵀ ω
     spin = 0.5 * np.einsum("ni,nij,nj->", w_body, sim.inertia[d], w_body)
     return float(linear + spin)
-
-
-def rotation_matrices(q: np.ndarray) -> np.ndarray:
-    """(N,3,3) rotation matrices (body to world) of unit quaternions (N,4) (w, x, y, z)."""
-    w, x, y, z = np.asarray(q, float).T
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-        ],
-        axis=1,
-    )
 
 
 def speeds(v: np.ndarray) -> np.ndarray:
@@ -896,27 +884,27 @@ case(
 RAMP_MUS = (0.75, 0.5, 0.35, 0.1, 0.0)
 
 
+def ramp_rules(issue: str) -> list[Rule]:
+    """A friction ramp's rules, from `issue`: each block of μ > tan θ slips less than
+    1 cm in 5 s, each of μ < tan θ accelerates at g (sin θ − μ cos θ) within 5%."""
+    sticking = [
+        Rule(f"slip_{mu}", f"μ = {mu}: slip in 5 s", "m", "<", 0.01, f"{issue}: μ > tan θ")
+        for mu in RAMP_MUS[:3]
+    ]
+    sliding = [
+        Rule(
+            f"accel_{mu}", f"μ = {mu}: |a / g(sin θ − μ cos θ) − 1|", "", "<", 0.05, f"{issue}: ±5%"
+        )
+        for mu in RAMP_MUS[3:]
+    ]
+    return sticking + sliding
+
+
 @case(
     "friction_ramp",
     "friction on a 0.25 rad slope",
     ["friction_ramp.yaml"],
-    [
-        *(
-            Rule(f"slip_{mu}", f"μ = {mu}: slip in 5 s", "m", "<", 0.01, "issue 6: μ > tan θ")
-            for mu in RAMP_MUS[:3]
-        ),
-        *(
-            Rule(
-                f"accel_{mu}",
-                f"μ = {mu}: |a / g(sin θ − μ cos θ) − 1|",
-                "",
-                "<",
-                0.05,
-                "issue 6: ±5%",
-            )
-            for mu in RAMP_MUS[3:]
-        ),
-    ],
+    ramp_rules("issue 6"),
 )
 def measure_friction_ramp(make: Maker) -> dict[str, float]:
     """Max slip (m) of each sticking block; relative error of each sliding block's
@@ -925,7 +913,14 @@ def measure_friction_ramp(make: Maker) -> dict[str, float]:
     slope = [b for b in sim.scene.bodies if b.name == "slope"][0]
     th = slope.angle
     down = -np.array([math.cos(th), math.sin(th)])
-    g = float(np.hypot(*sim.scene.world.gravity))
+    return ramp_figures(sim, down, float(np.hypot(*sim.scene.world.gravity)), th)
+
+
+def ramp_figures(sim: Engine, down: np.ndarray, g: float, th: float) -> dict[str, float]:
+    """Run a friction-ramp scene (blocks named block[mu=...], RAMP_MUS) sampling every
+    step; `down` the unit downhill direction, g (m/s²) gravity's magnitude, th (rad) the
+    slope: the sticking blocks' largest slip (m) and the sliding blocks' relative error
+    of acceleration (a line fitted to the downhill speed from t = 0.5 s)."""
     blocks = {mu: [b.name for b in sim.scene.bodies].index(f"block[mu={mu}]") for mu in RAMP_MUS}
     xs, vs, ts = [], [], []
 
@@ -1273,23 +1268,7 @@ def measure_heavy_top_3d(make: Maker) -> dict[str, float]:
     "friction_ramp_3d",
     "3D: friction on a 0.25 rad tilted plane",
     ["friction_ramp_3d.yaml"],
-    [
-        *(
-            Rule(f"slip_{mu}", f"μ = {mu}: slip in 5 s", "m", "<", 0.01, "issue 16: μ > tan θ")
-            for mu in RAMP_MUS[:3]
-        ),
-        *(
-            Rule(
-                f"accel_{mu}",
-                f"μ = {mu}: |a / g(sin θ − μ cos θ) − 1|",
-                "",
-                "<",
-                0.05,
-                "issue 16: ±5%",
-            )
-            for mu in RAMP_MUS[3:]
-        ),
-    ],
+    ramp_rules("issue 16"),
     dimension=3,
 )
 def measure_friction_ramp_3d(make: Maker) -> dict[str, float]:
@@ -1302,27 +1281,7 @@ def measure_friction_ramp_3d(make: Maker) -> dict[str, float]:
     g = np.asarray(sim.scene.world.gravity, float)
     th = math.acos(float(-(n @ g)) / float(np.linalg.norm(g)))
     along = g - (g @ n) * n  # gravity's part along the plane: downhill
-    down = along / np.linalg.norm(along)
-    blocks = {mu: [b.name for b in sim.scene.bodies].index(f"block[mu={mu}]") for mu in RAMP_MUS}
-    xs, vs, ts = [], [], []
-
-    def visit(sim: Engine, s: Snapshot) -> None:
-        xs.append(s.com.copy())
-        vs.append(s.velocity.copy())
-        ts.append(sim.time)
-
-    sample(sim, 1, visit)
-    x, v, t = np.array(xs), np.array(vs), np.array(ts)
-    out = {}
-    for mu, i in blocks.items():
-        if mu > math.tan(th):
-            out[f"slip_{mu}"] = float(np.abs((x[:, i] - x[0, i]) @ down).max())
-        else:
-            late = t >= 0.5  # past the first contact's settling
-            accel = np.polyfit(t[late], v[late, i] @ down, 1)[0]
-            expected = float(np.linalg.norm(g)) * (math.sin(th) - mu * math.cos(th))
-            out[f"accel_{mu}"] = float(abs(accel / expected - 1.0))
-    return out
+    return ramp_figures(sim, along / np.linalg.norm(along), float(np.linalg.norm(g)), th)
 
 
 case(
@@ -1380,7 +1339,7 @@ def measure_confined_3d(make: Maker, overrides: Sequence[str] = ()) -> dict[str,
 def axis_tilt_and_azimuth(s: Snapshot, body: int) -> tuple[float, float]:
     """A body's y axis (its symmetry axis in the top's scene) turned to the world: its
     angle from the vertical (rad) and its azimuth about the vertical, atan2(z, x) (rad)."""
-    a = rotation_matrices(s.orientation[body : body + 1])[0][:, 1]
+    a = quat_matrix(s.orientation[body : body + 1])[0][:, 1]
     return math.acos(max(-1.0, min(1.0, float(a[1])))), math.atan2(float(a[2]), float(a[0]))
 
 
@@ -1421,7 +1380,7 @@ def measure_spinning_top_3d(make: Maker) -> dict[str, float]:
         tilt, azimuth = axis_tilt_and_azimuth(s, top)
         tilts.append(tilt)
         azimuths.append(azimuth)
-        axis = rotation_matrices(s.orientation[top : top + 1])[0][:, 1]
+        axis = quat_matrix(s.orientation[top : top + 1])[0][:, 1]
         tips.append(s.com[top] - 0.3 * axis)
 
     sample(sim, 6, visit)
