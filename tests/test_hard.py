@@ -395,6 +395,10 @@ def test_3d_cases_run_in_rbsim_only():
     case = hard.CASES["stack_3d"]
     assert case.dimension == 3 and case.engines(hard.ENGINES) == ("rbsim",)
     assert hard.CASES["stack"].engines(hard.ENGINES) == hard.ENGINES
+    result = hard.Result("stack_3d", "rbsim", {"sideways": 0.01, "sag": 0.1, "speed": 0.0})
+    rows = hard.table({("stack_3d", "rbsim"): result}, [case]).splitlines()[2:]
+    assert rows[0].endswith("| 0.01 | ok | n/a |  |")  # pymunk cannot run 3D
+    assert rows[1].endswith("| 0.1 | FAIL | n/a |  |")  # the 5 cm sag rule
 
 
 def test_kinetic_energy_in_3d_turns_the_inertia_tensor_to_the_world():

@@ -1480,6 +1480,9 @@ def table(results: dict[tuple[str, str], Result], cases: Sequence[Case]) -> str:
         for rule in c.rules:
             cells = [title, rule.label, rule.unit, f"{rule.op} {_fmt(rule.limit)}"]
             for engine in ENGINES:
+                if engine not in c.engines(ENGINES):
+                    cells.extend(["n/a", ""])  # a 3D case in a 2D engine
+                    continue
                 cells.extend(_verdict(rule, results.get((c.name, engine))))
             rows.append(_row(cells))
             title = ""
@@ -1487,7 +1490,8 @@ def table(results: dict[tuple[str, str], Result], cases: Sequence[Case]) -> str:
             cells = ["", info.label, info.unit, "(reported)"]
             for engine in ENGINES:
                 res = results.get((c.name, engine))
-                cells.extend([_fmt(res.figures.get(info.figure)) if res else "", ""])
+                shown = _fmt(res.figures.get(info.figure)) if res else ""
+                cells.extend([shown if engine in c.engines(ENGINES) else "n/a", ""])
             rows.append(_row(cells))
     notes = [f"- {r.engine}, {r.case}: {r.note}" for r in results.values() if r.note]
     return "\n".join(rows + ([""] + notes if notes else []))
