@@ -366,7 +366,9 @@ def _loop(
     """Step `world` to the scene's last step, recording frames into `writer`'s blocks,
     and close the writer however the loop ends (see run_scene)."""
     total = scene.world.steps
-    every = scene.output.every
+    # an `every` past the last step writes what `every = total` does (step 0 and the last),
+    # and stays within the engine's integer range however large the scene's number is
+    every = min(scene.output.every, max(total, 1))
     out = writer.path
     status = "failed"  # made precise below
     checkpoint: bytes | None = None

@@ -170,6 +170,15 @@ def test_output_every_writes_every_kth_step_and_the_last(tmp_path: Path) -> None
     np.testing.assert_allclose(tr.time, [0, 0.03, 0.06, 0.09, 0.1])
 
 
+def test_output_every_past_the_last_step_writes_the_first_and_last(tmp_path: Path) -> None:
+    # 10⁴⁰⁰ is beyond the engine's integers: it must mean "step 0 and the last" (fuzz 938)
+    out = tmp_path / "ball.h5"
+    scene = write(tmp_path, "ball.yaml", BALL + "output: {every: 1" + "0" * 400 + "}\n")
+    code, stdout, stderr = rbsim("run", scene, "-o", out)
+    assert code == 0, stderr
+    assert load_trajectory(out).step.tolist() == [0, 10]
+
+
 @pytest.mark.parametrize("scene", SCENES, ids=[p.stem for p in SCENES])
 def test_every_shipped_scene_runs(tmp_path: Path, scene: Path) -> None:
     out = tmp_path / f"{scene.stem}.h5"
