@@ -39,6 +39,7 @@
 #include <limits>
 
 #include "rbsim/constants.hpp"
+#include "segment_closest.hpp"
 
 namespace rbsim {
 namespace {
@@ -170,39 +171,9 @@ inline EdgeSeparation max_separation(int start1, int count1, int start2, int cou
   return {best, best_edge};
 }
 
-// Fractions (s, t) of the closest points p1 + s (q1 − p1) and p2 + t (q2 − p2).
-//
-// An end point is reported exactly as 0.0 or 1.0 (by clamping), which is how the caller
-// recognises the vertex-vertex region. Parallel segments start from s = 0.
-struct Fractions {
-  double s, t;
-};
-inline Fractions segment_closest_fractions(Vec2 p1, Vec2 q1, Vec2 p2, Vec2 q2) {
-  const Vec2 d1 = q1 - p1;
-  const Vec2 d2 = q2 - p2;
-  const Vec2 r = p1 - p2;
-  const double a = dot(d1, d1);
-  const double e = dot(d2, d2);
-  const double f = dot(d2, r);
-  constexpr double tiny = LINEAR_EPSILON * LINEAR_EPSILON;
-  if (a <= tiny && e <= tiny) return {0.0, 0.0};
-  if (a <= tiny) return {0.0, clamp01(f / e)};
-  const double c = dot(d1, r);
-  if (e <= tiny) return {clamp01(-c / a), 0.0};
-  const double b = dot(d1, d2);
-  const double denom = a * e - b * b;
-  double s = 0.0;
-  if (denom > 1.0e-12 * a * e) s = clamp01((b * f - c * e) / denom);
-  double t = (b * s + f) / e;
-  if (t < 0.0) {
-    t = 0.0;
-    s = clamp01(-c / a);
-  } else if (t > 1.0) {
-    t = 1.0;
-    s = clamp01((b - c) / a);
-  }
-  return {s, t};
-}
+// segment_closest_fractions (segment_closest.hpp) reports an end point exactly as 0.0 or
+// 1.0 (by clamping): that is how the corner-to-corner case below recognises the
+// vertex-vertex region.
 
 // Clip the incident edge to the reference face's side planes; keep points within reach.
 //
