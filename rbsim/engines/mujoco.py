@@ -54,6 +54,7 @@ from ..io.observables import observables
 from ..scene import Scene
 from ..scene import types as T
 from ..scene.compile import Model, State, build
+from ..scene.geometry3d import quat_matrix
 from .base import Engine, EngineUnavailable, Snapshot, UnsupportedScene
 
 try:
@@ -88,19 +89,6 @@ class MujocoSettings:
 
     substeps: int | None = None
     frame: str = "com"
-
-
-def quat_matrix(q: np.ndarray) -> np.ndarray:
-    """(N,3,3) rotation matrices of unit quaternions q (N,4) (w, x, y, z)."""
-    w, x, y, z = (q[:, k] for k in range(4))
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-        ],
-        axis=1,
-    )
 
 
 def quat_exp(rotvec: np.ndarray) -> np.ndarray:

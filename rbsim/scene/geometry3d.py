@@ -56,15 +56,18 @@ def quat_multiply(a: Quat, b: Quat) -> Quat:
     )
 
 
-def quat_matrix(q: Sequence[float]) -> np.ndarray:
-    """The 3x3 rotation matrix R of a unit quaternion (w, x, y, z): R v rotates v."""
-    w, x, y, z = (float(c) for c in q)
-    return np.array(
+def quat_matrix(q: Sequence[float] | np.ndarray) -> np.ndarray:
+    """The rotation matrices R (...,3,3) of unit quaternions q (...,4) (w, x, y, z): R v
+    rotates v. One quaternion (4,) gives one (3,3) matrix, an (N,4) array N of them."""
+    q = np.asarray(q, dtype=np.float64)
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return np.stack(
         [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        -2,
     )
 
 

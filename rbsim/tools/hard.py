@@ -36,9 +36,9 @@ import numpy as np
 from .. import constants as C
 from ..engines import ENGINES as ENGINE_NAMES
 from ..engines import RBSIM_ENGINES, Engine, NonFiniteState, Snapshot, make_engine
-from ..engines.mujoco import quat_matrix  # numpy only: mujoco itself loads on use
 from ..engines.pymunk import PymunkSettings, UnsupportedScene
 from ..scene import Scene, load_scene
+from ..scene.geometry3d import quat_matrix
 from ..scene.library import scenes_dir
 
 SCENES = scenes_dir("hard")
