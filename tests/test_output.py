@@ -148,7 +148,12 @@ def test_a_run_stopped_by_sigterm_keeps_its_checkpoint_and_resumes(reference, tm
     folder, scene, ref = reference
     out = tmp_path / "term.h5"
     proc = start_run(scene, "-o", out)
-    time.sleep(1.2)
+    # the handler is in place before the file is laid out: wait for the file (however slow
+    # the start on a loaded machine), then let the run step a while
+    deadline = time.monotonic() + 60
+    while not out.exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    time.sleep(0.3)
     proc.send_signal(signal.SIGTERM)
     _out, err = proc.communicate(timeout=60)
     if proc.returncode == 0:
