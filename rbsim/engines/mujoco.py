@@ -144,11 +144,15 @@ SOLIMP = (0.99, 0.99, 0.001, 0.5, 2.0)
 # the bridge reaches (E_FLOOR, computed by `rebound`).
 ZETA_MAX = 3.0
 # The friction rows' damping ratio (their solref (-ω0², -2 ζf ω0); friction has no
-# stiffness): the reference deceleration of a slide is b v_t = 2 ζf ω0 v_t, and MuJoCo's
-# soft elliptic cone trades normal force for it, so a large b kicks a sliding box off
-# its support (measured on the 3D slope at h = 0.2 ms: the normal velocity chatters at
-# 0.12 m/s with ζf = 1, 0.017 with 0.1, 0.007 with 0.03). Below v_t = μ g / b friction
-# is viscous rather than Coulomb's (4.8 cm/s on that slope with 0.03).
+# stiffness): a slide's reference deceleration is b v_t with b = 2 ζf ω0, so friction is
+# Coulomb's (saturated at μ g) above v_t = μ g / b and viscous below it; and MuJoCo's
+# soft elliptic cone trades normal force for friction, so a large b kicks a sliding box
+# off its support. Measured at h = 0.2 ms: on the 3D slope the normal velocity chatters
+# at 0.007 m/s with ζf = 0.03 (0.017 with 0.1, 0.12 with 1); the 3D pile (μ = 0.5)
+# settles with 0.03 and 0.05 (kinetic energy 2e-5 J and 7e-4 J at 3 s) and does not
+# with 0.1 (11 J: a box keeps rocking on the others). With 0.03 (b = 37.7/s) friction is
+# viscous below 13 cm/s on that pile, and its boxes spread wider than rbsim's
+# (scenes/3d/compare/statistics/pile.yaml).
 FRICTION_ZETA = 0.03
 # A pair whose estimated deepest penetration exceeds this fraction of its thinner shape's
 # half-thickness is refused: MuJoCo finds the normal of a deep overlap by the shapes'
@@ -643,7 +647,7 @@ class MujocoEngine(Engine):
                 # depth = v / ω0 + sag: ω0 ∝ 1/h, so the depth shrinks about as h does
                 fit = self.h * TUNNEL_FRACTION * p.thickness / p.depth
                 raise UnsupportedScene(
-                    f"{who} would tunnel in MuJoCo at its step h = {self.h:.3g} s: an impact at "
+                    f"{who} could tunnel in MuJoCo at its step h = {self.h:.3g} s: an impact at "
                     f"up to {p.speed:.3g} m/s sinks about {p.depth:.3g} m into its soft contact "
                     f"(lasting {CONTACT_STEPS} steps), more than {TUNNEL_FRACTION:g} of the "
                     f"thinner shape's half-thickness {p.thickness:.3g} m; a step of "
