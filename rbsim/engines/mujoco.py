@@ -5,10 +5,12 @@ body, with the scene body's orientation, and an `inertial` element with rbsim's 
 and full inertia tensor (`fullinertia`, about the centre of mass, at the COM's position
 `pos` in the MuJoCo body's frame), from rbsim's compiled Model: MuJoCo never
 computes mass properties itself (its meshes are float32: a hull's centre of mass comes
-out 3e-9 m off and its inertia 7e-8 relative). Static bodies are not written and contacts
-are disabled (`<flag contact="disable"/>`): the bridge takes only scenes whose bodies
-cannot touch (one body with shapes, or none dynamic) and refuses the others with
-UnsupportedScene, since rbsim collides them and MuJoCo would not; kinematic
+out 3e-9 m off and its inertia 7e-8 relative). A scene whose bodies cannot touch is
+written with contacts disabled (`<flag contact="disable"/>`) and its static bodies left
+out; one whose bodies can touch gets a geom per shape and an MJCF <pair> per pair of
+shapes that can touch, with MuJoCo's soft contact law set per pair (see "contacts"
+below: the damping ratio that gives the pair's restitution in MuJoCo's own impact), or
+is refused with UnsupportedScene where MuJoCo cannot express it; kinematic
 bodies move as prescribed (x0 + v t, exp(t ω / 2) q0; MuJoCo has nothing to compute
 for them). Gravity is written as the scene gives it, in rbsim's y-up world (MuJoCo
 takes any vector; its z-up default does not apply). One scene step is
@@ -31,6 +33,16 @@ qpos is the body frame's origin (3, world) and its orientation (w, x, y, z); qve
 frame origin's velocity (world frame) followed by the angular velocity in the BODY frame.
 rbsim's layout: the body origin x − R p (p: the frame's point in rbsim's body frame, the
 COM or 0), the COM's velocity v_frame + ω × R (com − p) and ω in the world frame.
+
+Contacts (the "contacts" section below has the measurements): every shape is a geom
+with contype = conaffinity = 0, so that only the explicit pairs collide, each pair
+with the scene's mixed friction (MuJoCo would take the larger of two geoms' values)
+and its own solref (MuJoCo would average two geoms'): condim 3, the elliptic cone,
+solimp SOLIMP (a constant impedance 0.99: a linear law), solref (-ω0², -2 ζ ω0) with
+ω0 = π / (CONTACT_STEPS h), ζ = `damping_for(e, h)` found by bisection on MuJoCo's own
+impact, friction rows damped with FRICTION_ZETA. MuJoCo has no restitution threshold.
+Refused: a kinematic body that can touch, 0 < e below MuJoCo's least rebound, a step at
+which an impact could tunnel (`contact_pairs`' depth estimate), more than MAX_PAIRS.
 
 Forces and torques go through xfrc_applied (world frame, at the COM): a scene force at
 a body point adds its torque (R arm) × f, evaluated at the start of each MuJoCo step as
@@ -66,9 +78,17 @@ except ImportError:  # the optional extra `mujoco` is not installed
 
 __all__ = [
     "INSTALL_HINT",
+    "ContactPair",
     "MujocoEngine",
     "MujocoSettings",
+    "contact_pairs",
+    "damping_for",
+    "geoms",
     "mjcf",
+    "pair_lines",
+    "rebound",
+    "rebounds",
+    "solref",
     "quat_exp",
     "quat_matrix",
     "quat_mul",

@@ -2,9 +2,12 @@
 MuJoCo in 3D (REFERENCE), and the differences between them.
 
 In 3D MuJoCo steps the scene as rbsim.engines.mujoco writes it (rbsim's own masses and
-inertia tensors, steps of dt / substeps), and the angle compared is the angle of the
-rotation between the two orientations, 2 acos |q1 · q2|; statistics are 2D only. What
-follows is said of pymunk and holds for MuJoCo alike.
+inertia tensors, steps of dt / substeps, soft contacts with a damping ratio per pair
+calibrated to the pair's restitution; the settings are stated in the output), and the
+angle compared is the angle of the rotation between the two orientations,
+2 acos |q1 · q2|. MuJoCo's impacts last several steps, so a state inside one is compared
+with rbsim's path through it (SOFT_IMPACTS). What follows is said of pymunk and holds
+for MuJoCo alike; 3D overlaps are measured with MuJoCo's collision functions.
 
 Both engines write a trajectory in the same H5MD layout (DESIGN.md), with frames at the
 same steps (0, every output.every-th, the last). pymunk takes steps of the same length as
@@ -723,7 +726,7 @@ def compare_scene(
 ) -> CompareResult:
     """Run `scene` in rbsim and in the reference engine (pymunk in 2D, MuJoCo in 3D),
     writing out_dir/<name>.rbsim.h5 and out_dir/<name>.<reference>.h5, and compare them.
-    Statistics (see `statistics`, 2D only) are computed when `with_statistics` or the
+    Statistics (see `statistics`) are computed when `with_statistics` or the
     scene has a compare.statistics block. `pymunk_scene` (default `scene`) is what the
     reference engine runs: the same scene with a setting changed, to see how much that
     setting matters. Raises UnsupportedScene (the reference engine cannot express the
