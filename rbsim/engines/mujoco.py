@@ -40,7 +40,9 @@ with the scene's mixed friction (MuJoCo would take the larger of two geoms' valu
 and its own solref (MuJoCo would average two geoms'): condim 3, the elliptic cone,
 solimp SOLIMP (a constant impedance 0.99: a linear law), solref (-ω0², -2 ζ ω0) with
 ω0 = π / (CONTACT_STEPS h), ζ = `damping_for(e, h)` found by bisection on MuJoCo's own
-impact, friction rows damped with FRICTION_ZETA. MuJoCo has no restitution threshold.
+impact, friction rows damped with FRICTION_ZETA. MuJoCo has no restitution threshold:
+the bridge switches a pair that starts touching slowly to its most damped contact
+(`_setup_threshold`).
 Refused: a kinematic body that can touch, 0 < e below MuJoCo's least rebound, a step at
 which an impact could tunnel (`contact_pairs`' depth estimate), more than MAX_PAIRS.
 
@@ -625,6 +627,7 @@ class MujocoEngine(Engine):
         if model.has_forces and not self._per_step:
             d.xfrc_applied[1:, :3] = self._force
             d.xfrc_applied[1:, 3:] = self._torque
+        self._setup_threshold(scene)
         self._steps = 0
         self.settings = {
             "substeps": self.substeps,
@@ -634,6 +637,70 @@ class MujocoEngine(Engine):
             "frame": self.frame,
             "mujoco_version": mujoco.__version__,
         }
+
+    def _setup_threshold(self, scene: Scene) -> None:
+        """rbsim's restitution threshold in MuJoCo, which has none: when a pair that
+        bounces (ζ below ZETA_MAX) starts touching at a normal approach slower than
+        solver.restitution_threshold, its solref is set to ZETA_MAX's (MuJoCo's most
+        damped contact, as for e = 0) until it stops touching (`_gate`). The first step of
+        a contact is taken with the pair's own solref: in it the spring has barely
+        compressed, so the rebound is about MuJoCo's least."""
+        m = self.mj_model
+        self.threshold = float(scene.solver.restitution_threshold)
+        bouncy = [p.zeta < ZETA_MAX for p in self.pairs]
+        self._gated = self.threshold > 0.0 and any(bouncy)
+        self._touching = np.zeros(len(self.pairs), bool)
+        self._slow = np.zeros(len(self.pairs), bool)
+        if not self._gated:
+            return
+        self._geom_pair = np.full((m.ngeom, m.ngeom), -1, np.int64)
+        for k, p in enumerate(self.pairs):
+            g1 = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f"g{p.a}")
+            g2 = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f"g{p.b}")
+            self._geom_pair[g1, g2] = self._geom_pair[g2, g1] = k
+        self._bounce_solref = m.pair_solref.copy()
+        self._still_solref = np.array(solref(ZETA_MAX, self.h))
+        self._per_step = True
+
+    def _gate(self, qvel: np.ndarray) -> None:
+        """After a MuJoCo step taken from velocities `qvel` (d.contact and the bodies'
+        frames are still those of the step's start): pairs that started touching get the
+        damping of their approach speed (`_setup_threshold`), pairs that stopped get
+        their own solref back."""
+        m, d = self.mj_model, self.mj_data
+        now = np.zeros(len(self.pairs), bool)
+        ncon = int(d.ncon)
+        if ncon:
+            con = d.contact
+            pair = self._geom_pair[con.geom[:ncon, 0], con.geom[:ncon, 1]]
+            now[pair[pair >= 0]] = True
+            new = now & ~self._touching
+            if new.any():
+                body = m.geom_bodyid[con.geom[:ncon]]  # (ncon, 2); 0 is the world
+                rel = np.zeros((ncon, 3))
+                for side, sign in ((0, -1.0), (1, 1.0)):
+                    b = body[:, side]
+                    moving = b > 0
+                    dof = 6 * (b[moving] - 1)
+                    v = qvel[dof[:, None] + np.arange(3)]
+                    w = np.einsum(
+                        "nij,nj->ni",
+                        d.xmat[b[moving]].reshape(-1, 3, 3),
+                        qvel[dof[:, None] + np.arange(3, 6)],
+                    )
+                    arm = con.pos[:ncon][moving] - d.xpos[b[moving]]
+                    rel[moving] += sign * (v + np.cross(w, arm))
+                # normal speed of geom 2 against geom 1, along frame's first row (1 -> 2)
+                approach = -np.einsum("ni,ni->n", rel, con.frame[:ncon, :3])
+                for k in np.flatnonzero(new):
+                    fastest = float(approach[pair == k].max())
+                    self._slow[k] = fastest < self.threshold
+                    if self._slow[k]:
+                        m.pair_solref[k] = self._still_solref
+        for k in np.flatnonzero(self._touching & ~now & self._slow):
+            m.pair_solref[k] = self._bounce_solref[k]
+            self._slow[k] = False
+        self._touching = now
 
     def _contact_pairs(self, scene: Scene, state: State) -> list[ContactPair]:
         """The scene's contact pairs (`contact_pairs`), or UnsupportedScene where MuJoCo
@@ -690,12 +757,17 @@ class MujocoEngine(Engine):
         if len(kinds) > 6:
             parts.append(f"... ({len(kinds)} kinds)")
         law = ", ".join(f"{x:g}" for x in SOLIMP)
+        gate = (
+            f"a pair that starts touching slower than {self.threshold:g} m/s "
+            f"(solver.restitution_threshold) gets ζ {ZETA_MAX:g} until it parts"
+            if self._gated
+            else "no restitution threshold applied (nothing bounces, or the threshold is 0)"
+        )
         return (
             f"{len(self.pairs)} pairs (MJCF <pair>, condim 3, elliptic cone, Newton solver), "
             f"h = {self.h:.4g} s, solref direct (-ω0², -2 ζ ω0) with ω0 = π / "
             f"({CONTACT_STEPS} h) = {w0:.4g} rad/s, the friction rows' ζ {FRICTION_ZETA:g}, "
-            f"solimp ({law}); {'; '.join(parts)}; no restitution threshold (MuJoCo bounces "
-            "impacts slower than solver.restitution_threshold too)"
+            f"solimp ({law}); {'; '.join(parts)}; {gate}"
         )
 
     def _applied(self) -> None:
@@ -746,9 +818,16 @@ class MujocoEngine(Engine):
             if n <= 0 or len(self._dyn) == 0:
                 pass
             elif self._per_step:
+                applied = self._moving_arm or self._damped
                 for _ in range(n * self.substeps):
-                    self._applied()
-                    mujoco.mj_step(m, d)
+                    if applied:
+                        self._applied()
+                    if self._gated:
+                        qvel = d.qvel.copy()
+                        mujoco.mj_step(m, d)
+                        self._gate(qvel)
+                    else:
+                        mujoco.mj_step(m, d)
             else:
                 mujoco.mj_step(m, d, nstep=n * self.substeps)
         finally:
@@ -853,15 +932,23 @@ class MujocoEngine(Engine):
     def checkpoint(self) -> bytes:
         d = self.mj_data
         head = np.array([self._steps, d.time], np.float64)
-        return np.concatenate([head, d.qpos, d.qvel]).tobytes()
+        flags = np.concatenate([self._touching, self._slow]).astype(np.float64)
+        return np.concatenate([head, d.qpos, d.qvel, flags]).tobytes()
 
     def restore(self, data: bytes) -> None:
         values = np.frombuffer(data, np.float64)
         d = self.mj_data
-        nq, nv = len(d.qpos), len(d.qvel)
-        if len(values) != 2 + nq + nv:
+        nq, nv, npair = len(d.qpos), len(d.qvel), len(self.pairs)
+        if len(values) != 2 + nq + nv + 2 * npair:
             raise ValueError("the checkpoint is not of this scene's MuJoCo model")
         self._steps = int(values[0])
         d.time = float(values[1])
         d.qpos[:] = values[2 : 2 + nq]
-        d.qvel[:] = values[2 + nq :]
+        d.qvel[:] = values[2 + nq : 2 + nq + nv]
+        flags = values[2 + nq + nv :].astype(bool)
+        self._touching, self._slow = flags[:npair].copy(), flags[npair:].copy()
+        if self._gated:
+            slow = self._slow
+            self.mj_model.pair_solref[:] = np.where(
+                slow[:, None], self._still_solref, self._bounce_solref
+            )
