@@ -79,7 +79,7 @@ batch: $(STAMP)
 	$(BIN)/rbsim batch scenes/*.yaml -o out/
 
 COMPARE_SCENES := $(wildcard scenes/compare/*.yaml scenes/compare/statistics/*.yaml \
-	scenes/3d/compare/*.yaml)
+	scenes/3d/compare/*.yaml scenes/3d/compare/statistics/*.yaml)
 
 # rbsim against pymunk on every scene of scenes/compare/ (and its statistics/), and
 # against MuJoCo on every scene of scenes/3d/compare/; fails if any exits non-zero.

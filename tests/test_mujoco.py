@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import math
-import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -127,16 +126,17 @@ bodies:
 """
 
 
-def test_a_scene_whose_bodies_can_touch_is_refused_plainly(tmp_path: Path):
-    """rbsim collides the ball with the plane; the bridge writes no MuJoCo contacts, so
-    it says it cannot express the scene (exit 3) instead of comparing other physics."""
-    with pytest.raises(UnsupportedScene, match="free bodies only"):
-        MujocoEngine(scene_from(BALL_OVER_PLANE))
-    path = tmp_path / "ball.yaml"
-    path.write_text(textwrap.dedent(BALL_OVER_PLANE))
-    code, _out, err = rbsim("compare", path, "-o", tmp_path)
-    assert code == 3, err
-    assert "cannot express this scene" in err and "Traceback" not in err
+def test_a_scene_whose_bodies_can_touch_gets_mujoco_contacts():
+    """rbsim collides the ball with the plane, and so does MuJoCo: one explicit pair,
+    contacts enabled, the geoms colliding through that pair only (contype 0); the
+    contact tests are in tests/test_mujoco_contacts.py."""
+    engine = MujocoEngine(scene_from(BALL_OVER_PLANE))
+    m = engine.mj_model
+    assert m.npair == 1 and len(engine.pairs) == 1
+    assert not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT
+    assert m.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
+    assert not m.geom_contype.any() and not m.geom_conaffinity.any()
+    assert "1 pairs" in engine.settings["contacts"]
 
 
 # -- the state as MuJoCo keeps it ------------------------------------------------------------
@@ -301,8 +301,10 @@ def test_3d_compare_scene_passes(path: Path, tmp_path: Path):
     name = load_scene(path).name
     assert (tmp_path / f"{name}.rbsim.h5").is_file()
     assert (tmp_path / f"{name}.mujoco.h5").is_file()
+    bouncing = {"bounce_3d", "bounce_elastic_3d"}  # one impact each, lined up
     for body in data["bodies"]:
-        assert body["impacts"] == 0 and body["unmatched"] == []  # nothing collides in 3D
+        expected = 1 if name in bouncing and body["name"] == "ball" else 0
+        assert body["impacts"] == expected and body["unmatched"] == []
 
 
 def test_wrong_velocity_in_mujoco_alone_exits_4(tmp_path: Path):

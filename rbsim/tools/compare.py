@@ -2,9 +2,12 @@
 MuJoCo in 3D (REFERENCE), and the differences between them.
 
 In 3D MuJoCo steps the scene as rbsim.engines.mujoco writes it (rbsim's own masses and
-inertia tensors, steps of dt / substeps), and the angle compared is the angle of the
-rotation between the two orientations, 2 acos |q1 · q2|; statistics are 2D only. What
-follows is said of pymunk and holds for MuJoCo alike.
+inertia tensors, steps of dt / substeps, soft contacts with a damping ratio per pair
+calibrated to the pair's restitution; the settings are stated in the output), and the
+angle compared is the angle of the rotation between the two orientations,
+2 acos |q1 · q2|. MuJoCo's impacts last several steps, so a state inside one is compared
+with rbsim's path through it (SOFT_IMPACTS). What follows is said of pymunk and holds
+for MuJoCo alike; 3D overlaps are measured with MuJoCo's collision functions.
 
 Both engines write a trajectory in the same H5MD layout (DESIGN.md), with frames at the
 same steps (0, every output.every-th, the last). pymunk takes steps of the same length as
@@ -26,18 +29,21 @@ queries on both trajectories (one ruler for both engines).
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
+import textwrap
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from ..engines import UnsupportedScene, make_engine
+from ..engines import Engine, UnsupportedScene, make_engine
 from ..engines.pymunk import PymunkSettings, PymunkWorld
 from ..io.trajectory import Trajectory, load_trajectory
 from ..run import run_scene
 from ..scene import Scene
+from ..scene.geometry3d import quat_matrix
 
 __all__ = [
     "BodyDiff",
@@ -82,6 +88,9 @@ STATISTICS: dict[str, tuple[str, str]] = {
 
 # The reference engine of each world.dimension
 REFERENCE = {2: "pymunk", 3: "mujoco"}
+# Reference engines whose impacts take several steps (soft contacts): states inside an
+# impact are compared with rbsim's path through it (aligned_difference's `through`)
+SOFT_IMPACTS = {"mujoco"}
 
 TABLE_ROWS = 10  # bodies shown in the table when there are more
 
@@ -123,7 +132,10 @@ class CompareResult:
     in stepping alone (µs); violations: one message per checked quantity over tolerance;
     reference: the other engine ("pymunk" in 2D, "mujoco" in 3D), the key of its entries
     beside "rbsim"; pymunk_settings: the reference engine's settings (MuJoCo's in 3D);
-    angular_momentum: about the world origin at the end (kg·m²/s; one value in 2D)."""
+    angular_momentum: about the world origin at the end (kg·m²/s; one value in 2D);
+    reference_contacts: the reference engine's contact settings in words (MuJoCo's: its
+    step, contact law and per pair kind the damping and the rebound it gives), "" or
+    "disabled" when it has none to state."""
 
     scene: str
     steps: int
@@ -139,6 +151,7 @@ class CompareResult:
     statistics_tolerances: dict[str, float] = field(default_factory=dict)
     reference: str = "pymunk"
     angular_momentum: dict[str, list[float]] = field(default_factory=dict)
+    reference_contacts: str = ""
 
     @property
     def ok(self) -> bool:
@@ -169,6 +182,7 @@ class CompareResult:
             "statistics": None if self.statistics is None else dict(self.statistics),
             "statistics_tolerances": dict(self.statistics_tolerances),
             "violations": list(self.violations),
+            "reference_contacts": self.reference_contacts,
         }
 
     def table(self) -> str:
@@ -223,16 +237,24 @@ class CompareResult:
         if self.statistics is not None:
             lines.append("")
             lines.append(
-                f"  {'statistics':<34}  {'rbsim':>11}  {'pymunk':>11}  {'difference':>11}"
+                f"  {'statistics':<34}  {'rbsim':>11}  {other:>11}  {'difference':>11}"
                 f"  {'tolerance':>9}"
             )
             for key, (unit, words) in STATISTICS.items():
                 st = self.statistics[key]
                 tol = self.statistics_tolerances.get(key)
                 lines.append(
-                    f"  {words + ' ' + unit:<34}  {st['rbsim']:>11.4g}  {st['pymunk']:>11.4g}"
+                    f"  {words + ' ' + unit:<34}  {st['rbsim']:>11.4g}  {st[other]:>11.4g}"
                     f"  {st['difference']:>11.4g}  {'-' if tol is None else f'{tol:g}':>9}"
                 )
+        if self.reference_contacts and self.reference_contacts != "disabled":
+            lines.append("")
+            lines += textwrap.wrap(
+                f"{other} contacts: {self.reference_contacts}",
+                width=100,
+                initial_indent="  ",
+                subsequent_indent="    ",
+            )
         lines.append(f"  files: {self.files['rbsim']}, {self.files[other]}")
         lines.append("  ok" if self.ok else "  OUTSIDE TOLERANCE")
         return "\n".join(lines)
@@ -341,11 +363,20 @@ def pair_events(
     return pairs, lone_a + list(range(i, len(a))), lone_b + list(range(j, len(b)))
 
 
+def segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """Distance from point p to the segment from a to b (the units of the points)."""
+    ab = b - a
+    span = float(ab @ ab)
+    t = 0.0 if span == 0.0 else min(max(float((p - a) @ ab) / span, 0.0), 1.0)
+    return float(np.linalg.norm(p - (a + t * ab)))
+
+
 def aligned_difference(
     a: np.ndarray,
     b: np.ndarray,
     pairs: list[tuple[tuple[int, int], tuple[int, int]]],
     time: np.ndarray | None = None,
+    through: bool = False,
 ) -> np.ndarray:
     """(T,) |a - b| per frame for two (T, k) series, with paired jumps lined up: on the
     frames between the two engines' jumps of a pair (one engine has jumped, the other
@@ -354,20 +385,28 @@ def aligned_difference(
     carried to the frame's time along its local `trend` (so that gravity acting over the
     offset is no difference; time (T,) s, None: no carrying), the larger of the two
     ways. Everywhere else, frame by frame: a wrong post-impact velocity or a missed
-    impact still shows in full after the pair's frames."""
+    impact still shows in full after the pair's frames. `through`: for an engine whose
+    impacts take time (MuJoCo's soft contacts last several steps, so a frame may fall
+    inside one), a state is compared with the other's path over the pair's frames
+    instead, the segments joining its carried states: a velocity on its way from before
+    to after the impact is no difference."""
     diff = np.linalg.norm(a - b, axis=1)
     if not pairs:
         return diff
     carry = time is not None and len(a) > 1
 
     def nearest(x: np.ndarray, k: int, y: np.ndarray, rate: np.ndarray | None, w: range) -> float:
-        best = math.inf
+        guesses = []
         for j in w:
             guess = y[j]
             if rate is not None and j != k:
                 interval = min(j, k) if j < k else j - 1  # the rate beside j, towards k
                 guess = y[j] + rate[interval] * (time[k] - time[j])
-            best = min(best, float(np.linalg.norm(x[k] - guess)))
+            guesses.append(guess)
+        best = min(float(np.linalg.norm(x[k] - g)) for g in guesses)
+        if through:
+            for g0, g1 in itertools.pairwise(guesses):
+                best = min(best, segment_distance(x[k], g0, g1))
         return best
 
     rate_a = trend(time, a) if carry else None
@@ -385,13 +424,16 @@ def body_diffs(
     pm: Trajectory,
     tolerances: dict[str, float] | None = None,
     engines: tuple[str, str] = ("rbsim", "pymunk"),
+    through: bool = False,
 ) -> list[BodyDiff]:
     """Per-body differences between two trajectories with the same frames and bodies.
     Velocity jumps (impacts) are found in each run (`jump_frames`, with the velocity and
     angular_velocity `tolerances` as thresholds: the jumps of the checked ones among the
     two, or of both when neither is checked), paired (`pair_events`) and lined up for the
     velocity and angular velocity differences (`aligned_difference`).
-    `engines` names the two runs in `unmatched`."""
+    `engines` names the two runs in `unmatched`; `through`: compare states inside an
+    impact with the other engine's path through it (`aligned_difference`), for a
+    reference engine whose impacts take time."""
     if not np.array_equal(ra.step, pm.step):
         raise ValueError("the two trajectories have different frames")
     tolerances = tolerances or {}
@@ -416,8 +458,8 @@ def body_diffs(
                 jumps[e] |= jump_frames(time, series[e][:, i], threshold)
         ev_ra, ev_pm = events(jumps[0]), events(jumps[1])
         pairs, lone_ra, lone_pm = pair_events(ev_ra, ev_pm)
-        dvel = aligned_difference(vel[0][:, i], vel[1][:, i], pairs, time)
-        domg = aligned_difference(omega[0][:, i], omega[1][:, i], pairs, time)
+        dvel = aligned_difference(vel[0][:, i], vel[1][:, i], pairs, time, through)
+        domg = aligned_difference(omega[0][:, i], omega[1][:, i], pairs, time, through)
         offsets = [float(time[b[0]] - time[a[0]]) for a, b in pairs]
         unmatched = [(engines[0], float(time[ev_ra[k][0] + 1])) for k in lone_ra] + [
             (engines[1], float(time[ev_pm[k][0] + 1])) for k in lone_pm
@@ -482,20 +524,46 @@ def tolerances_for(scene: Scene, **options: float | None) -> dict[str, float]:
 def _up(scene: Scene) -> np.ndarray:
     """Unit vector against gravity (the y axis when there is none)."""
     g = np.asarray(scene.world.gravity, dtype=float)
-    norm = float(np.hypot(*g))
-    return -g / norm if norm > 0.0 else np.array([0.0, 1.0])
+    norm = float(np.linalg.norm(g))
+    return -g / norm if norm > 0.0 else np.eye(len(g))[1]
 
 
 def final_heights(tr: Trajectory, scene: Scene) -> np.ndarray:
     """Heights (m) of the dynamic bodies' centres of mass at the last frame, measured
     against gravity (along y when there is none), in scene order."""
     dynamic = np.array([b.type == "dynamic" for b in scene.bodies], dtype=bool)
-    c, sn = tr.orientation[-1, :, 0], tr.orientation[-1, :, 1]
     com = tr.bodies.center_of_mass
+    if tr.orientation.shape[-1] == 4:  # 3D: x + R(q) com
+        rot = quat_matrix(tr.orientation[-1])
+        x = tr.position[-1] + np.einsum("nij,nj->ni", rot, com)
+        return x[dynamic] @ _up(scene)
+    c, sn = tr.orientation[-1, :, 0], tr.orientation[-1, :, 1]
     x = tr.position[-1] + np.stack(
         [c * com[:, 0] - sn * com[:, 1], sn * com[:, 0] + c * com[:, 1]], axis=1
     )
     return x[dynamic] @ _up(scene)
+
+
+def frames_measured(count: int, frames: int = PENETRATION_FRAMES) -> np.ndarray:
+    """Indices of at most `frames` of `count` frames, evenly spread, the first and the
+    last included."""
+    return np.unique(np.linspace(0, count - 1, min(count, max(frames, 2))).round().astype(int))
+
+
+def max_penetration_3d(tr: Trajectory, scene: Scene, frames: int = PENETRATION_FRAMES) -> float:
+    """Largest overlap (m) of two shapes that can touch over the frames of a 3D
+    trajectory `tr` (at most `frames` of them, evenly spread), measured with MuJoCo's
+    collision functions on a MuJoCo model of `scene` (engines.mujoco
+    MujocoEngine.deepest_overlap), so that both engines' runs are measured with one
+    ruler; 0 when nothing overlaps."""
+    ruler = make_engine("mujoco", scene)
+    return max(
+        (
+            ruler.deepest_overlap(tr.position[t], tr.orientation[t])
+            for t in frames_measured(len(tr.step), frames)
+        ),
+        default=0.0,
+    )
 
 
 def max_penetration(tr: Trajectory, scene: Scene, frames: int = PENETRATION_FRAMES) -> float:
@@ -512,10 +580,8 @@ def max_penetration(tr: Trajectory, scene: Scene, frames: int = PENETRATION_FRAM
         if scene.bodies[i].type == "dynamic"
         for shape in pb.shapes
     ]
-    count = len(tr.step)
-    picks = np.unique(np.linspace(0, count - 1, min(count, max(frames, 2))).round().astype(int))
     deepest = 0.0
-    for t in picks:
+    for t in frames_measured(len(tr.step), frames):
         for i in moving:
             pb = bodies[i]
             pb.angle = float(tr.angle[t, i])
@@ -530,8 +596,11 @@ def max_penetration(tr: Trajectory, scene: Scene, frames: int = PENETRATION_FRAM
     return deepest
 
 
-def statistics(ra: Trajectory, pm: Trajectory, scene: Scene) -> dict[str, dict[str, float]]:
-    """Statistics of the two runs: statistic -> {"rbsim", "pymunk", "difference"}.
+def statistics(
+    ra: Trajectory, pm: Trajectory, scene: Scene, reference: str = "pymunk"
+) -> dict[str, dict[str, float]]:
+    """Statistics of the two runs: statistic -> {"rbsim", reference, "difference"}
+    (reference: the other engine's name, "pymunk" in 2D, "mujoco" in 3D).
 
     kinetic_energy: total at the last frame (J). mean_height: mean final height of the
     dynamic bodies' centres of mass (m). heights: per engine the spread (standard
@@ -539,32 +608,40 @@ def statistics(ra: Trajectory, pm: Trajectory, scene: Scene) -> dict[str, dict[s
     distributions, the mean gap between the sorted heights (the 1-Wasserstein distance;
     body identities do not matter) (m). penetration: the
     largest overlap of two shapes over the run (m); its difference is the larger of
-    the two, which is what a penetration tolerance bounds.
+    the two, which is what a penetration tolerance bounds. In 3D the overlaps are
+    measured with MuJoCo's collision functions (`max_penetration_3d`).
     """
     out: dict[str, dict[str, float]] = {}
+    other = reference
+
+    def entry(a: float, b: float, difference: float) -> dict[str, float]:
+        return {"rbsim": a, other: b, "difference": difference}
+
     ke = [float(tr.observables["kinetic_energy"][-1]) for tr in (ra, pm)]
-    out["kinetic_energy"] = {"rbsim": ke[0], "pymunk": ke[1], "difference": abs(ke[0] - ke[1])}
+    out["kinetic_energy"] = entry(ke[0], ke[1], abs(ke[0] - ke[1]))
     h_ra, h_pm = final_heights(ra, scene), final_heights(pm, scene)
     mean = [float(h.mean()) if h.size else 0.0 for h in (h_ra, h_pm)]
-    out["mean_height"] = {"rbsim": mean[0], "pymunk": mean[1], "difference": abs(mean[0] - mean[1])}
+    out["mean_height"] = entry(mean[0], mean[1], abs(mean[0] - mean[1]))
     gap = float(np.abs(np.sort(h_ra) - np.sort(h_pm)).mean()) if h_ra.size else 0.0
     spread = [float(h.std()) if h.size else 0.0 for h in (h_ra, h_pm)]
-    out["heights"] = {"rbsim": spread[0], "pymunk": spread[1], "difference": gap}
-    pen = [max_penetration(tr, scene) for tr in (ra, pm)]
-    out["penetration"] = {"rbsim": pen[0], "pymunk": pen[1], "difference": max(pen)}
+    out["heights"] = entry(spread[0], spread[1], gap)
+    ruler = max_penetration_3d if ra.orientation.shape[-1] == 4 else max_penetration
+    pen = [ruler(tr, scene) for tr in (ra, pm)]
+    out["penetration"] = entry(pen[0], pen[1], max(pen))
     return out
 
 
 def statistics_violations(
-    stats: dict[str, dict[str, float]], tolerances: dict[str, float]
+    stats: dict[str, dict[str, float]], tolerances: dict[str, float], reference: str = "pymunk"
 ) -> list[str]:
-    """One message per statistic above its tolerance (NaN counts)."""
+    """One message per statistic above its tolerance (NaN counts); `reference` names the
+    other engine's entries."""
     found = []
     for key, tol in tolerances.items():
         unit, words = STATISTICS[key]
         st = stats[key]
         if key == "penetration":
-            for engine in ("rbsim", "pymunk"):
+            for engine in ("rbsim", reference):
                 if not st[engine] <= tol:
                     found.append(
                         f"statistics: {words} {st[engine]:.4g} {unit} in {engine} exceeds "
@@ -572,8 +649,8 @@ def statistics_violations(
                     )
         elif not st["difference"] <= tol:
             found.append(
-                f"statistics: {words}: rbsim {st['rbsim']:.6g} {unit}, pymunk "
-                f"{st['pymunk']:.6g} {unit}, difference {st['difference']:.4g} {unit} "
+                f"statistics: {words}: rbsim {st['rbsim']:.6g} {unit}, {reference} "
+                f"{st[reference]:.6g} {unit}, difference {st['difference']:.4g} {unit} "
                 f"exceeds the {key} tolerance {tol:g} {unit}"
             )
     return found
@@ -616,6 +693,25 @@ def _reference_options(scene: Scene, reference: str, iterations: int | None) -> 
     return {"settings": MujocoSettings(substeps=int(scene.solver.substeps))}
 
 
+def _floor_check(engine: Engine, tol: dict[str, float]) -> None:
+    """Raise UnsupportedScene when MuJoCo's least rebound, which it gives for e = 0 (its
+    damping is explicit), would show as a velocity difference above the velocity
+    tolerance: e_mujoco times the pair's estimated fastest approach."""
+    if "velocity" not in tol:
+        return
+    for p in getattr(engine, "pairs", ()):
+        jump = p.e_mujoco * p.speed
+        if p.restitution == 0.0 and jump > tol["velocity"]:
+            raise UnsupportedScene(
+                f"bodies {p.bodies[0]!r} and {p.bodies[1]!r} have restitution 0, out of "
+                f"MuJoCo's reach: its contacts are soft with explicit damping and rebound "
+                f"at least e = {p.e_mujoco:.3g}; an impact at up to {p.speed:.3g} m/s would "
+                f"leave at {jump:.3g} m/s in MuJoCo and at 0 in rbsim, above the velocity "
+                f"tolerance {tol['velocity']:g} m/s (compare this scene statistically, or "
+                "with a restitution MuJoCo reaches)"
+            )
+
+
 def compare_scene(
     scene: Scene,
     out_dir: str | Path = "out/compare",
@@ -630,7 +726,7 @@ def compare_scene(
 ) -> CompareResult:
     """Run `scene` in rbsim and in the reference engine (pymunk in 2D, MuJoCo in 3D),
     writing out_dir/<name>.rbsim.h5 and out_dir/<name>.<reference>.h5, and compare them.
-    Statistics (see `statistics`, 2D only) are computed when `with_statistics` or the
+    Statistics (see `statistics`) are computed when `with_statistics` or the
     scene has a compare.statistics block. `pymunk_scene` (default `scene`) is what the
     reference engine runs: the same scene with a setting changed, to see how much that
     setting matters. Raises UnsupportedScene (the reference engine cannot express the
@@ -641,10 +737,10 @@ def compare_scene(
     pm_scene = scene if pymunk_scene is None else pymunk_scene
     _same_run(scene, pm_scene, reference)
     wanted = with_statistics or "statistics" in scene.compare
-    if wanted and reference != "pymunk":
-        raise UnsupportedScene("statistics are compared in 2D scenes only")
     options = _reference_options(scene, reference, iterations)
-    make_engine(reference, pm_scene, **options)  # UnsupportedScene before any work
+    probe = make_engine(reference, pm_scene, **options)  # UnsupportedScene before any work
+    tol = tolerances_for(scene, position=position, angle=angle, velocity=velocity)
+    _floor_check(probe, tol)
     out_dir.mkdir(parents=True, exist_ok=True)
     files = {
         "rbsim": str(out_dir / f"{scene.name}.rbsim.h5"),
@@ -654,8 +750,9 @@ def compare_scene(
     summary = run_scene(scene, files["rbsim"], engine=engine)
     other = run_scene(pm_scene, files[reference], engine=reference, options=options)
     ra, pm = load_trajectory(files["rbsim"]), load_trajectory(files[reference])
-    tol = tolerances_for(scene, position=position, angle=angle, velocity=velocity)
-    bodies = body_diffs(ra, pm, tol, engines=("rbsim", reference))
+    # MuJoCo's contacts are soft: its impacts last several steps (SOFT_IMPACTS)
+    soft = reference in SOFT_IMPACTS
+    bodies = body_diffs(ra, pm, tol, engines=("rbsim", reference), through=soft)
     steps = int(scene.world.steps)
 
     def energy(tr: Trajectory) -> float:
@@ -666,7 +763,7 @@ def compare_scene(
         for k, v in (scene.compare.get("statistics") or {}).items()
         if k in STATISTICS and v is not None
     }
-    stats = statistics(ra, pm, scene) if wanted else None
+    stats = statistics(ra, pm, scene, reference) if wanted else None
 
     def per_step(seconds: float) -> float:
         return 1e6 * seconds / steps if steps else math.nan
@@ -688,8 +785,10 @@ def compare_scene(
         },
         files=files,
         pymunk_settings=dataclasses.asdict(options["settings"]),
-        violations=violations(bodies, tol) + statistics_violations(stats or {}, stat_tol),
+        violations=violations(bodies, tol)
+        + statistics_violations(stats or {}, stat_tol, reference),
         statistics=stats,
         statistics_tolerances=stat_tol,
         reference=reference,
+        reference_contacts=str(probe.settings.get("contacts", "")),
     )
