@@ -8,6 +8,7 @@
 // wave is empty: its manifold index is -1 and nothing of it is written.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 
@@ -35,6 +36,24 @@ inline bool any(LaneMask m) {
   return __builtin_ia32_movmskpd256(reinterpret_cast<Lanes&>(m)) != 0;  // the lanes' sign bits
 #else
   return (m[0] | m[1] | m[2] | m[3]) != 0;
+#endif
+}
+
+// √x lane by lane (correctly rounded, as std::sqrt).
+inline Lanes vsqrt(Lanes x) {
+#if defined(__AVX__)
+  return __builtin_ia32_sqrtpd256(x);
+#else
+  return Lanes{std::sqrt(x[0]), std::sqrt(x[1]), std::sqrt(x[2]), std::sqrt(x[3])};
+#endif
+}
+
+// whether every lane is set
+inline bool all(LaneMask m) {
+#if defined(__AVX__)
+  return __builtin_ia32_movmskpd256(reinterpret_cast<Lanes&>(m)) == (1 << LANES) - 1;
+#else
+  return (m[0] & m[1] & m[2] & m[3]) != 0;
 #endif
 }
 
