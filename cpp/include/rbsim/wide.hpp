@@ -33,7 +33,7 @@ inline Lanes vmin(Lanes a, Lanes b) { return a < b ? a : b; }
 // whether any lane is set
 inline bool any(LaneMask m) {
 #if defined(__AVX__)
-  return __builtin_ia32_movmskpd256(reinterpret_cast<Lanes&>(m)) != 0;  // the lanes' sign bits
+  return __builtin_ia32_movmskpd256((Lanes)m) != 0;  // the lanes' sign bits
 #else
   return (m[0] | m[1] | m[2] | m[3]) != 0;
 #endif
@@ -51,7 +51,7 @@ inline Lanes vsqrt(Lanes x) {
 // whether every lane is set
 inline bool all(LaneMask m) {
 #if defined(__AVX__)
-  return __builtin_ia32_movmskpd256(reinterpret_cast<Lanes&>(m)) == (1 << LANES) - 1;
+  return __builtin_ia32_movmskpd256((Lanes)m) == (1 << LANES) - 1;
 #else
   return (m[0] & m[1] & m[2] & m[3]) != 0;
 #endif
@@ -60,18 +60,18 @@ inline bool all(LaneMask m) {
 // Moving values between memory and lanes: whole records loaded and transposed in
 // registers, instead of one scalar load and insert per lane and field (a batch's bodies
 // and impulses are scattered over their arrays, one record per lane).
-using Pair = double __attribute__((vector_size(2 * sizeof(double))));
+using LanePair = double __attribute__((vector_size(2 * sizeof(double))));
 inline Lanes load_lanes(const double* p) {
   Lanes v;
   std::memcpy(&v, p, sizeof v);
   return v;
 }
-inline Pair load_pair(const double* p) {
-  Pair v;
+inline LanePair load_pair(const double* p) {
+  LanePair v;
   std::memcpy(&v, p, sizeof v);
   return v;
 }
-inline void store_pair(double* p, Pair v) { std::memcpy(p, &v, sizeof v); }
+inline void store_pair(double* p, LanePair v) { std::memcpy(p, &v, sizeof v); }
 // The records (x, y) of two doubles at p0..p3 (lanes 0..3) as the lanes x and y.
 inline void gather_pairs(const double* p0, const double* p1, const double* p2, const double* p3,
                          Lanes& x, Lanes& y) {
@@ -126,7 +126,7 @@ struct WideBatch {
   Lanes max_push, deep;      // m/s and m, < 0: the rows' push-out bound and deep overlap
   Lanes ma, mb, ia, ib;      // inverse masses (1/kg) and inertias (1/(kg·m²))
   Lanes two;                 // 1 where the manifold has two points, else 0
-  WidePoint p0, p1;          // a one-point manifold's p1 is all zero
+  WidePoint p0, p1;          // p1: a two-point batch's (a one-point batch never reads it)
   LaneMask live;             // all bits set in a lane that holds a manifold
   std::int32_t m[LANES];     // manifold index, -1 for an empty lane
   // bit l: the solver moves lane l's body a (a dynamic body: its velocity is written
