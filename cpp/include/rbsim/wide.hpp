@@ -8,11 +8,14 @@
 // wave is empty: its manifold index is -1 and nothing of it is written.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
+#include <cstring>
 
 namespace rbsim {
 
 inline constexpr int LANES = 4;
+inline constexpr std::uint32_t ALL_WRITES = (1u << (2 * LANES)) - 1;
 
 // LANES doubles, one per lane (GCC/Clang vector extension: + − × ÷ and comparisons act
 // lane by lane; on x86-64 with AVX one ymm register).
@@ -28,7 +31,84 @@ inline Lanes select(LaneMask m, Lanes a, Lanes b) { return m ? a : b; }
 inline Lanes vmax(Lanes a, Lanes b) { return a > b ? a : b; }
 inline Lanes vmin(Lanes a, Lanes b) { return a < b ? a : b; }
 // whether any lane is set
-inline bool any(LaneMask m) { return (m[0] | m[1] | m[2] | m[3]) != 0; }
+inline bool any(LaneMask m) {
+#if defined(__AVX__)
+  return __builtin_ia32_movmskpd256((Lanes)m) != 0;  // the lanes' sign bits
+#else
+  return (m[0] | m[1] | m[2] | m[3]) != 0;
+#endif
+}
+
+// √x lane by lane (correctly rounded, as std::sqrt).
+inline Lanes vsqrt(Lanes x) {
+#if defined(__AVX__)
+  return __builtin_ia32_sqrtpd256(x);
+#else
+  return Lanes{std::sqrt(x[0]), std::sqrt(x[1]), std::sqrt(x[2]), std::sqrt(x[3])};
+#endif
+}
+
+// whether every lane is set
+inline bool all(LaneMask m) {
+#if defined(__AVX__)
+  return __builtin_ia32_movmskpd256((Lanes)m) == (1 << LANES) - 1;
+#else
+  return (m[0] & m[1] & m[2] & m[3]) != 0;
+#endif
+}
+
+// Moving values between memory and lanes: whole records loaded and transposed in
+// registers, instead of one scalar load and insert per lane and field (a batch's bodies
+// and impulses are scattered over their arrays, one record per lane).
+using LanePair = double __attribute__((vector_size(2 * sizeof(double))));
+inline Lanes load_lanes(const double* p) {
+  Lanes v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+inline LanePair load_pair(const double* p) {
+  LanePair v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+inline void store_pair(double* p, LanePair v) { std::memcpy(p, &v, sizeof v); }
+// The records (x, y) of two doubles at p0..p3 (lanes 0..3) as the lanes x and y.
+inline void gather_pairs(const double* p0, const double* p1, const double* p2, const double* p3,
+                         Lanes& x, Lanes& y) {
+  const Lanes even = __builtin_shufflevector(load_pair(p0), load_pair(p2), 0, 1, 2, 3);
+  const Lanes odd = __builtin_shufflevector(load_pair(p1), load_pair(p3), 0, 1, 2, 3);
+  x = __builtin_shufflevector(even, odd, 0, 4, 2, 6);
+  y = __builtin_shufflevector(even, odd, 1, 5, 3, 7);
+}
+// The lanes x and y stored as the records (x, y) at p0..p3: gather_pairs reversed.
+inline void scatter_pairs(double* p0, double* p1, double* p2, double* p3, Lanes x, Lanes y) {
+  const Lanes even = __builtin_shufflevector(x, y, 0, 4, 2, 6);  // x0 y0 x2 y2
+  const Lanes odd = __builtin_shufflevector(x, y, 1, 5, 3, 7);   // x1 y1 x3 y3
+  store_pair(p0, __builtin_shufflevector(even, even, 0, 1));
+  store_pair(p1, __builtin_shufflevector(odd, odd, 0, 1));
+  store_pair(p2, __builtin_shufflevector(even, even, 2, 3));
+  store_pair(p3, __builtin_shufflevector(odd, odd, 2, 3));
+}
+// The records (f0, f1, f2, f3) of four doubles at p0..p3 as the lanes f0..f3.
+inline void gather_quads(const double* p0, const double* p1, const double* p2, const double* p3,
+                         Lanes& f0, Lanes& f1, Lanes& f2, Lanes& f3) {
+  const Lanes r0 = load_lanes(p0), r1 = load_lanes(p1), r2 = load_lanes(p2), r3 = load_lanes(p3);
+  const Lanes t0 = __builtin_shufflevector(r0, r1, 0, 4, 2, 6);  // f0 of lanes 0 1, f2 of 0 1
+  const Lanes t1 = __builtin_shufflevector(r0, r1, 1, 5, 3, 7);  // f1, f3 of lanes 0 1
+  const Lanes t2 = __builtin_shufflevector(r2, r3, 0, 4, 2, 6);
+  const Lanes t3 = __builtin_shufflevector(r2, r3, 1, 5, 3, 7);
+  f0 = __builtin_shufflevector(t0, t2, 0, 1, 4, 5);
+  f2 = __builtin_shufflevector(t0, t2, 2, 3, 6, 7);
+  f1 = __builtin_shufflevector(t1, t3, 0, 1, 4, 5);
+  f3 = __builtin_shufflevector(t1, t3, 2, 3, 6, 7);
+}
+// Lane l of x stored at p[l] (four scalars at scattered addresses).
+inline void scatter_scalars(double* p0, double* p1, double* p2, double* p3, Lanes x) {
+  *p0 = x[0];
+  *p1 = x[1];
+  *p2 = x[2];
+  *p3 = x[3];
+}
 
 // One point of a batch's rows (as SolverRow<2>::Point, lane by lane).
 struct WidePoint {
@@ -46,8 +126,12 @@ struct WideBatch {
   Lanes max_push, deep;      // m/s and m, < 0: the rows' push-out bound and deep overlap
   Lanes ma, mb, ia, ib;      // inverse masses (1/kg) and inertias (1/(kg·m²))
   Lanes two;                 // 1 where the manifold has two points, else 0
-  WidePoint p0, p1;          // a one-point manifold's p1 is all zero
+  WidePoint p0, p1;          // p1: a two-point batch's (a one-point batch never reads it)
+  LaneMask live;             // all bits set in a lane that holds a manifold
   std::int32_t m[LANES];     // manifold index, -1 for an empty lane
+  // bit l: the solver moves lane l's body a (a dynamic body: its velocity is written
+  // back), bit LANES + l: its body b. ALL_WRITES: every lane's two bodies
+  std::uint32_t writes;
   std::int32_t a[LANES], b[LANES];  // body indices (0 for an empty lane)
 };
 

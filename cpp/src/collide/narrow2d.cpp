@@ -39,6 +39,7 @@
 #include <limits>
 
 #include "rbsim/constants.hpp"
+#include "rbsim/wide.hpp"
 #include "segment_closest.hpp"
 
 namespace rbsim {
@@ -152,6 +153,33 @@ struct EdgeSeparation {
 };
 inline EdgeSeparation max_separation(int start1, int count1, int start2, int count2,
                                      const Vec2* verts, const Vec2* norms) {
+  if (count1 == LANES) {
+    // a quadrilateral core 1 (a box): its edges one in each lane, the same dots and the
+    // same comparisons in the same order as below
+    static_assert(LANES == 4);
+    const double* np = &norms[start1].x;
+    const double* vp = &verts[start1].x;
+    const Lanes n01 = load_lanes(np), n23 = load_lanes(np + 4);
+    const Lanes v01 = load_lanes(vp), v23 = load_lanes(vp + 4);
+    const Lanes nx = __builtin_shufflevector(n01, n23, 0, 2, 4, 6);
+    const Lanes ny = __builtin_shufflevector(n01, n23, 1, 3, 5, 7);
+    const Lanes vx = __builtin_shufflevector(v01, v23, 0, 2, 4, 6);
+    const Lanes vy = __builtin_shufflevector(v01, v23, 1, 3, 5, 7);
+    Lanes s = splat(INF);
+    for (int j = start2; j < start2 + count2; ++j) {
+      const Lanes d = nx * (splat(verts[j].x) - vx) + ny * (splat(verts[j].y) - vy);
+      s = d < s ? d : s;
+    }
+    double best = -INF;
+    int best_edge = 0;
+    for (int i = 0; i < LANES; ++i) {
+      if (s[i] > best) {
+        best = s[i];
+        best_edge = i;
+      }
+    }
+    return {best, best_edge};
+  }
   double best = -INF;
   int best_edge = 0;
   for (int i = 0; i < count1; ++i) {

@@ -17,6 +17,7 @@
 
 #include "rbsim/constants.hpp"
 #include "rbsim/stages.hpp"
+#include "rbsim/wide.hpp"
 
 namespace rbsim {
 
@@ -145,6 +146,77 @@ void integrate_velocities(const Model<D>& model, State<D>& st, double h) {
   }
 }
 
+namespace {
+
+// 2D, Rotation::Normalize: bodies i..i+LANES-1 (none static) moved as turn() and
+// integrate_positions move each, one body in each lane. The same operations in the same
+// order (this file rounds every operation: no multiply-adds), so the same bits.
+void move_lanes_2d(State<2>& st, std::vector<BodyDelta<2>>& delta, int i, double h) {
+  static_assert(LANES == 4 && sizeof(BodyDelta<2>) == 4 * sizeof(double));
+  double* x = &st.body_x[i].x;
+  double* q = &st.body_q[i].c;
+  const double* v = &st.body_v[i].x;
+  double* d = &delta[i].dx.x;
+  const Lanes hv = splat(h);
+  // x += h v, interleaved (x0 y0 x1 y1 | x2 y2 x3 y3): the same products and sums
+  const Lanes dx01 = hv * load_lanes(v), dx23 = hv * load_lanes(v + 4);
+  const Lanes x01 = load_lanes(x) + dx01, x23 = load_lanes(x + 4) + dx23;
+  std::memcpy(x, &x01, sizeof x01);
+  std::memcpy(x + 4, &x23, sizeof x23);
+  const Lanes dxx = __builtin_shufflevector(dx01, dx23, 0, 2, 4, 6);
+  const Lanes dxy = __builtin_shufflevector(dx01, dx23, 1, 3, 5, 7);
+  // the turn by h ω, normalised
+  const Lanes q01 = load_lanes(q), q23 = load_lanes(q + 4);
+  const Lanes qc = __builtin_shufflevector(q01, q23, 0, 2, 4, 6);
+  const Lanes qs = __builtin_shufflevector(q01, q23, 1, 3, 5, 7);
+  const Lanes hw = hv * load_lanes(&st.body_w[i]);
+  const Lanes nc = qc - hw * qs, ns = qs + hw * qc;
+  const Lanes inv = splat(1.0) / vsqrt(nc * nc + ns * ns);
+  const Lanes c = nc * inv, s = ns * inv;
+  const Lanes n01 = __builtin_shufflevector(c, s, 0, 4, 1, 5);
+  const Lanes n23 = __builtin_shufflevector(c, s, 2, 6, 3, 7);
+  std::memcpy(q, &n01, sizeof n01);
+  std::memcpy(q + 4, &n23, sizeof n23);
+  const Lanes rc = inv, rs = hw * inv;  // the rotation applied
+  // the angle: atan_small's series where |h ω| allows it (every lane, as a rule)
+  const Lanes x2 = hw * hw;
+  Lanes p = splat(1.0 / 17.0);
+  p = splat(1.0 / 15.0) - x2 * p;
+  p = splat(1.0 / 13.0) - x2 * p;
+  p = splat(1.0 / 11.0) - x2 * p;
+  p = splat(1.0 / 9.0) - x2 * p;
+  p = splat(1.0 / 7.0) - x2 * p;
+  p = splat(1.0 / 5.0) - x2 * p;
+  p = splat(1.0 / 3.0) - x2 * p;
+  Lanes turned = hw - hw * x2 * p;
+  const LaneMask series = vmax(hw, -hw) < splat(C::ATAN_SERIES_MAX);
+  if (!all(series))
+    for (int l = 0; l < LANES; ++l)
+      if (!series[l]) turned[l] = std::atan(hw[l]);
+  const Lanes angle = load_lanes(&st.body_angle[i]) + turned;
+  std::memcpy(&st.body_angle[i], &angle, sizeof angle);
+  // the motion since the step's start
+  Lanes ddx, ddy, dc, ds;
+  gather_quads(d, d + 4, d + 8, d + 12, ddx, ddy, dc, ds);
+  ddx += dxx;
+  ddy += dxy;
+  const Lanes mc = rc * dc - rs * ds, ms = rs * dc + rc * ds;  // mul(r, dq)
+  const Lanes t0 = __builtin_shufflevector(ddx, ddy, 0, 4, 2, 6);  // dx.x dx.y of 0, of 2
+  const Lanes t1 = __builtin_shufflevector(ddx, ddy, 1, 5, 3, 7);  // of 1, of 3
+  const Lanes u0 = __builtin_shufflevector(mc, ms, 0, 4, 2, 6);    // c s of 0, of 2
+  const Lanes u1 = __builtin_shufflevector(mc, ms, 1, 5, 3, 7);    // of 1, of 3
+  const Lanes r0 = __builtin_shufflevector(t0, u0, 0, 1, 4, 5);
+  const Lanes r1 = __builtin_shufflevector(t1, u1, 0, 1, 4, 5);
+  const Lanes r2 = __builtin_shufflevector(t0, u0, 2, 3, 6, 7);
+  const Lanes r3 = __builtin_shufflevector(t1, u1, 2, 3, 6, 7);
+  std::memcpy(d, &r0, sizeof r0);
+  std::memcpy(d + 4, &r1, sizeof r1);
+  std::memcpy(d + 8, &r2, sizeof r2);
+  std::memcpy(d + 12, &r3, sizeof r3);
+}
+
+}  // namespace
+
 template <int D>
 void integrate_positions(const Model<D>& model, State<D>& st, std::vector<BodyDelta<D>>& delta,
                          double h, Rotation rotation) {
@@ -152,6 +224,18 @@ void integrate_positions(const Model<D>& model, State<D>& st, std::vector<BodyDe
   double unused_angle = 0.0;
   const bool exact = rotation != Rotation::Normalize;
   for (int i = 0; i < n; ++i) {
+    if constexpr (D == 2) {
+      // LANES bodies at once where none of them is static (2D refresh_angular: nothing)
+      if (!exact && i % LANES == 0 && i + LANES <= n) {
+        bool moving = true;
+        for (int l = 0; l < LANES; ++l) moving = moving && model.body_type[i + l] != BodyType::Static;
+        if (moving) {
+          move_lanes_2d(st, delta, i, h);
+          i += LANES - 1;
+          continue;
+        }
+      }
+    }
     if (model.body_type[i] == BodyType::Static) continue;
     const auto dx = h * st.body_v[i];
     st.body_x[i] += dx;

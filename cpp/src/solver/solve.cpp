@@ -446,43 +446,39 @@ void solve_batch(State<2>& st, Contacts<2>& c, const WideBatch& B, double inv_h,
   // vector assembled lane by lane through memory would wait on store forwarding)
   const int a0 = B.a[0], a1 = B.a[1], a2 = B.a[2], a3 = B.a[3];
   const int b0i = B.b[0], b1i = B.b[1], b2i = B.b[2], b3i = B.b[3];
-  Lanes vax = {v[a0].x, v[a1].x, v[a2].x, v[a3].x};
-  Lanes vay = {v[a0].y, v[a1].y, v[a2].y, v[a3].y};
+  Lanes vax, vay, vbx, vby;
+  gather_pairs(&v[a0].x, &v[a1].x, &v[a2].x, &v[a3].x, vax, vay);
+  gather_pairs(&v[b0i].x, &v[b1i].x, &v[b2i].x, &v[b3i].x, vbx, vby);
   Lanes wa = {w[a0], w[a1], w[a2], w[a3]};
-  Lanes vbx = {v[b0i].x, v[b1i].x, v[b2i].x, v[b3i].x};
-  Lanes vby = {v[b0i].y, v[b1i].y, v[b2i].y, v[b3i].y};
   Lanes wb = {w[b0i], w[b1i], w[b2i], w[b3i]};
-  const BodyDelta<2>&da0 = delta[a0], &da1 = delta[a1], &da2 = delta[a2], &da3 = delta[a3];
-  const BodyDelta<2>&db0 = delta[b0i], &db1 = delta[b1i], &db2 = delta[b2i], &db3 = delta[b3i];
-  const Lanes dax = {da0.dx.x, da1.dx.x, da2.dx.x, da3.dx.x};
-  const Lanes day = {da0.dx.y, da1.dx.y, da2.dx.y, da3.dx.y};
-  const Lanes dac = {da0.dq.c, da1.dq.c, da2.dq.c, da3.dq.c};
-  const Lanes das = {da0.dq.s, da1.dq.s, da2.dq.s, da3.dq.s};
-  const Lanes dbx = {db0.dx.x, db1.dx.x, db2.dx.x, db3.dx.x};
-  const Lanes dby = {db0.dx.y, db1.dx.y, db2.dx.y, db3.dx.y};
-  const Lanes dbc = {db0.dq.c, db1.dq.c, db2.dq.c, db3.dq.c};
-  const Lanes dbs = {db0.dq.s, db1.dq.s, db2.dq.s, db3.dq.s};
+  static_assert(sizeof(BodyDelta<2>) == 4 * sizeof(double), "dx.x, dx.y, dq.c, dq.s");
+  Lanes dax, day, dac, das, dbx, dby, dbc, dbs;
+  gather_quads(&delta[a0].dx.x, &delta[a1].dx.x, &delta[a2].dx.x, &delta[a3].dx.x, dax, day, dac, das);
+  gather_quads(&delta[b0i].dx.x, &delta[b1i].dx.x, &delta[b2i].dx.x, &delta[b3i].dx.x, dbx, dby, dbc,
+               dbs);
   // an empty lane reads manifold 0's impulses (its rows are zero: it changes nothing and
   // is not written back)
   const std::int32_t m0 = B.m[0] < 0 ? 0 : B.m[0], m1 = B.m[1] < 0 ? 0 : B.m[1];
   const std::int32_t m2 = B.m[2] < 0 ? 0 : B.m[2], m3 = B.m[3] < 0 ? 0 : B.m[3];
   const Lanes zero = splat(0.0);
-  const auto* ni = c.normal_impulse.data();
-  const auto* ti = c.tangent_impulse.data();
-  const auto* xi = c.max_normal_impulse.data();
+  auto* ni = c.normal_impulse.data();
+  auto* ti = c.tangent_impulse.data();
+  auto* xi = c.max_normal_impulse.data();
   const auto* av = c.approach_velocity.data();
-  const Lanes lam0 = {ni[m0][0], ni[m1][0], ni[m2][0], ni[m3][0]};
-  Lanes tl0 = {ti[m0][0], ti[m1][0], ti[m2][0], ti[m3][0]};
-  Lanes mx0 = {xi[m0][0], xi[m1][0], xi[m2][0], xi[m3][0]};
-  const Lanes ap0 = {av[m0][0], av[m1][0], av[m2][0], av[m3][0]};
+  Lanes lam0, tl0, mx0, ap0;
   Lanes lam1 = zero, tl1 = zero, mx1 = zero, ap1 = zero;
   if constexpr (TWO) {
-    lam1 = Lanes{ni[m0][1], ni[m1][1], ni[m2][1], ni[m3][1]};
-    tl1 = Lanes{ti[m0][1], ti[m1][1], ti[m2][1], ti[m3][1]};
-    mx1 = Lanes{xi[m0][1], xi[m1][1], xi[m2][1], xi[m3][1]};
-    ap1 = Lanes{av[m0][1], av[m1][1], av[m2][1], av[m3][1]};
+    gather_pairs(ni[m0].data(), ni[m1].data(), ni[m2].data(), ni[m3].data(), lam0, lam1);
+    gather_pairs(ti[m0].data(), ti[m1].data(), ti[m2].data(), ti[m3].data(), tl0, tl1);
+    gather_pairs(xi[m0].data(), xi[m1].data(), xi[m2].data(), xi[m3].data(), mx0, mx1);
+    gather_pairs(av[m0].data(), av[m1].data(), av[m2].data(), av[m3].data(), ap0, ap1);
+  } else {
+    lam0 = Lanes{ni[m0][0], ni[m1][0], ni[m2][0], ni[m3][0]};
+    tl0 = Lanes{ti[m0][0], ti[m1][0], ti[m2][0], ti[m3][0]};
+    mx0 = Lanes{xi[m0][0], xi[m1][0], xi[m2][0], xi[m3][0]};
+    ap0 = Lanes{av[m0][0], av[m1][0], av[m2][0], av[m3][0]};
   }
-  const LaneMask active = LaneMask{B.m[0], B.m[1], B.m[2], B.m[3]} >= LaneMask{};
+  const LaneMask active = B.live;
   const Lanes nx = B.nx, ny = B.ny;
   const Lanes tx = ny, ty = -nx;  // t = (n_y, −n_x)
   const Lanes ma = B.ma, mb = B.mb, ia = B.ia, ib = B.ib;
@@ -586,25 +582,46 @@ void solve_batch(State<2>& st, Contacts<2>& c, const WideBatch& B, double inv_h,
   vbx -= mb * px;
   vby -= mb * py;
   wb -= ib * tb;
-  for (int l = 0; l < LANES; ++l) {
-    const std::int64_t m = B.m[l];
-    if (m < 0) continue;
-    // a static or kinematic body's velocity is unchanged: not written back
-    if (B.ma[l] != 0.0 || B.ia[l] != 0.0) {
-      v[B.a[l]] = {vax[l], vay[l]};
-      w[B.a[l]] = wa[l];
+  // a static or kinematic body's velocity is unchanged: not written back (B.writes)
+  if (B.writes == ALL_WRITES) {
+    scatter_pairs(&v[a0].x, &v[a1].x, &v[a2].x, &v[a3].x, vax, vay);
+    scatter_scalars(&w[a0], &w[a1], &w[a2], &w[a3], wa);
+    scatter_pairs(&v[b0i].x, &v[b1i].x, &v[b2i].x, &v[b3i].x, vbx, vby);
+    scatter_scalars(&w[b0i], &w[b1i], &w[b2i], &w[b3i], wb);
+  } else {
+    for (int l = 0; l < LANES; ++l) {
+      if (B.writes & (1u << l)) {
+        v[B.a[l]] = {vax[l], vay[l]};
+        w[B.a[l]] = wa[l];
+      }
+      if (B.writes & (1u << (LANES + l))) {
+        v[B.b[l]] = {vbx[l], vby[l]};
+        w[B.b[l]] = wb[l];
+      }
     }
-    if (B.mb[l] != 0.0 || B.ib[l] != 0.0) {
-      v[B.b[l]] = {vbx[l], vby[l]};
-      w[B.b[l]] = wb[l];
-    }
-    c.normal_impulse[m][0] = n0[l];
-    c.tangent_impulse[m][0] = tl0[l];
-    c.max_normal_impulse[m][0] = mx0[l];
+  }
+  if (B.m[LANES - 1] >= 0) {  // every lane holds a manifold (an empty lane is a batch's last)
     if constexpr (TWO) {
-      c.normal_impulse[m][1] = n1[l];
-      c.tangent_impulse[m][1] = tl1[l];
-      c.max_normal_impulse[m][1] = mx1[l];
+      scatter_pairs(ni[m0].data(), ni[m1].data(), ni[m2].data(), ni[m3].data(), n0, n1);
+      scatter_pairs(ti[m0].data(), ti[m1].data(), ti[m2].data(), ti[m3].data(), tl0, tl1);
+      scatter_pairs(xi[m0].data(), xi[m1].data(), xi[m2].data(), xi[m3].data(), mx0, mx1);
+    } else {
+      scatter_scalars(&ni[m0][0], &ni[m1][0], &ni[m2][0], &ni[m3][0], n0);
+      scatter_scalars(&ti[m0][0], &ti[m1][0], &ti[m2][0], &ti[m3][0], tl0);
+      scatter_scalars(&xi[m0][0], &xi[m1][0], &xi[m2][0], &xi[m3][0], mx0);
+    }
+  } else {
+    for (int l = 0; l < LANES; ++l) {
+      const std::int64_t m = B.m[l];
+      if (m < 0) continue;
+      ni[m][0] = n0[l];
+      ti[m][0] = tl0[l];
+      xi[m][0] = mx0[l];
+      if constexpr (TWO) {
+        ni[m][1] = n1[l];
+        ti[m][1] = tl1[l];
+        xi[m][1] = mx1[l];
+      }
     }
   }
 }

@@ -97,14 +97,18 @@ void warm_start_batch(State<2>& st, const Contacts<2>& c, const WideBatch& B) {
   const auto* ti = c.tangent_impulse.data();
   const Lanes nx = B.nx, ny = B.ny;
   const Lanes tx = ny, ty = -nx;  // t = (n_y, −n_x)
-  const Lanes jn0 = {ni[m0][0], ni[m1][0], ni[m2][0], ni[m3][0]};
-  const Lanes jt0 = {ti[m0][0], ti[m1][0], ti[m2][0], ti[m3][0]};
+  Lanes jn0, jt0, jn1, jt1;
+  if constexpr (TWO) {
+    gather_pairs(ni[m0].data(), ni[m1].data(), ni[m2].data(), ni[m3].data(), jn0, jn1);
+    gather_pairs(ti[m0].data(), ti[m1].data(), ti[m2].data(), ti[m3].data(), jt0, jt1);
+  } else {
+    jn0 = Lanes{ni[m0][0], ni[m1][0], ni[m2][0], ni[m3][0]};
+    jt0 = Lanes{ti[m0][0], ti[m1][0], ti[m2][0], ti[m3][0]};
+  }
   // the manifold's impulse (N·s) and its moments on each body (N·m·s)
   Lanes px = jn0 * nx + jt0 * tx, py = jn0 * ny + jt0 * ty;
   Lanes ta = jn0 * B.p0.rna + jt0 * B.p0.rta, tb = jn0 * B.p0.rnb + jt0 * B.p0.rtb;
   if constexpr (TWO) {
-    const Lanes jn1 = {ni[m0][1], ni[m1][1], ni[m2][1], ni[m3][1]};
-    const Lanes jt1 = {ti[m0][1], ti[m1][1], ti[m2][1], ti[m3][1]};
     px += jn1 * nx + jt1 * tx;
     py += jn1 * ny + jt1 * ty;
     ta += jn1 * B.p1.rna + jt1 * B.p1.rta;
@@ -113,16 +117,31 @@ void warm_start_batch(State<2>& st, const Contacts<2>& c, const WideBatch& B) {
   const Lanes ma = B.ma, mb = B.mb, ia = B.ia, ib = B.ib;
   const Lanes dvax = ma * px, dvay = ma * py, dwa = ia * ta;
   const Lanes dvbx = mb * px, dvby = mb * py, dwb = ib * tb;
+  Vec2* v = st.body_v.data();
+  double* w = st.body_w.data();
+  if (B.writes == ALL_WRITES) {  // every lane's two bodies, as whole vectors
+    const int a0 = B.a[0], a1 = B.a[1], a2 = B.a[2], a3 = B.a[3];
+    const int b0 = B.b[0], b1 = B.b[1], b2 = B.b[2], b3 = B.b[3];
+    Lanes vax, vay, vbx, vby;
+    gather_pairs(&v[a0].x, &v[a1].x, &v[a2].x, &v[a3].x, vax, vay);
+    gather_pairs(&v[b0].x, &v[b1].x, &v[b2].x, &v[b3].x, vbx, vby);
+    const Lanes wa = Lanes{w[a0], w[a1], w[a2], w[a3]} + dwa;
+    const Lanes wb = Lanes{w[b0], w[b1], w[b2], w[b3]} - dwb;
+    scatter_pairs(&v[a0].x, &v[a1].x, &v[a2].x, &v[a3].x, vax + dvax, vay + dvay);
+    scatter_scalars(&w[a0], &w[a1], &w[a2], &w[a3], wa);
+    scatter_pairs(&v[b0].x, &v[b1].x, &v[b2].x, &v[b3].x, vbx - dvbx, vby - dvby);
+    scatter_scalars(&w[b0], &w[b1], &w[b2], &w[b3], wb);
+    return;
+  }
   for (int l = 0; l < LANES; ++l) {
-    if (B.m[l] < 0) continue;
     // a fixed body is not written (see solve_contacts)
-    if (B.ma[l] != 0.0 || B.ia[l] != 0.0) {
-      st.body_v[B.a[l]] += Vec2{dvax[l], dvay[l]};
-      st.body_w[B.a[l]] += dwa[l];
+    if (B.writes & (1u << l)) {
+      v[B.a[l]] += Vec2{dvax[l], dvay[l]};
+      w[B.a[l]] += dwa[l];
     }
-    if (B.mb[l] != 0.0 || B.ib[l] != 0.0) {
-      st.body_v[B.b[l]] -= Vec2{dvbx[l], dvby[l]};
-      st.body_w[B.b[l]] -= dwb[l];
+    if (B.writes & (1u << (LANES + l))) {
+      v[B.b[l]] -= Vec2{dvbx[l], dvby[l]};
+      w[B.b[l]] -= dwb[l];
     }
   }
 }

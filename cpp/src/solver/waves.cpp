@@ -29,8 +29,11 @@ namespace {
 // body 0, never written).
 template <int D>
 void pack_lane(const Model<D>& model, const Contacts<D>& c, WideBatch& w, int l, std::int32_t m) {
+  const std::uint32_t bits = (1u << l) | (1u << (LANES + l));
   if (m < 0) {
     w.m[l] = -1;
+    w.live[l] = 0;
+    w.writes &= ~bits;
     w.a[l] = w.b[l] = 0;
     w.nx[l] = w.ny[l] = w.k01[l] = w.gamma[l] = w.bias_rate[l] = w.friction[l] = 0.0;
     w.max_push[l] = w.deep[l] = 0.0;
@@ -45,6 +48,7 @@ void pack_lane(const Model<D>& model, const Contacts<D>& c, WideBatch& w, int l,
   const SolverRow<2>& row = c.solver_row[m];
   const int a = c.body_a[m], b = c.body_b[m];
   w.m[l] = m;
+  w.live[l] = -1;
   w.a[l] = a;
   w.b[l] = b;
   w.nx[l] = row.normal.x;
@@ -61,23 +65,28 @@ void pack_lane(const Model<D>& model, const Contacts<D>& c, WideBatch& w, int l,
   w.mb[l] = model.body_inv_mass[b];
   w.ia[l] = model.body_inv_inertia[a];
   w.ib[l] = model.body_inv_inertia[b];
+  // (a static or kinematic body's velocity is not written back: see solve_contacts)
+  w.writes &= ~bits;
+  if (w.ma[l] != 0.0 || w.ia[l] != 0.0) w.writes |= 1u << l;
+  if (w.mb[l] != 0.0 || w.ib[l] != 0.0) w.writes |= 1u << (LANES + l);
   const bool two = c.points[m] == 2;
   w.two[l] = two ? 1.0 : 0.0;
-  for (int k = 0; k < 2; ++k) {
+  // a batch holds manifolds of one point count (find_waves): a one-point batch's second
+  // point is never read, and is not written
+  for (int k = 0; k < (two ? 2 : 1); ++k) {
     WidePoint& p = k == 0 ? w.p0 : w.p1;
-    const bool here = k == 0 || two;  // a one-point manifold's second point is all zero
     const auto& pt = row.point[k];
-    p.rna[l] = here ? pt.rna : 0.0;
-    p.rnb[l] = here ? pt.rnb : 0.0;
-    p.rta[l] = here ? pt.rta : 0.0;
-    p.rtb[l] = here ? pt.rtb : 0.0;
-    p.kn[l] = here ? pt.kn : 1.0;  // (never used: no division by zero)
-    p.tangent_mass[l] = here ? pt.tangent_mass : 0.0;
-    p.rax[l] = here ? pt.ra.x : 0.0;
-    p.ray[l] = here ? pt.ra.y : 0.0;
-    p.rbx[l] = here ? pt.rb.x : 0.0;
-    p.rby[l] = here ? pt.rb.y : 0.0;
-    p.base[l] = here ? pt.base : 0.0;
+    p.rna[l] = pt.rna;
+    p.rnb[l] = pt.rnb;
+    p.rta[l] = pt.rta;
+    p.rtb[l] = pt.rtb;
+    p.kn[l] = pt.kn;
+    p.tangent_mass[l] = pt.tangent_mass;
+    p.rax[l] = pt.ra.x;
+    p.ray[l] = pt.ra.y;
+    p.rbx[l] = pt.rb.x;
+    p.rby[l] = pt.rb.y;
+    p.base[l] = pt.base;
   }
 }
 
