@@ -387,6 +387,11 @@ std::unique_ptr<World<D>> make_world(nb::dict model, nb::dict state, nb::dict co
   cf.friction_rule = static_cast<MixRule>(load_value<int>(config, "friction_rule"));
   cf.restitution_rule = static_cast<MixRule>(load_value<int>(config, "restitution_rule"));
   cf.elastic = load_value<bool>(config, "elastic");
+  // the step's threads (solver.threads, resolved by rbsim.config); a config without the
+  // key runs on one
+  cf.threads = config.contains("threads") ? load_value<int>(config, "threads") : 1;
+  if (cf.threads < 1 || cf.threads > THREADS_MAX)
+    throw std::invalid_argument("threads must be between 1 and " + std::to_string(THREADS_MAX));
   set_contact_softness(cf);
   w->allocate();
   return w;
@@ -807,11 +812,12 @@ NB_MODULE(_core, mod) {
     RBSIM_CONSTANT(CELL_SIZES) RBSIM_CONSTANT(TABLE_PER_SHAPE) RBSIM_CONSTANT(BIG_MAX)
     RBSIM_CONSTANT(BIG_CELLS_MAX) RBSIM_CONSTANT(RADIX_BITS) RBSIM_CONSTANT(INSERTION_SORT_MAX)
     RBSIM_CONSTANT(ATAN_SERIES_MAX) RBSIM_CONSTANT(SCALE_LENGTH) RBSIM_CONSTANT(STIFFNESS_LENGTH)
-    RBSIM_CONSTANT(HEAVY_RATIO)
+    RBSIM_CONSTANT(HEAVY_RATIO) RBSIM_CONSTANT(SOLVER_REGIONS) RBSIM_CONSTANT(REGION_MIN_BODIES)
 #undef RBSIM_CONSTANT
     mod.attr("constants") = k;
   }
   mod.attr("OK") = static_cast<int>(Status::Ok);
+  mod.attr("THREADS_MAX") = THREADS_MAX;
 
   // ---- narrowphase test entry ----
   mod.def("collide2d", &collide2d_py, "kind_a"_a, "start_a"_a, "count_a"_a, "radius_a"_a,

@@ -118,13 +118,17 @@ inline void refresh_angular(const Model<3>& model, State<3>& st, int i) {
 
 template <int D>
 void integrate_velocities(const Model<D>& model, State<D>& st, double h) {
+  integrate_velocities(model, st, h, Span{0, model.body_count()});
+}
+
+template <int D>
+void integrate_velocities(const Model<D>& model, State<D>& st, double h, Span bodies) {
   using Vec = typename Dim<D>::Vec;
   using Ang = typename Dim<D>::Ang;
   const Vec g = model.gravity;
   const double lin = 1.0 / (1.0 + h * model.linear_damping);
   const double ang = 1.0 / (1.0 + h * model.angular_damping);
-  const int n = model.body_count();
-  for (int i = 0; i < n; ++i) {
+  for (int i = static_cast<int>(bodies.first); i < bodies.last; ++i) {
     if (!model.is_dynamic(i)) continue;
     Vec a = g;
     Ang torque = Dim<D>::angular_zero();
@@ -148,10 +152,15 @@ void integrate_velocities(const Model<D>& model, State<D>& st, double h) {
 template <int D>
 void integrate_positions(const Model<D>& model, State<D>& st, std::vector<BodyDelta<D>>& delta,
                          double h, Rotation rotation) {
-  const int n = model.body_count();
+  integrate_positions(model, st, delta, h, rotation, Span{0, model.body_count()});
+}
+
+template <int D>
+void integrate_positions(const Model<D>& model, State<D>& st, std::vector<BodyDelta<D>>& delta,
+                         double h, Rotation rotation, Span bodies) {
   double unused_angle = 0.0;
   const bool exact = rotation != Rotation::Normalize;
-  for (int i = 0; i < n; ++i) {
+  for (int i = static_cast<int>(bodies.first); i < bodies.last; ++i) {
     if (model.body_type[i] == BodyType::Static) continue;
     const auto dx = h * st.body_v[i];
     st.body_x[i] += dx;
@@ -172,6 +181,10 @@ void integrate_positions(const Model<D>& model, State<D>& st, std::vector<BodyDe
 }
 
 template void integrate_velocities(const Model<2>&, State<2>&, double);
+template void integrate_velocities(const Model<2>&, State<2>&, double, Span);
+template void integrate_velocities(const Model<3>&, State<3>&, double, Span);
+template void integrate_positions(const Model<2>&, State<2>&, std::vector<BodyDelta<2>>&, double, Rotation, Span);
+template void integrate_positions(const Model<3>&, State<3>&, std::vector<BodyDelta<3>>&, double, Rotation, Span);
 template void integrate_positions(const Model<2>&, State<2>&, std::vector<BodyDelta<2>>&, double, Rotation);
 template void integrate_velocities(const Model<3>&, State<3>&, double);
 template void integrate_positions(const Model<3>&, State<3>&, std::vector<BodyDelta<3>>&, double, Rotation);
