@@ -170,6 +170,12 @@ nb::dict storage(World<D>& w, nb::handle owner) {
   if constexpr (D == 2) d["solver_row"] = view(c.solver_row, owner);
   if constexpr (D == 3) d["face_world"] = view(c.face_world, owner);
   d["wave_count"] = view(&c.wave_count, 1, owner, false);
+  // the regions of the threaded passes (regions.cpp)
+  d["region_count"] = view(&c.region_count, 1, owner, false);
+  d["body_region"] = view(c.body_region, owner);
+  d["segment_order"] = view(c.segment_order, owner);
+  d["segment_wave"] = view(c.segment_wave, owner);
+  d["segment_shock"] = view(c.segment_shock, owner);
   d["body_still"] = view(c.body_still, owner, true);
   auto& g = w.grid;
   nb::dict gd;
@@ -754,7 +760,12 @@ nb::class_<World<D>> bind_world(nb::module_& mod, const char* name, const char* 
               d[STAGE_NAMES[k]] = w.stage_seconds[k];
             return d;
           },
-          "Seconds spent in each stage since profiling began.");
+          "Seconds spent in each stage since profiling began.")
+      .def_ro("parallel_seconds", &W::parallel_seconds,
+              "Seconds (wall) since profiling began of the work the step splits over its "
+              "threads (what more threads shorten; the stages' other time is serial).")
+      .def_prop_ro("threads", [](const W& w) { return w.config.threads; },
+                   "Threads the step runs on (solver.threads).");
   // the state as views of the engine's arrays (no copies): body_angle is empty in 3D,
   // body_l in 2D
 #define RBSIM_STATE(name, doc) \

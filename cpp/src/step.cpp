@@ -18,6 +18,7 @@
 // items and what the passes list is gathered in a fixed order, so the state after a step
 // is the same, bit for bit, for every number of threads.
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -78,14 +79,32 @@ void World<D>::timed(StageId stage, F&& run) {
 
 template <int D>
 template <class F>
+void World<D>::parallel_timed(F&& run) {
+  if (!profile) {
+    run();
+    return;
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  run();
+  const std::chrono::duration<double> dt = std::chrono::steady_clock::now() - t0;
+  parallel_seconds += dt.count();
+}
+
+template <int D>
+template <class F>
 void World<D>::parallel(std::int64_t n, F&& f) {
   const std::int64_t threads = pool ? pool->size() : 1;
   const std::int64_t parts = std::min<std::int64_t>(n / C::TASK_ITEMS, 4 * threads);
-  if (parts < 2 || threads < 2) {
+  if (n < 2 * C::TASK_ITEMS) {  // too few items to split
     f(Span{0, n});
     return;
   }
-  pool->run(parts, [&](std::int64_t p) { f(part_of(n, p, parts)); });
+  parallel_timed([&] {
+    if (parts < 2 || threads < 2)
+      f(Span{0, n});
+    else
+      pool->run(parts, [&](std::int64_t p) { f(part_of(n, p, parts)); });
+  });
 }
 
 template <int D>
@@ -98,7 +117,15 @@ void World<D>::over_segments(bool with_logs, F&& f) {
     // one thread: the segments in order, listing straight into the store's lists (what
     // the threads' logs, appended in segment order, also give)
     PassLog log = PassLog::direct(c);
-    for (int g = 0; g < n_segments; ++g) f(g, log);
+    int g = 0;
+    if (regions > 1) {  // (the part that threads would share, for the profile)
+      parallel_timed([&] {
+        for (; g < regions; ++g) f(g, log);
+        if (regions / 2 > 1)
+          for (; g < regions + regions / 2; ++g) f(g, log);
+      });
+    }
+    for (; g < n_segments; ++g) f(g, log);
     return;
   }
   if (with_logs) {
@@ -119,8 +146,11 @@ void World<D>::over_segments(bool with_logs, F&& f) {
     PassLog log = logs[g].log();
     f(static_cast<int>(g), log);
   };
-  pool->run(regions, [&](std::int64_t g) { run(g); });
-  pool->run(regions / 2, [&](std::int64_t k) { run(regions + k); });
+  parallel_timed([&] { pool->run(regions, [&](std::int64_t g) { run(g); }); });
+  if (regions / 2 > 1)
+    parallel_timed([&] { pool->run(regions / 2, [&](std::int64_t k) { run(regions + k); }); });
+  else
+    run(regions);
   for (int g = regions + regions / 2; g < n_segments; ++g) run(g);
   if (!with_logs) return;
   PassLog store = PassLog::direct(c);
@@ -281,7 +311,14 @@ bool World<D>::step() {
   }
   if (contacts_on) {
     timed(S::OverlapLimit, [&] { limit_static_overlap(model, state, c, C::STATIC_OVERLAP_LIMIT); });
-    timed(S::Store, [&] { store_impulses(c); });
+    timed(S::Store, [&] {
+      // each part counts its touching points (an integer sum: the same in any order)
+      const std::int64_t n = c.count.manifolds;
+      std::atomic<std::int64_t> touching{0};
+      parallel(n, [&](Span part) { touching += store_impulses(c, part); });
+      c.count.manifolds_prev = n;
+      c.count.points_touching = touching.load();
+    });
   }
   return true;
   }

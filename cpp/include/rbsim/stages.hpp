@@ -106,6 +106,10 @@ void narrow_pairs(const Model<D>& model, const Contacts<D>& contacts, const Grid
 // contact/store.cpp: this step's manifolds become last step's (for warm starting).
 template <int D>
 void store_impulses(Contacts<D>& contacts);
+// The same for the manifolds of one range (the counts are left to the caller); returns
+// the range's contact points that pushed.
+template <int D>
+std::int64_t store_impulses(Contacts<D>& contacts, Span manifolds);
 
 // solver/prepare.cpp: effective masses, approach velocities and softness into the rows:
 // config's soft and soft_static, or stiffer for small shapes (STIFFNESS_LENGTH), and each

@@ -61,6 +61,9 @@ struct World {
   // with profile set, each stage's wall time accumulates in stage_seconds (s)
   bool profile = false;
   std::array<double, static_cast<int>(StageId::Count)> stage_seconds{};
+  // with profile set, the wall time (s) of the work that runs in parts on the threads
+  // (each part on one thread): what more threads can shorten, the rest being serial
+  double parallel_seconds = 0.0;
   // the threads of config.threads beyond the caller (made at the first step that has a
   // use for them), and the segment logs of the threaded passes
   std::unique_ptr<Pool> pool;
@@ -89,6 +92,9 @@ struct World {
   bool step_free();
   template <class F>
   void timed(StageId stage, F&& run);
+  // run(), its wall time added to parallel_seconds when profiling
+  template <class F>
+  void parallel_timed(F&& run);
   // f(Span) over near-equal parts of n items, on the pool's threads (each part writes
   // only its own items)
   template <class F>
