@@ -16,10 +16,10 @@ import sys
 import time
 from pathlib import Path
 
-from rbsim.config import make_config
-from rbsim.core import CoreWorld
+from rbsim import config
+from rbsim.engines import Engine, make_engine
 from rbsim.scene import Scene, load_scene
-from rbsim.scene.compile import build
+from rbsim.tools.measure import block_times
 
 HERE = Path(__file__).parent
 SCENES = ["pyramid40", "circles1000"]
@@ -29,34 +29,27 @@ REPEATS = 5
 TARGET = 1.7  # issue 13: at least 1.7x on two threads for these scenes
 
 
-def world(scene: Scene, threads: int) -> CoreWorld:
-    """The scene's world on `threads` threads."""
-    model, state = build(scene)
-    cfg = make_config(scene)._replace(threads=threads)
-    return CoreWorld.from_arrays(model, state, cfg, scene.world.dimension, scene)
+def engine(scene: Scene, threads: int) -> Engine:
+    """rbsim on the scene, on `threads` threads."""
+    with config.threads_default(threads):
+        return make_engine("rbsim", scene)
 
 
 def step_time(scene: Scene, threads: int) -> float:
     """Median wall µs per step on `threads` threads, after WARMUP steps."""
-    w = world(scene, threads)
-    w.advance(WARMUP)
-    samples = []
-    for _ in range(REPEATS):
-        t0 = time.perf_counter()
-        w.advance(STEPS)
-        samples.append((time.perf_counter() - t0) / STEPS * 1e6)
+    samples = block_times(engine(scene, threads), WARMUP, STEPS, REPEATS, time.perf_counter)
     return statistics.median(samples)
 
 
 def serial_fraction(scene: Scene) -> float:
     """The share of one thread's step time spent outside the work the step splits over
     its threads (stages timed by the engine's profile after WARMUP steps)."""
-    w = world(scene, 1)
-    w.advance(WARMUP)
-    w.engine.profile = True
-    w.advance(REPEATS * STEPS)
-    total = sum(w.engine.stage_times().values())
-    return 1.0 - w.engine.parallel_seconds / total
+    e = engine(scene, 1)
+    e.advance(WARMUP)
+    core = e.world.engine  # the compiled world, for its profile
+    core.profile = True
+    e.advance(REPEATS * STEPS)
+    return 1.0 - core.parallel_seconds / sum(core.stage_times().values())
 
 
 def table(names: list[str]) -> None:

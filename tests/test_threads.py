@@ -14,8 +14,8 @@ import pytest
 
 from rbsim import config
 from rbsim.config import make_config
-from rbsim.core import CoreWorld
-from rbsim.scene import SceneError, load_scene, load_scene_text
+from rbsim.core import THREADS_MAX, CoreWorld
+from rbsim.scene import SceneError, load_scene, load_scene_text, schema
 from rbsim.scene.compile import build
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -140,3 +140,12 @@ def test_threads_default_to_the_cores_and_to_one_in_workers():
         assert make_config(plain).threads == 1
         assert make_config(scene).threads == 3  # the scene's own wins
     assert make_config(plain).threads == min(config.available_cores(), 64)
+
+
+def test_the_schema_bound_is_the_engines():
+    assert schema.THREADS_MAX == THREADS_MAX == 64
+    model, state = build(load_scene_text(BASE % "2"))
+    cfg = make_config(load_scene_text(BASE % "2"))
+    for bad in (0, THREADS_MAX + 1):  # the engine checks what crosses the binding too
+        with pytest.raises(ValueError, match="threads must be between 1 and 64"):
+            CoreWorld.from_arrays(model, state, cfg._replace(threads=bad), 2)

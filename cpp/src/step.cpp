@@ -64,9 +64,11 @@ void World<D>::grow(std::int64_t capacity) {
   grid.grow(capacity);
 }
 
-template <int D>
+namespace {
+
+// run(), its wall time added to total (s) when profiling.
 template <class F>
-void World<D>::timed(StageId stage, F&& run) {
+void clocked(bool profile, double& total, F&& run) {
   if (!profile) {
     run();
     return;
@@ -74,20 +76,21 @@ void World<D>::timed(StageId stage, F&& run) {
   const auto t0 = std::chrono::steady_clock::now();
   run();
   const std::chrono::duration<double> dt = std::chrono::steady_clock::now() - t0;
-  stage_seconds[static_cast<int>(stage)] += dt.count();
+  total += dt.count();
+}
+
+}  // namespace
+
+template <int D>
+template <class F>
+void World<D>::timed(StageId stage, F&& run) {
+  clocked(profile, stage_seconds[static_cast<int>(stage)], run);
 }
 
 template <int D>
 template <class F>
 void World<D>::parallel_timed(F&& run) {
-  if (!profile) {
-    run();
-    return;
-  }
-  const auto t0 = std::chrono::steady_clock::now();
-  run();
-  const std::chrono::duration<double> dt = std::chrono::steady_clock::now() - t0;
-  parallel_seconds += dt.count();
+  clocked(profile, parallel_seconds, run);
 }
 
 template <int D>
