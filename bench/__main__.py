@@ -31,7 +31,7 @@ from rbsim.engines.pymunk import PymunkSettings
 from rbsim.scene import load_scene
 from rbsim.tools.measure import block_times
 
-from . import bench3d, threads
+from . import bench3d, print_header, threads
 
 HERE = Path(__file__).parent
 SCENES = ["pyramid20", "circles1000", "pyramid40", "pyramids4x4", "pyramid30", "rain800"]
@@ -128,8 +128,7 @@ def table2d(names: list[str], iterations: int) -> None:
     header = (
         f"{'scene':<17}{'bodies':>5}{'contacts':>10}{'rbsim us':>11}{'pymunk us':>11}{'ratio':>8}"
     )
-    print(header)
-    print("-" * len(header))
+    print_header(header)
     for name in names:
         scene = load_scene(HERE / "scenes" / f"{name}.yaml")
         if name in FROM_REST:
@@ -150,8 +149,7 @@ def table2d(names: list[str], iterations: int) -> None:
         f"{'scene':<17}{'frames':>10}{'no frames':>11}{'engine':>9}{'pymunk':>10}"
         f"{'writer':>9}{'/engine':>9}{'/pymunk':>9}"
     )
-    print(header)
-    print("-" * len(header))
+    print_header(header)
     for name in END_TO_END:
         if name in names:
             print(end_to_end(name, iterations), flush=True)

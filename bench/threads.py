@@ -21,6 +21,8 @@ from rbsim.engines import Engine, make_engine
 from rbsim.scene import Scene, load_scene
 from rbsim.tools.measure import block_times
 
+from . import print_header
+
 HERE = Path(__file__).parent
 SCENES = ["pyramid40", "circles1000"]
 WARMUP = 60
@@ -62,8 +64,7 @@ def table(names: list[str]) -> None:
     header = (
         f"{'scene':<17}{'1 thread':>10}{'2 threads':>11}{'speed-up':>10}{'serial':>8}{'bound':>7}"
     )
-    print(header)
-    print("-" * len(header))
+    print_header(header)
     for name in names:
         scene = load_scene(HERE / "scenes" / f"{name}.yaml")
         one, two = step_time(scene, 1), step_time(scene, 2)
