@@ -1,17 +1,19 @@
 """`make bench`: µs per step of rbsim and pymunk on the same scenes, and their ratio.
 
-Both engines get the scene's dt (1/60 s), the same collision slop (rbsim's
-LINEAR_SLOP, 0.5 cm) and comparable solver work: rbsim runs its defaults (4 substeps,
-1 solve + 1 relax pass each: 8 velocity passes and a restitution pass per step);
-pymunk runs 10 iterations per step (its usual setting). Each engine first steps
-WARMUP steps (the engine loaded, contacts formed, outside the timing), then the median
-of REPEATS timed blocks of STEPS steps is reported. A second table times `rbsim run`
-end to end (frames written every step, and only the first and last) beside the engine
-alone and pymunk alone, and the writer's own cost per frame. The from-rest scenes (FROM_REST) are
-timed instead over their whole run from step 0, which a settled window leaves out (a
-pyramid settling, a pile forming): the median of REST_REPEATS fresh runs. Timings report;
-they do not fail. After them, the 3D table (bench/bench3d.py): rbsim against MuJoCo and
-PyBullet (where installed) on 3D contact scenes at dt = 1/240 s.
+Both engines get the scene's dt (1/60 s), the same collision slop (rbsim's LINEAR_SLOP,
+0.5 cm) and comparable solver work: rbsim runs its defaults (4 substeps, 1 solve + 1
+relax pass each: 8 velocity passes and a restitution pass per step); pymunk runs 10
+iterations per step (its usual setting). Each engine first steps WARMUP steps (the
+engine loaded, contacts formed, outside the timing), then the median of REPEATS timed
+blocks of STEPS steps is reported (rbsim on one thread). A second table times `rbsim
+run` end to end (frames written every step, and only the first and last) beside the
+engine alone and pymunk alone, and the writer's own cost per frame. The from-rest scenes
+(FROM_REST) are timed instead over their whole run from step 0, which a settled window
+leaves out (a pyramid settling, a pile forming): the median of REST_REPEATS fresh runs.
+Timings report; they do not fail. After them, the 3D table (bench/bench3d.py): rbsim
+against MuJoCo and PyBullet (where installed) on 3D contact scenes at dt = 1/240 s.
+Between them, the threads table (bench/threads.py): rbsim on 1 and 2 threads, and the
+serial fraction.
 """
 
 from __future__ import annotations
@@ -22,13 +24,14 @@ import sys
 import time
 from pathlib import Path
 
+from rbsim import config
 from rbsim import constants as C
 from rbsim.engines import Engine, make_engine
 from rbsim.engines.pymunk import PymunkSettings
 from rbsim.scene import load_scene
 from rbsim.tools.measure import block_times
 
-from . import bench3d
+from . import bench3d, print_header, threads
 
 HERE = Path(__file__).parent
 SCENES = ["pyramid20", "circles1000", "pyramid40", "pyramids4x4", "pyramid30", "rain800"]
@@ -125,8 +128,7 @@ def table2d(names: list[str], iterations: int) -> None:
     header = (
         f"{'scene':<17}{'bodies':>5}{'contacts':>10}{'rbsim us':>11}{'pymunk us':>11}{'ratio':>8}"
     )
-    print(header)
-    print("-" * len(header))
+    print_header(header)
     for name in names:
         scene = load_scene(HERE / "scenes" / f"{name}.yaml")
         if name in FROM_REST:
@@ -147,8 +149,7 @@ def table2d(names: list[str], iterations: int) -> None:
         f"{'scene':<17}{'frames':>10}{'no frames':>11}{'engine':>9}{'pymunk':>10}"
         f"{'writer':>9}{'/engine':>9}{'/pymunk':>9}"
     )
-    print(header)
-    print("-" * len(header))
+    print_header(header)
     for name in END_TO_END:
         if name in names:
             print(end_to_end(name, iterations), flush=True)
@@ -168,7 +169,11 @@ def main(argv: list[str] | None = None) -> int:
     scenes2d = [name for name in args.scenes if name not in bench3d.SCENES]
     scenes3d = [name for name in args.scenes if name in bench3d.SCENES]
     if scenes2d:
-        table2d(scenes2d, args.iterations)
+        with config.threads_default(1):  # rbsim on one thread, as pymunk
+            table2d(scenes2d, args.iterations)
+        if names := [name for name in threads.SCENES if name in scenes2d]:
+            print()
+            threads.table(names)
     if scenes3d:
         if scenes2d:
             print()
@@ -176,7 +181,8 @@ def main(argv: list[str] | None = None) -> int:
             f"3D, dt = 1/240 s, CPU µs per step after {bench3d.WARMUP} steps from rest (median of "
             f"{bench3d.REPEATS} blocks of {bench3d.STEPS}); settings: bench/bench3d.py"
         )
-        bench3d.table(scenes3d)
+        with config.threads_default(1):
+            bench3d.table(scenes3d)
     return 0
 
 

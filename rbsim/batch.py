@@ -47,7 +47,7 @@ from typing import Any
 
 import numpy as np
 
-from . import __version__
+from . import __version__, config
 from .scene import Scene, SceneError, load_scene, load_scene_text, scene_to_dict
 from .scene.yamlsrc import YList, YMap, load_yaml
 
@@ -385,10 +385,8 @@ def run_one(job: Job) -> Outcome:
     instead of starting again; an flock on `.<run-id>.lock` keeps two live attempts of
     one run from sharing a part file (the second writes its own). A non-finite state is
     a finished run with status "failed: ..." (the file keeps the frames before it); any
-    other error is raised for the batch to retry."""
-    from .io.trajectory import CHECKPOINT_SUFFIX
-    from .run import ResumeError, RunFailed, resume_run, run_scene
-
+    other error is raised for the batch to retry. Scenes that do not set solver.threads
+    run on one thread (the workers run side by side, a core each)."""
     if job.version != __version__:
         import rbsim
 
@@ -396,6 +394,22 @@ def run_one(job: Job) -> Outcome:
             f"this worker has rbsim {__version__} ({Path(rbsim.__file__).parent}); "
             f"the batch was planned with rbsim {job.version}: install the same version"
         )
+    with config.threads_default(1):  # a worker beside others: one thread unless the scene says
+        return _run_job(job)
+
+
+def one_thread(fn: Callable[..., Any], *args: Any) -> Any:
+    """fn(*args) with the scenes that do not set solver.threads run on one thread (a
+    worker process beside others: the sweep's tasks)."""
+    with config.threads_default(1):
+        return fn(*args)
+
+
+def _run_job(job: Job) -> Outcome:
+    """run_one's work (rbsim.run's run or resume of the job's spec, then its figures)."""
+    from .io.trajectory import CHECKPOINT_SUFFIX
+    from .run import ResumeError, RunFailed, resume_run, run_scene
+
     spec = job.spec
     scene = spec.scene()
     own_dir = None if job.out_dir is not None else tempfile.mkdtemp(prefix="rbsim-batch-")
@@ -544,10 +558,7 @@ def dask_setup(worker: Any) -> None:  # noqa: ARG001 - Dask's preload interface
 
 def available_cores() -> int:
     """Cores this process may run on."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
+    return config.available_cores()
 
 
 def _serving(link: str) -> bool:
@@ -650,7 +661,7 @@ class DaskPool:
 
         index = {}
         for i, args in enumerate(calls):
-            index[self.client.submit(fn, *args, pure=False)] = i
+            index[self.client.submit(one_thread, fn, *args, pure=False)] = i
         for future in as_completed(list(index), loop=self.client.loop):
             yield index[future], future.result()
 
@@ -659,7 +670,7 @@ class DaskPool:
         if self.timer is None:
             self.timer = sorted(self.client.scheduler_info()["workers"])[0]
         future = self.client.submit(
-            fn, *args, workers=[self.timer], allow_other_workers=True, pure=False
+            one_thread, fn, *args, workers=[self.timer], allow_other_workers=True, pure=False
         )
         return future.result()
 

@@ -4,10 +4,51 @@ imports nothing heavier than numpy."""
 
 from __future__ import annotations
 
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import NamedTuple
 
 from .scene import Scene
+from .scene.schema import THREADS_MAX
 from .scene.types import MIXING, ROTATION_CODE
+
+# the thread count of a scene that does not set solver.threads in this process (None: the
+# cores it may run on); worker processes of `rbsim batch` and `rbsim sweep` set 1
+_process_threads: int | None = None
+
+
+def available_cores() -> int:
+    """Cores this process may run on (its CPU affinity where the system has one)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+@contextmanager
+def threads_default(threads: int | None) -> Iterator[None]:
+    """Within the block, scenes that do not set solver.threads run on `threads` threads
+    (None: the cores, available_cores()); the previous default after it. A worker
+    process that runs scenes side by side with other workers sets 1, so that the workers
+    do not oversubscribe the cores; the results do not change (they are the same for
+    every thread count)."""
+    global _process_threads
+    if threads is not None and not 1 <= threads <= THREADS_MAX:
+        raise ValueError(f"threads must be between 1 and {THREADS_MAX}, got {threads}")
+    previous, _process_threads = _process_threads, threads
+    try:
+        yield
+    finally:
+        _process_threads = previous
+
+
+def default_threads() -> int:
+    """The threads of a scene that does not set solver.threads: threads_default's value
+    where one is in force, else the cores, at most THREADS_MAX."""
+    if _process_threads is not None:
+        return _process_threads
+    return min(available_cores(), THREADS_MAX)
 
 
 class NonFiniteState(RuntimeError):
@@ -40,8 +81,9 @@ class Config(NamedTuple):
     scene.types.ROTATION_CODE: normalize 0, exact 1, split 2; in 2D split turns as exact
     does, the rotation having one axis), restitution_threshold (m/s),
     friction_rule and restitution_rule (MIX_*), elastic (some material has
-    restitution > 0). The engine derives the soft contacts' stiffness from dt and
-    substeps itself (set_contact_softness in cpp/src/step.cpp)."""
+    restitution > 0), threads (the step's threads, >= 1). The engine derives the soft
+    contacts' stiffness from dt and substeps itself (set_contact_softness in
+    cpp/src/step.cpp)."""
 
     dt: float
     substeps: int
@@ -52,6 +94,7 @@ class Config(NamedTuple):
     friction_rule: int
     restitution_rule: int
     elastic: bool
+    threads: int = 1
 
 
 def make_config(scene: Scene) -> Config:
@@ -67,4 +110,5 @@ def make_config(scene: Scene) -> Config:
         friction_rule=MIXING[scene.world.friction_mixing],
         restitution_rule=MIXING[scene.world.restitution_mixing],
         elastic=any(sh.material.restitution > 0.0 for b in scene.bodies for sh in b.shapes),
+        threads=int(sol.threads) if sol.threads is not None else default_threads(),
     )

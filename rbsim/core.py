@@ -27,6 +27,8 @@ NON_FINITE: int = _core.NON_FINITE
 INTERRUPTED: int = _core.INTERRUPTED
 # m: a body farther from the origin along any axis ends the run (cpp/include/rbsim/world.hpp)
 POSITION_LIMIT: float = float(_core.POSITION_LIMIT)
+# the most threads a world steps on (solver.threads; rbsim.scene.schema.THREADS_MAX)
+THREADS_MAX: int = int(_core.THREADS_MAX)
 
 
 # the engine's world class by dimension

@@ -170,6 +170,12 @@ nb::dict storage(World<D>& w, nb::handle owner) {
   if constexpr (D == 2) d["solver_row"] = view(c.solver_row, owner);
   if constexpr (D == 3) d["face_world"] = view(c.face_world, owner);
   d["wave_count"] = view(&c.wave_count, 1, owner, false);
+  // the regions of the threaded passes (regions.cpp)
+  d["region_count"] = view(&c.region_count, 1, owner, false);
+  d["body_region"] = view(c.body_region, owner);
+  d["segment_order"] = view(c.segment_order, owner);
+  d["segment_wave"] = view(c.segment_wave, owner);
+  d["segment_shock"] = view(c.segment_shock, owner);
   d["body_still"] = view(c.body_still, owner, true);
   auto& g = w.grid;
   nb::dict gd;
@@ -387,6 +393,11 @@ std::unique_ptr<World<D>> make_world(nb::dict model, nb::dict state, nb::dict co
   cf.friction_rule = static_cast<MixRule>(load_value<int>(config, "friction_rule"));
   cf.restitution_rule = static_cast<MixRule>(load_value<int>(config, "restitution_rule"));
   cf.elastic = load_value<bool>(config, "elastic");
+  // the step's threads (solver.threads, resolved by rbsim.config); a config without the
+  // key runs on one
+  cf.threads = config.contains("threads") ? load_value<int>(config, "threads") : 1;
+  if (cf.threads < 1 || cf.threads > THREADS_MAX)
+    throw std::invalid_argument("threads must be between 1 and " + std::to_string(THREADS_MAX));
   set_contact_softness(cf);
   w->allocate();
   return w;
@@ -749,7 +760,12 @@ nb::class_<World<D>> bind_world(nb::module_& mod, const char* name, const char* 
               d[STAGE_NAMES[k]] = w.stage_seconds[k];
             return d;
           },
-          "Seconds spent in each stage since profiling began.");
+          "Seconds spent in each stage since profiling began.")
+      .def_ro("parallel_seconds", &W::parallel_seconds,
+              "Seconds (wall) since profiling began of the work the step splits over its "
+              "threads (what more threads shorten; the stages' other time is serial).")
+      .def_prop_ro("threads", [](const W& w) { return w.config.threads; },
+                   "Threads the step runs on (solver.threads).");
   // the state as views of the engine's arrays (no copies): body_angle is empty in 3D,
   // body_l in 2D
 #define RBSIM_STATE(name, doc) \
@@ -807,11 +823,12 @@ NB_MODULE(_core, mod) {
     RBSIM_CONSTANT(CELL_SIZES) RBSIM_CONSTANT(TABLE_PER_SHAPE) RBSIM_CONSTANT(BIG_MAX)
     RBSIM_CONSTANT(BIG_CELLS_MAX) RBSIM_CONSTANT(RADIX_BITS) RBSIM_CONSTANT(INSERTION_SORT_MAX)
     RBSIM_CONSTANT(ATAN_SERIES_MAX) RBSIM_CONSTANT(SCALE_LENGTH) RBSIM_CONSTANT(STIFFNESS_LENGTH)
-    RBSIM_CONSTANT(HEAVY_RATIO)
+    RBSIM_CONSTANT(HEAVY_RATIO) RBSIM_CONSTANT(SOLVER_REGIONS) RBSIM_CONSTANT(REGION_MIN_BODIES)
 #undef RBSIM_CONSTANT
     mod.attr("constants") = k;
   }
   mod.attr("OK") = static_cast<int>(Status::Ok);
+  mod.attr("THREADS_MAX") = THREADS_MAX;
 
   // ---- narrowphase test entry ----
   mod.def("collide2d", &collide2d_py, "kind_a"_a, "start_a"_a, "count_a"_a, "radius_a"_a,

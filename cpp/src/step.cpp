@@ -1,7 +1,8 @@
 // The time step as the list of its stages, and the loop that runs a scene. This is the
 // only file that orders stages:
 //
-//   transform -> find_pairs -> update_manifolds -> prepare -> support_order -> waves
+//   transform -> find_pairs -> update_manifolds -> prepare -> support_order -> regions
+//   -> waves
 //   -> [per substep: integrate_velocities -> warm_start -> solve (-> shock, while a heavy
 //       body rests on a light one) -> integrate_positions
 //       -> relax (-> extra relax passes near a deep overlap) -> restitution -> shock]
@@ -9,7 +10,15 @@
 //
 // A scene without contacts possible skips the contact stages; one without forces skips
 // their evaluation (integrate.cpp).
+//
+// Threads (config.threads, solver.threads): the stages whose items are independent
+// (transform per body and shape, prepare per manifold, the integrator per body) run in
+// parts on the pool's threads; the solver's passes (warm start, solve, relax, shock) run
+// region by region (regions.cpp), the regions at once. Every part writes only its own
+// items and what the passes list is gathered in a fixed order, so the state after a step
+// is the same, bit for bit, for every number of threads.
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -55,9 +64,11 @@ void World<D>::grow(std::int64_t capacity) {
   grid.grow(capacity);
 }
 
-template <int D>
+namespace {
+
+// run(), its wall time added to total (s) when profiling.
 template <class F>
-void World<D>::timed(StageId stage, F&& run) {
+void clocked(bool profile, double& total, F&& run) {
   if (!profile) {
     run();
     return;
@@ -65,7 +76,128 @@ void World<D>::timed(StageId stage, F&& run) {
   const auto t0 = std::chrono::steady_clock::now();
   run();
   const std::chrono::duration<double> dt = std::chrono::steady_clock::now() - t0;
-  stage_seconds[static_cast<int>(stage)] += dt.count();
+  total += dt.count();
+}
+
+}  // namespace
+
+template <int D>
+template <class F>
+void World<D>::timed(StageId stage, F&& run) {
+  clocked(profile, stage_seconds[static_cast<int>(stage)], run);
+}
+
+template <int D>
+template <class F>
+void World<D>::parallel_timed(F&& run) {
+  clocked(profile, parallel_seconds, run);
+}
+
+template <int D>
+template <class F>
+void World<D>::parallel(std::int64_t n, F&& f) {
+  const std::int64_t threads = pool ? pool->size() : 1;
+  const std::int64_t parts = std::min<std::int64_t>(n / C::TASK_ITEMS, 4 * threads);
+  if (n < 2 * C::TASK_ITEMS) {  // too few items to split
+    f(Span{0, n});
+    return;
+  }
+  parallel_timed([&] {
+    if (parts < 2 || threads < 2)
+      f(Span{0, n});
+    else
+      pool->run(parts, [&](std::int64_t p) { f(part_of(n, p, parts)); });
+  });
+}
+
+template <int D>
+template <class F>
+void World<D>::over_segments(bool with_logs, F&& f) {
+  auto& c = contacts;
+  const int regions = static_cast<int>(c.region_count);
+  const int n_segments = segment_count(regions);
+  if (regions == 1 || !pool) {
+    // one thread: the segments in order, listing straight into the store's lists (what
+    // the threads' logs, appended in segment order, also give)
+    PassLog log = PassLog::direct(c);
+    int g = 0;
+    if (regions > 1) {  // (the part that threads would share, for the profile)
+      parallel_timed([&] {
+        for (; g < regions; ++g) f(g, log);
+        if (regions / 2 > 1)
+          for (; g < regions + regions / 2; ++g) f(g, log);
+      });
+    }
+    for (; g < n_segments; ++g) f(g, log);
+    return;
+  }
+  if (with_logs) {
+    const std::size_t bounce = c.bounce_list.size(), deep = c.relax_list.size();
+    logs.resize(n_segments);
+    for (auto& l : logs) {
+      if (l.bounce.size() != bounce) l.bounce.assign(bounce, 0);
+      if (l.deep.size() != deep) l.deep.assign(deep, 0);
+      l.bounce_count = l.deep_count = 0;
+    }
+  }
+  PassLog none{};  // (a pass that lists nothing)
+  auto run = [&](std::int64_t g) {
+    if (!with_logs) {
+      f(static_cast<int>(g), none);
+      return;
+    }
+    PassLog log = logs[g].log();
+    f(static_cast<int>(g), log);
+  };
+  parallel_timed([&] { pool->run(regions, [&](std::int64_t g) { run(g); }); });
+  if (regions / 2 > 1)
+    parallel_timed([&] { pool->run(regions / 2, [&](std::int64_t k) { run(regions + k); }); });
+  else
+    run(regions);
+  for (int g = regions + regions / 2; g < n_segments; ++g) run(g);
+  if (!with_logs) return;
+  PassLog store = PassLog::direct(c);
+  for (auto& l : logs) {
+    for (std::int64_t i = 0; i < l.bounce_count; ++i) store.add_bounce(l.bounce[i]);
+    for (std::int64_t i = 0; i < l.deep_count; ++i) store.add_deep(l.deep[i]);
+  }
+}
+
+template <int D>
+void World<D>::warm_start_pass() {
+  auto& c = contacts;
+  if (c.region_count == 1) {
+    warm_start_waves(model, state, c);
+    return;
+  }
+  const auto& bounds = D == 2 ? c.segment_wave : c.segment_order;
+  over_segments(false, [&](int g, PassLog&) {
+    warm_start_range(model, state, c, bounds[g], bounds[g + 1]);
+  });
+}
+
+template <int D>
+void World<D>::solve_pass(double inv_h, bool use_bias, double shift, double threshold) {
+  auto& c = contacts;
+  over_segments(true, [&](int g, PassLog& log) {
+    if constexpr (D == 2) {
+      solve_wave_range(model, state, c, inv_h, use_bias, shift, threshold, c.segment_wave[g],
+                       c.segment_wave[g + 1], log);
+    } else {
+      const std::int64_t first = c.segment_order[g];
+      solve_contacts(model, state, c, inv_h, use_bias, shift, threshold,
+                     c.solve_order.data() + first, c.segment_order[g + 1] - first, log);
+    }
+  });
+}
+
+template <int D>
+void World<D>::shock_pass(double inv_h, double threshold) {
+  auto& c = contacts;
+  over_segments(false, [&](int g, PassLog&) {
+    propagate_shock_range(model, state, c, c.segment_shock[g], c.segment_shock[g + 1], inv_h,
+                          threshold);
+  });
 }
 
 template <int D>
@@ -76,17 +208,39 @@ bool World<D>::collide() {
   const Config& cfg = config;
   auto& c = contacts;
   using S = StageId;
-  timed(S::Transform, [&] { transform_shapes(model, state, c, cfg.dt); });
+  timed(S::Transform, [&] {
+    const std::int64_t n_bodies = model.body_count(), n_shapes = model.shape_count();
+    parallel(std::max(n_bodies, n_shapes), [&](Span part) {
+      const std::int64_t n = std::max(n_bodies, n_shapes);
+      // the same fraction of the bodies and of the shapes
+      auto scaled = [n](std::int64_t k, std::int64_t total) { return k * total / n; };
+      transform_shapes(model, state, c, cfg.dt,
+                       Span{scaled(part.first, n_bodies), scaled(part.last, n_bodies)},
+                       Span{scaled(part.first, n_shapes), scaled(part.last, n_shapes)});
+    });
+  });
   std::int64_t n_pairs = 0;
   timed(S::FindPairs, [&] { n_pairs = find_pairs(model, grid, c); });
   c.count.pairs = n_pairs;
   if (n_pairs > c.capacity()) return false;
   timed(S::UpdateManifolds, [&] {
+    // the narrowphase pair by pair on the threads (on one thread too, so that every
+    // count takes the same path), then the manifolds in pair order
+    if (static_cast<std::int64_t>(found.size()) < n_pairs) {
+      found.resize(c.capacity());
+      found_points.resize(c.capacity());
+    }
+    parallel(n_pairs, [&](Span part) {
+      narrow_pairs(model, c, grid, part, found.data(), found_points.data());
+    });
     update_manifolds(model, state, c, grid, n_pairs, cfg.friction_rule, cfg.restitution_rule,
-                     cfg.dt);
+                     cfg.dt, found.data(), found_points.data());
   });
-  timed(S::Prepare, [&] { prepare_contacts(model, state, c, cfg); });
+  timed(S::Prepare, [&] {
+    parallel(c.count.manifolds, [&](Span part) { prepare_contacts(model, state, c, cfg, part); });
+  });
   timed(S::SupportOrder, [&] { c.count.shock_count = support_order(model, c); });
+  timed(S::Regions, [&] { partition_regions(model, state, c); });
   timed(S::Waves, [&] { find_waves(model, c); });
   return true;
   }
@@ -94,6 +248,7 @@ bool World<D>::collide() {
 
 template <int D>
 bool World<D>::step() {
+  if (config.threads > 1 && !pool) pool = std::make_unique<Pool>(config.threads);
   if constexpr (!HAS_CONTACTS<D>) {
     return step_free();
   } else {
@@ -110,30 +265,36 @@ bool World<D>::step() {
   const double threshold = cfg.restitution_threshold;
   // the restitution stage's list names this step's manifolds
   c.count.bounce_count = c.count.bounce_carried = c.count.elastic_listed = 0;
+  const std::int64_t n_bodies = model.body_count();
+  auto move = [&] {
+    parallel(n_bodies, [&](Span part) {
+      integrate_positions(model, state, c.body_delta, h, cfg.rotation, part);
+    });
+  };
+  auto accelerate = [&] {
+    parallel(n_bodies, [&](Span part) { integrate_velocities(model, state, h, part); });
+  };
   for (int sub = 0; sub < cfg.substeps; ++sub) {
-    if (cfg.explicit_euler)
-      timed(S::IntegratePositions, [&] { integrate_positions(model, state, c.body_delta, h, cfg.rotation); });
-    timed(S::IntegrateVelocities, [&] { integrate_velocities(model, state, h); });
+    if (cfg.explicit_euler) timed(S::IntegratePositions, move);
+    timed(S::IntegrateVelocities, accelerate);
     if (contacts_on) {
-      timed(S::WarmStart, [&] { warm_start_waves(model, state, c); });
+      timed(S::WarmStart, [&] { warm_start_pass(); });
       c.count.deep_count = 0;
       timed(S::Solve, [&] {
-        for (int it = 0; it < cfg.iterations; ++it)
-          solve_waves(model, state, c, inv_h, true, 0.0, threshold);
+        for (int it = 0; it < cfg.iterations; ++it) solve_pass(inv_h, true, 0.0, threshold);
       });
     }
     if (contacts_on && c.heavy_on_light) {
       // a heavy body on a light one: its approach is taken out before the positions move
-      timed(S::Shock, [&] { propagate_shock(model, state, c, c.count.shock_count, inv_h, threshold); });
+      timed(S::Shock, [&] { shock_pass(inv_h, threshold); });
     }
     if (!cfg.explicit_euler) {
       if (contacts_on && cfg.elastic) keep_solve_impulses(c);
-      timed(S::IntegratePositions, [&] { integrate_positions(model, state, c.body_delta, h, cfg.rotation); });
+      timed(S::IntegratePositions, move);
     }
     if (contacts_on) {
       timed(S::Relax, [&] {
-        for (int it = 0; it < cfg.iterations; ++it)
-          solve_waves(model, state, c, inv_h, false, shift, threshold);
+        for (int it = 0; it < cfg.iterations; ++it) solve_pass(inv_h, false, shift, threshold);
       });
       if (c.count.deep_count) {
         // a deep overlap is being pushed out: the contacts around it get more relax
@@ -148,12 +309,19 @@ bool World<D>::step() {
       // bounces first: the shock pass then leaves them alone, and would otherwise take a
       // ball struck down onto the floor as a load and stop it dead
       timed(S::Restitution, [&] { apply_restitution(model, state, c, threshold, h, sign); });
-      timed(S::Shock, [&] { propagate_shock(model, state, c, c.count.shock_count, inv_h, threshold); });
+      timed(S::Shock, [&] { shock_pass(inv_h, threshold); });
     }
   }
   if (contacts_on) {
     timed(S::OverlapLimit, [&] { limit_static_overlap(model, state, c, C::STATIC_OVERLAP_LIMIT); });
-    timed(S::Store, [&] { store_impulses(c); });
+    timed(S::Store, [&] {
+      // each part counts its touching points (an integer sum: the same in any order)
+      const std::int64_t n = c.count.manifolds;
+      std::atomic<std::int64_t> touching{0};
+      parallel(n, [&](Span part) { touching += store_impulses(c, part); });
+      c.count.manifolds_prev = n;
+      c.count.points_touching = touching.load();
+    });
   }
   return true;
   }
@@ -167,12 +335,18 @@ bool World<D>::step_free() {
   using S = StageId;
   for (auto& d : c.body_delta) d = BodyDelta<D>{};
   const double h = cfg.dt / cfg.substeps;
+  const std::int64_t n_bodies = model.body_count();
+  auto move = [&] {
+    parallel(n_bodies, [&](Span part) {
+      integrate_positions(model, state, c.body_delta, h, cfg.rotation, part);
+    });
+  };
   for (int sub = 0; sub < cfg.substeps; ++sub) {
-    if (cfg.explicit_euler)
-      timed(S::IntegratePositions, [&] { integrate_positions(model, state, c.body_delta, h, cfg.rotation); });
-    timed(S::IntegrateVelocities, [&] { integrate_velocities(model, state, h); });
-    if (!cfg.explicit_euler)
-      timed(S::IntegratePositions, [&] { integrate_positions(model, state, c.body_delta, h, cfg.rotation); });
+    if (cfg.explicit_euler) timed(S::IntegratePositions, move);
+    timed(S::IntegrateVelocities, [&] {
+      parallel(n_bodies, [&](Span part) { integrate_velocities(model, state, h, part); });
+    });
+    if (!cfg.explicit_euler) timed(S::IntegratePositions, move);
   }
   return true;
 }

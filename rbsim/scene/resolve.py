@@ -132,6 +132,7 @@ class Solver:
     integrator: str = "symplectic_euler"  # or explicit_euler
     rotation: str = "normalize"  # or exact
     restitution_threshold: float = 1.0  # m/s
+    threads: int | None = None  # None: the machine's cores (rbsim.config.default_threads)
 
 
 @dataclass(frozen=True)
@@ -1250,6 +1251,7 @@ def scene_to_dict(scene: Scene) -> dict[str, Any]:
             "integrator": s.integrator,
             "rotation": s.rotation,
             "restitution_threshold": s.restitution_threshold,
+            **({"threads": s.threads} if s.threads is not None else {}),
         },
         "output": {
             "every": scene.output.every,

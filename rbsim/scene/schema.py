@@ -95,6 +95,7 @@ ASPECT_MAX = 1e6  # a body's extent over its thinnest shape dimension
 ANGLE_MAX = 1e6  # rad
 SPEED_MAX = 1e6  # m/s
 SPIN_MAX = 1e6  # rad/s
+THREADS_MAX = 64  # solver.threads (the engine's THREADS_MAX, cpp/include/rbsim/world.hpp)
 ACCELERATION_MAX = 1e6  # m/s²: gravity, and what a constant force or torque gives a body
 DENSITY_MIN, DENSITY_MAX = 1e-6, 1e6  # kg/m²
 MASS_MIN, MASS_MAX = 1e-12, 1e18  # kg
@@ -364,6 +365,13 @@ SOLVER = Key(
             1.0,
             ge=0,
             le=SPEED_MAX,
+        ),
+        "threads": Key(
+            "integer",
+            "Threads the step runs on; default: the machine's cores (1 in `rbsim batch` "
+            "and `rbsim sweep` workers). The result is the same, bit for bit, for any count.",
+            ge=1,
+            le=THREADS_MAX,
         ),
     },
 )

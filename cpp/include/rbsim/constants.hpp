@@ -150,4 +150,25 @@ inline constexpr int INSERTION_SORT_MAX = 32;
 // is then below 1e-18 of x, far under double rounding.
 inline constexpr double ATAN_SERIES_MAX = 0.1;
 
+// Threads (solver.threads; step.cpp, solver/regions.cpp, tools/pool.cpp).
+// The solver's passes split the dynamic bodies into SOLVER_REGIONS regions, strips of
+// equal body count across gravity, fixed whatever the number of threads (so the result
+// is the same for every thread count): each region's manifolds are solved in its own
+// support order, the regions at once, then the few manifolds that join two regions.
+// Dimensionless, typically 2 (one cut: the fewest joining manifolds, which a pass solves
+// after the regions, out of the ground-first order; more regions keep more threads busy
+// and cut more load paths). Must be even (regions.cpp pairs neighbouring strips).
+inline constexpr int SOLVER_REGIONS = 2;
+// Dynamic bodies per region at least, typically 256: a scene with fewer than
+// SOLVER_REGIONS times this many is one region, solved exactly as on one thread (a pass
+// over a few hundred manifolds takes a few microseconds, the order of a barrier).
+inline constexpr int REGION_MIN_BODIES = 256;
+// Items (bodies, shapes, manifolds, pairs) per task of a stage split over the pool,
+// typically 128; a stage with fewer than two tasks' worth runs on the caller. Smaller
+// values balance the threads better and pay more task overhead.
+inline constexpr int TASK_ITEMS = 128;
+// µs a worker spins for the next parallel stage before it sleeps, typically 50: stages
+// follow one another within microseconds; longer spins waste CPU between steps.
+inline constexpr int POOL_SPIN_MICROSECONDS = 50;
+
 }  // namespace rbsim::constants

@@ -12,6 +12,7 @@
 #include <limits>
 #include <vector>
 
+#include "constants.hpp"
 #include "math.hpp"
 #include "state.hpp"
 #include "wide.hpp"
@@ -31,6 +32,18 @@ struct ContactCounts {
   std::int64_t graph_unchanged = 0; // 1: the manifolds are last step's pairs in the same slots
   std::int64_t bounce_carried = 0;  // entries of bounce_list carried from the last restitution
   std::int64_t elastic_listed = 0;  // 1 once an elastic manifold was listed this step
+};
+
+// One pair's narrowphase result, found ahead of update_manifolds by the threaded step
+// (manifold.cpp, narrow_pairs): the normal, up to Dim<D>::max_points points midway
+// between the surfaces (m), their signed separations (m) and feature ids.
+template <int D>
+struct PairManifold {
+  static constexpr int P = Dim<D>::max_points;
+  typename Dim<D>::Vec normal;
+  std::array<typename Dim<D>::Vec, P> point;
+  std::array<double, P> separation;
+  std::array<std::int64_t, P> id;
 };
 
 // What the solver's passes read of one manifold, in one record of four cache lines.
@@ -181,6 +194,15 @@ struct Contacts {
   std::vector<std::int64_t> wave_single_batch;  // (M+1,) and their batches, from here
                                                  // to wave_batch[g+1]
   std::vector<WideBatch> batches;           // the waves' manifolds, LANES at a time
+  // the regions of the solver's passes (regions.cpp): segment g of segment_count(regions)
+  // is solve_order[segment_order[g]..segment_order[g+1]), its waves
+  // [segment_wave[g], segment_wave[g+1]) and its part of the shock pass
+  // shock_order[segment_shock[g]..segment_shock[g+1])
+  std::int64_t region_count = 1;            // regions (1: the whole scene)
+  std::vector<std::int32_t> body_region;    // (N,) a dynamic body's region, else -1
+  std::vector<std::int64_t> segment_order;  // (SEGMENTS+1,)
+  std::vector<std::int64_t> segment_wave;   // (SEGMENTS+1,)
+  std::vector<std::int64_t> segment_shock;  // (SEGMENTS+1,)
 
   std::int64_t capacity() const { return static_cast<std::int64_t>(key.size()); }
 
@@ -232,6 +254,10 @@ void Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   reset(wave_single_batch, m + 1);
   // each wave's two-point and one-point manifolds may end in a part-filled batch
   batches.assign(m / LANES + 2 * m + 2, WideBatch{});
+  region_count = 1;
+  body_region.assign(n, 0);
+  const std::size_t segments = static_cast<std::size_t>(constants::SOLVER_REGIONS) * 2 + 2;
+  reset(segment_order, segments); reset(segment_wave, segments); reset(segment_shock, segments);
 }
 
 template <int D>

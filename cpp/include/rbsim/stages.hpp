@@ -25,6 +25,17 @@ struct Soft {
 // h (s), as scalings of the rigid impulse. hertz = 0 is a rigid constraint.
 Soft soft_parameters(double hertz, double zeta, double h);
 
+// A range [first, last) of items (bodies, shapes, manifolds): a part of a stage that the
+// step runs on one of its threads (step.cpp).
+struct Span {
+  std::int64_t first = 0, last = 0;
+};
+
+// Part p of `parts` near-equal parts of n items.
+inline Span part_of(std::int64_t n, std::int64_t p, std::int64_t parts) {
+  return {n * p / parts, n * (p + 1) / parts};
+}
+
 // Per-run numbers for the stages.
 struct Config {
   double dt = 1.0 / 60.0;         // s
@@ -38,6 +49,7 @@ struct Config {
   bool elastic = false;           // some material has restitution > 0
   Soft soft;                      // contacts between two dynamic bodies
   Soft soft_static;               // contacts with a static or kinematic body (stiffer)
+  int threads = 1;                // the step's threads (solver.threads), >= 1
 };
 
 // The soft contacts of config's substep h = dt / substeps: CONTACT_HERTZ, capped at a
@@ -50,6 +62,10 @@ void set_contact_softness(Config& config);
 template <int D>
 void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
                       double dt);
+// The same for the bodies and the shapes of two ranges (one thread's part).
+template <int D>
+void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
+                      double dt, Span bodies, Span shapes);
 
 // collide/transform.cpp: each convex shape's hull topology from model.face_local (once,
 // when a 3D world is built), and the rows of Contacts::face_world they need. Returns
@@ -71,9 +87,29 @@ void update_manifolds(const Model<D>& model, const State<D>& state, Contacts<D>&
                       const Grid<D>& grid, std::int64_t n_pairs, MixRule friction_rule,
                       MixRule restitution_rule, double dt);
 
+// contact/manifold.cpp: the same, with the narrowphase of pair p already found where
+// found_points[p] >= 0 (its point count; the result in found[p]); -1: not found there.
+template <int D>
+void update_manifolds(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
+                      const Grid<D>& grid, std::int64_t n_pairs, MixRule friction_rule,
+                      MixRule restitution_rule, double dt, const PairManifold<D>* found,
+                      const std::int8_t* found_points);
+
+// contact/manifold.cpp: the narrowphase of the pairs in `pairs` that update_manifolds
+// will ask for (tight boxes that overlap, bodies not both still with last step's
+// manifold to carry), into found[p] and found_points[p] (-1 for the others): the
+// threaded step's first, parallel half of update_manifolds. Time of impact stays there.
+template <int D>
+void narrow_pairs(const Model<D>& model, const Contacts<D>& contacts, const Grid<D>& grid,
+                  Span pairs, PairManifold<D>* found, std::int8_t* found_points);
+
 // contact/store.cpp: this step's manifolds become last step's (for warm starting).
 template <int D>
 void store_impulses(Contacts<D>& contacts);
+// The same for the manifolds of one range (the counts are left to the caller); returns
+// the range's contact points that pushed.
+template <int D>
+std::int64_t store_impulses(Contacts<D>& contacts, Span manifolds);
 
 // solver/prepare.cpp: effective masses, approach velocities and softness into the rows:
 // config's soft and soft_static, or stiffer for small shapes (STIFFNESS_LENGTH), and each
@@ -81,6 +117,10 @@ void store_impulses(Contacts<D>& contacts);
 template <int D>
 void prepare_contacts(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
                       const Config& config);
+// The same for the manifolds of one range (one thread's part).
+template <int D>
+void prepare_contacts(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
+                      const Config& config, Span manifolds);
 
 // solver/shock.cpp: support levels and the solve order; returns the shock pass's count.
 template <int D>
@@ -105,12 +145,18 @@ void propagate_shock(const Model<D>& model, State<D>& state, Contacts<D>& contac
 // dynamics/integrate.cpp: v += h (g + F/m), angular from torque, then damping.
 template <int D>
 void integrate_velocities(const Model<D>& model, State<D>& state, double h);
+template <int D>
+void integrate_velocities(const Model<D>& model, State<D>& state, double h, Span bodies);
 
 // dynamics/integrate.cpp: x += h v, q turned by ω h (exact) or the notes' update;
 // delta accumulates each body's motion since the step's start.
 template <int D>
 void integrate_positions(const Model<D>& model, State<D>& state,
                          std::vector<BodyDelta<D>>& delta, double h, Rotation rotation);
+template <int D>
+void integrate_positions(const Model<D>& model, State<D>& state,
+                         std::vector<BodyDelta<D>>& delta, double h, Rotation rotation,
+                         Span bodies);
 
 // solver/warm_start.cpp: last substep's accumulated impulses applied again.
 template <int D>
@@ -120,6 +166,28 @@ void warm_start(const Model<D>& model, State<D>& state, Contacts<D>& contacts);
 template <int D>
 void warm_start_waves(const Model<D>& model, State<D>& state, Contacts<D>& contacts);
 
+// What a solver pass lists as it meets it (solve.cpp): manifolds with a point that engaged
+// faster than the restitution threshold (for bounce_list, *bounce_count entries) and
+// manifolds with a deep overlap (for relax_list, *deep_count entries, at most
+// deep_capacity). direct() writes into the contact store's own lists; a region of a
+// threaded pass writes into its own (step.cpp appends them in region order).
+struct PassLog {
+  std::int32_t* bounce = nullptr;
+  std::int64_t* bounce_count = nullptr;
+  std::int32_t* deep = nullptr;
+  std::int64_t* deep_count = nullptr;
+  std::int64_t deep_capacity = 0;
+  void add_bounce(std::int32_t m) { bounce[(*bounce_count)++] = m; }
+  void add_deep(std::int32_t m) {
+    if (*deep_count < deep_capacity) deep[(*deep_count)++] = m;
+  }
+  template <int D>
+  static PassLog direct(Contacts<D>& c) {
+    return {c.bounce_list.data(), &c.count.bounce_count, c.relax_list.data(),
+            &c.count.deep_count, static_cast<std::int64_t>(c.relax_list.size())};
+  }
+};
+
 // solver/solve.cpp: one pass of sequential impulses over order[0..n): with the soft
 // bias (use_bias, the solve stage) or without (the relax stage). inv_h: 1/substep (1/s);
 // shift: h in the relax stage of symplectic Euler (s); threshold (m/s).
@@ -128,11 +196,52 @@ void solve_contacts(const Model<D>& model, State<D>& state, Contacts<D>& contact
                     double inv_h, bool use_bias, double shift, double threshold,
                     const std::int32_t* order, std::int64_t n);
 
+// solver/solve.cpp: the same, listing into `log` instead of the store's lists.
+template <int D>
+void solve_contacts(const Model<D>& model, State<D>& state, Contacts<D>& contacts,
+                    double inv_h, bool use_bias, double shift, double threshold,
+                    const std::int32_t* order, std::int64_t n, PassLog& log);
+
+// solver/solve.cpp: the pass over waves [first, last) (2D; contacts.batches), listing
+// into `log`: a region of the solve order (regions.cpp, contacts.segment_wave).
+template <int D>
+void solve_wave_range(const Model<D>& model, State<D>& state, Contacts<D>& contacts,
+                      double inv_h, bool use_bias, double shift, double threshold,
+                      std::int64_t first, std::int64_t last, PassLog& log);
+
 // solver/solve.cpp: the same pass over the solve order, wave by wave: a wave's two-point
 // manifolds LANES at a time (contacts.batches), its one-point manifolds one by one.
 template <int D>
 void solve_waves(const Model<D>& model, State<D>& state, Contacts<D>& contacts, double inv_h,
                    bool use_bias, double shift, double threshold);
+
+// solver/warm_start.cpp: the warm start of waves [first, last) (2D), or, in 3D, of
+// solve_order[first, last): a region of the solve order (regions.cpp).
+template <int D>
+void warm_start_range(const Model<D>& model, State<D>& state, Contacts<D>& contacts,
+                      std::int64_t first, std::int64_t last);
+
+// solver/shock.cpp: the shock pass over shock_order[first, last) (a region's part).
+template <int D>
+void propagate_shock_range(const Model<D>& model, State<D>& state, Contacts<D>& contacts,
+                           std::int64_t first, std::int64_t last, double inv_h,
+                           double threshold);
+
+// solver/regions.cpp: the regions of the solver's passes. When the contact graph changed
+// (count.graph_unchanged == 0) the dynamic bodies are split into regions
+// (contacts.body_region: strips across gravity of equal body count, SOLVER_REGIONS of
+// them in a scene of SOLVER_REGIONS * REGION_MIN_BODIES dynamic bodies or more, else
+// one) and solve_order is regrouped, stably, into segments (contacts.segment_order):
+// each region's manifolds, then the manifolds that join two neighbouring regions, cut by
+// cut, then the rest. Every step shock_order is regrouped the same way
+// (contacts.segment_shock). The segments depend on the state only, never on the number
+// of threads.
+template <int D>
+void partition_regions(const Model<D>& model, const State<D>& state, Contacts<D>& contacts);
+
+// The segments of a partition into `regions` regions: the regions, the cuts between
+// regions 2k and 2k + 1, and one for every other joining manifold.
+inline constexpr int segment_count(int regions) { return regions + regions / 2 + 1; }
 
 // solver/restitution.cpp: keep each point's impulse at the position update (scenes with
 // elastic materials), and the restitution stage itself.

@@ -3,11 +3,14 @@
 
 #include <cstdint>
 #include <array>
+#include <memory>
 #include <string>
+#include <vector>
 
 #include "contacts.hpp"
 #include "grid.hpp"
 #include "model.hpp"
+#include "pool.hpp"
 #include "stages.hpp"
 #include "state.hpp"
 
@@ -19,16 +22,33 @@ namespace rbsim {
 // a non-finite state, before the broadphase's integer cell indices could overflow.
 inline constexpr double POSITION_LIMIT = 1.0e9;
 
+// The most threads a world steps on (config.threads; rbsim.scene.schema's bound on
+// solver.threads): far beyond the regions' parallelism (SOLVER_REGIONS), it only bounds
+// what a scene can ask for.
+inline constexpr int THREADS_MAX = 64;
+
 // The stages as the step calls them, for the time spent in each (World::profile).
 enum class StageId : int {
   Transform, FindPairs, UpdateManifolds, Prepare, SupportOrder, Waves, IntegrateVelocities,
   WarmStart, Solve, IntegratePositions, Relax, ExtraRelax, Restitution, Shock, OverlapLimit,
-  Store, Count
+  Store, Regions, Count
 };
 inline constexpr const char* STAGE_NAMES[] = {
     "transform", "find_pairs", "update_manifolds", "prepare", "support_order", "waves",
     "integrate_velocities", "warm_start", "solve", "integrate_positions", "relax",
-    "extra_relax", "restitution", "shock", "limit_static_overlap", "store_impulses"};
+    "extra_relax", "restitution", "shock", "limit_static_overlap", "store_impulses",
+    "regions"};
+
+// What one segment of a threaded pass lists (a PassLog's own storage; step.cpp appends it
+// to the contact store's lists in segment order).
+struct SegmentLog {
+  std::vector<std::int32_t> bounce, deep;
+  std::int64_t bounce_count = 0, deep_count = 0;
+  PassLog log() {
+    return {bounce.data(), &bounce_count, deep.data(), &deep_count,
+            static_cast<std::int64_t>(deep.size())};
+  }
+};
 
 template <int D>
 struct World {
@@ -41,6 +61,16 @@ struct World {
   // with profile set, each stage's wall time accumulates in stage_seconds (s)
   bool profile = false;
   std::array<double, static_cast<int>(StageId::Count)> stage_seconds{};
+  // with profile set, the wall time (s) of the work that runs in parts on the threads
+  // (each part on one thread): what more threads can shorten, the rest being serial
+  double parallel_seconds = 0.0;
+  // the threads of config.threads beyond the caller (made at the first step that has a
+  // use for them), and the segment logs of the threaded passes
+  std::unique_ptr<Pool> pool;
+  std::vector<SegmentLog> logs;
+  // the pairs' narrowphase, found in parallel ahead of update_manifolds (narrow_pairs)
+  std::vector<PairManifold<D>> found;
+  std::vector<std::int8_t> found_points;
 
   // Storage for the model's bodies and shapes (call once the model and state are set).
   void allocate();
@@ -62,6 +92,21 @@ struct World {
   bool step_free();
   template <class F>
   void timed(StageId stage, F&& run);
+  // run(), its wall time added to parallel_seconds when profiling
+  template <class F>
+  void parallel_timed(F&& run);
+  // f(Span) over near-equal parts of n items, on the pool's threads (each part writes
+  // only its own items)
+  template <class F>
+  void parallel(std::int64_t n, F&& f);
+  // f(segment, log) over the solve's segments (regions.cpp): the regions at once, then
+  // the cuts between regions 2k and 2k + 1 at once, then the rest; what the passes list
+  // is appended to the store's lists in segment order (with_logs)
+  template <class F>
+  void over_segments(bool with_logs, F&& f);
+  void warm_start_pass();
+  void solve_pass(double inv_h, bool use_bias, double shift, double threshold);
+  void shock_pass(double inv_h, double threshold);
 };
 
 // Half the diagonal (m) of each shape's own bounding box, radius included.

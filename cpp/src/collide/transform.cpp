@@ -66,17 +66,25 @@ inline bool near_reference(Dim<3>::RefPose& ref, const State<3>& state, std::siz
 template <int D>
 void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
                       double dt) {
+  transform_shapes(model, state, contacts, dt,
+                   Span{0, static_cast<std::int64_t>(contacts.body_ref.size())},
+                   Span{0, model.shape_count()});
+}
+
+template <int D>
+void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
+                      double dt, Span bodies, Span shapes) {
   using Vec = typename Dim<D>::Vec;
   auto& ref = contacts.body_ref;
   auto& still = contacts.body_still;
-  for (std::size_t i = 0; i < ref.size(); ++i)
+  for (auto i = static_cast<std::size_t>(bodies.first); i < static_cast<std::size_t>(bodies.last); ++i)
     still[i] = near_reference(ref[i], state, i, contacts.body_scale[i]);
 
   Vec* vw = contacts.vert_world.data();
   Vec* nw = contacts.norm_world.data();
   const Vec* vl = model.vertex_local.data();
   const Vec* nl = model.normal_local.data();
-  for (int s = 0; s < model.shape_count(); ++s) {
+  for (int s = static_cast<int>(shapes.first); s < shapes.last; ++s) {
     const int i = model.shape_body[s];
     const auto q = state.body_q[i];
     const Vec x = state.body_x[i];
@@ -132,5 +140,7 @@ bool build_shape_hulls(Model<3>& model, std::string* error) {
 
 template void transform_shapes(const Model<2>&, const State<2>&, Contacts<2>&, double);
 template void transform_shapes(const Model<3>&, const State<3>&, Contacts<3>&, double);
+template void transform_shapes(const Model<2>&, const State<2>&, Contacts<2>&, double, Span, Span);
+template void transform_shapes(const Model<3>&, const State<3>&, Contacts<3>&, double, Span, Span);
 
 }  // namespace rbsim

@@ -72,12 +72,73 @@ ShapeRef3 world_shape(const Model<3>& model, const Contacts<3>& c, int s, double
   return r;
 }
 
+// Pair a, b's narrowphase at the pair's tolerance scale and speculative distance.
+template <int D>
+inline int narrow_pair(const Model<D>& model, const Contacts<D>& c, int a, int b, double scale,
+                       double spec, std::conditional_t<D == 2, Manifold2, Manifold3>& out) {
+  if constexpr (D == 2) {
+    const ShapeRef2 sa{model.shape_kind[a], model.shape_vstart[a], model.shape_vcount[a],
+                       model.shape_radius[a], scale};
+    const ShapeRef2 sb{model.shape_kind[b], model.shape_vstart[b], model.shape_vcount[b],
+                       model.shape_radius[b], scale};
+    return collide2d(sa, sb, c.vert_world.data(), c.norm_world.data(), spec, out);
+  } else {
+    return collide3d(world_shape(model, c, a, scale), world_shape(model, c, b, scale), spec, out);
+  }
+}
+
+// The speculative distance of pair a, b (m) at scale `scale`.
+template <int D>
+inline double speculative(const Contacts<D>& c, int a, int b, double scale) {
+  return scale * C::SPECULATIVE_DISTANCE + c.shape_margin[a] + c.shape_margin[b];
+}
+
 }  // namespace
+
+template <int D>
+void narrow_pairs(const Model<D>& model, const Contacts<D>& c, const Grid<D>& grid, Span pairs,
+                  PairManifold<D>* found, std::int8_t* found_points) {
+  const auto& box = grid.shape_aabb;
+  const std::int64_t n_shapes = model.shape_count();
+  const std::int64_t* prev = c.prev_key.data();
+  const std::int64_t n_prev = c.count.manifolds_prev;
+  std::conditional_t<D == 2, Manifold2, Manifold3> out;
+  for (std::int64_t p = pairs.first; p < pairs.last; ++p) {
+    found_points[p] = -1;
+    const int a = c.pairs[p][0], b = c.pairs[p][1];
+    if (disjoint<D>(box[a], box[b])) continue;
+    const int ba = model.shape_body[a], bb = model.shape_body[b];
+    if (c.body_still[ba] && c.body_still[bb]) {
+      // last step's manifold of a still pair is carried: no narrowphase
+      const std::int64_t key = static_cast<std::int64_t>(a) * n_shapes + b;
+      if (std::binary_search(prev, prev + n_prev, key)) continue;
+    }
+    const double scale = std::min(c.shape_scale[a], c.shape_scale[b]);
+    const int npts = narrow_pair(model, c, a, b, scale, speculative(c, a, b, scale), out);
+    found_points[p] = static_cast<std::int8_t>(npts);
+    PairManifold<D>& f = found[p];
+    f.normal = out.normal;
+    for (int k = 0; k < npts; ++k) {
+      f.point[k] = out.point[k];
+      f.separation[k] = out.separation[k];
+      f.id[k] = out.id[k];
+    }
+  }
+}
 
 template <int D>
 void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
                       const Grid<D>& grid, std::int64_t n_pairs, MixRule friction_rule,
                       MixRule restitution_rule, double dt) {
+  update_manifolds(model, st, c, grid, n_pairs, friction_rule, restitution_rule, dt,
+                   static_cast<const PairManifold<D>*>(nullptr), nullptr);
+}
+
+template <int D>
+void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
+                      const Grid<D>& grid, std::int64_t n_pairs, MixRule friction_rule,
+                      MixRule restitution_rule, double dt, const PairManifold<D>* found,
+                      const std::int8_t* found_points) {
   using Vec = typename Dim<D>::Vec;
   using Rot = typename Dim<D>::Rot;
   const auto& box = grid.shape_aabb;
@@ -139,16 +200,22 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
         c.max_normal_impulse[m][k] = 0.0;
       }
     } else {
-      const double spec =
-          scale * C::SPECULATIVE_DISTANCE + c.shape_margin[a] + c.shape_margin[b];
+      const double spec = speculative(c, a, b, scale);
       const double radius_a = model.shape_radius[a], radius_b = model.shape_radius[b];  // m
       double t = 0.0;  // s
+      if (found && found_points[p] >= 0) {  // found ahead, on the step's threads
+        npts = found_points[p];
+        const PairManifold<D>& f = found[p];
+        out.normal = f.normal;
+        for (int k = 0; k < npts; ++k) {
+          out.point[k] = f.point[k];
+          out.separation[k] = f.separation[k];
+          out.id[k] = f.id[k];
+        }
+      } else {
+        npts = narrow_pair(model, c, a, b, scale, spec, out);
+      }
       if constexpr (D == 2) {
-        const ShapeRef2 sa{model.shape_kind[a], model.shape_vstart[a], model.shape_vcount[a],
-                           model.shape_radius[a], scale};
-        const ShapeRef2 sb{model.shape_kind[b], model.shape_vstart[b], model.shape_vcount[b],
-                           model.shape_radius[b], scale};
-        npts = collide2d(sa, sb, c.vert_world.data(), c.norm_world.data(), spec, out);
         // only a pair that is clearly apart can turn its normal before the impact, and
         // only if it meets within the step: most such pairs do not (two balls falling
         // side by side), and their test is made here, as the search's first, so that they
@@ -165,11 +232,8 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
           npts = hit.points;
           t = hit.t;
         }
-      } else {
-        // no time of impact in 3D: speculative contacts only (t = 0)
-        npts = collide3d(world_shape(model, c, a, scale), world_shape(model, c, b, scale),
-                         spec, out);
       }
+      // (no time of impact in 3D: speculative contacts only, t = 0)
       if (npts == 0) continue;
       n = out.normal;
       // the bodies' free motion to the impact (t = 0 unless it was moved there)
@@ -253,5 +317,15 @@ template void update_manifolds(const Model<2>&, const State<2>&, Contacts<2>&, c
                                std::int64_t, MixRule, MixRule, double);
 template void update_manifolds(const Model<3>&, const State<3>&, Contacts<3>&, const Grid<3>&,
                                std::int64_t, MixRule, MixRule, double);
+template void update_manifolds(const Model<2>&, const State<2>&, Contacts<2>&, const Grid<2>&,
+                               std::int64_t, MixRule, MixRule, double, const PairManifold<2>*,
+                               const std::int8_t*);
+template void update_manifolds(const Model<3>&, const State<3>&, Contacts<3>&, const Grid<3>&,
+                               std::int64_t, MixRule, MixRule, double, const PairManifold<3>*,
+                               const std::int8_t*);
+template void narrow_pairs(const Model<2>&, const Contacts<2>&, const Grid<2>&, Span,
+                           PairManifold<2>*, std::int8_t*);
+template void narrow_pairs(const Model<3>&, const Contacts<3>&, const Grid<3>&, Span,
+                           PairManifold<3>*, std::int8_t*);
 
 }  // namespace rbsim

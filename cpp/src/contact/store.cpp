@@ -7,8 +7,15 @@ namespace rbsim {
 template <int D>
 void store_impulses(Contacts<D>& c) {
   const std::int64_t m = c.count.manifolds;
+  const std::int64_t touching = store_impulses(c, Span{0, m});
+  c.count.manifolds_prev = m;
+  c.count.points_touching = touching;
+}
+
+template <int D>
+std::int64_t store_impulses(Contacts<D>& c, Span manifolds) {
   std::int64_t touching = 0;  // points that pushed (max normal impulse > 0) this step
-  for (std::int64_t i = 0; i < m; ++i) {
+  for (std::int64_t i = manifolds.first; i < manifolds.last; ++i) {
     if (c.carried[i]) {  // the slot's prev_* already hold all but the impulses
       for (int k = 0; k < c.points[i]; ++k) {
         c.prev_normal_impulse[i][k] = c.normal_impulse[i][k];
@@ -32,11 +39,12 @@ void store_impulses(Contacts<D>& c) {
       if (c.max_normal_impulse[i][k] > 0.0) ++touching;
     }
   }
-  c.count.manifolds_prev = m;
-  c.count.points_touching = touching;
+  return touching;
 }
 
 template void store_impulses(Contacts<2>&);
 template void store_impulses(Contacts<3>&);
+template std::int64_t store_impulses(Contacts<2>&, Span);
+template std::int64_t store_impulses(Contacts<3>&, Span);
 
 }  // namespace rbsim

@@ -119,13 +119,17 @@ inline void refresh_angular(const Model<3>& model, State<3>& st, int i) {
 
 template <int D>
 void integrate_velocities(const Model<D>& model, State<D>& st, double h) {
+  integrate_velocities(model, st, h, Span{0, model.body_count()});
+}
+
+template <int D>
+void integrate_velocities(const Model<D>& model, State<D>& st, double h, Span bodies) {
   using Vec = typename Dim<D>::Vec;
   using Ang = typename Dim<D>::Ang;
   const Vec g = model.gravity;
   const double lin = 1.0 / (1.0 + h * model.linear_damping);
   const double ang = 1.0 / (1.0 + h * model.angular_damping);
-  const int n = model.body_count();
-  for (int i = 0; i < n; ++i) {
+  for (int i = static_cast<int>(bodies.first); i < bodies.last; ++i) {
     if (!model.is_dynamic(i)) continue;
     Vec a = g;
     Ang torque = Dim<D>::angular_zero();
@@ -220,10 +224,16 @@ void move_lanes_2d(State<2>& st, std::vector<BodyDelta<2>>& delta, int i, double
 template <int D>
 void integrate_positions(const Model<D>& model, State<D>& st, std::vector<BodyDelta<D>>& delta,
                          double h, Rotation rotation) {
-  const int n = model.body_count();
+  integrate_positions(model, st, delta, h, rotation, Span{0, model.body_count()});
+}
+
+template <int D>
+void integrate_positions(const Model<D>& model, State<D>& st, std::vector<BodyDelta<D>>& delta,
+                         double h, Rotation rotation, Span bodies) {
   double unused_angle = 0.0;
   const bool exact = rotation != Rotation::Normalize;
-  for (int i = 0; i < n; ++i) {
+  const int n = static_cast<int>(bodies.last);
+  for (int i = static_cast<int>(bodies.first); i < n; ++i) {
     if constexpr (D == 2) {
       // LANES bodies at once where none of them is static (2D refresh_angular: nothing)
       if (!exact && i % LANES == 0 && i + LANES <= n) {
@@ -256,6 +266,10 @@ void integrate_positions(const Model<D>& model, State<D>& st, std::vector<BodyDe
 }
 
 template void integrate_velocities(const Model<2>&, State<2>&, double);
+template void integrate_velocities(const Model<2>&, State<2>&, double, Span);
+template void integrate_velocities(const Model<3>&, State<3>&, double, Span);
+template void integrate_positions(const Model<2>&, State<2>&, std::vector<BodyDelta<2>>&, double, Rotation, Span);
+template void integrate_positions(const Model<3>&, State<3>&, std::vector<BodyDelta<3>>&, double, Rotation, Span);
 template void integrate_positions(const Model<2>&, State<2>&, std::vector<BodyDelta<2>>&, double, Rotation);
 template void integrate_velocities(const Model<3>&, State<3>&, double);
 template void integrate_positions(const Model<3>&, State<3>&, std::vector<BodyDelta<3>>&, double, Rotation);

@@ -111,6 +111,12 @@ void prepare_points_3d(const State<3>& st, Contacts<3>& c, std::int64_t m, int a
 template <int D>
 void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c,
                       const Config& config) {
+  prepare_contacts(model, st, c, config, Span{0, c.count.manifolds});
+}
+
+template <int D>
+void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c,
+                      const Config& config, Span manifolds) {
   namespace C = constants;
   using Vec = typename Dim<D>::Vec;
   const auto& im = model.body_inv_mass;
@@ -125,8 +131,7 @@ void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c,
   // whether the cap leaves room for a stiffer small pair (at dt 1/60 with 4 substeps it
   // is the scene's 60 Hz itself, to rounding: none)
   const bool stiffer = hertz < hertz_cap * (1.0 - 1e-9);
-  const std::int64_t n_man = c.count.manifolds;
-  for (std::int64_t m = 0; m < n_man; ++m) {
+  for (std::int64_t m = manifolds.first; m < manifolds.last; ++m) {
     const int a = c.body_a[m], b = c.body_b[m];
     const Vec n = c.normal[m];
     auto& row = c.solver_row[m];
@@ -201,5 +206,7 @@ void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c,
 
 template void prepare_contacts(const Model<2>&, const State<2>&, Contacts<2>&, const Config&);
 template void prepare_contacts(const Model<3>&, const State<3>&, Contacts<3>&, const Config&);
+template void prepare_contacts(const Model<2>&, const State<2>&, Contacts<2>&, const Config&, Span);
+template void prepare_contacts(const Model<3>&, const State<3>&, Contacts<3>&, const Config&, Span);
 
 }  // namespace rbsim

@@ -100,8 +100,8 @@ inline double angular_along(double w, double r) { return w * r; }
 // four points, one after the other, each impulse λ >= 0 against the velocity it meets),
 // the supporter held still; the body's v and L changed, ω found again from L.
 void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
-                        std::int64_t n_order, double inv_h, double threshold) {
-  for (std::int64_t o = 0; o < n_order; ++o) {
+                        std::int64_t first, std::int64_t last, double inv_h, double threshold) {
+  for (std::int64_t o = first; o < last; ++o) {
     const std::int32_t m = c.shock_order[o];
     const int a = c.body_a[m], b = c.body_b[m];
     const SolverRow<3>& row = c.solver_row[m];
@@ -312,13 +312,20 @@ std::int64_t deep_region(const Model<D>& model, Contacts<D>& c, int reach) {
 template <int D>
 void propagate_shock(const Model<D>& model, State<D>& st, Contacts<D>& c, std::int64_t n_order,
                      double inv_h, double threshold) {
+  propagate_shock_range(model, st, c, 0, n_order, inv_h, threshold);
+}
+
+template <int D>
+void propagate_shock_range(const Model<D>& model, State<D>& st, Contacts<D>& c,
+                           std::int64_t first, std::int64_t last, double inv_h,
+                           double threshold) {
   if constexpr (D == 3) {
-    propagate_shock_3d(model, st, c, n_order, inv_h, threshold);
+    propagate_shock_3d(model, st, c, first, last, inv_h, threshold);
   } else {
   using Vec = typename Dim<D>::Vec;
   auto& v = st.body_v;
   auto& w = st.body_w;
-  for (std::int64_t o = 0; o < n_order; ++o) {
+  for (std::int64_t o = first; o < last; ++o) {
     const std::int32_t m = c.shock_order[o];
     const int a = c.body_a[m], b = c.body_b[m];
     const SolverRow<D>& row = c.solver_row[m];
@@ -403,6 +410,10 @@ template std::int64_t support_order(const Model<2>&, Contacts<2>&);
 template std::int64_t deep_region(const Model<2>&, Contacts<2>&, int);
 template void propagate_shock(const Model<2>&, State<2>&, Contacts<2>&, std::int64_t, double,
                               double);
+template void propagate_shock_range(const Model<2>&, State<2>&, Contacts<2>&, std::int64_t,
+                                    std::int64_t, double, double);
+template void propagate_shock_range(const Model<3>&, State<3>&, Contacts<3>&, std::int64_t,
+                                    std::int64_t, double, double);
 template std::int64_t support_order(const Model<3>&, Contacts<3>&);
 template std::int64_t deep_region(const Model<3>&, Contacts<3>&, int);
 template void propagate_shock(const Model<3>&, State<3>&, Contacts<3>&, std::int64_t, double,

@@ -40,7 +40,7 @@ namespace {
 // this step, or the first after a bounce) records its approach.
 template <int D>
 inline double clamp_normal(Contacts<D>& c, std::int64_t m, int k, double lam, double impulse,
-                           double vn, double s, double shift, double threshold) {
+                           double vn, double s, double shift, double threshold, PassLog& log) {
   // (the rarely true test first: whether a resting point's impulse is positive is a coin
   // toss, and a branch on it would often be mispredicted)
   const bool engaged = c.max_normal_impulse[m][k] > 0.0;
@@ -52,10 +52,7 @@ inline double clamp_normal(Contacts<D>& c, std::int64_t m, int k, double lam, do
     // a bounce (approach set to inf) a new impact is
     c.approach_velocity[m][k] = vn;
     c.approach_separation[m][k] = s - shift * vn;
-    if (vn < -threshold) {  // a bounce for the restitution stage's list
-      c.bounce_list[c.count.bounce_count] = static_cast<std::int32_t>(m);
-      c.count.bounce_count += 1;
-    }
+    if (vn < -threshold) log.add_bounce(static_cast<std::int32_t>(m));  // for restitution
   }
   const double next = std::max(lam + impulse, 0.0);  // clamp the accumulated impulse
   impulse = next - lam;
@@ -66,13 +63,7 @@ inline double clamp_normal(Contacts<D>& c, std::int64_t m, int k, double lam, do
 
 // List manifold m in relax_list as having a deep overlap (count.deep_count entries; once
 // the list is full it stays at its length, which means every manifold).
-template <int D>
-inline void mark_deep(Contacts<D>& c, std::int64_t m) {
-  if (c.count.deep_count < static_cast<std::int64_t>(c.relax_list.size())) {
-    c.relax_list[c.count.deep_count] = static_cast<std::int32_t>(m);
-    c.count.deep_count += 1;
-  }
-}
+inline void mark_deep(PassLog& log, std::int64_t m) { log.add_deep(static_cast<std::int32_t>(m)); }
 
 // The 3D pass: a manifold's points (up to four) one after the other, normal rows first,
 // then each point's friction as one 2×2 block clamped to Coulomb's circle. The bodies'
@@ -126,7 +117,7 @@ inline bool solve_block(const std::array<double, 10>& k, const double* g, const 
 
 void solve_contacts_3d(const Model<3>& model, State<3>& st, Contacts<3>& c, double inv_h,
                        bool use_bias, double shift, double threshold, const std::int32_t* order,
-                       std::int64_t n) {
+                       std::int64_t n, PassLog& log) {
   const double* im = model.body_inv_mass.data();
   Vec3* v = st.body_v.data();
   Vec3* w = st.body_w.data();
@@ -179,7 +170,7 @@ void solve_contacts_3d(const Model<3>& model, State<3>& st, Contacts<3>& c, doub
         for (int k = 0; k < npts; ++k) {
           const auto& pt = row.point[k];
           const double jn =
-              clamp_normal(c, m, k, c.normal_impulse[m][k], d[k], vn[k], sep[k], shift, threshold);
+              clamp_normal(c, m, k, c.normal_impulse[m][k], d[k], vn[k], sep[k], shift, threshold, log);
           push(pt, jn);
         }
       }
@@ -195,10 +186,10 @@ void solve_contacts_3d(const Model<3>& model, State<3>& st, Contacts<3>& c, doub
       const double vn = dot(u, nrm);
       const double lam = c.normal_impulse[m][k];
       const double impulse = (-vn - (bias + gamma * lam)) * (1.0 / (pt.kn + gamma));
-      const double jn = clamp_normal(c, m, k, lam, impulse, vn, s, shift, threshold);
+      const double jn = clamp_normal(c, m, k, lam, impulse, vn, s, shift, threshold, log);
       push(pt, jn);
     }
-    if (use_bias && deep) mark_deep(c, m);
+    if (use_bias && deep) mark_deep(log, m);
     const double mu = row.friction;
     if (mu > 0.0) {
       for (int i = 0; i < npts; ++i) {
@@ -242,8 +233,16 @@ template <int D>
 void solve_contacts(const Model<D>& model, State<D>& st, Contacts<D>& c, double inv_h,
                     bool use_bias, double shift, double threshold, const std::int32_t* order,
                     std::int64_t n) {
+  PassLog log = PassLog::direct(c);
+  solve_contacts(model, st, c, inv_h, use_bias, shift, threshold, order, n, log);
+}
+
+template <int D>
+void solve_contacts(const Model<D>& model, State<D>& st, Contacts<D>& c, double inv_h,
+                    bool use_bias, double shift, double threshold, const std::int32_t* order,
+                    std::int64_t n, PassLog& log) {
   if constexpr (D == 3) {
-    solve_contacts_3d(model, st, c, inv_h, use_bias, shift, threshold, order, n);
+    solve_contacts_3d(model, st, c, inv_h, use_bias, shift, threshold, order, n, log);
   } else {
   using Vec = typename Dim<D>::Vec;
   const double* im = model.body_inv_mass.data();
@@ -278,14 +277,14 @@ void solve_contacts(const Model<D>& model, State<D>& st, Contacts<D>& c, double 
       const double kn = pt.kn;
       const auto [bias, gamma] =
           soft_target(s, use_bias, inv_h, bias_rate, max_push, kn, soft_gamma);
-      if (use_bias && s < deep) mark_deep(c, m);
+      if (use_bias && s < deep) mark_deep(log, m);
       const double rna = pt.rna, rnb = pt.rnb, rta = pt.rta, rtb = pt.rtb;
       const Vec dv = va - vb;
       const double vn = dot(dv, nrm) + (wa * rna - wb * rnb);
       double vt = dot(dv, t) + (wa * rta - wb * rtb);
       double lam = c.normal_impulse[m][0];
       const double impulse = (-vn - (bias + gamma * lam)) * (1.0 / (kn + gamma));
-      const double jn = clamp_normal(c, m, 0, lam, impulse, vn, s, shift, threshold);
+      const double jn = clamp_normal(c, m, 0, lam, impulse, vn, s, shift, threshold, log);
       double jt = 0.0;
       const double mu = row.friction;
       lam = c.tangent_impulse[m][0];
@@ -318,7 +317,7 @@ void solve_contacts(const Model<D>& model, State<D>& st, Contacts<D>& c, double 
     const double kn0 = p0.kn, kn1 = p1.kn;
     const auto [b0, g0] = soft_target(s0, use_bias, inv_h, bias_rate, max_push, kn0, soft_gamma);
     const auto [b1, g1] = soft_target(s1, use_bias, inv_h, bias_rate, max_push, kn1, soft_gamma);
-    if (use_bias && std::min(s0, s1) < deep) mark_deep(c, m);
+    if (use_bias && std::min(s0, s1) < deep) mark_deep(log, m);
     const double rna0 = p0.rna, rnb0 = p0.rnb, rta0 = p0.rta, rtb0 = p0.rtb;
     const double rna1 = p1.rna, rnb1 = p1.rnb, rta1 = p1.rta, rtb1 = p1.rtb;
     // sums grouped as two halves: each pass is one long chain of dependent arithmetic
@@ -349,12 +348,12 @@ void solve_contacts(const Model<D>& model, State<D>& st, Contacts<D>& c, double 
     // 0's impulse did to it through the coupling k01 of their rows. 1 / (K + γ) does not
     // wait for the velocities: a product on the chain
     if (!block) d0 = (-vn0 - (b0 + g0 * lam0)) * (1.0 / (kn0 + g0));
-    const double j0 = clamp_normal(c, m, 0, lam0, d0, vn0, s0, shift, threshold);
+    const double j0 = clamp_normal(c, m, 0, lam0, d0, vn0, s0, shift, threshold, log);
     if (!block) {
       vn1 += j0 * k01;
       d1 = (-vn1 - (b1 + g1 * lam1)) * (1.0 / (kn1 + g1));
     }
-    const double j1 = clamp_normal(c, m, 1, lam1, d1, vn1, s1, shift, threshold);
+    const double j1 = clamp_normal(c, m, 1, lam1, d1, vn1, s1, shift, threshold, log);
     double f0 = 0.0, f1 = 0.0;  // the friction impulses applied (N·s)
     const double mu = row.friction;
     if (mu > 0.0) {
@@ -403,6 +402,10 @@ template void solve_contacts(const Model<2>&, State<2>&, Contacts<2>&, double, b
                              double, const std::int32_t*, std::int64_t);
 template void solve_contacts(const Model<3>&, State<3>&, Contacts<3>&, double, bool, double,
                              double, const std::int32_t*, std::int64_t);
+template void solve_contacts(const Model<2>&, State<2>&, Contacts<2>&, double, bool, double,
+                             double, const std::int32_t*, std::int64_t, PassLog&);
+template void solve_contacts(const Model<3>&, State<3>&, Contacts<3>&, double, bool, double,
+                             double, const std::int32_t*, std::int64_t, PassLog&);
 
 namespace {
 
@@ -411,7 +414,7 @@ namespace {
 // resting point engaged in an earlier pass).
 inline Lanes clamp_lanes(Contacts<2>& c, const WideBatch& B, int k, LaneMask on, Lanes lam,
                          Lanes impulse, Lanes vn, Lanes s, Lanes& max_impulse, Lanes approach,
-                         double shift, double threshold, Lanes& accumulated) {
+                         double shift, double threshold, Lanes& accumulated, PassLog& log) {
   const Lanes zero = splat(0.0);
   const LaneMask engages =
       on & ((max_impulse <= zero) | (approach == splat(std::numeric_limits<double>::infinity()))) &
@@ -421,10 +424,7 @@ inline Lanes clamp_lanes(Contacts<2>& c, const WideBatch& B, int k, LaneMask on,
     const std::int64_t m = B.m[l];
     c.approach_velocity[m][k] = vn[l];
     c.approach_separation[m][k] = s[l] - shift * vn[l];
-    if (vn[l] < -threshold) {  // a bounce for the restitution stage's list
-      c.bounce_list[c.count.bounce_count] = static_cast<std::int32_t>(m);
-      c.count.bounce_count += 1;
-    }
+    if (vn[l] < -threshold) log.add_bounce(static_cast<std::int32_t>(m));  // for restitution
   }
   const Lanes next = vmax(lam + impulse, zero);  // clamp the accumulated impulse
   const Lanes applied = select(on, next - lam, zero);
@@ -437,7 +437,7 @@ inline Lanes clamp_lanes(Contacts<2>& c, const WideBatch& B, int k, LaneMask on,
 // solve_contacts' code for that count, lane by lane.
 template <bool TWO>
 void solve_batch(State<2>& st, Contacts<2>& c, const WideBatch& B, double inv_h, bool use_bias,
-                 double shift, double threshold) {
+                 double shift, double threshold, PassLog& log) {
   static_assert(LANES == 4, "the gathers below are written for four lanes");
   Vec2* v = st.body_v.data();
   double* w = st.body_w.data();
@@ -510,10 +510,7 @@ void solve_batch(State<2>& st, Contacts<2>& c, const WideBatch& B, double inv_h,
     LaneMask is_deep = active & (s0 < deep);
     if constexpr (TWO) is_deep |= active & (s1 < deep);
     for (int l = 0; any(is_deep) && l < LANES; ++l) {
-      if (is_deep[l] && c.count.deep_count < static_cast<std::int64_t>(c.relax_list.size())) {
-        c.relax_list[c.count.deep_count] = B.m[l];
-        c.count.deep_count += 1;
-      }
+      if (is_deep[l]) log.add_deep(B.m[l]);
     }
   }
   // velocities along the normal and the tangent at the points
@@ -536,13 +533,13 @@ void solve_batch(State<2>& st, Contacts<2>& c, const WideBatch& B, double inv_h,
     const Lanes d1b = (k00 * r1 - k01 * r0) * inv_det;
     const LaneMask block = blockable & (lam0 + d0b >= zero) & (lam1 + d1b >= zero);
     const Lanes d0 = select(block, d0b, (-vn0 - (b0 + g0 * lam0)) * (splat(1.0) / (p0.kn + g0)));
-    j0 = clamp_lanes(c, B, 0, active, lam0, d0, vn0, s0, mx0, ap0, shift, threshold, n0);
+    j0 = clamp_lanes(c, B, 0, active, lam0, d0, vn0, s0, mx0, ap0, shift, threshold, n0, log);
     vn1 = select(block, vn1, vn1 + j0 * k01);
     const Lanes d1 = select(block, d1b, (-vn1 - (b1 + g1 * lam1)) * (splat(1.0) / (p1.kn + g1)));
-    j1 = clamp_lanes(c, B, 1, active, lam1, d1, vn1, s1, mx1, ap1, shift, threshold, n1);
+    j1 = clamp_lanes(c, B, 1, active, lam1, d1, vn1, s1, mx1, ap1, shift, threshold, n1, log);
   } else {
     const Lanes d0 = (-vn0 - (b0 + g0 * lam0)) * (splat(1.0) / (p0.kn + g0));
-    j0 = clamp_lanes(c, B, 0, active, lam0, d0, vn0, s0, mx0, ap0, shift, threshold, n0);
+    j0 = clamp_lanes(c, B, 0, active, lam0, d0, vn0, s0, mx0, ap0, shift, threshold, n0, log);
   }
   // friction, as solve_contacts (the normal impulses turn the bodies: n · t = 0)
   const Lanes mu = B.friction;
@@ -637,18 +634,32 @@ void solve_waves(const Model<D>& model, State<D>& st, Contacts<D>& c, double inv
                    c.count.manifolds);
     return;
   } else {
-  for (std::int64_t g = 0; g < c.wave_count; ++g) {
+  PassLog log = PassLog::direct(c);
+  solve_wave_range(model, st, c, inv_h, use_bias, shift, threshold, 0, c.wave_count, log);
+  }
+}
+
+template <int D>
+void solve_wave_range(const Model<D>& model, State<D>& st, Contacts<D>& c, double inv_h,
+                      bool use_bias, double shift, double threshold, std::int64_t first,
+                      std::int64_t last, PassLog& log) {
+  if constexpr (D == 2) {
+  for (std::int64_t g = first; g < last; ++g) {
     const std::int64_t single = c.wave_single_batch[g];  // the first batch of one-point ones
     for (std::int64_t i = c.wave_batch[g]; i < single; ++i)
-      solve_batch<true>(st, c, c.batches[i], inv_h, use_bias, shift, threshold);
+      solve_batch<true>(st, c, c.batches[i], inv_h, use_bias, shift, threshold, log);
     for (std::int64_t i = single; i < c.wave_batch[g + 1]; ++i)
-      solve_batch<false>(st, c, c.batches[i], inv_h, use_bias, shift, threshold);
+      solve_batch<false>(st, c, c.batches[i], inv_h, use_bias, shift, threshold, log);
   }
   }
 }
 
 template void solve_waves(const Model<2>&, State<2>&, Contacts<2>&, double, bool, double, double);
 template void solve_waves(const Model<3>&, State<3>&, Contacts<3>&, double, bool, double, double);
+template void solve_wave_range(const Model<2>&, State<2>&, Contacts<2>&, double, bool, double,
+                               double, std::int64_t, std::int64_t, PassLog&);
+template void solve_wave_range(const Model<3>&, State<3>&, Contacts<3>&, double, bool, double,
+                               double, std::int64_t, std::int64_t, PassLog&);
 
 
 }  // namespace rbsim

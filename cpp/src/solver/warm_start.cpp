@@ -12,10 +12,12 @@ namespace {
 // 3D: each point's normal impulse and its friction impulse, a world vector in the tangent
 // plane (taken in the plane of this step's normal: the part along n is dropped, so that a
 // normal turned since the impulse was stored adds no push), on each body's v and L.
-void warm_start_3d(const Model<3>& model, State<3>& st, Contacts<3>& c) {
+// The manifolds order[first..last), or, with order null, manifolds first..last.
+void warm_start_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
+                   const std::int32_t* order, std::int64_t first, std::int64_t last) {
   const auto& im = model.body_inv_mass;
-  const std::int64_t n_man = c.count.manifolds;
-  for (std::int64_t m = 0; m < n_man; ++m) {
+  for (std::int64_t o = first; o < last; ++o) {
+    const std::int64_t m = order ? order[o] : o;
     const int a = c.body_a[m], b = c.body_b[m];
     const auto& row = c.solver_row[m];
     const Vec3 n = row.normal, t1 = row.t1, t2 = row.t2;
@@ -44,7 +46,7 @@ void warm_start_3d(const Model<3>& model, State<3>& st, Contacts<3>& c) {
 template <int D>
 void warm_start(const Model<D>& model, State<D>& st, Contacts<D>& c) {
   if constexpr (D == 3) {
-    warm_start_3d(model, st, c);
+    warm_start_3d(model, st, c, nullptr, 0, c.count.manifolds);
   } else {
   using Vec = typename Dim<D>::Vec;
   const auto& im = model.body_inv_mass;
@@ -165,5 +167,26 @@ void warm_start_waves(const Model<D>& model, State<D>& st, Contacts<D>& c) {
 
 template void warm_start_waves(const Model<2>&, State<2>&, Contacts<2>&);
 template void warm_start_waves(const Model<3>&, State<3>&, Contacts<3>&);
+
+template <int D>
+void warm_start_range(const Model<D>& model, State<D>& st, Contacts<D>& c, std::int64_t first,
+                      std::int64_t last) {
+  if constexpr (D == 3) {
+    warm_start_3d(model, st, c, c.solve_order.data(), first, last);
+  } else {
+    for (std::int64_t g = first; g < last; ++g) {
+      const std::int64_t single = c.wave_single_batch[g];
+      for (std::int64_t i = c.wave_batch[g]; i < single; ++i)
+        warm_start_batch<true>(st, c, c.batches[i]);
+      for (std::int64_t i = single; i < c.wave_batch[g + 1]; ++i)
+        warm_start_batch<false>(st, c, c.batches[i]);
+    }
+  }
+}
+
+template void warm_start_range(const Model<2>&, State<2>&, Contacts<2>&, std::int64_t,
+                               std::int64_t);
+template void warm_start_range(const Model<3>&, State<3>&, Contacts<3>&, std::int64_t,
+                               std::int64_t);
 
 }  // namespace rbsim

@@ -130,16 +130,29 @@ std::int64_t find_waves(const Model<D>& model, Contacts<D>& c) {
   auto& wave = c.manifold_wave;
   for (auto& w : last) w = 0;
   std::int32_t n_waves = 0;
-  for (std::int64_t o = 0; o < n_man; ++o) {
-    const std::int32_t m = c.solve_order[o];
-    const int a = c.body_a[m], b = c.body_b[m];
-    const bool da = model.is_dynamic(a), db = model.is_dynamic(b);
-    const std::int32_t k = std::max(da ? last[a] : 0, db ? last[b] : 0);  // waves are 0-based
-    wave[m] = k;
-    if (da) last[a] = k + 1;
-    if (db) last[b] = k + 1;
-    n_waves = std::max(n_waves, k + 1);
+  // segment by segment (regions.cpp: the regions of the threaded passes), each in waves
+  // of its own after the last segment's
+  const int n_segments = segment_count(static_cast<int>(c.region_count));
+  if (c.region_count == 1) {  // one region: the whole solve order
+    c.segment_order[0] = 0;
+    for (int g = 1; g <= n_segments; ++g) c.segment_order[g] = n_man;
   }
+  for (int g = 0; g < n_segments; ++g) {
+    const std::int32_t first = n_waves;
+    c.segment_wave[g] = first;
+    for (std::int64_t o = c.segment_order[g]; o < c.segment_order[g + 1]; ++o) {
+      const std::int32_t m = c.solve_order[o];
+      const int a = c.body_a[m], b = c.body_b[m];
+      const bool da = model.is_dynamic(a), db = model.is_dynamic(b);
+      // waves are 0-based
+      const std::int32_t k = std::max({first, da ? last[a] : 0, db ? last[b] : 0});
+      wave[m] = k;
+      if (da) last[a] = k + 1;
+      if (db) last[b] = k + 1;
+      n_waves = std::max(n_waves, k + 1);
+    }
+  }
+  c.segment_wave[n_segments] = n_waves;
   // a counting sort by wave, in solve order within a wave
   auto& start = c.wave_start;
   for (std::int32_t k = 0; k <= n_waves; ++k) start[k] = 0;

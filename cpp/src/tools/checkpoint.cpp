@@ -39,6 +39,7 @@ void visit(W& w, F&& f) {
   f(c.body_mark), f(c.solve_impulse), f(c.bounce_list), f(c.relax_list), f(c.body_reach);
   f(c.wave_count), f(c.waves_valid), f(c.heavy_on_light), f(c.unit_scale), f(c.wave_order), f(c.manifold_wave), f(c.body_wave);
   f(c.wave_start), f(c.wave_batch), f(c.wave_single), f(c.wave_single_batch), f(c.batches);
+  f(c.region_count), f(c.body_region), f(c.segment_order), f(c.segment_wave), f(c.segment_shock);
 }
 
 constexpr std::size_t VEC = sizeof(std::vector<int>);
@@ -48,9 +49,9 @@ static_assert(sizeof(Grid<2>) == 8 + 16 * VEC + sizeof(Vec2) + sizeof(GridMeta<2
               "Grid changed: update visit()");
 static_assert(sizeof(Grid<3>) == 8 + 16 * VEC + sizeof(Vec3) + sizeof(GridMeta<3>),
               "Grid changed: update visit()");
-static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 71 * VEC + 8 + 8,
+static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 75 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
-static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 71 * VEC + 8 + 8,
+static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 75 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
 
 template <class T>
