@@ -1096,7 +1096,9 @@ class _Resolver:
         except g3.HullError as err:
             self.error(spec.mark_of("vertices"), spec.path_of("vertices"), str(err))
             return INVALID
-        problem = _short_hull_edge(vertices, faces, given)
+        problem = _short_hull_edge(vertices, faces, given) or _sliver_triangle(
+            vertices, faces, given
+        )
         if problem is None and not g3.hull_width(vertices, faces) >= schema.LENGTH_MIN:
             width = g3.hull_width(vertices, faces)
             problem = f"the hull is {width:.3g} m thin, less than {_num(schema.LENGTH_MIN)} m"
@@ -1159,6 +1161,31 @@ def _short_hull_edge(
                     f"points {a} and {b} are {length:.3g} m apart, "
                     f"less than {_num(schema.LENGTH_MIN)} m"
                 )
+    return None
+
+
+def _sliver_triangle(
+    vertices: Sequence[Vec], faces: Sequence[tuple[int, int, int]], given: Sequence[int]
+) -> str | None:
+    """Why a convex hull has a triangle too thin for the engine, or None: its doubled
+    area below schema.HULL_TRIANGLE_MIN times the hull's size squared (m²; the points
+    are numbered as written)."""
+    lo = [min(v[k] for v in vertices) for k in range(3)]
+    hi = [max(v[k] for v in vertices) for k in range(3)]
+    size = math.dist(lo, hi)  # m
+    for face in faces:
+        a, b, c = (vertices[i] for i in face)
+        u, w = [b[k] - a[k] for k in range(3)], [c[k] - a[k] for k in range(3)]
+        area2 = math.hypot(
+            u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]
+        )
+        if not area2 > schema.HULL_TRIANGLE_MIN * size * size:
+            i, j, k = sorted(given[f] for f in face)
+            return (
+                f"points {i}, {j} and {k} make a face of {area2 / 2:.3g} m², less than "
+                f"{_num(schema.HULL_TRIANGLE_MIN / 2)} of the hull's size squared "
+                f"({size:.3g} m): the points span too many scales for the hull's faces"
+            )
     return None
 
 

@@ -497,6 +497,11 @@ SCENE = Key(
 # ---------------------------------------------------------------------------------------
 
 CONVEX_VERTICES_MAX = 256  # points given for one convex hull
+# A hull triangle's doubled area over the square of the hull's size (its bounding box
+# diagonal), at least: the engine's hull builder (cpp/src/collide/hull3d.cpp,
+# PLANE_TOLERANCE) takes a triangle below 1e-9 as degenerate; twice that leaves room for
+# the rounding of the points' shift to the centre of mass.
+HULL_TRIANGLE_MIN = 2e-9
 
 _density3 = Key("number", "Density per volume, kg/m³.", ge=DENSITY_MIN, le=DENSITY_MAX)
 INLINE_MATERIAL_3D = {**INLINE_MATERIAL, "density": _density3}
