@@ -311,12 +311,12 @@ class BodyTable:
             self.shape_face_start.min() < 0 or self.shape_face_count.min() < 0 or end.max() > nf
         ):
             raise ValueError(f"BodyTable.shape_face_start/count: rows must lie in [0, {nf})")
-        for field_name in (
-            "mass", "moment_of_inertia", "center_of_mass", "shape_radius", "shape_vertices",
-            "shape_normal",
-        ):  # fmt: skip
+        for field_name in ("center_of_mass", "shape_radius", "shape_vertices", "shape_normal"):
             if not np.isfinite(np.asarray(getattr(self, field_name), dtype=float)).all():
                 raise ValueError(f"BodyTable.{field_name}: values must be finite")
+        for field_name in ("mass", "moment_of_inertia"):  # inf for a static body
+            if np.isnan(np.asarray(getattr(self, field_name), dtype=float)).any():
+                raise ValueError(f"BodyTable.{field_name}: values must not be NaN")
         for k in np.flatnonzero(self.shape_face_count):
             a, n = int(self.shape_face_start[k]), int(self.shape_face_count[k])
             tri = self.shape_faces[a : a + n]

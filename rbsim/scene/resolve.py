@@ -549,7 +549,7 @@ class _Resolver:
                 else:
                     bodies += self.generator(entry)
         shapes = sum(len(b.shapes) for b in bodies)
-        if shapes * self.per_shape > schema.WORK_MAX and not self.problems:
+        if shapes * self.per_shape > self.work_max() and not self.problems:
             self.work_error(shapes, c.mark_of("bodies"), c.path_of("bodies"))
         world, solver, output = self.world(c["world"]), c["solver"], c["output"]
         compare = c["compare"]
@@ -900,7 +900,7 @@ class _Resolver:
                 f"the scene would have more than {MAX_BODIES} bodies",
             )
             return []
-        if self.count * self.per_shape > schema.WORK_MAX:  # before expanding it all
+        if self.count * self.per_shape > self.work_max():  # before expanding it all
             self.work_error(self.count, c.mark_of(key), c.path_of(key))
             return []
         material = self.material(c, DEFAULT_MATERIAL)
@@ -986,14 +986,19 @@ class _Resolver:
         self.error(c.mark_of("spacing"), c.path_of("spacing"), message)
         return False
 
+    def work_max(self) -> int:
+        """The most shapes x substeps x iterations of one step in this scene's dimension."""
+        return schema.WORK_MAX_3D if self.dimension == 3 else schema.WORK_MAX
+
     def work_error(self, shapes: int, mark: Mark, path: tuple) -> None:
-        """Report a step above WORK_MAX: at the larger of solver.substeps and iterations
+        """Report a step above work_max(): at the larger of solver.substeps and iterations
         when the scene gives them, else at ``mark`` (the bodies that make it)."""
         work = shapes * self.per_shape
+        in_3d = " in 3D" if self.dimension == 3 else ""
         message = (
             f"a step would cost {shapes:,} shapes x {self.substeps:,} substeps x "
             f"{self.iterations:,} iterations = {work:,} shape-iterations, more than the "
-            f"{schema.WORK_MAX:,} that keep one step to a fraction of a second"
+            f"{self.work_max():,} that keep one step{in_3d} to a fraction of a second"
         )
         solver = self.solver
         given = [
