@@ -102,9 +102,66 @@ AT_THE_BOUNDS = {
 }
 
 
-@pytest.mark.parametrize("name", sorted(AT_THE_BOUNDS))
+AT_THE_BOUNDS_3D = {
+    # a needle hull 22.3 km long with a 1 m end face: its faces just above the sliver bound
+    "needle_hull": """\
+        version: 1
+        world: {dimension: 3, steps: 3}
+        bodies:
+          - {name: ground, type: static, shape: {plane: {}}}
+          - name: needle
+            position: [0, 1, 0]
+            shape: {convex: {vertices: [[0, 0, 0], [22300, 0, 0], [0, 1, 0], [0, 0, 1]]}}
+        """,
+    # the fewest points, a tetrahedron 1.15 µm thin; a capsule at the least length
+    "smallest_hull_and_capsule": """\
+        version: 1
+        world: {dimension: 3, dt: 1.0e-4, steps: 3}
+        bodies:
+          - {name: ground, type: static, shape: {plane: {}}}
+          - name: grain
+            position: [0, 1.0e-6, 0]
+            shape: {convex: {vertices: [[0, 0, 0], [2.0e-6, 0, 0], [0, 2.0e-6, 0], [0, 0, 2.0e-6]]}}
+          - name: pill
+            position: [1, 1.0e-6, 0]
+            shape: {capsule: {a: [0, 0, 0], b: [1.0e-6, 0, 0], radius: 1.0e-6}}
+        """,
+    # spin at the bound on every axis, the strongest torque, a quaternion of norm 1e-7
+    "fastest_spin_strongest_torque": """\
+        version: 1
+        world: {dimension: 3, gravity: [0, 0, 0], dt: 1.0e-3, steps: 3}
+        bodies:
+          - name: top
+            orientation: [1.0e-7, 0, 0, 0]
+            angular_velocity: [1.0e+6, -1.0e+6, 1.0e+6]
+            torque: [0, 0, 2.0e+4]
+            shape: {box: {size: [1, 0.5, 0.25]}}
+        """,
+    # a mass ratio of 1e30 (the lightest on the heaviest), 1 m boxes on a plane
+    "mass_ratio": """\
+        version: 1
+        world: {dimension: 3, steps: 3}
+        bodies:
+          - {name: ground, type: static, shape: {plane: {}}}
+          - {name: heavy, position: [0, 0.5, 0], mass: 1.0e+18, shape: {box: {size: [1, 1, 1]}}}
+          - {name: light, position: [0, 1.5, 0], mass: 1.0e-12, shape: {box: {size: [1, 1, 1]}}}
+        """,
+    # the 3D work bound exactly: 2 shapes x 15,625 substeps x 2 iterations
+    "most_work_3d": """\
+        version: 1
+        world: {dimension: 3, steps: 2}
+        solver: {substeps: 15625, iterations: 2}
+        bodies:
+          - {name: ground, type: static, shape: {plane: {}}}
+          - {name: box, position: [0, 0.5, 0], shape: {box: {size: [1, 1, 1]}}}
+        """,
+}
+
+
+@pytest.mark.parametrize("name", sorted(AT_THE_BOUNDS) + sorted(AT_THE_BOUNDS_3D))
 def test_a_scene_at_the_bounds_validates_and_runs(tmp_path: Path, name: str) -> None:
-    scene = write(tmp_path, f"{name}.yaml", AT_THE_BOUNDS[name])
+    text = AT_THE_BOUNDS.get(name) or AT_THE_BOUNDS_3D[name]
+    scene = write(tmp_path, f"{name}.yaml", text)
     code, _, stderr = rbsim("validate", scene)
     assert code == 0, stderr
     out = tmp_path / f"{name}.h5"
@@ -113,6 +170,8 @@ def test_a_scene_at_the_bounds_validates_and_runs(tmp_path: Path, name: str) -> 
     tr = load_trajectory(out)
     assert tr.status == "complete"
     assert np.isfinite(tr.position).all() and np.isfinite(tr.velocity).all()
+    assert np.isfinite(tr.orientation).all()
+    assert tr.dimension == (3 if name in AT_THE_BOUNDS_3D else 2)
 
 
 # run -o -----------------------------------------------------------------------------------
@@ -291,74 +350,6 @@ bodies:
   - {name: ball, position: [0, 0.5, 0], shape: {sphere: {radius: 0.5}}}
   - {name: brick, position: [0, 2, 0], shape: {box: {size: [1, 1, 1]}}}
 """
-
-AT_THE_BOUNDS_3D = {
-    # a needle hull 22.3 km long with a 1 m end face: its faces just above the sliver bound
-    "needle_hull": """\
-        version: 1
-        world: {dimension: 3, steps: 3}
-        bodies:
-          - {name: ground, type: static, shape: {plane: {}}}
-          - name: needle
-            position: [0, 1, 0]
-            shape: {convex: {vertices: [[0, 0, 0], [22300, 0, 0], [0, 1, 0], [0, 0, 1]]}}
-        """,
-    # the fewest points, a tetrahedron 1.15 µm thin; a capsule at the least length
-    "smallest_hull_and_capsule": """\
-        version: 1
-        world: {dimension: 3, dt: 1.0e-4, steps: 3}
-        bodies:
-          - {name: ground, type: static, shape: {plane: {}}}
-          - name: grain
-            position: [0, 1.0e-6, 0]
-            shape: {convex: {vertices: [[0, 0, 0], [2.0e-6, 0, 0], [0, 2.0e-6, 0], [0, 0, 2.0e-6]]}}
-          - name: pill
-            position: [1, 1.0e-6, 0]
-            shape: {capsule: {a: [0, 0, 0], b: [1.0e-6, 0, 0], radius: 1.0e-6}}
-        """,
-    # spin at the bound on every axis, the strongest torque, a quaternion of norm 1e-7
-    "fastest_spin_strongest_torque": """\
-        version: 1
-        world: {dimension: 3, gravity: [0, 0, 0], dt: 1.0e-3, steps: 3}
-        bodies:
-          - name: top
-            orientation: [1.0e-7, 0, 0, 0]
-            angular_velocity: [1.0e+6, -1.0e+6, 1.0e+6]
-            torque: [0, 0, 2.0e+4]
-            shape: {box: {size: [1, 0.5, 0.25]}}
-        """,
-    # a mass ratio of 1e30 (the lightest on the heaviest), 1 m boxes on a plane
-    "mass_ratio": """\
-        version: 1
-        world: {dimension: 3, steps: 3}
-        bodies:
-          - {name: ground, type: static, shape: {plane: {}}}
-          - {name: heavy, position: [0, 0.5, 0], mass: 1.0e+18, shape: {box: {size: [1, 1, 1]}}}
-          - {name: light, position: [0, 1.5, 0], mass: 1.0e-12, shape: {box: {size: [1, 1, 1]}}}
-        """,
-    # the 3D work bound exactly: 2 shapes x 15,625 substeps x 2 iterations
-    "most_work_3d": """\
-        version: 1
-        world: {dimension: 3, steps: 2}
-        solver: {substeps: 15625, iterations: 2}
-        bodies:
-          - {name: ground, type: static, shape: {plane: {}}}
-          - {name: box, position: [0, 0.5, 0], shape: {box: {size: [1, 1, 1]}}}
-        """,
-}
-
-
-@pytest.mark.parametrize("name", sorted(AT_THE_BOUNDS_3D))
-def test_a_3d_scene_at_the_bounds_validates_and_runs(tmp_path: Path, name: str) -> None:
-    scene = write(tmp_path, f"{name}.yaml", AT_THE_BOUNDS_3D[name])
-    code, _, stderr = rbsim("validate", scene)
-    assert code == 0, stderr
-    out = tmp_path / f"{name}.h5"
-    code, _, stderr = rbsim("run", scene, "-o", out, "-q")
-    assert code == 0, stderr
-    tr = load_trajectory(out)
-    assert tr.status == "complete" and tr.dimension == 3
-    assert np.isfinite(tr.position).all() and np.isfinite(tr.orientation).all()
 
 
 def test_a_bad_3d_state_names_the_first_dynamic_body() -> None:
