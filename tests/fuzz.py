@@ -644,10 +644,12 @@ def main(argv: list[str] | None = None) -> int:
     scene, out = args.dir / "mutant.yaml", args.dir / "mutant.h5"
     failures = []
     codes: dict[str, dict[str, int]] = {"validate": {}, "run": {}}
+    from_3d = 0  # mutants of a 3D scene
     for k in range(args.count):
         # mostly runnable ones; 3D scenes (a quarter of those shipped) in two of five
         draw = rng.random()
         source = rng.choice(good_3d if draw < 0.4 else good if draw < 0.8 else pool)
+        from_3d += is_3d(source[2])
         text, done = make_mutant(source, rng)
         print(f"mutant {k}: {source[0].relative_to(ROOT)}: {'; '.join(done)}", file=sys.stderr)
         sys.stderr.flush()
@@ -670,7 +672,8 @@ def main(argv: list[str] | None = None) -> int:
                     "text": text[:3000],
                 }
             )
-    json.dump({"mutants": args.count, "exit_codes": codes, "failures": failures}, sys.stdout)
+    report = {"mutants": args.count, "from_3d": from_3d, "exit_codes": codes}
+    json.dump({**report, "failures": failures}, sys.stdout)
     return 0
 
 
