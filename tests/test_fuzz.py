@@ -1,5 +1,6 @@
-"""Fuzzing the front: 1,000 mutated scenes (tests/fuzz.py) through `rbsim validate` and
-`rbsim run --set world.steps=2` in one subprocess. Allowed: exit 0 or 3 from validate,
+"""Fuzzing the front: 1,000 mutated scenes (tests/fuzz.py; 2D and, in two of five, 3D)
+through `rbsim validate` and `rbsim run --set world.steps=2` in one subprocess.
+Allowed: exit 0 or 3 from validate,
 0, 1 with a documented one-line failure, or 3 from run, and run rejecting exactly what
 validate rejects; never an exception out of a command, a signal, or a hang.
 
@@ -50,6 +51,7 @@ def test_mutated_scenes_never_crash_hang_or_disagree(tmp_path: Path) -> None:
     assert proc.returncode == 0, proc.stderr[-3000:]
     report = json.loads(proc.stdout)
     assert report["mutants"] == COUNT
+    assert report["from_3d"] >= COUNT * 3 // 10  # 3D scenes in two of five, and bad ones
     # the mutants reach both sides: some run, most are rejected
     assert report["exit_codes"]["run"].get("0", 0) >= COUNT // 20, report["exit_codes"]
     assert report["exit_codes"]["validate"].get("3", 0) >= COUNT // 2, report["exit_codes"]

@@ -102,9 +102,66 @@ AT_THE_BOUNDS = {
 }
 
 
-@pytest.mark.parametrize("name", sorted(AT_THE_BOUNDS))
+AT_THE_BOUNDS_3D = {
+    # a needle hull 22.3 km long with a 1 m end face: its faces just above the sliver bound
+    "needle_hull": """\
+        version: 1
+        world: {dimension: 3, steps: 3}
+        bodies:
+          - {name: ground, type: static, shape: {plane: {}}}
+          - name: needle
+            position: [0, 1, 0]
+            shape: {convex: {vertices: [[0, 0, 0], [22300, 0, 0], [0, 1, 0], [0, 0, 1]]}}
+        """,
+    # the fewest points, a tetrahedron 1.15 µm thin; a capsule at the least length
+    "smallest_hull_and_capsule": """\
+        version: 1
+        world: {dimension: 3, dt: 1.0e-4, steps: 3}
+        bodies:
+          - {name: ground, type: static, shape: {plane: {}}}
+          - name: grain
+            position: [0, 1.0e-6, 0]
+            shape: {convex: {vertices: [[0, 0, 0], [2.0e-6, 0, 0], [0, 2.0e-6, 0], [0, 0, 2.0e-6]]}}
+          - name: pill
+            position: [1, 1.0e-6, 0]
+            shape: {capsule: {a: [0, 0, 0], b: [1.0e-6, 0, 0], radius: 1.0e-6}}
+        """,
+    # spin at the bound on every axis, the strongest torque, a quaternion of norm 1e-7
+    "fastest_spin_strongest_torque": """\
+        version: 1
+        world: {dimension: 3, gravity: [0, 0, 0], dt: 1.0e-3, steps: 3}
+        bodies:
+          - name: top
+            orientation: [1.0e-7, 0, 0, 0]
+            angular_velocity: [1.0e+6, -1.0e+6, 1.0e+6]
+            torque: [0, 0, 2.0e+4]
+            shape: {box: {size: [1, 0.5, 0.25]}}
+        """,
+    # a mass ratio of 1e30 (the lightest on the heaviest), 1 m boxes on a plane
+    "mass_ratio": """\
+        version: 1
+        world: {dimension: 3, steps: 3}
+        bodies:
+          - {name: ground, type: static, shape: {plane: {}}}
+          - {name: heavy, position: [0, 0.5, 0], mass: 1.0e+18, shape: {box: {size: [1, 1, 1]}}}
+          - {name: light, position: [0, 1.5, 0], mass: 1.0e-12, shape: {box: {size: [1, 1, 1]}}}
+        """,
+    # the 3D work bound exactly: 2 shapes x 15,625 substeps x 2 iterations
+    "most_work_3d": """\
+        version: 1
+        world: {dimension: 3, steps: 2}
+        solver: {substeps: 15625, iterations: 2}
+        bodies:
+          - {name: ground, type: static, shape: {plane: {}}}
+          - {name: box, position: [0, 0.5, 0], shape: {box: {size: [1, 1, 1]}}}
+        """,
+}
+
+
+@pytest.mark.parametrize("name", sorted(AT_THE_BOUNDS) + sorted(AT_THE_BOUNDS_3D))
 def test_a_scene_at_the_bounds_validates_and_runs(tmp_path: Path, name: str) -> None:
-    scene = write(tmp_path, f"{name}.yaml", AT_THE_BOUNDS[name])
+    text = AT_THE_BOUNDS.get(name) or AT_THE_BOUNDS_3D[name]
+    scene = write(tmp_path, f"{name}.yaml", text)
     code, _, stderr = rbsim("validate", scene)
     assert code == 0, stderr
     out = tmp_path / f"{name}.h5"
@@ -113,6 +170,8 @@ def test_a_scene_at_the_bounds_validates_and_runs(tmp_path: Path, name: str) -> 
     tr = load_trajectory(out)
     assert tr.status == "complete"
     assert np.isfinite(tr.position).all() and np.isfinite(tr.velocity).all()
+    assert np.isfinite(tr.orientation).all()
+    assert tr.dimension == (3 if name in AT_THE_BOUNDS_3D else 2)
 
 
 # run -o -----------------------------------------------------------------------------------
@@ -277,3 +336,96 @@ def test_an_interrupted_advance_takes_the_same_steps() -> None:
     assert stops >= 1  # it was cut at least once
     for a, b in zip(whole.state, parts.state, strict=True):
         np.testing.assert_array_equal(a, b)  # bit for bit
+
+
+# the same in 3D ------------------------------------------------------------------------------
+
+BALLS_3D = """\
+version: 1
+name: balls3d
+world: {dimension: 3, steps: 10}
+bodies:
+  - {name: ground, type: static, shape: {plane: {}}}
+  - {name: wall, type: static, position: [3, 0.5, 0], shape: {box: {size: [1, 1, 1]}}}
+  - {name: ball, position: [0, 0.5, 0], shape: {sphere: {radius: 0.5}}}
+  - {name: brick, position: [0, 2, 0], shape: {box: {size: [1, 1, 1]}}}
+"""
+
+
+def test_a_bad_3d_state_names_the_first_dynamic_body() -> None:
+    world = CoreWorld.from_scene(scene_from(BALLS_3D))
+    # a static body (the wall), the ball and the brick all bad: the ball, first in order
+    world.state.body_x[1] = np.nan
+    world.state.body_l[3] = np.nan
+    world.state.body_q[2] = np.nan
+    with pytest.raises(Exception) as info:
+        world.advance(1)
+    assert info.value.body == 2 and info.value.beyond is None
+    # only the angular momentum of the brick: the brick
+    world = CoreWorld.from_scene(scene_from(BALLS_3D))
+    world.state.body_l[3] = (np.inf, 0, 0)
+    with pytest.raises(Exception) as info:
+        world.advance(1)
+    assert info.value.body == 3
+
+
+def test_a_3d_body_leaving_the_region_stops_the_run_cleanly(tmp_path: Path) -> None:
+    # 1e6 m/s along z from z = 0 with dt = 1 s: past 1e9 m at step 1000
+    scene = write(
+        tmp_path,
+        "away.yaml",
+        """\
+        version: 1
+        world: {dimension: 3, gravity: [0, 0, 0], dt: 1, steps: 2000}
+        bodies:
+          - {name: probe, velocity: [0, 0, 1.0e+6], shape: {sphere: {radius: 1}}}
+        """,
+    )
+    out = tmp_path / "away.h5"
+    code, stdout, stderr = rbsim("run", scene, "-o", out)
+    assert (code, stdout) == (1, "")
+    assert stderr.startswith("error: ") and len(stderr.splitlines()) == 1
+    assert "body 'probe' left the simulated region (|x|, |y| or |z| > 1e9 m) at step" in stderr
+    tr = load_trajectory(out)
+    assert tr.status.startswith("failed: body 'probe' left the simulated region")
+    assert len(tr.step) > 0 and (np.abs(tr.position) <= POSITION_LIMIT).all()
+
+
+PILE_3D = """\
+version: 1
+world: {dimension: 3, steps: 1000000}
+solver: {substeps: 1136}
+bodies:
+  - {name: ground, type: static, shape: {plane: {}}}
+  - pyramid: {base: 4, size: [1, 1, 1]}
+"""  # 31 boxes x 1136 substeps and the plane: 36,352 shape-iterations a step
+
+
+def test_a_signal_stops_a_long_3d_advance_between_two_steps() -> None:
+    world = CoreWorld.from_scene(scene_from(PILE_3D))
+    n = 1000  # far more steps than the alarm lets through
+    with Alarm() as alarm, pytest.raises(Stop):
+        alarm.start(0.05)
+        world.advance(n)
+    assert 0 <= world.step_index < n
+    assert np.isfinite(world.state.body_x).all() and np.isfinite(world.state.body_q).all()
+
+
+@pytest.mark.parametrize("damage", ["cut", "bytes"])
+def test_a_damaged_3d_trajectory_fails_with_a_message(tmp_path: Path, damage: str) -> None:
+    scene = write(tmp_path, "balls3d.yaml", BALLS_3D)
+    out = tmp_path / "balls3d.h5"
+    assert rbsim("run", scene, "-o", out, "-q")[0] == 0
+    data = bytearray(out.read_bytes())
+    if damage == "cut":
+        data = data[:5000]
+    else:  # the metadata (group B-trees, heaps) a little into the file overwritten
+        data[2000:6000] = bytes((37 * k + 11) % 256 for k in range(4000))
+    bad = tmp_path / "bad.h5"
+    bad.write_bytes(bytes(data))
+    for command in (("info", bad), ("render", bad, "-o", tmp_path / "b.html", "-q")):
+        code, _, stderr = rbsim(*command)
+        assert code == 1, stderr
+        assert stderr.count("\n") == 1 and "bad.h5" in stderr
+    with pytest.raises(OSError, match="bad.h5"):
+        load_trajectory(bad)

@@ -297,7 +297,11 @@ def test_3d_bounds_are_the_2d_ones():
     (line,) = errors(scene_with("{force: [0, 1e9, 0], shape: {sphere: {radius: 0.1}}}"))
     assert "bodies[0].force: accelerates the body by" in line
     lines = errors(BRICK, ("solver.substeps=1000", "solver.iterations=1001"))
-    assert "shape-iterations, more than the 1,000,000" in lines[0]
+    assert "shape-iterations, more than the 62,500 that keep one step in 3D" in lines[0]
+    # the 3D work bound is 1/16 of the 2D one: 62,500 shape-iterations pass, one more not
+    assert load(BRICK, ("solver.substeps=62500",)).solver.substeps == 62500
+    (line,) = errors(BRICK, ("solver.substeps=62501",))
+    assert "= 62,501 shape-iterations, more than the 62,500" in line
 
 
 @pytest.mark.parametrize("name", ["3d_angle_key.yaml", "3d_sphere_in_2d_scene.yaml"])

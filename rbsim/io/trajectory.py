@@ -50,6 +50,7 @@ import math
 import os
 import struct
 import time as _time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from types import TracebackType
 
@@ -310,6 +311,12 @@ class BodyTable:
             self.shape_face_start.min() < 0 or self.shape_face_count.min() < 0 or end.max() > nf
         ):
             raise ValueError(f"BodyTable.shape_face_start/count: rows must lie in [0, {nf})")
+        for field_name in ("center_of_mass", "shape_radius", "shape_vertices", "shape_normal"):
+            if not np.isfinite(np.asarray(getattr(self, field_name), dtype=float)).all():
+                raise ValueError(f"BodyTable.{field_name}: values must be finite")
+        for field_name in ("mass", "moment_of_inertia"):  # inf for a static body
+            if np.isnan(np.asarray(getattr(self, field_name), dtype=float)).any():
+                raise ValueError(f"BodyTable.{field_name}: values must not be NaN")
         for k in np.flatnonzero(self.shape_face_count):
             a, n = int(self.shape_face_start[k]), int(self.shape_face_count[k])
             tri = self.shape_faces[a : a + n]
@@ -1135,6 +1142,30 @@ def open_for_reading(path: str | os.PathLike) -> h5py.File:
         raise TrajectoryError(f"{path}: cannot be read as HDF5 ({text})") from None
 
 
+# What h5py raises on a file whose structure is damaged, besides OSError, KeyError and
+# ValueError: RuntimeError (a corrupt B-tree), IndexError, AttributeError (an object of
+# another kind where a dataset belongs).
+DAMAGED = (RuntimeError, IndexError, AttributeError)
+
+
+@contextlib.contextmanager
+def reading(path: str | os.PathLike) -> Iterator[h5py.File]:
+    """open_for_reading as a context, with every error met while reading the file turned
+    into a TrajectoryError naming it: a damaged file fails at once with what is wrong,
+    never with a traceback."""
+    path = os.fspath(path)
+    with open_for_reading(path) as f:
+        try:
+            yield f
+        except TrajectoryError:
+            raise
+        except (OSError, KeyError, ValueError, TypeError, *DAMAGED) as err:
+            raise TrajectoryError(
+                f"{path}: not a readable rbsim trajectory (damaged, or written by another "
+                f"program: {type(err).__name__}: {err})"
+            ) from None
+
+
 def _series_groups(f: h5py.File) -> tuple[list[str], list[str]]:
     """Paths of the body and observable time series groups present in the file."""
     bodies = [f"particles/bodies/{n}" for n in ALL_BODY_SERIES if f"particles/bodies/{n}" in f]
@@ -1173,8 +1204,9 @@ def read_parameters(f: h5py.File) -> dict[str, str]:
 def load_trajectory(path: str | os.PathLike) -> Trajectory:
     """Read a trajectory file written by TrajectoryWriter (closed normally, still being
     written, or left by a killed writer). Every series is cut to the frames present in
-    all of them. Units as in `Trajectory`."""
-    with open_for_reading(path) as f:
+    all of them. Units as in `Trajectory`. Raises TrajectoryError (at once) for a file
+    that is missing, truncated, damaged or not an rbsim trajectory."""
+    with reading(path) as f:
         bodies = read_body_table(f["particles/bodies"])
         n, dimension = len(bodies), bodies.dimension
         params = read_parameters(f)
@@ -1268,9 +1300,10 @@ def _format_value(value: np.ndarray) -> str:
 def summarize(path: str | os.PathLike) -> str:
     """The text `rbsim info OUT.h5` prints: engine, status, scene name, bodies by type,
     frames, step and time range (s), dt (s), wall time (s), file size, observables at
-    the first and last frame, and the solver parameters. Reads only what it prints."""
+    the first and last frame, and the solver parameters. Reads only what it prints.
+    Raises TrajectoryError as load_trajectory does."""
     path = os.fspath(path)
-    with open_for_reading(path) as f:
+    with reading(path) as f:
         params = read_parameters(f)
         dimension = _read_dimension(f["particles/bodies"])
         types = _read_strings(f["particles/bodies/type"])

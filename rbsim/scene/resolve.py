@@ -550,7 +550,7 @@ class _Resolver:
                 else:
                     bodies += self.generator(entry)
         shapes = sum(len(b.shapes) for b in bodies)
-        if shapes * self.per_shape > schema.WORK_MAX and not self.problems:
+        if shapes * self.per_shape > self.work_max() and not self.problems:
             self.work_error(shapes, c.mark_of("bodies"), c.path_of("bodies"))
         world, solver, output = self.world(c["world"]), c["solver"], c["output"]
         compare = c["compare"]
@@ -901,7 +901,7 @@ class _Resolver:
                 f"the scene would have more than {MAX_BODIES} bodies",
             )
             return []
-        if self.count * self.per_shape > schema.WORK_MAX:  # before expanding it all
+        if self.count * self.per_shape > self.work_max():  # before expanding it all
             self.work_error(self.count, c.mark_of(key), c.path_of(key))
             return []
         material = self.material(c, DEFAULT_MATERIAL)
@@ -987,14 +987,19 @@ class _Resolver:
         self.error(c.mark_of("spacing"), c.path_of("spacing"), message)
         return False
 
+    def work_max(self) -> int:
+        """The most shapes x substeps x iterations of one step in this scene's dimension."""
+        return schema.WORK_MAX_3D if self.dimension == 3 else schema.WORK_MAX
+
     def work_error(self, shapes: int, mark: Mark, path: tuple) -> None:
-        """Report a step above WORK_MAX: at the larger of solver.substeps and iterations
+        """Report a step above work_max(): at the larger of solver.substeps and iterations
         when the scene gives them, else at ``mark`` (the bodies that make it)."""
         work = shapes * self.per_shape
+        in_3d = " in 3D" if self.dimension == 3 else ""
         message = (
             f"a step would cost {shapes:,} shapes x {self.substeps:,} substeps x "
             f"{self.iterations:,} iterations = {work:,} shape-iterations, more than the "
-            f"{schema.WORK_MAX:,} that keep one step to a fraction of a second"
+            f"{self.work_max():,} that keep one step{in_3d} to a fraction of a second"
         )
         solver = self.solver
         given = [
@@ -1097,7 +1102,9 @@ class _Resolver:
         except g3.HullError as err:
             self.error(spec.mark_of("vertices"), spec.path_of("vertices"), str(err))
             return INVALID
-        problem = _short_hull_edge(vertices, faces, given)
+        problem = _short_hull_edge(vertices, faces, given) or _sliver_triangle(
+            vertices, faces, given
+        )
         if problem is None and not g3.hull_width(vertices, faces) >= schema.LENGTH_MIN:
             width = g3.hull_width(vertices, faces)
             problem = f"the hull is {width:.3g} m thin, less than {_num(schema.LENGTH_MIN)} m"
@@ -1160,6 +1167,31 @@ def _short_hull_edge(
                     f"points {a} and {b} are {length:.3g} m apart, "
                     f"less than {_num(schema.LENGTH_MIN)} m"
                 )
+    return None
+
+
+def _sliver_triangle(
+    vertices: Sequence[Vec], faces: Sequence[tuple[int, int, int]], given: Sequence[int]
+) -> str | None:
+    """Why a convex hull has a triangle too thin for the engine, or None: its doubled
+    area below schema.HULL_TRIANGLE_MIN times the hull's size squared (m²; the points
+    are numbered as written)."""
+    lo = [min(v[k] for v in vertices) for k in range(3)]
+    hi = [max(v[k] for v in vertices) for k in range(3)]
+    size = math.dist(lo, hi)  # m
+    for face in faces:
+        a, b, c = (vertices[i] for i in face)
+        u, w = [b[k] - a[k] for k in range(3)], [c[k] - a[k] for k in range(3)]
+        area2 = math.hypot(
+            u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]
+        )
+        if not area2 > schema.HULL_TRIANGLE_MIN * size * size:
+            i, j, k = sorted(given[f] for f in face)
+            return (
+                f"points {i}, {j} and {k} make a face of {area2 / 2:.3g} m², less than "
+                f"{_num(schema.HULL_TRIANGLE_MIN / 2)} of the hull's size squared "
+                f"({size:.3g} m): the points span too many scales for the hull's faces"
+            )
     return None
 
 

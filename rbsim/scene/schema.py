@@ -106,6 +106,10 @@ POLYGON_VERTICES_MAX = 32
 # shapes x substeps x iterations of one step: about 0.25 µs each on one core (a pile
 # with its contacts), so that a step takes a fraction of a second
 WORK_MAX = 1_000_000
+# the same in 3D, where a shape-iteration costs about 16 times more (4.5 µs in a pile of
+# 55 boxes, whose faces hold 4 contact points solved as a block; 0.9 µs among 1,000
+# spheres): a step at the bound takes about 0.3 s
+WORK_MAX_3D = 62_500
 
 # ---------------------------------------------------------------------------------------
 # The table
@@ -505,6 +509,11 @@ SCENE = Key(
 # ---------------------------------------------------------------------------------------
 
 CONVEX_VERTICES_MAX = 256  # points given for one convex hull
+# A hull triangle's doubled area over the square of the hull's size (its bounding box
+# diagonal), at least: the engine's hull builder (cpp/src/collide/hull3d.cpp,
+# PLANE_TOLERANCE) takes a triangle below 1e-9 as degenerate; twice that leaves room for
+# the rounding of the points' shift to the centre of mass.
+HULL_TRIANGLE_MIN = 2e-9
 
 _density3 = Key("number", "Density per volume, kg/m³.", ge=DENSITY_MIN, le=DENSITY_MAX)
 INLINE_MATERIAL_3D = {**INLINE_MATERIAL, "density": _density3}

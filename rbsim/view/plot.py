@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import h5py
 import numpy as np
 
-from ..io.trajectory import frame_count, open_for_reading, read_parameters
+from ..io.trajectory import frame_count, read_parameters, reading
 from .render import RenderError, need_matplotlib
 
 __all__ = ["Observables", "plot_lines", "plot_observables", "read_observables"]
@@ -48,7 +48,7 @@ def read_observables(path: str | os.PathLike) -> Observables:
     if not h5py.is_hdf5(path):
         raise RenderError(f"{path}: not an HDF5 file (rbsim writes .h5 trajectories)")
     try:
-        with open_for_reading(path) as f:
+        with reading(path) as f:  # a damaged file: TrajectoryError, an OSError
             params = read_parameters(f)
             t = frame_count(f, closed=params.get("status", "running") != "running")
             time = np.asarray(f["particles/bodies/position/time"][:t], dtype=float)

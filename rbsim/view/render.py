@@ -21,6 +21,7 @@ import h5py
 import numpy as np
 
 from ..io.trajectory import (
+    DAMAGED,
     BodyTable,
     frame_count,
     open_for_reading,
@@ -130,9 +131,12 @@ class FrameReader:
             else:
                 self.time = np.zeros(0)
                 self.step = np.zeros(0, dtype=np.int64)
-        except (KeyError, ValueError, TypeError, OSError) as err:
+        except (KeyError, ValueError, TypeError, OSError, *DAMAGED) as err:
             self._file.close()
             raise RenderError(f"{self.path}: not an rbsim trajectory ({err})") from None
+        if self._fixed is not None and not all(np.isfinite(a).all() for a in self._fixed):
+            self._file.close()
+            raise RenderError(f"{self.path}: the static bodies' poses are not finite (damaged)")
         if len(self.time) > 1 and np.any(np.diff(self.time) <= 0):
             self._file.close()
             raise RenderError(f"{self.path}: frame times do not increase")
@@ -176,6 +180,16 @@ class FrameReader:
         return self._read(idx)
 
     def _read(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        try:
+            pos, rot = self._read_frames(idx)
+        except (OSError, KeyError, ValueError, *DAMAGED) as err:
+            raise RenderError(f"{self.path}: cannot read frames: {err}") from None
+        if not (np.isfinite(pos).all() and np.isfinite(rot).all()):
+            # rbsim writes finite frames only (a non-finite state fails the run first)
+            raise RenderError(f"{self.path}: a frame holds non-finite values (damaged)")
+        return pos, rot
+
+    def _read_frames(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         lo, hi = int(idx[0]), int(idx[-1]) + 1
         if hi - lo <= 2 * len(idx):  # dense: one slice, then pick
             pos = self._position[lo:hi][idx - lo]
