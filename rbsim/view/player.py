@@ -22,7 +22,16 @@ from importlib import resources
 
 import numpy as np
 
-from .mesh import AMBIENT, FOV, LIGHT, PITCH, YAW, body_meshes, fit_box_shown
+from .mesh import (
+    AMBIENT,
+    FOV,
+    LIGHT,
+    PITCH,
+    YAW,
+    body_meshes,
+    contact_normal_length,
+    fit_box_shown,
+)
 from .render import (
     COLOURS,
     FrameReader,
@@ -121,16 +130,34 @@ def _track(
     }
 
 
+def _contacts_b64(reader: FrameReader, idx: np.ndarray) -> dict[str, object]:
+    """The contact points of frames idx (increasing, distinct) for the page: their count
+    per frame, and frame after frame base64 of float32 [x, y, z, nx, ny, nz] (position
+    m, unit normal; 24 bytes per point)."""
+    count, pos, normal = reader.contacts(idx)
+    rows = np.concatenate([pos, normal], axis=1).astype("<f4")
+    return {
+        "count": [int(c) for c in count],
+        "rows": base64.b64encode(rows.tobytes()).decode("ascii"),
+    }
+
+
 def _track3d(
-    reader: FrameReader, idx: np.ndarray, overlay: bool, progress: Progress | None
+    reader: FrameReader,
+    idx: np.ndarray,
+    overlay: bool,
+    progress: Progress | None,
+    contacts: bool = True,
 ) -> dict[str, object]:
     """One 3D trajectory for the page: its shapes as flat faces in body frames (points
     m to 1e-6 m, their bodies; each face's point indices, counter-clockwise outside,
     their count, and whether its edges are drawn), and the frames as
     base64 of float32 (frame, body, [x, y, z, qw, qx, qy, qz]) (28 bytes per body and
-    frame); idx as for `_track`."""
+    frame); idx as for `_track`. With `contacts` and contact points recorded, also
+    those of the stored frames (`_contacts_b64`)."""
     uniq, inverse = np.unique(idx, return_inverse=True)
     meshes = body_meshes(reader.bodies)
+    extra = {"contacts": _contacts_b64(reader, uniq)} if contacts and reader.has_contacts else {}
     return {
         "label": reader.label,
         "overlay": overlay,
@@ -145,13 +172,15 @@ def _track3d(
         "face_outlined": [int(e) for e in meshes.face_outlined],
         "frame_index": [int(i) for i in inverse],
         "frames": _frames_b64(reader, uniq, progress),
+        **extra,
     }
 
 
 def _scene3d(main: FrameReader, pairs: list[tuple[FrameReader, np.ndarray]]) -> dict[str, object]:
     """The 3D page's camera (the box to show whole: lo and hi corners, m; yaw, pitch,
     fov rad), light (a unit vector towards it, world frame) and ambient brightness, colours,
-    and ground (plane patches and grid lines, world frame, m, flat lists)."""
+    ground (plane patches and grid lines, world frame, m, flat lists), and the length
+    contact normals are drawn with, m."""
     lo, hi = fit_box(pairs)
     ground = ground_for(main, lo, hi)
     shown_lo, shown_hi = fit_box_shown(lo, hi)  # the page fits its distance to its shape
@@ -167,6 +196,7 @@ def _scene3d(main: FrameReader, pairs: list[tuple[FrameReader, np.ndarray]]) -> 
         "ambient": AMBIENT,
         "colours": COLOURS_3D,
         "ground": {"quads": _round(ground.quads), "lines": _round(ground.lines)},
+        "contact_length": contact_normal_length(main.bodies, lo, hi),
     }
 
 
@@ -192,6 +222,7 @@ def render_html(
     start: float | None = None,
     end: float | None = None,
     progress: Progress | None = None,
+    contacts: bool = True,
 ) -> HtmlResult:
     """Write the player page for the trajectory `path` to `output`.
 
@@ -201,8 +232,10 @@ def render_html(
     must be None): shaded shapes over the ground, seen by a camera that orbits with the
     mouse, first fitted to the moving bodies. overlay: a second trajectory drawn over the
     first in its own colour, at the frames nearest in time. start, end: s, the part of
-    the run to store. progress(done, total) is called as frames are read. Raises
-    RenderError (unreadable input) or ValueError (bad argument).
+    the run to store. progress(done, total) is called as frames are read. contacts: a
+    3D run's recorded contact points (output.contacts) go into the page too, shown
+    (as dots with a short line along each normal) until the viewer turns them off.
+    Raises RenderError (unreadable input) or ValueError (bad argument).
     """
     if not 0 < fps <= HTML_MAX_FPS:
         raise ValueError(f"frames per second must lie in (0, {HTML_MAX_FPS:g}], got {fps:g}")
@@ -230,10 +263,14 @@ def render_html(
                     return None
                 return lambda done, _n: progress(offset + done, total)
 
-            track = _track if main.dimension == 2 else _track3d
-            tracks = [track(main, idx, False, step(0))]
-            if other is not None and other_idx is not None:
-                tracks.append(track(other, other_idx, True, step(len(idx))))
+            if main.dimension == 2:
+                tracks = [_track(main, idx, False, step(0))]
+                if other is not None and other_idx is not None:
+                    tracks.append(_track(other, other_idx, True, step(len(idx))))
+            else:
+                tracks = [_track3d(main, idx, False, step(0), contacts)]
+                if other is not None and other_idx is not None:
+                    tracks.append(_track3d(other, other_idx, True, step(len(idx)), contacts))
             data: dict[str, object] = {
                 "version": 1,
                 "scene": main.scene,

@@ -89,7 +89,8 @@ class FrameReader:
     and step (T,) of the frames present, engine ("rbsim" / "pymunk" / ...), scene
     (scene name), status. Use as a context manager; `read(idx)` returns the body
     origins (k,N,D) m and orientations of frames idx: (k,N,2) = (cos θ, sin θ) in 2D,
-    (k,N,4) = (w, x, y, z) in 3D.
+    (k,N,4) = (w, x, y, z) in 3D. has_contacts: the run recorded contact points
+    (output.contacts), which `contacts(idx)` reads.
     """
 
     def __init__(self, path: str | os.PathLike) -> None:
@@ -130,6 +131,10 @@ class FrameReader:
             else:
                 self.time = np.zeros(0)
                 self.step = np.zeros(0, dtype=np.int64)
+            self.has_contacts = "contacts/start" in f
+            if self.has_contacts:
+                self._contact_start = f["contacts/start/value"][:t]
+                self._contact_count = f["contacts/count/value"][:t]
         except (KeyError, ValueError, TypeError, OSError) as err:
             self._file.close()
             raise RenderError(f"{self.path}: not an rbsim trajectory ({err})") from None
@@ -174,6 +179,31 @@ class FrameReader:
             fixed_rot = np.broadcast_to(self._fixed[1], (k, *self._fixed[1].shape))
             return np.concatenate([pos, fixed_pos], 1), np.concatenate([rot, fixed_rot], 1)
         return self._read(idx)
+
+    def contacts(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The contact points of the frames idx (increasing indices into `time`): their
+        number per frame (k,), and, frame after frame, their world positions (K,D) m and
+        unit normals (K,D) (from the first body towards the second). None recorded:
+        no points."""
+        idx = np.asarray(idx, dtype=np.int64)
+        d = self.dimension
+        if not self.has_contacts or not len(idx):
+            return np.zeros(len(idx), np.int64), np.zeros((0, d)), np.zeros((0, d))
+        start, count = self._contact_start[idx], self._contact_count[idx]
+        g = self._file["contacts"]
+        lo, hi = int(start[0]), int(start[-1] + count[-1])
+        if hi - lo <= 2 * int(count.sum()) + 64:  # dense: one slice, then pick
+            rows = np.concatenate([np.arange(a, a + c) for a, c in zip(start, count, strict=True)])
+            pos = g["position"][lo:hi][rows - lo]
+            normal = g["normal"][lo:hi][rows - lo]
+        else:
+            pos = np.concatenate(
+                [g["position"][a : a + c] for a, c in zip(start, count, strict=True)]
+            )
+            normal = np.concatenate(
+                [g["normal"][a : a + c] for a, c in zip(start, count, strict=True)]
+            )
+        return count.astype(np.int64), np.asarray(pos, float), np.asarray(normal, float)
 
     def _read(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         lo, hi = int(idx[0]), int(idx[-1]) + 1
@@ -519,6 +549,7 @@ def render_gif(
     start: float | None = None,
     end: float | None = None,
     progress: Progress | None = None,
+    contacts: bool = True,
 ) -> GifResult:
     """Draw the trajectory `path` into an animated GIF at `output`.
 
@@ -530,7 +561,8 @@ def render_gif(
     moving body over the frames shown (`view` must then be None). start, end: s, the
     part of the run to show. progress(done, total) is called after each frame. Frames
     are drawn and written one at a time (memory does not grow with their number).
-    Raises RenderError.
+    contacts: draw the contact points a 3D run recorded (output.contacts), each a dot
+    with a short line along its normal. Raises RenderError.
     """
     need_matplotlib("rbsim render to a GIF")
     if not 0 < fps <= GIF_MAX_FPS:
@@ -554,8 +586,9 @@ def render_gif(
                 from .render3d import write_gif3d
 
                 camera = write_gif3d(
-                    main, idx, other, other_idx, output, fps, width, height, progress
-                )
+                    main, idx, other, other_idx, output, fps, width, height, progress,
+                    contacts=contacts,
+                )  # fmt: skip
                 duration = float(main.time[idx[-1]] - main.time[idx[0]]) + 1.0 / fps
                 return GifResult(output, len(idx), width, height, None, duration, camera)
             if view is None:

@@ -17,6 +17,7 @@ from .mesh import (
     Ground,
     body_meshes,
     body_reach3d,
+    contact_normal_length,
     fit_camera,
     ground_grid,
     quat_matrix,
@@ -38,13 +39,18 @@ __all__ = [
     "frame_faces",
     "gif_palette3d",
     "clip_near",
+    "contact_pixels",
     "ground_for",
     "shaded_rgb",
     "write_gif3d",
 ]
 
 # Colours of the 3D pictures besides the 2D ones (COLOURS): the ground patch and grid.
-COLOURS_3D = {**COLOURS, "ground_fill": "#eeeeee", "grid": "#b0b0b0"}
+# Contact points (output.contacts) in a red that no body colour has.
+COLOURS_3D = {**COLOURS, "ground_fill": "#eeeeee", "grid": "#b0b0b0", "contact": "#d62728"}
+# Contact points: the dot's diameter and the normal's line width, pixels.
+CONTACT_DOT_PX = 4.0
+CONTACT_LINE_PX = 1.5
 # Brightness steps of each body colour in the GIF palette (3 colours x 60 + the rest
 # fits 256; 60 steps over [AMBIENT, 1] are 1.1% apart, below visible banding).
 SHADE_LEVELS = 60
@@ -81,7 +87,7 @@ def gif_palette3d() -> np.ndarray:
     for kind in ("dynamic", "static", "kinematic"):
         entries += [tuple(c) for c in shaded_rgb(COLOURS_3D[f"{kind}_fill"], steps).tolist()]
     edges = ("dynamic_edge", "static_edge", "kinematic_edge")
-    for key in ("background", "ground_fill", "grid", "text", "overlay_edge", *edges):
+    for key in ("background", "ground_fill", "grid", "text", "overlay_edge", "contact", *edges):
         entries.append(tuple(int(c) for c in _rgb(COLOURS_3D[key])))
     seen: set[tuple[int, int, int]] = set()
     unique = [e for e in entries if not (e in seen or seen.add(e))]
@@ -186,6 +192,21 @@ def clip_near(points: np.ndarray, camera: Camera, closed: bool) -> np.ndarray:
     return np.array(out).reshape(-1, 3)
 
 
+def contact_pixels(
+    pos: np.ndarray, normal: np.ndarray, length: float, camera: Camera, width: int, height: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """One frame's contact points in pixels: the dots (k,2) of the points pos (k,3) m in
+    front of the camera's near plane, and the segments (k,2,2) from each along its unit
+    normal for `length` m (those wholly in front)."""
+    near = NEAR_FRACTION * camera.distance
+    tips = pos + length * normal
+    px, depth = camera.project(pos, width, height)
+    tip_px, tip_depth = camera.project(tips, width, height)
+    seen = depth > near
+    both = seen & (tip_depth > near)
+    return px[seen], np.stack([px[both], tip_px[both]], axis=1)
+
+
 def _ground_pixels(
     camera: Camera, ground: Ground, width: int, height: int
 ) -> tuple[list[np.ndarray], list[np.ndarray]]:
@@ -213,11 +234,14 @@ def write_gif3d(
     width: int,
     height: int,
     progress: Progress | None,
+    contacts: bool = True,
 ) -> Camera:
     """Draw frames idx of the 3D trajectory `main` (and the overlay `other` at frames
     other_idx, as orange wireframes) into the GIF `output`, width x height pixels, each
-    frame shown until the next (fps: frames per second of simulated time). Returns the
-    camera used (fitted to the moving bodies over the frames shown)."""
+    frame shown until the next (fps: frames per second of simulated time); with
+    `contacts`, main's recorded contact points over everything (dots with a short line
+    along each normal, see contact_pixels). Returns the camera used (fitted to the
+    moving bodies over the frames shown)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.collections import LineCollection, PolyCollection
     from matplotlib.figure import Figure
@@ -252,6 +276,18 @@ def write_gif3d(
         [], facecolors="none", edgecolors=COLOURS["overlay_edge"], linewidths=0.7, zorder=3
     )
     ax.add_collection(wire)
+    show_contacts = contacts and main.has_contacts
+    if show_contacts:
+        counts, contact_pos, contact_normal = main.contacts(idx)
+        ends = np.concatenate([[0], np.cumsum(counts)])
+        length = contact_normal_length(main.bodies, lo, hi)
+        colour = COLOURS_3D["contact"]
+        normals = LineCollection([], colors=colour, linewidths=CONTACT_LINE_PX, zorder=4)
+        ax.add_collection(normals)
+        # a marker's size is its area in points² (72 per inch)
+        side = CONTACT_DOT_PX * 72.0 / dpi
+        dots = ax.scatter([], [], s=side * side, c=colour, marker="o", linewidths=0, zorder=5)
+    shown_frame = [0]  # the frame draw() is called for: idx[shown_frame[0]]
     clock = ax.text(
         0.015, 0.975, "", transform=ax.transAxes, ha="left", va="top", family="monospace",
         fontsize=10, color=COLOURS["text"], zorder=10,
@@ -292,6 +328,15 @@ def write_gif3d(
         if other_meshes is not None and other_pose is not None:
             _shown, wire_px, _bright = frame_faces(other_meshes, *other_pose, camera, width, height)
             wire.set_verts(wire_px)
+        if show_contacts:
+            k = shown_frame[0]
+            rows = slice(ends[k], ends[k + 1])
+            at, lines = contact_pixels(
+                contact_pos[rows], contact_normal[rows], length, camera, width, height
+            )
+            dots.set_offsets(at.reshape(-1, 2))
+            normals.set_segments(lines)
+        shown_frame[0] += 1
 
     write_frames(main, idx, other, other_idx, output, gif_palette3d(), fps, canvas, clock, draw,
                  progress)  # fmt: skip
