@@ -509,7 +509,7 @@ def compare(
     "--contacts/--no-contacts",
     default=True,
     show_default=True,
-    help="Draw the contact points a 3D run recorded (output.contacts: points); in a page, "
+    help="Draw the contact points the run recorded (output.contacts: points); in a page, "
     "shown until toggled off.",
 )
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")

@@ -223,7 +223,7 @@ def test_player3d_of_a_real_run_names_each_body_where_the_file_puts_it(tmp_path,
     page.close()
 
 
-CONTACT_RED = (0xD6, 0x27, 0x28)  # COLOURS_3D["contact"]
+CONTACT_RED = (0xCC, 0x00, 0x00)  # COLOURS["contact"]
 
 
 def red_pixels(image: np.ndarray) -> np.ndarray:

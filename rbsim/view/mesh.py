@@ -26,7 +26,6 @@ __all__ = [
     "Ground",
     "body_meshes",
     "body_reach3d",
-    "contact_normal_length",
     "fit_box_shown",
     "fit_camera",
     "fit_distance",
@@ -330,17 +329,6 @@ def body_reach3d(bodies: BodyTable) -> np.ndarray:
             b = int(bodies.shape_body[s])
             reach[b] = max(reach[b], r)
     return reach
-
-
-def contact_normal_length(bodies: BodyTable, lo: np.ndarray, hi: np.ndarray) -> float:
-    """m: how long the pictures draw a contact point's normal: half the median reach of
-    the moving bodies (short beside a body), else 5% of the diagonal of the box [lo, hi]
-    shown."""
-    reach = body_reach3d(bodies)
-    moving = reach[(np.array(bodies.type, dtype=object) != "static") & (reach > 0)]
-    if len(moving):
-        return 0.5 * float(np.median(moving))
-    return 0.05 * float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
 
 
 # ---------------------------------------------------------------------------------------

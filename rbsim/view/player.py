@@ -29,7 +29,7 @@ from .mesh import (
     PITCH,
     YAW,
     body_meshes,
-    contact_normal_length,
+    body_reach3d,
     fit_box_shown,
 )
 from .render import (
@@ -38,7 +38,9 @@ from .render import (
     Progress,
     RenderError,
     View,
+    body_reach,
     check_dimensions,
+    contact_normal_length,
     fit_view,
     match_frames,
     no_frames_message,
@@ -114,11 +116,17 @@ def _frames_b64(reader: FrameReader, idx: np.ndarray, progress: Progress | None)
 
 
 def _track(
-    reader: FrameReader, idx: np.ndarray, overlay: bool, progress: Progress | None
+    reader: FrameReader,
+    idx: np.ndarray,
+    overlay: bool,
+    progress: Progress | None,
+    contacts: bool = True,
 ) -> dict[str, object]:
     """One trajectory for the page; idx: the track frame shown at each player frame
-    (non-decreasing, repeats allowed; only the distinct frames are stored)."""
+    (non-decreasing, repeats allowed; only the distinct frames are stored). With
+    `contacts` and contact points recorded, also those of the stored frames."""
     uniq, inverse = np.unique(idx, return_inverse=True)
+    extra = {"contacts": _contacts_b64(reader, uniq)} if contacts and reader.has_contacts else {}
     return {
         "label": reader.label,
         "overlay": overlay,
@@ -127,13 +135,14 @@ def _track(
         **_shapes(reader),
         "frame_index": [int(i) for i in inverse],
         "frames": _frames_b64(reader, uniq, progress),
+        **extra,
     }
 
 
 def _contacts_b64(reader: FrameReader, idx: np.ndarray) -> dict[str, object]:
     """The contact points of frames idx (increasing, distinct) for the page: their count
     per frame, and frame after frame base64 of float32 [x, y, z, nx, ny, nz] (position
-    m, unit normal; 24 bytes per point)."""
+    m, unit normal; 24 bytes per point; in 2D [x, y, nx, ny], 16 bytes)."""
     count, pos, normal = reader.contacts(idx)
     rows = np.concatenate([pos, normal], axis=1).astype("<f4")
     return {
@@ -196,7 +205,9 @@ def _scene3d(main: FrameReader, pairs: list[tuple[FrameReader, np.ndarray]]) -> 
         "ambient": AMBIENT,
         "colours": COLOURS_3D,
         "ground": {"quads": _round(ground.quads), "lines": _round(ground.lines)},
-        "contact_length": contact_normal_length(main.bodies, lo, hi),
+        "contact_length": contact_normal_length(
+            body_reach3d(main.bodies), main.bodies.type, lo, hi
+        ),
     }
 
 
@@ -232,8 +243,8 @@ def render_html(
     must be None): shaded shapes over the ground, seen by a camera that orbits with the
     mouse, first fitted to the moving bodies. overlay: a second trajectory drawn over the
     first in its own colour, at the frames nearest in time. start, end: s, the part of
-    the run to store. progress(done, total) is called as frames are read. contacts: a
-    3D run's recorded contact points (output.contacts) go into the page too, shown
+    the run to store. progress(done, total) is called as frames are read. contacts: the
+    run's recorded contact points (output.contacts) go into the page too, shown
     (as dots with a short line along each normal) until the viewer turns them off.
     Raises RenderError (unreadable input) or ValueError (bad argument).
     """
@@ -263,14 +274,10 @@ def render_html(
                     return None
                 return lambda done, _n: progress(offset + done, total)
 
-            if main.dimension == 2:
-                tracks = [_track(main, idx, False, step(0))]
-                if other is not None and other_idx is not None:
-                    tracks.append(_track(other, other_idx, True, step(len(idx))))
-            else:
-                tracks = [_track3d(main, idx, False, step(0), contacts)]
-                if other is not None and other_idx is not None:
-                    tracks.append(_track3d(other, other_idx, True, step(len(idx)), contacts))
+            track = _track if main.dimension == 2 else _track3d
+            tracks = [track(main, idx, False, step(0), contacts)]
+            if other is not None and other_idx is not None:
+                tracks.append(track(other, other_idx, True, step(len(idx)), contacts))
             data: dict[str, object] = {
                 "version": 1,
                 "scene": main.scene,
@@ -280,6 +287,9 @@ def render_html(
                 assert view is not None
                 data["view"] = [view.x0, view.y0, view.x1, view.y1]
                 data["colours"] = COLOURS
+                lo, hi = np.array([view.x0, view.y0]), np.array([view.x1, view.y1])
+                reach = body_reach(main.bodies)
+                data["contact_length"] = contact_normal_length(reach, main.bodies.type, lo, hi)
             else:
                 data.update(_scene3d(main, pairs))
             data["tracks"] = tracks

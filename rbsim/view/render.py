@@ -31,7 +31,9 @@ from ..io.trajectory import (
 from .mesh import Camera
 
 if TYPE_CHECKING:  # matplotlib is optional (the plot extra): types only
+    from matplotlib.axes import Axes
     from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.collections import LineCollection, PathCollection
     from matplotlib.text import Text
 
 __all__ = [
@@ -68,7 +70,11 @@ COLOURS = {
     "kinematic_edge": "#336633",
     "overlay_edge": "#ff6600",
     "text": "#000000",
+    "contact": "#cc0000",  # contact points (output.contacts): a red no body has
 }
+# Contact points in the GIFs: the dot's diameter and the normal's line width, pixels.
+CONTACT_DOT_PX = 4.0
+CONTACT_LINE_PX = 1.5
 
 
 class RenderError(Exception):
@@ -277,6 +283,47 @@ def body_reach(bodies: BodyTable) -> np.ndarray:
             b = bodies.shape_body[s]
             reach[b] = max(reach[b], r)
     return reach
+
+
+def contact_normal_length(
+    reach: np.ndarray, types: list[str], lo: np.ndarray, hi: np.ndarray
+) -> float:
+    """m: how long the pictures draw a contact point's normal: half the median reach
+    (body_reach, body_reach3d) of the moving bodies, short beside a body; else 5% of the
+    diagonal of the region [lo, hi] shown."""
+    moving = reach[(np.array(types, dtype=object) != "static") & (reach > 0)]
+    if len(moving):
+        return 0.5 * float(np.median(moving))
+    return 0.05 * float(np.linalg.norm(np.asarray(hi, float) - np.asarray(lo, float)))
+
+
+class FrameContacts:
+    """The contact points of frames idx of `reader` (FrameReader.contacts), handed out
+    frame by frame in that order: `next()` gives the next frame's positions (k,D) m and
+    unit normals (k,D)."""
+
+    def __init__(self, reader: FrameReader, idx: np.ndarray) -> None:
+        counts, self.position, self.normal = reader.contacts(idx)
+        self.ends = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        self.k = 0
+
+    def next(self) -> tuple[np.ndarray, np.ndarray]:
+        rows = slice(int(self.ends[self.k]), int(self.ends[self.k + 1]))
+        self.k += 1
+        return self.position[rows], self.normal[rows]
+
+
+def contact_artists(ax: Axes, dpi: float) -> tuple[LineCollection, PathCollection]:
+    """The GIF's contact artists on `ax`, over everything: the normals' lines and the
+    dots (set their segments and offsets per frame)."""
+    from matplotlib.collections import LineCollection
+
+    colour = COLOURS["contact"]
+    normals = LineCollection([], colors=colour, linewidths=CONTACT_LINE_PX, zorder=4)
+    ax.add_collection(normals)
+    side = CONTACT_DOT_PX * 72.0 / dpi  # a marker's size is its area in points²
+    dots = ax.scatter([], [], s=side * side, c=colour, marker="o", linewidths=0, zorder=5)
+    return normals, dots
 
 
 @dataclass(frozen=True)
@@ -561,7 +608,7 @@ def render_gif(
     moving body over the frames shown (`view` must then be None). start, end: s, the
     part of the run to show. progress(done, total) is called after each frame. Frames
     are drawn and written one at a time (memory does not grow with their number).
-    contacts: draw the contact points a 3D run recorded (output.contacts), each a dot
+    contacts: draw the contact points the run recorded (output.contacts), each a dot
     with a short line along its normal. Raises RenderError.
     """
     need_matplotlib("rbsim render to a GIF")
@@ -597,7 +644,9 @@ def render_gif(
                     pairs.append((other, np.unique(other_idx)))
                 view = fit_view(pairs)
             view = view.with_aspect(width, height)
-            _write_gif(main, idx, other, other_idx, output, fps, width, height, view, progress)
+            _write_gif(
+                main, idx, other, other_idx, output, fps, width, height, view, progress, contacts
+            )
         finally:
             if other is not None:
                 other.close()
@@ -642,6 +691,7 @@ def _write_gif(
     height: int,
     view: View,
     progress: Progress | None,
+    contacts: bool = True,
 ) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.collections import LineCollection, PolyCollection
@@ -686,6 +736,11 @@ def _write_gif(
 
     update_main = artists(main, overlay=False)
     update_other = artists(other, overlay=True) if other is not None else None
+    points = FrameContacts(main, idx) if contacts and main.has_contacts else None
+    if points is not None:
+        normals, dots = contact_artists(ax, dpi)
+        lo, hi = np.array([view.x0, view.y0]), np.array([view.x1, view.y1])
+        length = contact_normal_length(body_reach(main.bodies), main.bodies.type, lo, hi)
     clock = ax.text(
         0.015,
         0.975,
@@ -726,6 +781,10 @@ def _write_gif(
         update_main(pos, rot)
         if update_other is not None and other_pose is not None:
             update_other(*other_pose)
+        if points is not None:  # world coordinates: the axes are the view, m
+            at, normal = points.next()
+            dots.set_offsets(at.reshape(-1, 2))
+            normals.set_segments(np.stack([at, at + length * normal], axis=1))
 
     write_frames(main, idx, other, other_idx, output, gif_palette(), fps, canvas, clock, draw,
                  progress)  # fmt: skip

@@ -17,7 +17,6 @@ from .mesh import (
     Ground,
     body_meshes,
     body_reach3d,
-    contact_normal_length,
     fit_camera,
     ground_grid,
     quat_matrix,
@@ -25,9 +24,12 @@ from .mesh import (
 )
 from .render import (
     COLOURS,
+    FrameContacts,
     FrameReader,
     Pose,
     Progress,
+    contact_artists,
+    contact_normal_length,
     gif_palette,
     write_frames,
 )
@@ -46,11 +48,7 @@ __all__ = [
 ]
 
 # Colours of the 3D pictures besides the 2D ones (COLOURS): the ground patch and grid.
-# Contact points (output.contacts) in a red that no body colour has.
-COLOURS_3D = {**COLOURS, "ground_fill": "#eeeeee", "grid": "#b0b0b0", "contact": "#d62728"}
-# Contact points: the dot's diameter and the normal's line width, pixels.
-CONTACT_DOT_PX = 4.0
-CONTACT_LINE_PX = 1.5
+COLOURS_3D = {**COLOURS, "ground_fill": "#eeeeee", "grid": "#b0b0b0"}
 # Brightness steps of each body colour in the GIF palette (3 colours x 60 + the rest
 # fits 256; 60 steps over [AMBIENT, 1] are 1.1% apart, below visible banding).
 SHADE_LEVELS = 60
@@ -276,18 +274,10 @@ def write_gif3d(
         [], facecolors="none", edgecolors=COLOURS["overlay_edge"], linewidths=0.7, zorder=3
     )
     ax.add_collection(wire)
-    show_contacts = contacts and main.has_contacts
-    if show_contacts:
-        counts, contact_pos, contact_normal = main.contacts(idx)
-        ends = np.concatenate([[0], np.cumsum(counts)])
-        length = contact_normal_length(main.bodies, lo, hi)
-        colour = COLOURS_3D["contact"]
-        normals = LineCollection([], colors=colour, linewidths=CONTACT_LINE_PX, zorder=4)
-        ax.add_collection(normals)
-        # a marker's size is its area in points² (72 per inch)
-        side = CONTACT_DOT_PX * 72.0 / dpi
-        dots = ax.scatter([], [], s=side * side, c=colour, marker="o", linewidths=0, zorder=5)
-    shown_frame = [0]  # the frame draw() is called for: idx[shown_frame[0]]
+    points = FrameContacts(main, idx) if contacts and main.has_contacts else None
+    if points is not None:
+        normals, dots = contact_artists(ax, dpi)
+        length = contact_normal_length(body_reach3d(main.bodies), main.bodies.type, lo, hi)
     clock = ax.text(
         0.015, 0.975, "", transform=ax.transAxes, ha="left", va="top", family="monospace",
         fontsize=10, color=COLOURS["text"], zorder=10,
@@ -328,15 +318,10 @@ def write_gif3d(
         if other_meshes is not None and other_pose is not None:
             _shown, wire_px, _bright = frame_faces(other_meshes, *other_pose, camera, width, height)
             wire.set_verts(wire_px)
-        if show_contacts:
-            k = shown_frame[0]
-            rows = slice(ends[k], ends[k + 1])
-            at, lines = contact_pixels(
-                contact_pos[rows], contact_normal[rows], length, camera, width, height
-            )
+        if points is not None:
+            at, lines = contact_pixels(*points.next(), length, camera, width, height)
             dots.set_offsets(at.reshape(-1, 2))
             normals.set_segments(lines)
-        shown_frame[0] += 1
 
     write_frames(main, idx, other, other_idx, output, gif_palette3d(), fps, canvas, clock, draw,
                  progress)  # fmt: skip
