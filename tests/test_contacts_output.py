@@ -167,3 +167,17 @@ def test_an_interrupted_run_resumes_to_the_same_contacts(tmp_path) -> None:
 def test_the_option_is_checked_like_any_key() -> None:
     with pytest.raises(rbsim.scene.SceneError, match="output.contacts"):
         load_scene_text(BOX_ON_PLANE.replace("contacts: points", "contacts: yes"), "<s>")
+
+
+@pytest.mark.parametrize("compression", ["none", "gzip"])
+def test_a_run_without_any_contact_records_an_empty_table(compression: str) -> None:
+    ball = {
+        "version": 1,
+        "world": {"steps": 30},
+        "output": {"contacts": "points", "compression": compression},
+        "bodies": [{"shape": {"circle": {"radius": 1}}}],
+    }
+    c = rbsim.run(ball).contacts
+    assert c is not None
+    assert np.array_equal(c.count, np.zeros(31)) and np.array_equal(c.start, np.zeros(31))
+    assert c.position.shape == (0, 2) and c.body.shape == (0, 2) and c.force.shape == (0,)

@@ -1148,6 +1148,8 @@ def _status_bytes(status: str) -> bytes:
 
 def _pwrite_all(fd: int, data: np.ndarray, offset: int, path: str) -> None:
     """Write all of data's bytes at offset (os.pwrite may write fewer)."""
+    if data.size == 0:  # a frame block without contact points, say
+        return
     view = memoryview(np.ascontiguousarray(data)).cast("B")
     while len(view):
         n = os.pwrite(fd, view, offset)
