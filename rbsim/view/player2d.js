@@ -5,14 +5,8 @@
   // contacts (when the run recorded them): per stored frame its points' count and first
   // row, and rows: Float32Array of (point, [x, y, nx, ny]) (m; unit normal).
   const tracks = data.tracks.map(function (t) {
-    let contacts = null;
-    if (t.contacts) {
-      const count = t.contacts.count, start = new Int32Array(count.length);
-      for (let i = 1; i < count.length; i++) start[i] = start[i - 1] + count[i - 1];
-      contacts = { count: count, start: start, rows: floats(t.contacts.rows) };
-    }
     return {
-      contacts: contacts,
+      contacts: contactTable(t.contacts),
       label: t.label, names: t.names, types: t.types, overlay: t.overlay, n: t.names.length,
       frames: floats(t.frames),
       frameIndex: t.frame_index,  // track frame shown at each player frame
@@ -107,7 +101,6 @@
   }
 
 
-  const CONTACT_DOT = 2.5;  // px, the radius of a contact point's dot
   // The contact points of track t at the current frame on the screen: [dots [x, y],
   // normals [x0, y0, x1, y1]] (CSS pixels; a normal data.contact_length m long).
   function contactPixels(t) {
@@ -122,23 +115,9 @@
     }
     return [dots, normals];
   }
-  // Every track's contact points over the bodies: lines along the normals, then dots.
-  function drawContacts() {
-    const lines = new Path2D(), dots = new Path2D();
-    for (const t of tracks) {
-      const px = contactPixels(t);
-      for (const d of px[0]) { dots.moveTo(d[0] + CONTACT_DOT, d[1]); dots.arc(d[0], d[1], CONTACT_DOT, 0, 2 * Math.PI); }
-      for (const n of px[1]) { lines.moveTo(n[0], n[1]); lines.lineTo(n[2], n[3]); }
-    }
-    ctx.strokeStyle = ctx.fillStyle = colours.contact;
-    ctx.lineWidth = 1.5;
-    ctx.stroke(lines);
-    ctx.fill(dots);
-  }
 
   function drawScene() {
     for (const t of tracks) drawTrack(t);
-    if (contactsBox.checked) drawContacts();
   }
 
   // --- hit testing for names on hover -------------------------------------------------
@@ -210,13 +189,5 @@
   }
   const viewApi = {
     worldToScreen: worldToScreen,
-    // the contact points drawn at the current frame (none while they are hidden), per
-    // track: {dots: [[x, y], ...], normals: [[x0, y0, x1, y1], ...]}, CSS pixels
-    contactsDrawn: function () {
-      return tracks.map(function (t) {
-        const px = contactsBox.checked ? contactPixels(t) : [[], []];
-        return { dots: px[0], normals: px[1] };
-      });
-    },
     bodyName: function (wx, wy) { const h = hit(wx, wy); return h ? h[0].names[h[1]] : null; },
   };

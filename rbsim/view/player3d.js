@@ -41,22 +41,15 @@
       faceBody[i] = ptBody[faces[faceStart[i]]];
     }
     const p = pts.length / 3;
-    let contacts = null;
-    if (t.contacts) {
-      const count = t.contacts.count, start = new Int32Array(count.length);
-      for (let i = 1; i < count.length; i++) start[i] = start[i - 1] + count[i - 1];
-      contacts = { count: count, start: start, rows: floats(t.contacts.rows) };
-    }
     return {
       label: t.label, names: t.names, types: t.types, overlay: t.overlay, n: t.names.length,
       frames: floats(t.frames), frameIndex: t.frame_index,
       pts: pts, ptBody: ptBody, faces: faces, faceStart: faceStart, faceBody: faceBody,
       outlined: Uint8Array.from(t.face_outlined),
       world: new Float64Array(3 * p), scr: new Float64Array(2 * p), depth: new Float64Array(p),
-      contacts: contacts,
+      contacts: contactTable(t.contacts),
     };
   });
-  const CONTACT_DOT = 2.5;  // px, the radius of a contact point's dot
 
   // Camera: orbits `target` (m) at `distance` m, turned `yaw` rad about y from +z and
   // raised `pitch` rad above the horizontal; `fov` the vertical field of view, rad.
@@ -234,6 +227,7 @@
   function contactPixels(t) {
     const c = t.contacts, dots = [], normals = [];
     if (!c) return [dots, normals];
+    updateBasis();
     const k = t.frameIndex[frame], rows = c.rows, len = data.contact_length;
     for (let i = c.start[k], end = c.start[k] + c.count[k]; i < end; i++) {
       const o = 6 * i, x = rows[o], y = rows[o + 1], z = rows[o + 2];
@@ -244,20 +238,6 @@
       if (q[2] > near) normals.push([p[0], p[1], q[0], q[1]]);
     }
     return [dots, normals];
-  }
-  // Every track's contact points over the picture (they lie between bodies, where faces
-  // would hide them): short lines along the normals, then the dots.
-  function drawContacts() {
-    const lines = new Path2D(), dots = new Path2D();
-    for (const t of tracks) {
-      const px = contactPixels(t);
-      for (const d of px[0]) { dots.moveTo(d[0] + CONTACT_DOT, d[1]); dots.arc(d[0], d[1], CONTACT_DOT, 0, 2 * Math.PI); }
-      for (const n of px[1]) { lines.moveTo(n[0], n[1]); lines.lineTo(n[2], n[3]); }
-    }
-    ctx.strokeStyle = ctx.fillStyle = colours.contact;
-    ctx.lineWidth = 1.5;
-    ctx.stroke(lines);
-    ctx.fill(dots);
   }
 
   function drawScene() {
@@ -294,7 +274,6 @@
         ctx.stroke();
       }
     }
-    if (contactsBox.checked) drawContacts();
   }
 
   // --- names on hover: the nearest drawn face under the pointer --------------------------
@@ -353,14 +332,5 @@
     bodyAt: function (px, py) { const h = hitAt(px, py); return h ? h[0].names[h[1]] : null; },
     camera: function () { return JSON.parse(JSON.stringify(cam)); },
     setCamera: function (c) { Object.assign(cam, c); draw(); },
-    // the contact points drawn at the current frame (none while they are hidden), per
-    // track: {dots: [[x, y], ...], normals: [[x0, y0, x1, y1], ...]}, CSS pixels
-    contactsDrawn: function () {
-      updateBasis();
-      return tracks.map(function (t) {
-        const px = contactsBox.checked ? contactPixels(t) : [[], []];
-        return { dots: px[0], normals: px[1] };
-      });
-    },
     colours: colours,
   };
