@@ -505,6 +505,13 @@ def compare(
 )
 @click.option("--start", type=float, metavar="SECONDS", help="Show from this time on, s.")
 @click.option("--end", type=float, metavar="SECONDS", help="Show up to this time, s.")
+@click.option(
+    "--contacts/--no-contacts",
+    default=True,
+    show_default=True,
+    help="Draw the contact points the run recorded (output.contacts: points); in a page, "
+    "shown until toggled off.",
+)
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 def render(
     trajectory: str,
@@ -515,6 +522,7 @@ def render(
     overlay: str | None,
     start: float | None,
     end: float | None,
+    contacts: bool,
     quiet: bool,
 ) -> None:
     """Draw TRAJECTORY into an animated GIF or a self-contained HTML player."""
@@ -546,7 +554,7 @@ def render(
         if kind == ".gif":
             result = render_gif(
                 trajectory, out, fps=fps, size=size, view=chosen, overlay=overlay,
-                start=start, end=end, progress=progress,
+                start=start, end=end, progress=progress, contacts=contacts,
             )  # fmt: skip
             line = f"{result.frames} frames, {result.width}x{result.height} px"
         else:
@@ -554,7 +562,7 @@ def render(
 
             page = render_html(
                 trajectory, out, fps=fps, view=chosen, overlay=overlay, start=start, end=end,
-                progress=progress,
+                progress=progress, contacts=contacts,
             )  # fmt: skip
             line = f"{page.frames} frames of {page.bodies} bodies, {page.size / 2**20:.1f} MiB"
     except RenderError as err:

@@ -25,6 +25,8 @@ CONSTANTS: dict = dict(_core.constants)
 NON_FINITE: int = _core.NON_FINITE
 # advance_recording's status when a signal handler raised between two steps
 INTERRUPTED: int = _core.INTERRUPTED
+# advance_recording's status when a frame's contact points did not fit in the block
+CONTACTS_FULL: int = _core.CONTACTS_FULL
 # m: a body farther from the origin along any axis ends the run (cpp/include/rbsim/world.hpp)
 POSITION_LIMIT: float = float(_core.POSITION_LIMIT)
 # the most threads a world steps on (solver.threads; rbsim.scene.schema.THREADS_MAX)

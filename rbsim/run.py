@@ -337,6 +337,16 @@ def _writer(
     """The trajectory writer of a run of `scene` (its output options) into `path`,
     keeping the first `keep` frames of the file there (resume)."""
     bodies, select, fixed = output_layout(scene, world)
+    contacts = scene.output.contacts == "points" and world.records_contacts
+    contact_bodies = None
+    if contacts and select is not None:
+        # a contact names its bodies by their rows in the file: the bodies written in
+        # every frame, then the static ones stored once, -1 for one not stored
+        contact_bodies = np.full(len(scene.bodies), -1, np.int64)
+        contact_bodies[select] = np.arange(len(select))
+        if fixed is not None:
+            rows = [i for i, b in enumerate(scene.bodies) if b.name in set(fixed.bodies.name)]
+            contact_bodies[rows] = len(select) + np.arange(len(rows))
     return TrajectoryWriter(
         path,
         bodies=bodies,
@@ -351,6 +361,8 @@ def _writer(
         fixed=fixed,
         observables=observables_spec(dimension(scene)),
         keep=keep,
+        contacts=contacts,
+        contact_bodies=contact_bodies,
     )
 
 

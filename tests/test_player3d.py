@@ -221,3 +221,66 @@ def test_player3d_of_a_real_run_names_each_body_where_the_file_puts_it(tmp_path,
         assert page.evaluate(f"window.rbsimPlayer.bodyAt({col}, {row})") == name
     assert errors == []
     page.close()
+
+
+CONTACT_RED = (0xCC, 0x00, 0x00)  # COLOURS["contact"]
+
+
+def red_pixels(image: np.ndarray) -> np.ndarray:
+    """Where the canvas shows the contact colour (antialiased edges aside)."""
+    return (np.abs(image - np.array(CONTACT_RED)) <= 12).all(axis=2)
+
+
+def test_player3d_shows_recorded_contact_points_and_toggles_them(tmp_path, browser):
+    from rbsim.io.trajectory import load_trajectory
+    from tests.test_contacts_output import BOX_ON_PLANE
+
+    scene = tmp_path / "box.yaml"
+    scene.write_text(BOX_ON_PLANE)
+    run, page_path = tmp_path / "box.h5", tmp_path / "box.html"
+    assert rbsim("run", scene, "-o", run, "-q")[0] == 0
+    code, _, err = rbsim("render", run, "-o", page_path, "--fps", "20")
+    assert code == 0, err
+    contacts = load_trajectory(run).contacts
+    page, errors = open_page(browser, page_path)
+    player = "window.rbsimPlayer"
+    assert page.evaluate(f"{player}.contactsRecorded") is True
+    assert page.evaluate(f"{player}.contactsShown()") is True  # on when recorded
+    assert page.locator("#contacts-toggle").is_visible()
+    # frame 0 (step 0) has none; the last frame the box's four corners on the plane
+    page.evaluate(f"{player}.setFrame(0)")
+    assert page.evaluate(f"{player}.contactsDrawn()[0].dots") == []
+    assert not red_pixels(canvas_image(page)).any()
+    last = page.evaluate(f"{player}.frameCount") - 1
+    page.evaluate(f"{player}.setFrame({last})")
+    drawn = page.evaluate(f"{player}.contactsDrawn()[0]")
+    rows = contacts.frame(len(contacts.count) - 1)
+    expected = [screen(page, p) for p in contacts.position[rows]]
+    assert len(drawn["dots"]) == 4 and len(drawn["normals"]) == 4
+    # each dot where the page projects its recorded point (float32 in the page: 1e-7 m)
+    assert np.allclose(sorted(drawn["dots"]), sorted(expected), atol=1e-3)
+    # the normals point up: their tips are higher on the screen than the dots
+    assert all(n[3] < n[1] for n in drawn["normals"])
+    image = canvas_image(page)
+    for x, y in drawn["dots"]:  # a red dot at each (3 px radius about its centre)
+        patch = red_pixels(image[int(y) - 2 : int(y) + 3, int(x) - 2 : int(x) + 3])
+        assert patch.mean() > 0.5, (x, y)
+    # the toggle hides them, the key c shows them again
+    page.locator("#contacts").click()
+    assert page.evaluate(f"{player}.contactsShown()") is False
+    page.wait_for_timeout(100)  # one animation frame to redraw
+    assert not red_pixels(canvas_image(page)).any()
+    assert page.evaluate(f"{player}.contactsDrawn()[0].dots") == []
+    page.keyboard.press("c")  # the checkbox still has the focus: it passes keys on
+    page.wait_for_timeout(100)
+    assert page.evaluate(f"{player}.contactsShown()") is True
+    assert red_pixels(canvas_image(page)).sum() > 20
+    assert errors == []
+    page.close()
+
+
+def test_player3d_has_no_contact_toggle_without_contacts(brick_page):
+    page, errors = brick_page
+    assert page.evaluate("window.rbsimPlayer.contactsRecorded") is False
+    assert not page.locator("#contacts-toggle").is_visible()
+    assert errors == []

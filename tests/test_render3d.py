@@ -400,3 +400,38 @@ def test_clip_near_keeps_the_part_of_the_ground_in_front_of_the_camera():
     line = clip_near(square[[1, 2]], camera, closed=False)
     np.testing.assert_allclose(line, [[1, 0, -5], [1, 0, 10 - near]], rtol=1e-12)
     assert len(clip_near(square + [0, 0, 20], camera, closed=True)) == 0  # all behind
+
+
+def test_gif_3d_draws_the_recorded_contact_points_and_leaves_them_out_when_asked(tmp_path):
+    from rbsim.io.trajectory import load_trajectory
+    from tests.test_contacts_output import BOX_ON_PLANE
+
+    scene = tmp_path / "box.yaml"
+    scene.write_text(BOX_ON_PLANE)
+    run = tmp_path / "box.h5"
+    assert rbsim("run", scene, "-o", run, "-q")[0] == 0
+    contacts = load_trajectory(run).contacts
+    size = (400, 300)
+    gif, plain = tmp_path / "box.gif", tmp_path / "plain.gif"
+    code, _, err = rbsim("render", run, "-o", gif, "--fps", "20", "--size", *map(str, size))
+    assert code == 0, err
+    code, _, err = rbsim("render", run, "-o", plain, "--fps", "20", "--size", "400", "300",
+                         "--no-contacts")  # fmt: skip
+    assert code == 0, err
+    camera = render_gif(run, tmp_path / "again.gif", fps=20, size=size).camera
+    red = np.array([int(COLOURS_3D["contact"][i : i + 2], 16) for i in (1, 3, 5)])
+    frames, without = frames_rgb(gif), frames_rgb(plain)
+    is_red = [(f == red).all(axis=2) for f in frames]
+    assert not is_red[0].any()  # step 0: no contact yet
+    # the last frame (the last step, 0.6 s): a dot at each of the four corners' points
+    rows = contacts.frame(len(contacts.count) - 1)
+    for point in contacts.position[rows]:
+        col, row = pixel_of(camera, size, point)
+        assert is_red[-1][row - 1 : row + 2, col - 1 : col + 2].any(), (point, col, row)
+    # and the normals' lines up from them: red above each dot (rows decrease upwards)
+    for point in contacts.position[rows]:
+        col, row = pixel_of(camera, size, point + [0.0, 0.15, 0.0])
+        assert is_red[-1][row - 1 : row + 2, col - 1 : col + 2].any(), (point, col, row)
+    # --no-contacts: no red anywhere, and the same picture otherwise
+    assert not any((f == red).all(axis=2).any() for f in without)
+    assert (frames[-1] != without[-1]).any(axis=2).mean() < 0.01

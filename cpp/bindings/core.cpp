@@ -561,6 +561,9 @@ class SignalPoll {
 
 // advance_recording's status when a signal handler raised (not an engine Status)
 constexpr int INTERRUPTED = 100;
+// advance_recording's status when a frame's contact points did not fit in the block's
+// contact rows: the step is taken, its frame not recorded (grow the rows, then record)
+constexpr int CONTACTS_FULL = 101;
 
 // A block's arrays for a world of dimension D, as pointers at row 0.
 template <int D>
@@ -570,7 +573,27 @@ struct Block {
   double* time = nullptr;
   FrameRow<D> base;  // pointers at row 0
   std::int64_t n = 0;
+  // the contact points (output.contacts): per frame its first row and count (B,), and
+  // the rows of every frame in the block, C of them from row 0
+  std::int64_t* contact_start = nullptr;
+  std::int64_t* contact_points = nullptr;
+  ContactRows<D> contacts;  // at row 0, capacity C
 };
+
+// A contact row array of the block: (C, *trailing), C the same for all of them.
+template <class S>
+S* contact_array(nb::dict d, const char* key, std::int64_t trailing, std::int64_t& rows) {
+  if (!d.contains(key)) return nullptr;
+  nb::ndarray<nb::c_contig, nb::device::cpu> a;
+  if (!nb::try_cast(d[key], a)) throw std::invalid_argument(std::string("block ") + key + ": not a C-contiguous array");
+  if (a.dtype() != nb::dtype<S>()) throw std::invalid_argument(std::string("block ") + key + ": wrong dtype");
+  if (a.ndim() != (trailing == 1 ? 1u : 2u) || (trailing != 1 && static_cast<std::int64_t>(a.shape(1)) != trailing))
+    throw std::invalid_argument(std::string("block ") + key + ": wrong shape");
+  const auto c = static_cast<std::int64_t>(a.shape(0));
+  if (rows >= 0 && c != rows) throw std::invalid_argument(std::string("block ") + key + ": rows differ from the other contact arrays'");
+  rows = c;
+  return static_cast<S*>(a.data());
+}
 
 template <class S, int D>
 S* block_array(nb::dict d, const char* key, Block<D>& b, std::vector<std::int64_t> trailing) {
@@ -602,7 +625,10 @@ std::vector<std::int64_t> per_frame(int k) {
 // (B,N,D), orientation (B,N,2) / (B,N,4), angular_velocity (B,N) / (B,N,3), in 2D angle
 // (B,N), in 3D body_angular_momentum (B,N,3), all float64; kinetic_energy,
 // potential_energy (B,), linear_momentum (B,D), angular_momentum (B,) / (B,3) float64;
-// contact_count (B,) int64.
+// contact_count (B,) int64. With contact points (output.contacts): contact_start and
+// contact_points (B,) int64, each frame's first row and count (filled by the recorder),
+// and the rows, C of them: contact_body (C,2) int64, contact_position and contact_normal
+// (C,D), contact_force (C,) float64 (record_contacts).
 template <int D>
 Block<D> make_block(World<D>& w, nb::dict d) {
   using Wd = FrameWidth<D>;
@@ -623,13 +649,43 @@ Block<D> make_block(World<D>& w, nb::dict d) {
   b.base.linear_momentum = block_array<double>(d, "linear_momentum", b, {Wd::vec});
   b.base.angular_momentum = block_array<double>(d, "angular_momentum", b, per_frame(Wd::ang));
   b.base.contact_count = block_array<std::int64_t>(d, "contact_count", b, {});
+  b.contact_start = block_array<std::int64_t>(d, "contact_start", b, {});
+  b.contact_points = block_array<std::int64_t>(d, "contact_points", b, {});
+  if ((b.contact_start == nullptr) != (b.contact_points == nullptr))
+    throw std::invalid_argument("block contact_start and contact_points: give both or neither");
+  std::int64_t c = -1;
+  b.contacts.body = contact_array<std::int64_t>(d, "contact_body", 2, c);
+  b.contacts.position = contact_array<double>(d, "contact_position", D, c);
+  b.contacts.normal = contact_array<double>(d, "contact_normal", D, c);
+  b.contacts.force = contact_array<double>(d, "contact_force", 1, c);
+  b.contacts.capacity = c < 0 ? 0 : c;
   if (b.rows < 0) b.rows = 0;
   return b;
 }
 
+// Record the world's current state as frame r of the block. Returns 0, or, when the
+// block records contacts and this frame's do not fit in its contact rows, how many more
+// rows it needs (the frame is then not recorded: grow the rows and record it again).
 template <int D>
-void record_row(const World<D>& w, const Block<D>& b, std::int64_t r) {
+std::int64_t record_row(const World<D>& w, const Block<D>& b, std::int64_t r) {
   using Wd = FrameWidth<D>;
+  if (b.contact_start) {
+    // this frame's rows follow the block's earlier frames'
+    const std::int64_t first = r == 0 ? 0 : b.contact_start[r - 1] + b.contact_points[r - 1];
+    if (first < 0 || first > b.contacts.capacity)
+      throw std::invalid_argument("block contact_start: rows outside the contact arrays");
+    ContactRows<D> rows = b.contacts;
+    rows.capacity = b.contacts.capacity - first;
+    auto shift = [first](auto* p, std::int64_t width) { return p ? p + first * width : nullptr; };
+    rows.body = shift(rows.body, 2);
+    rows.position = shift(rows.position, D);
+    rows.normal = shift(rows.normal, D);
+    rows.force = shift(rows.force, 1);
+    const std::int64_t count = record_contacts(w, rows);
+    if (count > rows.capacity) return count - rows.capacity;
+    b.contact_start[r] = first;
+    b.contact_points[r] = count;
+  }
   auto at = [r](auto* p, std::int64_t width) { return p ? p + r * width : nullptr; };
   const std::int64_t n = b.n;
   FrameRow<D> row{at(b.base.position, Wd::vec * n),  at(b.base.orientation, Wd::rot * n),
@@ -642,6 +698,7 @@ void record_row(const World<D>& w, const Block<D>& b, std::int64_t r) {
   record_frame(w, row);
   if (b.step) b.step[r] = w.step_index;
   if (b.time) b.time[r] = static_cast<double>(w.step_index) * w.config.dt;
+  return 0;
 }
 // ---- end output frames ---------------------------------------------------------------
 
@@ -697,7 +754,7 @@ nb::class_<World<D>> bind_world(nb::module_& mod, const char* name, const char* 
             if (row < 0 || row > b.rows) throw std::invalid_argument("row outside the block");
             std::int64_t taken = 0, bad = -1, written = 0;
             Status status = Status::Ok;
-            bool signalled = false;
+            bool signalled = false, full = false;
             {
               // the signal handlers run every 20 ms between two steps; one that raises
               // (the run's, for Ctrl-C) ends the call after whole steps, with every
@@ -709,30 +766,42 @@ nb::class_<World<D>> bind_world(nb::module_& mod, const char* name, const char* 
                 status = w.advance(1, &one, &bad);
                 taken += one;
                 if (status != Status::Ok) break;
-                if (w.step_index % every == 0 || w.step_index == last) record_row(w, b, row + written++);
+                if (w.step_index % every == 0 || w.step_index == last) {
+                  if (record_row(w, b, row + written) > 0) {
+                    full = true;
+                    break;
+                  }
+                  ++written;
+                }
                 if (taken < n && poll(stop, true)) {
                   signalled = true;
                   break;
                 }
               }
             }
-            const int code = signalled ? INTERRUPTED : static_cast<int>(status);
+            const int code =
+                signalled ? INTERRUPTED : full ? CONTACTS_FULL : static_cast<int>(status);
             return std::make_tuple(code, taken, written, bad);
           },
           "n_steps"_a, "every"_a, "last_step"_a, "block"_a, "row"_a, "stop"_a = nb::none(),
           "Take up to n_steps steps, recording a frame into block (a dict of arrays, rows "
           "from `row` on) after each step that is a multiple of `every` or is `last_step`; "
           "stops early when the block is full, or with status INTERRUPTED when, between two "
-          "steps (every 20 ms), a signal handler raised or stop() is true. Returns (status, steps taken, "
+          "steps (every 20 ms), a signal handler raised or stop() is true, or with status "
+          "CONTACTS_FULL when a frame's contact points do not fit in the block's contact rows "
+          "(the step is taken, its frame not recorded). Returns (status, steps taken, "
           "frames recorded, bad body).")
       .def(
           "record",
           [](W& w, nb::dict block, std::int64_t row) {
             Block<D> b = make_block(w, block);
             if (row < 0 || row >= b.rows) throw std::invalid_argument("row outside the block");
-            record_row(w, b, row);
+            return record_row(w, b, row);
           },
-          "block"_a, "row"_a, "Record the current state as frame `row` of block.")
+          "block"_a, "row"_a,
+          "Record the current state as frame `row` of block. Returns 0, or, when the "
+          "frame's contact points do not fit in the block's contact rows, how many more "
+          "rows it needs (the frame is then not recorded).")
       .def(
           "save_checkpoint",
           [](const W& w) {
@@ -839,6 +908,7 @@ NB_MODULE(_core, mod) {
   // ---- end narrowphase test entry ----
   mod.attr("NON_FINITE") = static_cast<int>(Status::NonFinite);
   mod.attr("INTERRUPTED") = INTERRUPTED;
+  mod.attr("CONTACTS_FULL") = CONTACTS_FULL;
   mod.attr("POSITION_LIMIT") = POSITION_LIMIT;  // m: beyond it advance reports NON_FINITE
 
   // ---- tools outside the step: the penetration ruler (cpp/src/tools/separation.cpp) ----

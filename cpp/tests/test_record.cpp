@@ -1,10 +1,11 @@
 // tools/record.cpp and tools/checkpoint.cpp in 3D: a frame's series and observables,
-// and a checkpoint that restores a 3D world bit for bit.
+// its contact points, and a checkpoint that restores a 3D world bit for bit.
 #include <cmath>
 #include <cstring>
 #include <stdexcept>
 
 #include "check.hpp"
+#include "scene_builder3d.hpp"
 #include "tools/checkpoint.hpp"
 #include "tools/record.hpp"
 
@@ -109,6 +110,36 @@ TEST(shape_kinds_by_dimension) {
   CHECK(valid_shape_kind<2>(0) && valid_shape_kind<2>(2) && !valid_shape_kind<2>(3));
   CHECK(valid_shape_kind<3>(3) && valid_shape_kind<3>(7) && !valid_shape_kind<3>(2));
   CHECK(!valid_shape_kind<3>(8) && !valid_shape_kind<2>(-1));
+}
+
+// A 1 m box of 1 kg resting on the plane y <= 0: after a step its four bottom corners are
+// the contact points, on the plane (less half the soft contact's sag), the normal from
+// the plane (the first body) up into the box, and their forces carry its weight.
+TEST(contacts_of_a_resting_box_are_its_corners_with_normals_up) {
+  test::SceneBuilder3 s;
+  s.plane({0, 1, 0}, 0.0);
+  s.box({0.25, 0.5, -0.5}, {0.5, 0.5, 0.5}, 1.0);
+  World<3>& w = s.finish();
+  std::int64_t taken = 0, bad = -1;
+  CHECK(w.advance(30, &taken, &bad) == Status::Ok);
+  std::int64_t body[8];
+  double pos[12], normal[12], force[4];
+  ContactRows<3> rows{4, body, pos, normal, force};
+  CHECK(record_contacts(w, rows) == 4 && w.contact_count() == 4);
+  double total = 0.0;
+  for (int k = 0; k < 4; ++k) {
+    CHECK(body[2 * k] == 0 && body[2 * k + 1] == 1);
+    CHECK(normal[3 * k] == 0.0 && normal[3 * k + 1] == 1.0 && normal[3 * k + 2] == 0.0);
+    CHECK(std::abs(pos[3 * k + 1]) < 1e-4);  // the sag of a 1 kg box: micrometres
+    CHECK_NEAR(std::abs(pos[3 * k] - 0.25), 0.5, 1e-9);  // the corners, which stay put
+    CHECK_NEAR(std::abs(pos[3 * k + 2] + 0.5), 0.5, 1e-9);
+    total += force[k];
+  }
+  CHECK_NEAR(total, 9.81, 1e-9);  // N: the weight, at rest to round-off
+  // rows too few for the frame: nothing written, the count returned
+  force[0] = -1.0;
+  ContactRows<3> short_rows{3, body, pos, normal, force};
+  CHECK(record_contacts(w, short_rows) == 4 && force[0] == -1.0);
 }
 
 RBSIM_TEST_MAIN

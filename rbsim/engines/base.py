@@ -108,6 +108,10 @@ class Engine:
         """Contact points of the last step."""
         raise NotImplementedError
 
+    # Whether the engine records contact points into a block (output.contacts): the
+    # block's contact_* keys (TrajectoryWriter.block). Other engines' files have none.
+    records_contacts = False
+
     def record(self, block: dict[str, np.ndarray], row: int) -> None:
         """Write the current state as frame `row` of `block` (the trajectory writer's
         block: step, time s, position, orientation, angle, velocity, angular_velocity,

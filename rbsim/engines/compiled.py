@@ -8,8 +8,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..core import INTERRUPTED, NON_FINITE, CoreWorld
+from ..core import CONTACTS_FULL, INTERRUPTED, NON_FINITE, CoreWorld
 from ..io.observables import observables
+from ..io.trajectory import grow_contact_rows
 from ..scene import Scene
 from ..scene import types as T
 from ..scene.compile import body_origin
@@ -21,6 +22,7 @@ class RbsimEngine(Engine):
     state views and stages, for tests and tools that look inside."""
 
     name = "rbsim"
+    records_contacts = True
 
     def __init__(self, scene: Scene) -> None:
         super().__init__(scene)
@@ -61,14 +63,23 @@ class RbsimEngine(Engine):
         finally:
             self.step_time += time.perf_counter() - t0
         err: BaseException | None = None
-        if status == NON_FINITE:
+        if status == CONTACTS_FULL:
+            # the step is taken but its frame's contact points did not fit: room, then
+            # the frame (the state is that step's still)
+            self.record(block, int(row) + int(written))
+            written += 1
+        elif status == NON_FINITE:
             err = self.world.non_finite(int(bad))
         elif status == INTERRUPTED:
             err = KeyboardInterrupt()
         return int(taken), int(written), err
 
     def record(self, block: dict[str, np.ndarray], row: int) -> None:
-        self.world.engine.record(block, int(row))
+        missing = self.world.engine.record(block, int(row))
+        if missing > 0:  # the frame's contact points need more rows than the block has
+            grow_contact_rows(block, missing)
+            missing = self.world.engine.record(block, int(row))
+        assert missing == 0
 
     def checkpoint(self) -> bytes:
         return self.world.engine.save_checkpoint()

@@ -23,6 +23,17 @@ vertices (V,3); the shapes add face_start, face_count (S,) int32 and faces (F,3)
 rows) and normal (S,3) (a plane's outward normal, zeros otherwise). The observables
 linear_momentum and angular_momentum (about the world origin) are (T,3).
 
+Contact points (output.contacts: points; rbsim's engine) are rows of their own, C in all,
+frame after frame::
+
+    /contacts/start, /contacts/count    step, time (links), value (T,) int64: each frame's
+                                        first row and number of points
+    /contacts/body                      (C,2) int32: the two bodies, rows of
+                                        /particles/bodies then /particles/static; -1 not stored
+    /contacts/position                  (C,D) m, world frame, where the bodies meet
+    /contacts/normal                    (C,D) unit, from the first body towards the second
+    /contacts/force                     (C,) N, the normal force (last substep's impulse / h)
+
 A quaternion and its negative are one rotation: the writer makes the stored sign
 continuous from frame to frame (a frame's q is negated when its dot product with the
 previous written frame's is negative), whatever sign the engine holds.
@@ -61,6 +72,7 @@ from ..scene.types import BODY_TYPES, SHAPE_KINDS, SHAPE_KINDS_3D
 
 __all__ = [
     "BodyTable",
+    "ContactPoints",
     "Trajectory",
     "TrajectoryWriter",
     "load_trajectory",
@@ -425,6 +437,13 @@ COMPRESSIONS = ("none", "lzf", "gzip")
 # most max(one frame, BLOCK_BYTES) (plus the same again while a float32 copy is made).
 BLOCK_BYTES = 8 << 20
 BLOCK_MAX_FRAMES = 256
+# Contact point rows: per row the two bodies, position, normal and force (the block's
+# keys contact_body, ...; the file's /contacts/body, ...). CONTACT_BLOCK_ROWS rows per
+# frame of the block to start with (grow_contact_rows adds room when a frame needs it);
+# the file makes room for CONTACT_FILE_ROWS rows per frame at first and grows as needed.
+CONTACT_ROW_SERIES = ("body", "position", "normal", "force")
+CONTACT_BLOCK_ROWS = 16
+CONTACT_FILE_ROWS = 8
 # Frames a writer that was not told how many to expect makes room for at first; the
 # room doubles (the file is laid out anew) when it runs out.
 INITIAL_FRAMES = 64
@@ -481,10 +500,24 @@ class _Series:
     dtype: np.dtype
     key: str
     offset: int = -1
+    rows: bool = False  # a contact row series: (C, *frame), not one row per frame
 
     @property
     def frame_bytes(self) -> int:
         return math.prod(self.frame) * self.dtype.itemsize
+
+
+def grow_contact_rows(block: dict[str, np.ndarray], extra: int) -> None:
+    """Make room for at least `extra` more contact rows in a writer's `block` (its
+    contact_body, contact_position, contact_normal and contact_force arrays are replaced
+    by larger ones holding the same first rows)."""
+    old = len(block["contact_force"])
+    rows = max(2 * old, old + int(extra))
+    for name in CONTACT_ROW_SERIES:
+        a = block[f"contact_{name}"]
+        grown = np.zeros((rows, *a.shape[1:]), a.dtype)
+        grown[:old] = a
+        block[f"contact_{name}"] = grown
 
 
 def write_checkpoint(path: str, frames: int, step: int, data: bytes) -> None:
@@ -533,6 +566,11 @@ class TrajectoryWriter:
     observables: name -> (shape, dtype) of each observable (default OBSERVABLES); when
         None and frames are appended with `append`, the first frame's decide.
     keep: resume: keep the first `keep` frames of the trajectory already at `path`.
+    contacts: record each frame's contact points (/contacts; the block's contact_* keys,
+        which the engine fills, see `block`).
+    contact_bodies: (rows of what is appended,) the index of each appended body in the
+        file's contact records (its row of `bodies`, then len(bodies) + its row of
+        `fixed`, or -1), or None when the rows are the same.
 
     Durability: the file is only ever replaced whole (written under a temporary name and
     renamed) or written in place inside datasets whose room was made when it was laid
@@ -557,6 +595,8 @@ class TrajectoryWriter:
         fixed: FixedBodies | None = None,
         observables: dict[str, tuple[tuple[int, ...], str]] | None = None,
         keep: int = 0,
+        contacts: bool = False,
+        contact_bodies: np.ndarray | None = None,
     ) -> None:
         params = {str(k): v for k, v in parameters.items()}
         for key, value in params.items():
@@ -607,9 +647,20 @@ class TrajectoryWriter:
         self._block: dict[str, np.ndarray] | None = None
         self._status_offset = self._wall_offset = -1
         self._last_step = -1
+        self.contacts = bool(contacts)
+        self._contact_map = None if contact_bodies is None else np.asarray(contact_bodies, np.int64)
+        self.contact_rows_flushed = 0  # contact rows on file
+        self._contact_capacity = CONTACT_FILE_ROWS * self._capacity if contacts else 0
         if keep:
             self.frames_written = self.frames_flushed = int(keep)
             self._capacity = max(self._capacity, self.frames_written)
+            if self.contacts:
+                with open_for_reading(self.path) as f:
+                    last = keep - 1
+                    self.contact_rows_flushed = int(
+                        f["contacts/start/value"][last] + f["contacts/count/value"][last]
+                    )
+                self._contact_capacity = max(self._contact_capacity, self.contact_rows_flushed)
         if self._spec is None:
             self._layout(self._capacity, keep_from=None, series=False)
         else:
@@ -634,6 +685,16 @@ class TrajectoryWriter:
         for name, (shape, dtype) in self._spec.items():
             dt = np.dtype("<i8") if np.dtype(dtype).kind in "iub" else np.dtype("<f8")
             plan.append(_Series(f"observables/{name}/value", tuple(shape), dt, name))
+        if self.contacts:
+            d = self.dimension
+            rows = {"body": ((2,), np.dtype("<i4")), "position": ((d,), body_dtype)}
+            rows |= {"normal": ((d,), body_dtype), "force": ((), body_dtype)}
+            for name in CONTACT_ROW_SERIES:
+                frame, dt = rows[name]
+                plan.append(_Series(f"contacts/{name}", frame, dt, f"contact_{name}", rows=True))
+            i8 = np.dtype("<i8")
+            plan.append(_Series("contacts/start/value", (), i8, "contact_start"))
+            plan.append(_Series("contacts/count/value", (), i8, "contact_points"))
         plan.append(_Series("particles/bodies/position/step", (), np.dtype("<i8"), "step"))
         return plan
 
@@ -656,6 +717,8 @@ class TrajectoryWriter:
             self._fd = None
         tmp = f"{self.path}.tmp-{os.getpid()}"
         keep = self.frames_flushed
+        if final:
+            self._contact_capacity = self.contact_rows_flushed
         old = open_for_reading(keep_from) if keep_from is not None and keep else None
         try:
             with h5py.File(tmp, "w", libver="earliest") as f:
@@ -719,8 +782,9 @@ class TrajectoryWriter:
         bodies = f["particles/bodies"]
         step_ds = time_ds = None
         units = {block_key(name): unit for name, (_c, unit) in self._body_series.items()}
+        units |= {"contact_position": "m", "contact_force": "N"}
         for s in self._series:
-            shape = (capacity, *s.frame)
+            shape = ((self._contact_capacity if s.rows else capacity), *s.frame)
             if final:
                 kwargs: dict = {}
                 if self.compression != "none" and math.prod(shape) > 0:
@@ -740,7 +804,8 @@ class TrajectoryWriter:
                 )
                 s.offset = ds.id.get_offset() if math.prod(shape) else -1
             if keep and old is not None and math.prod(s.frame) >= 0:
-                ds[:keep] = old[s.path][:keep]
+                kept = self.contact_rows_flushed if s.rows else keep
+                ds[:kept] = old[s.path][:kept]
             if s.key == "step":
                 step_ds = ds
             elif s.key == "time":
@@ -758,6 +823,10 @@ class TrajectoryWriter:
         for name in self._spec or {}:
             group = f[f"observables/{name}"]
             group["step"], group["time"] = step_ds, time_ds
+        if self.contacts:
+            for name in ("start", "count"):
+                group = f[f"contacts/{name}"]
+                group["step"], group["time"] = step_ds, time_ds
 
     # -- frames ---------------------------------------------------------------------------
 
@@ -772,7 +841,11 @@ class TrajectoryWriter:
         orientation, velocity (B,M,2), angle, angular_velocity (B,M) float64 for the M
         rows of an appended frame (3D: position, velocity, angular_velocity and
         body_angular_momentum (B,M,3), orientation (B,M,4)), and each observable
-        (B, *shape). Fill rows from `rows` on, then `commit` them."""
+        (B, *shape). With contacts: contact_start, contact_points (B,) int64 (each
+        frame's first row in the contact rows and its number of points), and the contact
+        rows, contact_body (C,2) int64, contact_position, contact_normal (C,D),
+        contact_force (C,) float64, room that grow_contact_rows enlarges. Fill rows from
+        `rows` on, then `commit` them."""
         if self._block is None:
             if self._spec is None:
                 raise ValueError("the observables are not known yet: append a frame first")
@@ -783,6 +856,14 @@ class TrajectoryWriter:
             for name, (shape, dtype) in self._spec.items():
                 kind = "i8" if np.dtype(dtype).kind in "iub" else "f8"
                 block[name] = np.zeros((b, *shape), dtype=kind)
+            if self.contacts:
+                c, d = CONTACT_BLOCK_ROWS * b, self.dimension
+                block["contact_start"] = np.zeros(b, np.int64)
+                block["contact_points"] = np.zeros(b, np.int64)
+                block["contact_body"] = np.zeros((c, 2), np.int64)
+                block["contact_position"] = np.zeros((c, d))
+                block["contact_normal"] = np.zeros((c, d))
+                block["contact_force"] = np.zeros(c)
             self._block = block
         return self._block
 
@@ -895,27 +976,47 @@ class TrajectoryWriter:
         if rows == 0:
             return
         t0 = self.frames_flushed
-        if t0 + rows > self._capacity:
-            if not self._grows:
-                raise ValueError(
-                    f"{self.path}: more frames than the {self._capacity} the writer was told"
-                )
-            capacity = max(2 * self._capacity, t0 + rows)
+        block = self.block
+        c0 = self.contact_rows_flushed
+        used = 0  # contact rows of the block's frames
+        if self.contacts:
+            used = int(block["contact_start"][rows - 1] + block["contact_points"][rows - 1])
+        grow_frames = t0 + rows > self._capacity
+        if grow_frames and not self._grows:
+            raise ValueError(
+                f"{self.path}: more frames than the {self._capacity} the writer was told"
+            )
+        if grow_frames or c0 + used > self._contact_capacity:
+            capacity = max(2 * self._capacity, t0 + rows) if grow_frames else self._capacity
+            if c0 + used > self._contact_capacity:
+                # room for the rest of the run at the rate so far, and at least twice as much
+                rate = (c0 + used) / (t0 + rows)
+                estimate = math.ceil(1.25 * rate * capacity)
+                self._contact_capacity = max(2 * self._contact_capacity, c0 + used, estimate)
             self._layout(capacity, keep_from=self.path, series=True)
         assert self._fd is not None
-        block = self.block
         for s in self._series:
             if s.offset < 0:
                 continue
-            data = block[s.key][:rows]
-            if self._select is not None and s.key in self._body_keys:
-                data = data[:, self._select]
-            if s.key == "orientation" and self.dimension == 3:
-                data = self._continuous(data)
+            if s.rows:
+                data = block[s.key][:used]
+                if s.key == "contact_body" and self._contact_map is not None:
+                    data = self._contact_map[data]
+                at = c0
+            else:
+                data = block[s.key][:rows]
+                if self._select is not None and s.key in self._body_keys:
+                    data = data[:, self._select]
+                if s.key == "orientation" and self.dimension == 3:
+                    data = self._continuous(data)
+                if s.key == "contact_start":
+                    data = data + c0  # rows of the file, not of the block
+                at = t0
             data = np.ascontiguousarray(data, dtype=s.dtype)
-            _pwrite_all(self._fd, data, s.offset + t0 * s.frame_bytes, self.path)
+            _pwrite_all(self._fd, data, s.offset + at * s.frame_bytes, self.path)
         self._rows = 0
         self.frames_flushed = t0 + rows
+        self.contact_rows_flushed = c0 + used
 
     def _continuous(self, q: np.ndarray) -> np.ndarray:
         """Quaternion frames (rows, M, 4) with the sign of each made continuous: a row's
@@ -989,6 +1090,7 @@ class TrajectoryWriter:
             self._write_block()
             wall = repr(float(wall_time))
             exact = self.frames_flushed == self._capacity
+            exact = exact and self.contact_rows_flushed == self._contact_capacity
             if exact and self.compression == "none" and checkpoint is None:
                 assert self._fd is not None
                 _pwrite_all(
@@ -1053,6 +1155,8 @@ def _status_bytes(status: str) -> bytes:
 
 def _pwrite_all(fd: int, data: np.ndarray, offset: int, path: str) -> None:
     """Write all of data's bytes at offset (os.pwrite may write fewer)."""
+    if data.size == 0:  # a frame block without contact points, say
+        return
     view = memoryview(np.ascontiguousarray(data)).cast("B")
     while len(view):
         n = os.pwrite(fd, view, offset)
@@ -1065,6 +1169,44 @@ def _pwrite_all(fd: int, data: np.ndarray, offset: int, path: str) -> None:
 # ---------------------------------------------------------------------------------------
 # Reader
 # ---------------------------------------------------------------------------------------
+
+
+@dataclass
+class ContactPoints:
+    """The contact points of T frames (output.contacts: points), C rows in all.
+
+    start, count: (T,) int64, frame t's points are rows start[t] .. start[t] + count[t].
+    body: (C,2) int32, the two bodies of each point: a row of the trajectory's bodies,
+        or len(bodies) + a row of its fixed (static, stored once) bodies; -1 for a body
+        the file does not hold. position: (C,D) m, world frame, where the two bodies meet
+        at the frame's time. normal: (C,D) unit, from the first body towards the second
+        (the direction the second is pushed). force: (C,) N, the normal force the point
+        carried in the step's last substep (its impulse over the substep).
+    """
+
+    start: np.ndarray
+    count: np.ndarray
+    body: np.ndarray
+    position: np.ndarray
+    normal: np.ndarray
+    force: np.ndarray
+
+    def frame(self, t: int) -> slice:
+        """The rows of frame `t` (index the row arrays with it)."""
+        a = int(self.start[t])
+        return slice(a, a + int(self.count[t]))
+
+
+def read_contacts(f: h5py.File, t: int) -> ContactPoints | None:
+    """The contact points of the first `t` frames of an open file (None when the run
+    did not record them)."""
+    if "contacts/start" not in f:
+        return None
+    g = f["contacts"]
+    start, count = g["start/value"][:t], g["count/value"][:t]
+    used = int(start[-1] + count[-1]) if t else 0
+    rows = {name: g[name][:used] for name in CONTACT_ROW_SERIES}
+    return ContactPoints(start=start, count=count, **rows)
 
 
 @dataclass
@@ -1081,7 +1223,8 @@ class Trajectory:
     bodies: static data; parameters: /parameters/rbsim as strings; engine: "rbsim",
     "pymunk", ...; status: "complete", "interrupted", "failed", or "running" (writer
     running or killed); fixed: the static bodies stored once rather than per frame
-    (output.bodies), or None.
+    (output.bodies), or None; contacts: each frame's contact points (ContactPoints), or
+    None when the run did not record them (output.contacts).
     """
 
     step: np.ndarray
@@ -1099,6 +1242,7 @@ class Trajectory:
     fixed: FixedBodies | None = None
     dimension: int = 2
     angular_momentum: np.ndarray | None = None
+    contacts: ContactPoints | None = None
     _index: dict[str, int] | None = field(default=None, init=False, repr=False, compare=False)
 
     def body(self, name: str) -> int:
@@ -1180,7 +1324,8 @@ def frame_count(f: h5py.File, closed: bool) -> int:
     if "particles/bodies/position" not in f:
         return 0
     body_groups, obs_groups = _series_groups(f)
-    values = [f[g]["value"] for g in body_groups + obs_groups]
+    contact_groups = [g for g in ("contacts/start", "contacts/count") if g in f]
+    values = [f[g]["value"] for g in body_groups + obs_groups + contact_groups]
     step, time = f["particles/bodies/position/step"], f["particles/bodies/position/time"]
     t = min(ds.shape[0] for ds in [*values, step, time])
     unwritten = np.flatnonzero(step[:t] < 0)
@@ -1235,6 +1380,7 @@ def load_trajectory(path: str | os.PathLike) -> Trajectory:
                 orientation=g["orientation"][()],
                 angle=g["angle"][()] if "angle" in g else None,
             )
+        contacts = read_contacts(f, t)
     return Trajectory(
         step=step,
         time=time,
@@ -1245,6 +1391,7 @@ def load_trajectory(path: str | os.PathLike) -> Trajectory:
         status=params.get("status", "unknown"),
         fixed=fixed,
         dimension=dimension,
+        contacts=contacts,
         **arrays,
     )
 
@@ -1319,6 +1466,19 @@ def summarize(path: str | os.PathLike) -> str:
             unit = ds.attrs.get("unit", "")
             first_last[group.split("/", 1)[1]] = (ds[0], ds[t - 1], str(unit))
         creator_version = str(f["h5md/creator"].attrs.get("version", "?"))
+        contact_line = None
+        if "contacts/start" in f:
+            count = f["contacts/count/value"][:t]
+            used = int(f["contacts/start/value"][t - 1] + count[-1]) if t else 0
+            contact_line = f"  contacts   {used} points over {t} frames"
+            if used:
+                busiest = int(np.argmax(count))
+                force = float(np.max(f["contacts/force"][:used]))
+                contact_line += (
+                    f", at most {int(count[busiest])} in a frame "
+                    f"(step {int(f['particles/bodies/position/step'][busiest])}), "
+                    f"force up to {force:.6g} N"
+                )
         series = []
         for group in _series_groups(f)[0]:
             shape = f[group]["value"].shape[1:]
@@ -1355,6 +1515,8 @@ def summarize(path: str | os.PathLike) -> str:
     lines.append(f"  dt         {dt:.6g} s" if isinstance(dt, float | int) else "  dt         ?")
     if series:
         lines.append(f"  series     {', '.join(series)}")
+    if contact_line is not None:
+        lines.append(contact_line)
     try:
         wall = float(params.get("wall_time", ""))
     except ValueError:

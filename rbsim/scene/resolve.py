@@ -139,12 +139,14 @@ class Solver:
 class Output:
     """every: write every k-th step (step 0 and the last step are always written).
     precision: "float64" | "float32" (per-body series). compression: "none" | "lzf" |
-    "gzip". bodies: "all", "moving", or names and patterns (``*`` matches any text)."""
+    "gzip". bodies: "all", "moving", or names and patterns (``*`` matches any text).
+    contacts: "none" | "points" (each frame's touching contact points, /contacts)."""
 
     every: int = 1
     precision: str = "float64"
     compression: str = "none"
     bodies: str | tuple[str, ...] = "all"
+    contacts: str = "none"
 
     def body_indices(self, names: Sequence[str], types: Sequence[str]) -> list[int]:
         """Indices of the bodies written in every frame, in scene order."""
@@ -1290,6 +1292,7 @@ def scene_to_dict(scene: Scene) -> dict[str, Any]:
             "precision": scene.output.precision,
             "compression": scene.output.compression,
             "bodies": o if isinstance(o := scene.output.bodies, str) else list(o),
+            "contacts": scene.output.contacts,
         },
         "materials": {
             name: {"density": m.density, "friction": m.friction, "restitution": m.restitution}

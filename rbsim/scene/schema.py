@@ -406,6 +406,14 @@ OUTPUT = Key(
             "all",
             choices=("all", "moving"),
         ),
+        "contacts": Key(
+            "enum",
+            "Contact points in every frame: none, or points (each point that pushed in "
+            "the step: its bodies, world position, normal and normal force; rbsim's "
+            "engine only).",
+            "none",
+            choices=("none", "points"),
+        ),
     },
 )
 

@@ -22,14 +22,25 @@ from importlib import resources
 
 import numpy as np
 
-from .mesh import AMBIENT, FOV, LIGHT, PITCH, YAW, body_meshes, fit_box_shown
+from .mesh import (
+    AMBIENT,
+    FOV,
+    LIGHT,
+    PITCH,
+    YAW,
+    body_meshes,
+    body_reach3d,
+    fit_box_shown,
+)
 from .render import (
     COLOURS,
     FrameReader,
     Progress,
     RenderError,
     View,
+    body_reach,
     check_dimensions,
+    contact_normal_length,
     fit_view,
     match_frames,
     no_frames_message,
@@ -105,11 +116,17 @@ def _frames_b64(reader: FrameReader, idx: np.ndarray, progress: Progress | None)
 
 
 def _track(
-    reader: FrameReader, idx: np.ndarray, overlay: bool, progress: Progress | None
+    reader: FrameReader,
+    idx: np.ndarray,
+    overlay: bool,
+    progress: Progress | None,
+    contacts: bool = True,
 ) -> dict[str, object]:
     """One trajectory for the page; idx: the track frame shown at each player frame
-    (non-decreasing, repeats allowed; only the distinct frames are stored)."""
+    (non-decreasing, repeats allowed; only the distinct frames are stored). With
+    `contacts` and contact points recorded, also those of the stored frames."""
     uniq, inverse = np.unique(idx, return_inverse=True)
+    extra = {"contacts": _contacts_b64(reader, uniq)} if contacts and reader.has_contacts else {}
     return {
         "label": reader.label,
         "overlay": overlay,
@@ -118,19 +135,38 @@ def _track(
         **_shapes(reader),
         "frame_index": [int(i) for i in inverse],
         "frames": _frames_b64(reader, uniq, progress),
+        **extra,
+    }
+
+
+def _contacts_b64(reader: FrameReader, idx: np.ndarray) -> dict[str, object]:
+    """The contact points of frames idx (increasing, distinct) for the page: their count
+    per frame, and frame after frame base64 of float32 [x, y, z, nx, ny, nz] (position
+    m, unit normal; 24 bytes per point; in 2D [x, y, nx, ny], 16 bytes)."""
+    count, pos, normal = reader.contacts(idx)
+    rows = np.concatenate([pos, normal], axis=1).astype("<f4")
+    return {
+        "count": [int(c) for c in count],
+        "rows": base64.b64encode(rows.tobytes()).decode("ascii"),
     }
 
 
 def _track3d(
-    reader: FrameReader, idx: np.ndarray, overlay: bool, progress: Progress | None
+    reader: FrameReader,
+    idx: np.ndarray,
+    overlay: bool,
+    progress: Progress | None,
+    contacts: bool = True,
 ) -> dict[str, object]:
     """One 3D trajectory for the page: its shapes as flat faces in body frames (points
     m to 1e-6 m, their bodies; each face's point indices, counter-clockwise outside,
     their count, and whether its edges are drawn), and the frames as
     base64 of float32 (frame, body, [x, y, z, qw, qx, qy, qz]) (28 bytes per body and
-    frame); idx as for `_track`."""
+    frame); idx as for `_track`. With `contacts` and contact points recorded, also
+    those of the stored frames (`_contacts_b64`)."""
     uniq, inverse = np.unique(idx, return_inverse=True)
     meshes = body_meshes(reader.bodies)
+    extra = {"contacts": _contacts_b64(reader, uniq)} if contacts and reader.has_contacts else {}
     return {
         "label": reader.label,
         "overlay": overlay,
@@ -145,13 +181,15 @@ def _track3d(
         "face_outlined": [int(e) for e in meshes.face_outlined],
         "frame_index": [int(i) for i in inverse],
         "frames": _frames_b64(reader, uniq, progress),
+        **extra,
     }
 
 
 def _scene3d(main: FrameReader, pairs: list[tuple[FrameReader, np.ndarray]]) -> dict[str, object]:
     """The 3D page's camera (the box to show whole: lo and hi corners, m; yaw, pitch,
     fov rad), light (a unit vector towards it, world frame) and ambient brightness, colours,
-    and ground (plane patches and grid lines, world frame, m, flat lists)."""
+    ground (plane patches and grid lines, world frame, m, flat lists), and the length
+    contact normals are drawn with, m."""
     lo, hi = fit_box(pairs)
     ground = ground_for(main, lo, hi)
     shown_lo, shown_hi = fit_box_shown(lo, hi)  # the page fits its distance to its shape
@@ -167,6 +205,9 @@ def _scene3d(main: FrameReader, pairs: list[tuple[FrameReader, np.ndarray]]) -> 
         "ambient": AMBIENT,
         "colours": COLOURS_3D,
         "ground": {"quads": _round(ground.quads), "lines": _round(ground.lines)},
+        "contact_length": contact_normal_length(
+            body_reach3d(main.bodies), main.bodies.type, lo, hi
+        ),
     }
 
 
@@ -192,6 +233,7 @@ def render_html(
     start: float | None = None,
     end: float | None = None,
     progress: Progress | None = None,
+    contacts: bool = True,
 ) -> HtmlResult:
     """Write the player page for the trajectory `path` to `output`.
 
@@ -201,8 +243,10 @@ def render_html(
     must be None): shaded shapes over the ground, seen by a camera that orbits with the
     mouse, first fitted to the moving bodies. overlay: a second trajectory drawn over the
     first in its own colour, at the frames nearest in time. start, end: s, the part of
-    the run to store. progress(done, total) is called as frames are read. Raises
-    RenderError (unreadable input) or ValueError (bad argument).
+    the run to store. progress(done, total) is called as frames are read. contacts: the
+    run's recorded contact points (output.contacts) go into the page too, shown
+    (as dots with a short line along each normal) until the viewer turns them off.
+    Raises RenderError (unreadable input) or ValueError (bad argument).
     """
     if not 0 < fps <= HTML_MAX_FPS:
         raise ValueError(f"frames per second must lie in (0, {HTML_MAX_FPS:g}], got {fps:g}")
@@ -231,9 +275,9 @@ def render_html(
                 return lambda done, _n: progress(offset + done, total)
 
             track = _track if main.dimension == 2 else _track3d
-            tracks = [track(main, idx, False, step(0))]
+            tracks = [track(main, idx, False, step(0), contacts)]
             if other is not None and other_idx is not None:
-                tracks.append(track(other, other_idx, True, step(len(idx))))
+                tracks.append(track(other, other_idx, True, step(len(idx)), contacts))
             data: dict[str, object] = {
                 "version": 1,
                 "scene": main.scene,
@@ -243,6 +287,9 @@ def render_html(
                 assert view is not None
                 data["view"] = [view.x0, view.y0, view.x1, view.y1]
                 data["colours"] = COLOURS
+                lo, hi = np.array([view.x0, view.y0]), np.array([view.x1, view.y1])
+                reach = body_reach(main.bodies)
+                data["contact_length"] = contact_normal_length(reach, main.bodies.type, lo, hi)
             else:
                 data.update(_scene3d(main, pairs))
             data["tracks"] = tracks

@@ -2,8 +2,11 @@
   const DIMENSION = 2;
   const HELP = "drag: pan, wheel: zoom, arrows: step";
   // Each track: one trajectory. frames: Float32Array of (frame, body, [x, y, angle]).
+  // contacts (when the run recorded them): per stored frame its points' count and first
+  // row, and rows: Float32Array of (point, [x, y, nx, ny]) (m; unit normal).
   const tracks = data.tracks.map(function (t) {
     return {
+      contacts: contactTable(t.contacts),
       label: t.label, names: t.names, types: t.types, overlay: t.overlay, n: t.names.length,
       frames: floats(t.frames),
       frameIndex: t.frame_index,  // track frame shown at each player frame
@@ -97,6 +100,21 @@
     }
   }
 
+
+  // The contact points of track t at the current frame on the screen: [dots [x, y],
+  // normals [x0, y0, x1, y1]] (CSS pixels; a normal data.contact_length m long).
+  function contactPixels(t) {
+    const c = t.contacts, dots = [], normals = [];
+    if (!c) return [dots, normals];
+    const k = t.frameIndex[frame], rows = c.rows, len = data.contact_length;
+    for (let i = c.start[k], end = c.start[k] + c.count[k]; i < end; i++) {
+      const o = 4 * i, p = worldToScreen(rows[o], rows[o + 1]);
+      const q = worldToScreen(rows[o] + len * rows[o + 2], rows[o + 1] + len * rows[o + 3]);
+      dots.push(p);
+      normals.push([p[0], p[1], q[0], q[1]]);
+    }
+    return [dots, normals];
+  }
 
   function drawScene() {
     for (const t of tracks) drawTrack(t);

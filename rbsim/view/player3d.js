@@ -30,6 +30,8 @@
   // qy, qz]); pts: body-frame points (m) of every shape's faces, ptBody their body;
   // faces: point indices, face i's from faceStart[i] to faceStart[i + 1], counter-
   // clockwise seen from outside; outlined[i]: its edges are drawn (boxes and hulls).
+  // contacts (when the run recorded them): per stored frame its points' count and first
+  // row, and rows: Float32Array of (point, [x, y, z, nx, ny, nz]) (m; unit normal).
   const tracks = data.tracks.map(function (t) {
     const pts = Float64Array.from(t.points), ptBody = Int32Array.from(t.point_body);
     const faces = Int32Array.from(t.faces), m = t.face_size.length;
@@ -45,6 +47,7 @@
       pts: pts, ptBody: ptBody, faces: faces, faceStart: faceStart, faceBody: faceBody,
       outlined: Uint8Array.from(t.face_outlined),
       world: new Float64Array(3 * p), scr: new Float64Array(2 * p), depth: new Float64Array(p),
+      contacts: contactTable(t.contacts),
     };
   });
 
@@ -216,6 +219,25 @@
     ctx.lineWidth = 1;
     ctx.strokeStyle = colours.grid;
     ctx.stroke(grid);
+  }
+
+  // The contact points of track t at the current frame in front of the near plane, on
+  // the screen: [dots [x, y], normals [x0, y0, x1, y1]] (CSS pixels; a normal is drawn
+  // data.contact_length m long, when its tip is in front too).
+  function contactPixels(t) {
+    const c = t.contacts, dots = [], normals = [];
+    if (!c) return [dots, normals];
+    updateBasis();
+    const k = t.frameIndex[frame], rows = c.rows, len = data.contact_length;
+    for (let i = c.start[k], end = c.start[k] + c.count[k]; i < end; i++) {
+      const o = 6 * i, x = rows[o], y = rows[o + 1], z = rows[o + 2];
+      const p = project(x, y, z);
+      if (p[2] <= near) continue;
+      dots.push([p[0], p[1]]);
+      const q = project(x + len * rows[o + 3], y + len * rows[o + 4], z + len * rows[o + 5]);
+      if (q[2] > near) normals.push([p[0], p[1], q[0], q[1]]);
+    }
+    return [dots, normals];
   }
 
   function drawScene() {

@@ -32,7 +32,9 @@ from ..io.trajectory import (
 from .mesh import Camera
 
 if TYPE_CHECKING:  # matplotlib is optional (the plot extra): types only
+    from matplotlib.axes import Axes
     from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.collections import LineCollection, PathCollection
     from matplotlib.text import Text
 
 __all__ = [
@@ -69,7 +71,11 @@ COLOURS = {
     "kinematic_edge": "#336633",
     "overlay_edge": "#ff6600",
     "text": "#000000",
+    "contact": "#cc0000",  # contact points (output.contacts): a red no body has
 }
+# Contact points in the GIFs: the dot's diameter and the normal's line width, pixels.
+CONTACT_DOT_PX = 4.0
+CONTACT_LINE_PX = 1.5
 
 
 class RenderError(Exception):
@@ -90,7 +96,8 @@ class FrameReader:
     and step (T,) of the frames present, engine ("rbsim" / "pymunk" / ...), scene
     (scene name), status. Use as a context manager; `read(idx)` returns the body
     origins (k,N,D) m and orientations of frames idx: (k,N,2) = (cos θ, sin θ) in 2D,
-    (k,N,4) = (w, x, y, z) in 3D.
+    (k,N,4) = (w, x, y, z) in 3D. has_contacts: the run recorded contact points
+    (output.contacts), which `contacts(idx)` reads.
     """
 
     def __init__(self, path: str | os.PathLike) -> None:
@@ -131,6 +138,10 @@ class FrameReader:
             else:
                 self.time = np.zeros(0)
                 self.step = np.zeros(0, dtype=np.int64)
+            self.has_contacts = "contacts/start" in f
+            if self.has_contacts:
+                self._contact_start = f["contacts/start/value"][:t]
+                self._contact_count = f["contacts/count/value"][:t]
         except (KeyError, ValueError, TypeError, OSError, *DAMAGED) as err:
             self._file.close()
             raise RenderError(f"{self.path}: not an rbsim trajectory ({err})") from None
@@ -178,6 +189,37 @@ class FrameReader:
             fixed_rot = np.broadcast_to(self._fixed[1], (k, *self._fixed[1].shape))
             return np.concatenate([pos, fixed_pos], 1), np.concatenate([rot, fixed_rot], 1)
         return self._read(idx)
+
+    def contacts(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The contact points of the frames idx (increasing indices into `time`): their
+        number per frame (k,), and, frame after frame, their world positions (K,D) m and
+        unit normals (K,D) (from the first body towards the second). None recorded:
+        no points."""
+        idx = np.asarray(idx, dtype=np.int64)
+        d = self.dimension
+        if not self.has_contacts or not len(idx):
+            return np.zeros(len(idx), np.int64), np.zeros((0, d)), np.zeros((0, d))
+        try:
+            return self._read_contacts(idx)
+        except (OSError, KeyError, ValueError, *DAMAGED) as err:
+            raise RenderError(f"{self.path}: cannot read contact points: {err}") from None
+
+    def _read_contacts(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        start, count = self._contact_start[idx], self._contact_count[idx]
+        g = self._file["contacts"]
+        lo, hi = int(start[0]), int(start[-1] + count[-1])
+        if hi - lo <= 2 * int(count.sum()) + 64:  # dense: one slice, then pick
+            rows = np.concatenate([np.arange(a, a + c) for a, c in zip(start, count, strict=True)])
+            pos = g["position"][lo:hi][rows - lo]
+            normal = g["normal"][lo:hi][rows - lo]
+        else:
+            pos = np.concatenate(
+                [g["position"][a : a + c] for a, c in zip(start, count, strict=True)]
+            )
+            normal = np.concatenate(
+                [g["normal"][a : a + c] for a, c in zip(start, count, strict=True)]
+            )
+        return count.astype(np.int64), np.asarray(pos, float), np.asarray(normal, float)
 
     def _read(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         try:
@@ -261,6 +303,47 @@ def body_reach(bodies: BodyTable) -> np.ndarray:
             b = bodies.shape_body[s]
             reach[b] = max(reach[b], r)
     return reach
+
+
+def contact_normal_length(
+    reach: np.ndarray, types: list[str], lo: np.ndarray, hi: np.ndarray
+) -> float:
+    """m: how long the pictures draw a contact point's normal: half the median reach
+    (body_reach, body_reach3d) of the moving bodies, short beside a body; else 5% of the
+    diagonal of the region [lo, hi] shown."""
+    moving = reach[(np.array(types, dtype=object) != "static") & (reach > 0)]
+    if len(moving):
+        return 0.5 * float(np.median(moving))
+    return 0.05 * float(np.linalg.norm(np.asarray(hi, float) - np.asarray(lo, float)))
+
+
+class FrameContacts:
+    """The contact points of frames idx of `reader` (FrameReader.contacts), handed out
+    frame by frame in that order: `next()` gives the next frame's positions (k,D) m and
+    unit normals (k,D)."""
+
+    def __init__(self, reader: FrameReader, idx: np.ndarray) -> None:
+        counts, self.position, self.normal = reader.contacts(idx)
+        self.ends = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        self.k = 0
+
+    def next(self) -> tuple[np.ndarray, np.ndarray]:
+        rows = slice(int(self.ends[self.k]), int(self.ends[self.k + 1]))
+        self.k += 1
+        return self.position[rows], self.normal[rows]
+
+
+def contact_artists(ax: Axes, dpi: float) -> tuple[LineCollection, PathCollection]:
+    """The GIF's contact artists on `ax`, over everything: the normals' lines and the
+    dots (set their segments and offsets per frame)."""
+    from matplotlib.collections import LineCollection
+
+    colour = COLOURS["contact"]
+    normals = LineCollection([], colors=colour, linewidths=CONTACT_LINE_PX, zorder=4)
+    ax.add_collection(normals)
+    side = CONTACT_DOT_PX * 72.0 / dpi  # a marker's size is its area in points²
+    dots = ax.scatter([], [], s=side * side, c=colour, marker="o", linewidths=0, zorder=5)
+    return normals, dots
 
 
 @dataclass(frozen=True)
@@ -533,6 +616,7 @@ def render_gif(
     start: float | None = None,
     end: float | None = None,
     progress: Progress | None = None,
+    contacts: bool = True,
 ) -> GifResult:
     """Draw the trajectory `path` into an animated GIF at `output`.
 
@@ -544,7 +628,8 @@ def render_gif(
     moving body over the frames shown (`view` must then be None). start, end: s, the
     part of the run to show. progress(done, total) is called after each frame. Frames
     are drawn and written one at a time (memory does not grow with their number).
-    Raises RenderError.
+    contacts: draw the contact points the run recorded (output.contacts), each a dot
+    with a short line along its normal. Raises RenderError.
     """
     need_matplotlib("rbsim render to a GIF")
     if not 0 < fps <= GIF_MAX_FPS:
@@ -568,8 +653,9 @@ def render_gif(
                 from .render3d import write_gif3d
 
                 camera = write_gif3d(
-                    main, idx, other, other_idx, output, fps, width, height, progress
-                )
+                    main, idx, other, other_idx, output, fps, width, height, progress,
+                    contacts=contacts,
+                )  # fmt: skip
                 duration = float(main.time[idx[-1]] - main.time[idx[0]]) + 1.0 / fps
                 return GifResult(output, len(idx), width, height, None, duration, camera)
             if view is None:
@@ -578,7 +664,9 @@ def render_gif(
                     pairs.append((other, np.unique(other_idx)))
                 view = fit_view(pairs)
             view = view.with_aspect(width, height)
-            _write_gif(main, idx, other, other_idx, output, fps, width, height, view, progress)
+            _write_gif(
+                main, idx, other, other_idx, output, fps, width, height, view, progress, contacts
+            )
         finally:
             if other is not None:
                 other.close()
@@ -623,6 +711,7 @@ def _write_gif(
     height: int,
     view: View,
     progress: Progress | None,
+    contacts: bool = True,
 ) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.collections import LineCollection, PolyCollection
@@ -667,6 +756,11 @@ def _write_gif(
 
     update_main = artists(main, overlay=False)
     update_other = artists(other, overlay=True) if other is not None else None
+    points = FrameContacts(main, idx) if contacts and main.has_contacts else None
+    if points is not None:
+        normals, dots = contact_artists(ax, dpi)
+        lo, hi = np.array([view.x0, view.y0]), np.array([view.x1, view.y1])
+        length = contact_normal_length(body_reach(main.bodies), main.bodies.type, lo, hi)
     clock = ax.text(
         0.015,
         0.975,
@@ -707,6 +801,10 @@ def _write_gif(
         update_main(pos, rot)
         if update_other is not None and other_pose is not None:
             update_other(*other_pose)
+        if points is not None:  # world coordinates: the axes are the view, m
+            at, normal = points.next()
+            dots.set_offsets(at.reshape(-1, 2))
+            normals.set_segments(np.stack([at, at + length * normal], axis=1))
 
     write_frames(main, idx, other, other_idx, output, gif_palette(), fps, canvas, clock, draw,
                  progress)  # fmt: skip

@@ -24,9 +24,12 @@ from .mesh import (
 )
 from .render import (
     COLOURS,
+    FrameContacts,
     FrameReader,
     Pose,
     Progress,
+    contact_artists,
+    contact_normal_length,
     gif_palette,
     write_frames,
 )
@@ -38,6 +41,7 @@ __all__ = [
     "frame_faces",
     "gif_palette3d",
     "clip_near",
+    "contact_pixels",
     "ground_for",
     "shaded_rgb",
     "write_gif3d",
@@ -81,7 +85,7 @@ def gif_palette3d() -> np.ndarray:
     for kind in ("dynamic", "static", "kinematic"):
         entries += [tuple(c) for c in shaded_rgb(COLOURS_3D[f"{kind}_fill"], steps).tolist()]
     edges = ("dynamic_edge", "static_edge", "kinematic_edge")
-    for key in ("background", "ground_fill", "grid", "text", "overlay_edge", *edges):
+    for key in ("background", "ground_fill", "grid", "text", "overlay_edge", "contact", *edges):
         entries.append(tuple(int(c) for c in _rgb(COLOURS_3D[key])))
     seen: set[tuple[int, int, int]] = set()
     unique = [e for e in entries if not (e in seen or seen.add(e))]
@@ -186,6 +190,21 @@ def clip_near(points: np.ndarray, camera: Camera, closed: bool) -> np.ndarray:
     return np.array(out).reshape(-1, 3)
 
 
+def contact_pixels(
+    pos: np.ndarray, normal: np.ndarray, length: float, camera: Camera, width: int, height: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """One frame's contact points in pixels: the dots (k,2) of the points pos (k,3) m in
+    front of the camera's near plane, and the segments (k,2,2) from each along its unit
+    normal for `length` m (those wholly in front)."""
+    near = NEAR_FRACTION * camera.distance
+    tips = pos + length * normal
+    px, depth = camera.project(pos, width, height)
+    tip_px, tip_depth = camera.project(tips, width, height)
+    seen = depth > near
+    both = seen & (tip_depth > near)
+    return px[seen], np.stack([px[both], tip_px[both]], axis=1)
+
+
 def _ground_pixels(
     camera: Camera, ground: Ground, width: int, height: int
 ) -> tuple[list[np.ndarray], list[np.ndarray]]:
@@ -213,11 +232,14 @@ def write_gif3d(
     width: int,
     height: int,
     progress: Progress | None,
+    contacts: bool = True,
 ) -> Camera:
     """Draw frames idx of the 3D trajectory `main` (and the overlay `other` at frames
     other_idx, as orange wireframes) into the GIF `output`, width x height pixels, each
-    frame shown until the next (fps: frames per second of simulated time). Returns the
-    camera used (fitted to the moving bodies over the frames shown)."""
+    frame shown until the next (fps: frames per second of simulated time); with
+    `contacts`, main's recorded contact points over everything (dots with a short line
+    along each normal, see contact_pixels). Returns the camera used (fitted to the
+    moving bodies over the frames shown)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.collections import LineCollection, PolyCollection
     from matplotlib.figure import Figure
@@ -252,6 +274,10 @@ def write_gif3d(
         [], facecolors="none", edgecolors=COLOURS["overlay_edge"], linewidths=0.7, zorder=3
     )
     ax.add_collection(wire)
+    points = FrameContacts(main, idx) if contacts and main.has_contacts else None
+    if points is not None:
+        normals, dots = contact_artists(ax, dpi)
+        length = contact_normal_length(body_reach3d(main.bodies), main.bodies.type, lo, hi)
     clock = ax.text(
         0.015, 0.975, "", transform=ax.transAxes, ha="left", va="top", family="monospace",
         fontsize=10, color=COLOURS["text"], zorder=10,
@@ -292,6 +318,10 @@ def write_gif3d(
         if other_meshes is not None and other_pose is not None:
             _shown, wire_px, _bright = frame_faces(other_meshes, *other_pose, camera, width, height)
             wire.set_verts(wire_px)
+        if points is not None:
+            at, lines = contact_pixels(*points.next(), length, camera, width, height)
+            dots.set_offsets(at.reshape(-1, 2))
+            normals.set_segments(lines)
 
     write_frames(main, idx, other, other_idx, output, gif_palette3d(), fps, canvas, clock, draw,
                  progress)  # fmt: skip

@@ -66,7 +66,48 @@ void record_frame(const World<D>& world, const FrameRow<D>& row) {
   if (row.contact_count) *row.contact_count = world.contact_count();
 }
 
+template <int D>
+std::int64_t record_contacts(const World<D>& world, const ContactRows<D>& rows) {
+  using Vec = typename Dim<D>::Vec;
+  if (!world.model.has_shapes) return 0;
+  const auto& c = world.contacts;
+  const auto& s = world.state;
+  const std::int64_t m = c.count.manifolds;
+  // the same points as store_impulses counts: those that pushed in the step
+  std::int64_t count = 0;
+  for (std::int64_t i = 0; i < m; ++i)
+    for (int k = 0; k < c.points[i]; ++k)
+      if (c.max_normal_impulse[i][k] > 0.0) ++count;
+  if (count > rows.capacity) return count;
+  const double inv_h = world.config.substeps / world.config.dt;  // 1/s: 1 / substep
+  std::int64_t r = 0;
+  for (std::int64_t i = 0; i < m; ++i) {
+    const int a = c.body_a[i], b = c.body_b[i];
+    // the anchors are world-frame lever arms at the step's start: turn them with each
+    // body's rotation since then (body_delta), from its COM now
+    const auto& da = c.body_delta[a];
+    const auto& db = c.body_delta[b];
+    const Vec n = -c.normal[i];  // the store's normal points from b towards a
+    for (int k = 0; k < c.points[i]; ++k) {
+      if (!(c.max_normal_impulse[i][k] > 0.0)) continue;
+      const Vec pa = s.body_x[a] + rotate(da.dq, c.anchor_a[i][k]);
+      const Vec pb = s.body_x[b] + rotate(db.dq, c.anchor_b[i][k]);
+      if (rows.body) {
+        rows.body[2 * r] = a;
+        rows.body[2 * r + 1] = b;
+      }
+      if (rows.position) put(rows.position + D * r, 0.5 * (pa + pb));
+      if (rows.normal) put(rows.normal + D * r, n);
+      if (rows.force) rows.force[r] = c.normal_impulse[i][k] * inv_h;
+      ++r;
+    }
+  }
+  return count;
+}
+
 template void record_frame(const World<2>&, const FrameRow<2>&);
 template void record_frame(const World<3>&, const FrameRow<3>&);
+template std::int64_t record_contacts(const World<2>&, const ContactRows<2>&);
+template std::int64_t record_contacts(const World<3>&, const ContactRows<3>&);
 
 }  // namespace rbsim

@@ -42,4 +42,22 @@ using FrameRow3 = FrameRow<3>;
 template <int D>
 void record_frame(const World<D>& world, const FrameRow<D>& row);
 
+// Rows for the contact points of frames (output.contacts: points), caller-owned, with
+// room for `capacity` points from these pointers on. Each pointer may be null.
+template <int D>
+struct ContactRows {
+  std::int64_t capacity = 0;
+  std::int64_t* body = nullptr;  // (C,2) the two bodies (a, b), scene order
+  double* position = nullptr;    // (C,D) m, world frame, at the end of the step
+  double* normal = nullptr;      // (C,D) unit, from body a towards body b (b is pushed along it)
+  double* force = nullptr;       // (C,) N, the normal impulse of the step's last substep / h
+};
+
+// The contact points of the last step that pushed (those contact_count counts), written
+// into `rows` when they fit in its capacity. Returns how many there are (written or not).
+// A point is the midpoint of its anchors on the two bodies, carried with each body's
+// motion through the step, so that it sits where the bodies meet at the frame's time.
+template <int D>
+std::int64_t record_contacts(const World<D>& world, const ContactRows<D>& rows);
+
 }  // namespace rbsim

@@ -1,0 +1,183 @@
+"""Contact points in the trajectory (output.contacts: points): what the engine records
+per frame, how the writer lays the rows out and grows them, how load_trajectory and
+`rbsim info` read them, and that a run which does not ask records nothing."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import rbsim
+from rbsim.io.trajectory import CONTACT_BLOCK_ROWS, CONTACT_FILE_ROWS, summarize
+from rbsim.run import resume_run, run_scene
+from rbsim.scene import load_scene, load_scene_text
+from rbsim.scene.library import scenes_dir
+
+G = 9.81  # m/s², the default gravity's magnitude
+
+BOX_ON_PLANE = """
+version: 1
+world: {dimension: 3, dt: 0.01, steps: 60}
+output: {contacts: points}
+bodies:
+  - {name: ground, type: static, shape: {plane: {normal: [0, 1, 0], offset: 0}}}
+  - {name: box, position: [0.3, 0.5, -0.2], density: 1000, shape: {box: {size: [1, 1, 1]}}}
+"""
+
+BOX_ON_SEGMENT = """
+version: 1
+world: {dt: 0.01, steps: 60}
+output: {contacts: points}
+bodies:
+  - {name: ground, type: static, shape: {segment: {a: [-5, 0], b: [5, 0]}}}
+  - {name: box, position: [0.3, 0.5], density: 1000, shape: {box: {size: [1, 1]}}}
+"""
+
+
+def pile(tmp_path, name: str, *sets: str):  # noqa: ANN201 - a Trajectory
+    """The shipped collapsing pile, its first 2 s, with `sets` (--set lines)."""
+    path = scenes_dir("3d") / "collapsing_pile.yaml"
+    scene = load_scene(path, ["world.duration=2", *sets])
+    out = tmp_path / f"{name}.h5"
+    run_scene(scene, out)
+    return out
+
+
+def test_a_box_resting_on_a_plane_records_its_four_corners_with_normals_up() -> None:
+    tr = rbsim.run(BOX_ON_PLANE)
+    c = tr.contacts
+    assert c is not None
+    assert c.count[0] == 0  # step 0: nothing has been stepped, no contact yet
+    assert np.array_equal(c.count[1:], np.full(len(tr.step) - 1, 4))
+    assert np.array_equal(c.count, tr.observables["contact_count"])
+    assert np.array_equal(c.start, np.concatenate([[0], np.cumsum(c.count)[:-1]]))
+    rows = c.frame(len(tr.step) - 1)
+    ground, box = tr.body("ground"), tr.body("box")
+    assert np.array_equal(c.body[rows], np.tile([ground, box], (4, 1)))
+    # the normal points from the first body (the ground) into the second: straight up
+    assert np.array_equal(c.normal[rows], np.tile([0.0, 1.0, 0.0], (4, 1)))
+    p = c.position[rows]
+    # at the plane: the midpoint of the box's face and the plane, half the soft
+    # contact's sag below it (tens of µm for a 1 t box at h = 2.5 ms)
+    assert np.all(np.abs(p[:, 1]) < 1e-4)
+    # under the box's four bottom corners, which do not move sideways (round-off)
+    corners = {(round(x, 9), round(z, 9)) for x in (-0.2, 0.8) for z in (-0.7, 0.3)}
+    assert {(round(x, 9), round(z, 9)) for x, z in p[:, [0, 2]]} == corners
+    # the four normal forces carry the box's weight (a box at rest: to round-off)
+    weight = 1000.0 * G
+    assert abs(c.force[rows].sum() - weight) < 1e-9 * weight
+
+
+def test_2d_records_the_same_way() -> None:
+    tr = rbsim.run(BOX_ON_SEGMENT)
+    c = tr.contacts
+    assert c is not None and c.position.shape[1] == 2
+    rows = c.frame(len(tr.step) - 1)
+    assert c.count[-1] == 2
+    assert np.array_equal(c.normal[rows], [[0.0, 1.0], [0.0, 1.0]])
+    assert sorted(np.round(c.position[rows, 0], 9)) == [-0.2, 0.8]
+    weight = 1000.0 * G  # kg/m² × 1 m² × g
+    assert abs(c.force[rows].sum() - weight) < 1e-9 * weight
+
+
+def test_a_run_that_does_not_ask_records_nothing_and_the_same_frames() -> None:
+    asked = rbsim.run(BOX_ON_PLANE)
+    plain = rbsim.run(BOX_ON_PLANE.replace("output: {contacts: points}", ""))
+    assert plain.contacts is None
+    # recording reads the contact store and changes nothing in the run
+    assert np.array_equal(asked.position, plain.position)
+    assert np.array_equal(asked.orientation, plain.orientation)
+    assert np.array_equal(asked.velocity, plain.velocity)
+
+
+def test_a_pile_grows_the_rows_and_keeps_every_point(tmp_path) -> None:
+    out = pile(tmp_path, "pile", "output.contacts=points")
+    tr = rbsim.load_trajectory(out)
+    c = tr.contacts
+    assert c is not None
+    # more points per frame than the block and the file make room for at first: both grew
+    assert c.count.max() > CONTACT_BLOCK_ROWS and c.count.max() > CONTACT_FILE_ROWS
+    assert np.array_equal(c.count, tr.observables["contact_count"])
+    assert np.array_equal(c.start, np.concatenate([[0], np.cumsum(c.count)[:-1]]))
+    assert len(c.force) == c.count.sum()
+    n = len(tr.bodies.name)
+    assert c.body.min() >= 0 and c.body.max() < n and np.all(c.body[:, 0] != c.body[:, 1])
+    assert np.allclose(np.linalg.norm(c.normal, axis=1), 1.0, atol=1e-12)  # unit normals
+    assert np.all(c.force >= 0.0)  # a contact only pushes
+    # every point lies on or above the ground (less the overlap a hard impact leaves,
+    # a few cm at most: the pile's boxes are 0.5 m)
+    assert c.position[:, 1].min() > -0.05
+    # the ground's points have it first, pushing up
+    on_ground = c.body[:, 0] == tr.body("ground")
+    assert on_ground.any() and np.array_equal(
+        c.normal[on_ground], np.tile([0.0, 1.0, 0.0], (int(on_ground.sum()), 1))
+    )
+    # the frames are those of a run that does not record contacts
+    plain = rbsim.load_trajectory(pile(tmp_path, "plain"))
+    assert np.array_equal(plain.position, tr.position)
+    text = summarize(out)
+    assert f"contacts   {c.count.sum()} points over {len(tr.step)} frames" in text
+    assert f"at most {c.count.max()} in a frame" in text
+    assert "contacts" not in summarize(tmp_path / "plain.h5").split("wall time")[0]
+
+
+def test_bodies_left_out_are_named_by_their_rows_in_the_file(tmp_path) -> None:
+    full = rbsim.load_trajectory(pile(tmp_path, "all", "output.contacts=points"))
+    out = pile(
+        tmp_path,
+        "moving",
+        "output.contacts=points",
+        "output.bodies=moving",
+        "output.precision=float32",
+        "output.compression=gzip",
+    )
+    part = rbsim.load_trajectory(out)
+    assert part.contacts is not None and full.contacts is not None
+    assert np.array_equal(part.contacts.count, full.contacts.count)
+    names = part.bodies.name + part.fixed.bodies.name  # the frames' bodies, then the static
+    named = [[names[a], names[b]] for a, b in part.contacts.body]
+    assert named == [[full.bodies.name[a], full.bodies.name[b]] for a, b in full.contacts.body]
+    assert part.contacts.position.dtype == np.float32
+    # float32 rounding of positions of a few metres (2^-24 relative)
+    assert np.abs(part.contacts.position - full.contacts.position).max() < 1e-6
+
+
+def test_an_interrupted_run_resumes_to_the_same_contacts(tmp_path) -> None:
+    reference = rbsim.load_trajectory(pile(tmp_path, "ref", "output.contacts=points"))
+    path = scenes_dir("3d") / "collapsing_pile.yaml"
+    sets = ["world.duration=2", "output.contacts=points"]
+    out = tmp_path / "stopped.h5"
+
+    def stop(step: int, total: int) -> None:
+        if step >= 60:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_scene(load_scene(path, sets), out, progress=stop, overrides=sets, flush_seconds=0)
+    stopped = rbsim.load_trajectory(out)
+    assert stopped.status == "interrupted" and 0 < len(stopped.step) < len(reference.step)
+    resume_run(out)
+    resumed = rbsim.load_trajectory(out)
+    a, b = reference.contacts, resumed.contacts
+    assert a is not None and b is not None
+    for name in ("start", "count", "body", "position", "normal", "force"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+
+
+def test_the_option_is_checked_like_any_key() -> None:
+    with pytest.raises(rbsim.scene.SceneError, match="output.contacts"):
+        load_scene_text(BOX_ON_PLANE.replace("contacts: points", "contacts: yes"), "<s>")
+
+
+@pytest.mark.parametrize("compression", ["none", "gzip"])
+def test_a_run_without_any_contact_records_an_empty_table(compression: str) -> None:
+    ball = {
+        "version": 1,
+        "world": {"steps": 30},
+        "output": {"contacts": "points", "compression": compression},
+        "bodies": [{"shape": {"circle": {"radius": 1}}}],
+    }
+    c = rbsim.run(ball).contacts
+    assert c is not None
+    assert np.array_equal(c.count, np.zeros(31)) and np.array_equal(c.start, np.zeros(31))
+    assert c.position.shape == (0, 2) and c.body.shape == (0, 2) and c.force.shape == (0,)
