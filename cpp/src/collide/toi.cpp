@@ -20,8 +20,8 @@ Impact advance_to_impact(const State<D>& st, int ba, int bb, int npts, double dt
                          double tolerance, double finish, Manifold& out, Collide&& collide_at) {
   double t = 0.0;
   for (int it = 0; it < C::TOI_ITERATIONS; ++it) {
-    const Approach ap = nearest_approach(out, npts, ba, bb, t, st);
-    if (ap.sep <= tolerance || ap.vn >= 0.0) break;
+    const Approach ap = search_approach(out, npts, ba, bb, t, st);
+    if (ap.gap <= tolerance || ap.vn >= 0.0) break;
     double step = ap.sep / -ap.vn;  // s
     const bool last = t + step >= dt;
     if (last) {
