@@ -17,10 +17,11 @@ namespace {
 // when the search came within `finish` (m) of it.
 template <int D, class Manifold, class Collide>
 Impact advance_to_impact(const State<D>& st, int ba, int bb, int npts, double dt,
-                         double tolerance, double finish, Manifold& out, Collide&& collide_at) {
+                         double tolerance, double finish, double reach_a, double reach_b,
+                         Manifold& out, Collide&& collide_at) {
   double t = 0.0;
   for (int it = 0; it < C::TOI_ITERATIONS; ++it) {
-    const Approach ap = search_approach(out, npts, ba, bb, t, st);
+    const Approach ap = search_approach(out, npts, ba, bb, t, st, reach_a, reach_b);
     if (ap.gap <= tolerance || ap.vn >= 0.0) break;
     double step = ap.sep / -ap.vn;  // s
     const bool last = t + step >= dt;
@@ -86,7 +87,7 @@ Impact time_of_impact(const Model<2>& model, const State<2>& st, int a, int b, i
   const ShapeRef2 sb{model.shape_kind[b], na, nb, model.shape_radius[b], scale};
   const double tolerance = scale * C::TOI_TOLERANCE, finish = scale * C::TOI_FINISH;  // m
   return advance_to_impact(st, model.shape_body[a], model.shape_body[b], npts, dt, tolerance,
-                           finish, out, [&](double t, Manifold2& m) {
+                           finish, 0.0, 0.0, out, [&](double t, Manifold2& m) {
                              place_shape(model, st, a, t, 0, tv, tn);
                              place_shape(model, st, b, t, na, tv, tn);
                              return collide2d(sa, sb, tv, tn, spec, m);
@@ -101,7 +102,8 @@ Impact time_of_impact(const Model<3>& model, const State<3>& st, int a, int b, i
   const int na = model.shape_vcount[a], fa = toi_face_rows(model, a);
   const double tolerance = scale * C::TOI_TOLERANCE, finish = scale * C::TOI_FINISH;  // m
   return advance_to_impact(st, model.shape_body[a], model.shape_body[b], npts, dt, tolerance,
-                           finish, out, [&](double t, Manifold3& m) {
+                           finish, core_reach(model, a), core_reach(model, b), out,
+                           [&](double t, Manifold3& m) {
                              const ShapeRef3 sa = place_shape(model, st, a, t, scale, tv, tn);
                              const ShapeRef3 sb =
                                  place_shape(model, st, b, t, scale, tv + na, tn + fa);

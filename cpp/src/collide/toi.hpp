@@ -4,8 +4,9 @@
 // the step; for a glancing approach (two balls off centre) or a turning body (a spinning
 // plank, whose nearest corner at the start is not the one that hits) those are not the
 // normal and points of the impact. The search moves both bodies freely (x + v t, turned
-// by ω t), collides again, and repeats, each time by t = separation / approach speed,
-// which never passes the impact (the gap shrinks by a large factor per advancement).
+// by ω t), collides again, and repeats, each time by t = separation / approach speed
+// (search_approach: in space a bound on it, so that it never passes the impact; the gap
+// shrinks by a large factor per advancement).
 //
 // The search is written once for both dimensions (advance_to_impact); what differs is
 // how a shape is placed at t and which narrowphase collides it: in the plane the turn
@@ -64,44 +65,42 @@ inline Approach point_approach(const Manifold& out, int k, int ba, int bb, doubl
   return {out.separation[k], dot(dv, out.normal), out.separation[k]};
 }
 
-// The point of the manifold `out` (npts points) the search advances by, with both
-// bodies moved freely by t (s). In the plane, the nearest point. In space, the point that
-// meets first at its own approach speed (the least sep / −vn of the approaching points;
-// the nearest when none approaches): a manifold there spans a face, up to four corners,
-// and a turning body's far corner swings in faster than its near one (a plank spinning
-// at 50 rad/s on its way to a wall: its near corner 0.56 m away at 17 m/s, its far one
-// 2.7 m away at 186 m/s, which hits first; by the nearest point's estimate the pair did
-// not meet within the step, and the far corner's contact kept the start's lever arms
-// through a turn of 0.8 rad).
+// How the search advances, with both bodies moved freely by t (s). In the plane: by the
+// manifold's nearest point, at its own normal velocity (sep, vn). In space: by the
+// manifold's gap (its smallest separation) at a bound on how fast any point of the two
+// shapes can close it, vn = (v_a − v_b)·n − |ω_a| ρ_a − |ω_b| ρ_b (Mirtich's conservative
+// advancement; reach_a, reach_b = ρ, m, the farthest core vertex of each shape from its
+// body's centre of mass), so that the search never passes the impact: a manifold there
+// spans a face, up to four corners, and a turning body's far corner swings in faster
+// than its near one, and faster as it turns (the plank of tunnel_plank_3d, its near
+// corner 0.56 m from the wall at 17 m/s, its far one 2.7 m away at 186 m/s and rising:
+// by the nearest point's estimate the pair did not meet within the step; by the far
+// corner's own speed the search went 0.7 ms, 13 cm, past the impact).
 template <int D, class Manifold>
 inline Approach search_approach(const Manifold& out, int npts, int ba, int bb, double t,
-                                const State<D>& st) {
+                                const State<D>& st, double reach_a = 0.0, double reach_b = 0.0) {
   const int near = nearest_point(out, npts);
   if constexpr (D == 2) {
     return point_approach(out, near, ba, bb, t, st);
   } else {
-    Approach best = point_approach(out, near, ba, bb, t, st);
-    for (int k = 0; k < npts; ++k) {
-      if (k == near) continue;
-      const Approach ap = point_approach(out, k, ba, bb, t, st);
-      // ap meets first: sep / −vn < best.sep / −best.vn (or best does not approach)
-      if (ap.vn < 0.0 && (best.vn >= 0.0 || ap.sep * -best.vn < best.sep * -ap.vn)) best = ap;
-    }
-    best.gap = out.separation[near];
-    return best;
+    const double gap = out.separation[near];
+    const double vn = dot(st.body_v[ba] - st.body_v[bb], out.normal) -
+                      length(st.body_w[ba]) * reach_a - length(st.body_w[bb]) * reach_b;
+    return {gap, vn, gap};
   }
 }
 
 // Whether the speculative manifold `out` (npts points, at the step's start) asks for a
-// time of impact: its nearest point is clearly apart (more than `slop`, m) and the
-// search's point (search_approach), at its approach speed, meets within dt (s). Most
+// time of impact: its nearest point is clearly apart (more than `slop`, m) and, at the
+// search's approach speed (search_approach; reach_a, reach_b as there), it meets within
+// dt (s). Most
 // speculative pairs do not (two balls falling side by side, a box resting on another);
 // this test, the search's first, lets them skip it.
 template <int D, class Manifold>
 inline bool meets_within(const Manifold& out, int npts, int ba, int bb, double dt, double slop,
-                         const State<D>& st) {
+                         const State<D>& st, double reach_a = 0.0, double reach_b = 0.0) {
   if (npts == 0 || out.separation[nearest_point(out, npts)] <= slop) return false;
-  const Approach ap = search_approach(out, npts, ba, bb, 0.0, st);
+  const Approach ap = search_approach(out, npts, ba, bb, 0.0, st, reach_a, reach_b);
   return ap.vn < 0.0 && ap.sep / -ap.vn < dt;
 }
 
@@ -136,6 +135,16 @@ inline ShapeRef3 shape_ref(const Model<3>& model, int s, const Vec3* verts, cons
 // its face (or plane normal) rows into faces, and the ShapeRef3 over them.
 ShapeRef3 place_shape(const Model<3>& model, const State<3>& st, int s, double t, double scale,
                       Vec3* verts, Vec3* faces);
+
+// ρ (m): the farthest core vertex of shape s from its body's centre of mass (a turn by
+// θ moves no point of its surface farther than ρ θ).
+template <int D>
+inline double core_reach(const Model<D>& model, int s) {
+  double r = 0.0;
+  const int v0 = model.shape_vstart[s];
+  for (int k = v0; k < v0 + model.shape_vcount[s]; ++k) r = std::max(r, length(model.vertex_local[k]));
+  return r;
+}
 
 // The rows of the store's toi_norms one 3D shape needs at its time of impact: a hull's
 // faces, a plane's normal, none for the others.

@@ -143,7 +143,19 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
       // only if it meets within the step: most such pairs do not (two balls falling
       // side by side), and their test is made here, as the search's first, so that they
       // skip the call
-      if (meets_within(out, npts, ba, bb, dt, scale * C::LINEAR_SLOP, st)) {
+      // (in 3D at a bound on the closing speed that takes in the bodies' turns, from
+      // each shape's reach, looked up only for a pair that is apart)
+      const double slop = scale * C::LINEAR_SLOP;  // m
+      bool meets = false;
+      if (npts > 0 && out.separation[nearest_point(out, npts)] > slop) {
+        double reach_a = 0.0, reach_b = 0.0;  // m
+        if constexpr (D == 3) {
+          reach_a = core_reach(model, a);
+          reach_b = core_reach(model, b);
+        }
+        meets = meets_within(out, npts, ba, bb, dt, slop, st, reach_a, reach_b);
+      }
+      if (meets) {
         const Impact hit = time_of_impact(model, st, a, b, npts, dt, spec, scale,
                                           c.toi_verts.data(), c.toi_norms.data(), out);
         npts = hit.points;
