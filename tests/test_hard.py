@@ -487,5 +487,6 @@ def test_3d_fast_sphere_stops_at_a_thin_wall_and_bounces_with_its_restitution():
 
 def test_3d_spinning_plank_and_tumbling_box_never_pass_a_thin_wall():
     must("tunnel_plank_3d", "reach", "<=", hard.WALL_FAR)  # never beyond its far face
+    must("tunnel_plank_3d", "box_reach", "<=", hard.WALL_FAR)  # the box neither
     must("tunnel_plank_3d", "short", "<", LINEAR_SLOP)  # the plank hits the wall
     must("tunnel_plank_3d", "gain", "<", 1e-9)  # restitution 0: no energy from the impacts

@@ -197,7 +197,14 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
         // separation = base + n · (d_a + R(Δθ_a) s_a − d_b − R(Δθ_b) s_b) as the bodies
         // move (d, Δθ: motion since the step's start); at the impact (d = v t, Δθ = ω t)
         // it equals the separation found there
-        const double moved = dot(n, da + rotate(qa, sa_k) - db - rotate(qb, sb_k));
+        // (in 3D the turn by the identity is skipped: it was the constant it costs nothing
+        // as, before the time of impact came to 3D)
+        Vec turned_a = sa_k, turned_b = sb_k;  // m: R(Δθ) s at the impact
+        if (D == 2 || t != 0.0) {
+          turned_a = rotate(qa, sa_k);
+          turned_b = rotate(qb, sb_k);
+        }
+        const double moved = dot(n, da + turned_a - db - turned_b);
         const double base = out.separation[k] - moved;
         c.base_separation[m][k] = base;
         const double start = base + dot(n, sa_k - sb_k);
