@@ -470,3 +470,23 @@ def test_3d_pile_is_bit_identical_run_twice_in_other_chunks_and_to_file():
     must("determinism_3d", "twice", "<", 0.5)  # no frame differs, run twice
     must("determinism_3d", "chunks", "<", 0.5)  # none, stepped 7 at a time instead of 1
     must("determinism_3d", "file", "<", 0.5)  # two trajectory files: no dataset differs
+
+
+# ---------------------------------------------------------------------------------------
+# Tunneling in 3D (time of impact)
+# ---------------------------------------------------------------------------------------
+
+
+def test_3d_fast_sphere_stops_at_a_thin_wall_and_bounces_with_its_restitution():
+    # at dt = 1/240 s and 1/60 s: never through the near face by more than the slop
+    must("tunnel_ball_3d", "past", "<", LINEAR_SLOP)
+    must("tunnel_ball_3d", "short", "<", LINEAR_SLOP)  # with e = 0 it stops at the wall
+    # v_n -> -e v_n along the wall's normal, frictionless: to round-off of 300 m/s
+    must("tunnel_ball_3d", "bounce", "<", 1e-9)
+
+
+def test_3d_spinning_plank_and_tumbling_box_never_pass_a_thin_wall():
+    must("tunnel_plank_3d", "reach", "<=", hard.WALL_FAR)  # never beyond its far face
+    must("tunnel_plank_3d", "box_reach", "<=", hard.WALL_FAR)  # the box neither
+    must("tunnel_plank_3d", "short", "<", LINEAR_SLOP)  # the plank hits the wall
+    must("tunnel_plank_3d", "gain", "<", 1e-9)  # restitution 0: no energy from the impacts

@@ -1408,6 +1408,158 @@ def measure_determinism_3d(make: Maker) -> dict[str, float]:
     return determinism_figures(make, "confined_3d.yaml", DETERMINISM_3D_STEPS)
 
 
+# -- tunneling in 3D (time of impact, collide/toi.cpp) --------------------------------
+# The walls of tunnel_ball_3d.yaml and tunnel_plank_3d.yaml: near face x = WALL_NEAR,
+# far face x = WALL_FAR, as in 2D.
+
+TUNNEL_DTS = ("world.dt=1/240", "world.dt=1/60")  # the 3D bench's step, and 4 times it
+
+
+class Surface3:
+    """The 3D shapes of a scene's bodies, to find how far a body's surface reaches along
+    x from a Snapshot: each body's vertex rows about its origin (m: a sphere's centre, a
+    capsule's two ends, a box's 8 corners, a hull's vertices) and its largest radius (m)."""
+
+    def __init__(self, scene: Scene) -> None:
+        self.local: list[np.ndarray] = []
+        self.radius: list[float] = []
+        for body in scene.bodies:
+            rows = [np.array(sh.vertices, float).reshape(-1, 3) for sh in body.shapes]
+            self.local.append(np.concatenate(rows) if rows else np.zeros((0, 3)))
+            self.radius.append(max((float(sh.radius) for sh in body.shapes), default=0.0))
+
+    def reach_x(self, s: Snapshot, body: int) -> float:
+        """The largest x (m) of body's surface (a rounded shape's core plus its radius)."""
+        r = quat_matrix(s.orientation[body : body + 1])[0]
+        points = s.origin[body] + self.local[body] @ r.T
+        return float(points[:, 0].max()) + self.radius[body]
+
+
+def tunnel_run(make: Maker, name: str, overrides: Sequence[str]) -> dict[str, np.ndarray]:
+    """Run `name` with `overrides`, every step: per dynamic body, its name, the farthest x
+    of its surface (m), its velocity at the start and at the end (m/s); the run's time (s),
+    gravity (m/s²), and the largest rise of KE + PE above the start's, per the start's."""
+    sim = make(name, overrides)
+    surface = Surface3(sim.scene)
+    bodies = np.flatnonzero(sim.dynamic)
+    first = sim.read()
+    e0 = kinetic_energy(sim, first) + potential_energy(sim, first)
+    reach = np.full(len(bodies), -np.inf)
+    gain = [0.0]
+
+    def visit(sim: Engine, s: Snapshot) -> None:
+        for k, b in enumerate(bodies):
+            reach[k] = max(reach[k], surface.reach_x(s, b))
+        gain[0] = max(gain[0], (kinetic_energy(sim, s) + potential_energy(sim, s) - e0) / e0)
+
+    sample(sim, 1, visit)
+    last = sim.read()
+    return {
+        "names": [sim.scene.bodies[b].name for b in bodies],
+        "reach": reach,
+        "v0": first.velocity[bodies],
+        "v1": last.velocity[bodies],
+        "time": np.float64(sim.step_index * sim.dt),
+        "gravity": np.asarray(sim.scene.world.gravity, float),
+        "gain": np.float64(gain[0]),
+    }
+
+
+@case(
+    "tunnel_ball_3d",
+    "3D tunneling: 0.05 m spheres, 300 m/s, e = 0.5, dt 1/240 and 1/60",
+    ["tunnel_ball_3d.yaml"],
+    [
+        Rule(
+            "past",
+            f"deepest past the near face (x = {WALL_NEAR:g}) of any sphere",
+            "m",
+            "<",
+            C.LINEAR_SLOP,
+            "never through the wall: within the slop of its near face",
+        ),
+        Rule(
+            "short",
+            "with e = 0: stops short of the wall by",
+            "m",
+            "<",
+            C.LINEAR_SLOP,
+            "it must reach the wall, not stop in the air (LINEAR_SLOP)",
+        ),
+        Rule(
+            "bounce",
+            "|v after − (−e v_n, v_t + g t)| / |v before|",
+            "",
+            "<",
+            1e-9,
+            "the restitution hypothesis along the wall's normal, frictionless: round-off",
+        ),
+    ],
+    dimension=3,
+)
+def measure_tunnel_ball_3d(make: Maker) -> dict[str, float]:
+    """At each of TUNNEL_DTS: with the scene's restitution 0.5, how far any sphere got
+    past the near face (m) and how far each sphere's final velocity is from the bounce
+    the hypothesis gives along the wall's normal x, −e v_x, with the velocity along the
+    wall kept (plus gravity's g t), per its speed; with restitution 0 (where a sphere
+    stops at the wall, so that a frame sees it there), how far short of the wall the
+    nearest one stopped (m)."""
+    name = "tunnel_ball_3d.yaml"
+    e = float(load_scene(SCENES / name).bodies[1].shapes[0].material.restitution)
+    out = {"past": 0.0, "short": 0.0, "bounce": 0.0}
+    for dt in TUNNEL_DTS:
+        run = tunnel_run(make, name, [dt])
+        want = run["v0"] + run["gravity"] * run["time"]
+        want[:, 0] = -e * run["v0"][:, 0]
+        error = speeds(run["v1"] - want) / speeds(run["v0"])
+        out["bounce"] = max(out["bounce"], float(error.max()))
+        out["past"] = max(out["past"], float(run["reach"].max()) - WALL_NEAR)
+        stop = tunnel_run(make, name, [dt, "materials.bouncy.restitution=0"])
+        out["past"] = max(out["past"], float(stop["reach"].max()) - WALL_NEAR)
+        out["short"] = max(out["short"], float((WALL_NEAR - stop["reach"]).max()))
+    return out
+
+
+@case(
+    "tunnel_plank_3d",
+    "3D tunneling: plank 100 m/s at 50 rad/s, box 150 m/s tumbling, dt 1/240 and 1/60",
+    ["tunnel_plank_3d.yaml"],
+    [
+        *CASES["tunnel_plank"].rules,
+        Rule("box_reach", "farthest x of the box", "m", "<=", WALL_FAR, "never on the far side"),
+        Rule(
+            "gain",
+            "largest rise of KE + PE over the start's",
+            "",
+            "<",
+            1e-9,
+            "restitution 0: the impacts take energy, never give it (round-off)",
+        ),
+    ],
+    [Info("box_short", "the box stops short of the wall by", "m")],
+    dimension=3,
+)
+def measure_tunnel_plank_3d(make: Maker) -> dict[str, float]:
+    """At each of TUNNEL_DTS: the farthest x any point of the plank and of the box
+    reached (m), how far short of the wall each stayed (m), and the largest rise of the
+    total energy over the start's, per the start's. The box's shortfall is reported, not
+    judged: at dt = 1/60 s it turns 0.25 rad per substep, and the restitution stage takes
+    an impact whose point turns on an arc longer than IMPACT_GAP within a substep as met
+    where it engaged, a substep before the box reaches the wall (restitution.cpp,
+    impact_state)."""
+    out = {"reach": -math.inf, "box_reach": -math.inf, "short": 0.0, "gain": 0.0}
+    out["box_short"] = 0.0
+    for dt in TUNNEL_DTS:
+        run = tunnel_run(make, "tunnel_plank_3d.yaml", [dt])
+        reach = dict(zip(run["names"], run["reach"], strict=True))
+        out["reach"] = max(out["reach"], float(reach["plank"]))
+        out["box_reach"] = max(out["box_reach"], float(reach["box"]))
+        out["short"] = max(out["short"], WALL_NEAR - float(reach["plank"]))
+        out["box_short"] = max(out["box_short"], WALL_NEAR - float(reach["box"]))
+        out["gain"] = max(out["gain"], float(run["gain"]))
+    return out
+
+
 # --------------------------------------------------------------------------------------
 # Running and reporting
 

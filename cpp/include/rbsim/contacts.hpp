@@ -156,7 +156,10 @@ struct Contacts {
   std::vector<std::uint8_t> body_still;  // within STILL_DISTANCE/ANGLE of its reference pose
   std::vector<BodyDelta<D>> body_delta;  // motion since the step's start
   // per vertex / shape
-  std::vector<Vec> toi_verts, toi_norms;  // (V,) two shapes moved to their time of impact
+  // two shapes moved to their time of impact: (V,) vertex rows; (V,) normal rows in 2D,
+  // (2V,) in 3D: a hull's face normals (at most 2 per vertex: a closed triangulated
+  // surface has 2V - 4 triangles) or a plane's normal (collide/toi.hpp)
+  std::vector<Vec> toi_verts, toi_norms;
   std::vector<Vec> vert_world, norm_world;  // (V,) shape geometry in the world this step
   std::vector<Vec> face_world;  // 3D: (Model::hull_face_count,) convex hulls' face normals
                                 // in the world this step (sized by World::allocate)
@@ -239,7 +242,7 @@ void Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   if constexpr (D == 2) unset.angle = nan;
   body_ref.assign(n, unset);
   reset(body_still, n); reset(body_delta, n);
-  reset(toi_verts, v < 2 ? 2 : v); reset(toi_norms, v < 2 ? 2 : v);
+  reset(toi_verts, v < 2 ? 2 : v); reset(toi_norms, D == 2 ? (v < 2 ? 2 : v) : 2 * v + 2);
   reset(vert_world, v); reset(norm_world, v); reset(shape_margin, s);
   shape_size.assign(s, 1.0); shape_scale.assign(s, 1.0); body_scale.assign(n, 1.0);
   reset(body_level, n); reset(shock_side, m); reset(shock_order, m); reset(solve_order, m);

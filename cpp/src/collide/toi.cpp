@@ -7,6 +7,43 @@ namespace rbsim {
 
 namespace C = constants;
 
+namespace {
+
+// Conservative advancement, in either dimension: move both bodies freely by
+// t = separation / approach speed, collide again (collide_at(t, out) places both shapes
+// at t and returns the manifold's point count), repeat, until the gap is below
+// `tolerance` (m), the pair separates, or TOI_ITERATIONS advancements were made (each one
+// narrowphase call). An impact that falls after the step is taken at the step's end only
+// when the search came within `finish` (m) of it.
+template <int D, class Manifold, class Collide>
+Impact advance_to_impact(const State<D>& st, int ba, int bb, int npts, double dt,
+                         double tolerance, double finish, double reach_a, double reach_b,
+                         Manifold& out, Collide&& collide_at) {
+  double t = 0.0;
+  for (int it = 0; it < C::TOI_ITERATIONS; ++it) {
+    const Approach ap = search_approach(out, npts, ba, bb, t, st, reach_a, reach_b);
+    if (ap.gap <= tolerance || ap.vn >= 0.0) break;
+    double step = ap.sep / -ap.vn;  // s
+    const bool last = t + step >= dt;
+    if (last) {
+      // the impact falls after the step. Right after it (the search came within
+      // TOI_FINISH), the manifold is taken at the step's end, which has the impact's
+      // normal (stopping short left one on a frame 5e-8 rad off); further, it stays
+      // where it is (a turning body's arc is not in the estimate, and it may meet the
+      // other before the step's end)
+      step = dt - t;
+      if (step <= 0.0 || ap.sep > finish) break;
+    }
+    t += step;
+    npts = collide_at(t, out);
+    if (npts == 0) return {0, t};  // passed by after all
+    if (last) break;
+  }
+  return {npts, t};
+}
+
+}  // namespace
+
 void place_shape(const Model<2>& model, const State<2>& st, int s, double t, int start,
                  Vec2* verts, Vec2* norms) {
   const int i = model.shape_body[s];
@@ -20,41 +57,58 @@ void place_shape(const Model<2>& model, const State<2>& st, int s, double t, int
   }
 }
 
-// Conservative advancement: move both bodies freely by t = separation / approach speed,
-// collide again, repeat, until the gap is below TOI_TOLERANCE (m, times the pair's scale),
-// the pair separates, or TOI_ITERATIONS advancements were made (each one narrowphase
-// call).
+int toi_face_rows(const Model<3>& model, int s) {
+  if (model.shape_kind[s] == ShapeKind::Plane) return 1;
+  return model.shape_hull[s].face_count();  // 0 but for a convex hull
+}
+
+ShapeRef3 place_shape(const Model<3>& model, const State<3>& st, int s, double t, double scale,
+                      Vec3* verts, Vec3* faces) {
+  const int i = model.shape_body[s];
+  // the pose after t: turned by ω t, moved by v t
+  const Quat q = mul(turn_by(t * st.body_w[i]), st.body_q[i]);
+  const Vec3 p = st.body_x[i] + t * st.body_v[i];
+  const int v0 = model.shape_vstart[s];
+  for (int k = 0; k < model.shape_vcount[s]; ++k) verts[k] = p + rotate(q, model.vertex_local[v0 + k]);
+  if (model.shape_kind[s] == ShapeKind::Plane) {
+    faces[0] = rotate(q, model.normal_local[v0]);
+  } else {
+    const Hull3& hull = model.shape_hull[s];
+    for (int f = 0; f < hull.face_count(); ++f) faces[f] = rotate(q, hull.face_normal[f]);
+  }
+  return shape_ref(model, s, verts, faces, scale);
+}
+
 Impact time_of_impact(const Model<2>& model, const State<2>& st, int a, int b, int npts,
                       double dt, double spec, double scale, Vec2* tv, Vec2* tn,
                       Manifold2& out) {
-  const int ba = model.shape_body[a], bb = model.shape_body[b];
   const int na = model.shape_vcount[a], nb = model.shape_vcount[b];
   const ShapeRef2 sa{model.shape_kind[a], 0, na, model.shape_radius[a], scale};
   const ShapeRef2 sb{model.shape_kind[b], na, nb, model.shape_radius[b], scale};
   const double tolerance = scale * C::TOI_TOLERANCE, finish = scale * C::TOI_FINISH;  // m
-  double t = 0.0;
-  for (int it = 0; it < C::TOI_ITERATIONS; ++it) {
-    const Approach ap = nearest_approach(out, npts, ba, bb, t, st);
-    if (ap.sep <= tolerance || ap.vn >= 0.0) break;
-    double step = ap.sep / -ap.vn;  // s
-    const bool last = t + step >= dt;
-    if (last) {
-      // the impact falls after the step. Right after it (the search came within
-      // TOI_FINISH), the manifold is taken at the step's end, which has the impact's
-      // normal (stopping short left one on a frame 5e-8 rad off); further, it stays
-      // where it is (a turning body's arc is not in the estimate, and it may meet the
-      // other before the step's end)
-      step = dt - t;
-      if (step <= 0.0 || ap.sep > finish) break;
-    }
-    t += step;
-    place_shape(model, st, a, t, 0, tv, tn);
-    place_shape(model, st, b, t, na, tv, tn);
-    npts = collide2d(sa, sb, tv, tn, spec, out);
-    if (npts == 0) return {0, t};  // passed by after all
-    if (last) break;
-  }
-  return {npts, t};
+  return advance_to_impact(st, model.shape_body[a], model.shape_body[b], npts, dt, tolerance,
+                           finish, 0.0, 0.0, out, [&](double t, Manifold2& m) {
+                             place_shape(model, st, a, t, 0, tv, tn);
+                             place_shape(model, st, b, t, na, tv, tn);
+                             return collide2d(sa, sb, tv, tn, spec, m);
+                           });
+}
+
+// In space the shapes' rows follow one another: a's vertices, then b's, in tv; a's face
+// (or plane normal) rows, then b's, in tn.
+Impact time_of_impact(const Model<3>& model, const State<3>& st, int a, int b, int npts,
+                      double dt, double spec, double scale, Vec3* tv, Vec3* tn,
+                      Manifold3& out) {
+  const int na = model.shape_vcount[a], fa = toi_face_rows(model, a);
+  const double tolerance = scale * C::TOI_TOLERANCE, finish = scale * C::TOI_FINISH;  // m
+  return advance_to_impact(st, model.shape_body[a], model.shape_body[b], npts, dt, tolerance,
+                           finish, core_reach(model, a), core_reach(model, b), out,
+                           [&](double t, Manifold3& m) {
+                             const ShapeRef3 sa = place_shape(model, st, a, t, scale, tv, tn);
+                             const ShapeRef3 sb =
+                                 place_shape(model, st, b, t, scale, tv + na, tn + fa);
+                             return collide3d(sa, sb, spec, m);
+                           });
 }
 
 }  // namespace rbsim

@@ -9,11 +9,9 @@
 // that meets within the step is moved to its time of impact first (collide/toi.cpp).
 //
 // In 3D the narrowphase is collide/narrow3d.cpp's, on each shape's world geometry from
-// the transform stage (ShapeRef3), with up to four points per manifold. Time of impact is
-// 2D only: a fast 3D pair relies on its speculative contacts alone (the reach dt (|v| +
-// |ω| r) of the transform stage widens the pair's speculative distance), which stop a
-// body at the surface it approaches but may miss a thin shape a body crosses within one
-// step.
+// the transform stage (ShapeRef3), with up to four points per manifold; a fast pair's
+// manifold is moved to its time of impact as in 2D (the shapes turned by the rotation
+// vector ω t).
 #include <algorithm>
 #include <cmath>
 #include <type_traits>
@@ -53,23 +51,11 @@ inline bool disjoint(const Aabb<D>& a, const Aabb<D>& b) {
 // at the pair's tolerance scale.
 ShapeRef3 world_shape(const Model<3>& model, const Contacts<3>& c, int s, double scale) {
   const int k = model.shape_vstart[s];
-  const Vec3* vw = c.vert_world.data() + k;
-  const double radius = model.shape_radius[s];  // m
-  ShapeRef3 r;
-  switch (model.shape_kind[s]) {
-    case ShapeKind::Sphere: r = sphere_ref(vw[0], radius); break;
-    case ShapeKind::Capsule: r = capsule_ref(vw[0], vw[1], radius); break;
-    case ShapeKind::Box: r = box_ref_from_corners(vw); break;
-    case ShapeKind::Convex:
-      r = convex_ref(vw, c.face_world.data() + model.shape_hface[s], model.shape_hull[s].view());
-      break;
-    default: {  // a plane: its normal and its point's offset along it
-      const Vec3 n = c.norm_world[k];
-      r = plane_ref(n, dot(n, vw[0]));
-    }
-  }
-  r.scale = scale;
-  return r;
+  // a plane's normal is its one normal row; a hull's face normals have their own rows
+  const Vec3* faces = model.shape_kind[s] == ShapeKind::Plane
+                          ? c.norm_world.data() + k
+                          : c.face_world.data() + model.shape_hface[s];
+  return shape_ref(model, s, c.vert_world.data() + k, faces, scale);
 }
 
 // Pair a, b's narrowphase at the pair's tolerance scale and speculative distance.
@@ -215,35 +201,36 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
       } else {
         npts = narrow_pair(model, c, a, b, scale, spec, out);
       }
-      if constexpr (D == 2) {
-        // only a pair that is clearly apart can turn its normal before the impact, and
-        // only if it meets within the step: most such pairs do not (two balls falling
-        // side by side), and their test is made here, as the search's first, so that they
-        // skip the call
-        bool meets = false;
-        if (npts > 0 &&
-            std::min(out.separation[0], out.separation[npts - 1]) > scale * C::LINEAR_SLOP) {
-          const Approach ap = nearest_approach(out, npts, ba, bb, 0.0, st);
-          meets = ap.vn < 0.0 && ap.sep / -ap.vn < dt;
+      // only a pair that is clearly apart can turn its normal before the impact, and
+      // only if it meets within the step: most such pairs do not (two balls falling
+      // side by side), and their test is made here, as the search's first, so that they
+      // skip the call
+      // (in 3D at a bound on the closing speed that takes in the bodies' turns, from
+      // each shape's reach, looked up only for a pair that is apart)
+      const double slop = scale * C::LINEAR_SLOP;  // m
+      bool meets = false;
+      if (npts > 0 && out.separation[nearest_point(out, npts)] > slop) {
+        double reach_a = 0.0, reach_b = 0.0;  // m
+        if constexpr (D == 3) {
+          reach_a = core_reach(model, a);
+          reach_b = core_reach(model, b);
         }
-        if (meets) {
-          const Impact hit = time_of_impact(model, st, a, b, npts, dt, spec, scale,
-                                            c.toi_verts.data(), c.toi_norms.data(), out);
-          npts = hit.points;
-          t = hit.t;
-        }
+        meets = meets_within(out, npts, ba, bb, dt, slop, st, reach_a, reach_b);
       }
-      // (no time of impact in 3D: speculative contacts only, t = 0)
+      if (meets) {
+        const Impact hit = time_of_impact(model, st, a, b, npts, dt, spec, scale,
+                                          c.toi_verts.data(), c.toi_norms.data(), out);
+        npts = hit.points;
+        t = hit.t;
+      }
       if (npts == 0) continue;
       n = out.normal;
       // the bodies' free motion to the impact (t = 0 unless it was moved there)
       const Vec da = t * st.body_v[ba], db = t * st.body_v[bb];
       Rot qa{}, qb{};  // the rotations by ω t; t = 0 is the common case, and then
-      if constexpr (D == 2) {
-        if (t != 0.0) {  // costs no trigonometry
-          qa = turn_by(t * st.body_w[ba]);
-          qb = turn_by(t * st.body_w[bb]);
-        }
+      if (t != 0.0) {  // costs no trigonometry
+        qa = turn_by(t * st.body_w[ba]);
+        qb = turn_by(t * st.body_w[bb]);
       }
       for (int k = 0; k < npts; ++k) {
         // lever arms at the impact. The point lies midway between the surfaces; a rounded
@@ -272,7 +259,14 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
         // separation = base + n · (d_a + R(Δθ_a) s_a − d_b − R(Δθ_b) s_b) as the bodies
         // move (d, Δθ: motion since the step's start); at the impact (d = v t, Δθ = ω t)
         // it equals the separation found there
-        const double moved = dot(n, da + rotate(qa, sa_k) - db - rotate(qb, sb_k));
+        // (in 3D the turn by the identity is skipped: it was the constant it costs nothing
+        // as, before the time of impact came to 3D)
+        Vec turned_a = sa_k, turned_b = sb_k;  // m: R(Δθ) s at the impact
+        if (D == 2 || t != 0.0) {
+          turned_a = rotate(qa, sa_k);
+          turned_b = rotate(qb, sb_k);
+        }
+        const double moved = dot(n, da + turned_a - db - turned_b);
         const double base = out.separation[k] - moved;
         c.base_separation[m][k] = base;
         const double start = base + dot(n, sa_k - sb_k);
