@@ -463,58 +463,80 @@ def _release(folder: Path, run_id: str, fd: int) -> None:
 
 
 def figures(path: str | Path, scene: Scene) -> dict[str, Any]:
-    """A run's summary figures from its trajectory file (rbsim.load_trajectory):
+    """A run's summary figures from its trajectory file (io.trajectory.load_frames):
 
     status (the file's: "complete", "failed: ..."); steps (the last frame's step);
     wall_time_s (s, the whole run as the file records it); kinetic_energy_J (J, at the
     last frame); max_overlap_m (m, the deepest overlap of two shapes of different
     bodies, one dynamic, by the penetration ruler of rbsim.tools.measure, over at most
-    OVERLAP_FRAMES frames); max_speed_m_s (m/s, the fastest centre of mass over every
-    frame); moved_most and moved_most_m (the body whose origin ends farthest from where
-    it started, and that distance, m). Figures of a file with no frame are None."""
-    from . import load_trajectory
-    from .scene.compile import build
-    from .tools.measure import penetration, touching_pairs
+    OVERLAP_FRAMES frames; 2D only, None in 3D: there is no 3D ruler yet); max_speed_m_s
+    (m/s, the fastest centre of mass over every frame); moved_most and moved_most_m (the
+    body whose origin ends farthest from where it started, and that distance, m). With
+    output.bodies, of the bodies the file holds (static ones stored once included).
+    Figures of a file with no frame are None."""
+    from .io.trajectory import load_frames
 
-    tr = load_trajectory(path)
-    wall = tr.parameters.get("wall_time", "")
-    try:
-        wall_time = float(wall)
-    except ValueError:
-        wall_time = None
+    series = ("position", "velocity") + (
+        ("orientation", "angle") if scene.world.dimension == 2 else ()
+    )
+    tr = load_frames(path, series, ("kinetic_energy",))
     out: dict[str, Any] = dict.fromkeys(FIGURE_COLUMNS)
-    out.update(status=tr.status, wall_time_s=wall_time)
-    frames = len(tr.step)
-    if frames == 0:
+    out.update(status=tr.status, wall_time_s=tr.wall_time)
+    if len(tr.step) == 0:
         return out
-    model, _ = build(scene)
-    com_local = model.body_com
-    deepest = 0.0
-    picks = np.unique(np.linspace(0, frames - 1, min(frames, OVERLAP_FRAMES)).round().astype(int))
+    rows = _written_rows(scene)
+    position = tr.series["position"]
     with np.errstate(over="ignore", invalid="ignore"):
-        for t in picks:
-            c, s = tr.orientation[t, :, 0], tr.orientation[t, :, 1]
-            x = tr.position[t] + np.stack(
-                [
-                    c * com_local[:, 0] - s * com_local[:, 1],
-                    s * com_local[:, 0] + c * com_local[:, 1],
-                ],
-                axis=1,
-            )
-            pairs = touching_pairs(model, x, tr.angle[t], 0.0)
-            deepest = max(deepest, penetration(model, pairs, x, tr.angle[t]))
-        speed = np.linalg.norm(tr.velocity, axis=2)
-        moved = np.linalg.norm(tr.position[-1] - tr.position[0], axis=1)
+        deepest = _max_overlap(tr, scene, rows) if tr.dimension == 2 else None
+        speed = np.linalg.norm(tr.series["velocity"], axis=2)
+        moved = np.linalg.norm(position[-1] - position[0], axis=1)
     most = int(np.argmax(moved)) if moved.size else None
     out.update(
         steps=int(tr.step[-1]),
         kinetic_energy_J=float(tr.observables["kinetic_energy"][-1]),
         max_overlap_m=deepest,
         max_speed_m_s=float(speed.max(initial=0.0)),
-        moved_most=tr.bodies.name[most] if most is not None else None,
+        moved_most=scene.bodies[rows[most]].name if most is not None else None,
         moved_most_m=float(moved[most]) if most is not None else None,
     )
     return out
+
+
+def _written_rows(scene: Scene) -> list[int]:
+    """The scene's bodies that its trajectory holds in every frame (output.bodies), as
+    indices into scene.bodies in the file's order."""
+    return scene.output.body_indices([b.name for b in scene.bodies], [b.type for b in scene.bodies])
+
+
+def _max_overlap(tr: Any, scene: Scene, rows: list[int]) -> float:
+    """max_overlap_m of the frames `tr` (io.trajectory.Frames) of a 2D run of `scene`,
+    whose per-frame bodies are scene.bodies[rows] (see figures), over at most
+    OVERLAP_FRAMES frames evenly spread, the first and the last included."""
+    from .scene.compile import build
+    from .tools.measure import deepest_overlap
+
+    model, _ = build(scene)
+    frames, n = len(tr.step), len(scene.bodies)
+    picks = np.unique(np.linspace(0, frames - 1, min(frames, OVERLAP_FRAMES)).round().astype(int))
+    x = np.zeros((len(picks), n, 2))
+    theta = np.zeros((len(picks), n))
+    known = np.zeros(n, bool)
+
+    def centres(origin: np.ndarray, orientation: np.ndarray, at: list[int]) -> np.ndarray:
+        c, s = orientation[..., 0], orientation[..., 1]
+        com = model.body_com[at]
+        return origin + np.stack([c * com[:, 0] - s * com[:, 1], s * com[:, 0] + c * com[:, 1]], -1)
+
+    x[:, rows] = centres(tr.series["position"][picks], tr.series["orientation"][picks], rows)
+    theta[:, rows] = tr.series["angle"][picks]
+    known[rows] = True
+    if tr.fixed is not None and tr.fixed.angle is not None:  # static bodies stored once
+        chosen = set(rows)
+        once = [i for i, b in enumerate(scene.bodies) if b.type == "static" and i not in chosen]
+        x[:, once] = centres(tr.fixed.position, tr.fixed.orientation, once)
+        theta[:, once] = tr.fixed.angle
+        known[once] = True
+    return deepest_overlap(model, x, theta, known)
 
 
 def is_complete(path: str | Path) -> bool:
