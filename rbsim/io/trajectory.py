@@ -1171,6 +1171,19 @@ def read_parameters(f: h5py.File) -> dict[str, str]:
     return params
 
 
+def read_fixed(f: h5py.File) -> FixedBodies | None:
+    """The static bodies an open file stores once (/particles/static), or None."""
+    if "particles/static" not in f:
+        return None
+    g = f["particles/static"]
+    return FixedBodies(
+        bodies=read_body_table(g),
+        position=g["position"][()],
+        orientation=g["orientation"][()],
+        angle=g["angle"][()] if "angle" in g else None,
+    )
+
+
 def load_trajectory(path: str | os.PathLike) -> Trajectory:
     """Read a trajectory file written by TrajectoryWriter (closed normally, still being
     written, or left by a killed writer). Every series is cut to the frames present in
@@ -1195,15 +1208,7 @@ def load_trajectory(path: str | os.PathLike) -> Trajectory:
         observables: dict[str, np.ndarray] = {}
         for group in _series_groups(f)[1]:
             observables[group.split("/", 1)[1]] = f[group]["value"][:t]
-        fixed = None
-        if "particles/static" in f:
-            g = f["particles/static"]
-            fixed = FixedBodies(
-                bodies=read_body_table(g),
-                position=g["position"][()],
-                orientation=g["orientation"][()],
-                angle=g["angle"][()] if "angle" in g else None,
-            )
+        fixed = read_fixed(f)
     return Trajectory(
         step=step,
         time=time,
@@ -1267,15 +1272,7 @@ def load_frames(
             got[name] = f[key][:t] if t and key in f else np.zeros(empty)
         step = f["particles/bodies/position/step"][:t] if t else np.zeros(0, np.int64)
         obs = {k: f[f"observables/{k}/value"][:t] for k in observables if f"observables/{k}" in f}
-        fixed = None
-        if "particles/static" in f:
-            g = f["particles/static"]
-            fixed = FixedBodies(
-                bodies=read_body_table(g),
-                position=g["position"][()],
-                orientation=g["orientation"][()],
-                angle=g["angle"][()] if "angle" in g else None,
-            )
+        fixed = read_fixed(f)
     return Frames(step, got, obs, status, wall_time, dimension, fixed)
 
 
