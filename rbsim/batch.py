@@ -693,11 +693,22 @@ def _fork_server() -> bool:
     with dask_config({"distributed.worker.multiprocessing-method": "forkserver"}):
         context = get_mp_context()  # Dask's own preloads are set here, once
     context.set_forkserver_preload(list(WORKER_MODULES))
+    # the variables Dask sets before it spawns a worker (one thread for BLAS and OpenMP,
+    # a fixed hash seed), which a forked worker has only if its server started with them
+    import dask
+
+    env = {k: str(v) for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items()}
+    if env.get("PYTHONHASHSEED") in (None, "0"):
+        env["PYTHONHASHSEED"] = "6640"
+    saved = dict(os.environ)
+    os.environ.update({k: v for k, v in env.items() if k not in os.environ})
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         forkserver.ensure_running()
     finally:
         signal.signal(signal.SIGINT, previous)
+        os.environ.clear()
+        os.environ.update(saved)
     return True
 
 
