@@ -313,9 +313,24 @@ def plan_batch(
     `--set` and `--vary` value, the model: a massless dynamic body is found here).
     Raises BatchInvalid with every problem (file:line:column or `--vary KEY=VALUE`), or
     VaryError for a `--vary` that `expand` refuses."""
+    return _plan(scenes, sets, expand(varies, samples, seed), tuple(v.key for v in varies))
+
+
+def precheck(scenes: Sequence[str], sets: Sequence[str] = (), varies: Sequence[Vary] = ()) -> None:
+    """What plan_batch checks, for each scene with its `--set`s alone and with each value
+    of each `--vary` list alone (not their grid, nor draws): the common mistakes (a
+    missing file, a bad `--set`, a bad value), found in a moment. Raises BatchInvalid."""
+    combos: list[dict] = [{}]
+    combos += [{v.key: value} for v in varies if v.dist is None for value in v.values]
+    _plan(scenes, sets, combos, ())
+
+
+def _plan(
+    scenes: Sequence[str], sets: Sequence[str], combos: list[dict], varied_keys: tuple[str, ...]
+) -> Plan:
+    """plan_batch over the given varied values (key -> YAML text) of each run."""
     from .scene.compile import ModelError, build
 
-    combos = expand(varies, samples, seed)
     problems: list[str] = []
     specs: list[RunSpec] = []
     for path in scenes:
@@ -349,7 +364,7 @@ def plan_batch(
             )
     if problems:
         raise BatchInvalid(list(dict.fromkeys(problems)))
-    return Plan(specs, tuple(v.key for v in varies))
+    return Plan(specs, varied_keys)
 
 
 # --------------------------------------------------------------------------------------

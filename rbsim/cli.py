@@ -796,6 +796,7 @@ def batch(
         fresh_folder,
         parse_vary,
         plan_batch,
+        precheck,
         run_batch,
         starting_cluster,
     )
@@ -817,8 +818,14 @@ def batch(
         _fail(EXIT_SCENE, str(err))
     out = Path(out_dir)
     # A batch into a folder with no trajectory yet has every run to do: its local
-    # cluster starts while the runs are checked (the check then costs no wall time).
+    # cluster starts while the runs are checked (the check then costs no wall time),
+    # once the common mistakes are ruled out (precheck: no cluster for them).
     early = scheduler is None and runs > 0 and fresh_folder(out)
+    if early:
+        try:
+            precheck(scenes, overrides, parsed)
+        except BatchInvalid as err:
+            _fail(EXIT_SCENE, str(err))
     early_start = starting_cluster(None, min(workers or available_cores(), runs))
     with early_start if early else contextlib.nullcontext() as cluster:
         try:
