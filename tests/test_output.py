@@ -184,7 +184,12 @@ def test_a_run_stopped_by_sigterm_keeps_its_checkpoint_and_resumes(reference, tm
     folder, scene, ref = reference
     out = tmp_path / "term.h5"
     proc = start_run(scene, "-o", out)
-    time.sleep(1.2)
+    # once it steps (its handlers installed, however slowly a loaded machine starts it)
+    # and has written its first checkpoint: a fixed 1.2 s was too soon at times
+    checkpoint = Path(f"{out}{CHECKPOINT_SUFFIX}")
+    deadline = time.monotonic() + 60
+    while not checkpoint.exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)
     proc.send_signal(signal.SIGTERM)
     _out, err = proc.communicate(timeout=60)
     if proc.returncode == 0:
