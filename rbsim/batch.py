@@ -1,23 +1,25 @@
 """`rbsim batch`: many independent runs of scenes, on a Dask cluster.
 
 A batch is every scene crossed with the grid of its `--vary` lists, or with `--samples`
-draws of them, each run a task: locally on a dask.distributed LocalCluster of worker
-processes, or on an existing cluster at a scheduler's address. The steps:
+draws of them, the runs sent as tasks: locally on a dask.distributed LocalCluster of
+worker processes, or on an existing cluster at a scheduler's address. The steps:
 
 1. `parse_vary` reads each `--vary KEY.PATH=LIST` (or a distribution for `--samples`);
    `expand` turns them into one dict of override texts per run.
 2. `plan_batch` resolves and checks every run before any starts (the same key paths as
    `--set`: each varied value becomes one more `key=value` override), and names each run
    by a hash of its resolved scene and settings (`run_id`). Any problem raises
-   BatchInvalid listing them all.
+   BatchInvalid listing them all (`precheck`: the same for each scene and value alone,
+   in a moment, before a local cluster is started beside the full check).
 3. `run_batch` skips runs whose `DIR/<run-id>.h5` is complete, sends the others as tasks
-   (`run_one`), retries failures, and writes `DIR/summary.csv` (and `summary.parquet`
-   when pyarrow is installed) with one row per run: the figures of `figures`, read
-   from the trajectory after the run.
+   (`run_jobs`: several short runs to a task, each `run_one`), retries failures, and
+   writes `DIR/summary.csv` (and `summary.parquet` when pyarrow is installed) with one
+   row per run: the figures of `figures`, read from the trajectory after the run.
 
-Worker processes that this module starts ignore SIGINT (`dask_setup`, run in each as a
-Dask preload), so that Ctrl-C reaches only the batch, which then records what finished
-and stops the cluster. Dask is imported only when a batch or a distributed sweep runs.
+Worker processes that this module starts ignore SIGINT (forked from a fork server that
+started with it ignored, and `dask_setup`, run in each as a Dask preload), so that
+Ctrl-C reaches only the batch, which then records what finished and stops the cluster.
+Dask is imported only when a batch or a distributed sweep runs.
 
 Above rbsim.tools in the package (cli -> batch -> tools -> run).
 """
