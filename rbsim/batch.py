@@ -1,29 +1,33 @@
 """`rbsim batch`: many independent runs of scenes, on a Dask cluster.
 
 A batch is every scene crossed with the grid of its `--vary` lists, or with `--samples`
-draws of them, each run a task: locally on a dask.distributed LocalCluster of worker
-processes, or on an existing cluster at a scheduler's address. The steps:
+draws of them, the runs sent as tasks: locally on a dask.distributed LocalCluster of
+worker processes, or on an existing cluster at a scheduler's address. The steps:
 
 1. `parse_vary` reads each `--vary KEY.PATH=LIST` (or a distribution for `--samples`);
    `expand` turns them into one dict of override texts per run.
 2. `plan_batch` resolves and checks every run before any starts (the same key paths as
    `--set`: each varied value becomes one more `key=value` override), and names each run
    by a hash of its resolved scene and settings (`run_id`). Any problem raises
-   BatchInvalid listing them all.
+   BatchInvalid listing them all (`precheck`: the same for each scene and value alone,
+   in a moment, before a local cluster is started beside the full check).
 3. `run_batch` skips runs whose `DIR/<run-id>.h5` is complete, sends the others as tasks
-   (`run_one`), retries failures, and writes `DIR/summary.csv` (and `summary.parquet`
-   when pyarrow is installed) with one row per run: the figures of `figures`, read
-   from the trajectory after the run.
+   (`run_jobs`: several short runs to a task, each `run_one`), retries failures, and
+   writes `DIR/summary.csv` (and `summary.parquet` when pyarrow is installed) with one
+   row per run: the figures of `figures`, read from the trajectory after the run.
 
-Worker processes that this module starts ignore SIGINT (`dask_setup`, run in each as a
-Dask preload), so that Ctrl-C reaches only the batch, which then records what finished
-and stops the cluster. Dask is imported only when a batch or a distributed sweep runs.
+Worker processes that this module starts ignore SIGINT (forked from a fork server that
+started with it ignored, and `dask_setup`, run in each as a Dask preload), so that
+Ctrl-C reaches only the batch, which then records what finished and stops the cluster.
+Dask is imported only when a batch or a distributed sweep runs.
 
 Above rbsim.tools in the package (cli -> batch -> tools -> run).
 """
 
 from __future__ import annotations
 
+import collections
+import contextlib
 import csv
 import hashlib
 import importlib.util
@@ -311,9 +315,24 @@ def plan_batch(
     `--set` and `--vary` value, the model: a massless dynamic body is found here).
     Raises BatchInvalid with every problem (file:line:column or `--vary KEY=VALUE`), or
     VaryError for a `--vary` that `expand` refuses."""
+    return _plan(scenes, sets, expand(varies, samples, seed), tuple(v.key for v in varies))
+
+
+def precheck(scenes: Sequence[str], sets: Sequence[str] = (), varies: Sequence[Vary] = ()) -> None:
+    """What plan_batch checks, for each scene with its `--set`s alone and with each value
+    of each `--vary` list alone (not their grid, nor draws): the common mistakes (a
+    missing file, a bad `--set`, a bad value), found in a moment. Raises BatchInvalid."""
+    combos: list[dict] = [{}]
+    combos += [{v.key: value} for v in varies if v.dist is None for value in v.values]
+    _plan(scenes, sets, combos, ())
+
+
+def _plan(
+    scenes: Sequence[str], sets: Sequence[str], combos: list[dict], varied_keys: tuple[str, ...]
+) -> Plan:
+    """plan_batch over the given varied values (key -> YAML text) of each run."""
     from .scene.compile import ModelError, build
 
-    combos = expand(varies, samples, seed)
     problems: list[str] = []
     specs: list[RunSpec] = []
     for path in scenes:
@@ -347,7 +366,7 @@ def plan_batch(
             )
     if problems:
         raise BatchInvalid(list(dict.fromkeys(problems)))
-    return Plan(specs, tuple(v.key for v in varies))
+    return Plan(specs, varied_keys)
 
 
 # --------------------------------------------------------------------------------------
@@ -368,10 +387,14 @@ class Job:
 @dataclass
 class Outcome:
     """A run's summary figures (FIGURE_COLUMNS) and, when the worker wrote the file in
-    its own temporary folder, the file's bytes."""
+    its own temporary folder, the file's bytes; or, for a run that raised (run_jobs),
+    no figures and the `error` it is recorded with ("failed: ..."). `seconds`: the
+    worker's wall time for the run and its figures (s; 0 when not measured)."""
 
-    figures: dict[str, Any]
+    figures: dict[str, Any] | None
     data: bytes | None = None
+    error: str | None = None
+    seconds: float = 0.0
 
 
 def run_one(job: Job) -> Outcome:
@@ -412,6 +435,10 @@ def _run_job(job: Job) -> Outcome:
 
     spec = job.spec
     scene = spec.scene()
+    if job.out_dir is not None:  # an earlier attempt of a task of several runs did this one
+        done = Path(job.out_dir) / f"{spec.run_id}.h5"
+        if is_complete(done):
+            return Outcome(figures(done, scene))
     own_dir = None if job.out_dir is not None else tempfile.mkdtemp(prefix="rbsim-batch-")
     folder = Path(job.out_dir if job.out_dir is not None else own_dir)
     lock = _claim(folder, spec.run_id) if own_dir is None else None
@@ -476,59 +503,104 @@ def _release(folder: Path, run_id: str, fd: int) -> None:
     os.close(fd)
 
 
+def run_jobs(jobs: Sequence[Job]) -> list[Outcome]:
+    """run_one of each job in turn (one task of several short runs), each Outcome with
+    its `seconds`; a run that raises gives an Outcome with its `error` (the status
+    "failed: ..." the batch records), and the next runs go on."""
+    outcomes = []
+    for job in jobs:
+        t0 = time.perf_counter()
+        try:
+            outcome = run_one(job)
+        except Exception as err:  # noqa: BLE001 - recorded as the run's failure
+            outcome = Outcome(None, error=_describe(err))
+        outcome.seconds = time.perf_counter() - t0
+        outcomes.append(outcome)
+    return outcomes
+
+
 def figures(path: str | Path, scene: Scene) -> dict[str, Any]:
-    """A run's summary figures from its trajectory file (rbsim.load_trajectory):
+    """A run's summary figures from its trajectory file (io.trajectory.load_frames):
 
     status (the file's: "complete", "failed: ..."); steps (the last frame's step);
     wall_time_s (s, the whole run as the file records it); kinetic_energy_J (J, at the
     last frame); max_overlap_m (m, the deepest overlap of two shapes of different
     bodies, one dynamic, by the penetration ruler of rbsim.tools.measure, over at most
-    OVERLAP_FRAMES frames); max_speed_m_s (m/s, the fastest centre of mass over every
-    frame); moved_most and moved_most_m (the body whose origin ends farthest from where
-    it started, and that distance, m). Figures of a file with no frame are None."""
-    from . import load_trajectory
-    from .scene.compile import build
-    from .tools.measure import penetration, touching_pairs
+    OVERLAP_FRAMES frames; 2D only, None in 3D: there is no 3D ruler yet); max_speed_m_s
+    (m/s, the fastest centre of mass over every frame); moved_most and moved_most_m (the
+    body whose origin ends farthest from where it started, and that distance, m). With
+    output.bodies, of the bodies the file holds (static ones stored once included).
+    Figures of a file with no frame are None."""
+    from .io.trajectory import load_frames
 
-    tr = load_trajectory(path)
-    wall = tr.parameters.get("wall_time", "")
-    try:
-        wall_time = float(wall)
-    except ValueError:
-        wall_time = None
+    series = ("position", "velocity") + (
+        ("orientation", "angle") if scene.world.dimension == 2 else ()
+    )
+    tr = load_frames(path, series, ("kinetic_energy",))
     out: dict[str, Any] = dict.fromkeys(FIGURE_COLUMNS)
-    out.update(status=tr.status, wall_time_s=wall_time)
-    frames = len(tr.step)
-    if frames == 0:
+    out.update(status=tr.status, wall_time_s=tr.wall_time)
+    if len(tr.step) == 0:
         return out
-    model, _ = build(scene)
-    com_local = model.body_com
-    deepest = 0.0
-    picks = np.unique(np.linspace(0, frames - 1, min(frames, OVERLAP_FRAMES)).round().astype(int))
+    rows = _written_rows(scene)
+    position = tr.series["position"]
     with np.errstate(over="ignore", invalid="ignore"):
-        for t in picks:
-            c, s = tr.orientation[t, :, 0], tr.orientation[t, :, 1]
-            x = tr.position[t] + np.stack(
-                [
-                    c * com_local[:, 0] - s * com_local[:, 1],
-                    s * com_local[:, 0] + c * com_local[:, 1],
-                ],
-                axis=1,
-            )
-            pairs = touching_pairs(model, x, tr.angle[t], 0.0)
-            deepest = max(deepest, penetration(model, pairs, x, tr.angle[t]))
-        speed = np.linalg.norm(tr.velocity, axis=2)
-        moved = np.linalg.norm(tr.position[-1] - tr.position[0], axis=1)
+        deepest = _max_overlap(tr, scene, rows) if tr.dimension == 2 else None
+        speed = np.linalg.norm(tr.series["velocity"], axis=2)
+        moved = np.linalg.norm(position[-1] - position[0], axis=1)
     most = int(np.argmax(moved)) if moved.size else None
     out.update(
         steps=int(tr.step[-1]),
         kinetic_energy_J=float(tr.observables["kinetic_energy"][-1]),
         max_overlap_m=deepest,
         max_speed_m_s=float(speed.max(initial=0.0)),
-        moved_most=tr.bodies.name[most] if most is not None else None,
+        moved_most=scene.bodies[rows[most]].name if most is not None else None,
         moved_most_m=float(moved[most]) if most is not None else None,
     )
     return out
+
+
+def _written_rows(scene: Scene) -> list[int]:
+    """The scene's bodies that its trajectory holds in every frame (output.bodies), as
+    indices into scene.bodies in the file's order."""
+    return scene.output.body_indices([b.name for b in scene.bodies], [b.type for b in scene.bodies])
+
+
+def _max_overlap(tr: Any, scene: Scene, rows: list[int]) -> float:
+    """max_overlap_m of the frames `tr` (io.trajectory.Frames) of a 2D run of `scene`,
+    whose per-frame bodies are scene.bodies[rows] (see figures), over at most
+    OVERLAP_FRAMES frames evenly spread, the first and the last included."""
+    from .scene.compile import build
+    from .tools.measure import deepest_overlap
+
+    model, _ = build(scene)
+    frames, n = len(tr.step), len(scene.bodies)
+    picks = np.unique(np.linspace(0, frames - 1, min(frames, OVERLAP_FRAMES)).round().astype(int))
+    x = np.zeros((len(picks), n, 2))
+    theta = np.zeros((len(picks), n))
+    known = np.zeros(n, bool)
+
+    def centres(origin: np.ndarray, orientation: np.ndarray, at: list[int]) -> np.ndarray:
+        c, s = orientation[..., 0], orientation[..., 1]
+        com = model.body_com[at]
+        return origin + np.stack([c * com[:, 0] - s * com[:, 1], s * com[:, 0] + c * com[:, 1]], -1)
+
+    x[:, rows] = centres(tr.series["position"][picks], tr.series["orientation"][picks], rows)
+    theta[:, rows] = tr.series["angle"][picks]
+    known[rows] = True
+    if tr.fixed is not None and tr.fixed.angle is not None:  # static bodies stored once
+        chosen = set(rows)
+        once = [i for i, b in enumerate(scene.bodies) if b.type == "static" and i not in chosen]
+        x[:, once] = centres(tr.fixed.position, tr.fixed.orientation, once)
+        theta[:, once] = tr.fixed.angle
+        known[once] = True
+    return deepest_overlap(model, x, theta, known)
+
+
+def fresh_folder(out: str | Path) -> bool:
+    """True when `out` holds no trajectory file (or does not exist): no run of a batch
+    into it can be skipped."""
+    folder = Path(out)
+    return not folder.is_dir() or next(folder.glob("*.h5"), None) is None
 
 
 def is_complete(path: str | Path) -> bool:
@@ -548,12 +620,43 @@ def is_complete(path: str | Path) -> bool:
 # Dask
 
 
+# Modules a worker of a local cluster needs for its runs: imported once, when the
+# workers start (by the fork server they are forked from, or by dask_setup).
+WORKER_MODULES = (
+    "numpy",
+    "h5py",
+    "distributed",
+    "rbsim.batch",
+    "rbsim.run",
+    "rbsim.io.trajectory",
+    "rbsim.tools.measure",
+)
+
+# Dask settings of a local cluster (its scheduler, nannies and workers): its periodic
+# work made rarer, so that it takes less of the cores the runs need. The worker's
+# statistical profiler (a stack sample of the running task every 10 ms) is off; the
+# event loop's health tick (20 ms), the nannies' memory checks (100 ms) and the
+# system monitor (500 ms, the dashboard's graphs) run every second. Worker processes
+# are forked from a fork server that imported WORKER_MODULES once (where the platform
+# has one; else spawned): they start in a fraction of the time and CPU, and leave
+# without Python's finalization, which took 1-2 s per worker at the end of a batch.
+LOCAL_CONFIG = {
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.tick.interval": "1s",
+    "distributed.worker.memory.monitor-interval": "1s",
+    "distributed.admin.system-monitor.interval": "1s",
+}
+
+
 def dask_setup(worker: Any) -> None:  # noqa: ARG001 - Dask's preload interface
     """Run by Dask in every worker process this module starts (a preload): Ctrl-C in
     the terminal reaches the whole process group, and only the batch should act on it
-    (a worker killed by it would be retried elsewhere and print a traceback)."""
+    (a worker killed by it would be retried elsewhere and print a traceback). Imports
+    WORKER_MODULES (already there when forked from the fork server)."""
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+    for name in WORKER_MODULES:
+        importlib.import_module(name)
 
 
 def available_cores() -> int:
@@ -578,11 +681,150 @@ def _serving(link: str) -> bool:
 class Cluster:
     """A connected Dask client; `local` when this process started the cluster (a
     LocalCluster on this machine, whose workers can write into the batch's folder);
-    `dashboard` the dashboard's address when one is running."""
+    `dashboard` the dashboard's address when one is running; `workers` the local
+    cluster's number of worker processes (of one thread each), None for a scheduler's."""
 
     client: Any
     local: bool
     dashboard: str | None
+    workers: int | None = None
+    _threads: tuple[float, int] = (-math.inf, 1)  # (time.monotonic(), count) last asked
+
+    def threads(self) -> int:
+        """Worker threads of the cluster (asked of a scheduler at most once a second)."""
+        if self.workers is not None:
+            return self.workers
+        asked, count = self._threads
+        if time.monotonic() - asked > 1.0:
+            try:
+                count = max(1, sum(self.client.nthreads().values()))
+            except (OSError, TimeoutError):
+                pass
+            self._threads = (time.monotonic(), count)
+        return count
+
+
+def _fork_server() -> bool:
+    """Make Dask fork the local cluster's workers from a fork server that imports
+    WORKER_MODULES, and start that server now, from the main thread with SIGINT ignored
+    (its workers inherit that, so Ctrl-C never reaches one, even while it starts).
+    False where there is no fork server (Windows) or this is not the main thread."""
+    import multiprocessing
+    from multiprocessing import forkserver
+
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return False
+    if threading.current_thread() is not threading.main_thread():
+        return False
+    from distributed.utils import get_mp_context
+
+    with dask_config({"distributed.worker.multiprocessing-method": "forkserver"}):
+        context = get_mp_context()  # Dask's own preloads are set here, once
+    context.set_forkserver_preload(list(WORKER_MODULES))
+    # the variables Dask sets before it spawns a worker (one thread for BLAS and OpenMP,
+    # a fixed hash seed), which a forked worker has only if its server started with them
+    import dask
+
+    env = {k: str(v) for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items()}
+    if env.get("PYTHONHASHSEED") in (None, "0"):
+        env["PYTHONHASHSEED"] = "6640"
+    saved = dict(os.environ)
+    os.environ.update({k: v for k, v in env.items() if k not in os.environ})
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        forkserver.ensure_running()
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        os.environ.clear()
+        os.environ.update(saved)
+    return True
+
+
+@contextmanager
+def dask_config(settings: dict[str, Any]) -> Iterator[None]:
+    """Dask's configuration with `settings` set, restored on leaving."""
+    import dask
+
+    with dask.config.set(settings):
+        yield
+
+
+def _connect(scheduler: str) -> tuple[Cluster, Callable[[], None]]:
+    """A client of the scheduler at `scheduler` and the function that closes it."""
+    from distributed import Client
+    from distributed.comm import get_address_host_port
+
+    try:
+        get_address_host_port(scheduler)
+    except (ValueError, TypeError) as err:
+        raise BatchError(
+            f"{scheduler!r} is not a scheduler address such as tcp://host:8786 ({err})"
+        ) from None
+    try:
+        client = Client(scheduler, timeout=10, set_as_default=False)
+    except (OSError, TimeoutError) as err:
+        raise BatchError(f"cannot reach the Dask scheduler at {scheduler}: {err}") from None
+    try:
+        services = client.scheduler_info().get("services", {})
+        link = client.dashboard_link if "dashboard" in services else None
+        dashboard = link if link and _serving(link) else None
+    except BaseException:
+        client.close()
+        raise
+    return Cluster(client, local=False, dashboard=dashboard), client.close
+
+
+def _start_local(n: int, forked: bool) -> tuple[Cluster, Callable[[], None]]:
+    """A LocalCluster of `n` single-threaded worker processes on the loopback interface
+    (LOCAL_CONFIG; forked from the fork server when `forked`), its client, and the
+    function that closes both. In the main thread, SIGINT is ignored while the workers
+    start (they inherit it, and keep it ignored: dask_setup)."""
+    from distributed import Client, LocalCluster
+
+    dashboard_address = "127.0.0.1:0" if importlib.util.find_spec("bokeh") else None
+    settings = dict(LOCAL_CONFIG)
+    if forked:
+        settings["distributed.worker.multiprocessing-method"] = "forkserver"
+    main = threading.current_thread() is threading.main_thread()
+    config = dask_config(settings)
+    config.__enter__()  # for the cluster's whole life: a lost worker restarts alike
+    try:
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
+        try:
+            cluster = LocalCluster(
+                n_workers=n,
+                threads_per_worker=1,
+                processes=True,
+                host="127.0.0.1",
+                dashboard_address=dashboard_address,
+                silence_logs=logging.CRITICAL,  # shutdown races (a last heartbeat) log errors
+                preload=[__name__],
+            )
+        except (OSError, RuntimeError, TimeoutError) as err:
+            raise BatchError(f"cannot start a local Dask cluster of {n} workers: {err}") from None
+        finally:
+            if main:
+                signal.signal(signal.SIGINT, previous)
+        try:
+            client = Client(cluster, set_as_default=False)
+        except BaseException:
+            cluster.close()
+            raise
+    except BaseException:
+        config.__exit__(None, None, None)
+        raise
+
+    def close() -> None:
+        try:
+            client.close()
+        finally:
+            try:
+                cluster.close()
+            finally:
+                config.__exit__(None, None, None)
+
+    dashboard = client.dashboard_link if dashboard_address else None
+    return Cluster(client, local=True, dashboard=dashboard, workers=n), close
 
 
 @contextmanager
@@ -591,59 +833,68 @@ def dask_cluster(scheduler: str | None = None, workers: int | None = None) -> It
     of `workers` single-threaded worker processes (default: every core) on the loopback
     interface, with a dashboard when bokeh is installed; close it on leaving. Raises
     BatchError when the scheduler cannot be reached."""
-    logging.getLogger("distributed").setLevel(logging.CRITICAL)
-    from distributed import Client, LocalCluster
+    with starting_cluster(scheduler, workers, background=False) as start:
+        yield start.get()
 
-    if scheduler is not None:
-        from distributed.comm import get_address_host_port
 
+class ClusterStart:
+    """A cluster being connected or started (see starting_cluster): `get` waits for it."""
+
+    def __init__(self, scheduler: str | None, workers: int | None, background: bool) -> None:
+        logging.getLogger("distributed").setLevel(logging.CRITICAL)
+        self.scheduler = scheduler
+        self.workers = workers or available_cores()
+        self._made: tuple[Cluster, Callable[[], None]] | None = None
+        self._error: BaseException | None = None
+        self._thread: threading.Thread | None = None
+        self._forked = scheduler is None and _fork_server()
+        if background and self._forked:  # workers that ignore SIGINT from their start
+            self._thread = threading.Thread(target=self._make, name="rbsim-cluster", daemon=True)
+            self._thread.start()
+
+    def _make(self) -> None:
         try:
-            get_address_host_port(scheduler)
-        except (ValueError, TypeError) as err:
-            raise BatchError(
-                f"{scheduler!r} is not a scheduler address such as tcp://host:8786 ({err})"
-            ) from None
-        try:
-            client = Client(scheduler, timeout=10, set_as_default=False)
-        except (OSError, TimeoutError) as err:
-            raise BatchError(f"cannot reach the Dask scheduler at {scheduler}: {err}") from None
-        try:
-            services = client.scheduler_info().get("services", {})
-            link = client.dashboard_link if "dashboard" in services else None
-            dashboard = link if link and _serving(link) else None
-            yield Cluster(client, local=False, dashboard=dashboard)
-        finally:
-            client.close()
-        return
-    n = workers or available_cores()
-    dashboard_address = "127.0.0.1:0" if importlib.util.find_spec("bokeh") else None
-    # The workers start with SIGINT ignored (inherited), and keep it ignored (dask_setup)
-    main = threading.current_thread() is threading.main_thread()
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
+            if self.scheduler is not None:
+                self._made = _connect(self.scheduler)
+            else:
+                self._made = _start_local(self.workers, self._forked)
+        except BaseException as err:  # noqa: BLE001 - handed to get()
+            self._error = err
+
+    def get(self) -> Cluster:
+        """The cluster, once started (in this thread, if no background start was made).
+        Raises what starting it raised (BatchError)."""
+        if self._thread is None and self._made is None and self._error is None:
+            self._make()
+        elif self._thread is not None:
+            self._thread.join()
+        if self._error is not None:
+            raise self._error
+        assert self._made is not None
+        return self._made[0]
+
+    def close(self) -> None:
+        """Stop the cluster (or disconnect), waiting for a start under way to end."""
+        if self._thread is not None:
+            self._thread.join()
+        if self._made is not None:
+            made, self._made = self._made, None
+            made[1]()
+
+
+@contextmanager
+def starting_cluster(
+    scheduler: str | None = None, workers: int | None = None, background: bool = True
+) -> Iterator[ClusterStart]:
+    """As dask_cluster, but yields at once: with `background`, a local cluster starts
+    in a thread while the caller goes on (planning the batch: the workers' start-up
+    then costs the batch little wall time), and `get()` waits for it; without, `get()`
+    starts it. Closed on leaving, whether or not it was used."""
+    start = ClusterStart(scheduler, workers, background)
     try:
-        cluster = LocalCluster(
-            n_workers=n,
-            threads_per_worker=1,
-            processes=True,
-            host="127.0.0.1",
-            dashboard_address=dashboard_address,
-            silence_logs=logging.CRITICAL,  # shutdown races (a last heartbeat) log errors
-            preload=[__name__],
-        )
-    except (OSError, RuntimeError, TimeoutError) as err:
-        raise BatchError(f"cannot start a local Dask cluster of {n} workers: {err}") from None
+        yield start
     finally:
-        if main:
-            signal.signal(signal.SIGINT, previous)
-    try:
-        client = Client(cluster, set_as_default=False)
-        try:
-            dashboard = client.dashboard_link if dashboard_address else None
-            yield Cluster(client, local=True, dashboard=dashboard)
-        finally:
-            client.close()
-    finally:
-        cluster.close()
+        start.close()
 
 
 class DaskPool:
@@ -718,19 +969,25 @@ def run_batch(
     retries: int = 1,
     progress: Progress | None = None,
     notify: Callable[[str], None] | None = None,
+    cluster: ClusterStart | None = None,
+    started: float | None = None,
 ) -> BatchResult:
     """Run the plan's runs into `out_dir`, skipping those whose `<run-id>.h5` is complete.
 
     Runs go to a LocalCluster of `workers` processes (at most one per run; by default
     every core), whose workers write into `out_dir` directly, or to the cluster at
-    `scheduler`, whose workers send each file back to be written here. A run that
-    fails (a non-finite state, an error, its worker lost) is sent again up to `retries`
-    times, then recorded with status "failed: ...". The summary files are written at
-    the end, and on Ctrl-C, which raises BatchInterrupted after the cluster is stopped.
-    notify(text) is told the dashboard's address. Raises BatchError."""
+    `scheduler`, whose workers send each file back to be written here; or to `cluster`,
+    one already being started (starting_cluster), which the batch closes when it ends.
+    Short runs go several to a task (about TASK_SECONDS of work each, see _Pace), and
+    TASKS_AHEAD tasks per worker thread are sent at a time. A run that fails (a
+    non-finite state, an error, its worker lost) is sent again up to `retries` times,
+    then recorded with status "failed: ...". The summary files are written at the end,
+    and on Ctrl-C, which raises BatchInterrupted after the cluster is stopped.
+    notify(text) is told the dashboard's address. `started`: time.perf_counter() when
+    the batch began (default: now), for its wall time. Raises BatchError."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    t0 = time.perf_counter()
+    t0 = time.perf_counter() if started is None else started
     runs = plan.runs()
     total = len(runs)
     old = read_summary(out / SUMMARY_CSV)
@@ -749,12 +1006,21 @@ def run_batch(
     state.report()
     interrupted = False
     try:
-        if todo:
-            n = min(workers or available_cores(), len(todo))
-            with dask_cluster(scheduler, None if scheduler else n) as cluster:
-                if cluster.dashboard and notify is not None:
-                    notify(f"dashboard: {cluster.dashboard}")
-                _run_tasks(cluster, todo, out, retries, state)
+        with contextlib.ExitStack() as stack:
+            start = cluster
+            if start is None and todo:
+                n = min(workers or available_cores(), len(todo))
+                start = stack.enter_context(
+                    starting_cluster(scheduler, None if scheduler else n, background=False)
+                )
+            if start is not None:
+                stack.callback(start.close)
+            if todo:
+                assert start is not None
+                running = start.get()
+                if running.dashboard and notify is not None:
+                    notify(f"dashboard: {running.dashboard}")
+                _run_tasks(running, todo, out, retries, state)
     except KeyboardInterrupt:
         interrupted = True
     finally:
@@ -790,50 +1056,96 @@ class _Tally:
             self.progress(len(self.found), self.failed, self.total)
 
 
+# A task of a batch holds several runs when runs are short, so that Dask's own cost per
+# task (a few ms of the scheduler's and the worker's CPU, and a round trip) stays small
+# beside them: about TASK_SECONDS (s) of runs, by the mean time of the runs so far, at
+# most MAX_RUNS_PER_TASK, and at most the runs left / (TASKS_AHEAD x worker threads),
+# so that the last tasks are small and no worker waits long for another at the end.
+TASK_SECONDS = 0.5
+MAX_RUNS_PER_TASK = 64
+# Tasks sent ahead per worker thread: one running and one waiting on each, so that a
+# worker never waits for its next task to come from the scheduler.
+TASKS_AHEAD = 2
+
+
+class _Pace:
+    """The mean time (s) of the runs finished so far, and the runs a task gets from it."""
+
+    def __init__(self) -> None:
+        self.runs = 0
+        self.seconds = 0.0
+
+    def add(self, outcome: Outcome) -> None:
+        """Count a finished run's time."""
+        if outcome.seconds > 0:
+            self.runs += 1
+            self.seconds += outcome.seconds
+
+    def runs_per_task(self, left: int, threads: int) -> int:
+        """Runs for the next task, with `left` runs not yet sent and `threads` worker
+        threads: one until a run has finished."""
+        if self.runs == 0:
+            return 1
+        per_run = self.seconds / self.runs
+        share = -(-left // (TASKS_AHEAD * threads))  # ceil
+        return max(1, min(int(TASK_SECONDS / max(per_run, 1e-6)), MAX_RUNS_PER_TASK, share))
+
+
 def _run_tasks(
     cluster: Cluster, todo: list[RunSpec], out: Path, retries: int, state: _Tally
 ) -> None:
-    """Submit every run, resubmit failures while retries remain, record each outcome."""
+    """Send the runs as tasks (run_jobs) TASKS_AHEAD per worker thread at a time, send
+    failed runs again while retries remain, and record each run's outcome."""
     from distributed import as_completed
 
     client = cluster.client
     token = uuid.uuid4().hex[:8]
     out_dir = str(out.resolve()) if cluster.local else None
     attempts: dict[str, int] = {}
-    by_key: dict[str, RunSpec] = {}
+    waiting = collections.deque(todo)  # runs not yet sent; a retry goes first
+    sent: dict[str, list[RunSpec]] = {}  # the runs of each task in flight, by key
     pending = as_completed(loop=client.loop)
+    pace = _Pace()
+    serial = itertools.count()
 
-    def submit(spec: RunSpec) -> None:
-        attempts[spec.run_id] = attempts.get(spec.run_id, 0) + 1
-        key = f"rbsim-{spec.run_id}-{token}-{attempts[spec.run_id]}"
-        by_key[key] = spec
-        job = Job(spec, out_dir, __version__)
-        pending.add(client.submit(run_one, job, key=key, pure=False, retries=0))
+    def send() -> None:
+        threads = cluster.threads()
+        while waiting and len(sent) < TASKS_AHEAD * threads:
+            specs = [waiting.popleft() for _ in range(pace.runs_per_task(len(waiting), threads))]
+            for spec in specs:
+                attempts[spec.run_id] = attempts.get(spec.run_id, 0) + 1
+            key = f"rbsim-runs-{token}-{next(serial)}"
+            sent[key] = specs
+            jobs = [Job(spec, out_dir, __version__) for spec in specs]
+            pending.add(client.submit(run_jobs, jobs, key=key, pure=False, retries=0))
 
-    for spec in todo:
-        submit(spec)
+    send()
     for future in pending:
-        spec = by_key.pop(future.key)
-        data = None
+        specs = sent.pop(future.key)
         try:
-            outcome = future.result()
-            result, data = outcome.figures, outcome.data
-            failure = None if result["status"] == "complete" else result["status"]
-        except Exception as err:  # noqa: BLE001 - any error of a run is recorded, not raised
-            result, failure = None, _describe(err)
+            outcomes = future.result()
+        except Exception as err:  # noqa: BLE001 - the task's error is each run's failure
+            outcomes = [Outcome(None, error=_describe(err)) for _ in specs]
         finally:
             future.release()
-        if failure is not None and attempts[spec.run_id] <= retries:
-            submit(spec)
-            continue
-        if data is not None:
-            part = out / f".{spec.run_id}.{token}.part"
-            part.write_bytes(data)
-            os.replace(part, out / f"{spec.run_id}.h5")
-        if result is None:
-            result = dict.fromkeys(FIGURE_COLUMNS)
-            result["status"] = failure
-        state.record(spec.run_id, result)
+        for spec, outcome in zip(specs, outcomes, strict=True):
+            pace.add(outcome)
+            result = outcome.figures
+            failure = outcome.error
+            if result is not None and result["status"] != "complete":
+                failure = result["status"]
+            if failure is not None and attempts[spec.run_id] <= retries:
+                waiting.appendleft(spec)
+                continue
+            if outcome.data is not None:
+                part = out / f".{spec.run_id}.{token}.part"
+                part.write_bytes(outcome.data)
+                os.replace(part, out / f"{spec.run_id}.h5")
+            if result is None:
+                result = dict.fromkeys(FIGURE_COLUMNS)
+                result["status"] = failure
+            state.record(spec.run_id, result)
+        send()
 
 
 def _describe(err: BaseException) -> str:

@@ -799,11 +799,17 @@ def batch(
         BatchInterrupted,
         BatchInvalid,
         VaryError,
+        available_cores,
+        expand,
+        fresh_folder,
         parse_vary,
         plan_batch,
+        precheck,
         run_batch,
+        starting_cluster,
     )
 
+    started = time.perf_counter()
     if scheduler is not None and workers is not None:
         raise click.UsageError("--scheduler and --workers exclude each other")
     if samples is None and seed is not None:
@@ -815,46 +821,63 @@ def batch(
         if samples is None and any(v.dist is not None for v in parsed):
             bad = next(v for v in parsed if v.dist is not None)
             raise click.UsageError(f"--vary {bad.key}: a distribution needs --samples N")
-        plan = plan_batch(scenes, overrides, parsed, samples, seed or 0)
-    except (VaryError, BatchInvalid) as err:
+        runs = len(scenes) * len(expand(parsed, samples, seed or 0))
+    except VaryError as err:
         _fail(EXIT_SCENE, str(err))
     out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except FileExistsError:
-        _fail(EXIT_RUNTIME, f"error: cannot write to {out}: it is not a folder")
-    except OSError as err:
-        _fail(EXIT_RUNTIME, f"error: cannot write to {out}: {_reason(err)}")
-    progress = _BatchProgress(not quiet)
+    # A batch into a folder with no trajectory yet has every run to do: its local
+    # cluster starts while the runs are checked (the check then costs no wall time),
+    # once the common mistakes are ruled out (precheck: no cluster for them).
+    early = scheduler is None and runs > 0 and fresh_folder(out)
+    if early:
+        try:
+            precheck(scenes, overrides, parsed)
+        except BatchInvalid as err:
+            _fail(EXIT_SCENE, str(err))
+    early_start = starting_cluster(None, min(workers or available_cores(), runs))
+    with early_start if early else contextlib.nullcontext() as cluster:
+        try:
+            plan = plan_batch(scenes, overrides, parsed, samples, seed or 0)
+        except (VaryError, BatchInvalid) as err:
+            _fail(EXIT_SCENE, str(err))
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except FileExistsError:
+            _fail(EXIT_RUNTIME, f"error: cannot write to {out}: it is not a folder")
+        except OSError as err:
+            _fail(EXIT_RUNTIME, f"error: cannot write to {out}: {_reason(err)}")
+        progress = _BatchProgress(not quiet)
 
-    def notify(text: str) -> None:
-        if not quiet:
-            click.echo(text, err=True)
+        def notify(text: str) -> None:
+            if not quiet:
+                click.echo(text, err=True)
 
-    main_thread = threading.current_thread() is threading.main_thread()
-    if main_thread:  # SIGTERM stops a batch like Ctrl-C
-        previous = signal.signal(signal.SIGTERM, _raise_interrupt)
-    try:
-        result = run_batch(
-            plan,
-            out,
-            scheduler=scheduler,
-            workers=workers,
-            retries=retries,
-            progress=progress.runs,
-            notify=notify,
-        )
-    except BatchInterrupted as err:
-        _fail(EXIT_INTERRUPTED, str(err), progress)
-    except KeyboardInterrupt:  # before the batch could record anything
-        _fail(EXIT_INTERRUPTED, "interrupted before any run finished", progress)
-    except BatchError as err:
-        _fail(EXIT_RUNTIME, f"error: {err}", progress)
-    except OSError as err:
-        _fail(EXIT_RUNTIME, f"error: cannot write to {out}: {_reason(err)}", progress)
-    finally:
-        if main_thread:
-            signal.signal(signal.SIGTERM, previous)
+        main_thread = threading.current_thread() is threading.main_thread()
+        if main_thread:  # SIGTERM stops a batch like Ctrl-C
+            previous = signal.signal(signal.SIGTERM, _raise_interrupt)
+        try:
+            result = run_batch(
+                plan,
+                out,
+                scheduler=scheduler,
+                workers=workers,
+                retries=retries,
+                progress=progress.runs,
+                notify=notify,
+                cluster=cluster,
+                started=started,
+            )
+        except BatchInterrupted as err:
+            _fail(EXIT_INTERRUPTED, str(err), progress)
+        except KeyboardInterrupt:  # before the batch could record anything
+            _fail(EXIT_INTERRUPTED, "interrupted before any run finished", progress)
+        except BatchError as err:
+            _fail(EXIT_RUNTIME, f"error: {err}", progress)
+        except OSError as err:
+            _fail(EXIT_RUNTIME, f"error: cannot write to {out}: {_reason(err)}", progress)
+        finally:
+            if main_thread:
+                signal.signal(signal.SIGTERM, previous)
     progress.finish()
     shown = result.failures[:20]
     for spec, status in shown:

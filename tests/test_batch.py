@@ -504,6 +504,36 @@ def test_a_retry_continues_the_run_its_killed_attempt_left(tmp_path: Path) -> No
     assert not list(out.glob(".*"))  # no part, checkpoint or lock file left
 
 
+def test_figures_of_a_3d_run_and_of_a_file_with_a_subset_of_bodies(tmp_path: Path) -> None:
+    """run_one (a worker's task, here in this process) on a 3D scene, and on the stack
+    written with output.bodies: moving (the ground stored once): the figures are those
+    of the trajectory, and the subset's overlap is the whole file's."""
+    from rbsim import __version__
+    from rbsim.batch import Job, run_one
+
+    pile = ROOT / "scenes" / "3d" / "collapsing_pile.yaml"
+    (spec,) = plan_batch([str(pile)], ["world.duration=0.25"]).runs()
+    got = run_one(Job(spec, str(tmp_path), __version__)).figures
+    tr = load_trajectory(tmp_path / f"{spec.run_id}.h5")
+    assert tr.dimension == 3 and got["status"] == "complete"
+    assert got["max_overlap_m"] is None  # no 3D penetration ruler yet
+    assert got["max_speed_m_s"] == float(np.linalg.norm(tr.velocity, axis=2).max())
+    moved = np.linalg.norm(tr.position[-1] - tr.position[0], axis=1)
+    assert got["moved_most"] == tr.bodies.name[int(np.argmax(moved))]
+    assert got["kinetic_energy_J"] == float(tr.observables["kinetic_energy"][-1])
+
+    vary = [parse_vary("bodies.15.position.0=[0.3]")]
+    rows = {}
+    for bodies in ("all", "moving"):
+        sets = ["world.duration=1", f"output.bodies={bodies}"]
+        (spec,) = plan_batch([str(STACK)], sets, vary).runs()
+        rows[bodies] = run_one(Job(spec, str(tmp_path), __version__)).figures
+    assert load_trajectory(tmp_path / f"{spec.run_id}.h5").fixed is not None  # ground once
+    assert rows["moving"]["max_overlap_m"] > 0  # the bottom box rests on the ground
+    for key in ("max_overlap_m", "max_speed_m_s", "moved_most", "moved_most_m", "steps"):
+        assert rows["moving"][key] == rows["all"][key], key
+
+
 # rbsim sweep on workers -------------------------------------------------------------------
 
 PROJECTILE = """\

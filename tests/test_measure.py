@@ -10,7 +10,8 @@ import pytest
 
 from rbsim.core import min_separation
 from rbsim.scene.compile import build
-from rbsim.tools.measure import penetration, touching_pairs
+from rbsim.tools import measure
+from rbsim.tools.measure import deepest_overlap, penetration, touching_pairs
 
 from .conftest import scene_from
 
@@ -65,6 +66,63 @@ def test_penetration_of_a_scene_pose_is_its_deepest_overlap():
     assert penetration(model, pairs, state.body_x, state.body_angle) == pytest.approx(0.1)
     lifted = state.body_x + np.array([[0, 0], [0, 1], [0, 1]])
     assert penetration(model, pairs, lifted, state.body_angle) == 0.0
+
+
+# A pile of boxes, discs and a capsule on a floor and a wall (static), shaken at random:
+# many frames with overlaps of every kind of pair, and pairs of statics (never counted).
+SHAKEN = """
+version: 1
+world: {steps: 1}
+bodies:
+  - {name: floor, type: static, shape: {box: {size: [20, 1]}}, position: [0, -0.5]}
+  - {name: wall, type: static, shape: {segment: {a: [-3, 0], b: [-3, 6]}}}
+  - grid: {name: box, count: [5, 4], spacing: [0.9, 0.9], origin: [-2, 0.5],
+           shape: {box: {size: [1, 1]}}}
+  - grid: {name: disc, count: [4, 3], spacing: [1.0, 0.9], origin: [-1.5, 4.2],
+           shape: {circle: {radius: 0.45}}}
+  - {name: rod, position: [0, 7], shape: {segment: {a: [-1, 0], b: [1, 0], radius: 0.2}}}
+"""
+
+
+def shaken_poses(frames: int, seed: int = 3):
+    model, state = build(scene_from(SHAKEN))
+    rng = np.random.default_rng(seed)
+    n = state.body_x.shape[0]
+    moving = (model.body_type != model.body_type[0])[:, None]  # body 0 (floor) is static
+    moving[1] = False  # and the wall
+    x = state.body_x + rng.normal(0.0, 0.08, (frames, n, 2)) * moving
+    theta = state.body_angle + rng.normal(0.0, 0.2, (frames, n)) * moving[:, 0]
+    return model, x, theta
+
+
+def per_frame_deepest(model, x, theta) -> float:
+    return max(
+        penetration(model, touching_pairs(model, x[t], theta[t], 0.0), x[t], theta[t])
+        for t in range(len(x))
+    )
+
+
+@pytest.mark.parametrize("dense_shapes", [measure.DENSE_SHAPES, 0])  # dense test, sweep
+def test_deepest_overlap_of_many_poses_is_the_deepest_of_each_pose(monkeypatch, dense_shapes):
+    monkeypatch.setattr(measure, "DENSE_SHAPES", dense_shapes)
+    monkeypatch.setattr(measure, "DENSE_PAIRS", 2000)  # several chunks of frames
+    model, x, theta = shaken_poses(30)
+    want = per_frame_deepest(model, x, theta)
+    assert want > 0.05  # the shaking makes real overlaps
+    assert deepest_overlap(model, x, theta) == want  # the same ruler: the same digits
+    for t in range(len(x)):  # and frame by frame: a pair left out shows in some frame
+        alone = per_frame_deepest(model, x[t : t + 1], theta[t : t + 1])
+        assert deepest_overlap(model, x[t : t + 1], theta[t : t + 1]) == alone, t
+
+
+def test_deepest_overlap_leaves_out_bodies_not_measured():
+    model, x, theta = shaken_poses(10)
+    known = np.ones(x.shape[1], bool)
+    known[0] = False  # the floor: its overlaps with the bottom row no longer count
+    far = x.copy()
+    far[:, 0] = [1e4, 1e4]  # as if the floor were far away
+    assert deepest_overlap(model, x, theta, known) == per_frame_deepest(model, far, theta)
+    assert deepest_overlap(model, x[:0], theta[:0]) == 0.0
 
 
 def test_bad_input_is_refused_with_a_message():

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import random
+import shutil
 import signal
 import subprocess
 import sys
@@ -96,17 +97,29 @@ def reference(tmp_path_factory) -> tuple[Path, Path, object]:
     return folder, scene, traj
 
 
-def test_sigkill_at_random_moments_leaves_a_plain_readable_prefix(reference, tmp_path) -> None:
-    folder, scene, ref = reference
+@pytest.fixture(scope="module")
+def killed(reference, tmp_path_factory) -> list[tuple[Path, float]]:
+    """Runs of the big scene killed with SIGKILL at six seeded random moments, from
+    before the file exists to late in the run: (file, moment in s) of each."""
+    _folder, scene, ref = reference
+    folder = tmp_path_factory.mktemp("killed")
     rng = random.Random(14)
-    lengths = []
+    files = []
     for k in range(6):
-        out = tmp_path / f"killed{k}.h5"
+        out = folder / f"killed{k}.h5"
         proc = start_run(scene, "-o", out)
-        # from before the file exists to late in the run
-        time.sleep(rng.uniform(0.15, 0.95) * ref.wall)
+        moment = rng.uniform(0.15, 0.95) * ref.wall
+        time.sleep(moment)
         proc.send_signal(signal.SIGKILL)
         proc.wait()
+        files.append((out, moment))
+    return files
+
+
+def test_sigkill_at_random_moments_leaves_a_plain_readable_prefix(reference, killed) -> None:
+    _folder, _scene, ref = reference
+    lengths = []
+    for k, (out, _moment) in enumerate(killed):
         if not out.exists():  # killed while the engine was still being built
             lengths.append(-1)
             continue
@@ -119,6 +132,29 @@ def test_sigkill_at_random_moments_leaves_a_plain_readable_prefix(reference, tmp
         lengths.append(len(traj.step))
     # the moments spread over the run: some kills land mid-run, with frames kept
     assert any(0 < n < len(ref.step) for n in lengths), lengths
+
+
+H5DUMP = shutil.which("h5dump")
+
+
+@pytest.mark.skipif(
+    H5DUMP is None,
+    reason="h5dump is not on PATH: HDF5's command-line tools are not installed "
+    "(Debian: apt-get install hdf5-tools, or without root as cli.md says)",
+)
+def test_a_killed_run_leaves_a_file_that_h5dump_reads(killed) -> None:
+    """HDF5's own reader (h5dump, its C library and not h5py's) opens every file a kill
+    left: the header of each with exit 0, the frames' datasets in it."""
+    assert H5DUMP is not None
+    read = 0
+    for out, moment in killed:
+        if not out.exists():
+            continue
+        done = subprocess.run([H5DUMP, "-H", str(out)], capture_output=True, text=True, timeout=60)
+        assert done.returncode == 0, f"killed at {moment:.2f} s: {done.stderr}"
+        assert f'HDF5 "{out}"' in done.stdout and 'DATASET "step"' in done.stdout
+        read += 1
+    assert read, "no kill left a file"
 
 
 def test_killed_runs_resume_bit_identically(reference, tmp_path) -> None:
@@ -148,12 +184,12 @@ def test_a_run_stopped_by_sigterm_keeps_its_checkpoint_and_resumes(reference, tm
     folder, scene, ref = reference
     out = tmp_path / "term.h5"
     proc = start_run(scene, "-o", out)
-    # the handler is in place before the file is laid out: wait for the file (however slow
-    # the start on a loaded machine), then let the run step a while
+    # once it steps (its handlers installed, however slowly a loaded machine starts it)
+    # and has written its first checkpoint: a fixed 1.2 s was too soon at times
+    checkpoint = Path(f"{out}{CHECKPOINT_SUFFIX}")
     deadline = time.monotonic() + 60
-    while not out.exists() and proc.poll() is None and time.monotonic() < deadline:
+    while not checkpoint.exists() and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.02)
-    time.sleep(0.3)
     proc.send_signal(signal.SIGTERM)
     _out, err = proc.communicate(timeout=60)
     if proc.returncode == 0:

@@ -61,7 +61,7 @@ import math
 import os
 import struct
 import time as _time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from types import TracebackType
 
@@ -1346,6 +1346,19 @@ def read_parameters(f: h5py.File) -> dict[str, str]:
     return params
 
 
+def read_fixed(f: h5py.File) -> FixedBodies | None:
+    """The static bodies an open file stores once (/particles/static), or None."""
+    if "particles/static" not in f:
+        return None
+    g = f["particles/static"]
+    return FixedBodies(
+        bodies=read_body_table(g),
+        position=g["position"][()],
+        orientation=g["orientation"][()],
+        angle=g["angle"][()] if "angle" in g else None,
+    )
+
+
 def load_trajectory(path: str | os.PathLike) -> Trajectory:
     """Read a trajectory file written by TrajectoryWriter (closed normally, still being
     written, or left by a killed writer). Every series is cut to the frames present in
@@ -1371,15 +1384,7 @@ def load_trajectory(path: str | os.PathLike) -> Trajectory:
         observables: dict[str, np.ndarray] = {}
         for group in _series_groups(f)[1]:
             observables[group.split("/", 1)[1]] = f[group]["value"][:t]
-        fixed = None
-        if "particles/static" in f:
-            g = f["particles/static"]
-            fixed = FixedBodies(
-                bodies=read_body_table(g),
-                position=g["position"][()],
-                orientation=g["orientation"][()],
-                angle=g["angle"][()] if "angle" in g else None,
-            )
+        fixed = read_fixed(f)
         contacts = read_contacts(f, t)
     return Trajectory(
         step=step,
@@ -1394,6 +1399,59 @@ def load_trajectory(path: str | os.PathLike) -> Trajectory:
         contacts=contacts,
         **arrays,
     )
+
+
+@dataclass
+class Frames:
+    """Some series of a trajectory file (`load_frames`), cut like load_trajectory's to
+    the frames present in every series of the file: step (T,); series name -> (T,N,...)
+    array (units as in Trajectory); observables name -> (T,...) array; status and
+    wall_time (s, None when not recorded) of /parameters/rbsim; dimension 2 or 3; fixed:
+    the static bodies stored once (output.bodies), or None."""
+
+    step: np.ndarray
+    series: dict[str, np.ndarray]
+    observables: dict[str, np.ndarray]
+    status: str
+    wall_time: float | None
+    dimension: int
+    fixed: FixedBodies | None
+
+
+def load_frames(
+    path: str | os.PathLike, series: Sequence[str], observables: Sequence[str] = ()
+) -> Frames:
+    """Read only the named per-body series ("position", "velocity", ...) and observables
+    of a trajectory file, with its step, status and wall time: what load_trajectory
+    would give of them, for a fraction of its reads. A series the file lacks is
+    (0,N,...) as in load_trajectory; an observable it lacks is left out."""
+    with reading(path) as f:
+        group = f["parameters/rbsim"] if "parameters/rbsim" in f else {}
+        text = {}
+        for key in ("status", "wall_time"):
+            value = group[key][()] if key in group else b""
+            text[key] = (
+                value.decode("utf-8").rstrip("\x00") if isinstance(value, bytes) else str(value)
+            )
+        status = text["status"] or "unknown"
+        try:
+            wall_time: float | None = float(text["wall_time"])
+        except ValueError:
+            wall_time = None
+        bodies = f["particles/bodies"]
+        dimension = _read_dimension(bodies)
+        n = len(bodies["name"])
+        t = frame_count(f, closed=status != STATUS_RUNNING)
+        got: dict[str, np.ndarray] = {}
+        for name in series:
+            components = body_series(dimension)[name][0]
+            key = f"particles/bodies/{name}/value"
+            empty = (0, n, components) if components else (0, n)
+            got[name] = f[key][:t] if t and key in f else np.zeros(empty)
+        step = f["particles/bodies/position/step"][:t] if t else np.zeros(0, np.int64)
+        obs = {k: f[f"observables/{k}/value"][:t] for k in observables if f"observables/{k}" in f}
+        fixed = read_fixed(f)
+    return Frames(step, got, obs, status, wall_time, dimension, fixed)
 
 
 # ---------------------------------------------------------------------------------------
