@@ -23,6 +23,7 @@
 // The same file finds the solve order of the solver's passes (support level first) and
 // the region around a deep overlap that the relax stage gives extra passes.
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "rbsim/constants.hpp"
@@ -96,9 +97,68 @@ void contact_levels(const Model<D>& model, Contacts<D>& c) {
 // ω · (r × n) for a point's angular lever (2D: scalars; 3D: vectors).
 inline double angular_along(double w, double r) { return w * r; }
 
-// The 3D pass: the supported body's approach taken out point by point (a face's up to
-// four points, one after the other, each impulse λ >= 0 against the velocity it meets),
-// the supporter held still; the body's v and L changed, ω found again from L.
+// 3D: impulses λ >= 0 (N·s) at the n points (n <= 4) of a supported body that bring every
+// point to at least its target, λ_k = 0 wherever a point is left beyond it: the linear
+// complementarity problem w = K λ − need >= 0, λ >= 0, λ·w = 0, with K (1/kg, packed as
+// SolverRow<3>::k) the supported body's own block and need (m/s) each point's shortfall.
+// Solved by active sets (the points with a shortfall first; the most negative impulse
+// dropped, the most violated point added): a box on four corners gets the mirror-image
+// impulses of the smallest change (solve_block), not the first corner's whole push.
+// false when no set was found within a few tries.
+bool shock_block(const std::array<double, 10>& k, const double* need, int n, double* lam) {
+  bool in[4] = {false, false, false, false};
+  double scale = 0.0;  // m/s: the largest shortfall
+  for (int i = 0; i < n; ++i) {
+    in[i] = need[i] > 0.0;
+    scale = std::max(scale, need[i]);
+  }
+  const double zero[4] = {0.0, 0.0, 0.0, 0.0};
+  auto at = [&](int i, int j) {  // K_ij from the packed upper triangle
+    if (i > j) std::swap(i, j);
+    return k[i * 4 - i * (i - 1) / 2 + (j - i)];
+  };
+  for (int tries = 0; tries < 2 * n + 2; ++tries) {
+    int idx[4], na = 0;
+    for (int i = 0; i < n; ++i)
+      if (in[i]) idx[na++] = i;
+    std::array<double, 10> sub{};
+    double rhs[4], x[4] = {0.0, 0.0, 0.0, 0.0};
+    int e = 0;
+    for (int i = 0; i < 4; ++i)
+      for (int j = i; j < 4; ++j, ++e) sub[e] = i < na && j < na ? at(idx[i], idx[j]) : 0.0;
+    for (int i = 0; i < na; ++i) rhs[i] = need[idx[i]];
+    if (na > 0 && !solve_block(sub, zero, rhs, na, x)) return false;
+    int worst = -1;  // the most negative impulse: its point leaves the set
+    for (int i = 0; i < na; ++i)
+      if (x[i] < 0.0 && (worst < 0 || x[i] < x[worst])) worst = i;
+    if (worst >= 0) {
+      in[idx[worst]] = false;
+      continue;
+    }
+    for (int i = 0; i < n; ++i) lam[i] = 0.0;
+    for (int i = 0; i < na; ++i) lam[idx[i]] = x[i];
+    // the most violated point outside the set (beyond rounding) joins it
+    int add = -1;
+    double most = -1e-9 * scale;
+    for (int i = 0; i < n; ++i) {
+      if (in[i]) continue;
+      double w = -need[i];
+      for (int j = 0; j < n; ++j) w += at(i, j) * lam[j];
+      if (w < most) {
+        most = w;
+        add = i;
+      }
+    }
+    if (add < 0) return true;
+    in[add] = true;
+  }
+  return false;
+}
+
+// The 3D pass: the supported body's approach taken out at a face's up to four points at
+// once (shock_block), the supporter held still; the body's v and L changed, ω found again
+// from L. Where no set of points is found, the points are taken one after the other
+// (each impulse λ >= 0 against the velocity it meets).
 void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
                         std::int64_t n_order, double inv_h, double threshold) {
   for (std::int64_t o = 0; o < n_order; ++o) {
@@ -108,11 +168,12 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
     const Vec3 n = row.normal;
     const int npts = c.points[m];
     const Vec3 va = st.body_v[a], vb = st.body_v[b], wa = st.body_w[a], wb = st.body_w[b];
+    double vel[4];
     double slowest = 0.0;  // m/s: the fastest approach among the points
     for (int k = 0; k < npts; ++k) {
       const auto& pt = row.point[k];
-      const double vel = dot(n, (va + cross(wa, pt.arm_a)) - (vb + cross(wb, pt.arm_b)));
-      slowest = std::min(slowest, vel);
+      vel[k] = dot(n, (va + cross(wa, pt.arm_a)) - (vb + cross(wb, pt.arm_b)));
+      slowest = std::min(slowest, vel[k]);
     }
     // most supported points are not approaching: skip them before any other work
     if (!(slowest < -C::SHOCK_MIN_APPROACH)) continue;
@@ -127,25 +188,54 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
     const int u = a_moves ? a : b;
     const double sgn = a_moves ? 1.0 : -1.0;
     const double mu = model.body_inv_mass[u];
+    // how far each point is from allowed (m/s): a gap may close within the substep
+    double need[4];
+    for (int k = 0; k < npts; ++k) {
+      const double sep = row_separation(row.point[k], moved, na, nb);
+      need[k] = (sep > 0.0 ? -sep * inv_h : 0.0) - vel[k];
+    }
+    // the supported body's block: K_ij = 1/m + (r_i × n)·I⁻¹(r_j × n) (1/kg)
+    std::array<double, 10> kb{};
+    int e = 0;
+    for (int i = 0; i < 4; ++i) {
+      for (int j = i; j < 4; ++j, ++e) {
+        if (j >= npts) continue;
+        const auto& pi = row.point[i];
+        const auto& pj = row.point[j];
+        kb[e] = mu + (a_moves ? dot(pi.rna, pj.wna) : dot(pi.rnb, pj.wnb));
+      }
+    }
+    double lam[4] = {0.0, 0.0, 0.0, 0.0};
     Vec3 vu = st.body_v[u], wu = st.body_w[u], dl{};
     bool pushed = false;
-    for (int k = 0; k < npts; ++k) {
-      const auto& pt = row.point[k];
-      const Vec3 pa = a_moves ? vu + cross(wu, pt.arm_a) : va + cross(wa, pt.arm_a);
-      const Vec3 pb = a_moves ? vb + cross(wb, pt.arm_b) : vu + cross(wu, pt.arm_b);
-      const double vel = dot(n, pa - pb);
-      const double sep = row_separation(pt, moved, na, nb);
-      // how far the point is from allowed (m/s): a gap may close within the substep
-      const double need = (sep > 0.0 ? -sep * inv_h : 0.0) - vel;
-      const Vec3 rn = a_moves ? pt.rna : pt.rnb;  // m: the supported body's lever
-      const Vec3 wn = a_moves ? pt.wna : pt.wnb;
-      const double k_u = mu + dot(rn, wn);  // 1/kg
-      if (!(need > 0.0 && k_u > 0.0)) continue;
-      const double lam = need / k_u;  // N·s along the supported body's push direction
-      vu += (sgn * mu * lam) * n;
-      wu += (sgn * lam) * wn;
-      dl += (sgn * lam) * rn;
-      pushed = true;
+    if (shock_block(kb, need, npts, lam)) {
+      for (int k = 0; k < npts; ++k) {
+        if (lam[k] == 0.0) continue;
+        const auto& pt = row.point[k];
+        const Vec3 rn = a_moves ? pt.rna : pt.rnb;  // m: the supported body's lever
+        const Vec3 wn = a_moves ? pt.wna : pt.wnb;
+        vu += (sgn * mu * lam[k]) * n;
+        wu += (sgn * lam[k]) * wn;
+        dl += (sgn * lam[k]) * rn;
+        pushed = true;
+      }
+    } else {
+      for (int k = 0; k < npts; ++k) {
+        const auto& pt = row.point[k];
+        const Vec3 pa = a_moves ? vu + cross(wu, pt.arm_a) : va + cross(wa, pt.arm_a);
+        const Vec3 pb = a_moves ? vb + cross(wb, pt.arm_b) : vu + cross(wu, pt.arm_b);
+        const double sep = row_separation(pt, moved, na, nb);
+        const double short_k = (sep > 0.0 ? -sep * inv_h : 0.0) - dot(n, pa - pb);
+        const Vec3 rn = a_moves ? pt.rna : pt.rnb;
+        const Vec3 wn = a_moves ? pt.wna : pt.wnb;
+        const double k_u = mu + dot(rn, wn);  // 1/kg
+        if (!(short_k > 0.0 && k_u > 0.0)) continue;
+        const double l = short_k / k_u;  // N·s along the supported body's push direction
+        vu += (sgn * mu * l) * n;
+        wu += (sgn * l) * wn;
+        dl += (sgn * l) * rn;
+        pushed = true;
+      }
     }
     if (!pushed) continue;
     st.body_v[u] = vu;
