@@ -97,62 +97,89 @@ void contact_levels(const Model<D>& model, Contacts<D>& c) {
 // ω · (r × n) for a point's angular lever (2D: scalars; 3D: vectors).
 inline double angular_along(double w, double r) { return w * r; }
 
-// 3D: impulses λ >= 0 (N·s) at the n points (n <= 4) of a supported body that bring every
-// point to at least its target, λ_k = 0 wherever a point is left beyond it: the linear
-// complementarity problem w = K λ − need >= 0, λ >= 0, λ·w = 0, with K (1/kg, packed as
-// SolverRow<3>::k) the supported body's own block and need (m/s) each point's shortfall.
-// Solved by active sets (the points with a shortfall first; the most negative impulse
-// dropped, the most violated point added): a box on four corners gets the mirror-image
-// impulses of the smallest change (solve_block), not the first corner's whole push.
-// false when no set was found within a few tries.
-bool shock_block(const std::array<double, 10>& k, const double* need, int n, double* lam) {
-  bool in[4] = {false, false, false, false};
-  double scale = 0.0;  // m/s: the largest shortfall
-  for (int i = 0; i < n; ++i) {
-    in[i] = need[i] > 0.0;
-    scale = std::max(scale, need[i]);
-  }
-  const double zero[4] = {0.0, 0.0, 0.0, 0.0};
+// Solve A x = r for the n <= 4 points of `idx` (A: K's rows and columns idx, K packed as
+// SolverRow<3>::k, 1/kg) by LDLᵀ, unregularised; false when a pivot is below 1e-9 of its
+// diagonal (the points' rows are dependent: four corners of a face, for one rigid body).
+bool solve_exact(const std::array<double, 10>& k, const int* idx, const double* r, int n,
+                 double* x) {
   auto at = [&](int i, int j) {  // K_ij from the packed upper triangle
     if (i > j) std::swap(i, j);
     return k[i * 4 - i * (i - 1) / 2 + (j - i)];
   };
-  for (int tries = 0; tries < 2 * n + 2; ++tries) {
-    int idx[4], na = 0;
-    for (int i = 0; i < n; ++i)
-      if (in[i]) idx[na++] = i;
-    std::array<double, 10> sub{};
-    double rhs[4], x[4] = {0.0, 0.0, 0.0, 0.0};
-    int e = 0;
-    for (int i = 0; i < 4; ++i)
-      for (int j = i; j < 4; ++j, ++e) sub[e] = i < na && j < na ? at(idx[i], idx[j]) : 0.0;
-    for (int i = 0; i < na; ++i) rhs[i] = need[idx[i]];
-    if (na > 0 && !solve_block(sub, zero, rhs, na, x)) return false;
-    int worst = -1;  // the most negative impulse: its point leaves the set
-    for (int i = 0; i < na; ++i)
-      if (x[i] < 0.0 && (worst < 0 || x[i] < x[worst])) worst = i;
-    if (worst >= 0) {
-      in[idx[worst]] = false;
-      continue;
+  double L[4][4] = {}, dg[4];
+  for (int j = 0; j < n; ++j) {
+    const double diag = at(idx[j], idx[j]);
+    double v = diag;
+    for (int p = 0; p < j; ++p) v -= L[j][p] * L[j][p] * dg[p];
+    if (!(v > 1e-9 * diag)) return false;
+    dg[j] = v;
+    for (int i = j + 1; i < n; ++i) {
+      double y = at(idx[i], idx[j]);
+      for (int p = 0; p < j; ++p) y -= L[i][p] * L[j][p] * dg[p];
+      L[i][j] = y / v;
     }
-    for (int i = 0; i < n; ++i) lam[i] = 0.0;
-    for (int i = 0; i < na; ++i) lam[idx[i]] = x[i];
-    // the most violated point outside the set (beyond rounding) joins it
-    int add = -1;
-    double most = -1e-9 * scale;
-    for (int i = 0; i < n; ++i) {
-      if (in[i]) continue;
-      double w = -need[i];
-      for (int j = 0; j < n; ++j) w += at(i, j) * lam[j];
-      if (w < most) {
-        most = w;
-        add = i;
-      }
-    }
-    if (add < 0) return true;
-    in[add] = true;
   }
-  return false;
+  double y[4];
+  for (int i = 0; i < n; ++i) {
+    y[i] = r[i];
+    for (int p = 0; p < i; ++p) y[i] -= L[i][p] * y[p];
+  }
+  for (int i = n - 1; i >= 0; --i) {
+    x[i] = y[i] / dg[i];
+    for (int p = i + 1; p < n; ++p) x[i] -= L[p][i] * x[p];
+  }
+  return true;
+}
+
+// 3D: impulses λ >= 0 (N·s) at the n points (n <= 4) of a supported body that bring every
+// point to at least its target, λ_k = 0 wherever a point is left beyond it: the linear
+// complementarity problem w = K λ − need >= 0, λ >= 0, λ·w = 0, with K (1/kg, packed as
+// SolverRow<3>::k) the supported body's own block and need (m/s) each point's shortfall.
+// Its solutions all give the body the same velocity (K λ is the same for all: it is the
+// minimum of a convex quadratic), so the first found serves: the sets of points tried
+// from the largest down, each solved exactly, until one has λ >= 0 and leaves no point
+// short (beyond rounding). Four corners of a face are dependent (K has rank 3), so a
+// face rests on three of them here; the velocity is the four's. false when none does
+// (K singular on every set).
+bool shock_block(const std::array<double, 10>& k, const double* need, int n, double* lam) {
+  double scale = 0.0;  // m/s: the largest shortfall
+  for (int i = 0; i < n; ++i) scale = std::max(scale, std::fabs(need[i]));
+  auto at = [&](int i, int j) {
+    if (i > j) std::swap(i, j);
+    return k[i * 4 - i * (i - 1) / 2 + (j - i)];
+  };
+  for (int size = n; size >= 1; --size) {
+    for (int set = (1 << n) - 1; set > 0; --set) {
+      if (__builtin_popcount(static_cast<unsigned>(set)) != size) continue;
+      int idx[4], na = 0;
+      double rhs[4], x[4];
+      bool worth = false;  // a set of points none of which is short is never the answer
+      for (int i = 0; i < n; ++i) {
+        if (!(set >> i & 1)) continue;
+        worth = worth || need[i] > 0.0;
+        rhs[na] = need[i];
+        idx[na++] = i;
+      }
+      if (!worth || !solve_exact(k, idx, rhs, na, x)) continue;
+      bool ok = true;
+      for (int i = 0; i < na; ++i) ok = ok && x[i] >= 0.0;
+      if (!ok) continue;
+      for (int i = 0; i < n; ++i) lam[i] = 0.0;
+      for (int i = 0; i < na; ++i) lam[idx[i]] = x[i];
+      for (int i = 0; i < n && ok; ++i) {
+        if (set >> i & 1) continue;
+        double w = -need[i];
+        for (int j = 0; j < n; ++j) w += at(i, j) * lam[j];
+        ok = w >= -1e-9 * scale;
+      }
+      if (ok) return true;
+    }
+  }
+  // no point short at all: nothing to do
+  for (int i = 0; i < n; ++i) lam[i] = 0.0;
+  bool short_any = false;
+  for (int i = 0; i < n; ++i) short_any = short_any || need[i] > 0.0;
+  return !short_any;
 }
 
 // The 3D pass: the supported body's approach taken out at a face's up to four points at
@@ -160,7 +187,8 @@ bool shock_block(const std::array<double, 10>& k, const double* need, int n, dou
 // from L. Where no set of points is found, the points are taken one after the other
 // (each impulse λ >= 0 against the velocity it meets).
 void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
-                        std::int64_t n_order, double inv_h, double threshold) {
+                        std::int64_t n_order, double inv_h, double threshold,
+                        double min_approach) {
   for (std::int64_t o = 0; o < n_order; ++o) {
     const std::int32_t m = c.shock_order[o];
     const int a = c.body_a[m], b = c.body_b[m];
@@ -176,7 +204,7 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
       slowest = std::min(slowest, vel[k]);
     }
     // most supported points are not approaching: skip them before any other work
-    if (!(slowest < -C::SHOCK_MIN_APPROACH)) continue;
+    if (!(slowest < -min_approach)) continue;
     if (c.restitution[m] > 0.0 && slowest < -threshold) continue;
     const BodyDelta<3>& da = c.body_delta[a];
     const BodyDelta<3>& db = c.body_delta[b];
@@ -401,9 +429,9 @@ std::int64_t deep_region(const Model<D>& model, Contacts<D>& c, int reach) {
 // ball struck down onto the floor stopped dead).
 template <int D>
 void propagate_shock(const Model<D>& model, State<D>& st, Contacts<D>& c, std::int64_t n_order,
-                     double inv_h, double threshold) {
+                     double inv_h, double threshold, double min_approach) {
   if constexpr (D == 3) {
-    propagate_shock_3d(model, st, c, n_order, inv_h, threshold);
+    propagate_shock_3d(model, st, c, n_order, inv_h, threshold, min_approach);
   } else {
   using Vec = typename Dim<D>::Vec;
   auto& v = st.body_v;
@@ -421,10 +449,10 @@ void propagate_shock(const Model<D>& model, State<D>& st, Contacts<D>& c, std::i
     const double dvn = dot(dv, n);
     const double vel0 = dvn + angular_along(w[a], pt0.rna) - angular_along(w[b], pt0.rnb);
     double vel1 = 0.0;
-    bool approaching = vel0 < -C::SHOCK_MIN_APPROACH;
+    bool approaching = vel0 < -min_approach;
     if (npts == 2) {
       vel1 = dvn + angular_along(w[a], pt1.rna) - angular_along(w[b], pt1.rnb);
-      approaching = approaching || vel1 < -C::SHOCK_MIN_APPROACH;
+      approaching = approaching || vel1 < -min_approach;
     }
     if (!approaching) continue;
     if (c.restitution[m] > 0.0 && std::min(vel0, vel1) < -threshold) continue;
@@ -492,10 +520,10 @@ void propagate_shock(const Model<D>& model, State<D>& st, Contacts<D>& c, std::i
 template std::int64_t support_order(const Model<2>&, Contacts<2>&);
 template std::int64_t deep_region(const Model<2>&, Contacts<2>&, int);
 template void propagate_shock(const Model<2>&, State<2>&, Contacts<2>&, std::int64_t, double,
-                              double);
+                              double, double);
 template std::int64_t support_order(const Model<3>&, Contacts<3>&);
 template std::int64_t deep_region(const Model<3>&, Contacts<3>&, int);
 template void propagate_shock(const Model<3>&, State<3>&, Contacts<3>&, std::int64_t, double,
-                              double);
+                              double, double);
 
 }  // namespace rbsim
