@@ -108,7 +108,7 @@ void carry_unmatched(Contacts<3>& c, std::int64_t m, std::int64_t j, int npts, d
     }
     if (best < 0) continue;
     taken[best] = found[k] = true;
-    c.normal_impulse[m][k] = c.prev_normal_impulse[j][best];
+    c.normal_impulse[m][k] = c.start_impulse[m][k] = c.prev_normal_impulse[j][best];
     c.tangent_impulse[m][k] = c.prev_tangent_impulse[j][best];
   }
   double left = 0.0;  // N·s: the old points' normal impulse no new point took

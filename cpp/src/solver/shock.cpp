@@ -106,29 +106,10 @@ bool solve_exact(const std::array<double, 10>& k, const int* idx, const double* 
     if (i > j) std::swap(i, j);
     return k[i * 4 - i * (i - 1) / 2 + (j - i)];
   };
-  double L[4][4] = {}, dg[4];
-  for (int j = 0; j < n; ++j) {
-    const double diag = at(idx[j], idx[j]);
-    double v = diag;
-    for (int p = 0; p < j; ++p) v -= L[j][p] * L[j][p] * dg[p];
-    if (!(v > 1e-9 * diag)) return false;
-    dg[j] = v;
-    for (int i = j + 1; i < n; ++i) {
-      double y = at(idx[i], idx[j]);
-      for (int p = 0; p < j; ++p) y -= L[i][p] * L[j][p] * dg[p];
-      L[i][j] = y / v;
-    }
-  }
-  double y[4];
-  for (int i = 0; i < n; ++i) {
-    y[i] = r[i];
-    for (int p = 0; p < i; ++p) y[i] -= L[i][p] * y[p];
-  }
-  for (int i = n - 1; i >= 0; --i) {
-    x[i] = y[i] / dg[i];
-    for (int p = i + 1; p < n; ++p) x[i] -= L[p][i] * x[p];
-  }
-  return true;
+  double A[4][4] = {};
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) A[i][j] = at(idx[i], idx[j]);
+  return ldlt_solve(A, n, r, x, 1e-9);
 }
 
 // 3D: impulses λ >= 0 (N·s) at the n points (n <= 4) of a supported body that bring every
