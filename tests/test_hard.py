@@ -426,11 +426,6 @@ def test_3d_heavy_box_does_not_sink_into_the_light_ones():
     must("heavy_top_3d", "sink", "<", 0.10)  # the 2D heavy top's 10 cm
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="rbsim 3D today: the 100:1 heavy box never comes to rest (0.032 m/s over the "
-    "last 2 s; the pyramid under it creeps 5 cm in 10 s)",
-)
 def test_3d_heavy_box_comes_to_rest():
     must("heavy_top_3d", "speed", "<", 0.01)  # at rest: the 2D stack's 1 cm/s
 

@@ -211,11 +211,24 @@ TEST(box_on_plane_has_four_points_with_stable_ids_and_carried_impulses) {
     }
     store_impulses(c);
   }
-  // a point whose id last step did not have starts from zero
+  // a point whose id last step did not have takes the impulse of the old point nearest
+  // it that no id matched (within WARM_MATCH_DISTANCE: here 1 mm away)
   c.prev_feature[0][2] = -5;
   w.state.body_x[box].x += 1e-3;
   test::collide3(w);
-  CHECK(c.normal_impulse[0][2] == 0.0 && c.normal_impulse[0][0] == 1.0);
+  CHECK(c.normal_impulse[0][2] == 3.0 && c.normal_impulse[0][0] == 1.0);
+  CHECK(c.start_impulse[0][2] == 3.0);
+  store_impulses(c);
+  // two such points with no old point near: what the unmatched old points held (3 + 4
+  // N·s) is shared out between them, the manifold keeps its total
+  c.prev_feature[0][2] = -5;
+  c.prev_feature[0][3] = -6;
+  c.prev_anchor_a[0][2] += Vec3{0.0, 1.0, 0.0};  // 1 m off: out of reach
+  c.prev_anchor_a[0][3] += Vec3{0.0, 1.0, 0.0};
+  w.state.body_x[box].x += 1e-3;
+  test::collide3(w);
+  CHECK(c.normal_impulse[0][0] == 1.0 && c.normal_impulse[0][1] == 2.0);
+  CHECK(c.normal_impulse[0][2] == 3.5 && c.normal_impulse[0][3] == 3.5);
 }
 
 // A ball resting 1 cm above the ground is one speculative point with that separation;

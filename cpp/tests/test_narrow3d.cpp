@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstdio>
 #include <cstring>
 #include <ctime>
 #include <string>
@@ -23,6 +22,9 @@ namespace {
 
 constexpr double SPEC = constants::SPECULATIVE_DISTANCE;  // m
 constexpr double EPS = 1e-12;  // m, round-off of O(1) lengths
+// m: a reference face's side planes are moved out by the clip skin (narrow3d.cpp), so a
+// larger incident face is cut this far outside the reference face
+constexpr double SKIN = constants::REFERENCE_FACE_TOLERANCE;
 const double S2 = std::sqrt(0.5);
 
 Quat axis_angle(Vec3 axis, double angle) {
@@ -438,8 +440,9 @@ TEST(box_resting_on_a_box_four_points_stable_ids) {
     CHECK_NEAR(r.m.separation[k], -0.001, EPS);
     CHECK_NEAR(r.m.point[k].y, -0.0005, EPS);
   }
-  for (double x : {-0.4, 0.6})
-    for (double z : {-0.3, 0.7}) CHECK(has_point(r, {x, -0.0005, z}, EPS));
+  // the wide box's face cut at the unit box's sides, moved out by the skin
+  for (double x : {-0.4 - SKIN, 0.6 + SKIN})
+    for (double z : {-0.3 - SKIN, 0.7 + SKIN}) CHECK(has_point(r, {x, -0.0005, z}, EPS));
   for (int k = 0; k < 4; ++k)
     for (int j = k + 1; j < 4; ++j) CHECK(r.m.id[k] != r.m.id[j]);
   // moved by 0.1 mm in each direction: the same features, the same ids
@@ -465,7 +468,9 @@ TEST(box_resting_on_a_box_four_points_stable_ids) {
   const auto m = collide(ground, box_ref({0.1, 0.499, 0.2}, {}, {0.5, 0.5, 0.5}));
   CHECK(m.n == 4);
   CHECK_VEC(m.m.normal, {0, -1, 0}, 0.0, "b -> a");
-  for (int k = 0; k < 4; ++k) CHECK(has_point(r, m.m.point[k], EPS));
+  // the same corners, but for the skin: the other order takes the wide face as the
+  // reference (the tie goes to a), and the unit box's corners are its points as they are
+  for (int k = 0; k < 4; ++k) CHECK(has_point(r, m.m.point[k], 1.5 * SKIN));
 }
 
 // A box hanging over the ground box's edge: the overlap of the two faces (the part over
@@ -474,8 +479,9 @@ TEST(box_over_an_edge_and_rocking) {
   const auto ground = box_ref({0, -0.5, 0}, {}, {1, 0.5, 1});
   const auto r = collide(box_ref({1.0, 0.499, 0}, {}, {0.5, 0.5, 0.5}), ground);
   CHECK(r.n == 4);
-  for (double x : {0.5, 1.0})
-    for (double z : {-0.5, 0.5}) CHECK(has_point(r, {x, -0.0005, z}, EPS));
+  // the ground's face cut at the box's sides moved out by the skin, and at its own edge
+  for (double x : {0.5 - SKIN, 1.0})
+    for (double z : {-0.5 - SKIN, 0.5 + SKIN}) CHECK(has_point(r, {x, -0.0005, z}, EPS));
   // rocking: the ground's face becomes the reference (the box's bottom corners dip),
   // and stays it while the box rocks on
   const auto a = collide(box_ref({0.2, 0.499, 0}, axis_angle({1, 0, 1}, 1e-3), {0.5, 0.5, 0.5}), ground);
@@ -611,7 +617,9 @@ TEST(hulls_edge_to_edge_and_face_on_box) {
   const auto f = collide(tet.at({0.1, -0.001, 0.1}), box);
   CHECK(f.n == 3);
   for (int k = 0; k < 3; ++k) CHECK_NEAR(f.m.separation[k], -0.001, EPS);
-  CHECK(has_point(f, {1.1, -0.0005, 0.1}, EPS));
+  // a corner of the tetrahedron's face (legs along x and z, hypotenuse at 45°), its sides
+  // moved out by the skin: the leg z = 0.1 − s meets the hypotenuse s further out
+  CHECK(has_point(f, {1.1 + SKIN * (1.0 + std::sqrt(2.0)), -0.0005, 0.1 - SKIN}, EPS));
 }
 
 // Random poses of two boxes (fixed seed): the box–box function and the hull code path

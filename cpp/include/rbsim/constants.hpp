@@ -108,10 +108,17 @@ inline constexpr int TOI_ITERATIONS = 12;
 inline constexpr double TOI_FINISH = 1.0e-6;
 
 // Narrowphase: a reference face is preferred unless another is deeper by more than
-// this, m (0.1 * LINEAR_SLOP: faces of a resting box do not flicker); a segment is
+// this, m (0.1 * LINEAR_SLOP: faces of a resting box do not flicker), and in 3D an
+// incident corner this close outside a reference face's side plane is kept unclipped
+// (flush faces keep their corner ids, so their warm start); a segment is
 // given this skin when clipped, m (both scaled as LINEAR_SLOP); lengths below
 // LINEAR_EPSILON (m) are degenerate.
 inline constexpr double REFERENCE_FACE_TOLERANCE = 0.1 * LINEAR_SLOP;
+// Warm start in 3D: a contact point with a new feature id takes over the impulses of
+// last step's nearest point of its manifold that no id matched within this distance,
+// m (LINEAR_SLOP, scaled as it: a face's corner cut into clipped points keeps its own
+// load; what is left is shared out over the manifold, contact/manifold.cpp).
+inline constexpr double WARM_MATCH_DISTANCE = LINEAR_SLOP;
 inline constexpr double SEGMENT_SKIN = LINEAR_SLOP;
 inline constexpr double LINEAR_EPSILON = 1.0e-9;
 

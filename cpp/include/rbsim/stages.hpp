@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <string>
 
+#include "constants.hpp"
 #include "contacts.hpp"
 #include "grid.hpp"
 #include "model.hpp"
@@ -137,10 +138,12 @@ std::int64_t find_waves(const Model<D>& model, Contacts<D>& contacts);
 template <int D>
 std::int64_t deep_region(const Model<D>& model, Contacts<D>& contacts, int reach);
 
-// solver/shock.cpp: one pass from the ground up, the supporting body held still.
+// solver/shock.cpp: one pass from the ground up, the supporting body held still; a point
+// approaching slower than min_approach (m/s) is left alone.
 template <int D>
 void propagate_shock(const Model<D>& model, State<D>& state, Contacts<D>& contacts,
-                     std::int64_t n_order, double inv_h, double threshold);
+                     std::int64_t n_order, double inv_h, double threshold,
+                     double min_approach = constants::SHOCK_MIN_APPROACH);
 
 // dynamics/integrate.cpp: v += h (g + F/m), angular from torque, then damping.
 template <int D>
@@ -225,7 +228,8 @@ void warm_start_range(const Model<D>& model, State<D>& state, Contacts<D>& conta
 template <int D>
 void propagate_shock_range(const Model<D>& model, State<D>& state, Contacts<D>& contacts,
                            std::int64_t first, std::int64_t last, double inv_h,
-                           double threshold);
+                           double threshold,
+                           double min_approach = constants::SHOCK_MIN_APPROACH);
 
 // solver/regions.cpp: the regions of the solver's passes. When the contact graph changed
 // (count.graph_unchanged == 0) the dynamic bodies are split into regions

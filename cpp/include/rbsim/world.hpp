@@ -106,7 +106,10 @@ struct World {
   void over_segments(bool with_logs, F&& f);
   void warm_start_pass();
   void solve_pass(double inv_h, bool use_bias, double shift, double threshold);
-  void shock_pass(double inv_h, double threshold);
+  // the shock pass over the regions' shock orders; approaches slower than min_approach
+  // (m/s) are left alone
+  void shock_pass(double inv_h, double threshold,
+                  double min_approach = constants::SHOCK_MIN_APPROACH);
 };
 
 // Half the diagonal (m) of each shape's own bounding box, radius included.

@@ -3,6 +3,7 @@
 // from its solver row or from its anchors. Header-only so that each pass inlines them.
 #pragma once
 
+#include <array>
 #include <cmath>
 #include <cstdint>
 
@@ -150,6 +151,54 @@ inline SoftTarget soft_target(double s, bool use_bias, double inv_h, double bias
   bias = push ? std::fmax(bias_rate * s, max_push) : bias;
   double gamma = push ? kn * soft_gamma : 0.0;
   return {bias, gamma};
+}
+
+// 3D: a face's points (up to four) as one block. Four coplanar points make a rigid block
+// of rank 3 (a box on four corners is statically indeterminate); BLOCK_EPS of the
+// diagonal regularises it, which picks the smallest change of the impulses when the
+// right-hand side lies in K's range (as the rigid bodies' own normal velocities do).
+constexpr double BLOCK_EPS = 1e-9;
+
+// Solve A d = r for the first n (<= 4) rows and columns of the symmetric A by LDLᵀ; false
+// when a pivot is not above min_pivot of its diagonal (dependent rows).
+inline bool ldlt_solve(const double (&A)[4][4], int n, const double* r, double* d,
+                       double min_pivot) {
+  double L[4][4] = {}, dg[4];
+  for (int j = 0; j < n; ++j) {
+    double v = A[j][j];
+    for (int p = 0; p < j; ++p) v -= L[j][p] * L[j][p] * dg[p];
+    if (!(v > min_pivot * A[j][j])) return false;
+    dg[j] = v;
+    for (int i = j + 1; i < n; ++i) {
+      double x = A[i][j];
+      for (int p = 0; p < j; ++p) x -= L[i][p] * L[j][p] * dg[p];
+      L[i][j] = x / v;
+    }
+  }
+  double y[4];
+  for (int i = 0; i < n; ++i) {
+    y[i] = r[i];
+    for (int p = 0; p < i; ++p) y[i] -= L[i][p] * y[p];
+  }
+  for (int i = n - 1; i >= 0; --i) {
+    d[i] = y[i] / dg[i];
+    for (int p = i + 1; p < n; ++p) d[i] -= L[p][i] * d[p];
+  }
+  return true;
+}
+
+// Solve (K + diag(g) + BLOCK_EPS diag(K)) d = r for the n points (n <= 4) by LDLᵀ, K
+// the symmetric 4×4 block given by its upper triangle by rows (K00 K01 K02 K03 K11 K12
+// K13 K22 K23 K33; 1/kg), g (1/kg) per point, r (m/s); d in N·s. false when a pivot is
+// not positive.
+inline bool solve_block(const std::array<double, 10>& k, const double* g, const double* r,
+                        int n, double* d) {
+  double A[4][4];
+  int e = 0;
+  for (int i = 0; i < 4; ++i)
+    for (int j = i; j < 4; ++j, ++e) A[i][j] = A[j][i] = k[e];
+  for (int i = 0; i < n; ++i) A[i][i] += g[i] + BLOCK_EPS * A[i][i];
+  return ldlt_solve(A, n, r, d, 1e-12);
 }
 
 }  // namespace rbsim

@@ -23,6 +23,7 @@
 // The same file finds the solve order of the solver's passes (support level first) and
 // the region around a deep overlap that the relax stage gives extra passes.
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "rbsim/constants.hpp"
@@ -96,11 +97,79 @@ void contact_levels(const Model<D>& model, Contacts<D>& c) {
 // ω · (r × n) for a point's angular lever (2D: scalars; 3D: vectors).
 inline double angular_along(double w, double r) { return w * r; }
 
-// The 3D pass: the supported body's approach taken out point by point (a face's up to
-// four points, one after the other, each impulse λ >= 0 against the velocity it meets),
-// the supporter held still; the body's v and L changed, ω found again from L.
+// Solve A x = r for the n <= 4 points of `idx` (A: K's rows and columns idx, K packed as
+// SolverRow<3>::k, 1/kg) by LDLᵀ, unregularised; false when a pivot is below 1e-9 of its
+// diagonal (the points' rows are dependent: four corners of a face, for one rigid body).
+bool solve_exact(const std::array<double, 10>& k, const int* idx, const double* r, int n,
+                 double* x) {
+  auto at = [&](int i, int j) {  // K_ij from the packed upper triangle
+    if (i > j) std::swap(i, j);
+    return k[i * 4 - i * (i - 1) / 2 + (j - i)];
+  };
+  double A[4][4] = {};
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) A[i][j] = at(idx[i], idx[j]);
+  return ldlt_solve(A, n, r, x, 1e-9);
+}
+
+// 3D: impulses λ >= 0 (N·s) at the n points (n <= 4) of a supported body that bring every
+// point to at least its target, λ_k = 0 wherever a point is left beyond it: the linear
+// complementarity problem w = K λ − need >= 0, λ >= 0, λ·w = 0, with K (1/kg, packed as
+// SolverRow<3>::k) the supported body's own block and need (m/s) each point's shortfall.
+// Its solutions all give the body the same velocity (K λ is the same for all: it is the
+// minimum of a convex quadratic), so the first found serves: the sets of points tried
+// from the largest down, each solved exactly, until one has λ >= 0 and leaves no point
+// short (beyond rounding). Four corners of a face are dependent (K has rank 3), so a
+// face rests on three of them here; the velocity is the four's. false when none does
+// (K singular on every set).
+bool shock_block(const std::array<double, 10>& k, const double* need, int n, double* lam) {
+  double scale = 0.0;  // m/s: the largest shortfall
+  for (int i = 0; i < n; ++i) scale = std::max(scale, std::fabs(need[i]));
+  auto at = [&](int i, int j) {
+    if (i > j) std::swap(i, j);
+    return k[i * 4 - i * (i - 1) / 2 + (j - i)];
+  };
+  for (int size = n; size >= 1; --size) {
+    for (int set = (1 << n) - 1; set > 0; --set) {
+      if (__builtin_popcount(static_cast<unsigned>(set)) != size) continue;
+      int idx[4], na = 0;
+      double rhs[4], x[4];
+      bool worth = false;  // a set of points none of which is short is never the answer
+      for (int i = 0; i < n; ++i) {
+        if (!(set >> i & 1)) continue;
+        worth = worth || need[i] > 0.0;
+        rhs[na] = need[i];
+        idx[na++] = i;
+      }
+      if (!worth || !solve_exact(k, idx, rhs, na, x)) continue;
+      bool ok = true;
+      for (int i = 0; i < na; ++i) ok = ok && x[i] >= 0.0;
+      if (!ok) continue;
+      for (int i = 0; i < n; ++i) lam[i] = 0.0;
+      for (int i = 0; i < na; ++i) lam[idx[i]] = x[i];
+      for (int i = 0; i < n && ok; ++i) {
+        if (set >> i & 1) continue;
+        double w = -need[i];
+        for (int j = 0; j < n; ++j) w += at(i, j) * lam[j];
+        ok = w >= -1e-9 * scale;
+      }
+      if (ok) return true;
+    }
+  }
+  // no point short at all: nothing to do
+  for (int i = 0; i < n; ++i) lam[i] = 0.0;
+  bool short_any = false;
+  for (int i = 0; i < n; ++i) short_any = short_any || need[i] > 0.0;
+  return !short_any;
+}
+
+// The 3D pass: the supported body's approach taken out at a face's up to four points at
+// once (shock_block), the supporter held still; the body's v and L changed, ω found again
+// from L. Where no set of points is found, the points are taken one after the other
+// (each impulse λ >= 0 against the velocity it meets).
 void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
-                        std::int64_t first, std::int64_t last, double inv_h, double threshold) {
+                        std::int64_t first, std::int64_t last, double inv_h, double threshold,
+                        double min_approach) {
   for (std::int64_t o = first; o < last; ++o) {
     const std::int32_t m = c.shock_order[o];
     const int a = c.body_a[m], b = c.body_b[m];
@@ -108,14 +177,15 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
     const Vec3 n = row.normal;
     const int npts = c.points[m];
     const Vec3 va = st.body_v[a], vb = st.body_v[b], wa = st.body_w[a], wb = st.body_w[b];
+    double vel[4];
     double slowest = 0.0;  // m/s: the fastest approach among the points
     for (int k = 0; k < npts; ++k) {
       const auto& pt = row.point[k];
-      const double vel = dot(n, (va + cross(wa, pt.arm_a)) - (vb + cross(wb, pt.arm_b)));
-      slowest = std::min(slowest, vel);
+      vel[k] = dot(n, (va + cross(wa, pt.arm_a)) - (vb + cross(wb, pt.arm_b)));
+      slowest = std::min(slowest, vel[k]);
     }
     // most supported points are not approaching: skip them before any other work
-    if (!(slowest < -C::SHOCK_MIN_APPROACH)) continue;
+    if (!(slowest < -min_approach)) continue;
     if (c.restitution[m] > 0.0 && slowest < -threshold) continue;
     const BodyDelta<3>& da = c.body_delta[a];
     const BodyDelta<3>& db = c.body_delta[b];
@@ -127,25 +197,54 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
     const int u = a_moves ? a : b;
     const double sgn = a_moves ? 1.0 : -1.0;
     const double mu = model.body_inv_mass[u];
+    // how far each point is from allowed (m/s): a gap may close within the substep
+    double need[4];
+    for (int k = 0; k < npts; ++k) {
+      const double sep = row_separation(row.point[k], moved, na, nb);
+      need[k] = (sep > 0.0 ? -sep * inv_h : 0.0) - vel[k];
+    }
+    // the supported body's block: K_ij = 1/m + (r_i × n)·I⁻¹(r_j × n) (1/kg)
+    std::array<double, 10> kb{};
+    int e = 0;
+    for (int i = 0; i < 4; ++i) {
+      for (int j = i; j < 4; ++j, ++e) {
+        if (j >= npts) continue;
+        const auto& pi = row.point[i];
+        const auto& pj = row.point[j];
+        kb[e] = mu + (a_moves ? dot(pi.rna, pj.wna) : dot(pi.rnb, pj.wnb));
+      }
+    }
+    double lam[4] = {0.0, 0.0, 0.0, 0.0};
     Vec3 vu = st.body_v[u], wu = st.body_w[u], dl{};
     bool pushed = false;
-    for (int k = 0; k < npts; ++k) {
-      const auto& pt = row.point[k];
-      const Vec3 pa = a_moves ? vu + cross(wu, pt.arm_a) : va + cross(wa, pt.arm_a);
-      const Vec3 pb = a_moves ? vb + cross(wb, pt.arm_b) : vu + cross(wu, pt.arm_b);
-      const double vel = dot(n, pa - pb);
-      const double sep = row_separation(pt, moved, na, nb);
-      // how far the point is from allowed (m/s): a gap may close within the substep
-      const double need = (sep > 0.0 ? -sep * inv_h : 0.0) - vel;
-      const Vec3 rn = a_moves ? pt.rna : pt.rnb;  // m: the supported body's lever
-      const Vec3 wn = a_moves ? pt.wna : pt.wnb;
-      const double k_u = mu + dot(rn, wn);  // 1/kg
-      if (!(need > 0.0 && k_u > 0.0)) continue;
-      const double lam = need / k_u;  // N·s along the supported body's push direction
-      vu += (sgn * mu * lam) * n;
-      wu += (sgn * lam) * wn;
-      dl += (sgn * lam) * rn;
-      pushed = true;
+    if (shock_block(kb, need, npts, lam)) {
+      for (int k = 0; k < npts; ++k) {
+        if (lam[k] == 0.0) continue;
+        const auto& pt = row.point[k];
+        const Vec3 rn = a_moves ? pt.rna : pt.rnb;  // m: the supported body's lever
+        const Vec3 wn = a_moves ? pt.wna : pt.wnb;
+        vu += (sgn * mu * lam[k]) * n;
+        wu += (sgn * lam[k]) * wn;
+        dl += (sgn * lam[k]) * rn;
+        pushed = true;
+      }
+    } else {
+      for (int k = 0; k < npts; ++k) {
+        const auto& pt = row.point[k];
+        const Vec3 pa = a_moves ? vu + cross(wu, pt.arm_a) : va + cross(wa, pt.arm_a);
+        const Vec3 pb = a_moves ? vb + cross(wb, pt.arm_b) : vu + cross(wu, pt.arm_b);
+        const double sep = row_separation(pt, moved, na, nb);
+        const double short_k = (sep > 0.0 ? -sep * inv_h : 0.0) - dot(n, pa - pb);
+        const Vec3 rn = a_moves ? pt.rna : pt.rnb;
+        const Vec3 wn = a_moves ? pt.wna : pt.wnb;
+        const double k_u = mu + dot(rn, wn);  // 1/kg
+        if (!(short_k > 0.0 && k_u > 0.0)) continue;
+        const double l = short_k / k_u;  // N·s along the supported body's push direction
+        vu += (sgn * mu * l) * n;
+        wu += (sgn * l) * wn;
+        dl += (sgn * l) * rn;
+        pushed = true;
+      }
     }
     if (!pushed) continue;
     st.body_v[u] = vu;
@@ -311,16 +410,16 @@ std::int64_t deep_region(const Model<D>& model, Contacts<D>& c, int reach) {
 // ball struck down onto the floor stopped dead).
 template <int D>
 void propagate_shock(const Model<D>& model, State<D>& st, Contacts<D>& c, std::int64_t n_order,
-                     double inv_h, double threshold) {
-  propagate_shock_range(model, st, c, 0, n_order, inv_h, threshold);
+                     double inv_h, double threshold, double min_approach) {
+  propagate_shock_range(model, st, c, 0, n_order, inv_h, threshold, min_approach);
 }
 
 template <int D>
 void propagate_shock_range(const Model<D>& model, State<D>& st, Contacts<D>& c,
                            std::int64_t first, std::int64_t last, double inv_h,
-                           double threshold) {
+                           double threshold, double min_approach) {
   if constexpr (D == 3) {
-    propagate_shock_3d(model, st, c, first, last, inv_h, threshold);
+    propagate_shock_3d(model, st, c, first, last, inv_h, threshold, min_approach);
   } else {
   using Vec = typename Dim<D>::Vec;
   auto& v = st.body_v;
@@ -338,10 +437,10 @@ void propagate_shock_range(const Model<D>& model, State<D>& st, Contacts<D>& c,
     const double dvn = dot(dv, n);
     const double vel0 = dvn + angular_along(w[a], pt0.rna) - angular_along(w[b], pt0.rnb);
     double vel1 = 0.0;
-    bool approaching = vel0 < -C::SHOCK_MIN_APPROACH;
+    bool approaching = vel0 < -min_approach;
     if (npts == 2) {
       vel1 = dvn + angular_along(w[a], pt1.rna) - angular_along(w[b], pt1.rnb);
-      approaching = approaching || vel1 < -C::SHOCK_MIN_APPROACH;
+      approaching = approaching || vel1 < -min_approach;
     }
     if (!approaching) continue;
     if (c.restitution[m] > 0.0 && std::min(vel0, vel1) < -threshold) continue;
@@ -409,14 +508,14 @@ void propagate_shock_range(const Model<D>& model, State<D>& st, Contacts<D>& c,
 template std::int64_t support_order(const Model<2>&, Contacts<2>&);
 template std::int64_t deep_region(const Model<2>&, Contacts<2>&, int);
 template void propagate_shock(const Model<2>&, State<2>&, Contacts<2>&, std::int64_t, double,
-                              double);
+                              double, double);
 template void propagate_shock_range(const Model<2>&, State<2>&, Contacts<2>&, std::int64_t,
-                                    std::int64_t, double, double);
+                                    std::int64_t, double, double, double);
 template void propagate_shock_range(const Model<3>&, State<3>&, Contacts<3>&, std::int64_t,
-                                    std::int64_t, double, double);
+                                    std::int64_t, double, double, double);
 template std::int64_t support_order(const Model<3>&, Contacts<3>&);
 template std::int64_t deep_region(const Model<3>&, Contacts<3>&, int);
 template void propagate_shock(const Model<3>&, State<3>&, Contacts<3>&, std::int64_t, double,
-                              double);
+                              double, double);
 
 }  // namespace rbsim

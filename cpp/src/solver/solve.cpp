@@ -79,42 +79,7 @@ inline void mark_deep(PassLog& log, std::int64_t m) { log.add_deep(static_cast<s
 // its diagonal, which picks the smallest change of the impulses (the right-hand side,
 // the rigid bodies' own normal velocities, lies in K's range). When the block would pull
 // (an impulse < 0: a face tipping), the points go one after the other, the solve stage
-// forward and the relax stage backward.
-constexpr double BLOCK_EPS = 1e-9;
-
-// Solve (K + diag(g) + BLOCK_EPS diag(K)) d = r for the n points (n <= 4) by LDLᵀ; false
-// when a pivot is not positive.
-inline bool solve_block(const std::array<double, 10>& k, const double* g, const double* r,
-                        int n, double* d) {
-  double A[4][4];
-  int e = 0;
-  for (int i = 0; i < 4; ++i)
-    for (int j = i; j < 4; ++j, ++e) A[i][j] = A[j][i] = k[e];
-  for (int i = 0; i < n; ++i) A[i][i] += g[i] + BLOCK_EPS * A[i][i];
-  double L[4][4] = {}, dg[4];
-  for (int j = 0; j < n; ++j) {
-    double v = A[j][j];
-    for (int p = 0; p < j; ++p) v -= L[j][p] * L[j][p] * dg[p];
-    if (!(v > 1e-12 * A[j][j])) return false;
-    dg[j] = v;
-    for (int i = j + 1; i < n; ++i) {
-      double x = A[i][j];
-      for (int p = 0; p < j; ++p) x -= L[i][p] * L[j][p] * dg[p];
-      L[i][j] = x / v;
-    }
-  }
-  double y[4];
-  for (int i = 0; i < n; ++i) {
-    y[i] = r[i];
-    for (int p = 0; p < i; ++p) y[i] -= L[i][p] * y[p];
-  }
-  for (int i = n - 1; i >= 0; --i) {
-    d[i] = y[i] / dg[i];
-    for (int p = i + 1; p < n; ++p) d[i] -= L[p][i] * d[p];
-  }
-  return true;
-}
-
+// forward and the relax stage backward. (solve_block, BLOCK_EPS: row.hpp)
 void solve_contacts_3d(const Model<3>& model, State<3>& st, Contacts<3>& c, double inv_h,
                        bool use_bias, double shift, double threshold, const std::int32_t* order,
                        std::int64_t n, PassLog& log) {
