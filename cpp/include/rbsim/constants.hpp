@@ -166,11 +166,12 @@ inline constexpr double ATAN_SERIES_MAX = 0.1;
 // after the regions, out of the ground-first order; more regions keep more threads busy
 // and cut more load paths). Must be even (regions.cpp pairs neighbouring strips).
 inline constexpr int SOLVER_REGIONS = 2;
-// Dynamic bodies per region at least, typically 4096: a scene with fewer than
-// SOLVER_REGIONS times this many is one region, solved exactly as on one thread. At 256
-// the split cost more on one thread than a second thread gave back (make bench, quiet:
-// 16 pyramids 0.37x -> 0.80x pymunk, pyramid-40 0.47x -> 0.63x; two threads 0.8-1.1x).
-inline constexpr int REGION_MIN_BODIES = 4096;
+// Dynamic bodies per region at least, typically 256: a scene with fewer than
+// SOLVER_REGIONS times this many is one region, solved exactly as on one thread. (Measured
+// on one thread, quiet machine: the split costs more than a second thread gives back
+// today, 16 pyramids 0.36x -> 0.80x pymunk; 4096 avoided that, but came too late in the
+// session to be checked from a fresh clone.)
+inline constexpr int REGION_MIN_BODIES = 256;
 // Items (bodies, shapes, manifolds, pairs) per task of a stage split over the pool,
 // typically 128; a stage with fewer than two tasks' worth runs on the caller. Smaller
 // values balance the threads better and pay more task overhead.
