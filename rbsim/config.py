@@ -13,8 +13,8 @@ from .scene import Scene
 from .scene.schema import THREADS_MAX
 from .scene.types import MIXING, ROTATION_CODE
 
-# the thread count of a scene that does not set solver.threads in this process (None:
-# THREADS_DEFAULT); worker processes of `rbsim batch` and `rbsim sweep` set 1
+# the thread count of a scene that does not set solver.threads in this process (None: the
+# cores it may run on); worker processes of `rbsim batch` and `rbsim sweep` set 1
 _process_threads: int | None = None
 
 
@@ -29,7 +29,7 @@ def available_cores() -> int:
 @contextmanager
 def threads_default(threads: int | None) -> Iterator[None]:
     """Within the block, scenes that do not set solver.threads run on `threads` threads
-    (None: THREADS_DEFAULT); the previous default after it. A worker
+    (None: the cores, available_cores()); the previous default after it. A worker
     process that runs scenes side by side with other workers sets 1, so that the workers
     do not oversubscribe the cores; the results do not change (they are the same for
     every thread count)."""
@@ -43,19 +43,12 @@ def threads_default(threads: int | None) -> Iterator[None]:
         _process_threads = previous
 
 
-# the threads of a scene that does not set solver.threads, outside threads_default: one.
-# Measured on the 2-core machines here (make bench, quiet), two threads were no faster
-# than one (pyramid-40 0.97-1.12x, 1000 circles 0.79-0.82x): the pool's hand-offs cost
-# what the split stages save, so a plain run stays on one thread until they pay
-THREADS_DEFAULT = 1
-
-
 def default_threads() -> int:
     """The threads of a scene that does not set solver.threads: threads_default's value
-    where one is in force, else THREADS_DEFAULT."""
+    where one is in force, else the cores, at most THREADS_MAX."""
     if _process_threads is not None:
         return _process_threads
-    return THREADS_DEFAULT
+    return min(available_cores(), THREADS_MAX)
 
 
 class NonFiniteState(RuntimeError):

@@ -130,16 +130,16 @@ def test_solver_threads_is_validated_with_its_place(value):
     assert "test.yaml:4:12: solver.threads" in message
 
 
-def test_threads_default_to_one_and_the_scene_wins():
+def test_threads_default_to_the_cores_and_to_one_in_workers():
     scene = load_scene_text(BASE % "3")
     assert make_config(scene).threads == 3
     plain = load_scene_text("version: 1\nworld: {dt: 0.01, steps: 1}\n" + BODY)
     assert plain.solver.threads is None
-    assert make_config(plain).threads == config.THREADS_DEFAULT == 1
-    with config.threads_default(2):  # a process that sets its own default
-        assert make_config(plain).threads == 2
+    assert make_config(plain).threads == min(config.available_cores(), 64)
+    with config.threads_default(1):  # rbsim batch and sweep workers
+        assert make_config(plain).threads == 1
         assert make_config(scene).threads == 3  # the scene's own wins
-    assert make_config(plain).threads == config.THREADS_DEFAULT == 1
+    assert make_config(plain).threads == min(config.available_cores(), 64)
 
 
 def test_the_schema_bound_is_the_engines():
