@@ -726,13 +726,15 @@ nb::class_<World<D>> bind_world(nb::module_& mod, const char* name, const char* 
             {
               // one step at a time, with the signal handlers run every 20 ms between two
               // steps (Ctrl-C stops a long chunk); the steps are the same as in one call
+              // (None as a plain handle: no reference counting while the GIL is released)
+              const nb::handle no_stop(Py_None);
               nb::gil_scoped_release release;
               SignalPoll poll;
               while (taken < n && status == Status::Ok) {
                 std::int64_t one = 0;
                 status = w.advance(1, &one, &bad);
                 taken += one;
-                if (taken < n && poll(nb::none(), false)) {
+                if (taken < n && poll(no_stop, false)) {
                   signalled = true;
                   break;
                 }
