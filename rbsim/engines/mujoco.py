@@ -209,11 +209,13 @@ def solref(zeta: float, h: float) -> tuple[float, float]:
     return (-w0 * w0, -2.0 * zeta * w0)
 
 
-@lru_cache(maxsize=16)
 def _impact_model(h: float) -> tuple:
     """MuJoCo's model and data of the calibration impact at steps of h (s): a sphere of
     CALIBRATION_RADIUS over a plane (z up), no gravity, one frictionless pair (condim 1)
-    with SOLIMP; its solref is set per run."""
+    with SOLIMP; its solref is set per run. Built afresh for each call (about 1 ms), never
+    cached: MuJoCo objects that outlive the call (in a module-level cache, freed only when
+    the interpreter tears its modules down, after MuJoCo's own) crashed the process at
+    exit."""
     if mujoco is None:
         raise EngineUnavailable(INSTALL_HINT)
     r = _num(CALIBRATION_RADIUS)
