@@ -1,6 +1,8 @@
 // Time of impact by conservative advancement (see toi.hpp).
 #include "collide/toi.hpp"
 
+#include <utility>
+
 #include "rbsim/constants.hpp"
 
 namespace rbsim {
@@ -42,14 +44,18 @@ Impact advance_to_impact(const State<D>& st, int ba, int bb, int npts, double dt
   return {npts, t};
 }
 
+// Body i's pose after t (s) of free motion: turned by ω t, moved by v t.
+template <int D>
+std::pair<typename Dim<D>::Rot, typename Dim<D>::Vec> pose_at(const State<D>& st, int i,
+                                                              double t) {
+  return {mul(turn_by(t * st.body_w[i]), st.body_q[i]), st.body_x[i] + t * st.body_v[i]};
+}
+
 }  // namespace
 
 void place_shape(const Model<2>& model, const State<2>& st, int s, double t, int start,
                  Vec2* verts, Vec2* norms) {
-  const int i = model.shape_body[s];
-  // the pose after t: turned by ω t, moved by v t
-  const Rot2 q = mul(turn_by(t * st.body_w[i]), st.body_q[i]);
-  const Vec2 p = st.body_x[i] + t * st.body_v[i];
+  const auto [q, p] = pose_at(st, model.shape_body[s], t);
   const int v0 = model.shape_vstart[s];
   for (int k = 0; k < model.shape_vcount[s]; ++k) {
     verts[start + k] = p + rotate(q, model.vertex_local[v0 + k]);
@@ -64,10 +70,7 @@ int toi_face_rows(const Model<3>& model, int s) {
 
 ShapeRef3 place_shape(const Model<3>& model, const State<3>& st, int s, double t, double scale,
                       Vec3* verts, Vec3* faces) {
-  const int i = model.shape_body[s];
-  // the pose after t: turned by ω t, moved by v t
-  const Quat q = mul(turn_by(t * st.body_w[i]), st.body_q[i]);
-  const Vec3 p = st.body_x[i] + t * st.body_v[i];
+  const auto [q, p] = pose_at(st, model.shape_body[s], t);
   const int v0 = model.shape_vstart[s];
   for (int k = 0; k < model.shape_vcount[s]; ++k) verts[k] = p + rotate(q, model.vertex_local[v0 + k]);
   if (model.shape_kind[s] == ShapeKind::Plane) {
