@@ -400,6 +400,15 @@ std::int64_t first_bad_body(const Model<D>& model, const State<D>& st) {
 template <int D>
 Status World<D>::advance(std::int64_t n_steps, std::int64_t* taken, std::int64_t* bad_body) {
   *taken = 0;
+  // a state set bad from outside (through the numpy views) is refused before any stage
+  // sees it: a non-finite or huge position would reach the broadphase's cell arithmetic
+  if (n_steps > 0) {
+    const std::int64_t bad = first_bad_body(model, state);
+    if (bad >= 0) {
+      *bad_body = bad;
+      return Status::NonFinite;
+    }
+  }
   while (*taken < n_steps) {
     if (!step()) {
       grow(2 * contacts.count.pairs);

@@ -179,7 +179,9 @@ struct Contacts {
   std::vector<std::int8_t> bounce_kind;     // (M,)
   std::vector<std::int8_t> body_mark;       // (N,)
   std::vector<PerPoint<double>> solve_impulse;  // (M,) N·s when the positions moved
-  std::vector<std::int32_t> bounce_list;    // (2M+2,) manifolds that engaged fast
+  // (M(P+1)+2,) manifolds that engaged fast: between two restitution stages each point
+  // engages at most once (P per manifold), after at most M deferred ones carried over
+  std::vector<std::int32_t> bounce_list;
   std::vector<std::int32_t> relax_list;     // (M,) deep manifolds, then the extra passes' set
   std::vector<std::int64_t> body_reach;     // (N,) deep_region's scratch
   // the waves of the solve order (waves.cpp): groups of independent manifolds
@@ -248,7 +250,7 @@ void Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   reset(body_level, n); reset(shock_side, m); reset(shock_order, m); reset(solve_order, m);
   reset(adj_start, n + 1); reset(adj, 2 * m); reset(queue, n + 2);
   reset(bounce_kind, m); reset(body_mark, n); reset(solve_impulse, m);
-  reset(bounce_list, 2 * m + 2); reset(relax_list, m); reset(body_reach, n);
+  reset(bounce_list, (P + 1) * m + 2); reset(relax_list, m); reset(body_reach, n);
   wave_count = 0;
   waves_valid = false;
   heavy_on_light = false;

@@ -180,14 +180,20 @@ struct PassLog {
   std::int32_t* deep = nullptr;
   std::int64_t* deep_count = nullptr;
   std::int64_t deep_capacity = 0;
-  void add_bounce(std::int32_t m) { bounce[(*bounce_count)++] = m; }
+  std::int64_t bounce_capacity = 0;
+  // (the bounce list is sized for every point engaging once, contacts.hpp: the bound is
+  // a guard against writing past it, never reached)
+  void add_bounce(std::int32_t m) {
+    if (*bounce_count < bounce_capacity) bounce[(*bounce_count)++] = m;
+  }
   void add_deep(std::int32_t m) {
     if (*deep_count < deep_capacity) deep[(*deep_count)++] = m;
   }
   template <int D>
   static PassLog direct(Contacts<D>& c) {
     return {c.bounce_list.data(), &c.count.bounce_count, c.relax_list.data(),
-            &c.count.deep_count, static_cast<std::int64_t>(c.relax_list.size())};
+            &c.count.deep_count, static_cast<std::int64_t>(c.relax_list.size()),
+            static_cast<std::int64_t>(c.bounce_list.size())};
   }
 };
 

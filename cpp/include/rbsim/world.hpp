@@ -46,7 +46,7 @@ struct SegmentLog {
   std::int64_t bounce_count = 0, deep_count = 0;
   PassLog log() {
     return {bounce.data(), &bounce_count, deep.data(), &deep_count,
-            static_cast<std::int64_t>(deep.size())};
+            static_cast<std::int64_t>(deep.size()), static_cast<std::int64_t>(bounce.size())};
   }
 };
 
@@ -80,7 +80,7 @@ struct World {
   // Up to n_steps steps, growing the contact store as needed. Returns Ok, or NonFinite
   // with *bad_body set to a body whose state is not finite or beyond POSITION_LIMIT
   // (the first dynamic one; a static or kinematic one only when no dynamic one is):
-  // *taken = steps taken.
+  // *taken = steps taken (0 when the state was already bad: no step is taken from it).
   Status advance(std::int64_t n_steps, std::int64_t* taken, std::int64_t* bad_body);
   // Room for `capacity` manifolds and pairs, keeping what warm starting needs.
   void grow(std::int64_t capacity);
