@@ -245,6 +245,21 @@ def test_a_bad_state_names_a_dynamic_body_before_a_static_one() -> None:
     assert info.value.body == 1 and info.value.beyond is None
 
 
+def test_a_state_made_bad_from_outside_is_refused_before_any_step() -> None:
+    # a NaN set through the views never reaches a stage (it reached the broadphase's
+    # cell arithmetic: a signed overflow and reads outside its buckets, under UBSan)
+    two = BALL + "  - {name: other, position: [3, 0.5], shape: {circle: {radius: 0.5}}}\n"
+    world = CoreWorld.from_scene(scene_from(two))
+    world.state.body_v[1] = np.nan
+    before = world.state.body_v[2].copy(), world.state.body_x[2].copy()
+    with pytest.raises(Exception) as info:
+        world.advance(1)
+    assert info.value.body == 1 and info.value.step == 0  # no step was taken
+    assert world.step_index == 0
+    np.testing.assert_array_equal(world.state.body_v[2], before[0])  # gravity not applied
+    np.testing.assert_array_equal(world.state.body_x[2], before[1])
+
+
 def test_a_body_beyond_the_region_is_reported_as_such() -> None:
     world = CoreWorld.from_scene(scene_from(BALL))
     world.state.body_x[1] = (2 * POSITION_LIMIT, 0.5)  # finite, far out
