@@ -75,6 +75,18 @@ class NonFiniteState(RuntimeError):
         return f"body {name} left the simulated region ({axes} > {limit} m)"
 
 
+class TooManyPairs(RuntimeError):
+    """The step after `step` would hold `pairs` contact pairs, more than the engine's
+    `limit` (shapes pressed into one another; cli.md, "The contact pairs of a step"): no
+    step was taken from that state."""
+
+    def __init__(self, pairs: int, limit: int, step: int) -> None:
+        self.pairs = pairs
+        self.limit = limit
+        self.step = step
+        super().__init__(f"more than {limit:,} contact pairs ({pairs:,}) at step {step + 1}")
+
+
 class Config(NamedTuple):
     """Per-run numbers for the engine: dt (s), substeps, iterations per substep,
     explicit (explicit Euler), rotation (the rotation update's code,

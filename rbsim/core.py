@@ -15,7 +15,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from . import _core
-from .config import Config, NonFiniteState, make_config
+from .config import Config, NonFiniteState, TooManyPairs, make_config
 from .scene import Scene
 from .scene.compile import Model, State, build
 
@@ -23,6 +23,7 @@ from .scene.compile import Model, State, build
 CONSTANTS: dict = dict(_core.constants)
 # the status World2.advance and advance_recording return when a state turned non-finite
 NON_FINITE: int = _core.NON_FINITE
+TOO_MANY_PAIRS: int = _core.TOO_MANY_PAIRS
 # advance_recording's status when a signal handler raised between two steps
 INTERRUPTED: int = _core.INTERRUPTED
 # advance_recording's status when a frame's contact points did not fit in the block
@@ -108,6 +109,13 @@ class CoreWorld:
         status, _taken, bad = self.engine.advance(int(n_steps))
         if status == _core.NON_FINITE:
             raise self.non_finite(int(bad))
+        if status == _core.TOO_MANY_PAIRS:
+            raise self.too_many_pairs()
+
+    def too_many_pairs(self) -> TooManyPairs:
+        """The TooManyPairs of the step that advance refused."""
+        e = self.engine
+        return TooManyPairs(int(e.pairs_wanted), int(e.pair_limit()), self.step_index)
 
     def non_finite(self, body: int) -> NonFiniteState:
         """The NonFiniteState of `body` at the current step: its state is not finite, or

@@ -24,7 +24,7 @@ from types import FrameType
 import numpy as np
 
 from . import __version__
-from .engines import DEFAULT_ENGINE, Engine, NonFiniteState, make_engine
+from .engines import DEFAULT_ENGINE, Engine, NonFiniteState, TooManyPairs, make_engine
 from .io.trajectory import (
     BLOCK_MAX_FRAMES,
     CHECKPOINT_SUFFIX,
@@ -442,6 +442,12 @@ def _loop(
         raise RunFailed(
             f"{scene.path}: {what} at step {err.step} (t = {err.step * scene.world.dt:g} s); "
             f"{_frames(writer.frames_written)} before it kept in {out}"
+        ) from None
+    except TooManyPairs as err:  # shapes pressed into one another beyond the pair bound
+        status = f"failed: {err}"
+        raise RunFailed(
+            f"{scene.path}: {err} (t = {(err.step + 1) * scene.world.dt:g} s): shapes pressed into "
+            f"one another; {_frames(writer.frames_written)} before it kept in {out}"
         ) from None
     except ObservableOverflow as err:
         status = f"failed: {err.name} overflowed at step {err.step}"

@@ -9,7 +9,10 @@ The scenes the bounds reject are in tests/bad_scenes/ (one file each, with the m
 from __future__ import annotations
 
 import math
+import resource
 import signal
+import subprocess
+import sys
 import textwrap
 from dataclasses import replace
 from pathlib import Path
@@ -17,9 +20,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from rbsim.config import TooManyPairs
 from rbsim.core import POSITION_LIMIT, CoreWorld
 from rbsim.io.trajectory import load_trajectory
 from rbsim.run import RunFailed, run_scene
+from rbsim.scene.library import scenes_dir
 
 from .conftest import rbsim, scene_from
 
@@ -444,3 +449,97 @@ def test_a_damaged_3d_trajectory_fails_with_a_message(tmp_path: Path, damage: st
         assert stderr.count("\n") == 1 and "bad.h5" in stderr
     with pytest.raises(OSError, match="bad.h5"):
         load_trajectory(bad)
+
+
+# a bad or far-out box handed to the broadphase directly ----------------------------------
+
+
+def _row_of_balls(dimension: int) -> str:
+    """20 balls 5 m apart along x, no gravity: no pair overlaps."""
+    where, shape = ("[{x}, 0]", "circle") if dimension == 2 else ("[{x}, 0, 0]", "sphere")
+    ball = f"shape: {{{shape}: {{radius: 0.5}}}}"
+    bodies = "".join(
+        f"  - {{name: b{i}, position: {where.format(x=5 * i)}, {ball}}}\n" for i in range(20)
+    )
+    gravity = "[0, 0]" if dimension == 2 else "[0, 0, 0]"
+    world = f"{{dimension: {dimension}, gravity: {gravity}, steps: 1}}"
+    return f"version: 1\nworld: {world}\nbodies:\n{bodies}"
+
+
+@pytest.mark.parametrize("dimension", [2, 3])
+@pytest.mark.parametrize(("bad", "pairs"), [(math.nan, 19), (1e300, 0), (-math.inf, 0)])
+def test_the_broadphase_keeps_a_bad_or_far_box_out_of_its_cells(
+    dimension: int, bad: float, pairs: int
+) -> None:
+    # the stages run directly (not through advance, which refuses such a state): a NaN
+    # or far box was entered in the cells, whose integer indices overflowed (a crash
+    # here; ASan: reads outside the buckets). It is kept big: a NaN box is separated
+    # from no box, so it pairs with the 19 others; a box at 1e300 m or -inf with none
+    world = CoreWorld.from_scene(scene_from(_row_of_balls(dimension)))
+    world.state.body_x[7] = bad
+    world.stage("transform_shapes")
+    assert world.stage("find_pairs") == pairs
+
+
+# shapes crushed into one another: more pairs than a step may hold -------------------------
+
+
+HARD = scenes_dir("hard")
+
+
+def _limited_rbsim(*args: str | Path) -> subprocess.CompletedProcess:
+    """The CLI in a child process with 1 GiB of address space (without the pair bound,
+    the crushed piles below took 4.4 GB (2D) and 17 GB (3D) before failing)."""
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (1 << 30, 1 << 30))
+
+    return subprocess.run(
+        [sys.executable, "-m", "rbsim", *map(str, args)],
+        capture_output=True,
+        text=True,
+        preexec_fn=limit,
+        timeout=120,
+        check=False,
+    )
+
+
+@pytest.mark.parametrize(
+    ("scene", "gravity", "limit"),
+    [
+        ("confined.yaml", "[0, -999999]", 32 * 629 + 65536),
+        ("confined_3d.yaml", "[0, 0, -999999]", 32 * 1006 + 65536),
+    ],
+)
+def test_a_pile_crushed_by_huge_gravity_stops_at_the_pair_bound(
+    tmp_path: Path, scene: str, gravity: str, limit: int
+) -> None:
+    out = tmp_path / "crushed.h5"
+    done = _limited_rbsim("run", HARD / scene, "--set", f"world.gravity={gravity}", "-o", out)
+    assert (done.returncode, done.stdout) == (1, ""), done.stderr
+    assert done.stderr.startswith("error: ") and len(done.stderr.splitlines()) == 1
+    assert "contact pairs" in done.stderr and "shapes pressed into one another" in done.stderr
+    assert f"more than {limit:,} contact pairs" in done.stderr
+    tr = load_trajectory(out)
+    assert tr.status.startswith("failed: more than ")
+    assert len(tr.step) >= 1 and np.isfinite(tr.position).all()
+
+
+def test_the_refused_step_is_named_with_the_pairs_found() -> None:
+    # 50 balls in one spot: all 1,225 pairs overlap; a pair limit of 1,000 (8e6 over
+    # 2,000 substeps x 4 iterations) refuses the first step, and the world is as it was
+    text = (
+        "version: 1\nworld: {steps: 1}\nsolver: {substeps: 2000, iterations: 4}\nbodies:\n"
+        + "".join(
+            f"  - {{name: b{i}, position: [{1e-3 * i}, 0], shape: {{circle: {{radius: 0.5}}}}}}\n"
+            for i in range(50)
+        )
+    )
+    world = CoreWorld.from_scene(scene_from(text))
+    before = world.state.body_x.copy()
+    with pytest.raises(TooManyPairs) as info:
+        world.advance(3)
+    assert (info.value.pairs, info.value.limit, info.value.step) == (1225, 1000, 0)
+    assert str(info.value) == "more than 1,000 contact pairs (1,225) at step 1"
+    assert world.step_index == 0
+    np.testing.assert_array_equal(world.state.body_x, before)

@@ -822,6 +822,10 @@ nb::class_<World<D>> bind_world(nb::module_& mod, const char* name, const char* 
       .def("grow", &W::grow, "capacity"_a, "Room for `capacity` manifolds and pairs.")
       .def_prop_ro("contact_count", &W::contact_count)
       .def_rw("step_index", &W::step_index)
+      .def("pair_limit", &W::pair_limit,
+           "The most contact pairs a step may hold; advance stops with TOO_MANY_PAIRS beyond.")
+      .def_ro("pairs_wanted", &W::pairs_wanted,
+              "The contact pairs of the step refused with TOO_MANY_PAIRS.")
       .def_rw("profile", &W::profile, "Accumulate each stage's wall time (stage_times).")
       .def(
           "stage_times",
@@ -895,6 +899,8 @@ NB_MODULE(_core, mod) {
     RBSIM_CONSTANT(BIG_CELLS_MAX) RBSIM_CONSTANT(RADIX_BITS) RBSIM_CONSTANT(INSERTION_SORT_MAX)
     RBSIM_CONSTANT(ATAN_SERIES_MAX) RBSIM_CONSTANT(SCALE_LENGTH) RBSIM_CONSTANT(STIFFNESS_LENGTH)
     RBSIM_CONSTANT(HEAVY_RATIO) RBSIM_CONSTANT(SOLVER_REGIONS) RBSIM_CONSTANT(REGION_MIN_BODIES)
+    RBSIM_CONSTANT(PAIRS_PER_SHAPE) RBSIM_CONSTANT(PAIRS_FLOOR) RBSIM_CONSTANT(PAIR_WORK_MAX)
+    RBSIM_CONSTANT(PAIR_WORK_MAX_3D)
 #undef RBSIM_CONSTANT
     mod.attr("constants") = k;
   }
@@ -909,6 +915,7 @@ NB_MODULE(_core, mod) {
           "separations (2,), ids (2,) int64); rows past count are NaN / -1.");
   // ---- end narrowphase test entry ----
   mod.attr("NON_FINITE") = static_cast<int>(Status::NonFinite);
+  mod.attr("TOO_MANY_PAIRS") = static_cast<int>(Status::TooManyPairs);
   mod.attr("INTERRUPTED") = INTERRUPTED;
   mod.attr("CONTACTS_FULL") = CONTACTS_FULL;
   mod.attr("POSITION_LIMIT") = POSITION_LIMIT;  // m: beyond it advance reports NON_FINITE

@@ -222,7 +222,7 @@ bool World<D>::collide() {
   std::int64_t n_pairs = 0;
   timed(S::FindPairs, [&] { n_pairs = find_pairs(model, grid, c); });
   c.count.pairs = n_pairs;
-  if (n_pairs > c.capacity()) return false;
+  if (n_pairs > c.capacity() || n_pairs > pair_limit()) return false;
   timed(S::UpdateManifolds, [&] {
     // the narrowphase pair by pair on the threads (on one thread too, so that every
     // count takes the same path), then the manifolds in pair order
@@ -409,9 +409,19 @@ Status World<D>::advance(std::int64_t n_steps, std::int64_t* taken, std::int64_t
       return Status::NonFinite;
     }
   }
+  const std::int64_t limit = pair_limit();
   while (*taken < n_steps) {
     if (!step()) {
-      grow(2 * contacts.count.pairs);
+      const std::int64_t pairs = contacts.count.pairs;
+      if (pairs > limit) {
+        // the pair list was not completed: found anew by the next step, as after grow
+        pairs_wanted = pairs;
+        contacts.count.pairs = 0;
+        grid.meta.pairs_valid = 0;
+        *bad_body = -1;
+        return Status::TooManyPairs;
+      }
+      grow(std::min(2 * pairs, limit));
       continue;
     }
     ++*taken;
@@ -423,6 +433,14 @@ Status World<D>::advance(std::int64_t n_steps, std::int64_t* taken, std::int64_t
     }
   }
   return Status::Ok;
+}
+
+template <int D>
+std::int64_t World<D>::pair_limit() const {
+  const double work = D == 2 ? C::PAIR_WORK_MAX : C::PAIR_WORK_MAX_3D;
+  const double per_pair = static_cast<double>(config.substeps) * config.iterations;
+  const auto by_work = static_cast<std::int64_t>(work / std::max(per_pair, 1.0));
+  return std::min(C::PAIRS_PER_SHAPE * model.shape_count() + C::PAIRS_FLOOR, by_work);
 }
 
 template <int D>

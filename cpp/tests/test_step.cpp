@@ -6,6 +6,7 @@
 
 using namespace rbsim;
 using rbsim::test::SceneBuilder;
+using rbsim::test::same_bits;
 
 namespace {
 
@@ -90,3 +91,34 @@ TEST(heavy_box_on_a_far_lighter_one_does_not_sink_in) {
 }
 
 RBSIM_TEST_MAIN
+
+// 400 balls in one spot: every one of their 79,800 pairs overlaps, above the pair limit
+// of 400 shapes (32 x 400 + 65,536 = 78,336). advance takes no step and says so, with the
+// pairs it found; spread out, the same world steps again.
+TEST(a_step_with_more_pairs_than_the_limit_is_not_taken) {
+  SceneBuilder s;
+  const int n = 400;
+  for (int i = 0; i < n; ++i) s.circle({1e-3 * (i % 20), 1e-3 * (i / 20)}, 0.5, 1.0);
+  World<2>& w = s.finish();
+  CHECK(w.pair_limit() == 32 * n + 65536);
+  const State<2> before = w.state;
+  std::int64_t taken = -1, bad = 0;
+  CHECK(w.advance(5, &taken, &bad) == Status::TooManyPairs);
+  CHECK(taken == 0 && bad == -1);
+  CHECK(w.pairs_wanted == n * (n - 1) / 2);
+  CHECK(w.step_index == 0);
+  CHECK(same_bits(w.state, before));  // the refused step left the state as it was
+  for (int i = 0; i < n; ++i) w.state.body_x[i] = {2.0 * (i % 20), 2.0 * (i / 20)};
+  CHECK(w.advance(5, &taken, &bad) == Status::Ok);
+  CHECK(taken == 5);
+}
+
+// The work bound: pairs x substeps x iterations at most PAIR_WORK_MAX.
+TEST(the_pair_limit_falls_with_the_work_of_a_pair) {
+  SceneBuilder s;
+  s.ground();
+  s.circle({0, 1}, 0.5, 1.0);
+  World<2>& w = s.finish(1.0 / 60.0, 1000);
+  w.config.iterations = 4;
+  CHECK(w.pair_limit() == 2000);  // 8e6 / (1000 x 4)
+}

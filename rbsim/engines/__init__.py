@@ -16,7 +16,14 @@ from __future__ import annotations
 from importlib import import_module
 
 from ..scene import Scene
-from .base import Engine, EngineUnavailable, NonFiniteState, Snapshot, UnsupportedScene
+from .base import (
+    Engine,
+    EngineUnavailable,
+    NonFiniteState,
+    Snapshot,
+    TooManyPairs,
+    UnsupportedScene,
+)
 
 # engine name -> (module, adapter class), relative to this package
 ENGINES = {
@@ -49,6 +56,7 @@ __all__ = [
     "Engine",
     "EngineUnavailable",
     "NonFiniteState",
+    "TooManyPairs",
     "Snapshot",
     "UnsupportedScene",
     "engine_class",

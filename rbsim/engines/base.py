@@ -13,10 +13,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import NonFiniteState
+from ..config import NonFiniteState, TooManyPairs
 from ..scene import Scene
 
-__all__ = ["Engine", "EngineUnavailable", "NonFiniteState", "Snapshot", "UnsupportedScene"]
+__all__ = [
+    "Engine",
+    "EngineUnavailable",
+    "NonFiniteState",
+    "Snapshot",
+    "TooManyPairs",
+    "UnsupportedScene",
+]
 
 
 class UnsupportedScene(Exception):
@@ -86,7 +93,8 @@ class Engine:
     def advance(self, n: int) -> None:
         """Take n steps of dt; raises NonFiniteState (body index, step) if the state
         becomes non-finite (an engine that cannot tell while stepping raises it from
-        `read`)."""
+        `read`), TooManyPairs (rbsim) if a step would hold more contact pairs than the
+        engine's bound."""
         raise NotImplementedError
 
     def read(self) -> Snapshot:
@@ -152,7 +160,7 @@ class Engine:
         while taken < n and row + written < rows:
             try:
                 self.advance(1)
-            except NonFiniteState as err:
+            except (NonFiniteState, TooManyPairs) as err:
                 return taken, written, err
             taken += 1
             step = self.step_index

@@ -8,7 +8,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..core import CONTACTS_FULL, INTERRUPTED, NON_FINITE, CoreWorld
+from ..core import CONTACTS_FULL, INTERRUPTED, NON_FINITE, TOO_MANY_PAIRS, CoreWorld
 from ..io.observables import observables
 from ..io.trajectory import grow_contact_rows
 from ..scene import Scene
@@ -70,6 +70,8 @@ class RbsimEngine(Engine):
             written += 1
         elif status == NON_FINITE:
             err = self.world.non_finite(int(bad))
+        elif status == TOO_MANY_PAIRS:
+            err = self.world.too_many_pairs()
         elif status == INTERRUPTED:
             err = KeyboardInterrupt()
         return int(taken), int(written), err

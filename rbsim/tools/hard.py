@@ -35,7 +35,7 @@ import numpy as np
 
 from .. import constants as C
 from ..engines import ENGINES as ENGINE_NAMES
-from ..engines import RBSIM_ENGINES, Engine, NonFiniteState, Snapshot, make_engine
+from ..engines import RBSIM_ENGINES, Engine, NonFiniteState, Snapshot, TooManyPairs, make_engine
 from ..engines.pymunk import PymunkSettings, UnsupportedScene
 from ..scene import Scene, load_scene
 from ..scene.geometry3d import quat_matrix
@@ -1584,7 +1584,7 @@ def run_case(case: Case, engine: str, scenes: Path = SCENES) -> Result:
         result.figures = case.measure(maker(engine, scenes))
     except UnsupportedScene as err:
         result.note = f"pymunk cannot run it: {err}"
-    except NonFiniteState as err:
+    except (NonFiniteState, TooManyPairs) as err:
         result.note = f"blew up: {err}"
     result.seconds = time.perf_counter() - t0
     return result

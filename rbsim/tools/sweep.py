@@ -28,7 +28,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from ..engines import Engine, NonFiniteState, Snapshot, make_engine
+from ..engines import Engine, NonFiniteState, Snapshot, TooManyPairs, make_engine
 from ..engines.pymunk import PymunkSettings
 from ..scene import Scene
 from ..scene import types as T
@@ -506,6 +506,9 @@ def sample_run(scene: Scene, ref: Reference, s: Setting, per_sample: int, sample
             snap = engine.read()
         except NonFiniteState as err:
             status = f"non-finite at step {err.step}"
+            break
+        except TooManyPairs as err:
+            status = str(err)
             break
         probe.take(snap)
     return probe.result(t, status)

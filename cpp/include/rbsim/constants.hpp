@@ -153,6 +153,21 @@ inline constexpr double BIG_CELLS_MAX = 16.0;
 inline constexpr int RADIX_BITS = 8;
 inline constexpr int INSERTION_SORT_MAX = 32;
 
+// The most contact pairs (shape pairs whose fat boxes overlap) one step may hold: at most
+// PAIRS_PER_SHAPE per shape plus PAIRS_FLOOR, and at most PAIR_WORK_MAX (2D) or
+// PAIR_WORK_MAX_3D over substeps x iterations (World::pair_limit). A pile has 2 to 6
+// pairs per shape (a face-centred pile of spheres 7); far more mean shapes pressed into
+// one another (a pile crushed by a huge gravity, where every pair of n shapes overlaps),
+// which the step cannot resolve. Beyond the limit advance takes no step and returns
+// TooManyPairs, so that memory (about 1.5 KB per pair of storage in 2D) and the step's time
+// stay bounded: a step within the work bound takes about a second at most. Raising them
+// lets such a step run, slowly and with gigabytes; lowering them below 8 per shape can stop
+// a dense pile that would have run.
+inline constexpr std::int64_t PAIRS_PER_SHAPE = 32;
+inline constexpr std::int64_t PAIRS_FLOOR = 65536;
+inline constexpr double PAIR_WORK_MAX = 8.0e6;
+inline constexpr double PAIR_WORK_MAX_3D = 1.0e6;
+
 // |x| below which the integrator's atan series is used: its first omitted term, x^19/19,
 // is then below 1e-18 of x, far under double rounding.
 inline constexpr double ATAN_SERIES_MAX = 0.1;

@@ -257,8 +257,9 @@ void Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   reset(wave_order, m); reset(manifold_wave, m); reset(body_wave, n);
   reset(wave_start, m + 2); reset(wave_batch, m + 2); reset(wave_single, m + 1);
   reset(wave_single_batch, m + 1);
-  // each wave's two-point and one-point manifolds may end in a part-filled batch
-  batches.assign(m / LANES + 2 * m + 2, WideBatch{});
+  // every batch holds at least one manifold (waves.cpp), so m batches are enough; 3D
+  // solves its rows in solve order and packs none
+  batches.assign(D == 2 ? m + 2 : 0, WideBatch{});
   region_count = 1;
   body_region.assign(n, 0);
   const std::size_t segments = static_cast<std::size_t>(constants::SOLVER_REGIONS) * 2 + 2;

@@ -40,6 +40,8 @@ enum class MixRule : std::int32_t { Sqrt = 0, Multiply = 1, Min = 2, Max = 3 };
 enum class Rotation : std::int32_t { Normalize = 0, Exact = 1, Split = 2 };
 
 // What World::advance returns.
-enum class Status : std::int32_t { Ok = 0, NeedCapacity = 1, NonFinite = 2 };
+// TooManyPairs: a step would hold more contact pairs than World::pair_limit (no step is
+// taken).
+enum class Status : std::int32_t { Ok = 0, NeedCapacity = 1, NonFinite = 2, TooManyPairs = 3 };
 
 }  // namespace rbsim

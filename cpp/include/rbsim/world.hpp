@@ -58,6 +58,8 @@ struct World {
   Grid<D> grid;
   Contacts<D> contacts;
   std::int64_t step_index = 0;
+  // the contact pairs the step that advance refused with TooManyPairs would have held
+  std::int64_t pairs_wanted = 0;
   // with profile set, each stage's wall time accumulates in stage_seconds (s)
   bool profile = false;
   std::array<double, static_cast<int>(StageId::Count)> stage_seconds{};
@@ -79,9 +81,13 @@ struct World {
   bool step();
   // Up to n_steps steps, growing the contact store as needed. Returns Ok, or NonFinite
   // with *bad_body set to a body whose state is not finite or beyond POSITION_LIMIT
-  // (the first dynamic one; a static or kinematic one only when no dynamic one is):
+  // (the first dynamic one; a static or kinematic one only when no dynamic one is),
+  // or TooManyPairs when a step would hold more than pair_limit() contact pairs (that
+  // step is not taken; pairs_wanted holds how many it found):
   // *taken = steps taken (0 when the state was already bad: no step is taken from it).
   Status advance(std::int64_t n_steps, std::int64_t* taken, std::int64_t* bad_body);
+  // The most contact pairs a step may hold (constants.hpp, PAIRS_PER_SHAPE).
+  std::int64_t pair_limit() const;
   // Room for `capacity` manifolds and pairs, keeping what warm starting needs.
   void grow(std::int64_t capacity);
   // Contact points that pushed in the last step.

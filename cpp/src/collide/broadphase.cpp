@@ -52,8 +52,6 @@ inline Vec3 vmax(Vec3 a, Vec3 b) {
 // Whether some component of a is below b's.
 inline bool any_less(Vec2 a, Vec2 b) { return a.x < b.x || a.y < b.y; }
 inline bool any_less(Vec3 a, Vec3 b) { return a.x < b.x || a.y < b.y || a.z < b.z; }
-inline double max_component(Vec2 a) { return std::max(a.x, a.y); }
-inline double max_component(Vec3 a) { return std::max(std::max(a.x, a.y), a.z); }
 inline Vec2 splat(Vec2, double r) { return {r, r}; }
 inline Vec3 splat(Vec3, double r) { return {r, r, r}; }
 
@@ -90,6 +88,24 @@ inline std::int64_t hash_bucket(const Cell<D>& c, std::int64_t mask) {
   std::uint64_t h = 0;
   for (int d = 0; d < D; ++d) h ^= static_cast<std::uint64_t>(c[d]) * prime[d];
   return static_cast<std::int64_t>(h & static_cast<std::uint64_t>(mask));
+}
+
+// How far from the origin a shape's box may reach to be entered in the grid's cells, m:
+// twice the position limit of the bodies (world.hpp, POSITION_LIMIT = 1e9 m), beyond which
+// the cell indices could overflow. A box beyond it, or not finite (a state made bad and
+// passed to a stage directly), is kept among the big shapes, whose cells are never taken.
+inline constexpr double CELL_REACH = 2.0e9;
+
+// Whether box fits the grid: every side at most `width` (m) and its min corner within
+// CELL_REACH (false for a NaN anywhere in it).
+template <int D>
+inline bool fits_cells(const Aabb<D>& box, double width) {
+  const double* lo = reinterpret_cast<const double*>(&box.lo);
+  const double* hi = reinterpret_cast<const double*>(&box.hi);
+  bool fits = true;
+  for (int d = 0; d < D; ++d)
+    fits = fits && hi[d] - lo[d] <= width && std::abs(lo[d]) <= CELL_REACH;
+  return fits;
 }
 
 // The pair key a·S + b of shapes a, b in either order.
@@ -175,7 +191,7 @@ void fill_grid(const Model<D>& model, Grid<D>& grid) {
   double cut = 1.0;
   while (cut < C::BIG_CELLS_MAX) {
     int over = 0;
-    for (int s = 0; s < n; ++s) over += max_component(fat[s].hi - fat[s].lo) > cut * cell;
+    for (int s = 0; s < n; ++s) over += !fits_cells(fat[s], cut * cell);
     if (over <= C::BIG_MAX) break;
     cut *= 2.0;
   }
@@ -185,7 +201,7 @@ void fill_grid(const Model<D>& model, Grid<D>& grid) {
   g1.fill(-1);
   for (int s = 0; s < n; ++s) {
     const Vec w = fat[s].hi - fat[s].lo;
-    const bool is_big = max_component(w) > cut * cell;
+    const bool is_big = !fits_cells(fat[s], cut * cell);
     big[s] = is_big;
     if (is_big) {
       grid.big_list[nbig++] = s;
