@@ -90,8 +90,6 @@ TEST(heavy_box_on_a_far_lighter_one_does_not_sink_in) {
   CHECK(length(w.state.body_v[heavy]) < 1e-3);  // m/s: at rest
 }
 
-RBSIM_TEST_MAIN
-
 // 400 balls in one spot: every one of their 79,800 pairs overlaps, above the pair limit
 // of 400 shapes (32 x 400 + 65,536 = 78,336). advance takes no step and says so, with the
 // pairs it found; spread out, the same world steps again.
@@ -122,3 +120,5 @@ TEST(the_pair_limit_falls_with_the_work_of_a_pair) {
   w.config.iterations = 4;
   CHECK(w.pair_limit() == 2000);  // 8e6 / (1000 x 4)
 }
+
+RBSIM_TEST_MAIN
