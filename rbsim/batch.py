@@ -960,6 +960,26 @@ class BatchResult:
 Progress = Callable[[int, int, int], None]  # (runs finished, of them failed, total)
 
 
+def _remove_parts(out: Path, specs: Sequence[RunSpec]) -> None:
+    """Delete the part files, their checkpoints and the locks of the specs' unfinished
+    attempts (`.<run-id>.*` in `out`), found in one listing of the folder."""
+    ids = {spec.run_id for spec in specs}
+    try:
+        entries = list(os.scandir(out))
+    except OSError:
+        return
+    for entry in entries:
+        if not entry.name.startswith("."):
+            continue
+        rest = entry.name[1:]
+        dot = rest.find(".")
+        while dot >= 0:  # a run id may hold dots itself
+            if rest[:dot] in ids:
+                Path(entry.path).unlink(missing_ok=True)
+                break
+            dot = rest.find(".", dot + 1)
+
+
 def run_batch(
     plan: Plan,
     out_dir: str | Path,
@@ -1024,9 +1044,7 @@ def run_batch(
     except KeyboardInterrupt:
         interrupted = True
     finally:
-        for spec in todo:  # part files, their checkpoints and locks of unfinished attempts
-            for part in out.glob(f".{spec.run_id}.*"):
-                part.unlink(missing_ok=True)
+        _remove_parts(out, todo)
     if interrupted:  # runs that workers finished after the last one recorded
         for spec in todo:
             path = out / f"{spec.run_id}.h5"

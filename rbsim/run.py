@@ -9,6 +9,7 @@ between two frames, never inside one; a non-finite state closes it with status
 from __future__ import annotations
 
 import json
+import math
 import os
 import signal
 import sys
@@ -47,6 +48,18 @@ from .scene import Scene, load_scene_text, scene_to_dict
 # wall time (s) the engine steps between returns to Python, so that Ctrl-C, progress
 # and flushes stay lively; the frames per call adapt to it
 CHUNK_SECONDS = 0.1
+# The engine's checkpoint goes beside the file with a flush (once a second) only when the
+# time since the last one is at least CHECKPOINT_SHARE_INVERSE times what that one took,
+# so that a large world (a checkpoint of a 40,000-circle pile: 2 GB, seconds to write)
+# spends at most a tenth of its run on checkpoints; and a run stopped by a signal saves
+# its last state only when the last checkpoint took under CHECKPOINT_STOP_SECONDS (s),
+# so that it ends within a second (else the last flush's checkpoint stays beside it).
+# Before a first one is timed, a checkpoint is expected to take its size over
+# CHECKPOINT_BYTES_PER_SECOND (B/s; measured 0.25-0.5 GB/s taking it, on a shared 2-core
+# machine).
+CHECKPOINT_SHARE_INVERSE = 10.0
+CHECKPOINT_STOP_SECONDS = 0.3
+CHECKPOINT_BYTES_PER_SECOND = 2.5e8
 
 
 def _frames(n: int) -> str:
@@ -384,6 +397,16 @@ def _loop(
     out = writer.path
     status = "failed"  # made precise below
     checkpoint: bytes | None = None
+    keep_sidecar = False  # the checkpoint file beside the trajectory stays
+    checkpoint_cost = -1.0  # s the last checkpoint took (taking it and writing it)
+    checkpoint_made = -math.inf  # time.perf_counter() when it was made
+
+    def checkpoint_expected() -> float:
+        """s the next checkpoint should take."""
+        if checkpoint_cost >= 0.0:
+            return checkpoint_cost
+        return world.checkpoint_size() / CHECKPOINT_BYTES_PER_SECOND
+
     start_step = world.step_index
     loop_start = time.perf_counter()
     setup = loop_start - t0
@@ -425,9 +448,16 @@ def _loop(
                 )
             if err is not None:
                 raise err
-            if writer.flush_due():  # frames and the engine's checkpoint, once a second
+            if writer.flush_due():  # frames, and the engine's checkpoint when it is due
                 with interrupts.held():
-                    writer.flush(checkpoint=world.checkpoint(), step=world.step_index)
+                    now = time.perf_counter()
+                    if now - checkpoint_made >= CHECKPOINT_SHARE_INVERSE * checkpoint_expected():
+                        # a signal drops the checkpoint's write midway (the last one stays)
+                        writer.flush(world.checkpoint(), world.step_index, interrupts.pending)
+                        checkpoint_made = time.perf_counter()
+                        checkpoint_cost = checkpoint_made - now
+                    else:
+                        writer.flush()
             elif writer.rows_free == 0:  # a full block: its frames only
                 with interrupts.held():
                     writer.write_block()
@@ -458,7 +488,11 @@ def _loop(
         ) from None
     except KeyboardInterrupt:
         status = "interrupted"
-        if world.step_index == committed_step:  # every frame up to this state is kept
+        if world.torn or checkpoint_expected() > CHECKPOINT_STOP_SECONDS:
+            # a long step stopped inside, or a checkpoint too slow to take now: the last
+            # flush's checkpoint stays beside the file, to resume from
+            keep_sidecar = True
+        elif world.step_index == committed_step:  # every frame up to this state is kept
             checkpoint = world.checkpoint()
         raise RunInterrupted(str(out), writer.frames_written, last_step) from None
     except OSError as err:  # writing the file: a full disk, a vanished folder
@@ -473,7 +507,10 @@ def _loop(
         with interrupts.held():
             try:
                 writer.close(
-                    status=status, wall_time=time.perf_counter() - t0, checkpoint=checkpoint
+                    status=status,
+                    wall_time=time.perf_counter() - t0,
+                    checkpoint=checkpoint,
+                    keep_sidecar=keep_sidecar,
                 )
             except OSError:
                 writer.abandon()
@@ -545,7 +582,9 @@ def resume_run(
         raise ResumeError(f"{path}: the run is complete; there is nothing to resume")
     frames, step, data = -1, -1, b""
     sidecar = read_checkpoint(path + CHECKPOINT_SUFFIX)
-    if status == STATUS_RUNNING and sidecar is not None:
+    # the checkpoint beside the file: a killed run's, or an interrupted one's whose long
+    # step was stopped inside (the file then holds none)
+    if sidecar is not None and (status == STATUS_RUNNING or stored is None):
         frames, step, data = sidecar
     elif stored is not None:
         frames, step, data = on_file, -1, stored

@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+import contextlib
 import io
 import os
 import shutil
+import signal
+import subprocess
+import sys
 import textwrap
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -49,6 +54,27 @@ def rbsim(*args: str | Path) -> tuple[int, str, str]:
     if result.exception is not None and not isinstance(result.exception, SystemExit):
         raise result.exception
     return result.exit_code, result.stdout, result.stderr
+
+
+@contextlib.contextmanager
+def started_rbsim(*args: str | Path, env: dict | None = None) -> Iterator[subprocess.Popen]:
+    """`python -m rbsim ARGS` as a child process (text pipes) that takes Ctrl-C (a shell
+    running the tests in the background may ignore SIGINT, and Python would then too);
+    killed on leaving if it still runs."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "rbsim", *map(str, args)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        env=env,
+    )
+    try:
+        yield proc
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
 
 
 # ---------------------------------------------------------------------------------------

@@ -28,7 +28,7 @@ from rbsim.io.trajectory import load_trajectory
 from rbsim.scene import load_scene_text, scene_to_dict
 from rbsim.scene.schema import json_schema
 
-from .conftest import rbsim
+from .conftest import rbsim, started_rbsim
 
 REPO = Path(__file__).resolve().parents[1]
 SCENES = sorted((REPO / "scenes").glob("*.yaml"))
@@ -248,17 +248,9 @@ def test_signal_exits_130_and_keeps_a_valid_trajectory(
 ) -> None:
     out = tmp_path / "long.h5"
     scene = write(tmp_path, "long.yaml", LONG)
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "rbsim.cli", "run", str(scene), "-o", str(out)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        # a shell running us in the background may ignore SIGINT; Python then ignores it too
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
-        env={**os.environ, "PYTHONFAULTHANDLER": "1"},  # SIGABRT dumps the Python stack
-    )
-    started = time.monotonic()
-    try:
+    env = {**os.environ, "PYTHONFAULTHANDLER": "1"}  # SIGABRT dumps the Python stack
+    with started_rbsim("run", scene, "-o", out, env=env) as proc:
+        started = time.monotonic()
         deadline = started + 60.0  # a loaded machine may start the process slowly
         # frames on disk, and past the first second (when a terminal would get a progress bar)
         while frames_on_disk(out) < 2 or time.monotonic() - started < 1.5:
@@ -271,10 +263,6 @@ def test_signal_exits_130_and_keeps_a_valid_trajectory(
         except subprocess.TimeoutExpired:
             proc.send_signal(signal.SIGABRT)
             pytest.fail(f"still running 60 s after {signum.name}:\n{proc.communicate()[1][-3000:]}")
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
     assert proc.returncode == 130, stderr
     assert "Traceback" not in stderr
     assert "\r" not in stderr  # no progress bar: stderr is not a terminal

@@ -435,7 +435,7 @@ def test_resume_from_a_damaged_checkpoint_is_a_message(reference, tmp_path) -> N
     with h5py.File(out, "a") as f:  # as a killed run leaves it, with a cut checkpoint
         f["parameters/rbsim/status"][()] = b"running"
     Path(f"{out}{CHECKPOINT_SUFFIX}").write_bytes(
-        b"RBSIMRS1" + (31).to_bytes(8, "little") * 2 + b"RBSIMCK1"
+        b"RBSIMRS1" + (31).to_bytes(8, "little") * 2 + b"RBSIMCK2"
     )
     code, _o, err = rbsim("run", "--resume", out)
     assert code == 1 and "checkpoint" in err and "Traceback" not in err

@@ -11,11 +11,13 @@
 
 #include <chrono>
 #include <cstring>
+#include <exception>
 #include <limits>
 #include <memory>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "rbsim/constants.hpp"
@@ -538,8 +540,8 @@ nb::tuple collide2d_py(int kind_a, int start_a, int count_a, double radius_a, in
 // ---- end narrowphase test entry ---------------------------------------------------------
 
 // ---- output frames (the run loop's blocks) ----------------------------------------
-// Between two steps of a long call, every 20 ms: run Python's signal handlers (taking the
-// GIL for it) and ask `stop` (a callable, or None). True when a handler raised (its error
+// Between two steps of a long call, and inside a long step (World::interrupt), every 20 ms:
+// run Python's signal handlers (taking the GIL for it) and ask `stop` (a callable, or None). True when a handler raised (its error
 // left set, or cleared with `clear`) or stop() is true.
 class SignalPoll {
  public:
@@ -558,6 +560,43 @@ class SignalPoll {
  private:
   std::chrono::steady_clock::time_point checked_ = std::chrono::steady_clock::now();
 };
+
+// For the length of one advance call: the world asks `poll` inside a long step too
+// (World::interrupt). An exception poll raises there (stop() raising) is kept, the step
+// stopped, and the exception rethrown once the engine has returned (`rethrow`).
+template <int D>
+class Interrupts {
+ public:
+  Interrupts(World<D>& w, SignalPoll& poll, nb::handle stop, bool clear) : w_(w) {
+    w_.interrupt = [this, &poll, stop, clear] {
+      try {
+        return poll(stop, clear);
+      } catch (...) {
+        error_ = std::current_exception();
+        return true;
+      }
+    };
+  }
+  ~Interrupts() { w_.interrupt = nullptr; }
+  Interrupts(const Interrupts&) = delete;
+  Interrupts& operator=(const Interrupts&) = delete;
+  bool operator()() { return w_.interrupt(); }
+  void rethrow() {
+    if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
+  }
+
+ private:
+  World<D>& w_;
+  std::exception_ptr error_;
+};
+
+// What stepping or saving a torn world (World::torn) raises.
+template <int D>
+std::string torn_message(const World<D>& w) {
+  return "step " + std::to_string(w.step_index + 1) +
+         " was stopped inside (Ctrl-C during a long step): the state is partway through it; "
+         "load a checkpoint or build the world again to go on";
+}
 
 // advance_recording's status when a signal handler raised (not an engine Status)
 constexpr int INTERRUPTED = 100;
@@ -720,6 +759,7 @@ nb::class_<World<D>> bind_world(nb::module_& mod, const char* name, const char* 
           "advance",
           [](W& w, std::int64_t n) {
             if (n < 0) throw std::invalid_argument("n_steps must be >= 0");
+            if (w.torn) throw std::runtime_error(torn_message(w));
             std::int64_t taken = 0, bad = -1;
             Status status = Status::Ok;
             bool signalled = false;
@@ -730,28 +770,34 @@ nb::class_<World<D>> bind_world(nb::module_& mod, const char* name, const char* 
               const nb::handle no_stop(Py_None);
               nb::gil_scoped_release release;
               SignalPoll poll;
+              Interrupts<D> interrupted(w, poll, no_stop, false);
               while (taken < n && status == Status::Ok) {
                 std::int64_t one = 0;
                 status = w.advance(1, &one, &bad);
                 taken += one;
-                if (taken < n && poll(no_stop, false)) {
+                if (status == Status::Interrupted || (taken < n && interrupted())) {
                   signalled = true;
                   break;
                 }
               }
+              interrupted.rethrow();
             }
-            if (signalled) throw nb::python_error();  // a handler raised: the state is whole steps
+            // a handler raised: the state is whole steps (a step stopped inside is undone)
+            if (signalled) throw nb::python_error();
             return std::make_tuple(static_cast<int>(status), taken, bad);
           },
           "n_steps"_a,
-          "Take up to n_steps steps; returns (status, steps taken, bad body). Between steps "
-          "the signal handlers run (every 20 ms); an exception one raises propagates.")
+          "Take up to n_steps steps; returns (status, steps taken, bad body). Between steps, "
+          "and inside a step that may take a quarter of a second or more, the signal "
+          "handlers run (every 20 ms); an exception one raises propagates (inside a step: "
+          "the world is then torn, see `torn`).")
       .def(
           "advance_recording",
           [](W& w, std::int64_t n, std::int64_t every, std::int64_t last, nb::dict block,
              std::int64_t row, nb::object stop) {
             if (n < 0) throw std::invalid_argument("n_steps must be >= 0");
             if (every < 1) throw std::invalid_argument("every must be >= 1");
+            if (w.torn) throw std::runtime_error(torn_message(w));
             Block<D> b = make_block(w, block);
             if (row < 0 || row > b.rows) throw std::invalid_argument("row outside the block");
             std::int64_t taken = 0, bad = -1, written = 0;
@@ -763,10 +809,15 @@ nb::class_<World<D>> bind_world(nb::module_& mod, const char* name, const char* 
               // frame recorded so far, and the call returns INTERRUPTED
               nb::gil_scoped_release release;
               SignalPoll poll;
+              Interrupts<D> interrupted(w, poll, stop, true);
               while (taken < n && row + written < b.rows) {
                 std::int64_t one = 0;
                 status = w.advance(1, &one, &bad);
                 taken += one;
+                if (status == Status::Interrupted) {
+                  signalled = true;
+                  break;
+                }
                 if (status != Status::Ok) break;
                 if (w.step_index % every == 0 || w.step_index == last) {
                   if (record_row(w, b, row + written) > 0) {
@@ -775,11 +826,12 @@ nb::class_<World<D>> bind_world(nb::module_& mod, const char* name, const char* 
                   }
                   ++written;
                 }
-                if (taken < n && poll(stop, true)) {
+                if (taken < n && interrupted()) {
                   signalled = true;
                   break;
                 }
               }
+              interrupted.rethrow();
             }
             const int code =
                 signalled ? INTERRUPTED : full ? CONTACTS_FULL : static_cast<int>(status);
@@ -789,7 +841,8 @@ nb::class_<World<D>> bind_world(nb::module_& mod, const char* name, const char* 
           "Take up to n_steps steps, recording a frame into block (a dict of arrays, rows "
           "from `row` on) after each step that is a multiple of `every` or is `last_step`; "
           "stops early when the block is full, or with status INTERRUPTED when, between two "
-          "steps (every 20 ms), a signal handler raised or stop() is true, or with status "
+          "steps or inside a long one (every 20 ms; inside a step it leaves the world torn), "
+          "a signal handler raised or stop() is true, or with status "
           "CONTACTS_FULL when a frame's contact points do not fit in the block's contact rows "
           "(the step is taken, its frame not recorded). Returns (status, steps taken, "
           "frames recorded, bad body).")
@@ -807,11 +860,19 @@ nb::class_<World<D>> bind_world(nb::module_& mod, const char* name, const char* 
       .def(
           "save_checkpoint",
           [](const W& w) {
-            auto bytes = save_checkpoint(w);
-            return nb::bytes(reinterpret_cast<const char*>(bytes.data()), bytes.size());
+            if (w.torn) throw std::runtime_error(torn_message(w));
+            // written straight into the bytes object (a large store's checkpoint is
+            // hundreds of MB: one copy, not two)
+            const std::size_t size = checkpoint_size(w);
+            PyObject* out = PyBytes_FromStringAndSize(nullptr, static_cast<Py_ssize_t>(size));
+            if (out == nullptr) throw nb::python_error();
+            save_checkpoint_to(w, reinterpret_cast<std::uint8_t*>(PyBytes_AS_STRING(out)));
+            return nb::steal<nb::bytes>(out);
           },
           "The world's whole changing state (state, step index, broadphase, contact store) "
           "as bytes.")
+      .def("checkpoint_size", [](const W& w) { return checkpoint_size(w); },
+           "Bytes save_checkpoint would return now.")
       .def(
           "load_checkpoint",
           [](W& w, nb::bytes data) {
@@ -819,13 +880,20 @@ nb::class_<World<D>> bind_world(nb::module_& mod, const char* name, const char* 
           },
           "data"_a, "Restore a checkpoint of a world built from the same scene.")
       .def("step", &W::step, "One step; False when the contact store must grow first.")
-      .def("grow", &W::grow, "capacity"_a, "Room for `capacity` manifolds and pairs.")
+      .def("grow", [](W& w, std::int64_t capacity) { w.grow(capacity); }, "capacity"_a,
+           "Room for `capacity` manifolds and pairs.")
       .def_prop_ro("contact_count", &W::contact_count)
       .def_rw("step_index", &W::step_index)
       .def("pair_limit", &W::pair_limit,
            "The most contact pairs a step may hold; advance stops with TOO_MANY_PAIRS beyond.")
       .def_ro("pairs_wanted", &W::pairs_wanted,
               "The contact pairs of the step refused with TOO_MANY_PAIRS.")
+      .def_rw("last_step_seconds", &W::last_step_seconds,
+              "Wall time (s) of the last step taken (-1 before any); a step after one of a "
+              "quarter of a second or more is asked for signals inside too.")
+      .def_ro("torn", &W::torn,
+              "True after a long step was stopped inside by a signal: the state is partway "
+              "through it, and advance and save_checkpoint raise RuntimeError.")
       .def_rw("profile", &W::profile, "Accumulate each stage's wall time (stage_times).")
       .def(
           "stage_times",

@@ -59,9 +59,10 @@ void World<D>::allocate() {
 }
 
 template <int D>
-void World<D>::grow(std::int64_t capacity) {
-  contacts.grow(capacity);
+bool World<D>::grow(std::int64_t capacity, bool stoppable) {
+  if (!contacts.grow(capacity, stoppable && interrupt ? &interrupt : nullptr)) return false;
   grid.grow(capacity);
+  return true;
 }
 
 namespace {
@@ -223,6 +224,7 @@ bool World<D>::collide() {
   timed(S::FindPairs, [&] { n_pairs = find_pairs(model, grid, c); });
   c.count.pairs = n_pairs;
   if (n_pairs > c.capacity() || n_pairs > pair_limit()) return false;
+  if (stop_here()) return true;  // torn: advance ends the call
   timed(S::UpdateManifolds, [&] {
     // the narrowphase pair by pair on the threads (on one thread too, so that every
     // count takes the same path), then the manifolds in pair order
@@ -239,6 +241,7 @@ bool World<D>::collide() {
   timed(S::Prepare, [&] {
     parallel(c.count.manifolds, [&](Span part) { prepare_contacts(model, state, c, cfg, part); });
   });
+  if (stop_here()) return true;
   timed(S::SupportOrder, [&] { c.count.shock_count = support_order(model, c); });
   timed(S::Regions, [&] { partition_regions(model, state, c); });
   timed(S::Waves, [&] { find_waves(model, c); });
@@ -255,6 +258,7 @@ bool World<D>::step() {
   const Config& cfg = config;
   const bool contacts_on = model.has_shapes;
   if (contacts_on && !collide()) return false;
+  if (torn || stop_here()) return false;
   auto& c = contacts;
   using S = StageId;
   for (auto& d : c.body_delta) d = BodyDelta<D>{};
@@ -316,6 +320,7 @@ bool World<D>::step() {
       timed(S::Restitution, [&] { apply_restitution(model, state, c, threshold, h, sign); });
       timed(S::Shock, [&] { shock_pass(inv_h, threshold); });
     }
+    if (sub + 1 < cfg.substeps && stop_here()) return false;
   }
   if (contacts_on) {
     timed(S::OverlapLimit, [&] { limit_static_overlap(model, state, c, C::STATIC_OVERLAP_LIMIT); });
@@ -400,6 +405,7 @@ std::int64_t first_bad_body(const Model<D>& model, const State<D>& st) {
 template <int D>
 Status World<D>::advance(std::int64_t n_steps, std::int64_t* taken, std::int64_t* bad_body) {
   *taken = 0;
+  if (torn) return Status::Torn;  // a step stopped inside: no step from a torn state
   // a state set bad from outside (through the numpy views) is refused before any stage
   // sees it: a non-finite or huge position would reach the broadphase's cell arithmetic
   if (n_steps > 0) {
@@ -410,8 +416,19 @@ Status World<D>::advance(std::int64_t n_steps, std::int64_t* taken, std::int64_t
     }
   }
   const std::int64_t limit = pair_limit();
+  bool grew = false;  // the step under way found the store too small and grew it
   while (*taken < n_steps) {
-    if (!step()) {
+    // a step that may be long is asked inside too (stop_here): one the store grew for
+    // has more contacts than the last step had
+    stoppable_ = static_cast<bool>(interrupt) && (grew || step_may_be_long());
+    const auto start = std::chrono::steady_clock::now();
+    const bool done = step();
+    stoppable_ = false;
+    if (torn) {
+      *bad_body = -1;
+      return Status::Interrupted;
+    }
+    if (!done) {
       const std::int64_t pairs = contacts.count.pairs;
       if (pairs > limit) {
         // the pair list was not completed: found anew by the next step, as after grow
@@ -421,9 +438,18 @@ Status World<D>::advance(std::int64_t n_steps, std::int64_t* taken, std::int64_t
         *bad_body = -1;
         return Status::TooManyPairs;
       }
-      grow(std::min(2 * pairs, limit));
+      // growing a large store takes a while (its memory is new): a stop asked meanwhile
+      // ends the call, the world as it was
+      if (!grow(std::min(2 * pairs, limit), true)) {
+        *bad_body = -1;
+        return Status::Interrupted;
+      }
+      grew = true;
       continue;
     }
+    last_step_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    grew = false;
     ++*taken;
     ++step_index;
     std::int64_t bad = first_bad_body(model, state);
@@ -433,6 +459,22 @@ Status World<D>::advance(std::int64_t n_steps, std::int64_t* taken, std::int64_t
     }
   }
   return Status::Ok;
+}
+
+template <int D>
+bool World<D>::stop_here() {
+  if (!stoppable_ || !interrupt || !interrupt()) return false;
+  torn = true;
+  return true;
+}
+
+template <int D>
+bool World<D>::step_may_be_long() const {
+  if (last_step_seconds >= 0.0) return last_step_seconds >= C::STEP_STOP_SECONDS;
+  if (!model.has_shapes) return false;  // the integrator alone: within the work bound, fast
+  const double per_pair = D == 2 ? C::STEP_SECONDS_PER_PAIR : C::STEP_SECONDS_PER_PAIR_3D;
+  const double passes = static_cast<double>(config.substeps) * config.iterations;
+  return static_cast<double>(pair_limit()) * passes * per_pair >= C::STEP_STOP_SECONDS;
 }
 
 template <int D>

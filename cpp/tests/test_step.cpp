@@ -121,4 +121,53 @@ TEST(the_pair_limit_falls_with_the_work_of_a_pair) {
   CHECK(w.pair_limit() == 2000);  // 8e6 / (1000 x 4)
 }
 
+// A step that may be long is asked inside (World::interrupt): a stop there ends advance
+// with Interrupted and a torn world, which refuses to step on; a short step is only asked
+// between steps (a stop there leaves the state whole).
+TEST(a_long_step_is_stopped_inside_and_leaves_a_torn_world) {
+  SceneBuilder s;
+  s.ground();
+  for (int i = 0; i < 10; ++i) s.circle({0, 0.5 + i}, 0.5, 1.0);
+  World<2>& w = s.finish();
+  std::int64_t taken = -1, bad = 0;
+  int asked = 0;
+  w.interrupt = [&] { return ++asked >= 1000000; };  // asks counted, none stops
+  CHECK(w.advance(3, &taken, &bad) == Status::Ok && taken == 3);
+  CHECK(asked == 0);  // short steps (the first one's work bound too): never asked inside
+  w.last_step_seconds = 10.0;  // as after a long step: the next one is asked inside
+  asked = 0;
+  w.advance(1, &taken, &bad);
+  // after finding the pairs, after preparing the contacts, after collide, between substeps
+  CHECK(asked == 3 + w.config.substeps - 1);
+  w.last_step_seconds = 10.0;
+  const std::int64_t at = w.step_index;
+  w.interrupt = [&] { return true; };
+  CHECK(w.advance(5, &taken, &bad) == Status::Interrupted);
+  CHECK(taken == 0 && bad == -1 && w.torn && w.step_index == at);
+  CHECK(w.advance(1, &taken, &bad) == Status::Torn && taken == 0);
+}
+
+// A store that grows for a step asks interrupt while it is made: a stop leaves it as it
+// was, and the world steps on from the same state as an uninterrupted one.
+TEST(a_grow_stopped_midway_leaves_the_store_as_it_was) {
+  auto build = [] {
+    SceneBuilder s;
+    s.ground();
+    for (int i = 0; i < 200; ++i) s.circle({0.9 * (i % 20), 0.5 + 0.9 * (i / 20)}, 0.5, 1.0);
+    return s;
+  };
+  SceneBuilder sa = build(), sb = build();
+  World<2>& a = sa.finish();
+  World<2>& b = sb.finish();
+  const std::int64_t room = a.contacts.capacity();
+  std::int64_t taken = -1, bad = 0;
+  int asked = 0;
+  a.interrupt = [&] { return ++asked == 3; };  // the third ask: inside the store's making
+  CHECK(a.grow(4 * room, true) == false);
+  CHECK(asked == 3 && a.contacts.capacity() == room && !a.torn);
+  a.interrupt = nullptr;
+  CHECK(a.advance(20, &taken, &bad) == Status::Ok && b.advance(20, &taken, &bad) == Status::Ok);
+  CHECK(same_bits(a.state, b.state));
+}
+
 RBSIM_TEST_MAIN

@@ -107,6 +107,12 @@ class Engine:
         raise NotImplementedError
 
     @property
+    def torn(self) -> bool:
+        """True when a signal stopped a long step inside (the compiled engine's): the
+        state is partway through it, and the engine neither steps nor checkpoints."""
+        return False
+
+    @property
     def time(self) -> float:
         """Simulated time of the current state, s."""
         return self.step_index * self.dt
@@ -175,6 +181,10 @@ class Engine:
     def checkpoint(self) -> bytes | None:
         """The engine's whole state (bytes) for a resumed run, or None if it has none."""
         return None
+
+    def checkpoint_size(self) -> int:
+        """Bytes `checkpoint` would return now (0 for an engine without checkpoints)."""
+        return 0
 
     def restore(self, data: bytes) -> None:
         """Continue from a `checkpoint` of an engine built from the same scene."""

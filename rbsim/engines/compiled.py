@@ -86,6 +86,9 @@ class RbsimEngine(Engine):
     def checkpoint(self) -> bytes:
         return self.world.engine.save_checkpoint()
 
+    def checkpoint_size(self) -> int:
+        return int(self.world.engine.checkpoint_size())
+
     def restore(self, data: bytes) -> None:
         self.world.engine.load_checkpoint(data)
 
@@ -103,6 +106,10 @@ class RbsimEngine(Engine):
     @property
     def step_index(self) -> int:
         return int(self.world.step_index)
+
+    @property
+    def torn(self) -> bool:
+        return bool(self.world.engine.torn)
 
     @property
     def contact_count(self) -> int:

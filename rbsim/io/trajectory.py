@@ -61,7 +61,7 @@ import math
 import os
 import struct
 import time as _time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from types import TracebackType
 
@@ -520,13 +520,36 @@ def grow_contact_rows(block: dict[str, np.ndarray], extra: int) -> None:
         block[f"contact_{name}"] = grown
 
 
-def write_checkpoint(path: str, frames: int, step: int, data: bytes) -> None:
+# bytes of a checkpoint written between two asks of write_checkpoint's `stop`
+CHECKPOINT_CHUNK = 1 << 26
+
+
+def write_checkpoint(
+    path: str, frames: int, step: int, data: bytes, stop: Callable[[], bool] | None = None
+) -> bool:
     """Write the engine checkpoint of a running trajectory at `path` atomically (a
-    temporary file renamed over it): `frames` frames are on file, the last at `step`."""
+    temporary file renamed over it): `frames` frames are on file, the last at `step`.
+    stop() is asked between chunks of CHECKPOINT_CHUNK bytes (a large world's checkpoint
+    is hundreds of MB); when true the write is dropped, the file at `path` left as it
+    was, and False returned."""
     tmp = f"{path}.tmp"
-    with open(tmp, "wb") as f:
-        f.write(_CHECKPOINT_MAGIC + struct.pack("<qq", frames, step) + data)
+    view = memoryview(data)
+    try:
+        with open(tmp, "wb") as f:
+            f.write(_CHECKPOINT_MAGIC + struct.pack("<qq", frames, step))
+            for start in range(0, len(view), CHECKPOINT_CHUNK):
+                if stop is not None and stop():
+                    raise _Dropped
+                f.write(view[start : start + CHECKPOINT_CHUNK])
+    except _Dropped:
+        os.unlink(tmp)
+        return False
     os.replace(tmp, path)
+    return True
+
+
+class _Dropped(Exception):
+    """write_checkpoint's stop() said to drop the write."""
 
 
 def read_checkpoint(path: str) -> tuple[int, int, bytes] | None:
@@ -1050,16 +1073,22 @@ class TrajectoryWriter:
         if not self._closed:
             self._write_block()
 
-    def flush(self, checkpoint: bytes | None = None, step: int | None = None) -> None:
+    def flush(
+        self,
+        checkpoint: bytes | None = None,
+        step: int | None = None,
+        stop: Callable[[], bool] | None = None,
+    ) -> None:
         """Write every gathered frame to the file now, and `checkpoint` (the engine's
         state at `step`, default the last frame's, bytes) beside it for `rbsim run
-        --resume`; the frames on file must be those up to that state."""
+        --resume`; the frames on file must be those up to that state. A true stop()
+        drops the checkpoint's write midway (write_checkpoint); the last one stays."""
         if self._closed:
             return
         self._write_block()
         if checkpoint is not None and self.frames_flushed:
             at = self._last_step if step is None else int(step)
-            write_checkpoint(self.checkpoint_path, self.frames_flushed, at, checkpoint)
+            write_checkpoint(self.checkpoint_path, self.frames_flushed, at, checkpoint, stop)
         self._last_flush = _time.monotonic()
 
     def close(
@@ -1068,6 +1097,7 @@ class TrajectoryWriter:
         status: str = "complete",
         wall_time: float | None = None,
         checkpoint: bytes | None = None,
+        keep_sidecar: bool = False,
     ) -> None:
         """Write the last frames, record `status` and `wall_time`, and close. Idempotent.
 
@@ -1076,6 +1106,8 @@ class TrajectoryWriter:
         wall_time: s; by default the time since the writer was created.
         checkpoint: the engine's state at the last frame; stored in the file (a run that
             did not complete can then be resumed from it).
+        keep_sidecar: leave the checkpoint file of the last flush beside the trajectory
+            (a run stopped with no checkpoint of its last frame resumes from that one).
         A file with room for more frames than it holds, or asked to be compressed, is laid
         out anew with exactly its frames.
         """
@@ -1118,8 +1150,9 @@ class TrajectoryWriter:
             if self._fd is not None:
                 os.close(self._fd)
                 self._fd = None
-        with contextlib.suppress(OSError):
-            os.unlink(self.checkpoint_path)
+        if not keep_sidecar:
+            with contextlib.suppress(OSError):
+                os.unlink(self.checkpoint_path)
 
     def abandon(self) -> None:
         """Close the file descriptor without writing anything more (after an I/O error):

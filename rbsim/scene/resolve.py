@@ -23,7 +23,7 @@ from .mass import body_mass_properties
 from .mass3d import body_mass_properties_3d, principal_axes
 from .schema import INVALID, Checked, did_you_mean
 from .types import SHAPE_KINDS, SHAPE_KINDS_3D
-from .yamlsrc import BROKEN, Mark, Problem, YList, YMap, format_path, load_yaml
+from .yamlsrc import BROKEN, Mark, Problem, YList, YMap, format_path, load_yaml, load_yaml_tree
 
 Vec2 = tuple[float, float]
 Vec = tuple[float, ...]  # a 2-vector in a 2D scene, a 3-vector in a 3D one
@@ -280,7 +280,7 @@ def load_scene(path: str | Path, overrides: Sequence[str] = ()) -> Scene:
 def load_scene_text(text: str, path: str = "<string>", overrides: Sequence[str] = ()) -> Scene:
     """Validate and resolve a scene given as YAML text; ``path`` is used in messages
     and for the default name. Raises SceneError listing every problem found."""
-    root, mark, problems = load_yaml(text)
+    root, mark, problems = load_yaml_tree(text)
     if isinstance(root, YMap):
         problems += apply_overrides(root, overrides)
     scene = None

@@ -168,6 +168,20 @@ inline constexpr std::int64_t PAIRS_FLOOR = 65536;
 inline constexpr double PAIR_WORK_MAX = 8.0e6;
 inline constexpr double PAIR_WORK_MAX_3D = 1.0e6;
 
+// Stopping a long step (World::interrupt). A step that may take STEP_STOP_SECONDS or more
+// is asked inside too, between its substeps, so that Ctrl-C stops it within a second; a
+// step stopped there leaves the world torn (partway through it: World::torn), whose run
+// ends. s, typically 0.25: shorter steps finish first and stop between two steps, whole
+// (the binding asks every 20 ms); lower values tear more runs that would have stopped
+// whole a moment later. A step "may take" that long when the last one did, or, before any
+// step, when the work bound (pair limit x substeps x iterations x STEP_SECONDS_PER_PAIR)
+// says it could.
+inline constexpr double STEP_STOP_SECONDS = 0.25;
+// s per contact pair per iteration of a substep, an upper estimate (about 0.1 us measured in
+// a crushed 2D pile, 1 us in 3D) for the first step's bound above.
+inline constexpr double STEP_SECONDS_PER_PAIR = 0.25e-6;
+inline constexpr double STEP_SECONDS_PER_PAIR_3D = 2.0e-6;
+
 // |x| below which the integrator's atan series is used: its first omitted term, x^19/19,
 // is then below 1e-18 of x, far under double rounding.
 inline constexpr double ATAN_SERIES_MAX = 0.1;

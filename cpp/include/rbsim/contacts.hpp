@@ -9,6 +9,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <vector>
 
@@ -198,7 +199,7 @@ struct Contacts {
                                             // wave_order[single[g]..start[g+1])
   std::vector<std::int64_t> wave_single_batch;  // (M+1,) and their batches, from here
                                                  // to wave_batch[g+1]
-  std::vector<WideBatch> batches;           // the waves' manifolds, LANES at a time
+  std::vector<WideBatch> batches;           // the waves' manifolds, LANES at a time (find_waves sizes it)
   // the regions of the solver's passes (regions.cpp): segment g of segment_count(regions)
   // is solve_order[segment_order[g]..segment_order[g+1]), its waves
   // [segment_wave[g], segment_wave[g+1]) and its part of the shock pass
@@ -212,19 +213,30 @@ struct Contacts {
   std::int64_t capacity() const { return static_cast<std::int64_t>(key.size()); }
 
   // Storage for `capacity` manifolds, n_bodies bodies, n_shapes shapes, n_vertices.
-  void allocate(int n_bodies, int n_shapes, int n_vertices, std::int64_t capacity);
-  // Room for `capacity` manifolds, keeping last step's manifolds (warm starting).
-  void grow(std::int64_t capacity);
+  // stop, when given, is asked after each array: true leaves the rest unmade and returns
+  // false (the store is then not usable: grow drops it).
+  bool allocate(int n_bodies, int n_shapes, int n_vertices, std::int64_t capacity,
+                const std::function<bool()>* stop = nullptr);
+  // Room for `capacity` manifolds, keeping last step's manifolds (warm starting). A large
+  // store takes seconds to make (its memory is new): stop is asked meanwhile, and true
+  // leaves the store as it was and returns false.
+  bool grow(std::int64_t capacity, const std::function<bool()>* stop = nullptr);
 };
 
 template <int D>
-void Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int64_t capacity) {
+bool Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int64_t capacity,
+                           const std::function<bool()>* stop) {
   const std::size_t m = static_cast<std::size_t>(capacity < 1 ? 1 : capacity);
   const std::size_t n = static_cast<std::size_t>(n_bodies < 1 ? 1 : n_bodies);
   const std::size_t s = static_cast<std::size_t>(n_shapes < 1 ? 1 : n_shapes);
   const std::size_t v = static_cast<std::size_t>(n_vertices < 1 ? 1 : n_vertices);
   count = ContactCounts{};
-  auto reset = [](auto& vec, std::size_t size) { vec.assign(size, {}); };
+  bool stopped = false;
+  auto reset = [&](auto& vec, std::size_t size) {
+    if (stopped) return;
+    vec.assign(size, {});
+    stopped = stop != nullptr && *stop && (*stop)();
+  };
   reset(carried, m); reset(pairs, m);
   reset(shape_a, m); reset(shape_b, m); reset(body_a, m); reset(body_b, m);
   reset(key, m); reset(normal, m); reset(points, m); reset(friction, m); reset(restitution, m);
@@ -257,22 +269,26 @@ void Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   reset(wave_order, m); reset(manifold_wave, m); reset(body_wave, n);
   reset(wave_start, m + 2); reset(wave_batch, m + 2); reset(wave_single, m + 1);
   reset(wave_single_batch, m + 1);
-  // every batch holds at least one manifold (waves.cpp), so m batches are enough; 3D
-  // solves its rows in solve order and packs none
-  batches.assign(D == 2 ? m + 2 : 0, WideBatch{});
+  // made by find_waves, as many as a step packs (waves.cpp); 3D solves its rows in solve
+  // order and packs none
+  batches.clear();
   region_count = 1;
   body_region.assign(n, 0);
   const std::size_t segments = static_cast<std::size_t>(constants::SOLVER_REGIONS) * 2 + 2;
   reset(segment_order, segments); reset(segment_wave, segments); reset(segment_shock, segments);
+  return !stopped;
 }
 
 template <int D>
-void Contacts<D>::grow(std::int64_t new_capacity) {
+bool Contacts<D>::grow(std::int64_t new_capacity, const std::function<bool()>* stop) {
   // never below what last step's manifolds need
   if (new_capacity < count.manifolds_prev) new_capacity = count.manifolds_prev;
+  Contacts<D> made;
+  if (!made.allocate(static_cast<int>(body_delta.size()), static_cast<int>(shape_margin.size()),
+                     static_cast<int>(vert_world.size()), new_capacity, stop))
+    return false;
   Contacts<D> old = std::move(*this);
-  allocate(static_cast<int>(old.body_delta.size()), static_cast<int>(old.shape_margin.size()),
-           static_cast<int>(old.vert_world.size()), new_capacity);
+  *this = std::move(made);
   const std::int64_t n = old.count.manifolds_prev;
   count = old.count;
   count.pairs = 0;  // the pair list is found anew
@@ -296,6 +312,7 @@ void Contacts<D>::grow(std::int64_t new_capacity) {
   shape_scale = std::move(old.shape_scale);
   body_scale = std::move(old.body_scale);
   unit_scale = old.unit_scale;
+  return true;
 }
 
 }  // namespace rbsim

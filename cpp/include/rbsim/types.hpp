@@ -41,7 +41,11 @@ enum class Rotation : std::int32_t { Normalize = 0, Exact = 1, Split = 2 };
 
 // What World::advance returns.
 // TooManyPairs: a step would hold more contact pairs than World::pair_limit (no step is
-// taken).
-enum class Status : std::int32_t { Ok = 0, NeedCapacity = 1, NonFinite = 2, TooManyPairs = 3 };
+// taken). Interrupted: World::interrupt asked advance to stop (between two steps, or
+// inside a long one, which leaves the world torn). Torn: advance was asked to step a
+// torn world (World::torn).
+enum class Status : std::int32_t {
+  Ok = 0, NeedCapacity = 1, NonFinite = 2, TooManyPairs = 3, Interrupted = 4, Torn = 5
+};
 
 }  // namespace rbsim

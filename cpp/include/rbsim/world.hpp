@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <array>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -73,13 +74,24 @@ struct World {
   // the pairs' narrowphase, found in parallel ahead of update_manifolds (narrow_pairs)
   std::vector<PairManifold<D>> found;
   std::vector<std::int8_t> found_points;
+  // Asked by advance after it grew the contact store, and inside a step that may be long
+  // (step_may_be_long: after its contacts are found and between its substeps): true ends
+  // advance with Status::Interrupted. Set by the caller for the length of its advance
+  // calls (the binding: Python's signal handlers); empty: nothing is asked.
+  std::function<bool()> interrupt;
+  // A step was stopped inside: the state is partway through step step_index + 1, and
+  // advance refuses to go on from it (Status::Torn); a checkpoint loaded ends it.
+  bool torn = false;
+  // wall time (s) of the last step taken, -1 before any
+  double last_step_seconds = -1.0;
 
   // Storage for the model's bodies and shapes (call once the model and state are set).
   void allocate();
   // One time step config.dt. Returns false when the contact store is too small (the
   // state is then unchanged: grow and call again).
   bool step();
-  // Up to n_steps steps, growing the contact store as needed. Returns Ok, or NonFinite
+  // Up to n_steps steps, growing the contact store as needed. Returns Ok, Interrupted
+  // (interrupt), Torn (a torn world: no step), or NonFinite
   // with *bad_body set to a body whose state is not finite or beyond POSITION_LIMIT
   // (the first dynamic one; a static or kinematic one only when no dynamic one is),
   // or TooManyPairs when a step would hold more than pair_limit() contact pairs (that
@@ -88,12 +100,19 @@ struct World {
   Status advance(std::int64_t n_steps, std::int64_t* taken, std::int64_t* bad_body);
   // The most contact pairs a step may hold (constants.hpp, PAIRS_PER_SHAPE).
   std::int64_t pair_limit() const;
-  // Room for `capacity` manifolds and pairs, keeping what warm starting needs.
-  void grow(std::int64_t capacity);
+  // Room for `capacity` manifolds and pairs, keeping what warm starting needs. With
+  // `stoppable`, interrupt is asked while the store is made: true leaves the world as it
+  // was and returns false.
+  bool grow(std::int64_t capacity, bool stoppable = false);
+  // Whether the next step may take STEP_STOP_SECONDS or more (constants.hpp).
+  bool step_may_be_long() const;
   // Contact points that pushed in the last step.
   std::int64_t contact_count() const { return model.has_shapes ? contacts.count.points_touching : 0; }
 
  private:
+  bool stoppable_ = false;  // the step under way may be stopped inside
+  // interrupt() asked, when the step under way may be stopped; true sets torn
+  bool stop_here();
   bool collide();
   bool step_free();
   template <class F>

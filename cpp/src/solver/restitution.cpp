@@ -513,10 +513,7 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
       any_bounce = true;
       target[k] = bounce_target(invariant, s_now, acc, e, h, sign);
     }
-    if (deferred) {
-      c.bounce_list[count.bounce_count] = static_cast<std::int32_t>(m);
-      ++count.bounce_count;
-    }
+    if (deferred) PassLog::direct(c).add_bounce(static_cast<std::int32_t>(m));
     if (!any_bounce) continue;
     const Owed<D> owed{0.0, 0.0, 0.0, target};
     const auto j = push_targets(model, st, c, m, a, b, bounce, target, false, owed);
@@ -613,10 +610,7 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
         end_impact(c, m, k);
       }
     }
-    if (deferred) {
-      c.bounce_list[count.bounce_count] = static_cast<std::int32_t>(m);
-      ++count.bounce_count;
-    }
+    if (deferred) PassLog::direct(c).add_bounce(static_cast<std::int32_t>(m));
   }
   count.bounce_carried = meeting ? 0 : count.bounce_count;
 }

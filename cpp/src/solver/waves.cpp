@@ -171,6 +171,15 @@ std::int64_t find_waves(const Model<D>& model, Contacts<D>& c) {
     if (pass == 2)
       for (std::int32_t k = 0; k < n_waves; ++k) c.wave_single[k] = fill[k];
   }
+  // the batches' room: made here, for what this step packs (every batch holds 1 to
+  // LANES manifolds, so up to M of them; most steps need about M / LANES plus a few per
+  // wave, and room for M, about 1 KB each, took seconds to make in a large pile)
+  std::int64_t needed = 0;
+  for (std::int32_t k = 0; k < n_waves; ++k)
+    needed += (c.wave_single[k] - start[k] + LANES - 1) / LANES +
+              (start[k + 1] - c.wave_single[k] + LANES - 1) / LANES;
+  if (static_cast<std::int64_t>(c.batches.size()) < needed)
+    c.batches.resize(static_cast<std::size_t>(needed + needed / 4));
   std::int64_t n_batches = 0;
   for (std::int32_t k = 0; k < n_waves; ++k) {
     c.wave_batch[k] = n_batches;

@@ -15,6 +15,11 @@ namespace rbsim {
 
 template <int D>
 std::vector<std::uint8_t> save_checkpoint(const World<D>& world);
+// The same in two parts: its size in bytes, then the bytes written at `out` (that many).
+template <int D>
+std::size_t checkpoint_size(const World<D>& world);
+template <int D>
+void save_checkpoint_to(const World<D>& world, std::uint8_t* out);
 
 // Throws std::invalid_argument when the bytes are not a checkpoint of a world of this
 // model's sizes (the world is then unchanged).
