@@ -89,7 +89,10 @@ compare: $(STAMP)
 		$(BIN)/rbsim compare $$s -o out/compare || status=1; \
 	done; exit $$status
 
+# PyBullet, the third engine of the 3D table: the `bench` extra of pyproject.toml
+# (a wheel, seconds), installed here rather than by `make install`
 bench: $(STAMP)
+	$(BIN)/python -m pip install -q "pybullet>=3.2"
 	$(BIN)/python -m bench
 
 # The hard cases of scenes/hard/ in rbsim and pymunk: prints the table and rewrites the

@@ -43,10 +43,31 @@ try:
     import mujoco
 except ImportError:  # the optional extra `mujoco`
     mujoco = None
-try:
-    import pybullet
-except ImportError:  # not a dependency of rbsim: `pip install pybullet`
-    pybullet = None
+
+
+def _import_pybullet():  # noqa: ANN202 - the module, or None
+    """pybullet, imported with its "pybullet build time" line (C's printf at import,
+    flushed at exit, in the middle of the table) sent to /dev/null; None when absent."""
+    import ctypes
+    import os
+    import sys
+
+    sys.stdout.flush()
+    saved, null = os.dup(1), os.open(os.devnull, os.O_WRONLY)
+    os.dup2(null, 1)
+    try:
+        import pybullet
+    except ImportError:  # the `bench` extra: pip install -e '.[bench]' (make bench does)
+        return None
+    finally:
+        ctypes.CDLL(None).fflush(None)  # C's buffer, while fd 1 is still /dev/null
+        os.dup2(saved, 1)
+        os.close(saved)
+        os.close(null)
+    return pybullet
+
+
+pybullet = _import_pybullet()
 
 DT = "1/240"
 WARMUP = 240
