@@ -574,3 +574,20 @@ def test_demo_pyramid_scene():
     ground = scene.bodies[0]
     assert ground.type == "static"
     assert ground.shapes[0].vertices == ((-20.0, 0.0), (20.0, 0.0))
+
+
+def test_a_text_resolved_again_is_not_changed_by_an_earlier_resolve():
+    # the parsed tree of a text is kept and copied for each resolve (a batch resolves one
+    # text hundreds of times): one resolve's overrides must not reach the next
+    text = textwrap.dedent(
+        """\
+        version: 1
+        world: {steps: 3}
+        bodies:
+          - {name: ball, position: [0, 1], shape: {circle: {radius: 0.5}}}
+        """
+    )
+    moved = load_scene_text(text, "a.yaml", ("bodies.ball.position=[5, 6]", "world.steps=9"))
+    again = load_scene_text(text, "a.yaml")
+    assert moved.bodies[0].position == (5.0, 6.0) and moved.world.steps == 9
+    assert again.bodies[0].position == (0.0, 1.0) and again.world.steps == 3

@@ -540,9 +540,10 @@ nb::tuple collide2d_py(int kind_a, int start_a, int count_a, double radius_a, in
 // ---- end narrowphase test entry ---------------------------------------------------------
 
 // ---- output frames (the run loop's blocks) ----------------------------------------
-// Between two steps of a long call, and inside a long step (World::interrupt), every 20 ms:
-// run Python's signal handlers (taking the GIL for it) and ask `stop` (a callable, or None). True when a handler raised (its error
-// left set, or cleared with `clear`) or stop() is true.
+// Between two steps of a long call, and inside a long step (World::interrupt), every
+// 20 ms: run Python's signal handlers (taking the GIL for it) and ask `stop` (a callable,
+// or None). True when a handler raised (its error left set, or cleared with `clear`) or
+// stop() is true.
 class SignalPoll {
  public:
   bool operator()(nb::handle stop, bool clear) {
@@ -782,7 +783,8 @@ nb::class_<World<D>> bind_world(nb::module_& mod, const char* name, const char* 
               }
               interrupted.rethrow();
             }
-            // a handler raised: the state is whole steps (a step stopped inside is undone)
+            // a handler raised: the state is whole steps, or the world is torn (a long
+            // step stopped inside)
             if (signalled) throw nb::python_error();
             return std::make_tuple(static_cast<int>(status), taken, bad);
           },

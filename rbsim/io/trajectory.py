@@ -534,22 +534,19 @@ def write_checkpoint(
     was, and False returned."""
     tmp = f"{path}.tmp"
     view = memoryview(data)
-    try:
-        with open(tmp, "wb") as f:
-            f.write(_CHECKPOINT_MAGIC + struct.pack("<qq", frames, step))
-            for start in range(0, len(view), CHECKPOINT_CHUNK):
-                if stop is not None and stop():
-                    raise _Dropped
-                f.write(view[start : start + CHECKPOINT_CHUNK])
-    except _Dropped:
+    dropped = False
+    with open(tmp, "wb") as f:
+        f.write(_CHECKPOINT_MAGIC + struct.pack("<qq", frames, step))
+        for start in range(0, len(view), CHECKPOINT_CHUNK):
+            dropped = stop is not None and stop()
+            if dropped:
+                break
+            f.write(view[start : start + CHECKPOINT_CHUNK])
+    if dropped:
         os.unlink(tmp)
         return False
     os.replace(tmp, path)
     return True
-
-
-class _Dropped(Exception):
-    """write_checkpoint's stop() said to drop the write."""
 
 
 def read_checkpoint(path: str) -> tuple[int, int, bytes] | None:

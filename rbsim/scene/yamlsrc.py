@@ -21,6 +21,7 @@ Differences from ``yaml.safe_load``, chosen for scene files:
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -203,21 +204,24 @@ def load_yaml_tree(text: str) -> tuple[Any, Mark, list[Problem]]:
     return copy_tree(root), mark, list(problems)
 
 
-def copy_tree(value: Any) -> Any:
+def copy_tree(value: Any, on_node: Callable[[], None] | None = None) -> Any:
     """A copy of a parsed tree: its YMaps and YLists new, with their marks; the scalars
-    (immutable) shared."""
+    (immutable) shared. on_node() is called before each value is copied (the builder's
+    budget for aliases: it may raise to stop the copy)."""
+    if on_node is not None:
+        on_node()
     if isinstance(value, YMap):
         out = YMap(value.mark)
         out.block = value.block
         for key, item in value.items():
-            out[key] = copy_tree(item)
+            out[key] = copy_tree(item, on_node)
         out.key_marks.update(value.key_marks)
         out.value_marks.update(value.value_marks)
         return out
     if isinstance(value, YList):
         out_list = YList(value.mark)
         out_list.block = value.block
-        out_list.extend(copy_tree(item) for item in value)
+        out_list.extend(copy_tree(item, on_node) for item in value)
         out_list.item_marks.extend(value.item_marks)
         return out_list
     return value
@@ -408,20 +412,13 @@ class _Builder:
         return self.copy(value), mark  # a copy: a --set on one use must not change the others
 
     def copy(self, value: Any) -> Any:
+        return copy_tree(value, self._spend)
+
+    def _spend(self) -> None:
+        """One value of the budget; _TooLarge when it is spent."""
         self.budget -= 1
         if self.budget < 0:
             raise _TooLarge
-        if isinstance(value, YMap):
-            out = YMap(value.mark)
-            for key, item in value.items():
-                out.put(key, self.copy(item), value.key_marks[key], value.value_marks[key])
-            return out
-        if isinstance(value, YList):
-            out_list = YList(value.mark)
-            out_list.extend(self.copy(item) for item in value)
-            out_list.item_marks.extend(value.item_marks)
-            return out_list
-        return value
 
     def scalar(self, event: Any, path: Path) -> Any:
         tag = _resolve(event)

@@ -173,9 +173,9 @@ inline constexpr double PAIR_WORK_MAX_3D = 1.0e6;
 // step stopped there leaves the world torn (partway through it: World::torn), whose run
 // ends. s, typically 0.25: shorter steps finish first and stop between two steps, whole
 // (the binding asks every 20 ms); lower values tear more runs that would have stopped
-// whole a moment later. A step "may take" that long when the last one did, or, before any
-// step, when the work bound (pair limit x substeps x iterations x STEP_SECONDS_PER_PAIR)
-// says it could.
+// whole a moment later. A step "may take" that long when the last one did, when the
+// contact store grew for it, or, before any step, when the work bound (pair limit x
+// substeps x iterations x STEP_SECONDS_PER_PAIR) says it could.
 inline constexpr double STEP_STOP_SECONDS = 0.25;
 // s per contact pair per iteration of a substep, an upper estimate (about 0.1 us measured in
 // a crushed 2D pile, 1 us in 3D) for the first step's bound above.

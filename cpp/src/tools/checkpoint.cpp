@@ -113,15 +113,16 @@ struct Reader {
       bytes(&n, sizeof n);
       bytes(&k, sizeof k);
       using E = typename T::value_type;
-      // the room (n) is at most what a world may hold: a pair bound's worth per element
-      // is far above any store, and keeps a corrupt length from asking for exabytes
+      // the room (n) at most 1 TB: far above any store, and a corrupt length cannot ask
+      // for exabytes
       if (k > n || k > static_cast<std::uint64_t>(end - p) / sizeof(E) ||
           n > (std::uint64_t{1} << 40) / sizeof(E))
         throw std::invalid_argument("checkpoint: truncated");
-      // the bytes after the k elements written are zeros, as they were
       v.resize(n);
-      if (n) std::memset(static_cast<void*>(v.data()), 0, n * sizeof(E));
       bytes(v.data(), k * sizeof(E));
+      // the bytes after the k elements written are zeros, as they were (resize's new
+      // elements are their type's defaults, which need not be zeros)
+      if (n > k) std::memset(static_cast<void*>(v.data() + k), 0, (n - k) * sizeof(E));
     } else {
       bytes(&v, sizeof v);
     }
