@@ -8,9 +8,15 @@ pyramid of unit boxes (55), 100 boxes of 0.5 m dropped tumbling in a heap, 1000 
 of radius 0.1 m poured into a 4 m box, and a 10 × 10 grid of stacks of 3 boxes of 0.5 m.
 
 Each engine steps the scene from rest: WARMUP steps (untimed), then REPEATS timed blocks
-of STEPS steps (the process's CPU time, median reported: on a shared machine less noisy
-than wall time; each engine here steps on one thread); the state at the end of that
-window is the "end" of the table. Settings, each engine's own defaults at that dt:
+of STEPS steps, the engines' blocks taken in turn (rbsim's, MuJoCo's, PyBullet's, and
+again), so that a slow spell of the shared machine falls on all of them alike. A block's
+time is the CPU time of the thread that steps (on a shared machine less noisy than wall
+time; each engine here steps on that one thread, so its CPU time is the engine's; the
+process's CPU time would also count numpy's BLAS threads, which a scene's set-up wakes
+and which spin on the other core for a while after: they made rbsim's 10-box stack read
+27 µs a step where it took 21). The table gives each engine's median block and, as the
+ratio, the median over the rounds of rbsim's block over the other's. The state at the
+end of that window is the "end" of the table. Settings, each engine's own defaults at that dt:
 - rbsim: the scene's solver (4 substeps × (1 solve + 1 relax)), its 0.5 cm slop.
 - MuJoCo (`mjcf_contacts`): one mj_step per step, its defaults: Euler integrator,
   Newton solver, 100 iterations, tolerance 1e-8, pyramidal cone, condim 3, solref
@@ -72,7 +78,7 @@ pybullet = _import_pybullet()
 DT = "1/240"
 WARMUP = 240
 STEPS = 60
-REPEATS = 5
+REPEATS = 9
 FRICTION = 0.6
 
 HEAD = f"""\
@@ -414,6 +420,48 @@ def tops(scene: Scene) -> np.ndarray:
     return np.flatnonzero(y > y.max() - 1e-3)
 
 
+def measure_all(
+    scene: Scene,
+    makes: list[type[Runner]],
+    warmup: int = WARMUP,
+    steps: int = STEPS,
+    repeats: int = REPEATS,
+) -> list[dict]:
+    """The engines `makes` on one scene, their timed blocks interleaved (a block of each
+    engine in turn, `repeats` rounds), so that a slow spell of a shared machine falls on
+    all of them alike: per engine, CPU µs per step (the median of its `repeats` blocks of
+    `steps` after `warmup`), "ratio" to the first engine (the median over the rounds of
+    the first's block time over this one's), contact points at the end, and the top
+    bodies' largest sideways move and sag (m) from the start."""
+    runners = [make(scene) for make in makes]
+    starts = [r.positions() for r in runners]
+    for r in runners:
+        r.advance(warmup)
+    samples: list[list[float]] = [[] for _ in runners]
+    for _ in range(repeats):
+        for r, out in zip(runners, samples, strict=True):
+            t0 = time.thread_time()
+            r.advance(steps)
+            out.append((time.thread_time() - t0) / steps * 1e6)
+    top = tops(scene)
+    results = []
+    for r, start, us in zip(runners, starts, samples, strict=True):
+        d = r.positions()[top] - start[top]
+        ratios = [a / b for a, b in zip(samples[0], us, strict=True) if b > 0.0]
+        results.append(
+            {
+                "us": statistics.median(us),
+                "ratio": statistics.median(ratios) if ratios else math.nan,
+                "contacts": r.contacts(),
+                "move": float(np.max(np.hypot(d[:, 0], d[:, 2]))),
+                "sag": float(np.max(-d[:, 1])),
+            }
+        )
+        if hasattr(r, "close"):
+            r.close()
+    return results
+
+
 def measure(
     scene: Scene,
     make: type[Runner],
@@ -421,29 +469,8 @@ def measure(
     steps: int = STEPS,
     repeats: int = REPEATS,
 ) -> dict:
-    """One engine on one scene: CPU µs per step (the median of `repeats` blocks of
-    `steps` after `warmup`), contact points at the end, and the top bodies' largest sideways move
-    and sag (m) from the start."""
-    runner = make(scene)
-    start = runner.positions()
-    runner.advance(warmup)
-    samples = []
-    for _ in range(repeats):
-        t0 = time.process_time()
-        runner.advance(steps)
-        samples.append((time.process_time() - t0) / steps * 1e6)
-    end = runner.positions()
-    top = tops(scene)
-    d = end[top] - start[top]
-    out = {
-        "us": statistics.median(samples),
-        "contacts": runner.contacts(),
-        "move": float(np.max(np.hypot(d[:, 0], d[:, 2]))),
-        "sag": float(np.max(-d[:, 1])),
-    }
-    if hasattr(runner, "close"):
-        runner.close()
-    return out
+    """One engine on one scene (measure_all of that engine alone)."""
+    return measure_all(scene, [make], warmup, steps, repeats)[0]
 
 
 def table(names: list[str] | None = None) -> list[str]:
@@ -466,13 +493,13 @@ def table(names: list[str] | None = None) -> list[str]:
     print("\n".join(lines))
     for name in names or list(SCENES):
         scene = load(name)
-        rows = [measure(scene, m) for m in makes]
+        rows = measure_all(scene, makes)
         dynamic = sum(b.type == "dynamic" for b in scene.bodies)
         line = f"{name:<13}{dynamic:>7}"
         for r in rows:
             line += f"{r['us']:>13.1f}{r['contacts']:>9}"
         for r in rows[1:]:
-            line += f"{rows[0]['us'] / r['us']:>10.2f}"
+            line += f"{r['ratio']:>10.2f}"
         if name in STANDING:
             line += "   " + "  ".join(f"{r['move']:.3f}/{r['sag']:.3f}" for r in rows)
         if mujoco is not None and name in MUJOCO_OPTIONS:

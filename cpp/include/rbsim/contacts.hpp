@@ -79,6 +79,16 @@ static_assert(sizeof(SolverRow<2>) == 32 * sizeof(double));
 // The angular terms are vectors; the world inverse inertia tensors are taken at the
 // step's start (what the passes use to follow the bodies' velocities within a manifold;
 // a manifold writes each body's ω back from its angular momentum, see solve.cpp).
+// A symmetric block of up to four rows as L D Lᵀ (row.hpp, factor_block): L unit lower
+// triangular, D diagonal. Its units are the block's (here 1/kg).
+struct BlockFactor {
+  double l[6] = {0, 0, 0, 0, 0, 0};  // L below the diagonal by rows: L10 L20 L21 L30 L31 L32
+  double d[4] = {0, 0, 0, 0};        // D's diagonal
+  double inv_d[4] = {0, 0, 0, 0};    // 1 / D's diagonal (a solve multiplies: no division)
+  double ok = 0;  // 1 when every pivot was positive (else the block is not solved at once)
+  double pad = 0;
+};
+
 template <>
 struct SolverRow<3> {
   struct Point {
@@ -91,6 +101,10 @@ struct SolverRow<3> {
     // kg: the inverse of the point's 2×2 tangent block K_t (rows t1, t2), symmetric
     double tm11 = 0, tm12 = 0, tm22 = 0;
     double tangent_mass = 0;  // kg: 2 / trace K_t, the sliding step's (friction_circle)
+    // friction's unit impulses along t1 and t2: their levers r × t_i (m) and the changes
+    // of ω they make, I⁻¹ (r × t_i) (1/(kg·m)), for each body (world frame, step's start)
+    Vec3 rt1a, rt2a, rt1b, rt2b;
+    Vec3 wt1a, wt2a, wt1b, wt2b;
   };
   Vec3 normal;             // from b towards a
   Vec3 t1, t2;             // the tangent basis: t1 × t2 = n
@@ -103,6 +117,15 @@ struct SolverRow<3> {
   // 1/kg: the points' normal block K (symmetric 4×4, rows 0..points-1), its upper
   // triangle by rows: K00 K01 K02 K03 K11 K12 K13 K22 K23 K33
   std::array<double, 10> k{};
+  // the normal block's LDLᵀ factors for the passes' two usual cases (row.hpp,
+  // factor_block): `rigid`, K + ε diag(K) (the relax stage, and a solve in which no point
+  // overlaps); `soft`, with every point's γ added (a solve in which every point overlaps)
+  BlockFactor rigid, soft;
+  // kg⁻¹: how friction at one point moves another's sliding velocity. For points i > j,
+  // tangent_coupling[i (i − 1) / 2 + j] is the 2×2 block (row-major: t1 t1, t1 t2, t2 t1,
+  // t2 t2) of K_t between them: the change of point i's (v·t1, v·t2) per unit impulse
+  // along t1, t2 at point j (its transpose, j's per unit impulse at i)
+  std::array<std::array<double, 4>, 6> tangent_coupling{};
   std::array<Point, 4> point;
 };
 

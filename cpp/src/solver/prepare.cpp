@@ -67,6 +67,8 @@ void prepare_points_3d(const State<3>& st, Contacts<3>& c, std::int64_t m, int a
     // the tangent block and its inverse (kg)
     const Vec3 a1 = cross(ra, t1), a2 = cross(ra, t2), b1 = cross(rb, t1), b2 = cross(rb, t2);
     const Vec3 ia1 = ia * a1, ia2 = ia * a2, ib1 = ib * b1, ib2 = ib * b2;
+    pt.rt1a = a1, pt.rt2a = a2, pt.rt1b = b1, pt.rt2b = b2;
+    pt.wt1a = ia1, pt.wt2a = ia2, pt.wt1b = ib1, pt.wt2b = ib2;
     const double k11 = ma + mb + dot(a1, ia1) + dot(b1, ib1);
     const double k22 = ma + mb + dot(a2, ia2) + dot(b2, ib2);
     const double k12 = dot(a1, ia2) + dot(b1, ib2);
@@ -85,6 +87,19 @@ void prepare_points_3d(const State<3>& st, Contacts<3>& c, std::int64_t m, int a
     pt.base = c.base_separation[m][k];
     approach_point(st, c, m, k, a, b, ra, rb, pt.ra, pt.rb, n);
   }
+  // friction's coupling between points i > j: δ_ab (1/m_a + 1/m_b) + (r_a,i × t_a)·
+  // I_a⁻¹(r_a,j × t_b) + (b likewise), for the directions a, b of t1, t2
+  for (int i = 1; i < c.points[m]; ++i) {
+    for (int j = 0; j < i; ++j) {
+      const auto& pi = row.point[i];
+      const auto& pj = row.point[j];
+      auto& cp = row.tangent_coupling[i * (i - 1) / 2 + j];
+      cp[0] = ma + mb + dot(pi.rt1a, pj.wt1a) + dot(pi.rt1b, pj.wt1b);
+      cp[1] = dot(pi.rt1a, pj.wt2a) + dot(pi.rt1b, pj.wt2b);
+      cp[2] = dot(pi.rt2a, pj.wt1a) + dot(pi.rt2b, pj.wt1b);
+      cp[3] = ma + mb + dot(pi.rt2a, pj.wt2a) + dot(pi.rt2b, pj.wt2b);
+    }
+  }
   // the normal block: K_ij = 1/m_a + 1/m_b + (r_a,i × n)·I_a⁻¹(r_a,j × n) + (b likewise)
   int e = 0;
   for (int i = 0; i < 4; ++i) {
@@ -98,6 +113,18 @@ void prepare_points_3d(const State<3>& st, Contacts<3>& c, std::int64_t m, int a
       row.k[e] = i == j ? pi.kn : ma + mb + dot(pi.rna, pj.wna) + dot(pi.rnb, pj.wnb);
     }
   }
+}
+
+// The factors of a 3D row's normal block for the passes' two usual cases (SolverRow<3>:
+// rigid and soft), once its γ is final.
+void prepare_blocks_3d(SolverRow<3>& row, int npts) {
+  if (npts < 2) return;
+  const double none[4] = {0.0, 0.0, 0.0, 0.0};
+  double all[4];
+  // every point pushed out: soft_target's γ (kn times the row's γ/K) at each
+  for (int k = 0; k < npts; ++k) all[k] = row.point[k].kn * row.gamma;
+  factor_block(row.k, none, npts, row.rigid);
+  factor_block(row.k, all, npts, row.soft);
 }
 
 }  // namespace
@@ -201,6 +228,7 @@ void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c,
       row.gamma = gamma_of(s);
       row.bias_rate = s.bias_rate;
     }
+    if constexpr (D == 3) prepare_blocks_3d(row, npts);
   }
 }
 

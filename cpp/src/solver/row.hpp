@@ -159,46 +159,93 @@ inline SoftTarget soft_target(double s, bool use_bias, double inv_h, double bias
 // right-hand side lies in K's range (as the rigid bodies' own normal velocities do).
 constexpr double BLOCK_EPS = 1e-9;
 
-// Solve A d = r for the first n (<= 4) rows and columns of the symmetric A by LDLᵀ; false
-// when a pivot is not above min_pivot of its diagonal (dependent rows).
-inline bool ldlt_solve(const double (&A)[4][4], int n, const double* r, double* d,
-                       double min_pivot) {
-  double L[4][4] = {}, dg[4];
-  for (int j = 0; j < n; ++j) {
+// L D Lᵀ of the first N (<= 4) rows and columns of the symmetric A into f; false when a
+// pivot is not above min_pivot of its diagonal (dependent rows). L_ij (i > j) is f.l[i (i
+// − 1) / 2 + j].
+template <int N>
+inline bool ldlt_factor_n(const double (&A)[4][4], double min_pivot, BlockFactor& f) {
+  auto L = [&f](int i, int j) -> double& { return f.l[i * (i - 1) / 2 + j]; };
+  for (int j = 0; j < N; ++j) {
     double v = A[j][j];
-    for (int p = 0; p < j; ++p) v -= L[j][p] * L[j][p] * dg[p];
+    for (int p = 0; p < j; ++p) v -= L(j, p) * L(j, p) * f.d[p];
     if (!(v > min_pivot * A[j][j])) return false;
-    dg[j] = v;
-    for (int i = j + 1; i < n; ++i) {
+    f.d[j] = v;
+    f.inv_d[j] = 1.0 / v;
+    for (int i = j + 1; i < N; ++i) {
       double x = A[i][j];
-      for (int p = 0; p < j; ++p) x -= L[i][p] * L[j][p] * dg[p];
-      L[i][j] = x / v;
+      for (int p = 0; p < j; ++p) x -= L(i, p) * L(j, p) * f.d[p];
+      L(i, j) = x / v;
     }
-  }
-  double y[4];
-  for (int i = 0; i < n; ++i) {
-    y[i] = r[i];
-    for (int p = 0; p < i; ++p) y[i] -= L[i][p] * y[p];
-  }
-  for (int i = n - 1; i >= 0; --i) {
-    d[i] = y[i] / dg[i];
-    for (int p = i + 1; p < n; ++p) d[i] -= L[p][i] * d[p];
   }
   return true;
 }
 
-// Solve (K + diag(g) + BLOCK_EPS diag(K)) d = r for the n points (n <= 4) by LDLᵀ, K
-// the symmetric 4×4 block given by its upper triangle by rows (K00 K01 K02 K03 K11 K12
-// K13 K22 K23 K33; 1/kg), g (1/kg) per point, r (m/s); d in N·s. false when a pivot is
-// not positive.
-inline bool solve_block(const std::array<double, 10>& k, const double* g, const double* r,
-                        int n, double* d) {
+// The solution d of L D Lᵀ d = r for the first N rows of the factor f.
+template <int N>
+inline void ldlt_apply_n(const BlockFactor& f, const double* r, double* d) {
+  auto L = [&f](int i, int j) { return f.l[i * (i - 1) / 2 + j]; };
+  double y[4];
+  for (int i = 0; i < N; ++i) {
+    y[i] = r[i];
+    for (int p = 0; p < i; ++p) y[i] -= L(i, p) * y[p];
+  }
+  for (int i = N - 1; i >= 0; --i) {
+    d[i] = y[i] * f.inv_d[i];
+    for (int p = i + 1; p < N; ++p) d[i] -= L(p, i) * d[p];
+  }
+}
+
+// ldlt_factor_n and ldlt_apply_n for n (1..4) rows (each count its own unrolled code).
+inline bool ldlt_factor(const double (&A)[4][4], int n, double min_pivot, BlockFactor& f) {
+  switch (n) {
+    case 1: return ldlt_factor_n<1>(A, min_pivot, f);
+    case 2: return ldlt_factor_n<2>(A, min_pivot, f);
+    case 3: return ldlt_factor_n<3>(A, min_pivot, f);
+    default: return ldlt_factor_n<4>(A, min_pivot, f);
+  }
+}
+inline void ldlt_apply(const BlockFactor& f, int n, const double* r, double* d) {
+  switch (n) {
+    case 1: ldlt_apply_n<1>(f, r, d); return;
+    case 2: ldlt_apply_n<2>(f, r, d); return;
+    case 3: ldlt_apply_n<3>(f, r, d); return;
+    default: ldlt_apply_n<4>(f, r, d); return;
+  }
+}
+
+// Solve A d = r for the first n (<= 4) rows and columns of the symmetric A by LDLᵀ; false
+// when a pivot is not above min_pivot of its diagonal (dependent rows).
+inline bool ldlt_solve(const double (&A)[4][4], int n, const double* r, double* d,
+                       double min_pivot) {
+  BlockFactor f;
+  if (!ldlt_factor(A, n, min_pivot, f)) return false;
+  ldlt_apply(f, n, r, d);
+  return true;
+}
+
+// The factor of K + diag(g) + BLOCK_EPS diag(K) for the n points (n <= 4), K the
+// symmetric 4×4 block given by its upper triangle by rows (K00 K01 K02 K03 K11 K12 K13
+// K22 K23 K33; 1/kg), g (1/kg) per point; f.ok = 1 when every pivot is positive (else 0:
+// the points are solved one after the other).
+inline void factor_block(const std::array<double, 10>& k, const double* g, int n,
+                         BlockFactor& f) {
   double A[4][4];
   int e = 0;
   for (int i = 0; i < 4; ++i)
     for (int j = i; j < 4; ++j, ++e) A[i][j] = A[j][i] = k[e];
   for (int i = 0; i < n; ++i) A[i][i] += g[i] + BLOCK_EPS * A[i][i];
-  return ldlt_solve(A, n, r, d, 1e-12);
+  f.ok = ldlt_factor(A, n, 1e-12, f) ? 1.0 : 0.0;
+}
+
+// Solve (K + diag(g) + BLOCK_EPS diag(K)) d = r for the n points (n <= 4) (factor_block's
+// block), r (m/s); d in N·s. false when a pivot is not positive.
+inline bool solve_block(const std::array<double, 10>& k, const double* g, const double* r,
+                        int n, double* d) {
+  BlockFactor f;
+  factor_block(k, g, n, f);
+  if (f.ok == 0.0) return false;
+  ldlt_apply(f, n, r, d);
+  return true;
 }
 
 }  // namespace rbsim

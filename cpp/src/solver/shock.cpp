@@ -117,50 +117,58 @@ bool solve_exact(const std::array<double, 10>& k, const int* idx, const double* 
 // complementarity problem w = K λ − need >= 0, λ >= 0, λ·w = 0, with K (1/kg, packed as
 // SolverRow<3>::k) the supported body's own block and need (m/s) each point's shortfall.
 // Its solutions all give the body the same velocity (K λ is the same for all: it is the
-// minimum of a convex quadratic), so the first found serves: the sets of points tried
-// from the largest down, each solved exactly, until one has λ >= 0 and leaves no point
-// short (beyond rounding). Four corners of a face are dependent (K has rank 3), so a
-// face rests on three of them here; the velocity is the four's. false when none does
-// (K singular on every set).
+// minimum of a convex quadratic), so the first found serves: sets of points are tried,
+// each solved exactly, until one has λ >= 0 and leaves no point short (beyond rounding).
+// The sets tried first are the short points and their subsets (the usual answer: the
+// points that need a push get one), largest first, then the sets that also hold points
+// not short. Four points of one manifold are never tried together: K_ij = 1/m + (r_i ×
+// n)·I⁻¹(r_j × n), and the levers r × n all lie in the plane normal to n, so K has rank 3
+// at most (a face rests on three of its corners here; the velocity is the four's). false
+// when no set does (K singular on every set).
 bool shock_block(const std::array<double, 10>& k, const double* need, int n, double* lam) {
   double scale = 0.0;  // m/s: the largest shortfall
-  for (int i = 0; i < n; ++i) scale = std::max(scale, std::fabs(need[i]));
+  unsigned short_set = 0;  // bit i: point i is short
+  for (int i = 0; i < n; ++i) {
+    scale = std::max(scale, std::fabs(need[i]));
+    if (need[i] > 0.0) short_set |= 1u << i;
+    lam[i] = 0.0;
+  }
+  if (short_set == 0) return true;  // no point short at all: nothing to do
   auto at = [&](int i, int j) {
     if (i > j) std::swap(i, j);
     return k[i * 4 - i * (i - 1) / 2 + (j - i)];
   };
-  for (int size = n; size >= 1; --size) {
-    for (int set = (1 << n) - 1; set > 0; --set) {
-      if (__builtin_popcount(static_cast<unsigned>(set)) != size) continue;
-      int idx[4], na = 0;
-      double rhs[4], x[4];
-      bool worth = false;  // a set of points none of which is short is never the answer
-      for (int i = 0; i < n; ++i) {
-        if (!(set >> i & 1)) continue;
-        worth = worth || need[i] > 0.0;
-        rhs[na] = need[i];
-        idx[na++] = i;
+  const int largest = std::min(n, 3);
+  for (int pass = 0; pass < 2; ++pass) {  // subsets of the short points, then the rest
+    for (int size = largest; size >= 1; --size) {
+      for (unsigned set = (1u << n) - 1; set > 0; --set) {
+        if (__builtin_popcount(set) != size || (set & short_set) == 0) continue;
+        if (((set & ~short_set) == 0) != (pass == 0)) continue;
+        int idx[4], na = 0;
+        double rhs[4], x[4];
+        for (int i = 0; i < n; ++i) {
+          if (!(set >> i & 1)) continue;
+          rhs[na] = need[i];
+          idx[na++] = i;
+        }
+        if (!solve_exact(k, idx, rhs, na, x)) continue;
+        bool ok = true;
+        for (int i = 0; i < na; ++i) ok = ok && x[i] >= 0.0;
+        if (!ok) continue;
+        for (int i = 0; i < n; ++i) lam[i] = 0.0;
+        for (int i = 0; i < na; ++i) lam[idx[i]] = x[i];
+        for (int i = 0; i < n && ok; ++i) {
+          if (set >> i & 1) continue;
+          double w = -need[i];
+          for (int j = 0; j < n; ++j) w += at(i, j) * lam[j];
+          ok = w >= -1e-9 * scale;
+        }
+        if (ok) return true;
       }
-      if (!worth || !solve_exact(k, idx, rhs, na, x)) continue;
-      bool ok = true;
-      for (int i = 0; i < na; ++i) ok = ok && x[i] >= 0.0;
-      if (!ok) continue;
-      for (int i = 0; i < n; ++i) lam[i] = 0.0;
-      for (int i = 0; i < na; ++i) lam[idx[i]] = x[i];
-      for (int i = 0; i < n && ok; ++i) {
-        if (set >> i & 1) continue;
-        double w = -need[i];
-        for (int j = 0; j < n; ++j) w += at(i, j) * lam[j];
-        ok = w >= -1e-9 * scale;
-      }
-      if (ok) return true;
     }
   }
-  // no point short at all: nothing to do
   for (int i = 0; i < n; ++i) lam[i] = 0.0;
-  bool short_any = false;
-  for (int i = 0; i < n; ++i) short_any = short_any || need[i] > 0.0;
-  return !short_any;
+  return false;
 }
 
 // The 3D pass: the supported body's approach taken out at a face's up to four points at

@@ -102,6 +102,12 @@ void solve_contacts_3d(const Model<3>& model, State<3>& st, Contacts<3>& c, doub
     const Vec3 na = inv_rotate(da.dq, nrm);
     const Vec3 nb = inv_rotate(db.dq, nrm);
     const int npts = c.points[m];
+    double* lam = c.normal_impulse[m].data();
+    // a point's normal velocity (m/s): (v_a + ω_a × r_a − v_b − ω_b × r_b) · n, with
+    // (ω × r) · n = ω · (r × n), the row's lever
+    auto normal_speed = [&](const SolverRow<3>::Point& pt) {
+      return dot(va - vb, nrm) + (dot(wa, pt.rna) - dot(wb, pt.rnb));
+    };
     // the normal impulse jn (N·s) at a point, on the local velocities and L's change
     auto push = [&](const SolverRow<3>::Point& pt, double jn) {
       va += (ma * jn) * nrm;
@@ -116,27 +122,37 @@ void solve_contacts_3d(const Model<3>& model, State<3>& st, Contacts<3>& c, doub
     if (npts >= 2) {
       // every point's target from the same velocities, one block
       double sep[4], vn[4], gam[4], r[4], d[4];
+      int pushed = 0;  // points pushed out (soft rows)
       for (int k = 0; k < npts; ++k) {
         const auto& pt = row.point[k];
         sep[k] = row_separation(pt, moved, na, nb);
         const auto [bias, gamma] =
             soft_target(sep[k], use_bias, inv_h, row.bias_rate, row.max_push, pt.kn, row.gamma);
+        pushed += use_bias && sep[k] <= 0.0;
         deep = deep || sep[k] < row.deep;
-        const Vec3 u = (va + cross(wa, pt.arm_a)) - (vb + cross(wb, pt.arm_b));
-        vn[k] = dot(u, nrm);
+        vn[k] = normal_speed(pt);
         gam[k] = gamma;
-        r[k] = -vn[k] - (bias + gamma * c.normal_impulse[m][k]);
+        r[k] = -vn[k] - (bias + gamma * lam[k]);
       }
-      if (solve_block(row.k, gam, r, npts, d)) {
+      // the block's factor: the row's own when no point or every point is pushed out
+      // (prepare_contacts made them), else made here
+      BlockFactor own;
+      const BlockFactor* f = &own;
+      if (pushed == 0)
+        f = &row.rigid;
+      else if (pushed == npts)
+        f = &row.soft;
+      else
+        factor_block(row.k, gam, npts, own);
+      if (f->ok != 0.0) {
+        ldlt_apply(*f, npts, r, d);
         block = true;
-        for (int k = 0; k < npts; ++k) block = block && c.normal_impulse[m][k] + d[k] >= 0.0;
+        for (int k = 0; k < npts; ++k) block = block && lam[k] + d[k] >= 0.0;
       }
       if (block) {
         for (int k = 0; k < npts; ++k) {
-          const auto& pt = row.point[k];
-          const double jn =
-              clamp_normal(c, m, k, c.normal_impulse[m][k], d[k], vn[k], sep[k], shift, threshold, log);
-          push(pt, jn);
+          const double jn = clamp_normal(c, m, k, lam[k], d[k], vn[k], sep[k], shift, threshold, log);
+          push(row.point[k], jn);
         }
       }
     }
@@ -147,36 +163,64 @@ void solve_contacts_3d(const Model<3>& model, State<3>& st, Contacts<3>& c, doub
       const auto [bias, gamma] =
           soft_target(s, use_bias, inv_h, row.bias_rate, row.max_push, pt.kn, row.gamma);
       deep = deep || s < row.deep;
-      const Vec3 u = (va + cross(wa, pt.arm_a)) - (vb + cross(wb, pt.arm_b));
-      const double vn = dot(u, nrm);
-      const double lam = c.normal_impulse[m][k];
-      const double impulse = (-vn - (bias + gamma * lam)) * (1.0 / (pt.kn + gamma));
-      const double jn = clamp_normal(c, m, k, lam, impulse, vn, s, shift, threshold, log);
+      const double vn = normal_speed(pt);
+      const double impulse = (-vn - (bias + gamma * lam[k])) * (1.0 / (pt.kn + gamma));
+      const double jn = clamp_normal(c, m, k, lam[k], impulse, vn, s, shift, threshold, log);
       push(pt, jn);
     }
     if (use_bias && deep) mark_deep(log, m);
     const double mu = row.friction;
     if (mu > 0.0) {
+      // each point's friction as one 2×2 block on the velocities after the points before
+      // it: every point's sliding velocity found at once, then carried from point to
+      // point through the row's couplings (a short chain of arithmetic instead of the
+      // bodies' velocities through every point), the bodies' changes summed at the end
+      const Vec3 dv = va - vb;
+      const double dv1 = dot(dv, t1), dv2 = dot(dv, t2);
+      double vt1[4], vt2[4];
+      for (int k = 0; k < npts; ++k) {
+        const auto& pt = row.point[k];
+        vt1[k] = dv1 + (dot(wa, pt.rt1a) - dot(wb, pt.rt1b));
+        vt2[k] = dv2 + (dot(wa, pt.rt2a) - dot(wb, pt.rt2b));
+      }
+      Vec3 p{}, wa_t{}, wb_t{}, la_t{}, lb_t{};  // N·s, 1/s, 1/s, N·m·s, N·m·s
       for (int i = 0; i < npts; ++i) {
         const int k = use_bias ? i : npts - 1 - i;
         const auto& pt = row.point[k];
-        const double limit = mu * c.normal_impulse[m][k];
-        const Vec3 jt = c.tangent_impulse[m][k];
+        const double limit = mu * lam[k];
+        Vec3& jt = c.tangent_impulse[m][k];
         if (limit == 0.0 && jt.x == 0.0 && jt.y == 0.0 && jt.z == 0.0) continue;
-        const Vec3 u = (va + cross(wa, pt.arm_a)) - (vb + cross(wb, pt.arm_b));
         const double l1 = dot(jt, t1), l2 = dot(jt, t2);
         double n1 = l1, n2 = l2;
-        friction_circle(n1, n2, dot(u, t1), dot(u, t2), pt.tm11, pt.tm12, pt.tm22, pt.tangent_mass, limit);
-        c.tangent_impulse[m][k] = n1 * t1 + n2 * t2;
-        const Vec3 p = (n1 - l1) * t1 + (n2 - l2) * t2;
-        const Vec3 ta = cross(pt.arm_a, p), tb = cross(pt.arm_b, p);
-        va += ma * p;
-        wa += row.inv_ia * ta;
-        dla += ta;
-        vb -= mb * p;
-        wb -= row.inv_ib * tb;
-        dlb -= tb;
+        friction_circle(n1, n2, vt1[k], vt2[k], pt.tm11, pt.tm12, pt.tm22, pt.tangent_mass, limit);
+        jt = n1 * t1 + n2 * t2;
+        const double d1 = n1 - l1, d2 = n2 - l2;  // N·s: the impulse along t1, t2
+        // the points still to come: after k in the solve, before it in relax
+        if (use_bias) {
+          for (int j = k + 1; j < npts; ++j) {
+            const auto& cp = row.tangent_coupling[j * (j - 1) / 2 + k];
+            vt1[j] += cp[0] * d1 + cp[1] * d2;
+            vt2[j] += cp[2] * d1 + cp[3] * d2;
+          }
+        } else {
+          for (int j = 0; j < k; ++j) {
+            const auto& cp = row.tangent_coupling[k * (k - 1) / 2 + j];
+            vt1[j] += cp[0] * d1 + cp[2] * d2;
+            vt2[j] += cp[1] * d1 + cp[3] * d2;
+          }
+        }
+        p += d1 * t1 + d2 * t2;
+        wa_t += d1 * pt.wt1a + d2 * pt.wt2a;
+        la_t += d1 * pt.rt1a + d2 * pt.rt2a;
+        wb_t += d1 * pt.wt1b + d2 * pt.wt2b;
+        lb_t += d1 * pt.rt1b + d2 * pt.rt2b;
       }
+      va += ma * p;
+      vb -= mb * p;
+      wa += wa_t;
+      wb -= wb_t;
+      dla += la_t;
+      dlb -= lb_t;
     }
     // a static or kinematic body is not written (its velocity does not change)
     if (ma != 0.0) {
