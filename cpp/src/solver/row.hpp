@@ -115,6 +115,29 @@ inline void friction_circle(double& l1, double& l2, double vt1, double vt2, doub
   l2 = n2;
 }
 
+// friction_circle as the change (d1, d2) (N·s) of the accumulated impulse (l1, l2): when
+// sticking, the block's step itself, −K_t⁻¹ v_t (the new impulse less the old would put
+// two more roundings and two more operations on the pass's chain of arithmetic); when
+// sliding, friction_circle's impulse less (l1, l2).
+inline void friction_change(double l1, double l2, double vt1, double vt2, double m11,
+                            double m12, double m22, double m, double limit, double& d1,
+                            double& d2) {
+  d1 = -(m11 * vt1 + m12 * vt2);
+  d2 = -(m12 * vt1 + m22 * vt2);
+  const double n1 = l1 + d1, n2 = l2 + d2;
+  if (n1 * n1 + n2 * n2 > limit * limit) {
+    double s1 = l1 - m * vt1, s2 = l2 - m * vt2;
+    const double sq = s1 * s1 + s2 * s2;
+    if (sq > limit * limit) {
+      const double k = sq > 0.0 ? limit / std::sqrt(sq) : 0.0;
+      s1 *= k;
+      s2 *= k;
+    }
+    d1 = s1 - l1;
+    d2 = s2 - l2;
+  }
+}
+
 // Separation now (m) of a point of a solver row: n · (d_a − d_b + R_a r_a − R_b r_b) + base,
 // with the normal turned back into each body's start frame (na, nb) instead of each anchor
 // forward, and moved = n · (d_a − d_b) (m).

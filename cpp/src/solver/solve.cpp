@@ -191,10 +191,10 @@ void solve_contacts_3d(const Model<3>& model, State<3>& st, Contacts<3>& c, doub
         Vec3& jt = c.tangent_impulse[m][k];
         if (limit == 0.0 && jt.x == 0.0 && jt.y == 0.0 && jt.z == 0.0) continue;
         const double l1 = dot(jt, t1), l2 = dot(jt, t2);
-        double n1 = l1, n2 = l2;
-        friction_circle(n1, n2, vt1[k], vt2[k], pt.tm11, pt.tm12, pt.tm22, pt.tangent_mass, limit);
-        jt = n1 * t1 + n2 * t2;
-        const double d1 = n1 - l1, d2 = n2 - l2;  // N·s: the impulse along t1, t2
+        double d1, d2;  // N·s: the impulse along t1, t2
+        friction_change(l1, l2, vt1[k], vt2[k], pt.tm11, pt.tm12, pt.tm22, pt.tangent_mass, limit,
+                        d1, d2);
+        jt = (l1 + d1) * t1 + (l2 + d2) * t2;
         // the points still to come: after k in the solve, before it in relax
         if (use_bias) {
           for (int j = k + 1; j < npts; ++j) {
