@@ -4,12 +4,16 @@ Both engines get the scene's dt (1/60 s), the same collision slop (rbsim's LINEA
 0.5 cm) and comparable solver work: rbsim runs its defaults (4 substeps, 1 solve + 1
 relax pass each: 8 velocity passes and a restitution pass per step); pymunk runs 10
 iterations per step (its usual setting). Each engine first steps WARMUP steps (the
-engine loaded, contacts formed, outside the timing), then the median of REPEATS timed
-blocks of STEPS steps is reported (rbsim on one thread). A second table times `rbsim
-run` end to end (frames written every step, and only the first and last) beside the
-engine alone and pymunk alone, and the writer's own cost per frame. The from-rest scenes
-(FROM_REST) are timed instead over their whole run from step 0, which a settled window
-leaves out (a pyramid settling, a pile forming): the median of REST_REPEATS fresh runs.
+engine loaded, contacts formed, outside the timing), then REPEATS timed blocks of STEPS
+steps, the two engines' blocks taken in turn so that a slow spell of the shared machine
+falls on both alike; each engine's median block is reported, and the ratio is the median
+over the rounds of rbsim's block over pymunk's (rbsim on one thread). A block's time is
+the CPU time of the thread that steps (both engines step on it), which a preempted or
+interrupted thread does not accrue. A second table times `rbsim run` end to end (frames
+written every step, and only the first and last) beside the engine alone and pymunk
+alone, and the writer's own cost per frame. The from-rest scenes (FROM_REST) are timed
+instead over their whole run from step 0, which a settled window leaves out (a pyramid
+settling, a pile forming): REST_REPEATS fresh runs of each engine, in turn.
 Timings report; they do not fail. After them, the 3D table (bench/bench3d.py): rbsim
 against MuJoCo and PyBullet (where installed) on 3D contact scenes at dt = 1/240 s.
 Between them, the threads table (bench/threads.py): rbsim on 1 and 2 threads, and the
@@ -29,7 +33,7 @@ from rbsim import constants as C
 from rbsim.engines import Engine, make_engine
 from rbsim.engines.pymunk import PymunkSettings
 from rbsim.scene import load_scene
-from rbsim.tools.measure import block_times
+from rbsim.tools.measure import interleaved_block_times, median_ratio
 
 from . import bench3d, print_header, threads
 
@@ -37,30 +41,38 @@ HERE = Path(__file__).parent
 SCENES = ["pyramid20", "circles1000", "pyramid40", "pyramids4x4", "pyramid30", "rain800"]
 WARMUP = 60
 STEPS = 60
-REPEATS = 5
+REPEATS = 9
 # scenes timed over their whole run from rest (the scene's steps)
 FROM_REST = {"pyramid30", "rain800"}
 REST_REPEATS = 3
 
 
-def time_engine(engine: Engine) -> tuple[float, int]:
-    """Median µs per step and the contact points at the end: WARMUP steps, then REPEATS
-    timed blocks of STEPS steps (wall time)."""
-    samples = block_times(engine, WARMUP, STEPS, REPEATS, time.perf_counter)
-    return statistics.median(samples), engine.contact_count
+def time_engines(engines: list[Engine]) -> tuple[list[float], float]:
+    """Median µs per step of each engine and the median ratio of the first's to the
+    second's: WARMUP steps each, then REPEATS rounds of a timed block of STEPS steps of
+    each in turn (the stepping thread's CPU time)."""
+    samples = interleaved_block_times(engines, WARMUP, STEPS, REPEATS, time.thread_time)
+    return [statistics.median(s) for s in samples], median_ratio(samples[0], samples[1])
 
 
-def time_from_rest(make) -> tuple[float, int]:  # noqa: ANN001 - a () -> Engine
-    """Median µs per step over whole runs from step 0 (the scene's steps), each in a fresh
-    engine, and the contact points at the end of the last."""
-    samples = []
+def time_from_rest(makes) -> tuple[list[float], float, int]:  # noqa: ANN001 - () -> Engine
+    """Median µs per step of each engine over whole runs from step 0 (the scene's steps),
+    each run in a fresh engine, the engines' runs taken in turn (REST_REPEATS rounds); the
+    median ratio of the first's runs to the second's, and the first's contact points at
+    the end of its last run."""
+    samples: list[list[float]] = [[] for _ in makes]
+    contacts = 0
     for _ in range(REST_REPEATS):
-        engine = make()
-        steps = engine.scene.world.steps
-        t0 = time.perf_counter()
-        engine.advance(steps)
-        samples.append((time.perf_counter() - t0) / steps * 1e6)
-    return statistics.median(samples), engine.contact_count
+        for k, (make, out) in enumerate(zip(makes, samples, strict=True)):
+            engine = make()
+            steps = engine.scene.world.steps
+            t0 = time.thread_time()
+            engine.advance(steps)
+            out.append((time.thread_time() - t0) / steps * 1e6)
+            if k == 0:
+                contacts = engine.contact_count
+    medians = [statistics.median(s) for s in samples]
+    return medians, median_ratio(samples[0], samples[1]), contacts
 
 
 def pymunk_engine(scene, iterations: int) -> Engine:  # noqa: ANN001 - a Scene
@@ -132,15 +144,18 @@ def table2d(names: list[str], iterations: int) -> None:
     for name in names:
         scene = load_scene(HERE / "scenes" / f"{name}.yaml")
         if name in FROM_REST:
-            rb, rb_contacts = time_from_rest(lambda s=scene: make_engine("rbsim", s))
-            pm, _ = time_from_rest(lambda s=scene: pymunk_engine(s, iterations))
+            makes = [
+                lambda s=scene: make_engine("rbsim", s),
+                lambda s=scene: pymunk_engine(s, iterations),
+            ]
+            (rb, pm), ratio, rb_contacts = time_from_rest(makes)
             name = f"{name} (rest)"
         else:
-            rb, rb_contacts = time_engine(make_engine("rbsim", scene))
-            pm, _ = time_engine(pymunk_engine(scene, iterations))
+            rbsim_engine = make_engine("rbsim", scene)
+            (rb, pm), ratio = time_engines([rbsim_engine, pymunk_engine(scene, iterations)])
+            rb_contacts = rbsim_engine.contact_count
         row = (
-            f"{name:<17}{len(scene.bodies):>5}{rb_contacts:>10}{rb:>11.1f}{pm:>11.1f}"
-            f"{rb / pm:>8.2f}"
+            f"{name:<17}{len(scene.bodies):>5}{rb_contacts:>10}{rb:>11.1f}{pm:>11.1f}{ratio:>8.2f}"
         )
         print(row, flush=True)
     print()

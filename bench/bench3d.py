@@ -44,6 +44,7 @@ from rbsim.engines import make_engine
 from rbsim.scene import Scene, load_scene_text
 from rbsim.scene import types as T
 from rbsim.scene.compile import build
+from rbsim.tools.measure import interleaved_block_times, median_ratio
 
 try:
     import mujoco
@@ -435,23 +436,15 @@ def measure_all(
     bodies' largest sideways move and sag (m) from the start."""
     runners = [make(scene) for make in makes]
     starts = [r.positions() for r in runners]
-    for r in runners:
-        r.advance(warmup)
-    samples: list[list[float]] = [[] for _ in runners]
-    for _ in range(repeats):
-        for r, out in zip(runners, samples, strict=True):
-            t0 = time.thread_time()
-            r.advance(steps)
-            out.append((time.thread_time() - t0) / steps * 1e6)
+    samples = interleaved_block_times(runners, warmup, steps, repeats, time.thread_time)
     top = tops(scene)
     results = []
     for r, start, us in zip(runners, starts, samples, strict=True):
         d = r.positions()[top] - start[top]
-        ratios = [a / b for a, b in zip(samples[0], us, strict=True) if b > 0.0]
         results.append(
             {
                 "us": statistics.median(us),
-                "ratio": statistics.median(ratios) if ratios else math.nan,
+                "ratio": median_ratio(samples[0], us),
                 "contacts": r.contacts(),
                 "move": float(np.max(np.hypot(d[:, 0], d[:, 2]))),
                 "sag": float(np.max(-d[:, 1])),

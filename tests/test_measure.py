@@ -135,3 +135,38 @@ def test_bad_input_is_refused_with_a_message():
         min_separation(
             v, np.array([0, 2], np.int32), np.array([2, 2], np.int32), np.zeros(2), [(0, 5)]
         )
+
+
+class _Clocked:
+    """A stand-in engine for the stopwatch: each advance(n) moves a shared fake clock by
+    n steps of `cost` seconds, and logs its name, so the order of the blocks shows."""
+
+    def __init__(self, name: str, cost: float, clock: list[float], log: list[str]) -> None:
+        self.name, self.cost, self.clock, self.log = name, cost, clock, log
+
+    def advance(self, n: int) -> None:
+        self.clock[0] += n * self.cost
+        self.log.append(self.name)
+
+
+def test_interleaved_blocks_alternate_and_time_each_engine_alone():
+    clock, log = [0.0], []
+    a = _Clocked("a", 2e-6, clock, log)
+    b = _Clocked("b", 5e-6, clock, log)
+    times = measure.interleaved_block_times([a, b], 3, 10, 4, lambda: clock[0])
+    # the warm-ups first, then the blocks in turn (a slow spell falls on both alike)
+    assert log == ["a", "b"] + ["a", "b"] * 4
+    # 1e-9 µs: the fake clock's sums of microsecond costs, rounded
+    assert times[0] == pytest.approx([2.0] * 4, abs=1e-9)
+    assert times[1] == pytest.approx([5.0] * 4, abs=1e-9)
+    assert measure.block_times(a, 0, 10, 2, lambda: clock[0]) == pytest.approx([2.0, 2.0])
+
+
+def test_the_median_ratio_pairs_the_rounds():
+    # a round's two blocks are divided, then the median taken: a slow round (the machine
+    # busy for both blocks) keeps its ratio, and one odd pair does not move the median
+    a = [1.0, 1.0, 4.0, 1.0, 3.0]
+    b = [2.0, 2.0, 8.0, 2.0, 2.0]
+    assert measure.median_ratio(a, b) == 0.5
+    assert measure.median_ratio([1.0, 3.0], [1.0, 1.0]) == 2.0  # even count: the middle two
+    assert math.isnan(measure.median_ratio([1.0], [0.0]))  # no valid pair

@@ -4,11 +4,13 @@
   at given centres of mass and angles, by the engine's own separation function
   (rbsim.core.min_separation: SAT separation of the shapes' cores minus their radii);
   `deepest_overlap` asks it of many poses (a run's frames) at once.
-- One stopwatch for engines stepped in blocks (block_times).
+- One stopwatch for engines stepped in blocks (block_times; interleaved_block_times for
+  engines timed against one another, and median_ratio of their paired times).
 """
 
 from __future__ import annotations
 
+import statistics
 import time
 from collections.abc import Callable
 
@@ -179,10 +181,32 @@ def block_times(
 ) -> list[float]:
     """µs per step of `repeats` blocks of `block` steps, after `warmup` untimed steps, by
     `clock` (s; CPU time by default, time.perf_counter for wall time)."""
-    engine.advance(warmup)
-    times = []
+    return interleaved_block_times([engine], warmup, block, repeats, clock)[0]
+
+
+def interleaved_block_times(
+    engines: list[Engine],
+    warmup: int,
+    block: int,
+    repeats: int,
+    clock: Callable[[], float] = time.process_time,
+) -> list[list[float]]:
+    """block_times of several engines, their blocks taken in turn (a block of each, then
+    again, `repeats` rounds) so that a slow spell of a shared machine falls on all of them
+    alike: one list of µs per step for each engine, in the engines' order."""
+    for engine in engines:
+        engine.advance(warmup)
+    times: list[list[float]] = [[] for _ in engines]
     for _ in range(repeats):
-        t0 = clock()
-        engine.advance(block)
-        times.append((clock() - t0) / block * 1e6)
+        for engine, out in zip(engines, times, strict=True):
+            t0 = clock()
+            engine.advance(block)
+            out.append((clock() - t0) / block * 1e6)
     return times
+
+
+def median_ratio(a: list[float], b: list[float]) -> float:
+    """The median over paired samples of a / b (the ratio of two engines' times from
+    blocks or runs taken in turn)."""
+    ratios = [x / y for x, y in zip(a, b, strict=True) if y > 0.0]
+    return statistics.median(ratios) if ratios else float("nan")
