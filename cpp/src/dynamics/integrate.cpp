@@ -143,7 +143,8 @@ void integrate_velocities(const Model<D>& model, State<D>& st, double h, Span bo
     if constexpr (D == 2) {
       const double alpha = model.body_inv_inertia[i] * torque;
       st.body_w[i] = (st.body_w[i] + h * alpha) * ang;
-    } else {
+    } else if (model.has_forces || ang != 1.0) {
+      // (without torque or damping L, and so ω, stays as it is)
       st.body_l[i] = (st.body_l[i] + h * torque) * ang;
       refresh_angular(model, st, i);
     }
