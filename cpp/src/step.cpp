@@ -270,9 +270,12 @@ bool World<D>::step() {
   // the restitution stage's list names this step's manifolds
   c.count.bounce_count = c.count.bounce_carried = c.count.elastic_listed = 0;
   const std::int64_t n_bodies = model.body_count();
+  // 3D with contacts: each body's world inverse inertia kept with its rotation, for the
+  // solver's passes (contacts.body_inv_inertia_world)
+  auto* inertia_world = D == 3 && contacts_on ? c.body_inv_inertia_world.data() : nullptr;
   auto move = [&] {
     parallel(n_bodies, [&](Span part) {
-      integrate_positions(model, state, c.body_delta, h, cfg.rotation, part);
+      integrate_positions(model, state, c.body_delta, h, cfg.rotation, part, inertia_world);
     });
   };
   auto accelerate = [&] {

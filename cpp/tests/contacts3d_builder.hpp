@@ -137,6 +137,7 @@ class Builder3 {
   // The rows, the solve order and zero body motion: what a step's collide leaves.
   void prepare() {
     World<3>& w = world;
+    world_inertia(w.model, w.state, w.contacts, Span{0, w.model.body_count()});
     prepare_contacts(w.model, w.state, w.contacts, w.config);
     w.contacts.count.shock_count = support_order(w.model, w.contacts);
     for (auto& d : w.contacts.body_delta) d = BodyDelta<3>{};

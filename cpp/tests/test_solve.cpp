@@ -261,7 +261,8 @@ TEST(resting_box_3d_four_points_hold_it) {
       integrate_velocities(w.model, w.state, h);
       warm_start(w.model, w.state, c);
       solve_pass3(w, true);
-      integrate_positions(w.model, w.state, c.body_delta, h, w.config.rotation);
+      integrate_positions(w.model, w.state, c.body_delta, h, w.config.rotation,
+                          Span{0, w.model.body_count()}, c.body_inv_inertia_world.data());
       solve_contacts(w.model, w.state, c, 1.0 / h, false, h, NO_BOUNCE, c.solve_order.data(), 1);
     }
     if (step >= 60) {  // after the first second, once the warm start has settled

@@ -179,6 +179,10 @@ struct Contacts {
   std::vector<typename Dim<D>::RefPose> body_ref;  // reference pose; NaN until first taken
   std::vector<std::uint8_t> body_still;  // within STILL_DISTANCE/ANGLE of its reference pose
   std::vector<BodyDelta<D>> body_delta;  // motion since the step's start
+  // 3D (2D: empty): 1/(kg·m²), each body's inverse inertia tensor in world axes at its
+  // rotation now, R I_b⁻¹ Rᵀ (world_inertia at the step's start, integrate_positions when
+  // the body turns), so that the solver's passes find ω = I⁻¹ L with one product
+  std::vector<typename Dim<D>::Inertia> body_inv_inertia_world;
   // per vertex / shape
   // two shapes moved to their time of impact: (V,) vertex rows; (V,) normal rows in 2D,
   // (2V,) in 3D: a hull's face normals (at most 2 per vertex: a closed triangulated
@@ -278,7 +282,7 @@ bool Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   unset.x = nan * unset.x;
   if constexpr (D == 2) unset.angle = nan;
   body_ref.assign(n, unset);
-  reset(body_still, n); reset(body_delta, n);
+  reset(body_still, n); reset(body_delta, n); reset(body_inv_inertia_world, D == 3 ? n : 0);
   reset(toi_verts, v < 2 ? 2 : v); reset(toi_norms, D == 2 ? (v < 2 ? 2 : v) : 2 * v + 2);
   reset(vert_world, v); reset(norm_world, v); reset(shape_margin, s);
   shape_size.assign(s, 1.0); shape_scale.assign(s, 1.0); body_scale.assign(n, 1.0);

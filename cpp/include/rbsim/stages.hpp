@@ -153,13 +153,21 @@ void integrate_velocities(const Model<D>& model, State<D>& state, double h, Span
 
 // dynamics/integrate.cpp: x += h v, q turned by ω h (exact) or the notes' update;
 // delta accumulates each body's motion since the step's start.
+// 3D: inv_inertia_world (N,), when given, is kept at each turned body's new rotation (its
+// inverse inertia tensor in world axes, contacts.body_inv_inertia_world), and a dynamic
+// body's ω is found from L through it; without it, as apply_inv_inertia.
 template <int D>
 void integrate_positions(const Model<D>& model, State<D>& state,
                          std::vector<BodyDelta<D>>& delta, double h, Rotation rotation);
 template <int D>
 void integrate_positions(const Model<D>& model, State<D>& state,
                          std::vector<BodyDelta<D>>& delta, double h, Rotation rotation,
-                         Span bodies);
+                         Span bodies, typename Dim<D>::Inertia* inv_inertia_world = nullptr);
+
+// collide/transform.cpp (3D): contacts.body_inv_inertia_world of the bodies `bodies` at
+// their rotations now (transform_shapes makes it for every body at the step's start).
+void world_inertia(const Model<3>& model, const State<3>& state, Contacts<3>& contacts,
+                   Span bodies);
 
 // solver/warm_start.cpp: last substep's accumulated impulses applied again.
 template <int D>

@@ -79,6 +79,7 @@ void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>&
   auto& still = contacts.body_still;
   for (auto i = static_cast<std::size_t>(bodies.first); i < static_cast<std::size_t>(bodies.last); ++i)
     still[i] = near_reference(ref[i], state, i, contacts.body_scale[i]);
+  if constexpr (D == 3) world_inertia(model, state, contacts, bodies);
 
   Vec* vw = contacts.vert_world.data();
   Vec* nw = contacts.norm_world.data();
@@ -111,6 +112,12 @@ void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>&
       for (int f = 0; f < hull.face_count(); ++f) fw[f] = rotate(q, hull.face_normal[f]);
     }
   }
+}
+
+void world_inertia(const Model<3>& model, const State<3>& state, Contacts<3>& contacts,
+                   Span bodies) {
+  for (std::int64_t i = bodies.first; i < bodies.last; ++i)
+    contacts.body_inv_inertia_world[i] = world_tensor(state.body_q[i], model.body_inv_inertia[i]);
 }
 
 bool build_shape_hulls(Model<3>& model, std::string* error) {

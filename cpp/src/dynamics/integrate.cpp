@@ -230,7 +230,8 @@ void integrate_positions(const Model<D>& model, State<D>& st, std::vector<BodyDe
 
 template <int D>
 void integrate_positions(const Model<D>& model, State<D>& st, std::vector<BodyDelta<D>>& delta,
-                         double h, Rotation rotation, Span bodies) {
+                         double h, Rotation rotation, Span bodies,
+                         typename Dim<D>::Inertia* inv_inertia_world) {
   double unused_angle = 0.0;
   const bool exact = rotation != Rotation::Normalize;
   const int n = static_cast<int>(bodies.last);
@@ -260,7 +261,17 @@ void integrate_positions(const Model<D>& model, State<D>& st, std::vector<BodyDe
     } else {
       r = turn(st.body_q[i], angle, st.body_w[i], h, exact);
     }
-    if (model.is_dynamic(i)) refresh_angular(model, st, i);
+    if constexpr (D == 3) {
+      if (inv_inertia_world) {
+        // the tensor at the new rotation, and ω through it
+        inv_inertia_world[i] = world_tensor(st.body_q[i], model.body_inv_inertia[i]);
+        if (model.is_dynamic(i)) st.body_w[i] = inv_inertia_world[i] * st.body_l[i];
+      } else if (model.is_dynamic(i)) {
+        refresh_angular(model, st, i);
+      }
+    } else if (model.is_dynamic(i)) {
+      refresh_angular(model, st, i);
+    }
     delta[i].dx += dx;
     delta[i].dq = mul(r, delta[i].dq);
   }
@@ -269,8 +280,8 @@ void integrate_positions(const Model<D>& model, State<D>& st, std::vector<BodyDe
 template void integrate_velocities(const Model<2>&, State<2>&, double);
 template void integrate_velocities(const Model<2>&, State<2>&, double, Span);
 template void integrate_velocities(const Model<3>&, State<3>&, double, Span);
-template void integrate_positions(const Model<2>&, State<2>&, std::vector<BodyDelta<2>>&, double, Rotation, Span);
-template void integrate_positions(const Model<3>&, State<3>&, std::vector<BodyDelta<3>>&, double, Rotation, Span);
+template void integrate_positions(const Model<2>&, State<2>&, std::vector<BodyDelta<2>>&, double, Rotation, Span, double*);
+template void integrate_positions(const Model<3>&, State<3>&, std::vector<BodyDelta<3>>&, double, Rotation, Span, Sym3*);
 template void integrate_positions(const Model<2>&, State<2>&, std::vector<BodyDelta<2>>&, double, Rotation);
 template void integrate_velocities(const Model<3>&, State<3>&, double);
 template void integrate_positions(const Model<3>&, State<3>&, std::vector<BodyDelta<3>>&, double, Rotation);

@@ -41,9 +41,10 @@ inline void add_angular(const Model<3>& model, State<3>& st, int i, Vec3 dl) {
   st.body_l[i] += dl;
   st.body_w[i] = Dim<3>::apply_inv_inertia(model.body_inv_inertia[i], st.body_q[i], st.body_l[i]);
 }
-// 3D: body i's ω from its L after the passes changed L (a dynamic body only).
-inline void refresh_omega(const Model<3>& model, State<3>& st, int i) {
-  st.body_w[i] = Dim<3>::apply_inv_inertia(model.body_inv_inertia[i], st.body_q[i], st.body_l[i]);
+// 3D: body i's ω from its L after the passes changed L (a dynamic body only), through its
+// inverse inertia tensor in world axes at its rotation now (contacts.body_inv_inertia_world).
+inline void refresh_omega(const Contacts<3>& c, State<3>& st, int i) {
+  st.body_w[i] = c.body_inv_inertia_world[i] * st.body_l[i];
 }
 
 // Apply the impulse p (N·s) at a point with arms ra, rb (m): +p on a, −p on b.

@@ -257,7 +257,7 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
     if (!pushed) continue;
     st.body_v[u] = vu;
     st.body_l[u] += dl;
-    refresh_omega(model, st, u);
+    refresh_omega(c, st, u);
   }
 }
 

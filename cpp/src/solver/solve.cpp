@@ -226,12 +226,12 @@ void solve_contacts_3d(const Model<3>& model, State<3>& st, Contacts<3>& c, doub
     if (ma != 0.0) {
       v[a] = va;
       l[a] += dla;
-      refresh_omega(model, st, a);
+      refresh_omega(c, st, a);
     }
     if (mb != 0.0) {
       v[b] = vb;
       l[b] += dlb;
-      refresh_omega(model, st, b);
+      refresh_omega(c, st, b);
     }
   }
 }

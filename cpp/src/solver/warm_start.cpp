@@ -32,11 +32,13 @@ void warm_start_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
     }
     if (im[a] != 0.0) {
       st.body_v[a] += im[a] * p;
-      add_angular(model, st, a, la);
+      st.body_l[a] += la;
+      refresh_omega(c, st, a);
     }
     if (im[b] != 0.0) {
       st.body_v[b] -= im[b] * p;
-      add_angular(model, st, b, -lb);
+      st.body_l[b] -= lb;
+      refresh_omega(c, st, b);
     }
   }
 }

@@ -33,7 +33,8 @@ void visit(W& w, F&& f) {
   f(c.prev_normal), f(c.prev_anchor_a), f(c.prev_anchor_b), f(c.prev_ref_separation);
   f(c.sep_anchor_a), f(c.sep_anchor_b), f(c.prev_sep_anchor_a), f(c.prev_sep_anchor_b);
   f(c.scale), f(c.shape_size), f(c.shape_scale), f(c.body_scale);
-  f(c.body_ref), f(c.body_still), f(c.body_delta), f(c.toi_verts), f(c.toi_norms);
+  f(c.body_ref), f(c.body_still), f(c.body_delta), f(c.body_inv_inertia_world);
+  f(c.toi_verts), f(c.toi_norms);
   f(c.vert_world), f(c.norm_world), f(c.face_world), f(c.shape_margin), f(c.body_level), f(c.shock_side);
   f(c.shock_order), f(c.solve_order), f(c.adj_start), f(c.adj), f(c.queue), f(c.bounce_kind);
   f(c.body_mark), f(c.solve_impulse), f(c.bounce_list), f(c.relax_list), f(c.body_reach);
@@ -49,9 +50,9 @@ static_assert(sizeof(Grid<2>) == 8 + 16 * VEC + sizeof(Vec2) + sizeof(GridMeta<2
               "Grid changed: update visit()");
 static_assert(sizeof(Grid<3>) == 8 + 16 * VEC + sizeof(Vec3) + sizeof(GridMeta<3>),
               "Grid changed: update visit()");
-static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 75 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 76 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
-static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 75 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 76 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
 
 template <class T>
