@@ -101,10 +101,9 @@ struct SolverRow<3> {
     // kg: the inverse of the point's 2×2 tangent block K_t (rows t1, t2), symmetric
     double tm11 = 0, tm12 = 0, tm22 = 0;
     double tangent_mass = 0;  // kg: 2 / trace K_t, the sliding step's (friction_circle)
-    // friction's unit impulses along t1 and t2: their levers r × t_i (m) and the changes
-    // of ω they make, I⁻¹ (r × t_i) (1/(kg·m)), for each body (world frame, step's start)
+    // m: friction's levers r × t1, r × t2 on each body (the moments of unit impulses
+    // along the tangents; the ω they make is the row's inverse inertia times them)
     Vec3 rt1a, rt2a, rt1b, rt2b;
-    Vec3 wt1a, wt2a, wt1b, wt2b;
   };
   Vec3 normal;             // from b towards a
   Vec3 t1, t2;             // the tangent basis: t1 × t2 = n

@@ -68,7 +68,6 @@ void prepare_points_3d(const State<3>& st, Contacts<3>& c, std::int64_t m, int a
     const Vec3 a1 = cross(ra, t1), a2 = cross(ra, t2), b1 = cross(rb, t1), b2 = cross(rb, t2);
     const Vec3 ia1 = ia * a1, ia2 = ia * a2, ib1 = ib * b1, ib2 = ib * b2;
     pt.rt1a = a1, pt.rt2a = a2, pt.rt1b = b1, pt.rt2b = b2;
-    pt.wt1a = ia1, pt.wt2a = ia2, pt.wt1b = ib1, pt.wt2b = ib2;
     const double k11 = ma + mb + dot(a1, ia1) + dot(b1, ib1);
     const double k22 = ma + mb + dot(a2, ia2) + dot(b2, ib2);
     const double k12 = dot(a1, ia2) + dot(b1, ib2);
@@ -94,10 +93,11 @@ void prepare_points_3d(const State<3>& st, Contacts<3>& c, std::int64_t m, int a
       const auto& pi = row.point[i];
       const auto& pj = row.point[j];
       auto& cp = row.tangent_coupling[i * (i - 1) / 2 + j];
-      cp[0] = ma + mb + dot(pi.rt1a, pj.wt1a) + dot(pi.rt1b, pj.wt1b);
-      cp[1] = dot(pi.rt1a, pj.wt2a) + dot(pi.rt1b, pj.wt2b);
-      cp[2] = dot(pi.rt2a, pj.wt1a) + dot(pi.rt2b, pj.wt1b);
-      cp[3] = ma + mb + dot(pi.rt2a, pj.wt2a) + dot(pi.rt2b, pj.wt2b);
+      const Vec3 ja1 = ia * pj.rt1a, ja2 = ia * pj.rt2a, jb1 = ib * pj.rt1b, jb2 = ib * pj.rt2b;
+      cp[0] = ma + mb + dot(pi.rt1a, ja1) + dot(pi.rt1b, jb1);
+      cp[1] = dot(pi.rt1a, ja2) + dot(pi.rt1b, jb2);
+      cp[2] = dot(pi.rt2a, ja1) + dot(pi.rt2b, jb1);
+      cp[3] = ma + mb + dot(pi.rt2a, ja2) + dot(pi.rt2b, jb2);
     }
   }
   // the normal block: K_ij = 1/m_a + 1/m_b + (r_a,i × n)·I_a⁻¹(r_a,j × n) + (b likewise)

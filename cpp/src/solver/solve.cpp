@@ -183,7 +183,7 @@ void solve_contacts_3d(const Model<3>& model, State<3>& st, Contacts<3>& c, doub
         vt1[k] = dv1 + (dot(wa, pt.rt1a) - dot(wb, pt.rt1b));
         vt2[k] = dv2 + (dot(wa, pt.rt2a) - dot(wb, pt.rt2b));
       }
-      Vec3 p{}, wa_t{}, wb_t{}, la_t{}, lb_t{};  // N·s, 1/s, 1/s, N·m·s, N·m·s
+      Vec3 p{}, la_t{}, lb_t{};  // N·s, N·m·s, N·m·s
       for (int i = 0; i < npts; ++i) {
         const int k = use_bias ? i : npts - 1 - i;
         const auto& pt = row.point[k];
@@ -210,15 +210,13 @@ void solve_contacts_3d(const Model<3>& model, State<3>& st, Contacts<3>& c, doub
           }
         }
         p += d1 * t1 + d2 * t2;
-        wa_t += d1 * pt.wt1a + d2 * pt.wt2a;
         la_t += d1 * pt.rt1a + d2 * pt.rt2a;
-        wb_t += d1 * pt.wt1b + d2 * pt.wt2b;
         lb_t += d1 * pt.rt1b + d2 * pt.rt2b;
       }
       va += ma * p;
       vb -= mb * p;
-      wa += wa_t;
-      wb -= wb_t;
+      wa += row.inv_ia * la_t;
+      wb -= row.inv_ib * lb_t;
       dla += la_t;
       dlb -= lb_t;
     }
