@@ -81,12 +81,14 @@ static_assert(sizeof(SolverRow<2>) == 32 * sizeof(double));
 // a manifold writes each body's ω back from its angular momentum, see solve.cpp).
 // A symmetric block of up to four rows as L D Lᵀ (row.hpp, factor_block): L unit lower
 // triangular, D diagonal. Its units are the block's (here 1/kg).
+// (No default member values: a solve makes one on its stack for a face whose points are
+// pushed out in part, written only where used; a row's are value-initialised with it.)
 struct BlockFactor {
-  double l[6] = {0, 0, 0, 0, 0, 0};  // L below the diagonal by rows: L10 L20 L21 L30 L31 L32
-  double d[4] = {0, 0, 0, 0};        // D's diagonal
-  double inv_d[4] = {0, 0, 0, 0};    // 1 / D's diagonal (a solve multiplies: no division)
-  double ok = 0;  // 1 when every pivot was positive (else the block is not solved at once)
-  double pad = 0;
+  double l[6];      // L below the diagonal by rows: L10 L20 L21 L30 L31 L32
+  double d[4];      // D's diagonal
+  double inv_d[4];  // 1 / D's diagonal (a solve multiplies: no division)
+  double ok;        // 1 when every pivot was positive (else the block is not solved at once)
+  double pad;
 };
 
 template <>
@@ -119,7 +121,7 @@ struct SolverRow<3> {
   // the normal block's LDLᵀ factors for the passes' two usual cases (row.hpp,
   // factor_block): `rigid`, K + ε diag(K) (the relax stage, and a solve in which no point
   // overlaps); `soft`, with every point's γ added (a solve in which every point overlaps)
-  BlockFactor rigid, soft;
+  BlockFactor rigid{}, soft{};
   // kg⁻¹: how friction at one point moves another's sliding velocity. For points i > j,
   // tangent_coupling[i (i − 1) / 2 + j] is the 2×2 block (row-major: t1 t1, t1 t2, t2 t1,
   // t2 t2) of K_t between them: the change of point i's (v·t1, v·t2) per unit impulse
