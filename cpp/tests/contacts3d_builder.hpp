@@ -40,7 +40,7 @@ inline Mat3 matrix(Quat q) {
            {2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)},
            {2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)}}};
 }
-// R M Rᵀ v, written out with the matrix (independent of math.hpp's rotate_tensor).
+// R M Rᵀ v, written out with the matrix (independent of math.hpp's world_tensor).
 inline Vec3 world_apply(Quat q, const Sym3& m, Vec3 v) {
   const Mat3 R = matrix(q);
   const double u[3] = {v.x, v.y, v.z};

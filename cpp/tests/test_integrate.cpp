@@ -131,7 +131,7 @@ struct Tumbler {
     // I_b = P diag P^T, its inverse alike
     auto tensor = [&](Vec3 d) {
       Sym3 diag{d.x, d.y, d.z, 0, 0, 0};
-      return rotate_tensor(axes, diag);
+      return world_tensor(axes, diag);
     };
     m.body_inertia = {tensor(moments)};
     m.body_inv_inertia = {tensor({1 / moments.x, 1 / moments.y, 1 / moments.z})};

@@ -101,16 +101,8 @@ constexpr Vec3 operator*(const Sym3& m, Vec3 v) {
   return {m.xx * v.x + m.xy * v.y + m.xz * v.z, m.xy * v.x + m.yy * v.y + m.yz * v.z,
           m.xz * v.x + m.yz * v.y + m.zz * v.z};
 }
-// R M Rᵀ: a body-frame tensor seen in the world frame.
-inline Sym3 rotate_tensor(Quat q, const Sym3& m) {
-  Vec3 c0 = rotate(q, m * inv_rotate(q, Vec3{1, 0, 0}));
-  Vec3 c1 = rotate(q, m * inv_rotate(q, Vec3{0, 1, 0}));
-  Vec3 c2 = rotate(q, m * inv_rotate(q, Vec3{0, 0, 1}));
-  return {c0.x, c1.y, c2.z, 0.5 * (c1.x + c0.y), 0.5 * (c2.x + c0.z), 0.5 * (c2.y + c1.z)};
-}
-
-// R M Rᵀ through the rotation matrix R of the unit quaternion q (fewer operations than
-// rotate_tensor's three turned columns; the two agree to rounding).
+// R M Rᵀ: a body-frame tensor seen in the world frame, through the rotation matrix R of
+// the unit quaternion q.
 inline Sym3 world_tensor(Quat q, const Sym3& m) {
   const double xx = q.x * q.x, yy = q.y * q.y, zz = q.z * q.z;
   const double xy = q.x * q.y, xz = q.x * q.z, yz = q.y * q.z;

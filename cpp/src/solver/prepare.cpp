@@ -52,6 +52,7 @@ void prepare_points_3d(const State<3>& st, Contacts<3>& c, std::int64_t m, int a
   row.inv_ia = ia;
   row.inv_ib = ib;
   const Vec3 t1 = row.t1, t2 = row.t2;
+  Vec3 inv_rt[4][4];  // 1/(kg·m): each point's I_a⁻¹(r_a × t1), I_a⁻¹(r_a × t2), I_b⁻¹ alike
   for (int k = 0; k < c.points[m]; ++k) {
     auto& pt = row.point[k];
     const Vec3 ra = c.anchor_a[m][k], rb = c.anchor_b[m][k];
@@ -68,6 +69,7 @@ void prepare_points_3d(const State<3>& st, Contacts<3>& c, std::int64_t m, int a
     const Vec3 a1 = cross(ra, t1), a2 = cross(ra, t2), b1 = cross(rb, t1), b2 = cross(rb, t2);
     const Vec3 ia1 = ia * a1, ia2 = ia * a2, ib1 = ib * b1, ib2 = ib * b2;
     pt.rt1a = a1, pt.rt2a = a2, pt.rt1b = b1, pt.rt2b = b2;
+    inv_rt[k][0] = ia1, inv_rt[k][1] = ia2, inv_rt[k][2] = ib1, inv_rt[k][3] = ib2;
     const double k11 = ma + mb + dot(a1, ia1) + dot(b1, ib1);
     const double k22 = ma + mb + dot(a2, ia2) + dot(b2, ib2);
     const double k12 = dot(a1, ia2) + dot(b1, ib2);
@@ -93,7 +95,7 @@ void prepare_points_3d(const State<3>& st, Contacts<3>& c, std::int64_t m, int a
       const auto& pi = row.point[i];
       const auto& pj = row.point[j];
       auto& cp = row.tangent_coupling[i * (i - 1) / 2 + j];
-      const Vec3 ja1 = ia * pj.rt1a, ja2 = ia * pj.rt2a, jb1 = ib * pj.rt1b, jb2 = ib * pj.rt2b;
+      const Vec3 ja1 = inv_rt[j][0], ja2 = inv_rt[j][1], jb1 = inv_rt[j][2], jb2 = inv_rt[j][3];
       cp[0] = ma + mb + dot(pi.rt1a, ja1) + dot(pi.rt1b, jb1);
       cp[1] = dot(pi.rt1a, ja2) + dot(pi.rt1b, jb2);
       cp[2] = dot(pi.rt2a, ja1) + dot(pi.rt2b, jb1);
@@ -191,8 +193,9 @@ void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c,
     row.deep = -scale * C::DEEP_OVERLAP;
     row.friction = c.friction[m];
     if constexpr (D == 3) {
-      prepare_points_3d(st, c, m, a, b, ma, mb, rotate_tensor(st.body_q[a], ii[a]),
-                        rotate_tensor(st.body_q[b], ii[b]));
+      // the world tensors at the step's start, as transform_shapes made them
+      prepare_points_3d(st, c, m, a, b, ma, mb, c.body_inv_inertia_world[a],
+                        c.body_inv_inertia_world[b]);
     } else {
     const double ia = ii[a], ib = ii[b];
     const Vec t = cross(n, 1.0);  // (n_y, −n_x)

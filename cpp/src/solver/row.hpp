@@ -88,6 +88,20 @@ inline void tangent_basis(Vec3 n, Vec3& t1, Vec3& t2) {
   t2 = cross(n, t1);
 }
 
+// The sliding step of friction_circle: the impulse (n1, n2) (N·s) against the slip with
+// the mean mass m (kg), scaled back onto the circle of radius `limit` (N·s).
+inline void friction_slide(double l1, double l2, double vt1, double vt2, double m, double limit,
+                           double& n1, double& n2) {
+  n1 = l1 - m * vt1;
+  n2 = l2 - m * vt2;
+  const double sq = n1 * n1 + n2 * n2;
+  if (sq > limit * limit) {
+    const double k = sq > 0.0 ? limit / std::sqrt(sq) : 0.0;
+    n1 *= k;
+    n2 *= k;
+  }
+}
+
 // 3D: Coulomb friction at a point, as the accumulated impulse (l1, l2) (N·s, components
 // along t1, t2) given the sliding velocity (vt1, vt2) (m/s) now. Sticking: the impulse
 // that stops the sliding at once, through the inverse of the point's 2×2 tangent block
@@ -102,16 +116,7 @@ inline void friction_circle(double& l1, double& l2, double vt1, double vt2, doub
                             double m12, double m22, double m, double limit) {
   double n1 = l1 - (m11 * vt1 + m12 * vt2);
   double n2 = l2 - (m12 * vt1 + m22 * vt2);
-  if (n1 * n1 + n2 * n2 > limit * limit) {
-    n1 = l1 - m * vt1;
-    n2 = l2 - m * vt2;
-    const double sq = n1 * n1 + n2 * n2;
-    if (sq > limit * limit) {
-      const double k = sq > 0.0 ? limit / std::sqrt(sq) : 0.0;
-      n1 *= k;
-      n2 *= k;
-    }
-  }
+  if (n1 * n1 + n2 * n2 > limit * limit) friction_slide(l1, l2, vt1, vt2, m, limit, n1, n2);
   l1 = n1;
   l2 = n2;
 }
@@ -119,7 +124,7 @@ inline void friction_circle(double& l1, double& l2, double vt1, double vt2, doub
 // friction_circle as the change (d1, d2) (N·s) of the accumulated impulse (l1, l2): when
 // sticking, the block's step itself, −K_t⁻¹ v_t (the new impulse less the old would put
 // two more roundings and two more operations on the pass's chain of arithmetic); when
-// sliding, friction_circle's impulse less (l1, l2).
+// sliding, friction_slide's impulse less (l1, l2).
 inline void friction_change(double l1, double l2, double vt1, double vt2, double m11,
                             double m12, double m22, double m, double limit, double& d1,
                             double& d2) {
@@ -127,13 +132,8 @@ inline void friction_change(double l1, double l2, double vt1, double vt2, double
   d2 = -(m12 * vt1 + m22 * vt2);
   const double n1 = l1 + d1, n2 = l2 + d2;
   if (n1 * n1 + n2 * n2 > limit * limit) {
-    double s1 = l1 - m * vt1, s2 = l2 - m * vt2;
-    const double sq = s1 * s1 + s2 * s2;
-    if (sq > limit * limit) {
-      const double k = sq > 0.0 ? limit / std::sqrt(sq) : 0.0;
-      s1 *= k;
-      s2 *= k;
-    }
+    double s1, s2;
+    friction_slide(l1, l2, vt1, vt2, m, limit, s1, s2);
     d1 = s1 - l1;
     d2 = s2 - l2;
   }
@@ -259,17 +259,6 @@ inline void factor_block(const std::array<double, 10>& k, const double* g, int n
     for (int j = i; j < 4; ++j, ++e) A[i][j] = A[j][i] = k[e];
   for (int i = 0; i < n; ++i) A[i][i] += g[i] + BLOCK_EPS * A[i][i];
   f.ok = ldlt_factor(A, n, 1e-12, f) ? 1.0 : 0.0;
-}
-
-// Solve (K + diag(g) + BLOCK_EPS diag(K)) d = r for the n points (n <= 4) (factor_block's
-// block), r (m/s); d in N·s. false when a pivot is not positive.
-inline bool solve_block(const std::array<double, 10>& k, const double* g, const double* r,
-                        int n, double* d) {
-  BlockFactor f;
-  factor_block(k, g, n, f);
-  if (f.ok == 0.0) return false;
-  ldlt_apply(f, n, r, d);
-  return true;
 }
 
 }  // namespace rbsim

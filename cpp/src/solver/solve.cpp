@@ -79,7 +79,7 @@ inline void mark_deep(PassLog& log, std::int64_t m) { log.add_deep(static_cast<s
 // its diagonal, which picks the smallest change of the impulses (the right-hand side,
 // the rigid bodies' own normal velocities, lies in K's range). When the block would pull
 // (an impulse < 0: a face tipping), the points go one after the other, the solve stage
-// forward and the relax stage backward. (solve_block, BLOCK_EPS: row.hpp)
+// forward and the relax stage backward. (factor_block, BLOCK_EPS: row.hpp)
 void solve_contacts_3d(const Model<3>& model, State<3>& st, Contacts<3>& c, double inv_h,
                        bool use_bias, double shift, double threshold, const std::int32_t* order,
                        std::int64_t n, PassLog& log) {
