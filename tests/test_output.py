@@ -435,7 +435,23 @@ def test_resume_from_a_damaged_checkpoint_is_a_message(reference, tmp_path) -> N
     with h5py.File(out, "a") as f:  # as a killed run leaves it, with a cut checkpoint
         f["parameters/rbsim/status"][()] = b"running"
     Path(f"{out}{CHECKPOINT_SUFFIX}").write_bytes(
-        b"RBSIMRS1" + (31).to_bytes(8, "little") * 2 + b"RBSIMCK2"
+        b"RBSIMRS1" + (31).to_bytes(8, "little") * 2 + b"RBSIMCK3"
     )
     code, _o, err = rbsim("run", "--resume", out)
     assert code == 1 and "checkpoint" in err and "Traceback" not in err
+
+
+def test_resume_from_another_versions_checkpoint_says_so(reference, tmp_path) -> None:
+    folder, scene, _ref = reference
+    out = tmp_path / "older.h5"
+    code, _o, err = rbsim("run", scene, "-o", out, "-q", "--set", "world.steps=30")
+    assert code == 0, err
+    with h5py.File(out, "a") as f:  # as a killed run leaves it
+        f["parameters/rbsim/status"][()] = b"running"
+    # an engine checkpoint of format 2 (before the store kept the bodies' world inertia)
+    Path(f"{out}{CHECKPOINT_SUFFIX}").write_bytes(
+        b"RBSIMRS1" + (31).to_bytes(8, "little") * 2 + b"RBSIMCK2" + bytes(64)
+    )
+    code, _o, err = rbsim("run", "--resume", out)
+    assert code == 1 and "another version of rbsim's engine" in err, err
+    assert "Traceback" not in err

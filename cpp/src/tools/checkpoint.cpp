@@ -8,7 +8,9 @@
 namespace rbsim {
 namespace {
 
-constexpr char MAGIC[8] = {'R', 'B', 'S', 'I', 'M', 'C', 'K', '2'};
+// The last byte is the format: 3 since the contact store keeps each body's world inverse
+// inertia (a checkpoint of another format is refused with a message saying so).
+constexpr char MAGIC[8] = {'R', 'B', 'S', 'I', 'M', 'C', 'K', '3'};
 
 // Every member of the world that changes while it runs, in one fixed order. A member
 // added to State, Grid or Contacts must be added here too: the static_asserts on their
@@ -174,6 +176,10 @@ void load_checkpoint(World<D>& world, const std::uint8_t* data, std::size_t size
   Reader rd{data, data + size};
   char magic[8];
   rd.bytes(magic, sizeof magic);
+  if (std::memcmp(magic, MAGIC, sizeof MAGIC - 1) == 0 && magic[7] != MAGIC[7])
+    throw std::invalid_argument(std::string("checkpoint: made by another version of rbsim's engine "
+                                            "(format ") + magic[7] + ", this one reads " +
+                                MAGIC[7] + "): resume it with the version that wrote it");
   if (std::memcmp(magic, MAGIC, sizeof MAGIC) != 0)
     throw std::invalid_argument("checkpoint: not an rbsim engine checkpoint");
   Sizes sz{}, want = sizes_of(world);
