@@ -91,8 +91,17 @@ struct BlockFactor {
   double pad;
 };
 
+// Three components of four points, component by component (x of points 0..3, then y,
+// then z): a component of every point loads as one vector of four lanes (wide.hpp).
+struct Vec3x4 {
+  alignas(32) double x[4], y[4], z[4];
+  Vec3 operator[](int k) const { return {x[k], y[k], z[k]}; }
+  void set(int k, Vec3 v) { x[k] = v.x, y[k] = v.y, z[k] = v.z; }
+};
+
 template <>
 struct SolverRow<3> {
+  // One point of the row, as the passes that take a point at a time read it.
   struct Point {
     Vec3 ra, rb;        // m: separation anchors from each COM (sep_anchor_a, _b)
     Vec3 arm_a, arm_b;  // m: lever arms, the contact point from each COM (anchor_a, _b)
@@ -106,6 +115,26 @@ struct SolverRow<3> {
     // m: friction's levers r × t1, r × t2 on each body (the moments of unit impulses
     // along the tangents; the ω they make is the row's inverse inertia times them)
     Vec3 rt1a, rt2a, rt1b, rt2b;
+  };
+  // The four points' fields as Point names them, stored field by field (structure of
+  // arrays), so that the solve takes a field of a face's points as one vector. A point
+  // past the manifold's count is all zeros (prepare_contacts), so a lane of it adds
+  // nothing to a sum. point[k] reads point k as one Point.
+  struct Points {
+    Vec3x4 ra, rb, arm_a, arm_b, rna, rnb, wna, wnb, rt1a, rt2a, rt1b, rt2b;
+    alignas(32) double kn[4], base[4], tm11[4], tm12[4], tm22[4], tangent_mass[4];
+    Point operator[](int k) const {
+      return {ra[k],  rb[k],      arm_a[k],   arm_b[k],   rna[k],     rnb[k],
+              wna[k], wnb[k],     kn[k],      base[k],    tm11[k],    tm12[k],
+              tm22[k], tangent_mass[k], rt1a[k], rt2a[k], rt1b[k], rt2b[k]};
+    }
+    void set(int k, const Point& p) {
+      ra.set(k, p.ra), rb.set(k, p.rb), arm_a.set(k, p.arm_a), arm_b.set(k, p.arm_b);
+      rna.set(k, p.rna), rnb.set(k, p.rnb), wna.set(k, p.wna), wnb.set(k, p.wnb);
+      kn[k] = p.kn, base[k] = p.base, tm11[k] = p.tm11, tm12[k] = p.tm12, tm22[k] = p.tm22;
+      tangent_mass[k] = p.tangent_mass;
+      rt1a.set(k, p.rt1a), rt2a.set(k, p.rt2a), rt1b.set(k, p.rt1b), rt2b.set(k, p.rt2b);
+    }
   };
   Vec3 normal;             // from b towards a
   Vec3 t1, t2;             // the tangent basis: t1 × t2 = n
@@ -127,7 +156,7 @@ struct SolverRow<3> {
   // t2 t2) of K_t between them: the change of point i's (v·t1, v·t2) per unit impulse
   // along t1, t2 at point j (its transpose, j's per unit impulse at i)
   std::array<std::array<double, 4>, 6> tangent_coupling{};
-  std::array<Point, 4> point;
+  Points point{};
 };
 
 template <int D>

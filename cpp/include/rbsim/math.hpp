@@ -110,6 +110,14 @@ inline Sym3 world_tensor(Quat q, const Sym3& m) {
   const double r[3][3] = {{1.0 - 2.0 * (yy + zz), 2.0 * (xy - wz), 2.0 * (xz + wy)},
                           {2.0 * (xy + wz), 1.0 - 2.0 * (xx + zz), 2.0 * (yz - wx)},
                           {2.0 * (xz - wy), 2.0 * (yz + wx), 1.0 - 2.0 * (xx + yy)}};
+  if (m.xy == 0.0 && m.xz == 0.0 && m.yz == 0.0) {
+    // a diagonal M (a body's axes its principal axes): (R M Rᵀ)_ij = Σ_k R_ik M_k R_jk
+    const double d[3] = {m.xx, m.yy, m.zz};
+    auto at = [&](int i, int j) {
+      return r[i][0] * d[0] * r[j][0] + r[i][1] * d[1] * r[j][1] + r[i][2] * d[2] * r[j][2];
+    };
+    return {at(0, 0), at(1, 1), at(2, 2), at(0, 1), at(0, 2), at(1, 2)};
+  }
   const double s[3][3] = {{m.xx, m.xy, m.xz}, {m.xy, m.yy, m.yz}, {m.xz, m.yz, m.zz}};
   double a[3][3];  // R M
   for (int i = 0; i < 3; ++i)

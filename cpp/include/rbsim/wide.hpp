@@ -110,6 +110,26 @@ inline void scatter_scalars(double* p0, double* p1, double* p2, double* p3, Lane
   *p3 = x[3];
 }
 
+// The sums of the lanes of a, b, c and d, as the lanes of one vector (Σa, Σb, Σc, Σd).
+inline Lanes sum_lanes(Lanes a, Lanes b, Lanes c, Lanes d) {
+  const Lanes ab = __builtin_shufflevector(a, b, 0, 4, 2, 6) + __builtin_shufflevector(a, b, 1, 5, 3, 7);
+  const Lanes cd = __builtin_shufflevector(c, d, 0, 4, 2, 6) + __builtin_shufflevector(c, d, 1, 5, 3, 7);
+  return __builtin_shufflevector(ab, cd, 0, 1, 4, 5) + __builtin_shufflevector(ab, cd, 2, 3, 6, 7);
+}
+// how many lanes are set
+inline int count_lanes(LaneMask m) {
+#if defined(__AVX__)
+  return __builtin_popcount(__builtin_ia32_movmskpd256((Lanes)m));
+#else
+  return (m[0] != 0) + (m[1] != 0) + (m[2] != 0) + (m[3] != 0);
+#endif
+}
+// all bits set in lanes 0..n-1
+inline LaneMask first_lanes(int n) {
+  const Lanes index = {0.0, 1.0, 2.0, 3.0};
+  return index < splat(static_cast<double>(n));
+}
+
 // One point of a batch's rows (as SolverRow<2>::Point, lane by lane).
 struct WidePoint {
   Lanes rna, rnb, rta, rtb;  // m: lever arms

@@ -74,10 +74,12 @@ inline Quat turn(Quat& q, double&, Vec3 w, double h, bool exact) {
     Quat dq = mul(wq, q);
     const double s = 0.5 * h;
     Quat n{q.w + s * dq.w, q.x + s * dq.x, q.y + s * dq.y, q.z + s * dq.z};
-    Quat before = q;
-    q = normalize(n);
-    // the rotation applied: q_new q_old⁻¹
-    r = mul(q, Quat{before.w, -before.x, -before.y, -before.z});
+    const double inv = 1.0 / std::sqrt(n.w * n.w + n.x * n.x + n.y * n.y + n.z * n.z);
+    q = {n.w * inv, n.x * inv, n.y * inv, n.z * inv};
+    // the rotation applied, q_new q_old⁻¹ = (1 + (h/2) ω) / |q + (h/2) ω q| (q_old a unit
+    // quaternion, to rounding)
+    const double k = s * inv;
+    r = {inv, k * w.x, k * w.y, k * w.z};
   }
   return r;
 }

@@ -53,8 +53,9 @@ void prepare_points_3d(const State<3>& st, Contacts<3>& c, std::int64_t m, int a
   row.inv_ib = ib;
   const Vec3 t1 = row.t1, t2 = row.t2;
   Vec3 inv_rt[4][4];  // 1/(kg·m): each point's I_a⁻¹(r_a × t1), I_a⁻¹(r_a × t2), I_b⁻¹ alike
+  row.point = {};  // (the points past the count stay zero)
   for (int k = 0; k < c.points[m]; ++k) {
-    auto& pt = row.point[k];
+    SolverRow<3>::Point pt;
     const Vec3 ra = c.anchor_a[m][k], rb = c.anchor_b[m][k];
     pt.arm_a = ra;
     pt.arm_b = rb;
@@ -87,13 +88,13 @@ void prepare_points_3d(const State<3>& st, Contacts<3>& c, std::int64_t m, int a
     pt.rb = c.sep_anchor_b[m][k];
     pt.base = c.base_separation[m][k];
     approach_point(st, c, m, k, a, b, ra, rb, pt.ra, pt.rb, n);
+    row.point.set(k, pt);
   }
   // friction's coupling between points i > j: δ_ab (1/m_a + 1/m_b) + (r_a,i × t_a)·
   // I_a⁻¹(r_a,j × t_b) + (b likewise), for the directions a, b of t1, t2
   for (int i = 1; i < c.points[m]; ++i) {
     for (int j = 0; j < i; ++j) {
       const auto& pi = row.point[i];
-      const auto& pj = row.point[j];
       auto& cp = row.tangent_coupling[i * (i - 1) / 2 + j];
       const Vec3 ja1 = inv_rt[j][0], ja2 = inv_rt[j][1], jb1 = inv_rt[j][2], jb2 = inv_rt[j][3];
       cp[0] = ma + mb + dot(pi.rt1a, ja1) + dot(pi.rt1b, jb1);
@@ -124,7 +125,7 @@ void prepare_blocks_3d(SolverRow<3>& row, int npts) {
   const double none[4] = {0.0, 0.0, 0.0, 0.0};
   double all[4];
   // every point pushed out: soft_target's γ (kn times the row's γ/K) at each
-  for (int k = 0; k < npts; ++k) all[k] = row.point[k].kn * row.gamma;
+  for (int k = 0; k < npts; ++k) all[k] = row.point.kn[k] * row.gamma;
   factor_block(row.k, none, npts, row.rigid);
   factor_block(row.k, all, npts, row.soft);
 }
@@ -168,9 +169,15 @@ void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c,
     if (c.carried[m]) {
       // last step's manifold in the same slot: its row holds all but the separation
       for (int k = 0; k < npts; ++k) {
-        auto& pt = row.point[k];
-        pt.base = c.base_separation[m][k];
-        approach_point(st, c, m, k, a, b, pt.ra, pt.rb, pt.ra, pt.rb, n);
+        if constexpr (D == 3) {
+          row.point.base[k] = c.base_separation[m][k];
+          const Vec ra = row.point.ra[k], rb = row.point.rb[k];
+          approach_point(st, c, m, k, a, b, ra, rb, ra, rb, n);
+        } else {
+          auto& pt = row.point[k];
+          pt.base = c.base_separation[m][k];
+          approach_point(st, c, m, k, a, b, pt.ra, pt.rb, pt.ra, pt.rb, n);
+        }
       }
       continue;
     }

@@ -25,6 +25,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 
 #include "rbsim/constants.hpp"
 #include "rbsim/stages.hpp"
@@ -185,15 +186,15 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
     const Vec3 n = row.normal;
     const int npts = c.points[m];
     const Vec3 va = st.body_v[a], vb = st.body_v[b], wa = st.body_w[a], wb = st.body_w[b];
-    double vel[4];
-    double slowest = 0.0;  // m/s: the fastest approach among the points
-    for (int k = 0; k < npts; ++k) {
-      const auto& pt = row.point[k];
-      vel[k] = dot(n, (va + cross(wa, pt.arm_a)) - (vb + cross(wb, pt.arm_b)));
-      slowest = std::min(slowest, vel[k]);
-    }
+    const SolverRow<3>::Points& P = row.point;
+    // each point's normal velocity (m/s), the points in lanes: (ω × r) · n = ω · (r × n)
+    const Lanes vel_l = dot(n, va - vb) + (dot_lanes(wa, P.rna) - dot_lanes(wb, P.rnb));
     // most supported points are not approaching: skip them before any other work
-    if (!(slowest < -min_approach)) continue;
+    if (!any((vel_l < -min_approach) & first_lanes(npts))) continue;
+    double vel[4];
+    std::memcpy(vel, &vel_l, sizeof vel);
+    double slowest = 0.0;  // m/s: the fastest approach among the points
+    for (int k = 0; k < npts; ++k) slowest = std::min(slowest, vel[k]);
     if (c.restitution[m] > 0.0 && slowest < -threshold) continue;
     const BodyDelta<3>& da = c.body_delta[a];
     const BodyDelta<3>& db = c.body_delta[b];
@@ -208,7 +209,7 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
     // how far each point is from allowed (m/s): a gap may close within the substep
     double need[4];
     for (int k = 0; k < npts; ++k) {
-      const double sep = row_separation(row.point[k], moved, na, nb);
+      const double sep = moved + P.base[k] + dot(na, P.ra[k]) - dot(nb, P.rb[k]);
       need[k] = (sep > 0.0 ? -sep * inv_h : 0.0) - vel[k];
     }
     // the supported body's block: K_ij = 1/m + (r_i × n)·I⁻¹(r_j × n) (1/kg)
@@ -217,9 +218,7 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
     for (int i = 0; i < 4; ++i) {
       for (int j = i; j < 4; ++j, ++e) {
         if (j >= npts) continue;
-        const auto& pi = row.point[i];
-        const auto& pj = row.point[j];
-        kb[e] = mu + (a_moves ? dot(pi.rna, pj.wna) : dot(pi.rnb, pj.wnb));
+        kb[e] = mu + (a_moves ? dot(P.rna[i], P.wna[j]) : dot(P.rnb[i], P.wnb[j]));
       }
     }
     double lam[4] = {0.0, 0.0, 0.0, 0.0};
@@ -228,9 +227,8 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
     if (shock_block(kb, need, npts, lam)) {
       for (int k = 0; k < npts; ++k) {
         if (lam[k] == 0.0) continue;
-        const auto& pt = row.point[k];
-        const Vec3 rn = a_moves ? pt.rna : pt.rnb;  // m: the supported body's lever
-        const Vec3 wn = a_moves ? pt.wna : pt.wnb;
+        const Vec3 rn = a_moves ? P.rna[k] : P.rnb[k];  // m: the supported body's lever
+        const Vec3 wn = a_moves ? P.wna[k] : P.wnb[k];
         vu += (sgn * mu * lam[k]) * n;
         wu += (sgn * lam[k]) * wn;
         dl += (sgn * lam[k]) * rn;
@@ -238,7 +236,7 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
       }
     } else {
       for (int k = 0; k < npts; ++k) {
-        const auto& pt = row.point[k];
+        const auto pt = P[k];
         const Vec3 pa = a_moves ? vu + cross(wu, pt.arm_a) : va + cross(wa, pt.arm_a);
         const Vec3 pb = a_moves ? vb + cross(wb, pt.arm_b) : vu + cross(wu, pt.arm_b);
         const double sep = row_separation(pt, moved, na, nb);

@@ -22,6 +22,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include "rbsim/constants.hpp"
@@ -65,6 +66,210 @@ inline double clamp_normal(Contacts<D>& c, std::int64_t m, int k, double lam, do
 // the list is full it stays at its length, which means every manifold).
 inline void mark_deep(PassLog& log, std::int64_t m) { log.add_deep(static_cast<std::int32_t>(m)); }
 
+// 3D: the friction of a row's N points, each as one 2×2 block clamped to Coulomb's
+// circle, in order (FORWARD: 0..N-1, the solve stage; else N-1..0, relax). vt1, vt2
+// (m/s): every point's sliding velocity before any of them, carried from point to point
+// through the row's couplings; jt (N·s): the points' accumulated friction impulses,
+// updated; lam (N·s): their normal impulses; e1, e2 (N·s): each point's change along t1,
+// t2 (left zero where none). Returns whether any point changed. (N and the order fixed
+// at compile time: the loops over the points unrolled.)
+template <int N, bool FORWARD>
+inline bool friction_points(const SolverRow<3>& row, Vec3* jt, const double* lam, double mu,
+                            double* vt1, double* vt2, double* e1, double* e2) {
+  const SolverRow<3>::Points& P = row.point;
+  const Vec3 t1 = row.t1, t2 = row.t2;
+  bool any_change = false;
+#pragma GCC unroll 4
+  for (int i = 0; i < N; ++i) {
+    const int k = FORWARD ? i : N - 1 - i;
+    const double limit = mu * lam[k];
+    if (limit == 0.0 && jt[k].x == 0.0 && jt[k].y == 0.0 && jt[k].z == 0.0) continue;
+    const double l1 = dot(jt[k], t1), l2 = dot(jt[k], t2);
+    double d1, d2;  // N·s: the impulse along t1, t2
+    friction_change(l1, l2, vt1[k], vt2[k], P.tm11[k], P.tm12[k], P.tm22[k], P.tangent_mass[k],
+                    limit, d1, d2);
+    jt[k] = (l1 + d1) * t1 + (l2 + d2) * t2;
+    // the points still to come: after k in the solve, before it in relax
+    if constexpr (FORWARD) {
+#pragma GCC unroll 4
+      for (int j = k + 1; j < N; ++j) {
+        const auto& cp = row.tangent_coupling[j * (j - 1) / 2 + k];
+        vt1[j] += cp[0] * d1 + cp[1] * d2;
+        vt2[j] += cp[2] * d1 + cp[3] * d2;
+      }
+    } else {
+#pragma GCC unroll 4
+      for (int j = 0; j < k; ++j) {
+        const auto& cp = row.tangent_coupling[k * (k - 1) / 2 + j];
+        vt1[j] += cp[0] * d1 + cp[2] * d2;
+        vt2[j] += cp[1] * d1 + cp[3] * d2;
+      }
+    }
+    e1[k] = d1;
+    e2[k] = d2;
+    any_change = true;
+  }
+  return any_change;
+}
+
+// One manifold m of N points (1..4) in the 3D pass below (N fixed at compile time: the
+// loops over the points unrolled).
+template <int N>
+inline void solve_manifold_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
+                              std::int64_t m, double inv_h, bool use_bias, double shift,
+                              double threshold, PassLog& log) {
+  const double* im = model.body_inv_mass.data();
+  Vec3* v = st.body_v.data();
+  Vec3* w = st.body_w.data();
+  Vec3* l = st.body_l.data();
+  const BodyDelta<3>* delta = c.body_delta.data();
+  const int a = c.body_a[m], b = c.body_b[m];
+  const double ma = im[a], mb = im[b];
+  const SolverRow<3>& row = c.solver_row[m];
+  Vec3 va = v[a], vb = v[b], wa = w[a], wb = w[b];
+  Vec3 dla{}, dlb{};  // N·m·s: the angular impulses on each body
+  const Vec3 nrm = row.normal, t1 = row.t1, t2 = row.t2;
+  const BodyDelta<3>& da = delta[a];
+  const BodyDelta<3>& db = delta[b];
+  const double moved = dot(nrm, da.dx - db.dx);
+  const Vec3 na = inv_rotate(da.dq, nrm);
+  const Vec3 nb = inv_rotate(db.dq, nrm);
+  constexpr int npts = N;
+  double* lam = c.normal_impulse[m].data();
+  // a point's normal velocity (m/s): (v_a + ω_a × r_a − v_b − ω_b × r_b) · n, with
+  // (ω × r) · n = ω · (r × n), the row's lever
+  auto normal_speed = [&](const SolverRow<3>::Point& pt) {
+    return dot(va - vb, nrm) + (dot(wa, pt.rna) - dot(wb, pt.rnb));
+  };
+  // the normal impulse jn (N·s) at a point, on the local velocities and L's change
+  auto push = [&](const SolverRow<3>::Point& pt, double jn) {
+    va += (ma * jn) * nrm;
+    wa += jn * pt.wna;
+    dla += jn * pt.rna;
+    vb -= (mb * jn) * nrm;
+    wb -= jn * pt.wnb;
+    dlb -= jn * pt.rnb;
+  };
+  const SolverRow<3>::Points& P = row.point;  // (lanes past npts: zero)
+  bool deep = false;
+  bool block = false;
+  if constexpr (N >= 2) {
+    // every point's target from the same velocities, one block, the points in lanes
+    const LaneMask live = first_lanes(npts);
+    const Lanes sep_l = splat(moved) + load_lanes(P.base) + dot_lanes(na, P.ra) - dot_lanes(nb, P.rb);
+    // soft_target, lane by lane
+    const LaneMask out = use_bias ? (sep_l <= 0.0) & live : LaneMask{};  // pushed out
+    Lanes bias = select(sep_l > 0.0, sep_l * inv_h, splat(0.0));
+    bias = select(out, vmax(row.bias_rate * sep_l, splat(row.max_push)), bias);
+    const Lanes gam_l = select(out, load_lanes(P.kn) * row.gamma, splat(0.0));
+    const int pushed = count_lanes(out);  // points pushed out (soft rows)
+    deep = any((sep_l < row.deep) & live);
+    const Lanes vn_l = dot(va - vb, nrm) + (dot_lanes(wa, P.rna) - dot_lanes(wb, P.rnb));
+    const Lanes r_l = -vn_l - (bias + gam_l * load_lanes(lam));
+    double sep[4], vn[4], gam[4], r[4], d[4];
+    std::memcpy(sep, &sep_l, sizeof sep);
+    std::memcpy(vn, &vn_l, sizeof vn);
+    std::memcpy(gam, &gam_l, sizeof gam);
+    std::memcpy(r, &r_l, sizeof r);
+    // the block's factor: the row's own when no point or every point is pushed out
+    // (prepare_contacts made them), else made here
+    BlockFactor own;
+    const BlockFactor* f = &own;
+    if (pushed == 0)
+      f = &row.rigid;
+    else if (pushed == npts)
+      f = &row.soft;
+    else
+      factor_block(row.k, gam, npts, own);
+    if (f->ok != 0.0) {
+      ldlt_apply(*f, npts, r, d);
+      block = true;
+#pragma GCC unroll 4
+      for (int k = 0; k < npts; ++k) block = block && lam[k] + d[k] >= 0.0;
+    }
+    if (block) {
+      alignas(32) double jn[4] = {0.0, 0.0, 0.0, 0.0};
+#pragma GCC unroll 4
+      for (int k = 0; k < npts; ++k)
+        jn[k] = clamp_normal(c, m, k, lam[k], d[k], vn[k], sep[k], shift, threshold, log);
+      // the impulses' sum and moments about each COM, summed over the lanes
+      const Lanes j = load_lanes(jn);
+      const Lanes sa = sum_lanes(j, j * load_lanes(P.rna.x), j * load_lanes(P.rna.y),
+                                 j * load_lanes(P.rna.z));
+      const Lanes sb = sum_lanes(j * load_lanes(P.rnb.x), j * load_lanes(P.rnb.y),
+                                 j * load_lanes(P.rnb.z), splat(0.0));
+      const Vec3 ta{sa[1], sa[2], sa[3]}, tb{sb[0], sb[1], sb[2]};  // N·m·s
+      va += (ma * sa[0]) * nrm;
+      vb -= (mb * sa[0]) * nrm;
+      wa += row.inv_ia * ta;
+      wb -= row.inv_ib * tb;
+      dla += ta;
+      dlb -= tb;
+    }
+  }
+  for (int i = 0; i < (block ? 0 : npts); ++i) {  // (the block was not taken: rare)
+    const int k = use_bias ? i : npts - 1 - i;  // forward in the solve, backward in relax
+    const auto pt = P[k];
+    const double s = row_separation(pt, moved, na, nb);
+    const auto [bias, gamma] =
+        soft_target(s, use_bias, inv_h, row.bias_rate, row.max_push, pt.kn, row.gamma);
+    deep = deep || s < row.deep;
+    const double vn = normal_speed(pt);
+    const double impulse = (-vn - (bias + gamma * lam[k])) * (1.0 / (pt.kn + gamma));
+    const double jn = clamp_normal(c, m, k, lam[k], impulse, vn, s, shift, threshold, log);
+    push(pt, jn);
+  }
+  if (use_bias && deep) mark_deep(log, m);
+  const double mu = row.friction;
+  if (mu > 0.0) {
+    // each point's friction as one 2×2 block on the velocities after the points before
+    // it: every point's sliding velocity found at once (in lanes), then carried from
+    // point to point through the row's couplings (a short chain of arithmetic instead
+    // of the bodies' velocities through every point), the bodies' changes summed at the
+    // end
+    const Vec3 dv = va - vb;
+    const Lanes vt1_l = dot(dv, t1) + (dot_lanes(wa, P.rt1a) - dot_lanes(wb, P.rt1b));
+    const Lanes vt2_l = dot(dv, t2) + (dot_lanes(wa, P.rt2a) - dot_lanes(wb, P.rt2b));
+    double vt1[4], vt2[4];
+    std::memcpy(vt1, &vt1_l, sizeof vt1);
+    std::memcpy(vt2, &vt2_l, sizeof vt2);
+    alignas(32) double e1[4] = {0.0, 0.0, 0.0, 0.0}, e2[4] = {0.0, 0.0, 0.0, 0.0};  // N·s
+    Vec3* jt = c.tangent_impulse[m].data();
+    const bool any_change = use_bias
+        ? friction_points<N, true>(row, jt, lam, mu, vt1, vt2, e1, e2)
+        : friction_points<N, false>(row, jt, lam, mu, vt1, vt2, e1, e2);
+    if (any_change) {
+      // the impulse and its moments about each COM, summed over the lanes
+      const Lanes g1 = load_lanes(e1), g2 = load_lanes(e2);
+      const Lanes s0 = sum_lanes(g1, g2, g1 * load_lanes(P.rt1a.x) + g2 * load_lanes(P.rt2a.x),
+                                 g1 * load_lanes(P.rt1a.y) + g2 * load_lanes(P.rt2a.y));
+      const Lanes s1 = sum_lanes(g1 * load_lanes(P.rt1a.z) + g2 * load_lanes(P.rt2a.z),
+                                 g1 * load_lanes(P.rt1b.x) + g2 * load_lanes(P.rt2b.x),
+                                 g1 * load_lanes(P.rt1b.y) + g2 * load_lanes(P.rt2b.y),
+                                 g1 * load_lanes(P.rt1b.z) + g2 * load_lanes(P.rt2b.z));
+      const Vec3 p = s0[0] * t1 + s0[1] * t2;  // N·s
+      const Vec3 la_t{s0[2], s0[3], s1[0]}, lb_t{s1[1], s1[2], s1[3]};  // N·m·s
+      va += ma * p;
+      vb -= mb * p;
+      wa += row.inv_ia * la_t;
+      wb -= row.inv_ib * lb_t;
+      dla += la_t;
+      dlb -= lb_t;
+    }
+  }
+  // a static or kinematic body is not written (its velocity does not change)
+  if (ma != 0.0) {
+    v[a] = va;
+    l[a] += dla;
+    refresh_omega(c, st, a);
+  }
+  if (mb != 0.0) {
+    v[b] = vb;
+    l[b] += dlb;
+    refresh_omega(c, st, b);
+  }
+}
+
 // The 3D pass: a manifold's points (up to four) one after the other, normal rows first,
 // then each point's friction as one 2×2 block clamped to Coulomb's circle. The bodies'
 // velocities are followed through the manifold in local copies, with the row's world
@@ -83,153 +288,14 @@ inline void mark_deep(PassLog& log, std::int64_t m) { log.add_deep(static_cast<s
 void solve_contacts_3d(const Model<3>& model, State<3>& st, Contacts<3>& c, double inv_h,
                        bool use_bias, double shift, double threshold, const std::int32_t* order,
                        std::int64_t n, PassLog& log) {
-  const double* im = model.body_inv_mass.data();
-  Vec3* v = st.body_v.data();
-  Vec3* w = st.body_w.data();
-  Vec3* l = st.body_l.data();
-  const BodyDelta<3>* delta = c.body_delta.data();
   for (std::int64_t o = 0; o < n; ++o) {
     const std::int64_t m = order[o];
-    const int a = c.body_a[m], b = c.body_b[m];
-    const double ma = im[a], mb = im[b];
-    const SolverRow<3>& row = c.solver_row[m];
-    Vec3 va = v[a], vb = v[b], wa = w[a], wb = w[b];
-    Vec3 dla{}, dlb{};  // N·m·s: the angular impulses on each body
-    const Vec3 nrm = row.normal, t1 = row.t1, t2 = row.t2;
-    const BodyDelta<3>& da = delta[a];
-    const BodyDelta<3>& db = delta[b];
-    const double moved = dot(nrm, da.dx - db.dx);
-    const Vec3 na = inv_rotate(da.dq, nrm);
-    const Vec3 nb = inv_rotate(db.dq, nrm);
-    const int npts = c.points[m];
-    double* lam = c.normal_impulse[m].data();
-    // a point's normal velocity (m/s): (v_a + ω_a × r_a − v_b − ω_b × r_b) · n, with
-    // (ω × r) · n = ω · (r × n), the row's lever
-    auto normal_speed = [&](const SolverRow<3>::Point& pt) {
-      return dot(va - vb, nrm) + (dot(wa, pt.rna) - dot(wb, pt.rnb));
-    };
-    // the normal impulse jn (N·s) at a point, on the local velocities and L's change
-    auto push = [&](const SolverRow<3>::Point& pt, double jn) {
-      va += (ma * jn) * nrm;
-      wa += jn * pt.wna;
-      dla += jn * pt.rna;
-      vb -= (mb * jn) * nrm;
-      wb -= jn * pt.wnb;
-      dlb -= jn * pt.rnb;
-    };
-    bool deep = false;
-    bool block = false;
-    if (npts >= 2) {
-      // every point's target from the same velocities, one block
-      double sep[4], vn[4], gam[4], r[4], d[4];
-      int pushed = 0;  // points pushed out (soft rows)
-      for (int k = 0; k < npts; ++k) {
-        const auto& pt = row.point[k];
-        sep[k] = row_separation(pt, moved, na, nb);
-        const auto [bias, gamma] =
-            soft_target(sep[k], use_bias, inv_h, row.bias_rate, row.max_push, pt.kn, row.gamma);
-        pushed += use_bias && sep[k] <= 0.0;
-        deep = deep || sep[k] < row.deep;
-        vn[k] = normal_speed(pt);
-        gam[k] = gamma;
-        r[k] = -vn[k] - (bias + gamma * lam[k]);
-      }
-      // the block's factor: the row's own when no point or every point is pushed out
-      // (prepare_contacts made them), else made here
-      BlockFactor own;
-      const BlockFactor* f = &own;
-      if (pushed == 0)
-        f = &row.rigid;
-      else if (pushed == npts)
-        f = &row.soft;
-      else
-        factor_block(row.k, gam, npts, own);
-      if (f->ok != 0.0) {
-        ldlt_apply(*f, npts, r, d);
-        block = true;
-        for (int k = 0; k < npts; ++k) block = block && lam[k] + d[k] >= 0.0;
-      }
-      if (block) {
-        for (int k = 0; k < npts; ++k) {
-          const double jn = clamp_normal(c, m, k, lam[k], d[k], vn[k], sep[k], shift, threshold, log);
-          push(row.point[k], jn);
-        }
-      }
-    }
-    for (int i = 0; i < (block ? 0 : npts); ++i) {
-      const int k = use_bias ? i : npts - 1 - i;  // forward in the solve, backward in relax
-      const auto& pt = row.point[k];
-      const double s = row_separation(pt, moved, na, nb);
-      const auto [bias, gamma] =
-          soft_target(s, use_bias, inv_h, row.bias_rate, row.max_push, pt.kn, row.gamma);
-      deep = deep || s < row.deep;
-      const double vn = normal_speed(pt);
-      const double impulse = (-vn - (bias + gamma * lam[k])) * (1.0 / (pt.kn + gamma));
-      const double jn = clamp_normal(c, m, k, lam[k], impulse, vn, s, shift, threshold, log);
-      push(pt, jn);
-    }
-    if (use_bias && deep) mark_deep(log, m);
-    const double mu = row.friction;
-    if (mu > 0.0) {
-      // each point's friction as one 2×2 block on the velocities after the points before
-      // it: every point's sliding velocity found at once, then carried from point to
-      // point through the row's couplings (a short chain of arithmetic instead of the
-      // bodies' velocities through every point), the bodies' changes summed at the end
-      const Vec3 dv = va - vb;
-      const double dv1 = dot(dv, t1), dv2 = dot(dv, t2);
-      double vt1[4], vt2[4];
-      for (int k = 0; k < npts; ++k) {
-        const auto& pt = row.point[k];
-        vt1[k] = dv1 + (dot(wa, pt.rt1a) - dot(wb, pt.rt1b));
-        vt2[k] = dv2 + (dot(wa, pt.rt2a) - dot(wb, pt.rt2b));
-      }
-      Vec3 p{}, la_t{}, lb_t{};  // N·s, N·m·s, N·m·s
-      for (int i = 0; i < npts; ++i) {
-        const int k = use_bias ? i : npts - 1 - i;
-        const auto& pt = row.point[k];
-        const double limit = mu * lam[k];
-        Vec3& jt = c.tangent_impulse[m][k];
-        if (limit == 0.0 && jt.x == 0.0 && jt.y == 0.0 && jt.z == 0.0) continue;
-        const double l1 = dot(jt, t1), l2 = dot(jt, t2);
-        double d1, d2;  // N·s: the impulse along t1, t2
-        friction_change(l1, l2, vt1[k], vt2[k], pt.tm11, pt.tm12, pt.tm22, pt.tangent_mass, limit,
-                        d1, d2);
-        jt = (l1 + d1) * t1 + (l2 + d2) * t2;
-        // the points still to come: after k in the solve, before it in relax
-        if (use_bias) {
-          for (int j = k + 1; j < npts; ++j) {
-            const auto& cp = row.tangent_coupling[j * (j - 1) / 2 + k];
-            vt1[j] += cp[0] * d1 + cp[1] * d2;
-            vt2[j] += cp[2] * d1 + cp[3] * d2;
-          }
-        } else {
-          for (int j = 0; j < k; ++j) {
-            const auto& cp = row.tangent_coupling[k * (k - 1) / 2 + j];
-            vt1[j] += cp[0] * d1 + cp[2] * d2;
-            vt2[j] += cp[1] * d1 + cp[3] * d2;
-          }
-        }
-        p += d1 * t1 + d2 * t2;
-        la_t += d1 * pt.rt1a + d2 * pt.rt2a;
-        lb_t += d1 * pt.rt1b + d2 * pt.rt2b;
-      }
-      va += ma * p;
-      vb -= mb * p;
-      wa += row.inv_ia * la_t;
-      wb -= row.inv_ib * lb_t;
-      dla += la_t;
-      dlb -= lb_t;
-    }
-    // a static or kinematic body is not written (its velocity does not change)
-    if (ma != 0.0) {
-      v[a] = va;
-      l[a] += dla;
-      refresh_omega(c, st, a);
-    }
-    if (mb != 0.0) {
-      v[b] = vb;
-      l[b] += dlb;
-      refresh_omega(c, st, b);
+    switch (c.points[m]) {
+      case 1: solve_manifold_3d<1>(model, st, c, m, inv_h, use_bias, shift, threshold, log); break;
+      case 2: solve_manifold_3d<2>(model, st, c, m, inv_h, use_bias, shift, threshold, log); break;
+      case 3: solve_manifold_3d<3>(model, st, c, m, inv_h, use_bias, shift, threshold, log); break;
+      case 4: solve_manifold_3d<4>(model, st, c, m, inv_h, use_bias, shift, threshold, log); break;
+      default: break;
     }
   }
 }

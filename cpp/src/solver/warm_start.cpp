@@ -21,15 +21,30 @@ void warm_start_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
     const int a = c.body_a[m], b = c.body_b[m];
     const auto& row = c.solver_row[m];
     const Vec3 n = row.normal, t1 = row.t1, t2 = row.t2;
-    Vec3 p{}, la{}, lb{};  // N·s, and the moments on each body (N·m·s)
+    // each point's impulse along n, t1 and t2 (N·s; a point past the count: zero), the
+    // points in lanes; its moment about a's COM is r_a × (j n + j1 t1 + j2 t2) =
+    // j (r_a × n) + j1 (r_a × t1) + j2 (r_a × t2), the row's levers (b's likewise)
+    alignas(32) double e1[4] = {0.0, 0.0, 0.0, 0.0}, e2[4] = {0.0, 0.0, 0.0, 0.0};
     for (int k = 0; k < c.points[m]; ++k) {
-      const auto& pt = row.point[k];
       const Vec3 jt = c.tangent_impulse[m][k];
-      const Vec3 pk = c.normal_impulse[m][k] * n + (dot(jt, t1) * t1 + dot(jt, t2) * t2);
-      p += pk;
-      la += cross(pt.arm_a, pk);
-      lb += cross(pt.arm_b, pk);
+      e1[k] = dot(jt, t1);
+      e2[k] = dot(jt, t2);
     }
+    const SolverRow<3>::Points& P = row.point;
+    const Lanes j = select(first_lanes(c.points[m]), load_lanes(c.normal_impulse[m].data()), splat(0.0));
+    const Lanes j1 = load_lanes(e1), j2 = load_lanes(e2);
+    auto moment = [&](const double* rn, const double* r1, const double* r2) {
+      return j * load_lanes(rn) + j1 * load_lanes(r1) + j2 * load_lanes(r2);
+    };
+    const Lanes s0 = sum_lanes(j, j1, j2, moment(P.rna.x, P.rt1a.x, P.rt2a.x));
+    const Lanes s1 = sum_lanes(moment(P.rna.y, P.rt1a.y, P.rt2a.y), moment(P.rna.z, P.rt1a.z, P.rt2a.z),
+                               moment(P.rnb.x, P.rt1b.x, P.rt2b.x), moment(P.rnb.y, P.rt1b.y, P.rt2b.y));
+    const double lbz = [&] {
+      const Lanes z = moment(P.rnb.z, P.rt1b.z, P.rt2b.z);
+      return (z[0] + z[1]) + (z[2] + z[3]);
+    }();
+    const Vec3 p = s0[0] * n + (s0[1] * t1 + s0[2] * t2);  // N·s
+    const Vec3 la{s0[3], s1[0], s1[1]}, lb{s1[2], s1[3], lbz};  // N·m·s
     if (im[a] != 0.0) {
       st.body_v[a] += im[a] * p;
       st.body_l[a] += la;

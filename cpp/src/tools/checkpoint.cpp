@@ -8,9 +8,10 @@
 namespace rbsim {
 namespace {
 
-// The last byte is the format: 3 since the contact store keeps each body's world inverse
-// inertia (a checkpoint of another format is refused with a message saying so).
-constexpr char MAGIC[8] = {'R', 'B', 'S', 'I', 'M', 'C', 'K', '3'};
+// The last byte is the format: 4 since a 3D solver row keeps its points field by field
+// (3: the contact store keeps each body's world inverse inertia; a checkpoint of another
+// format is refused with a message saying so).
+constexpr char MAGIC[8] = {'R', 'B', 'S', 'I', 'M', 'C', 'K', '4'};
 
 // Every member of the world that changes while it runs, in one fixed order. A member
 // added to State, Grid or Contacts must be added here too: the static_asserts on their
