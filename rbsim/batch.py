@@ -52,6 +52,7 @@ from typing import Any
 import numpy as np
 
 from . import __version__, config
+from .forkserver import WORKER_MODULES, start_fork_server
 from .scene import Scene, SceneError, load_scene, load_scene_text, scene_to_dict
 from .scene.yamlsrc import YList, YMap, load_yaml
 
@@ -620,26 +621,15 @@ def is_complete(path: str | Path) -> bool:
 # Dask
 
 
-# Modules a worker of a local cluster needs for its runs: imported once, when the
-# workers start (by the fork server they are forked from, or by dask_setup).
-WORKER_MODULES = (
-    "numpy",
-    "h5py",
-    "distributed",
-    "rbsim.batch",
-    "rbsim.run",
-    "rbsim.io.trajectory",
-    "rbsim.tools.measure",
-)
-
 # Dask settings of a local cluster (its scheduler, nannies and workers): its periodic
 # work made rarer, so that it takes less of the cores the runs need. The worker's
 # statistical profiler (a stack sample of the running task every 10 ms) is off; the
 # event loop's health tick (20 ms), the nannies' memory checks (100 ms) and the
 # system monitor (500 ms, the dashboard's graphs) run every second. Worker processes
-# are forked from a fork server that imported WORKER_MODULES once (where the platform
-# has one; else spawned): they start in a fraction of the time and CPU, and leave
-# without Python's finalization, which took 1-2 s per worker at the end of a batch.
+# are forked from a fork server that imported WORKER_MODULES once (rbsim.forkserver;
+# where the platform has one, else spawned): they start in a fraction of the time and
+# CPU, and leave without Python's finalization, which took 1-2 s per worker at the end
+# of a batch.
 LOCAL_CONFIG = {
     "distributed.worker.profile.enabled": False,
     "distributed.admin.tick.interval": "1s",
@@ -702,42 +692,6 @@ class Cluster:
                 pass
             self._threads = (time.monotonic(), count)
         return count
-
-
-def _fork_server() -> bool:
-    """Make Dask fork the local cluster's workers from a fork server that imports
-    WORKER_MODULES, and start that server now, from the main thread with SIGINT ignored
-    (its workers inherit that, so Ctrl-C never reaches one, even while it starts).
-    False where there is no fork server (Windows) or this is not the main thread."""
-    import multiprocessing
-    from multiprocessing import forkserver
-
-    if "forkserver" not in multiprocessing.get_all_start_methods():
-        return False
-    if threading.current_thread() is not threading.main_thread():
-        return False
-    from distributed.utils import get_mp_context
-
-    with dask_config({"distributed.worker.multiprocessing-method": "forkserver"}):
-        context = get_mp_context()  # Dask's own preloads are set here, once
-    context.set_forkserver_preload(list(WORKER_MODULES))
-    # the variables Dask sets before it spawns a worker (one thread for BLAS and OpenMP,
-    # a fixed hash seed), which a forked worker has only if its server started with them
-    import dask
-
-    env = {k: str(v) for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items()}
-    if env.get("PYTHONHASHSEED") in (None, "0"):
-        env["PYTHONHASHSEED"] = "6640"
-    saved = dict(os.environ)
-    os.environ.update({k: v for k, v in env.items() if k not in os.environ})
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        forkserver.ensure_running()
-    finally:
-        signal.signal(signal.SIGINT, previous)
-        os.environ.clear()
-        os.environ.update(saved)
-    return True
 
 
 @contextmanager
@@ -847,7 +801,7 @@ class ClusterStart:
         self._made: tuple[Cluster, Callable[[], None]] | None = None
         self._error: BaseException | None = None
         self._thread: threading.Thread | None = None
-        self._forked = scheduler is None and _fork_server()
+        self._forked = scheduler is None and start_fork_server()
         if background and self._forked:  # workers that ignore SIGINT from their start
             self._thread = threading.Thread(target=self._make, name="rbsim-cluster", daemon=True)
             self._thread.start()

@@ -794,6 +794,10 @@ def batch(
 ) -> None:
     """Run every SCENE over the grid of its --vary lists (or --samples draws) as
     independent runs on a Dask cluster; write DIR/<run-id>.h5 and DIR/summary.csv."""
+    from .forkserver import start_fork_server
+
+    if scheduler is None:  # a local cluster: its workers' fork server starts importing now
+        start_fork_server()
     from .batch import (
         BatchError,
         BatchInterrupted,

@@ -568,3 +568,41 @@ def test_sweep_on_two_workers_measures_the_same_errors(tmp_path: Path) -> None:
 
     assert errors("pool") == errors("serial")  # the same runs, so the same digits
     assert len(errors("pool")) == 6
+
+
+def test_local_workers_start_with_dasks_environment_from_the_early_fork_server() -> None:
+    # rbsim batch starts the fork server before it imports Dask (rbsim.forkserver); the
+    # workers forked from it must still run as Dask runs a worker it spawns: one BLAS
+    # thread (set before the server imported numpy: Dask's own setting of the variable,
+    # in the worker after the fork, comes too late for the library) and a fixed hash seed
+    script = textwrap.dedent(
+        """
+        import ctypes, os, sys
+        def blas_threads():
+            paths = {l.split()[-1] for l in open("/proc/self/maps") if "openblas" in l}
+            for path in sorted(paths):
+                lib = ctypes.CDLL(path)
+                for name in ("scipy_openblas_get_num_threads64_", "openblas_get_num_threads"):
+                    if hasattr(lib, name):
+                        return getattr(lib, name)()
+            return None
+        if __name__ == "__main__":
+            from rbsim.forkserver import start_fork_server
+            assert start_fork_server()
+            from rbsim.batch import starting_cluster
+            with starting_cluster(None, 1) as start:
+                client = start.get().client
+                print(client.submit(blas_threads).result())
+                print(client.submit(lambda: os.environ.get("PYTHONHASHSEED")).result())
+        """
+    )
+    keep = ("PYTHONHASHSEED", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+    env = {k: v for k, v in os.environ.items() if k not in keep}
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=120
+    )
+    assert done.returncode == 0, done.stderr
+    threads, seed = done.stdout.split("\n")[:2]
+    if threads == "None":
+        pytest.skip("numpy's BLAS here is not OpenBLAS")
+    assert (threads, seed) == ("1", "6640")
