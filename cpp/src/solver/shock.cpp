@@ -24,6 +24,7 @@
 // the region around a deep overlap that the relax stage gives extra passes.
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <cstring>
 
@@ -113,6 +114,26 @@ bool solve_exact(const std::array<double, 10>& k, const int* idx, const double* 
   return ldlt_solve(A, n, r, x, 1e-9);
 }
 
+// The sets of n points (n <= 4) shock_block tries, as bit masks: of three points at
+// most (four of one face are dependent, see below), largest first, then by mask from
+// the highest (the order of a count down over the masks of each size).
+struct SubsetOrder {
+  int count;
+  unsigned set[14];
+};
+constexpr std::array<SubsetOrder, 5> make_subset_orders() {
+  std::array<SubsetOrder, 5> orders{};
+  for (int n = 0; n <= 4; ++n) {
+    SubsetOrder o{};
+    for (int size = n < 3 ? n : 3; size >= 1; --size)
+      for (unsigned set = (1u << n) - 1; set > 0; --set)
+        if (std::popcount(set) == size) o.set[o.count++] = set;
+    orders[n] = o;
+  }
+  return orders;
+}
+constexpr std::array<SubsetOrder, 5> SUBSET_ORDER = make_subset_orders();
+
 // 3D: impulses λ >= 0 (N·s) at the n points (n <= 4) of a supported body that bring every
 // point to at least its target, λ_k = 0 wherever a point is left beyond it: the linear
 // complementarity problem w = K λ − need >= 0, λ >= 0, λ·w = 0, with K (1/kg, packed as
@@ -139,33 +160,32 @@ bool shock_block(const std::array<double, 10>& k, const double* need, int n, dou
     if (i > j) std::swap(i, j);
     return k[i * 4 - i * (i - 1) / 2 + (j - i)];
   };
-  const int largest = std::min(n, 3);
+  const SubsetOrder& order = SUBSET_ORDER[n];
   for (int pass = 0; pass < 2; ++pass) {  // subsets of the short points, then the rest
-    for (int size = largest; size >= 1; --size) {
-      for (unsigned set = (1u << n) - 1; set > 0; --set) {
-        if (__builtin_popcount(set) != size || (set & short_set) == 0) continue;
-        if (((set & ~short_set) == 0) != (pass == 0)) continue;
-        int idx[4], na = 0;
-        double rhs[4], x[4];
-        for (int i = 0; i < n; ++i) {
-          if (!(set >> i & 1)) continue;
-          rhs[na] = need[i];
-          idx[na++] = i;
-        }
-        if (!solve_exact(k, idx, rhs, na, x)) continue;
-        bool ok = true;
-        for (int i = 0; i < na; ++i) ok = ok && x[i] >= 0.0;
-        if (!ok) continue;
-        for (int i = 0; i < n; ++i) lam[i] = 0.0;
-        for (int i = 0; i < na; ++i) lam[idx[i]] = x[i];
-        for (int i = 0; i < n && ok; ++i) {
-          if (set >> i & 1) continue;
-          double w = -need[i];
-          for (int j = 0; j < n; ++j) w += at(i, j) * lam[j];
-          ok = w >= -1e-9 * scale;
-        }
-        if (ok) return true;
+    for (int t = 0; t < order.count; ++t) {
+      const unsigned set = order.set[t];
+      if ((set & short_set) == 0) continue;
+      if (((set & ~short_set) == 0) != (pass == 0)) continue;
+      int idx[4], na = 0;
+      double rhs[4], x[4];
+      for (int i = 0; i < n; ++i) {
+        if (!(set >> i & 1)) continue;
+        rhs[na] = need[i];
+        idx[na++] = i;
       }
+      if (!solve_exact(k, idx, rhs, na, x)) continue;
+      bool ok = true;
+      for (int i = 0; i < na; ++i) ok = ok && x[i] >= 0.0;
+      if (!ok) continue;
+      for (int i = 0; i < n; ++i) lam[i] = 0.0;
+      for (int i = 0; i < na; ++i) lam[idx[i]] = x[i];
+      for (int i = 0; i < n && ok; ++i) {
+        if (set >> i & 1) continue;
+        double w = -need[i];
+        for (int j = 0; j < n; ++j) w += at(i, j) * lam[j];
+        ok = w >= -1e-9 * scale;
+      }
+      if (ok) return true;
     }
   }
   for (int i = 0; i < n; ++i) lam[i] = 0.0;
