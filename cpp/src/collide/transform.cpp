@@ -20,13 +20,13 @@ namespace C = constants;
 
 namespace {
 
-// x + R(q) l, a body-frame vertex in the world (m). In 2D the sums are taken in the
+// x + R(q) l, a body-frame vertex in the world (m; 3D: through the body's rotation
+// matrix, transform_shapes). In 2D the sums are taken in the
 // numba kernel's order, (x + c lx) − s ly and (y + s lx) + c ly, so that the world
 // vertices, and the boxes and pairs found from them, are the same to the bit.
 inline Vec2 world_point(Vec2 x, Rot2 q, Vec2 l) {
   return {x.x + q.c * l.x - q.s * l.y, x.y + q.s * l.x + q.c * l.y};
 }
-inline Vec3 world_point(Vec3 x, Quat q, Vec3 l) { return x + rotate(q, l); }
 
 // |ω| (rad/s): a scalar in the plane, a vector in space.
 inline double magnitude(double w) { return std::fabs(w); }
@@ -89,14 +89,25 @@ void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>&
     const int i = model.shape_body[s];
     const auto q = state.body_q[i];
     const Vec x = state.body_x[i];
-    double reach = 0.0;  // m: the farthest core vertex from the COM
+    double reach2 = 0.0;  // m²: the farthest core vertex from the COM, squared
     const int k0 = model.shape_vstart[s], k1 = k0 + model.shape_vcount[s];
-    for (int k = k0; k < k1; ++k) {
-      vw[k] = world_point(x, q, vl[k]);
-      // in 3D only a plane has a normal row (the others' stay zero)
-      if (D == 2 || model.shape_kind[s] == ShapeKind::Plane) nw[k] = rotate(q, nl[k]);
-      reach = std::max(reach, length(vl[k]));
+    if constexpr (D == 3) {
+      // the body's rotation as a matrix, once for all its points
+      const Mat3 r = rotation_matrix(q);
+      const bool plane = model.shape_kind[s] == ShapeKind::Plane;
+      for (int k = k0; k < k1; ++k) {
+        vw[k] = x + r * vl[k];
+        if (plane) nw[k] = r * nl[k];  // (only a plane has a normal row; the others' stay zero)
+        reach2 = std::max(reach2, length_squared(vl[k]));
+      }
+    } else {
+      for (int k = k0; k < k1; ++k) {
+        vw[k] = world_point(x, q, vl[k]);
+        nw[k] = rotate(q, nl[k]);
+        reach2 = std::max(reach2, length_squared(vl[k]));
+      }
     }
+    const double reach = std::sqrt(reach2);  // m (as the largest length: sqrt is monotone)
     if (model.body_type[i] == BodyType::Static) {
       contacts.shape_margin[s] = 0.0;
     } else {
@@ -109,7 +120,8 @@ void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>&
       // a convex hull's face normals (the box's come from its corners, narrow3d.hpp)
       const Hull3& hull = model.shape_hull[s];
       Vec3* fw = contacts.face_world.data() + model.shape_hface[s];
-      for (int f = 0; f < hull.face_count(); ++f) fw[f] = rotate(q, hull.face_normal[f]);
+      const Mat3 r = rotation_matrix(q);
+      for (int f = 0; f < hull.face_count(); ++f) fw[f] = r * hull.face_normal[f];
     }
   }
 }
