@@ -151,6 +151,15 @@ template <class Point, class Vec>
 inline double row_separation(const Point& pt, double moved, Vec na, Vec nb) {
   return moved + pt.base + dot(na, pt.ra) - dot(nb, pt.rb);
 }
+// 3D: the same for point k of a row's points, read field by field.
+inline double row_separation(const SolverRow<3>::Points& P, int k, double moved, Vec3 na,
+                             Vec3 nb) {
+  return moved + P.base[k] + dot(na, P.ra[k]) - dot(nb, P.rb[k]);
+}
+// 3D: the same for all four points at once (lane k: point k).
+inline Lanes row_separation(const SolverRow<3>::Points& P, double moved, Vec3 na, Vec3 nb) {
+  return splat(moved) + load_lanes(P.base) + dot_lanes(na, P.ra) - dot_lanes(nb, P.rb);
+}
 
 // Separation now (m) of point k of manifold m between bodies a and b: its separation
 // anchors moved by each body's motion since the step began (contacts.body_delta).

@@ -229,7 +229,7 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
     // how far each point is from allowed (m/s): a gap may close within the substep
     double need[4];
     for (int k = 0; k < npts; ++k) {
-      const double sep = moved + P.base[k] + dot(na, P.ra[k]) - dot(nb, P.rb[k]);
+      const double sep = row_separation(P, k, moved, na, nb);
       need[k] = (sep > 0.0 ? -sep * inv_h : 0.0) - vel[k];
     }
     // the supported body's block: K_ij = 1/m + (r_i × n)·I⁻¹(r_j × n) (1/kg)

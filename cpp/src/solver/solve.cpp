@@ -156,7 +156,7 @@ inline void solve_manifold_3d(const Model<3>& model, State<3>& st, Contacts<3>& 
   if constexpr (N >= 2) {
     // every point's target from the same velocities, one block, the points in lanes
     const LaneMask live = first_lanes(npts);
-    const Lanes sep_l = splat(moved) + load_lanes(P.base) + dot_lanes(na, P.ra) - dot_lanes(nb, P.rb);
+    const Lanes sep_l = row_separation(P, moved, na, nb);
     // soft_target, lane by lane
     const LaneMask out = use_bias ? (sep_l <= 0.0) & live : LaneMask{};  // pushed out
     Lanes bias = select(sep_l > 0.0, sep_l * inv_h, splat(0.0));
@@ -270,7 +270,7 @@ inline void solve_manifold_3d(const Model<3>& model, State<3>& st, Contacts<3>& 
   }
 }
 
-// The 3D pass: a manifold's points (up to four) one after the other, normal rows first,
+// The 3D pass, one manifold after the other (solve_manifold_3d): its normal rows first,
 // then each point's friction as one 2×2 block clamped to Coulomb's circle. The bodies'
 // velocities are followed through the manifold in local copies, with the row's world
 // inverse inertia tensors (the step's start); what the manifold changes is written back
