@@ -20,7 +20,9 @@ from rbsim.scene.compile import build
 
 ROOT = Path(__file__).resolve().parents[1]
 
-# 576 spheres in a 12 x 4 x 12 block, touching, settling onto a plane: 3D with regions
+# 576 spheres in a 12 x 4 x 12 block, touching, settling onto a plane: 3D with regions;
+# and a crate beside them, so that the threads' parts of the 578 bodies start at indices
+# that do not divide by 4 (the position update moves bodies four at a time)
 SPHERES_3D = """
 version: 1
 name: spheres
@@ -35,6 +37,7 @@ bodies:
       origin: [-2.75, 0.26, -2.75]
       material: ball
       shape: {sphere: {radius: 0.25}}
+  - {name: crate, position: [4, 0.25, 0], material: ball, shape: {box: {size: [0.5, 0.5, 0.5]}}}
 """
 
 

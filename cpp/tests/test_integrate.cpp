@@ -1,5 +1,6 @@
 // dynamics/integrate.cpp: the same integrator in 2D and in 3D.
 #include <cmath>
+#include <cstring>
 
 #include "check.hpp"
 #include "rbsim/stages.hpp"
@@ -226,6 +227,90 @@ TEST(split_rotation_flips_at_the_closed_form_interval) {
   const double measured = (crossings.back() - crossings.front()) / (crossings.size() - 1);
   std::printf("     flip interval %.6f s, closed form %.6f s\n", measured, expected);
   CHECK_NEAR(measured / expected, 1.0, 1e-3);
+}
+
+// 3D `normalize` with the world tensors kept (the contact path) moves dynamic bodies in
+// lanes (integrate.cpp, move_3d): a body's bits must not depend on the bodies beside it
+// or on how the bodies are split into parts (threads), and must be the one-body update's
+// to rounding.
+TEST(bodies_moved_in_lanes_get_the_same_bits_however_split) {
+  const int n = 11;  // body 0 static, body 9 kinematic: runs 4..7, the rest picked out
+  Model<3> m;
+  State<3> s;
+  m.body_type.assign(n, BodyType::Dynamic);
+  m.body_type[0] = BodyType::Static;
+  m.body_type[9] = BodyType::Kinematic;
+  m.body_inv_inertia.resize(n);
+  s.body_x.resize(n);
+  s.body_q.resize(n);
+  s.body_v.resize(n);
+  s.body_w.resize(n);
+  s.body_l.resize(n);
+  for (int i = 0; i < n; ++i) {
+    const double t = 0.37 * i + 0.1;
+    m.body_inv_inertia[i] = {1.0 + t, 2.0 + 0.5 * t, 0.7 + t * t, 0.0, 0.0, 0.0};
+    s.body_x[i] = {std::sin(3 * t), 2 * t, -t};
+    s.body_v[i] = {std::cos(t), -9.0 * t, 0.25};
+    s.body_q[i] = normalize(Quat{1.0, 0.3 * t, -0.2, std::sin(t)});
+    s.body_l[i] = {0.5 - t, 3.0 * std::cos(2 * t), t * t};
+    s.body_w[i] = world_tensor(s.body_q[i], m.body_inv_inertia[i]) * s.body_l[i];
+  }
+  const State<3> start = s;
+  const double h = 1.0 / 960.0;
+  struct Run {
+    State<3> s;
+    std::vector<BodyDelta<3>> d;
+    std::vector<Sym3> w;
+  };
+  // the parts each substep is split into: whole, one body each, two uneven parts
+  auto run = [&](const std::vector<Span>& parts) {
+    Run r{start, std::vector<BodyDelta<3>>(n), std::vector<Sym3>(n)};
+    for (int sub = 0; sub < 4; ++sub)
+      for (const Span& p : parts)
+        integrate_positions(m, r.s, r.d, h, Rotation::Normalize, p, r.w.data());
+    return r;
+  };
+  std::vector<Span> singles;
+  for (int i = 0; i < n; ++i) singles.push_back({i, i + 1});
+  const Run whole = run({{0, n}});
+  const Run ones = run(singles);
+  const Run halves = run({{0, 6}, {6, n}});
+  auto same = [](const auto& a, const auto& b) { return std::memcmp(&a, &b, sizeof a) == 0; };
+  for (const Run* r : {&ones, &halves}) {
+    for (int i = 0; i < n; ++i) {
+      CHECK(same(whole.s.body_x[i], r->s.body_x[i]));
+      CHECK(same(whole.s.body_q[i], r->s.body_q[i]));
+      CHECK(same(whole.s.body_w[i], r->s.body_w[i]));
+      CHECK(same(whole.w[i], r->w[i]));
+      CHECK(same(whole.d[i].dx, r->d[i].dx));
+      CHECK(same(whole.d[i].dq, r->d[i].dq));
+    }
+  }
+  // the one-body update (turn() for `normalize`), written out here: to rounding
+  for (int i = 1; i < n; ++i) {
+    Vec3 x = start.body_x[i], w = start.body_w[i];
+    Quat q = start.body_q[i], dq{};
+    for (int sub = 0; sub < 4; ++sub) {
+      x += h * start.body_v[i];
+      const Quat d = mul(Quat{0.0, w.x, w.y, w.z}, q);
+      const Quat nq{q.w + 0.5 * h * d.w, q.x + 0.5 * h * d.x, q.y + 0.5 * h * d.y, q.z + 0.5 * h * d.z};
+      const Quat r = mul(normalize(nq), Quat{q.w, -q.x, -q.y, -q.z});
+      q = normalize(nq);
+      dq = mul(r, dq);
+      if (m.is_dynamic(i)) w = world_tensor(q, m.body_inv_inertia[i]) * start.body_l[i];
+    }
+    // (1e-15 m and 1e-14 relative: a few roundings of values of order 1 to 10)
+    CHECK_NEAR(length(whole.s.body_x[i] - x), 0.0, 1e-14);
+    CHECK_NEAR(whole.s.body_q[i].w, q.w, 1e-15);
+    CHECK_NEAR(whole.s.body_q[i].x, q.x, 1e-15);
+    CHECK_NEAR(whole.s.body_q[i].y, q.y, 1e-15);
+    CHECK_NEAR(whole.s.body_q[i].z, q.z, 1e-15);
+    CHECK_NEAR(length(whole.s.body_w[i] - w), 0.0, 1e-14 * length(w));
+    CHECK_NEAR(whole.d[i].dq.w, dq.w, 1e-15);
+    CHECK_NEAR(whole.d[i].dq.x, dq.x, 1e-15);
+    CHECK_NEAR(whole.d[i].dq.y, dq.y, 1e-15);
+    CHECK_NEAR(whole.d[i].dq.z, dq.z, 1e-15);
+  }
 }
 
 RBSIM_TEST_MAIN

@@ -14,6 +14,7 @@
 // keeps L exactly while its ω precesses. `split` (3D) turns the body by the free rigid
 // body's own flow, split about its principal axes (turn_split).
 #include <cmath>
+#include <cstring>
 
 #include "rbsim/constants.hpp"
 #include "rbsim/stages.hpp"
@@ -222,6 +223,187 @@ void move_lanes_2d(State<2>& st, std::vector<BodyDelta<2>>& delta, int i, double
   std::memcpy(d + 12, &r3, sizeof r3);
 }
 
+// The x, y and z of the Vec3 records p[0..3] (12 doubles in a row), one record in each
+// lane; store_xyz writes them back.
+struct LanesXYZ {
+  Lanes x, y, z;
+};
+inline LanesXYZ load_xyz(const Vec3* p) {
+  const double* d = &p->x;
+  const Lanes a = load_lanes(d), b = load_lanes(d + 4), c = load_lanes(d + 8);
+  // a = x0 y0 z0 x1, b = y1 z1 x2 y2, c = z2 x3 y3 z3
+  const Lanes tx = __builtin_shufflevector(a, b, 0, 3, 6, 6);
+  const Lanes ty = __builtin_shufflevector(a, b, 1, 4, 7, 7);
+  const Lanes tz = __builtin_shufflevector(a, b, 2, 5, 5, 5);
+  return {__builtin_shufflevector(tx, c, 0, 1, 2, 5), __builtin_shufflevector(ty, c, 0, 1, 2, 6),
+          __builtin_shufflevector(tz, c, 0, 1, 4, 7)};
+}
+inline void store_xyz(Vec3* p, const LanesXYZ& v) {
+  const Lanes t0 = __builtin_shufflevector(v.x, v.z, 0, 4, 1, 1);  // x0 z0 x1 -
+  const Lanes t1 = __builtin_shufflevector(v.y, v.z, 1, 5, 2, 6);  // y1 z1 y2 z2
+  const Lanes t2 = __builtin_shufflevector(v.x, v.y, 3, 7, 3, 7);  // x3 y3 - -
+  const Lanes a = __builtin_shufflevector(t0, v.y, 0, 4, 1, 2);    // x0 y0 z0 x1
+  const Lanes b = __builtin_shufflevector(t1, v.x, 0, 1, 6, 2);    // y1 z1 x2 y2
+  const Lanes c = __builtin_shufflevector(t2, v.z, 6, 0, 1, 7);    // z2 x3 y3 z3
+  double* d = &p->x;
+  std::memcpy(d, &a, sizeof a);
+  std::memcpy(d + 4, &b, sizeof b);
+  std::memcpy(d + 8, &c, sizeof c);
+}
+// The 4×4 transpose: four records of four doubles at p0..p3 to lanes, or lanes back.
+inline void store_quads(double* p0, double* p1, double* p2, double* p3, Lanes f0, Lanes f1,
+                        Lanes f2, Lanes f3) {
+  const double rows[4][4] = {{f0[0], f0[1], f0[2], f0[3]},
+                             {f1[0], f1[1], f1[2], f1[3]},
+                             {f2[0], f2[1], f2[2], f2[3]},
+                             {f3[0], f3[1], f3[2], f3[3]}};
+  Lanes r0, r1, r2, r3;
+  gather_quads(rows[0], rows[1], rows[2], rows[3], r0, r1, r2, r3);
+  std::memcpy(p0, &r0, sizeof r0);
+  std::memcpy(p1, &r1, sizeof r1);
+  std::memcpy(p2, &r2, sizeof r2);
+  std::memcpy(p3, &r3, sizeof r3);
+}
+
+// 3D, Rotation::Normalize, the world tensors wanted: LANES dynamic bodies with diagonal
+// body tensors moved at once, one in each lane, by the operations and in the order that
+// turn(), rotation_matrix, world_tensor's diagonal case and ω = I⁻¹ L take for one body
+// (no multiply-adds in this file). A body gets the same bits in any lane and beside any
+// others, so that the result does not depend on how the bodies are split between
+// threads: every such body moves here, by whole runs of LANES where they are next to each
+// other (load_xyz, gather_quads), else LANES at a time picked out one by one. (The
+// one-body path is not the same to the bit: GCC fuses a product and a sum of its
+// quaternion product, mul(r, dq), into one vfmsubadd in spite of -ffp-contract=off.)
+struct Move3 {
+  LanesXYZ x, v, w, l;    // m, m/s, rad/s, kg·m²/s
+  Lanes qw, qx, qy, qz;   // the rotation
+  Lanes ixx, iyy, izz;    // 1/(kg·m²): the body tensor's diagonal
+  LanesXYZ dx;            // m: the step's motion so far
+  Lanes ew, ex, ey, ez;   // its rotation so far
+  Lanes txx, tyy, tzz, txy, txz, tyz;  // out: the world tensor
+};
+
+void move_3d(Move3& b, double h) {
+  const Lanes hv = splat(h);
+  // x += h v
+  const LanesXYZ step{hv * b.v.x, hv * b.v.y, hv * b.v.z};
+  b.x.x += step.x;
+  b.x.y += step.y;
+  b.x.z += step.z;
+  // the turn: q <- normalize(q + (h/2) ω q), mul({0, ω}, q) written out
+  const Lanes zero = splat(0.0);
+  const LanesXYZ w = b.w;
+  const Lanes dw = zero * b.qw - w.x * b.qx - w.y * b.qy - w.z * b.qz;
+  const Lanes dqx = zero * b.qx + w.x * b.qw + w.y * b.qz - w.z * b.qy;
+  const Lanes dqy = zero * b.qy - w.x * b.qz + w.y * b.qw + w.z * b.qx;
+  const Lanes dqz = zero * b.qz + w.x * b.qy - w.y * b.qx + w.z * b.qw;
+  const Lanes s = splat(0.5 * h);
+  const Lanes nw = b.qw + s * dw, nx = b.qx + s * dqx, ny = b.qy + s * dqy, nz = b.qz + s * dqz;
+  const Lanes inv = splat(1.0) / vsqrt(nw * nw + nx * nx + ny * ny + nz * nz);
+  const Lanes qw = nw * inv, qx = nx * inv, qy = ny * inv, qz = nz * inv;
+  b.qw = qw, b.qx = qx, b.qy = qy, b.qz = qz;
+  const Lanes k = s * inv;
+  const Lanes rw = inv, rx = k * w.x, ry = k * w.y, rz = k * w.z;  // the rotation applied
+  // the world tensor R M Rᵀ at the new rotation
+  const Lanes xx = qx * qx, yy = qy * qy, zz = qz * qz;
+  const Lanes xy = qx * qy, xz = qx * qz, yz = qy * qz;
+  const Lanes wx = qw * qx, wy = qw * qy, wz = qw * qz;
+  const Lanes one = splat(1.0), two = splat(2.0);
+  const Lanes r[3][3] = {{one - two * (yy + zz), two * (xy - wz), two * (xz + wy)},
+                         {two * (xy + wz), one - two * (xx + zz), two * (yz - wx)},
+                         {two * (xz - wy), two * (yz + wx), one - two * (xx + yy)}};
+  const Lanes d[3] = {b.ixx, b.iyy, b.izz};
+  auto at = [&](int i, int j) {
+    return r[i][0] * d[0] * r[j][0] + r[i][1] * d[1] * r[j][1] + r[i][2] * d[2] * r[j][2];
+  };
+  b.txx = at(0, 0), b.tyy = at(1, 1), b.tzz = at(2, 2);
+  b.txy = at(0, 1), b.txz = at(0, 2), b.tyz = at(1, 2);
+  // ω = I⁻¹ L
+  const LanesXYZ L = b.l;
+  b.w = {b.txx * L.x + b.txy * L.y + b.txz * L.z, b.txy * L.x + b.tyy * L.y + b.tyz * L.z,
+         b.txz * L.x + b.tyz * L.y + b.tzz * L.z};
+  // the step's motion: dx summed, dq <- r dq
+  b.dx.x += step.x;
+  b.dx.y += step.y;
+  b.dx.z += step.z;
+  const Lanes ew = b.ew, ex = b.ex, ey = b.ey, ez = b.ez;
+  b.ew = rw * ew - rx * ex - ry * ey - rz * ez;
+  b.ex = rw * ex + rx * ew + ry * ez - rz * ey;
+  b.ey = rw * ey - rx * ez + ry * ew + rz * ex;
+  b.ez = rw * ez + rx * ey - ry * ex + rz * ew;
+}
+
+// Bodies i..i+LANES-1 through move_3d, their records loaded and stored as whole vectors.
+void move_run_3d(const Model<3>& model, State<3>& st, std::vector<BodyDelta<3>>& delta, int i,
+                 double h, Sym3* inv_inertia_world) {
+  Move3 b;
+  b.x = load_xyz(&st.body_x[i]);
+  b.v = load_xyz(&st.body_v[i]);
+  b.w = load_xyz(&st.body_w[i]);
+  b.l = load_xyz(&st.body_l[i]);
+  gather_quads(&st.body_q[i].w, &st.body_q[i + 1].w, &st.body_q[i + 2].w, &st.body_q[i + 3].w,
+               b.qw, b.qx, b.qy, b.qz);
+  const Sym3* m = &model.body_inv_inertia[i];
+  b.ixx = Lanes{m[0].xx, m[1].xx, m[2].xx, m[3].xx};
+  b.iyy = Lanes{m[0].yy, m[1].yy, m[2].yy, m[3].yy};
+  b.izz = Lanes{m[0].zz, m[1].zz, m[2].zz, m[3].zz};
+  const BodyDelta<3>* d = &delta[i];
+  b.dx = {Lanes{d[0].dx.x, d[1].dx.x, d[2].dx.x, d[3].dx.x},
+          Lanes{d[0].dx.y, d[1].dx.y, d[2].dx.y, d[3].dx.y},
+          Lanes{d[0].dx.z, d[1].dx.z, d[2].dx.z, d[3].dx.z}};
+  gather_quads(&d[0].dq.w, &d[1].dq.w, &d[2].dq.w, &d[3].dq.w, b.ew, b.ex, b.ey, b.ez);
+  move_3d(b, h);
+  store_xyz(&st.body_x[i], b.x);
+  store_xyz(&st.body_w[i], b.w);
+  store_quads(&st.body_q[i].w, &st.body_q[i + 1].w, &st.body_q[i + 2].w, &st.body_q[i + 3].w, b.qw,
+              b.qx, b.qy, b.qz);
+  for (int l = 0; l < LANES; ++l) {
+    inv_inertia_world[i + l] = {b.txx[l], b.tyy[l], b.tzz[l], b.txy[l], b.txz[l], b.tyz[l]};
+    delta[i + l].dx = {b.dx.x[l], b.dx.y[l], b.dx.z[l]};
+    delta[i + l].dq = {b.ew[l], b.ex[l], b.ey[l], b.ez[l]};
+  }
+}
+
+// The bodies idx[0..count-1] (count <= LANES) through move_3d, picked out one by one (a
+// lane past count repeats the last body and is not written back).
+void move_picked_3d(const Model<3>& model, State<3>& st, std::vector<BodyDelta<3>>& delta,
+                    const int* idx, int count, double h, Sym3* inv_inertia_world) {
+  int at[LANES];
+  for (int l = 0; l < LANES; ++l) at[l] = idx[l < count ? l : count - 1];
+  Move3 b;
+  for (int l = 0; l < LANES; ++l) {
+    const int i = at[l];
+    const Vec3 x = st.body_x[i], v = st.body_v[i], w = st.body_w[i], L = st.body_l[i];
+    const Quat q = st.body_q[i];
+    const Sym3& m = model.body_inv_inertia[i];
+    const BodyDelta<3>& d = delta[i];
+    b.x.x[l] = x.x, b.x.y[l] = x.y, b.x.z[l] = x.z;
+    b.v.x[l] = v.x, b.v.y[l] = v.y, b.v.z[l] = v.z;
+    b.w.x[l] = w.x, b.w.y[l] = w.y, b.w.z[l] = w.z;
+    b.l.x[l] = L.x, b.l.y[l] = L.y, b.l.z[l] = L.z;
+    b.qw[l] = q.w, b.qx[l] = q.x, b.qy[l] = q.y, b.qz[l] = q.z;
+    b.ixx[l] = m.xx, b.iyy[l] = m.yy, b.izz[l] = m.zz;
+    b.dx.x[l] = d.dx.x, b.dx.y[l] = d.dx.y, b.dx.z[l] = d.dx.z;
+    b.ew[l] = d.dq.w, b.ex[l] = d.dq.x, b.ey[l] = d.dq.y, b.ez[l] = d.dq.z;
+  }
+  move_3d(b, h);
+  for (int l = 0; l < count; ++l) {
+    const int i = at[l];
+    st.body_x[i] = {b.x.x[l], b.x.y[l], b.x.z[l]};
+    st.body_w[i] = {b.w.x[l], b.w.y[l], b.w.z[l]};
+    st.body_q[i] = {b.qw[l], b.qx[l], b.qy[l], b.qz[l]};
+    inv_inertia_world[i] = {b.txx[l], b.tyy[l], b.tzz[l], b.txy[l], b.txz[l], b.tyz[l]};
+    delta[i].dx = {b.dx.x[l], b.dx.y[l], b.dx.z[l]};
+    delta[i].dq = {b.ew[l], b.ex[l], b.ey[l], b.ez[l]};
+  }
+}
+
+// Whether body i moves through move_3d: dynamic, with a diagonal body tensor.
+inline bool moves_in_lanes(const Model<3>& model, int i) {
+  const Sym3& m = model.body_inv_inertia[i];
+  return model.is_dynamic(i) && m.xy == 0.0 && m.xz == 0.0 && m.yz == 0.0;
+}
+
 }  // namespace
 
 template <int D>
@@ -237,6 +419,10 @@ void integrate_positions(const Model<D>& model, State<D>& st, std::vector<BodyDe
   double unused_angle = 0.0;
   const bool exact = rotation != Rotation::Normalize;
   const int n = static_cast<int>(bodies.last);
+  // 3D: the bodies that move in lanes, not in a whole run, gathered LANES at a time
+  const bool picking = D == 3 && !exact && inv_inertia_world != nullptr;
+  int picked[LANES];
+  int n_picked = 0;
   for (int i = static_cast<int>(bodies.first); i < n; ++i) {
     if constexpr (D == 2) {
       // LANES bodies at once where none of them is static (2D refresh_angular: nothing)
@@ -248,6 +434,23 @@ void integrate_positions(const Model<D>& model, State<D>& st, std::vector<BodyDe
           i += LANES - 1;
           continue;
         }
+      }
+    }
+    if constexpr (D == 3) {
+      if (picking && moves_in_lanes(model, i)) {
+        const bool run = i % LANES == 0 && i + LANES <= n && moves_in_lanes(model, i + 1) &&
+                         moves_in_lanes(model, i + 2) && moves_in_lanes(model, i + 3);
+        if (run) {
+          move_run_3d(model, st, delta, i, h, inv_inertia_world);
+          i += LANES - 1;
+        } else {
+          picked[n_picked++] = i;
+          if (n_picked == LANES) {
+            move_picked_3d(model, st, delta, picked, n_picked, h, inv_inertia_world);
+            n_picked = 0;
+          }
+        }
+        continue;
       }
     }
     if (model.body_type[i] == BodyType::Static) continue;
@@ -276,6 +479,9 @@ void integrate_positions(const Model<D>& model, State<D>& st, std::vector<BodyDe
     }
     delta[i].dx += dx;
     delta[i].dq = mul(r, delta[i].dq);
+  }
+  if constexpr (D == 3) {
+    if (n_picked > 0) move_picked_3d(model, st, delta, picked, n_picked, h, inv_inertia_world);
   }
 }
 
