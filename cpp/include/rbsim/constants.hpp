@@ -43,6 +43,16 @@ inline constexpr double LINEAR_SLOP = 0.005;
 // broadphase again only once it has moved this far; larger keeps more candidate pairs
 // (each costs a box test per step), smaller re-queries moving shapes more often.
 inline constexpr double AABB_MARGIN = 0.02;
+// A moving shape's fat box also reaches this many of its last step's displacements ahead,
+// along each axis it moved on (broadphase.cpp), at most FAT_AHEAD_SIZE of its width on
+// that axis (dimensionless both): a falling shape is queried again every few steps
+// instead of every step. Larger reaches keep more candidate pairs and widen every query.
+inline constexpr double FAT_AHEAD_STEPS = 4.0;
+inline constexpr double FAT_AHEAD_SIZE = 0.5;
+// A shape that moved less than FAT_REST fat margins along every axis in its last step is
+// at rest: one whose fat box reaches ahead of it is queried again with a plain one (a
+// settled pile keeps no candidate pairs from its fall). Dimensionless.
+inline constexpr double FAT_REST = 0.25;
 
 // Soft contact stiffness, Hz; capped at a quarter of the substep rate (60 Hz at dt 1/60
 // with 4 substeps). A contact under load F between bodies of effective mass m settles at

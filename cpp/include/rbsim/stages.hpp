@@ -63,10 +63,17 @@ void set_contact_softness(Config& config);
 template <int D>
 void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
                       double dt);
-// The same for the bodies and the shapes of two ranges (one thread's part).
+// The same for the bodies and the shapes of two ranges (one thread's part); with
+// still_poses false, without which bodies are still (take_still_poses does that).
 template <int D>
 void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
-                      double dt, Span bodies, Span shapes);
+                      double dt, Span bodies, Span shapes, bool still_poses = true);
+// collide/transform.cpp: which bodies of the range are still near their reference pose
+// (contacts.body_still); a body that is not takes its pose as the new reference. The step
+// does this once its pairs are found, so that a step the contact store grew for and began
+// again compares the bodies with the same reference poses as a step without the growth.
+template <int D>
+void take_still_poses(const State<D>& state, Contacts<D>& contacts, Span bodies);
 
 // collide/transform.cpp: each convex shape's hull topology from model.face_local (once,
 // when a 3D world is built), and the rows of Contacts::face_world they need. Returns

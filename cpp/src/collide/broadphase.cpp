@@ -157,12 +157,46 @@ std::int64_t update_aabbs(const Model<D>& model, Grid<D>& grid, const Contacts<D
     if constexpr (D == 3) {
       if (model.shape_kind[s] == ShapeKind::Plane) plane_box(contacts.norm_world[start], lo, hi);
     }
+    const Aabb<D> last = box[s];  // last step's tight box
     box[s] = {lo, hi};
-    const bool out = fresh || any_less(lo, fat[s].lo) || any_less(fat[s].hi, hi);
+    const double margin = scale * C::AABB_MARGIN;  // m
+    // the shape's displacement since last step (m) and the room its fat box leaves
+    // around it beyond the margins (m, summed over both sides of every axis)
+    const double* now_lo = &lo.x;
+    const double* now_hi = &hi.x;
+    const double* was_lo = &last.lo.x;
+    const double* fat_lo = &fat[s].lo.x;
+    const double* fat_hi = &fat[s].hi.x;
+    double step[D], slack = 0.0;
+    bool slow = true;
+    for (int d = 0; d < D; ++d) {
+      step[d] = now_lo[d] - was_lo[d];
+      slow = slow && std::fabs(step[d]) < C::FAT_REST * margin;
+      slack += (fat_hi[d] - now_hi[d]) + (now_lo[d] - fat_lo[d]) - 2.0 * margin;
+    }
+    bool out = fresh || any_less(lo, fat[s].lo) || any_less(fat[s].hi, hi);
+    // a shape that has come to rest in a fat box stretched ahead of it is queried again
+    // with a plain one, so that a settled pile does not keep its fall's extra pairs
+    out = out || (slow && slack > margin);
     grid.shape_moved[s] = out;
     if (out) {
-      const Vec m = splat(lo, scale * C::AABB_MARGIN);
-      fat[s] = {lo - m, hi + m};
+      const Vec m = splat(lo, margin);
+      Vec ahead_lo = lo - m, ahead_hi = hi + m;
+      if (!fresh && !slow) {
+        // a shape on the move keeps moving: the fat box reaches FAT_AHEAD_STEPS of its
+        // last step's displacement ahead along each axis (at most FAT_AHEAD_SIZE of its
+        // width there), so that a falling or flying shape is queried again every few
+        // steps instead of every step
+        double* ahead_l = &ahead_lo.x;
+        double* ahead_h = &ahead_hi.x;
+        for (int d = 0; d < D; ++d) {
+          const double cap = C::FAT_AHEAD_SIZE * (now_hi[d] - now_lo[d]);
+          const double ahead = std::min(C::FAT_AHEAD_STEPS * std::fabs(step[d]), cap);
+          if (step[d] > 0.0) ahead_h[d] += ahead;
+          if (step[d] < 0.0) ahead_l[d] -= ahead;
+        }
+      }
+      fat[s] = {ahead_lo, ahead_hi};
       ++moved;
     }
   }

@@ -72,13 +72,18 @@ void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>&
 }
 
 template <int D>
-void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
-                      double dt, Span bodies, Span shapes) {
-  using Vec = typename Dim<D>::Vec;
+void take_still_poses(const State<D>& state, Contacts<D>& contacts, Span bodies) {
   auto& ref = contacts.body_ref;
   auto& still = contacts.body_still;
   for (auto i = static_cast<std::size_t>(bodies.first); i < static_cast<std::size_t>(bodies.last); ++i)
     still[i] = near_reference(ref[i], state, i, contacts.body_scale[i]);
+}
+
+template <int D>
+void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
+                      double dt, Span bodies, Span shapes, bool still_poses) {
+  using Vec = typename Dim<D>::Vec;
+  if (still_poses) take_still_poses(state, contacts, bodies);
   if constexpr (D == 3) world_inertia(model, state, contacts, bodies);
 
   Vec* vw = contacts.vert_world.data();
@@ -159,7 +164,11 @@ bool build_shape_hulls(Model<3>& model, std::string* error) {
 
 template void transform_shapes(const Model<2>&, const State<2>&, Contacts<2>&, double);
 template void transform_shapes(const Model<3>&, const State<3>&, Contacts<3>&, double);
-template void transform_shapes(const Model<2>&, const State<2>&, Contacts<2>&, double, Span, Span);
-template void transform_shapes(const Model<3>&, const State<3>&, Contacts<3>&, double, Span, Span);
+template void transform_shapes(const Model<2>&, const State<2>&, Contacts<2>&, double, Span, Span,
+                               bool);
+template void transform_shapes(const Model<3>&, const State<3>&, Contacts<3>&, double, Span, Span,
+                               bool);
+template void take_still_poses(const State<2>&, Contacts<2>&, Span);
+template void take_still_poses(const State<3>&, Contacts<3>&, Span);
 
 }  // namespace rbsim
