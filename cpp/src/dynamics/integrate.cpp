@@ -283,7 +283,7 @@ struct Move3 {
   Lanes txx, tyy, tzz, txy, txz, tyz;  // out: the world tensor
 };
 
-void move_3d(Move3& b, double h) {
+[[gnu::always_inline]] inline void move_3d(Move3& b, double h) {
   const Lanes hv = splat(h);
   // x += h v
   const LanesXYZ step{hv * b.v.x, hv * b.v.y, hv * b.v.z};
