@@ -272,6 +272,8 @@ bool World<D>::step() {
   const double shift = cfg.explicit_euler ? 0.0 : h;
   const double sign = cfg.explicit_euler ? -1.0 : 1.0;
   const double threshold = cfg.restitution_threshold;
+  // m/s²: |g|, for the shock passes' slowest approaches
+  const double g_norm = std::sqrt(dot(model.gravity, model.gravity));
   // the restitution stage's list names this step's manifolds
   c.count.bounce_count = c.count.bounce_carried = c.count.elastic_listed = 0;
   const std::int64_t n_bodies = model.body_count();
@@ -301,8 +303,7 @@ bool World<D>::step() {
       // In 3D only an impact's: an approach no faster than a step of gravity gives is a
       // resting load, which the soft contacts carry (taken out here too, its impulse, kept
       // by no contact, starved their warm start: a 100 t box on 1 t ones jittered)
-      const double impact = D == 3 ? std::sqrt(dot(model.gravity, model.gravity)) * cfg.dt
-                                   : C::SHOCK_MIN_APPROACH;  // m/s
+      const double impact = D == 3 ? g_norm * cfg.dt : C::SHOCK_MIN_APPROACH;  // m/s
       timed(S::Shock, [&] { shock_pass(inv_h, threshold, impact); });
     }
     if (!cfg.explicit_euler) {
@@ -330,9 +331,7 @@ bool World<D>::step() {
       // substep of gravity gives is left to the soft contacts as a resting load: after the
       // relax pass most resting points still approach by a little, and taking each out
       // cost a fifth of a settled heap's step, with the same stacks (make hard's 3D cases)
-      const double load = D == 3 && !c.heavy_on_light
-                              ? std::sqrt(dot(model.gravity, model.gravity)) * h
-                              : 0.0;  // m/s
+      const double load = D == 3 && !c.heavy_on_light ? g_norm * h : 0.0;  // m/s
       const double slowest = std::max(load, C::SHOCK_MIN_APPROACH);
       timed(S::Shock, [&] { shock_pass(inv_h, threshold, slowest); });
     }

@@ -299,7 +299,8 @@ TEST(bodies_moved_in_lanes_get_the_same_bits_however_split) {
       dq = mul(r, dq);
       if (m.is_dynamic(i)) w = world_tensor(q, m.body_inv_inertia[i]) * start.body_l[i];
     }
-    // (1e-15 m and 1e-14 relative: a few roundings of values of order 1 to 10)
+    // (1e-14 m, 1e-15 for unit quaternions, 1e-14 relative for ω: a few roundings of
+    // values of order 1 to 10)
     CHECK_NEAR(length(whole.s.body_x[i] - x), 0.0, 1e-14);
     CHECK_NEAR(whole.s.body_q[i].w, q.w, 1e-15);
     CHECK_NEAR(whole.s.body_q[i].x, q.x, 1e-15);

@@ -64,7 +64,7 @@ template <int D>
 void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
                       double dt);
 // The same for the bodies and the shapes of two ranges (one thread's part); with
-// still_poses false, without which bodies are still (take_still_poses does that).
+// still_poses false, without finding which bodies are still (take_still_poses does that).
 template <int D>
 void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
                       double dt, Span bodies, Span shapes, bool still_poses = true);

@@ -105,6 +105,10 @@ void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>&
         if (plane) nw[k] = r * nl[k];  // (only a plane has a normal row; the others' stay zero)
         reach2 = std::max(reach2, length_squared(vl[k]));
       }
+      // a convex hull's face normals (the box's come from its corners, narrow3d.hpp)
+      const Hull3& hull = model.shape_hull[s];
+      Vec3* fw = contacts.face_world.data() + model.shape_hface[s];
+      for (int f = 0; f < hull.face_count(); ++f) fw[f] = r * hull.face_normal[f];
     } else {
       for (int k = k0; k < k1; ++k) {
         vw[k] = world_point(x, q, vl[k]);
@@ -120,13 +124,6 @@ void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>&
       // circle about its centre does not move its surface at all)
       const double speed = length(state.body_v[i]);  // m/s
       contacts.shape_margin[s] = dt * (speed + magnitude(state.body_w[i]) * reach);
-    }
-    if constexpr (D == 3) {
-      // a convex hull's face normals (the box's come from its corners, narrow3d.hpp)
-      const Hull3& hull = model.shape_hull[s];
-      Vec3* fw = contacts.face_world.data() + model.shape_hface[s];
-      const Mat3 r = rotation_matrix(q);
-      for (int f = 0; f < hull.face_count(); ++f) fw[f] = r * hull.face_normal[f];
     }
   }
 }

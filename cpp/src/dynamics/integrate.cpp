@@ -333,6 +333,14 @@ struct Move3 {
   b.ez = rw * ez + rx * ey - ry * ex + rz * ew;
 }
 
+// Lane l's world tensor and step's motion, written for body i.
+inline void store_lane_3d(const Move3& b, int l, int i, std::vector<BodyDelta<3>>& delta,
+                          Sym3* inv_inertia_world) {
+  inv_inertia_world[i] = {b.txx[l], b.tyy[l], b.tzz[l], b.txy[l], b.txz[l], b.tyz[l]};
+  delta[i].dx = {b.dx.x[l], b.dx.y[l], b.dx.z[l]};
+  delta[i].dq = {b.ew[l], b.ex[l], b.ey[l], b.ez[l]};
+}
+
 // Bodies i..i+LANES-1 through move_3d, their records loaded and stored as whole vectors.
 void move_run_3d(const Model<3>& model, State<3>& st, std::vector<BodyDelta<3>>& delta, int i,
                  double h, Sym3* inv_inertia_world) {
@@ -357,11 +365,7 @@ void move_run_3d(const Model<3>& model, State<3>& st, std::vector<BodyDelta<3>>&
   store_xyz(&st.body_w[i], b.w);
   store_quads(&st.body_q[i].w, &st.body_q[i + 1].w, &st.body_q[i + 2].w, &st.body_q[i + 3].w, b.qw,
               b.qx, b.qy, b.qz);
-  for (int l = 0; l < LANES; ++l) {
-    inv_inertia_world[i + l] = {b.txx[l], b.tyy[l], b.tzz[l], b.txy[l], b.txz[l], b.tyz[l]};
-    delta[i + l].dx = {b.dx.x[l], b.dx.y[l], b.dx.z[l]};
-    delta[i + l].dq = {b.ew[l], b.ex[l], b.ey[l], b.ez[l]};
-  }
+  for (int l = 0; l < LANES; ++l) store_lane_3d(b, l, i + l, delta, inv_inertia_world);
 }
 
 // The bodies idx[0..count-1] (count <= LANES) through move_3d, picked out one by one (a
@@ -392,9 +396,7 @@ void move_picked_3d(const Model<3>& model, State<3>& st, std::vector<BodyDelta<3
     st.body_x[i] = {b.x.x[l], b.x.y[l], b.x.z[l]};
     st.body_w[i] = {b.w.x[l], b.w.y[l], b.w.z[l]};
     st.body_q[i] = {b.qw[l], b.qx[l], b.qy[l], b.qz[l]};
-    inv_inertia_world[i] = {b.txx[l], b.tyy[l], b.tzz[l], b.txy[l], b.txz[l], b.tyz[l]};
-    delta[i].dx = {b.dx.x[l], b.dx.y[l], b.dx.z[l]};
-    delta[i].dq = {b.ew[l], b.ex[l], b.ey[l], b.ez[l]};
+    store_lane_3d(b, l, i, delta, inv_inertia_world);
   }
 }
 
