@@ -332,7 +332,7 @@ def _plan(
     scenes: Sequence[str], sets: Sequence[str], combos: list[dict], varied_keys: tuple[str, ...]
 ) -> Plan:
     """plan_batch over the given varied values (key -> YAML text) of each run."""
-    from .scene.compile import ModelError, build
+    from .scene.compile import ModelError, check_masses
 
     problems: list[str] = []
     specs: list[RunSpec] = []
@@ -346,7 +346,7 @@ def _plan(
             overrides = tuple(sets) + tuple(f"{k}={v}" for k, v in combo.items())
             try:
                 scene = load_scene_text(base.source, path=str(path), overrides=overrides)
-                build(scene)
+                check_masses(scene)
             except SceneError as err:
                 for issue in err.errors:
                     line = str(issue)
@@ -968,8 +968,10 @@ def run_batch(
     found: dict[str, dict[str, Any]] = {}
     skipped = 0
     todo = []
+    present = set(os.listdir(out))  # a fresh folder: no file opened (nor h5py imported)
     for spec in runs:
-        if is_complete(out / f"{spec.run_id}.h5"):
+        name = f"{spec.run_id}.h5"
+        if name in present and is_complete(out / name):
             prior = old.get(spec.run_id)
             good = prior is not None and prior.get("status") == "complete"
             found[spec.run_id] = prior if good else figures(out / f"{spec.run_id}.h5", spec.scene())

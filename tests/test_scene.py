@@ -8,6 +8,7 @@ import textwrap
 import time
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import pytest
 import yaml
@@ -18,6 +19,7 @@ from rbsim.scene import (
     load_scene,
     load_scene_text,
     scene_to_dict,
+    yamlsrc,
 )
 from rbsim.scene.schema import json_schema
 from rbsim.scene.yamlsrc import load_yaml
@@ -478,6 +480,60 @@ def test_override_does_not_leak_through_aliases():
     """
     scene = load(text, ("bodies.a.shape.circle.radius=2",))
     assert [b.shapes[0].radius for b in scene.bodies] == [2.0, 1.0]
+
+
+def test_a_text_loaded_again_with_other_overrides_resolves_as_if_loaded_first():
+    # a batch loads one text hundreds of times: its parsed tree, and the checks and
+    # bodies worked out from the nodes no override touched, are kept for the next load
+    # (yamlsrc.Shared); each load must give what a load of a fresh parse gives, its
+    # problems included, and leave the kept tree as it was
+    text = textwrap.dedent(
+        """\
+        version: 1
+        world: {dt: 0.01, steps: 10}
+        materials: {wood: {density: 0.5, friction: 0.3}}
+        bodies:
+          - {name: ground, type: static, shape: {segment: {a: [-5, 0], b: [5, 0]}}}
+          - {name: a, position: [0, 1], shape: {box: {size: [1, 1]}}, material: wood}
+          - {name: b, position: [0, 2], shape: {circle: {radius: 0.5}}}
+          - pyramid: {base: 3, size: [0.5, 0.5], origin: [3, 0]}
+        """
+    )
+    runs = [
+        (),
+        ("bodies.a.position.0=0.25",),
+        ("materials.wood.density=2",),  # every body of wood resolves again
+        ("bodies.b.name=a",),  # a duplicate name, only in this run
+        ("bodies.2.shape.circle.radius=-1",),  # a bad value, only in this run
+        ("bodies.3.pyramid.base=2", "world.dt=0.02"),
+        ("world.dimension=3",),  # every key checked as 3D's
+        (),
+    ]
+
+    def outcome(overrides: tuple[str, ...]) -> Any:
+        try:
+            return load_scene_text(text, path="t.yaml", overrides=overrides)
+        except SceneError as err:
+            return str(err)
+
+    fresh = []
+    for overrides in runs:
+        yamlsrc._PARSED.clear()  # each parsed anew: nothing kept from another load
+        fresh.append(outcome(overrides))
+    yamlsrc._PARSED.clear()
+    kept = [outcome(overrides) for overrides in runs * 2]
+    assert kept == fresh * 2
+    assert [isinstance(x, str) for x in fresh] == [
+        False,
+        False,
+        False,
+        True,
+        True,
+        False,
+        True,
+        False,
+    ]
+    assert fresh[2].bodies[1].shapes[0].material.density == 2.0
 
 
 # --- resolved scene and schema ------------------------------------------------------------

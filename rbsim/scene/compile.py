@@ -18,13 +18,13 @@ every body alike (no branch on the body type inside the contact loops).
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from . import types as T
 from .geometry3d import IDENTITY, quat_matrix
-from .mass import body_mass_properties
+from .mass import MassProperties, body_mass_properties
 from .mass3d import body_mass_properties_3d, principal_axes
 from .resolve import Body, Scene
 
@@ -127,6 +127,47 @@ def _rotate(c: float, s: float, p: tuple[float, float]) -> tuple[float, float]:
     return (c * p[0] - s * p[1], s * p[0] + c * p[1])
 
 
+def check_masses(scene: Scene) -> None:
+    """Raise ModelError, as build would, if a dynamic body of the resolved scene has no
+    mass (a batch's check of its runs: the mass properties of its dynamic bodies only,
+    without the arrays; shapes shared by generated bodies are worked out once)."""
+    known: set[tuple] = set()
+    for body in scene.bodies:
+        key = (body.shapes, body.mass)
+        if body.type != "dynamic" or key in known:
+            continue
+        if scene.world.dimension == 3:
+            _require_mass_3d(body, body_mass_properties_3d(body))
+        else:
+            _require_mass_2d(body, body_mass_properties(body))
+        known.add(key)
+
+
+def _require_mass_2d(body: Body, props: MassProperties) -> None:
+    """Raise ModelError unless the dynamic 2D ``body`` (of mass properties ``props``)
+    has a positive mass and moment of inertia."""
+    if props.mass > 0.0 and props.inertia > 0.0:
+        return
+    if all(sh.kind == "segment" and sh.radius == 0 for sh in body.shapes):
+        why = "its shapes have no area (thin segments): give it `mass:` or a radius"
+    else:
+        why = f"its mass {props.mass:g} kg and inertia {props.inertia:g} kg·m² "
+        why += "are not both positive"
+    raise ModelError(f"body {body.name!r}: a dynamic body needs a mass; {why}")
+
+
+def _require_mass_3d(body: Body, props: Any) -> tuple[np.ndarray, np.ndarray]:
+    """The principal axes and moments (kg·m²) of the dynamic 3D ``body`` (of mass
+    properties ``props``); raises ModelError unless its mass and least moment are
+    positive."""
+    axes_q, principal = principal_axes(props.inertia)
+    if not (props.mass > 0.0 and principal[0] > 0.0):
+        why = f"its mass {props.mass:g} kg and least principal moment "
+        why += f"{principal[0]:g} kg·m² are not both positive"
+        raise ModelError(f"body {body.name!r}: a dynamic body needs a mass; {why}")
+    return axes_q, principal
+
+
 def build(scene: Scene) -> tuple[Model, State]:
     """Turn a resolved scene into a Model and its initial State (SI units), in the
     scene's dimension (world.dimension)."""
@@ -158,13 +199,7 @@ def build(scene: Scene) -> tuple[Model, State]:
         props = body_mass_properties(body)
         com[i] = props.center
         if kind == T.BODY_DYNAMIC:
-            if not (props.mass > 0.0 and props.inertia > 0.0):
-                if all(sh.kind == "segment" and sh.radius == 0 for sh in body.shapes):
-                    why = "its shapes have no area (thin segments): give it `mass:` or a radius"
-                else:
-                    why = f"its mass {props.mass:g} kg and inertia {props.inertia:g} kg·m² "
-                    why += "are not both positive"
-                raise ModelError(f"body {body.name!r}: a dynamic body needs a mass; {why}")
+            _require_mass_2d(body, props)
             mass[i], inertia[i] = props.mass, props.inertia
         else:
             mass[i], inertia[i] = math.inf, math.inf
@@ -360,11 +395,7 @@ def _body_3d(body: Body, kind: int) -> tuple:
     center = np.asarray(props.center)
     inverse = axes_q = principal = None
     if kind == T.BODY_DYNAMIC:
-        axes_q, principal = principal_axes(props.inertia)
-        if not (props.mass > 0.0 and principal[0] > 0.0):
-            why = f"its mass {props.mass:g} kg and least principal moment "
-            why += f"{principal[0]:g} kg·m² are not both positive"
-            raise ModelError(f"body {body.name!r}: a dynamic body needs a mass; {why}")
+        axes_q, principal = _require_mass_3d(body, props)
         inverse = np.linalg.inv(props.inertia)
         inverse = 0.5 * (inverse + inverse.T)
     shapes, local, rows, tris, tri_counts = [], [], [], [], []

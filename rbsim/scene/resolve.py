@@ -23,7 +23,18 @@ from .mass import body_mass_properties
 from .mass3d import body_mass_properties_3d, principal_axes
 from .schema import INVALID, Checked, did_you_mean
 from .types import SHAPE_KINDS, SHAPE_KINDS_3D
-from .yamlsrc import BROKEN, Mark, Problem, YList, YMap, format_path, load_yaml, load_yaml_tree
+from .yamlsrc import (
+    BROKEN,
+    Mark,
+    Problem,
+    Shared,
+    YList,
+    YMap,
+    copy_node,
+    format_path,
+    load_yaml,
+    load_yaml_tree,
+)
 
 Vec2 = tuple[float, float]
 Vec = tuple[float, ...]  # a 2-vector in a 2D scene, a 3-vector in a 3D one
@@ -280,15 +291,16 @@ def load_scene(path: str | Path, overrides: Sequence[str] = ()) -> Scene:
 def load_scene_text(text: str, path: str = "<string>", overrides: Sequence[str] = ()) -> Scene:
     """Validate and resolve a scene given as YAML text; ``path`` is used in messages
     and for the default name. Raises SceneError listing every problem found."""
-    root, mark, problems = load_yaml_tree(text)
+    root, mark, problems, shared = load_yaml_tree(text)
     if isinstance(root, YMap):
+        root = _copy_paths(root, overrides)
         problems += apply_overrides(root, overrides)
     scene = None
     if root is not None or not problems:  # a syntax error leaves nothing to check
-        checked, found = schema.check_scene(root, mark)
+        checked, found = schema.check_scene(root, mark, shared)
         problems += found
         if checked is not INVALID:
-            resolver = _Resolver()
+            resolver = _Resolver(shared)
             scene = resolver.scene(checked, text, path)
             problems += resolver.problems
     if problems or scene is None:
@@ -364,6 +376,25 @@ def apply_overrides(root: YMap, overrides: Sequence[str]) -> list[Problem]:
         else:
             problems += [Problem(p.mark, path + p.path, p.message) for p in found]
     return problems
+
+
+def _copy_paths(root: YMap, overrides: Sequence[str]) -> YMap:
+    """A copy of ``root`` in which the mappings and lists on the paths of ``overrides``
+    are copies (copy_node), the rest shared: apply_overrides may then change it in place
+    and leave the tree of load_yaml_tree, shared by every load of the text, as it was."""
+    root = copy_node(root)
+    for raw in overrides:
+        key, eq, _ = raw.partition("=")
+        parent: Any = root
+        for part in _split_key(key.strip()) if eq else ():
+            if isinstance(parent, YMap) and isinstance(parent.get(part), YMap | YList):
+                parent[part] = child = copy_node(parent[part])
+            elif isinstance(parent, YList) and isinstance(index := _list_index(parent, part), int):
+                parent[index] = child = copy_node(parent[index])
+            else:
+                break
+            parent = child
+    return root
 
 
 def _list_index(items: YList, part: str) -> int | str:
@@ -516,7 +547,8 @@ class _Resolver:
     """Checked tree -> Scene. Checks the rules that tie several keys together and
     collects problems; a part that holds an INVALID value (already reported) is skipped."""
 
-    def __init__(self) -> None:
+    def __init__(self, shared: Shared | None = None) -> None:
+        self.shared = shared  # the parsed text's (schema.check_scene): bodies kept there
         self.problems: list[Problem] = []
         self.materials: dict[str, Material | None] = {}  # None: invalid, already reported
         self.names: dict[str, tuple[str, Mark]] = {}  # body name -> (who, where)
@@ -752,6 +784,23 @@ class _Resolver:
             else:
                 self.names[name] = (format_path(path), c.mark_of("name"))
         self.count += 1
+        shared = self.shared
+        if shared is None or not shared.holds(c.src):
+            return self.body_of(c, name)
+        # a body entry of the shared tree (so its checked value too) resolved by an earlier
+        # load with the same dimension and materials: its Body again, and its problems
+        known = ("body", id(c), self.dimension, tuple(self.materials.items()))
+        found = shared.found.get(known)
+        if found is None or found[0] is not c:
+            start = len(self.problems)
+            body = self.body_of(c, name)
+            found = shared.found[known] = (c, body, self.problems[start:])
+        else:
+            self.problems += found[2]
+        return found[1]
+
+    def body_of(self, c: Checked, name: str | Any) -> Body | None:
+        """body() past its name: the Body of the checked entry ``c``, or None."""
         kind = c["type"]
         material = self.material(c, DEFAULT_MATERIAL)
         entries = [c["shape"]] if "shape" in c else c.get("shapes", INVALID)

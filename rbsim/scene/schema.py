@@ -22,7 +22,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 from . import types as T
-from .yamlsrc import BROKEN, Mark, Path, Problem, YList, YMap
+from .yamlsrc import BROKEN, Mark, Path, Problem, Shared, YList, YMap
 
 SCENE_VERSION = 1
 
@@ -893,9 +893,10 @@ class Checker:
     dimension's table has at the same place is named as the other dimension's.
     """
 
-    def __init__(self, dimension: int = 2) -> None:
+    def __init__(self, dimension: int = 2, shared: Shared | None = None) -> None:
         self.problems: list[Problem] = []
         self.dimension = dimension
+        self.shared = shared  # the parsed text's, whose nodes' checks are kept
 
     def _other_dimension(self, name: str, path: Path) -> str | None:
         """The message for ``name`` at ``path`` if it is a key of the other dimension."""
@@ -921,7 +922,20 @@ class Checker:
         """The checked, converted value, or INVALID after recording why not."""
         if value is BROKEN:  # unreadable YAML, already reported
             return INVALID
-        return getattr(self, "_" + key.kind)(value, key, path, mark)
+        shared = self.shared
+        if shared is None or not shared.holds(value):
+            return getattr(self, "_" + key.kind)(value, key, path, mark)
+        # a node of the shared tree, checked by an earlier load in the same place: its
+        # checked value again (never changed by those who read it), and its problems
+        known = ("check", id(value), id(key), path, mark, self.dimension)
+        found = shared.found.get(known)
+        if found is None:
+            start = len(self.problems)
+            out = getattr(self, "_" + key.kind)(value, key, path, mark)
+            found = shared.found[known] = (out, self.problems[start:])
+        else:
+            self.problems += found[1]
+        return found[0]
 
     # scalars -----------------------------------------------------------------------------
 
@@ -1161,13 +1175,15 @@ def _unknown_key(name: str, key: Key) -> str:
     return f"unknown key {name!r}; allowed keys: {', '.join(key.fields)}"
 
 
-def check_scene(root: Any, mark: Mark) -> tuple[Any, list[Problem]]:
+def check_scene(root: Any, mark: Mark, shared: Shared | None = None) -> tuple[Any, list[Problem]]:
     """Check a parsed scene tree against :data:`SCENE`.
 
     Returns (checked tree or INVALID, problems). The checked tree has every default of
-    the table filled in; keys whose value is wrong hold INVALID.
+    the table filled in; keys whose value is wrong hold INVALID. With `shared` (from
+    yamlsrc.load_yaml_tree), the checks of its tree's nodes that ``root`` shares are
+    worked out once and kept there (the checked values then shared too: read them only).
     """
-    checker = Checker(_dimension_of(root))
+    checker = Checker(_dimension_of(root), shared)
     if root is BROKEN:
         return INVALID, checker.problems
     if root is None:

@@ -21,7 +21,7 @@ Differences from ``yaml.safe_load``, chosen for scene files:
 from __future__ import annotations
 
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -185,23 +185,71 @@ def load_yaml(text: str, origin: str | None = None) -> tuple[Any, Mark, list[Pro
 # The trees of the last texts parsed by load_yaml_tree: a batch resolves one scene's text
 # hundreds of times, each time with its own overrides, and parsing was most of that
 # (1.6 of 2.6 ms for a 16-body scene). Texts longer than PARSED_TEXT_MAX are not kept.
-_PARSED: dict[str, tuple[Any, Mark, list[Problem]]] = {}
+_PARSED: dict[str, tuple[Any, Mark, list[Problem], Shared]] = {}
 PARSED_KEEP = 8  # texts
 PARSED_TEXT_MAX = 1 << 20  # characters
 
 
-def load_yaml_tree(text: str) -> tuple[Any, Mark, list[Problem]]:
-    """load_yaml(text), as a tree (and problem list) of the caller's own, which it may
-    change: a text met again is not parsed again, its first tree is copied."""
+class Shared:
+    """A parsed text's tree as load_yaml_tree shares it between the loads of that text
+    (no load changes its nodes: an override changes copies, see copy_node), and what the
+    checks of a load have worked out from those nodes, for the next loads: `found`, keyed
+    by the caller's tuples, which name nodes by id (valid while the tree lives, and so
+    only for nodes that `holds`)."""
+
+    __slots__ = ("nodes", "found")
+
+    def __init__(self, root: Any) -> None:
+        self.nodes: frozenset[int] = frozenset(id(n) for n in _containers(root))
+        self.found: dict[tuple, Any] = {}
+
+    def holds(self, value: Any) -> bool:
+        """Whether `value` is a mapping or list of the shared tree."""
+        return id(value) in self.nodes
+
+
+def _containers(value: Any) -> Iterator[Any]:
+    """The YMaps and YLists of a tree, `value` first."""
+    stack = [value]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, YMap | YList):
+            yield node
+            stack.extend(node.values() if isinstance(node, YMap) else node)
+
+
+def load_yaml_tree(text: str) -> tuple[Any, Mark, list[Problem], Shared]:
+    """load_yaml(text) and its Shared: a text met again is not parsed again. The tree is
+    shared with every other load of the text: the caller changes copies of its nodes
+    (copy_node), never the nodes themselves."""
     found = _PARSED.get(text)
     if found is None:
-        found = load_yaml(text)
+        root, mark, problems = load_yaml(text)
+        found = (root, mark, problems, Shared(root))
         if len(text) <= PARSED_TEXT_MAX:
             if len(_PARSED) >= PARSED_KEEP:
                 _PARSED.pop(next(iter(_PARSED)))
             _PARSED[text] = found
-    root, mark, problems = found
-    return copy_tree(root), mark, list(problems)
+    root, mark, problems, shared = found
+    return root, mark, list(problems), shared
+
+
+def copy_node(value: Any) -> Any:
+    """A shallow copy of a YMap or YList (its items and marks shared), or `value`."""
+    if isinstance(value, YMap):
+        out = YMap(value.mark)
+        out.block = value.block
+        out.update(value)
+        out.key_marks.update(value.key_marks)
+        out.value_marks.update(value.value_marks)
+        return out
+    if isinstance(value, YList):
+        out_list = YList(value.mark)
+        out_list.block = value.block
+        out_list.extend(value)
+        out_list.item_marks.extend(value.item_marks)
+        return out_list
+    return value
 
 
 def copy_tree(value: Any, on_node: Callable[[], None] | None = None) -> Any:
@@ -210,21 +258,14 @@ def copy_tree(value: Any, on_node: Callable[[], None] | None = None) -> Any:
     budget for aliases: it may raise to stop the copy)."""
     if on_node is not None:
         on_node()
-    if isinstance(value, YMap):
-        out = YMap(value.mark)
-        out.block = value.block
-        for key, item in value.items():
+    out = copy_node(value)
+    if isinstance(out, YMap):
+        for key, item in out.items():
             out[key] = copy_tree(item, on_node)
-        out.key_marks.update(value.key_marks)
-        out.value_marks.update(value.value_marks)
-        return out
-    if isinstance(value, YList):
-        out_list = YList(value.mark)
-        out_list.block = value.block
-        out_list.extend(copy_tree(item, on_node) for item in value)
-        out_list.item_marks.extend(value.item_marks)
-        return out_list
-    return value
+    elif isinstance(out, YList):
+        for i, item in enumerate(out):
+            out[i] = copy_tree(item, on_node)
+    return out
 
 
 def _syntax_problem(err: yaml.MarkedYAMLError, builder: _Builder) -> Problem:
