@@ -409,7 +409,7 @@ def test_3d_output_options(tmp_path) -> None:
 MANY = """\
 version: 1
 name: many
-world: {dimension: 3, gravity: [0, -9.81, 0], dt: 0.001, duration: 3}
+world: {dimension: 3, gravity: [0, -9.81, 0], dt: 0.001, duration: 6}
 solver: {substeps: 2, rotation: split}
 output: {every: 20}
 bodies:

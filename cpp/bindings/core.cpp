@@ -191,6 +191,8 @@ nb::dict storage(World<D>& w, nb::handle owner) {
   RBSIM_VIEW(sort_scratch) RBSIM_VIEW(sort_count)
 #undef RBSIM_VIEW
   gd["span"] = view(&g.span, 1, owner, false);
+  gd["frame_origin"] = view(&g.frame_origin, 1, owner, false);
+  gd["frame_offset"] = view(&g.frame_offset, 1, owner, false);
   gd["meta"] = view(&g.meta, 1, owner, false);
   d["grid"] = gd;
   return d;

@@ -18,6 +18,7 @@
 // items and what the passes list is gathered in a fixed order, so the state after a step
 // is the same, bit for bit, for every number of threads.
 #include <algorithm>
+#include <bit>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -44,6 +45,13 @@ void World<D>::allocate() {
   std::vector<std::uint8_t> dynamic(n_shapes);
   for (int s = 0; s < n_shapes; ++s) dynamic[s] = model.is_dynamic(model.shape_body[s]);
   const std::vector<double> size = shape_extent(model);  // m: each shape's half diagonal
+  model.shape_reach.assign(n_shapes, 0.0);
+  for (int s = 0; s < n_shapes; ++s) {
+    double reach2 = 0.0;  // m²
+    for (int k = model.shape_vstart[s]; k < model.shape_vstart[s] + model.shape_vcount[s]; ++k)
+      reach2 = std::max(reach2, length_squared(model.vertex_local[k]));
+    model.shape_reach[s] = std::sqrt(reach2);  // (as the largest length: sqrt is monotone)
+  }
   grid.allocate(size, dynamic, capacity);
   contacts.allocate(model.body_count(), n_shapes, model.vertex_count(), capacity);
   if constexpr (D == 3) contacts.face_world.assign(model.hull_face_count, Vec3{});
@@ -209,13 +217,17 @@ bool World<D>::collide() {
   const Config& cfg = config;
   auto& c = contacts;
   using S = StageId;
+  // the move of the frame (m) about which the boxes reach, and in which the broadphase
+  // keeps them: the median move of the dynamic bodies in the last step
+  const auto frame = frame_move(model, c);
+  grid.frame_offset = grid.frame_origin + frame;
   timed(S::Transform, [&] {
     const std::int64_t n_bodies = model.body_count(), n_shapes = model.shape_count();
     parallel(std::max(n_bodies, n_shapes), [&](Span part) {
       const std::int64_t n = std::max(n_bodies, n_shapes);
       // the same fraction of the bodies and of the shapes
       auto scaled = [n](std::int64_t k, std::int64_t total) { return k * total / n; };
-      transform_shapes(model, state, c, cfg.dt,
+      transform_shapes(model, state, c, cfg.dt, frame,
                        Span{scaled(part.first, n_bodies), scaled(part.last, n_bodies)},
                        Span{scaled(part.first, n_shapes), scaled(part.last, n_shapes)}, false);
     });
@@ -347,6 +359,7 @@ bool World<D>::step() {
       c.count.manifolds_prev = n;
       c.count.points_touching = touching.load();
     });
+    grid.frame_origin = grid.frame_offset;  // the step is done: its frame is the next's origin
   }
   return true;
   }
@@ -398,12 +411,32 @@ bool within(const T& v, double limit) {
   return true;
 }
 
+// Whether some double of `values` has a magnitude above the double whose bits are
+// `above`: the bits of a double without its sign order as the magnitudes do, NaN and
+// ±inf above every finite one (integer operations, which the compiler runs in lanes).
+constexpr std::uint64_t SIGN_BIT = std::uint64_t{1} << 63;
+constexpr std::uint64_t FINITE_BITS = 0x7FEFFFFFFFFFFFFF;  // the largest finite double's
+
+template <class T>
+bool beyond(const std::vector<T>& values, std::uint64_t above) {
+  const double* p = reinterpret_cast<const double*>(values.data());
+  const std::size_t n = values.size() * (sizeof(T) / sizeof(double));
+  std::uint64_t hit = 0;
+  for (std::size_t k = 0; k < n; ++k)
+    hit |= (std::bit_cast<std::uint64_t>(p[k]) & ~SIGN_BIT) > above;
+  return hit != 0;
+}
+
 // The body to blame for a bad state: the first dynamic body whose state is not finite
 // or has left POSITION_LIMIT. A static or kinematic body only goes bad through a dynamic
 // one (a non-finite impulse times its zero inverse mass), so it is named only when no
 // dynamic body is bad. -1: none.
 template <int D>
 std::int64_t first_bad_body(const Model<D>& model, const State<D>& st) {
+  const std::uint64_t limit = std::bit_cast<std::uint64_t>(POSITION_LIMIT);
+  if (!beyond(st.body_v, FINITE_BITS) && !beyond(st.body_w, FINITE_BITS) &&
+      !beyond(st.body_q, FINITE_BITS) && !beyond(st.body_x, limit))
+    return -1;  // (the search below only for a bad state)
   std::int64_t other = -1;
   for (std::size_t i = 0; i < st.body_x.size(); ++i) {
     if (finite(st.body_v[i]) && finite(st.body_w[i]) && finite(st.body_q[i]) &&

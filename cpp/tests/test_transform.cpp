@@ -39,19 +39,35 @@ TEST(world_vertices_are_body_vertices_turned_and_moved) {
   CHECK_NEAR(w.contacts.norm_world[k0].y, -std::cos(angle), EPS);
 }
 
-// The reach is how far the surface can move in a step, dt (|v| + |ω| r_max), r_max the
-// farthest core vertex: a circle turning about its centre moves its surface by its
-// centre's motion only; a static shape has none.
+// How far the surface can move in a step: dt |ω| r_max by turning (r_max the farthest
+// core vertex: a circle turning about its centre moves no surface), dt v by the body's
+// move; the box reaches |dt v - frame| + dt² |g| + the turn about the frame's move
+// (the median of the dynamic bodies' moves in the last step along each axis, the lower
+// middle one of two), a static shape's |frame|.
 TEST(speculative_reach_is_dt_times_surface_speed) {
   SceneBuilder s;
   const int g = s.ground();
   const int ball = s.circle({0, 3}, 0.25, 1.0, {}, {3.0, -4.0}, 2.0);
   const int box = s.box({2, 3}, 0.3, 0.4, 1.0, {}, 0.0, {0.0, 1.0}, -10.0);
   World<2>& w = s.finish(0.01);
-  transform_shapes(w.model, w.state, w.contacts, w.config.dt);
-  CHECK(w.contacts.shape_margin[g] == 0.0);
-  CHECK_NEAR(w.contacts.shape_margin[ball], 0.01 * 5.0, EPS);  // its spin moves no surface
-  CHECK_NEAR(w.contacts.shape_margin[box], 0.01 * (1.0 + 10.0 * 0.5), EPS);  // corner at 0.5 m
+  auto& c = w.contacts;
+  const int bb = w.model.shape_body[ball], bx = w.model.shape_body[box];
+  c.body_delta[bb].dx = {0.02, -0.04};  // last step's moves
+  c.body_delta[bx].dx = {0.0, 0.01};
+  const Vec2 frame = frame_move(w.model, c);
+  CHECK(frame.x == 0.0 && frame.y == -0.04);
+  transform_shapes(w.model, w.state, c, w.config.dt);
+  CHECK(c.shape_turn[g] == 0.0);
+  CHECK(c.shape_turn[ball] == 0.0);  // its spin moves no surface
+  CHECK_NEAR(c.shape_turn[box], 0.01 * 10.0 * 0.5, EPS);  // corner at 0.5 m
+  const Vec2 step{0.03, -0.04};  // the ball's, m
+  const double fall = 0.01 * 0.01 * 9.81;  // m
+  CHECK_NEAR(c.body_step[bb].x, step.x, EPS);
+  CHECK_NEAR(c.body_step[bb].y, step.y, EPS);
+  CHECK_NEAR(c.shape_margin[g], 0.04, EPS);
+  CHECK_NEAR(c.shape_margin[ball], length(step - frame) + fall, EPS);
+  const Vec2 step_box{0.0, 0.01};
+  CHECK_NEAR(c.shape_margin[box], length(step_box - frame) + fall + 0.05, EPS);
 }
 
 // A body is still while within STILL_DISTANCE and STILL_ANGLE of the pose it had when it
@@ -127,17 +143,29 @@ TEST(world_geometry_in_space_is_body_geometry_turned_and_moved) {
   CHECK(found);
 }
 
-// The reach in space: dt (|v| + |ω| r_max), |ω| the vector's length.
+// The reach in space: |ω| the vector's length; the frame's move the lower middle one of
+// the two dynamic bodies' along each axis.
 TEST(speculative_reach_in_space_is_dt_times_surface_speed) {
   SceneBuilder3 s;
   const int g = s.plane({0.0, 1.0, 0.0}, 0.0);
   const int ball = s.sphere({0, 3, 0}, 0.25, 1.0, {}, {3.0, -4.0, 0.0});
   const int box = s.box({2, 3, 0}, {0.3, 0.4, 0.0}, 1.0, {}, {}, {0.0, 1.0, 0.0}, {6.0, 0.0, 8.0});
   World<3>& w = s.finish(0.01);
-  transform_shapes(w.model, w.state, w.contacts, w.config.dt);
-  CHECK(w.contacts.shape_margin[g] == 0.0);
-  CHECK_NEAR(w.contacts.shape_margin[ball], 0.01 * 5.0, EPS);
-  CHECK_NEAR(w.contacts.shape_margin[box], 0.01 * (1.0 + 10.0 * 0.5), EPS);  // corner at 0.5 m
+  auto& c = w.contacts;
+  const int bb = w.model.shape_body[ball], bx = w.model.shape_body[box];
+  c.body_delta[bb].dx = {0.02, -0.04, 0.01};
+  c.body_delta[bx].dx = {0.0, 0.01, 0.03};
+  const Vec3 frame = frame_move(w.model, c);
+  CHECK(frame.x == 0.0 && frame.y == -0.04 && frame.z == 0.01);
+  transform_shapes(w.model, w.state, c, w.config.dt);
+  CHECK(c.shape_turn[g] == 0.0 && c.shape_turn[ball] == 0.0);
+  CHECK_NEAR(c.shape_turn[box], 0.01 * 10.0 * 0.5, EPS);  // corner at 0.5 m
+  const Vec3 step{0.03, -0.04, 0.0};  // the ball's, m
+  const double fall = 0.01 * 0.01 * 9.81;  // m
+  CHECK_NEAR(c.shape_margin[g], length(frame), EPS);
+  CHECK_NEAR(c.shape_margin[ball], length(step - frame) + fall, EPS);
+  const Vec3 step_box{0.0, 0.01, 0.0};
+  CHECK_NEAR(c.shape_margin[box], length(step_box - frame) + fall + 0.05, EPS);
 }
 
 // Still in space: within STILL_DISTANCE and a turn of STILL_ANGLE (about any axis; q and

@@ -46,6 +46,13 @@ struct Grid {
   std::vector<std::int64_t> bucket_start; // (T+1,)
   std::vector<std::int32_t> big_list;     // (S,) big shapes in index order
   Vec span{};  // m: widest and tallest small fat box, padded up by a relative 1e-12
+  // The boxes are kept in a frame that moves as the dynamic bodies do (each step by their
+  // median move in the last, frame_move): box = world box - frame_offset. A heap falling
+  // as one then stays inside its fat boxes, as a heap at rest does, and a static shape is
+  // the one that moves. frame_offset is this step's, frame_origin the last completed
+  // step's (a step begun again takes the same offset).
+  Vec frame_origin{};  // m
+  Vec frame_offset{};  // m
   GridMeta<D> meta;
   std::vector<std::int64_t> new_keys;     // (P,) scratch for the pair update
   std::vector<std::array<std::int32_t, 2>> kept;  // (P,)

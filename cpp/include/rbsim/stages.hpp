@@ -58,16 +58,27 @@ struct Config {
 // contacts with a static or kinematic body; damping ratio CONTACT_DAMPING_RATIO.
 void set_contact_softness(Config& config);
 
-// collide/transform.cpp: world vertices and normals of every shape, each shape's
-// speculative reach dt (|v| + |ω| r), and which bodies are still near their reference pose.
+// collide/transform.cpp: world vertices and normals of every shape, how far each can move
+// in the step (contacts.shape_margin, shape_turn, body_step: |dt v - frame| + dt² |a| +
+// dt |ω| r, dt |ω| r and dt v), and which bodies are still near their reference pose.
 template <int D>
 void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
                       double dt);
-// The same for the bodies and the shapes of two ranges (one thread's part); with
-// still_poses false, without finding which bodies are still (take_still_poses does that).
+// The same for the bodies and the shapes of two ranges (one thread's part), the boxes'
+// reach about the frame's move `frame` (m, frame_move's); with still_poses false, without
+// finding which bodies are still (take_still_poses does that).
 template <int D>
 void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
-                      double dt, Span bodies, Span shapes, bool still_poses = true);
+                      double dt, const typename Dim<D>::Vec& frame, Span bodies, Span shapes,
+                      bool still_poses = true);
+// collide/transform.cpp: the median move (m) of the dynamic bodies in the last step
+// (contacts.body_delta, before the step resets it) along each axis (the lower middle one
+// of an even count; zero without dynamic bodies): how far the frame of the shapes' boxes
+// moves this step (the boxes reach about it, and the broadphase keeps them in it,
+// Grid::frame_offset). A heap falling as one then has boxes as tight, and as still, as
+// a heap at rest; bodies at rest beside a few moving ones keep theirs.
+template <int D>
+typename Dim<D>::Vec frame_move(const Model<D>& model, const Contacts<D>& contacts);
 // collide/transform.cpp: which bodies of the range are still near their reference pose
 // (contacts.body_still); a body that is not takes its pose as the new reference. The step
 // does this once its pairs are found, so that a step the contact store grew for and began

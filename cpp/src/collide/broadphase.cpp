@@ -140,6 +140,7 @@ std::int64_t update_aabbs(const Model<D>& model, Grid<D>& grid, const Contacts<D
   // takes the smaller of its two: the boxes reach at least that far)
   const double reach = 0.5 * C::SPECULATIVE_DISTANCE;
   const bool fresh = grid.meta.pairs_valid == 0;
+  const Vec shift = grid.frame_offset;  // m
   Aabb<D>* box = grid.shape_aabb.data();
   Aabb<D>* fat = grid.shape_fat.data();
   std::int64_t moved = 0;
@@ -157,6 +158,8 @@ std::int64_t update_aabbs(const Model<D>& model, Grid<D>& grid, const Contacts<D
     if constexpr (D == 3) {
       if (model.shape_kind[s] == ShapeKind::Plane) plane_box(contacts.norm_world[start], lo, hi);
     }
+    lo = lo - shift;  // into the moving frame (an unbounded side stays so)
+    hi = hi - shift;
     const Aabb<D> last = box[s];  // last step's tight box
     box[s] = {lo, hi};
     const double margin = scale * C::AABB_MARGIN;  // m
@@ -165,12 +168,16 @@ std::int64_t update_aabbs(const Model<D>& model, Grid<D>& grid, const Contacts<D
     const double* now_lo = &lo.x;
     const double* now_hi = &hi.x;
     const double* was_lo = &last.lo.x;
+    const double* was_hi = &last.hi.x;
     const double* fat_lo = &fat[s].lo.x;
     const double* fat_hi = &fat[s].hi.x;
     double step[D], slack = 0.0;
     bool slow = true;
     for (int d = 0; d < D; ++d) {
-      step[d] = now_lo[d] - was_lo[d];
+      // (a plane's box is unbounded on one side: its other side moves; on both: none)
+      step[d] = std::isfinite(now_lo[d])   ? now_lo[d] - was_lo[d]
+                : std::isfinite(now_hi[d]) ? now_hi[d] - was_hi[d]
+                                           : 0.0;
       slow = slow && std::fabs(step[d]) < C::FAT_REST * margin;
       slack += (fat_hi[d] - now_hi[d]) + (now_lo[d] - fat_lo[d]) - 2.0 * margin;
     }

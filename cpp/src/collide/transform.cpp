@@ -3,13 +3,19 @@
 //
 // The reach (m) is how far the shape's surface can move in one step, dt (|v| + |ω| r)
 // with r the farthest core vertex from the centre of mass, so that contacts are created
-// before a fast body can pass through another. A body
+// before a fast body can pass through another. A pair's speculative distance takes the
+// bodies' relative move, dt |v_a - v_b|, and the boxes of the broadphase reach about the
+// frame's move (frame_move: the dynamic bodies' median move), a static shape's by
+// |frame|, and a dynamic shape's box by dt² |a| more (its acceleration over the step):
+// the boxes of two shapes still meet wherever their surfaces can, and those of a heap
+// falling as one are as tight as at rest. A body
 // within STILL_DISTANCE and STILL_ANGLE of its reference pose is "still": its contacts
 // may be carried from the last step; one that left it re-takes the reference pose here,
 // and its contacts are recomputed.
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "rbsim/constants.hpp"
 #include "rbsim/stages.hpp"
@@ -61,14 +67,60 @@ inline bool near_reference(Dim<3>::RefPose& ref, const State<3>& state, std::siz
   return near;
 }
 
+// |a| (m/s²) of body i: gravity (|g| given) and its constant force over its mass for a
+// dynamic body, zero for the others. A body let go at rest above a floor has no speed
+// yet, and may fall far in the step under a strong gravity: its box reaches that far too.
+template <int D>
+inline double acceleration(const Model<D>& model, int i, double g_norm) {
+  if (!model.is_dynamic(i)) return 0.0;
+  if (!model.has_forces) return g_norm;
+  return length(model.gravity + model.body_inv_mass[i] * model.body_force[i]);
+}
+
 }  // namespace
 
 template <int D>
 void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
                       double dt) {
-  transform_shapes(model, state, contacts, dt,
+  transform_shapes(model, state, contacts, dt, frame_move(model, contacts),
                    Span{0, static_cast<std::int64_t>(contacts.body_ref.size())},
                    Span{0, model.shape_count()});
+}
+
+namespace {
+
+// The median along each axis of value(i) over the dynamic bodies i, of at most about
+// FRAME_SAMPLES of them evenly spread (the lower middle one of an even count; zero
+// without dynamic bodies). The frame needs no more: any frame gives the same pairs.
+constexpr int FRAME_SAMPLES = 64;
+template <int D, class F>
+typename Dim<D>::Vec dynamic_median(const Model<D>& model, F value) {
+  using Vec = typename Dim<D>::Vec;
+  const int n = model.body_count();
+  const int stride = std::max(1, n / FRAME_SAMPLES);
+  double along[D][FRAME_SAMPLES + 1];
+  int count = 0;
+  for (int i = 0; i < n && count <= FRAME_SAMPLES; i += stride) {
+    if (!model.is_dynamic(i)) continue;
+    const double* v = &value(i).x;
+    for (int d = 0; d < D; ++d) along[d][count] = v[d];
+    ++count;
+  }
+  Vec out{};
+  if (count == 0) return out;
+  for (int d = 0; d < D; ++d) {
+    double* middle = along[d] + (count - 1) / 2;
+    std::nth_element(along[d], middle, along[d] + count);
+    (&out.x)[d] = *middle;
+  }
+  return out;
+}
+
+}  // namespace
+
+template <int D>
+typename Dim<D>::Vec frame_move(const Model<D>& model, const Contacts<D>& contacts) {
+  return dynamic_median(model, [&](int i) -> const auto& { return contacts.body_delta[i].dx; });
 }
 
 template <int D>
@@ -81,10 +133,16 @@ void take_still_poses(const State<D>& state, Contacts<D>& contacts, Span bodies)
 
 template <int D>
 void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
-                      double dt, Span bodies, Span shapes, bool still_poses) {
+                      double dt, const typename Dim<D>::Vec& frame, Span bodies, Span shapes,
+                      bool still_poses) {
+  // (frame: m, the frame's move this step)
   using Vec = typename Dim<D>::Vec;
   if (still_poses) take_still_poses(state, contacts, bodies);
   if constexpr (D == 3) world_inertia(model, state, contacts, bodies);
+  for (std::int64_t i = bodies.first; i < bodies.last; ++i)
+    contacts.body_step[i] = dt * state.body_v[i];
+  const double frame_reach = length(frame);  // m: a static shape's
+  const double g_norm = length(model.gravity);  // m/s²
 
   Vec* vw = contacts.vert_world.data();
   Vec* nw = contacts.norm_world.data();
@@ -94,7 +152,6 @@ void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>&
     const int i = model.shape_body[s];
     const auto q = state.body_q[i];
     const Vec x = state.body_x[i];
-    double reach2 = 0.0;  // m²: the farthest core vertex from the COM, squared
     const int k0 = model.shape_vstart[s], k1 = k0 + model.shape_vcount[s];
     if constexpr (D == 3) {
       // the body's rotation as a matrix, once for all its points
@@ -103,7 +160,6 @@ void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>&
       for (int k = k0; k < k1; ++k) {
         vw[k] = x + r * vl[k];
         if (plane) nw[k] = r * nl[k];  // (only a plane has a normal row; the others' stay zero)
-        reach2 = std::max(reach2, length_squared(vl[k]));
       }
       // a convex hull's face normals (the box's come from its corners, narrow3d.hpp)
       const Hull3& hull = model.shape_hull[s];
@@ -113,17 +169,20 @@ void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>&
       for (int k = k0; k < k1; ++k) {
         vw[k] = world_point(x, q, vl[k]);
         nw[k] = rotate(q, nl[k]);
-        reach2 = std::max(reach2, length_squared(vl[k]));
       }
     }
-    const double reach = std::sqrt(reach2);  // m (as the largest length: sqrt is monotone)
+    const double reach = model.shape_reach[s];  // m
     if (model.body_type[i] == BodyType::Static) {
-      contacts.shape_margin[s] = 0.0;
+      contacts.shape_turn[s] = 0.0;
+      contacts.shape_margin[s] = frame_reach;
     } else {
       // turning moves a rounded shape's surface only as far as it moves its core (a
       // circle about its centre does not move its surface at all)
-      const double speed = length(state.body_v[i]);  // m/s
-      contacts.shape_margin[s] = dt * (speed + magnitude(state.body_w[i]) * reach);
+      const double turn = dt * magnitude(state.body_w[i]) * reach;  // m
+      contacts.shape_turn[s] = turn;
+      const double fall = dt * dt * acceleration(model, i, g_norm);  // m
+      // (the body's step from its velocity: another thread's part may hold the body)
+      contacts.shape_margin[s] = length(dt * state.body_v[i] - frame) + fall + turn;
     }
   }
 }
@@ -161,9 +220,13 @@ bool build_shape_hulls(Model<3>& model, std::string* error) {
 
 template void transform_shapes(const Model<2>&, const State<2>&, Contacts<2>&, double);
 template void transform_shapes(const Model<3>&, const State<3>&, Contacts<3>&, double);
-template void transform_shapes(const Model<2>&, const State<2>&, Contacts<2>&, double, Span, Span,
+template Vec2 frame_move(const Model<2>&, const Contacts<2>&);
+template Vec3 frame_move(const Model<3>&, const Contacts<3>&);
+template void transform_shapes(const Model<2>&, const State<2>&, Contacts<2>&, double,
+                               const Vec2&, Span, Span,
                                bool);
-template void transform_shapes(const Model<3>&, const State<3>&, Contacts<3>&, double, Span, Span,
+template void transform_shapes(const Model<3>&, const State<3>&, Contacts<3>&, double,
+                               const Vec3&, Span, Span,
                                bool);
 template void take_still_poses(const State<2>&, Contacts<2>&, Span);
 template void take_still_poses(const State<3>&, Contacts<3>&, Span);

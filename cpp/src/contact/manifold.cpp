@@ -73,10 +73,13 @@ inline int narrow_pair(const Model<D>& model, const Contacts<D>& c, int a, int b
   }
 }
 
-// The speculative distance of pair a, b (m) at scale `scale`.
+// The speculative distance of pair a, b (m) at scale `scale`: how far their surfaces can
+// come closer in the step, by their bodies' relative move and each one's turning.
 template <int D>
-inline double speculative(const Contacts<D>& c, int a, int b, double scale) {
-  return scale * C::SPECULATIVE_DISTANCE + c.shape_margin[a] + c.shape_margin[b];
+inline double speculative(const Model<D>& model, const Contacts<D>& c, int a, int b,
+                          double scale) {
+  const auto apart = c.body_step[model.shape_body[a]] - c.body_step[model.shape_body[b]];
+  return scale * C::SPECULATIVE_DISTANCE + length(apart) + c.shape_turn[a] + c.shape_turn[b];
 }
 
 // 3D: the impulses of last step's manifold j that no feature id carried over go to the
@@ -158,7 +161,7 @@ void narrow_pairs(const Model<D>& model, const Contacts<D>& c, const Grid<D>& gr
       if (std::binary_search(prev, prev + n_prev, key)) continue;
     }
     const double scale = std::min(c.shape_scale[a], c.shape_scale[b]);
-    const int npts = narrow_pair(model, c, a, b, scale, speculative(c, a, b, scale), out);
+    const int npts = narrow_pair(model, c, a, b, scale, speculative(model, c, a, b, scale), out);
     found_points[p] = static_cast<std::int8_t>(npts);
     PairManifold<D>& f = found[p];
     f.normal = out.normal;
@@ -244,7 +247,7 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
         c.max_normal_impulse[m][k] = 0.0;
       }
     } else {
-      const double spec = speculative(c, a, b, scale);
+      const double spec = speculative(model, c, a, b, scale);
       const double radius_a = model.shape_radius[a], radius_b = model.shape_radius[b];  // m
       double t = 0.0;  // s
       if (found && found_points[p] >= 0) {  // found ahead, on the step's threads

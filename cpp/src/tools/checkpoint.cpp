@@ -24,7 +24,7 @@ void visit(W& w, F&& f) {
   auto& g = w.grid;
   f(g.inv_cell), f(g.shape_aabb), f(g.shape_fat), f(g.shape_moved), f(g.shape_big);
   f(g.shape_cell), f(g.shape_bucket), f(g.entry_shape), f(g.entry_cell), f(g.entry_fat);
-  f(g.entry_tag), f(g.bucket_start), f(g.big_list), f(g.span), f(g.meta), f(g.new_keys);
+  f(g.entry_tag), f(g.bucket_start), f(g.big_list), f(g.span), f(g.frame_origin), f(g.frame_offset), f(g.meta), f(g.new_keys);
   f(g.kept), f(g.sort_scratch), f(g.sort_count);
   auto& c = w.contacts;
   f(c.count), f(c.carried), f(c.pairs), f(c.shape_a), f(c.shape_b), f(c.body_a), f(c.body_b);
@@ -38,7 +38,7 @@ void visit(W& w, F&& f) {
   f(c.scale), f(c.shape_size), f(c.shape_scale), f(c.body_scale);
   f(c.body_ref), f(c.body_still), f(c.body_delta), f(c.body_inv_inertia_world);
   f(c.toi_verts), f(c.toi_norms);
-  f(c.vert_world), f(c.norm_world), f(c.face_world), f(c.shape_margin), f(c.body_level), f(c.shock_side);
+  f(c.vert_world), f(c.norm_world), f(c.face_world), f(c.shape_margin), f(c.shape_turn), f(c.body_step), f(c.body_level), f(c.shock_side);
   f(c.shock_order), f(c.solve_order), f(c.adj_start), f(c.adj), f(c.queue), f(c.bounce_kind);
   f(c.body_mark), f(c.solve_impulse), f(c.bounce_list), f(c.relax_list), f(c.body_reach);
   f(c.wave_count), f(c.waves_valid), f(c.heavy_on_light), f(c.unit_scale), f(c.wave_order), f(c.manifold_wave), f(c.body_wave);
@@ -49,13 +49,13 @@ void visit(W& w, F&& f) {
 constexpr std::size_t VEC = sizeof(std::vector<int>);
 static_assert(sizeof(State<2>) == 6 * VEC, "State changed: update visit()");
 static_assert(sizeof(State<3>) == 6 * VEC, "State changed: update visit()");
-static_assert(sizeof(Grid<2>) == 8 + 16 * VEC + sizeof(Vec2) + sizeof(GridMeta<2>),
+static_assert(sizeof(Grid<2>) == 8 + 16 * VEC + 3 * sizeof(Vec2) + sizeof(GridMeta<2>),
               "Grid changed: update visit()");
-static_assert(sizeof(Grid<3>) == 8 + 16 * VEC + sizeof(Vec3) + sizeof(GridMeta<3>),
+static_assert(sizeof(Grid<3>) == 8 + 16 * VEC + 3 * sizeof(Vec3) + sizeof(GridMeta<3>),
               "Grid changed: update visit()");
-static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 76 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 78 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
-static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 76 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 78 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
 
 template <class T>
