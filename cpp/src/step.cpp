@@ -18,8 +18,8 @@
 // items and what the passes list is gathered in a fixed order, so the state after a step
 // is the same, bit for bit, for every number of threads.
 #include <algorithm>
-#include <bit>
 #include <atomic>
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <limits>
