@@ -250,7 +250,7 @@ bool World<D>::collide() {
       found_points.resize(c.capacity());
     }
     parallel(n_pairs, [&](Span part) {
-      narrow_pairs(model, c, grid, part, found.data(), found_points.data());
+      narrow_pairs(model, state, c, grid, cfg.dt, part, found.data(), found_points.data());
     });
     update_manifolds(model, state, c, grid, n_pairs, cfg.friction_rule, cfg.restitution_rule,
                      cfg.dt, found.data(), found_points.data());

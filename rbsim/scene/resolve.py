@@ -293,7 +293,7 @@ def load_scene_text(text: str, path: str = "<string>", overrides: Sequence[str] 
     and for the default name. Raises SceneError listing every problem found."""
     root, mark, problems, shared = load_yaml_tree(text)
     if isinstance(root, YMap):
-        root = _copy_paths(root, overrides)
+        root = copy_node(root)  # (apply_overrides copies the nodes below it that it changes)
         problems += apply_overrides(root, overrides)
     scene = None
     if root is not None or not problems:  # a syntax error leaves nothing to check
@@ -324,7 +324,10 @@ def _override_path(key: str) -> tuple[str | int, ...]:
 
 
 def apply_overrides(root: YMap, overrides: Sequence[str]) -> list[Problem]:
-    """Apply ``key.path=value`` overrides to a parsed tree in place.
+    """Apply ``key.path=value`` overrides to a parsed tree in place: ``root`` changes,
+    and the mappings and lists below it on an override's path are replaced by copies
+    (copy_node) before they change, so that a tree whose nodes are shared with another
+    (load_yaml_tree's, given as a copy of its root) leaves the other as it was.
 
     Values are parsed as YAML with the same number rules as files; every value set
     remembers its override (for messages). Lists are indexed by position
@@ -359,6 +362,8 @@ def apply_overrides(root: YMap, overrides: Sequence[str]) -> list[Problem]:
                                 if other != part:
                                     node.remove(other)
                     node.put(part, value if last else YMap(here), here, here)
+                else:  # a node on the path: changed as a copy (the tree may be shared)
+                    node[part] = copy_node(node[part])
                 node, path = node[part], path + (part,)
             elif isinstance(node, YList):
                 index = _list_index(node, part)
@@ -368,6 +373,8 @@ def apply_overrides(root: YMap, overrides: Sequence[str]) -> list[Problem]:
                 if last:
                     node[index] = value
                     node.item_marks[index] = here
+                else:
+                    node[index] = copy_node(node[index])
                 node, path = node[index], path + (index,)
             else:
                 message = f"cannot set {key}: {format_path(path)} is {schema.describe(node)}"
@@ -376,25 +383,6 @@ def apply_overrides(root: YMap, overrides: Sequence[str]) -> list[Problem]:
         else:
             problems += [Problem(p.mark, path + p.path, p.message) for p in found]
     return problems
-
-
-def _copy_paths(root: YMap, overrides: Sequence[str]) -> YMap:
-    """A copy of ``root`` in which the mappings and lists on the paths of ``overrides``
-    are copies (copy_node), the rest shared: apply_overrides may then change it in place
-    and leave the tree of load_yaml_tree, shared by every load of the text, as it was."""
-    root = copy_node(root)
-    for raw in overrides:
-        key, eq, _ = raw.partition("=")
-        parent: Any = root
-        for part in _split_key(key.strip()) if eq else ():
-            if isinstance(parent, YMap) and isinstance(parent.get(part), YMap | YList):
-                parent[part] = child = copy_node(parent[part])
-            elif isinstance(parent, YList) and isinstance(index := _list_index(parent, part), int):
-                parent[index] = child = copy_node(parent[index])
-            else:
-                break
-            parent = child
-    return root
 
 
 def _list_index(items: YList, part: str) -> int | str:

@@ -222,13 +222,12 @@ struct Contacts {
   std::vector<Vec> face_world;  // 3D: (Model::hull_face_count,) convex hulls' face normals
                                 // in the world this step (sized by World::allocate)
   // how far each shape's surface can move this step (collide/transform.cpp), m: its
-  // box's reach, |body_step - frame| + dt² |a| + shape_turn, about the move of the frame
-  // of the moving bodies (frame_move; a static shape's |frame|); what its turning adds,
-  // dt |ω| r; and each body's move at its velocity, dt v (a pair's speculative distance
-  // takes their difference: bodies falling side by side come no closer)
+  // box's reach, |dt v - frame| + dt² |a| + shape_turn, about the move of the frame of
+  // the moving bodies (frame_move; a static shape's |frame|); and what its turning adds,
+  // dt |ω| r (a pair's speculative distance takes the two turns and the bodies' relative
+  // move, dt |v_a - v_b|: bodies falling side by side come no closer)
   std::vector<double> shape_margin;         // (S,)
   std::vector<double> shape_turn;           // (S,)
-  std::vector<Vec> body_step;               // (N,)
   std::vector<double> shape_size;           // (S,) m: half its bounding box's diagonal
   std::vector<double> shape_scale;          // (S,) min(1, size / SCALE_LENGTH)
   std::vector<double> body_scale;           // (N,) its smallest shape's (1 without shapes)
@@ -321,7 +320,7 @@ bool Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   body_ref.assign(n, unset);
   reset(body_still, n); reset(body_delta, n); reset(body_inv_inertia_world, D == 3 ? n : 0);
   reset(toi_verts, v < 2 ? 2 : v); reset(toi_norms, D == 2 ? (v < 2 ? 2 : v) : 2 * v + 2);
-  reset(vert_world, v); reset(norm_world, v); reset(shape_margin, s); reset(shape_turn, s); reset(body_step, n);
+  reset(vert_world, v); reset(norm_world, v); reset(shape_margin, s); reset(shape_turn, s);
   shape_size.assign(s, 1.0); shape_scale.assign(s, 1.0); body_scale.assign(n, 1.0);
   reset(body_level, n); reset(shock_side, m); reset(shock_order, m); reset(solve_order, m);
   reset(adj_start, n + 1); reset(adj, 2 * m); reset(queue, n + 2);

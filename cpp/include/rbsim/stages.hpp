@@ -59,8 +59,8 @@ struct Config {
 void set_contact_softness(Config& config);
 
 // collide/transform.cpp: world vertices and normals of every shape, how far each can move
-// in the step (contacts.shape_margin, shape_turn, body_step: |dt v - frame| + dt² |a| +
-// dt |ω| r, dt |ω| r and dt v), and which bodies are still near their reference pose.
+// in the step (contacts.shape_margin, shape_turn: |dt v - frame| + dt² |a| + dt |ω| r and
+// dt |ω| r), and which bodies are still near their reference pose.
 template <int D>
 void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
                       double dt);
@@ -119,8 +119,9 @@ void update_manifolds(const Model<D>& model, const State<D>& state, Contacts<D>&
 // manifold to carry), into found[p] and found_points[p] (-1 for the others): the
 // threaded step's first, parallel half of update_manifolds. Time of impact stays there.
 template <int D>
-void narrow_pairs(const Model<D>& model, const Contacts<D>& contacts, const Grid<D>& grid,
-                  Span pairs, PairManifold<D>* found, std::int8_t* found_points);
+void narrow_pairs(const Model<D>& model, const State<D>& state, const Contacts<D>& contacts,
+                  const Grid<D>& grid, double dt, Span pairs, PairManifold<D>* found,
+                  std::int8_t* found_points);
 
 // contact/store.cpp: this step's manifolds become last step's (for warm starting).
 template <int D>

@@ -139,8 +139,6 @@ void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>&
   using Vec = typename Dim<D>::Vec;
   if (still_poses) take_still_poses(state, contacts, bodies);
   if constexpr (D == 3) world_inertia(model, state, contacts, bodies);
-  for (std::int64_t i = bodies.first; i < bodies.last; ++i)
-    contacts.body_step[i] = dt * state.body_v[i];
   const double frame_reach = length(frame);  // m: a static shape's
   const double g_norm = length(model.gravity);  // m/s²
 
@@ -181,7 +179,6 @@ void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>&
       const double turn = dt * magnitude(state.body_w[i]) * reach;  // m
       contacts.shape_turn[s] = turn;
       const double fall = dt * dt * acceleration(model, i, g_norm);  // m
-      // (the body's step from its velocity: another thread's part may hold the body)
       contacts.shape_margin[s] = length(dt * state.body_v[i] - frame) + fall + turn;
     }
   }

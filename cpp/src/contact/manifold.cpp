@@ -74,11 +74,11 @@ inline int narrow_pair(const Model<D>& model, const Contacts<D>& c, int a, int b
 }
 
 // The speculative distance of pair a, b (m) at scale `scale`: how far their surfaces can
-// come closer in the step, by their bodies' relative move and each one's turning.
+// come closer in a step of dt, by their bodies' relative move and each one's turning.
 template <int D>
-inline double speculative(const Model<D>& model, const Contacts<D>& c, int a, int b,
-                          double scale) {
-  const auto apart = c.body_step[model.shape_body[a]] - c.body_step[model.shape_body[b]];
+inline double speculative(const Model<D>& model, const State<D>& st, const Contacts<D>& c,
+                          double dt, int a, int b, double scale) {
+  const auto apart = dt * st.body_v[model.shape_body[a]] - dt * st.body_v[model.shape_body[b]];
   return scale * C::SPECULATIVE_DISTANCE + length(apart) + c.shape_turn[a] + c.shape_turn[b];
 }
 
@@ -143,8 +143,9 @@ void carry_unmatched(Contacts<3>& c, std::int64_t m, std::int64_t j, int npts, d
 }  // namespace
 
 template <int D>
-void narrow_pairs(const Model<D>& model, const Contacts<D>& c, const Grid<D>& grid, Span pairs,
-                  PairManifold<D>* found, std::int8_t* found_points) {
+void narrow_pairs(const Model<D>& model, const State<D>& st, const Contacts<D>& c,
+                  const Grid<D>& grid, double dt, Span pairs, PairManifold<D>* found,
+                  std::int8_t* found_points) {
   const auto& box = grid.shape_aabb;
   const std::int64_t n_shapes = model.shape_count();
   const std::int64_t* prev = c.prev_key.data();
@@ -161,7 +162,8 @@ void narrow_pairs(const Model<D>& model, const Contacts<D>& c, const Grid<D>& gr
       if (std::binary_search(prev, prev + n_prev, key)) continue;
     }
     const double scale = std::min(c.shape_scale[a], c.shape_scale[b]);
-    const int npts = narrow_pair(model, c, a, b, scale, speculative(model, c, a, b, scale), out);
+    const double spec = speculative(model, st, c, dt, a, b, scale);
+    const int npts = narrow_pair(model, c, a, b, scale, spec, out);
     found_points[p] = static_cast<std::int8_t>(npts);
     PairManifold<D>& f = found[p];
     f.normal = out.normal;
@@ -247,7 +249,7 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
         c.max_normal_impulse[m][k] = 0.0;
       }
     } else {
-      const double spec = speculative(model, c, a, b, scale);
+      const double spec = speculative(model, st, c, dt, a, b, scale);
       const double radius_a = model.shape_radius[a], radius_b = model.shape_radius[b];  // m
       double t = 0.0;  // s
       if (found && found_points[p] >= 0) {  // found ahead, on the step's threads
@@ -381,9 +383,9 @@ template void update_manifolds(const Model<2>&, const State<2>&, Contacts<2>&, c
 template void update_manifolds(const Model<3>&, const State<3>&, Contacts<3>&, const Grid<3>&,
                                std::int64_t, MixRule, MixRule, double, const PairManifold<3>*,
                                const std::int8_t*);
-template void narrow_pairs(const Model<2>&, const Contacts<2>&, const Grid<2>&, Span,
-                           PairManifold<2>*, std::int8_t*);
-template void narrow_pairs(const Model<3>&, const Contacts<3>&, const Grid<3>&, Span,
-                           PairManifold<3>*, std::int8_t*);
+template void narrow_pairs(const Model<2>&, const State<2>&, const Contacts<2>&, const Grid<2>&,
+                           double, Span, PairManifold<2>*, std::int8_t*);
+template void narrow_pairs(const Model<3>&, const State<3>&, const Contacts<3>&, const Grid<3>&,
+                           double, Span, PairManifold<3>*, std::int8_t*);
 
 }  // namespace rbsim
