@@ -405,7 +405,7 @@ def test_run_from_python_returns_the_trajectory_in_memory(tmp_path) -> None:
 def test_a_run_stopped_between_frames_resumes_bit_identically(tmp_path) -> None:
     # output every 7th step: the stop lands between frames, and the checkpoint holds the
     # state of the last whole step, past the last frame
-    scene = big_scene(tmp_path, 450)
+    scene = big_scene(tmp_path, 900)  # the first checkpoint (a second in) well before the end
     ref = tmp_path / "ref7.h5"
     code, _o, err = rbsim("run", scene, "-o", ref, "-q", "--set", "output.every=7")
     assert code == 0, err
