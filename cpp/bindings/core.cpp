@@ -167,6 +167,7 @@ nb::dict storage(World<D>& w, nb::handle owner) {
   RBSIM_VIEW(queue) RBSIM_VIEW(bounce_kind) RBSIM_VIEW(body_mark) RBSIM_VIEW(solve_impulse)
   RBSIM_VIEW(bounce_list) RBSIM_VIEW(relax_list) RBSIM_VIEW(body_reach)
   RBSIM_VIEW(wave_order) RBSIM_VIEW(manifold_wave) RBSIM_VIEW(wave_start) RBSIM_VIEW(wave_batch)
+  RBSIM_VIEW(wave_single) RBSIM_VIEW(wave_single_batch)
   RBSIM_VIEW(shape_size) RBSIM_VIEW(shape_scale) RBSIM_VIEW(body_scale)
 #undef RBSIM_VIEW
   if constexpr (D == 2) d["solver_row"] = view(c.solver_row, owner);
@@ -484,6 +485,22 @@ nb::object run_stage3(World<3>& w, const std::string& name, nb::dict args) {
     store_impulses(c);
   } else if (name == "grow") {
     w.grow(load_value<std::int64_t>(args, "capacity"));
+  } else if (name == "find_waves") {
+    return nb::int_(find_waves(w.model, c));
+  } else if (name == "solve_contacts" || name == "solve_waves") {
+    auto num = [&](const char* key) { return load_value<double>(args, key); };
+    const bool bias = load_value<bool>(args, "use_bias");
+    if (name == "solve_waves") {
+      solve_waves(w.model, w.state, c, num("inv_h"), bias, num("shift"), num("threshold"));
+      return nb::none();
+    }
+    std::string list = load_value<std::string>(args, "order");
+    const std::int32_t* order = list == "relax_list"    ? c.relax_list.data()
+                                : list == "wave_order" ? c.wave_order.data()
+                                                        : c.solve_order.data();
+    const std::int64_t n = load_value<std::int64_t>(args, "n");
+    if (n < 0 || n > c.count.manifolds) throw std::invalid_argument("n out of range");
+    solve_contacts(w.model, w.state, c, num("inv_h"), bias, num("shift"), num("threshold"), order, n);
   } else {
     throw std::invalid_argument("no 3D stage named " + name);
   }

@@ -189,14 +189,8 @@ template <int D>
 void World<D>::solve_pass(double inv_h, bool use_bias, double shift, double threshold) {
   auto& c = contacts;
   over_segments(true, [&](int g, PassLog& log) {
-    if constexpr (D == 2) {
-      solve_wave_range(model, state, c, inv_h, use_bias, shift, threshold, c.segment_wave[g],
-                       c.segment_wave[g + 1], log);
-    } else {
-      const std::int64_t first = c.segment_order[g];
-      solve_contacts(model, state, c, inv_h, use_bias, shift, threshold,
-                     c.solve_order.data() + first, c.segment_order[g + 1] - first, log);
-    }
+    solve_wave_range(model, state, c, inv_h, use_bias, shift, threshold, c.segment_wave[g],
+                     c.segment_wave[g + 1], log);
   });
 }
 

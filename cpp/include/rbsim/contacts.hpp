@@ -258,11 +258,16 @@ struct Contacts {
   std::vector<std::int32_t> body_wave;      // (N,) the last wave that moved the body (scratch)
   std::vector<std::int64_t> wave_start;    // (M+2,) wave g: wave_order[start[g]..start[g+1])
   std::vector<std::int64_t> wave_batch;    // (M+2,) wave g: batches[batch[g]..batch[g+1])
-  std::vector<std::int64_t> wave_single;   // (M+1,) wave g's one-point manifolds:
-                                            // wave_order[single[g]..start[g+1])
+                                            // (3D: batches3)
+  std::vector<std::int64_t> wave_single;   // (M+1,) 2D: wave g's one-point manifolds,
+                                            // wave_order[single[g]..start[g+1]); 3D: its
+                                            // manifolds of more points, solved one by one
   std::vector<std::int64_t> wave_single_batch;  // (M+1,) and their batches, from here
                                                  // to wave_batch[g+1]
   std::vector<WideBatch> batches;           // the waves' manifolds, LANES at a time (find_waves sizes it)
+  std::vector<WideBatch3> batches3;         // 3D: the waves' one-point manifolds, LANES at a time
+  std::vector<WideFace3> faces3;            // 3D: and the others, LANES of one point count at a
+                                            // time (wave g: faces3[wave_single_batch[g]..[g+1]))
   // the regions of the solver's passes (regions.cpp): segment g of segment_count(regions)
   // is solve_order[segment_order[g]..segment_order[g+1]), its waves
   // [segment_wave[g], segment_wave[g+1]) and its part of the shock pass
@@ -332,9 +337,10 @@ bool Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   reset(wave_order, m); reset(manifold_wave, m); reset(body_wave, n);
   reset(wave_start, m + 2); reset(wave_batch, m + 2); reset(wave_single, m + 1);
   reset(wave_single_batch, m + 1);
-  // made by find_waves, as many as a step packs (waves.cpp); 3D solves its rows in solve
-  // order and packs none
+  // made by find_waves, as many as a step packs (waves.cpp)
   batches.clear();
+  batches3.clear();
+  faces3.clear();
   region_count = 1;
   body_region.assign(n, 0);
   const std::size_t segments = static_cast<std::size_t>(constants::SOLVER_REGIONS) * 2 + 2;

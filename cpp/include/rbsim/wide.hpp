@@ -23,10 +23,7 @@ using Lanes = double __attribute__((vector_size(LANES * sizeof(double))));
 // the result of a lane-wise comparison: all bits set where true
 using LaneMask = std::int64_t __attribute__((vector_size(LANES * sizeof(double))));
 
-inline Lanes splat(double x) {
-  Lanes v = {};
-  return v + x;
-}
+inline Lanes splat(double x) { return Lanes{x, x, x, x}; }  // (one broadcast)
 inline Lanes select(LaneMask m, Lanes a, Lanes b) { return m ? a : b; }
 inline Lanes vmax(Lanes a, Lanes b) { return a > b ? a : b; }
 inline Lanes vmin(Lanes a, Lanes b) { return a < b ? a : b; }
@@ -153,6 +150,63 @@ struct WideBatch {
   // back), bit LANES + l: its body b. ALL_WRITES: every lane's two bodies
   std::uint32_t writes;
   std::int32_t a[LANES], b[LANES];  // body indices (0 for an empty lane)
+};
+
+// 3D: one point of LANES rows (SolverRow<3>::Points, point k of each), lane by lane.
+struct WidePoint3 {
+  Lanes rax, ray, raz, rbx, rby, rbz;              // m: separation anchors
+  Lanes rnax, rnay, rnaz, rnbx, rnby, rnbz;        // m: r × n
+  Lanes rt1ax, rt1ay, rt1az, rt2ax, rt2ay, rt2az;  // m: friction's levers on a
+  Lanes rt1bx, rt1by, rt1bz, rt2bx, rt2by, rt2bz;  // and on b
+  Lanes kn, base, tm11, tm12, tm22, tangent_mass;
+};
+
+// 3D: what every row of a batch has, lane by lane (SolverRow<3>); every member up to
+// `live` is a Lanes (an empty lane is zeroed member by member: waves.cpp).
+struct WideRow3 {
+  Lanes nx, ny, nz;     // the normal, from b towards a
+  Lanes t1x, t1y, t1z;  // the tangent basis
+  Lanes t2x, t2y, t2z;
+  Lanes ma, mb;         // inverse masses (1/kg)
+  Lanes gamma, bias_rate, friction, max_push, deep;
+};
+
+// The lanes' manifolds and bodies, after a batch's rows.
+struct WideLanes3 {
+  LaneMask live;              // all bits set in a lane that holds a manifold
+  std::int32_t m[LANES];      // manifold index, -1 for an empty lane
+  // bit l: lane l's body a is dynamic (written back), bit LANES + l: its body b
+  std::uint32_t writes;
+  std::int32_t a[LANES], b[LANES];  // body indices (0 for an empty lane)
+};
+
+// 3D: LANES one-point manifolds of one wave (a sphere or a capsule on another, on a box's
+// face or on a plane). The rows' world inverse inertia tensors are not here: in a
+// one-point manifold they only turn the local ω after friction, which nothing reads (ω
+// is written back from L).
+struct WideBatch3 : WideRow3 {
+  WidePoint3 p;
+  Lanes wnax, wnay, wnaz, wnbx, wnby, wnbz;  // 1/(kg·m): I⁻¹ (r × n)
+  WideLanes3 lanes;
+};
+
+// 3D: LANES manifolds of one wave with the same count of points (2 to 4: a face, an edge),
+// for solve.cpp's block solve of a face's points.
+struct WideFace3 : WideRow3 {
+  struct Factor {  // a BlockFactor, lane by lane (what a solve reads of it)
+    Lanes l[6], inv_d[4], ok;
+  };
+  Lanes iaxx, iayy, iazz, iaxy, iaxz, iayz;  // 1/(kg·m²): the rows' world inverse tensors
+  Lanes ibxx, ibyy, ibzz, ibxy, ibxz, ibyz;
+  Lanes k[10];           // 1/kg: the normal block's upper triangle (SolverRow<3>::k)
+  Factor rigid, soft;    // its factors (SolverRow<3>::rigid, soft)
+  Lanes coupling[6][4];  // SolverRow<3>::tangent_coupling
+  WidePoint3 p[4];
+  WideLanes3 lanes;
+  // the lanes' point count (2 or 3), or 0: manifolds lanes.m (-1: none) left to the solve
+  // of one manifold at a time, their rows not packed (a face of four points, whose solve
+  // already takes its points four at a time, or a lone manifold)
+  std::int32_t count;
 };
 
 }  // namespace rbsim

@@ -166,6 +166,21 @@ inline void solve_manifold_3d(const Model<3>& model, State<3>& st, Contacts<3>& 
     deep = any((sep_l < row.deep) & live);
     const Lanes vn_l = dot(va - vb, nrm) + (dot_lanes(wa, P.rna) - dot_lanes(wb, P.rnb));
     const Lanes r_l = -vn_l - (bias + gam_l * load_lanes(lam));
+    // nothing to do: no point holds an impulse and none is asked to push (r <= 0). Then
+    // the block's answer is zero (K d = r <= 0 with d >= 0 gives dᵀK d <= 0: d = 0), and
+    // so is each point's one after the other; friction has no load and holds none. (Most
+    // of a resting wall's manifolds between neighbours side by side, which took the
+    // points one after the other: their block pulls.)
+    if (!any(live & ((load_lanes(lam) != 0.0) | (r_l > 0.0)))) {
+      bool held = false;
+      const Vec3* jt = c.tangent_impulse[m].data();
+#pragma GCC unroll 4
+      for (int k = 0; k < npts; ++k) held = held || jt[k].x != 0.0 || jt[k].y != 0.0 || jt[k].z != 0.0;
+      if (!held) {
+        if (use_bias && deep) mark_deep(log, m);
+        return;
+      }
+    }
     double sep[4], vn[4], gam[4], r[4], d[4];
     std::memcpy(sep, &sep_l, sizeof sep);
     std::memcpy(vn, &vn_l, sizeof vn);
@@ -696,20 +711,410 @@ void solve_batch(State<2>& st, Contacts<2>& c, const WideBatch& B, double inv_h,
   }
 }
 
+// 3D, in lanes (one manifold per lane, the lanes' manifolds sharing no dynamic body):
+// solve_manifold_3d's code for LANES manifolds at once, each operation in the same order
+// (built without fused multiply-adds the lanes agree with it to the bit; with them, to
+// the rounding of the fused operations).
+
+// The two bodies of each lane: velocities (m/s), ω (rad/s), and the rows' normal turned
+// back into each body's start frame (na, nb) with moved = n · (d_a − d_b) (m), the parts
+// of row_separation (inv_rotate: p + w t + u × t, t = 2 u × p, u the conjugate's vector).
+struct Bodies3 {
+  Lanes vax, vay, vaz, vbx, vby, vbz, wax, way, waz, wbx, wby, wbz;
+  Lanes nax, nay, naz, nbx, nby, nbz, moved;
+};
+
+// The lanes' field f(record) of the records at rec[i] for the lanes' indices i.
+template <class T, class F>
+inline Lanes lanes_of(const T* rec, const std::int32_t (&i)[LANES], F f) {
+  return Lanes{f(rec[i[0]]), f(rec[i[1]]), f(rec[i[2]]), f(rec[i[3]])};
+}
+
+Bodies3 gather_bodies_3d(const State<3>& st, const Contacts<3>& c, const WideRow3& R,
+                         const WideLanes3& L) {
+  static_assert(LANES == 4, "the gathers are written for four lanes");
+  const Vec3* v = st.body_v.data();
+  const Vec3* w = st.body_w.data();
+  const BodyDelta<3>* d = c.body_delta.data();
+  Bodies3 o;
+#define RBSIM_FIELD(arr, ids, expr) lanes_of(arr, ids, [](const auto& r) { return r.expr; })
+  o.vax = RBSIM_FIELD(v, L.a, x), o.vay = RBSIM_FIELD(v, L.a, y), o.vaz = RBSIM_FIELD(v, L.a, z);
+  o.vbx = RBSIM_FIELD(v, L.b, x), o.vby = RBSIM_FIELD(v, L.b, y), o.vbz = RBSIM_FIELD(v, L.b, z);
+  o.wax = RBSIM_FIELD(w, L.a, x), o.way = RBSIM_FIELD(w, L.a, y), o.waz = RBSIM_FIELD(w, L.a, z);
+  o.wbx = RBSIM_FIELD(w, L.b, x), o.wby = RBSIM_FIELD(w, L.b, y), o.wbz = RBSIM_FIELD(w, L.b, z);
+  const Lanes dax = RBSIM_FIELD(d, L.a, dx.x), day = RBSIM_FIELD(d, L.a, dx.y),
+              daz = RBSIM_FIELD(d, L.a, dx.z);
+  const Lanes dbx = RBSIM_FIELD(d, L.b, dx.x), dby = RBSIM_FIELD(d, L.b, dx.y),
+              dbz = RBSIM_FIELD(d, L.b, dx.z);
+  const Lanes nx = R.nx, ny = R.ny, nz = R.nz;
+  o.moved = (nx * (dax - dbx) + ny * (day - dby)) + nz * (daz - dbz);
+  auto turn_back = [&](const std::int32_t(&ids)[LANES], Lanes& ox, Lanes& oy, Lanes& oz) {
+    const Lanes qw = RBSIM_FIELD(d, ids, dq.w);
+    const Lanes ux = -RBSIM_FIELD(d, ids, dq.x), uy = -RBSIM_FIELD(d, ids, dq.y),
+                uz = -RBSIM_FIELD(d, ids, dq.z);
+    const Lanes tx = splat(2.0) * (uy * nz - uz * ny);
+    const Lanes ty = splat(2.0) * (uz * nx - ux * nz);
+    const Lanes tz = splat(2.0) * (ux * ny - uy * nx);
+    ox = (nx + qw * tx) + (uy * tz - uz * ty);
+    oy = (ny + qw * ty) + (uz * tx - ux * tz);
+    oz = (nz + qw * tz) + (ux * ty - uy * tx);
+  };
+#undef RBSIM_FIELD
+  turn_back(L.a, o.nax, o.nay, o.naz);
+  turn_back(L.b, o.nbx, o.nby, o.nbz);
+  return o;
+}
+
+// Point P's separation now (m), lane by lane (row_separation).
+inline Lanes separation_lanes(const Bodies3& q, const WidePoint3& P) {
+  return ((q.moved + P.base) + ((q.nax * P.rax + q.nay * P.ray) + q.naz * P.raz)) -
+         ((q.nbx * P.rbx + q.nby * P.rby) + q.nbz * P.rbz);
+}
+
+// (ω_a · r_a) − (ω_b · r_b) for the levers (rx, ry, rz) on a and (sx, sy, sz) on b.
+inline Lanes turn_lanes(const Bodies3& q, Lanes rx, Lanes ry, Lanes rz, Lanes sx, Lanes sy,
+                        Lanes sz) {
+  return ((q.wax * rx + q.way * ry) + q.waz * rz) - ((q.wbx * sx + q.wby * sy) + q.wbz * sz);
+}
+
+// The lanes' manifolds' impulses at point k (N·s; an empty lane reads manifold 0's).
+struct PointImpulses {
+  Lanes lam, max, approach, jtx, jty, jtz;
+};
+inline PointImpulses gather_impulses(const Contacts<3>& c, const WideLanes3& L, int k) {
+  std::int32_t m[LANES];
+  for (int l = 0; l < LANES; ++l) m[l] = L.m[l] < 0 ? 0 : L.m[l];
+  const auto& ni = c.normal_impulse;
+  const auto& ti = c.tangent_impulse;
+  return {lanes_of(ni.data(), m, [k](const auto& r) { return r[k]; }),
+          lanes_of(c.max_normal_impulse.data(), m, [k](const auto& r) { return r[k]; }),
+          lanes_of(c.approach_velocity.data(), m, [k](const auto& r) { return r[k]; }),
+          lanes_of(ti.data(), m, [k](const auto& r) { return r[k].x; }),
+          lanes_of(ti.data(), m, [k](const auto& r) { return r[k].y; }),
+          lanes_of(ti.data(), m, [k](const auto& r) { return r[k].z; })};
+}
+
+// clamp_normal for point k of the lanes in `on`: the impulse applied (N·s); the
+// accumulated and largest impulses updated in `p`. A point that engages is recorded
+// lane by lane (rare).
+inline Lanes clamp_lanes_3d(Contacts<3>& c, const WideLanes3& L, int k, LaneMask on,
+                            PointImpulses& p, Lanes impulse, Lanes vn, Lanes s, double shift,
+                            double threshold, PassLog& log) {
+  const Lanes zero = splat(0.0);
+  const LaneMask engages =
+      on & ((p.max <= zero) | (p.approach == splat(std::numeric_limits<double>::infinity()))) &
+      (impulse > zero);
+  for (int l = 0; any(engages) && l < LANES; ++l) {
+    if (!engages[l]) continue;
+    const std::int64_t m = L.m[l];
+    c.approach_velocity[m][k] = vn[l];
+    c.approach_separation[m][k] = s[l] - shift * vn[l];
+    if (vn[l] < -threshold) log.add_bounce(static_cast<std::int32_t>(m));
+  }
+  const Lanes next = vmax(p.lam + impulse, zero);
+  const Lanes applied = select(on, next - p.lam, zero);
+  p.lam = select(on, next, p.lam);
+  p.max = vmax(p.max, applied);
+  return applied;
+}
+
+// friction_change for one point of every lane in `on`, with the sliding velocity (vt1,
+// vt2) (m/s): the change (d1, d2) (N·s; zero where not on), p's accumulated friction
+// updated. t1, t2: the rows' tangents.
+inline void friction_lanes(const WidePoint3& P, const WideRow3& R, LaneMask on, Lanes limit,
+                           Lanes vt1, Lanes vt2, PointImpulses& p, Lanes& d1, Lanes& d2) {
+  const Lanes zero = splat(0.0);
+  const Lanes l1 = (p.jtx * R.t1x + p.jty * R.t1y) + p.jtz * R.t1z;
+  const Lanes l2 = (p.jtx * R.t2x + p.jty * R.t2y) + p.jtz * R.t2z;
+  d1 = -(P.tm11 * vt1 + P.tm12 * vt2);
+  d2 = -(P.tm12 * vt1 + P.tm22 * vt2);
+  const Lanes n1 = l1 + d1, n2 = l2 + d2;
+  const LaneMask outside = (n1 * n1 + n2 * n2) > limit * limit;
+  if (any(outside & on)) {  // friction_slide
+    Lanes s1 = l1 - P.tangent_mass * vt1, s2 = l2 - P.tangent_mass * vt2;
+    const Lanes sq = s1 * s1 + s2 * s2;
+    const Lanes k = select(sq > zero, limit / vsqrt(select(sq > zero, sq, splat(1.0))), zero);
+    const LaneMask over = sq > limit * limit;
+    s1 = select(over, s1 * k, s1);
+    s2 = select(over, s2 * k, s2);
+    d1 = select(outside, s1 - l1, d1);
+    d2 = select(outside, s2 - l2, d2);
+  }
+  d1 = select(on, d1, zero);
+  d2 = select(on, d2, zero);
+  const Lanes u1 = l1 + d1, u2 = l2 + d2;
+  p.jtx = select(on, u1 * R.t1x + u2 * R.t2x, p.jtx);
+  p.jty = select(on, u1 * R.t1y + u2 * R.t2y, p.jty);
+  p.jtz = select(on, u1 * R.t1z + u2 * R.t2z, p.jtz);
+}
+
+// Whether a point's friction is solved: friction and a load, or an impulse held.
+inline LaneMask friction_on(LaneMask live, Lanes mu, Lanes limit, const PointImpulses& p) {
+  const Lanes zero = splat(0.0);
+  return live & (mu > zero) &
+         ~((limit == zero) & (p.jtx == zero) & (p.jty == zero) & (p.jtz == zero));
+}
+
+// The lanes written back but those in `skip` (bits): each dynamic body's v, L += dl and
+// ω from L (refresh_omega); the manifolds' impulses of points 0..n-1.
+void write_back_3d(State<3>& st, Contacts<3>& c, const WideLanes3& L, unsigned skip,
+                   const Bodies3& q, const Lanes (&dla)[3], const Lanes (&dlb)[3],
+                   const PointImpulses* p, int n) {
+  const Sym3* iw = c.body_inv_inertia_world.data();
+  for (int l = 0; l < LANES; ++l) {
+    const std::int64_t m = L.m[l];
+    if (m < 0 || (skip & (1u << l))) continue;
+    if (L.writes & (1u << l)) {
+      const int i = L.a[l];
+      st.body_v[i] = {q.vax[l], q.vay[l], q.vaz[l]};
+      st.body_l[i] += Vec3{dla[0][l], dla[1][l], dla[2][l]};
+      st.body_w[i] = iw[i] * st.body_l[i];
+    }
+    if (L.writes & (1u << (LANES + l))) {
+      const int i = L.b[l];
+      st.body_v[i] = {q.vbx[l], q.vby[l], q.vbz[l]};
+      st.body_l[i] += Vec3{dlb[0][l], dlb[1][l], dlb[2][l]};
+      st.body_w[i] = iw[i] * st.body_l[i];
+    }
+    for (int k = 0; k < n; ++k) {
+      c.normal_impulse[m][k] = p[k].lam[l];
+      c.max_normal_impulse[m][k] = p[k].max[l];
+      c.tangent_impulse[m][k] = {p[k].jtx[l], p[k].jty[l], p[k].jtz[l]};
+    }
+  }
+}
+
+// A batch of LANES one-point manifolds (solve_manifold_3d<1>). The local ω is not turned
+// by friction here: nothing reads it after, and ω is written back from L.
+void solve_batch_3d(State<3>& st, Contacts<3>& c, const WideBatch3& B, double inv_h,
+                    bool use_bias, double shift, double threshold, PassLog& log) {
+  const WideLanes3& L = B.lanes;
+  const WidePoint3& P = B.p;
+  Bodies3 q = gather_bodies_3d(st, c, B, L);
+  PointImpulses p = gather_impulses(c, L, 0);
+  const Lanes zero = splat(0.0);
+  const Lanes s = separation_lanes(q, P);
+  // soft_target
+  const LaneMask push = (s <= zero) & (use_bias ? L.live : LaneMask{});
+  Lanes bias = select(s > zero, s * splat(inv_h), zero);
+  bias = select(push, vmax(B.bias_rate * s, B.max_push), bias);
+  const Lanes gamma = select(push, P.kn * B.gamma, zero);
+  if (use_bias) {  // a deep overlap: the manifold enters relax_list
+    const LaneMask is_deep = L.live & (s < B.deep);
+    for (int l = 0; any(is_deep) && l < LANES; ++l)
+      if (is_deep[l]) log.add_deep(L.m[l]);
+  }
+  const Lanes vn = (((q.vax - q.vbx) * B.nx + (q.vay - q.vby) * B.ny) + (q.vaz - q.vbz) * B.nz) +
+                   turn_lanes(q, P.rnax, P.rnay, P.rnaz, P.rnbx, P.rnby, P.rnbz);
+  const Lanes impulse = (-vn - (bias + gamma * p.lam)) * (splat(1.0) / (P.kn + gamma));
+  const Lanes jn = clamp_lanes_3d(c, L, 0, L.live, p, impulse, vn, s, shift, threshold, log);
+  // the push: v += (m jn) n, ω += jn I⁻¹(r × n), L += jn r × n
+  const Lanes pa = B.ma * jn, pb = B.mb * jn;
+  q.vax += pa * B.nx, q.vay += pa * B.ny, q.vaz += pa * B.nz;
+  q.vbx -= pb * B.nx, q.vby -= pb * B.ny, q.vbz -= pb * B.nz;
+  q.wax += jn * B.wnax, q.way += jn * B.wnay, q.waz += jn * B.wnaz;
+  q.wbx -= jn * B.wnbx, q.wby -= jn * B.wnby, q.wbz -= jn * B.wnbz;
+  Lanes dla[3] = {zero + jn * P.rnax, zero + jn * P.rnay, zero + jn * P.rnaz};
+  Lanes dlb[3] = {zero - jn * P.rnbx, zero - jn * P.rnby, zero - jn * P.rnbz};
+  // friction: one 2×2 block clamped to Coulomb's circle
+  const Lanes limit = B.friction * p.lam;
+  const LaneMask on = friction_on(L.live, B.friction, limit, p);
+  if (any(on)) {
+    const Lanes ex = q.vax - q.vbx, ey = q.vay - q.vby, ez = q.vaz - q.vbz;
+    const Lanes vt1 = ((ex * B.t1x + ey * B.t1y) + ez * B.t1z) +
+                      turn_lanes(q, P.rt1ax, P.rt1ay, P.rt1az, P.rt1bx, P.rt1by, P.rt1bz);
+    const Lanes vt2 = ((ex * B.t2x + ey * B.t2y) + ez * B.t2z) +
+                      turn_lanes(q, P.rt2ax, P.rt2ay, P.rt2az, P.rt2bx, P.rt2by, P.rt2bz);
+    Lanes d1, d2;
+    friction_lanes(P, B, on, limit, vt1, vt2, p, d1, d2);
+    const Lanes px = d1 * B.t1x + d2 * B.t2x, py = d1 * B.t1y + d2 * B.t2y,
+                pz = d1 * B.t1z + d2 * B.t2z;
+    q.vax += B.ma * px, q.vay += B.ma * py, q.vaz += B.ma * pz;
+    q.vbx -= B.mb * px, q.vby -= B.mb * py, q.vbz -= B.mb * pz;
+    dla[0] += d1 * P.rt1ax + d2 * P.rt2ax;
+    dla[1] += d1 * P.rt1ay + d2 * P.rt2ay;
+    dla[2] += d1 * P.rt1az + d2 * P.rt2az;
+    dlb[0] -= d1 * P.rt1bx + d2 * P.rt2bx;
+    dlb[1] -= d1 * P.rt1by + d2 * P.rt2by;
+    dlb[2] -= d1 * P.rt1bz + d2 * P.rt2bz;
+  }
+  write_back_3d(st, c, L, 0, q, dla, dlb, &p, 1);
+}
+
+// A batch of LANES manifolds of N points (2 to 4; find_waves packs 2 and 3): their
+// points' block, then each point's friction in order with the row's couplings
+// (solve_manifold_3d<N>). A lane whose block would pull, or has no factor (there the
+// points go one after the other: rare), is left out and its bit returned: the caller
+// solves that manifold on its own (it shares no dynamic body with the others).
+template <int N>
+unsigned solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double inv_h,
+                       bool use_bias, double shift, double threshold, PassLog& log) {
+  static_assert(N >= 2 && N <= 4);
+  const WideLanes3& L = B.lanes;
+  Bodies3 q = gather_bodies_3d(st, c, B, L);
+  PointImpulses p[N];
+  for (int k = 0; k < N; ++k) p[k] = gather_impulses(c, L, k);
+  const Lanes zero = splat(0.0);
+  // every point's target from the same velocities
+  const Lanes dvn = ((q.vax - q.vbx) * B.nx + (q.vay - q.vby) * B.ny) + (q.vaz - q.vbz) * B.nz;
+  Lanes sep[N], vn[N], gam[N], r[N];
+  Lanes pushed = zero;  // points pushed out (soft rows)
+  LaneMask deep{};
+  for (int k = 0; k < N; ++k) {
+    const WidePoint3& P = B.p[k];
+    sep[k] = separation_lanes(q, P);
+    const LaneMask out = (sep[k] <= zero) & (use_bias ? L.live : LaneMask{});
+    Lanes bias = select(sep[k] > zero, sep[k] * splat(inv_h), zero);
+    bias = select(out, vmax(B.bias_rate * sep[k], B.max_push), bias);
+    gam[k] = select(out, P.kn * B.gamma, zero);
+    pushed += select(out, splat(1.0), zero);
+    deep |= sep[k] < B.deep;
+    vn[k] = dvn + turn_lanes(q, P.rnax, P.rnay, P.rnaz, P.rnbx, P.rnby, P.rnbz);
+    r[k] = -vn[k] - (bias + gam[k] * p[k].lam);
+  }
+  // the factor: the row's rigid one when no point is pushed out, its soft one when every
+  // point is, else made here (factor_block, ldlt_factor_n)
+  const LaneMask none_pushed = pushed == zero, all_pushed = pushed == splat(double(N));
+  WideFace3::Factor f;
+  for (int i = 0; i < 6; ++i) f.l[i] = select(none_pushed, B.rigid.l[i], B.soft.l[i]);
+  for (int i = 0; i < 4; ++i) f.inv_d[i] = select(none_pushed, B.rigid.inv_d[i], B.soft.inv_d[i]);
+  f.ok = select(none_pushed, B.rigid.ok, B.soft.ok);
+  auto at = [](int i, int j) { return i * (i - 1) / 2 + j; };
+  const LaneMask mixed = L.live & ~none_pushed & ~all_pushed;
+  if (any(mixed)) {
+    Lanes A[4][4];
+    int e = 0;
+    for (int i = 0; i < 4; ++i)
+      for (int j = i; j < 4; ++j, ++e) A[i][j] = A[j][i] = B.k[e];
+    for (int i = 0; i < N; ++i) A[i][i] += gam[i] + splat(BLOCK_EPS) * A[i][i];
+    Lanes l[6] = {}, d[4] = {}, inv_d[4] = {};
+    LaneMask ok = ~LaneMask{};
+    for (int j = 0; j < N; ++j) {
+      Lanes x = A[j][j];
+      for (int k = 0; k < j; ++k) x -= l[at(j, k)] * l[at(j, k)] * d[k];
+      ok &= x > splat(1e-12) * A[j][j];
+      d[j] = x;
+      const Lanes safe = select(ok, x, splat(1.0));
+      inv_d[j] = splat(1.0) / safe;
+      for (int i = j + 1; i < N; ++i) {
+        Lanes y = A[i][j];
+        for (int k = 0; k < j; ++k) y -= l[at(i, k)] * l[at(j, k)] * d[k];
+        l[at(i, j)] = y / safe;
+      }
+    }
+    for (int i = 0; i < 6; ++i) f.l[i] = select(mixed, l[i], f.l[i]);
+    for (int i = 0; i < 4; ++i) f.inv_d[i] = select(mixed, inv_d[i], f.inv_d[i]);
+    f.ok = select(mixed, select(ok, splat(1.0), zero), f.ok);
+  }
+  // ldlt_apply_n
+  Lanes dl[N], y[N];
+  for (int i = 0; i < N; ++i) {
+    y[i] = r[i];
+    for (int k = 0; k < i; ++k) y[i] -= f.l[at(i, k)] * y[k];
+  }
+  for (int i = N - 1; i >= 0; --i) {
+    dl[i] = y[i] * f.inv_d[i];
+    for (int k = i + 1; k < N; ++k) dl[i] -= f.l[at(k, i)] * dl[k];
+  }
+  LaneMask block = L.live & (f.ok != zero);
+  for (int k = 0; k < N; ++k) block &= p[k].lam + dl[k] >= zero;
+  unsigned alone = 0;  // the lanes left to solve_manifold_3d
+  for (int l = 0; l < LANES; ++l)
+    if (L.live[l] && !block[l]) alone |= 1u << l;
+  if (use_bias) {  // a deep overlap: the manifold enters relax_list
+    const LaneMask is_deep = block & deep;
+    for (int l = 0; any(is_deep) && l < LANES; ++l)
+      if (is_deep[l]) log.add_deep(L.m[l]);
+  }
+  Lanes jn[N];
+  for (int k = 0; k < N; ++k)
+    jn[k] = clamp_lanes_3d(c, L, k, block, p[k], dl[k], vn[k], sep[k], shift, threshold, log);
+  // the impulses' sum and moments about each COM, summed over the points as sum_lanes
+  auto over_points = [&](auto term) {
+    if constexpr (N == 2) return term(0) + term(1);
+    else if constexpr (N == 3) return (term(0) + term(1)) + term(2);
+    else return (term(0) + term(1)) + (term(2) + term(3));
+  };
+  const Lanes sj = over_points([&](int k) { return jn[k]; });
+  const Lanes ta[3] = {over_points([&](int k) { return jn[k] * B.p[k].rnax; }),
+                       over_points([&](int k) { return jn[k] * B.p[k].rnay; }),
+                       over_points([&](int k) { return jn[k] * B.p[k].rnaz; })};
+  const Lanes tb[3] = {over_points([&](int k) { return jn[k] * B.p[k].rnbx; }),
+                       over_points([&](int k) { return jn[k] * B.p[k].rnby; }),
+                       over_points([&](int k) { return jn[k] * B.p[k].rnbz; })};
+  const Lanes pa = B.ma * sj, pb = B.mb * sj;
+  q.vax += pa * B.nx, q.vay += pa * B.ny, q.vaz += pa * B.nz;
+  q.vbx -= pb * B.nx, q.vby -= pb * B.ny, q.vbz -= pb * B.nz;
+  // ω += I⁻¹ t (a Sym3 times a vector)
+  q.wax += (B.iaxx * ta[0] + B.iaxy * ta[1]) + B.iaxz * ta[2];
+  q.way += (B.iaxy * ta[0] + B.iayy * ta[1]) + B.iayz * ta[2];
+  q.waz += (B.iaxz * ta[0] + B.iayz * ta[1]) + B.iazz * ta[2];
+  q.wbx -= (B.ibxx * tb[0] + B.ibxy * tb[1]) + B.ibxz * tb[2];
+  q.wby -= (B.ibxy * tb[0] + B.ibyy * tb[1]) + B.ibyz * tb[2];
+  q.wbz -= (B.ibxz * tb[0] + B.ibyz * tb[1]) + B.ibzz * tb[2];
+  Lanes dla[3] = {zero + ta[0], zero + ta[1], zero + ta[2]};
+  Lanes dlb[3] = {zero - tb[0], zero - tb[1], zero - tb[2]};
+  // friction: each point's 2×2 block, in order (forward in the solve, backward in relax),
+  // the later points' sliding velocities carried through the row's couplings
+  const LaneMask has_mu = block & (B.friction > zero);
+  if (any(has_mu)) {
+    const Lanes ex = q.vax - q.vbx, ey = q.vay - q.vby, ez = q.vaz - q.vbz;
+    const Lanes e1 = (ex * B.t1x + ey * B.t1y) + ez * B.t1z;
+    const Lanes e2 = (ex * B.t2x + ey * B.t2y) + ez * B.t2z;
+    Lanes vt1[N], vt2[N], g1[N], g2[N];
+    for (int k = 0; k < N; ++k) {
+      const WidePoint3& P = B.p[k];
+      vt1[k] = e1 + turn_lanes(q, P.rt1ax, P.rt1ay, P.rt1az, P.rt1bx, P.rt1by, P.rt1bz);
+      vt2[k] = e2 + turn_lanes(q, P.rt2ax, P.rt2ay, P.rt2az, P.rt2bx, P.rt2by, P.rt2bz);
+      g1[k] = g2[k] = zero;
+    }
+    for (int i = 0; i < N; ++i) {
+      const int k = use_bias ? i : N - 1 - i;
+      const Lanes limit = B.friction * p[k].lam;
+      const LaneMask on = friction_on(has_mu, B.friction, limit, p[k]);
+      if (!any(on)) continue;
+      Lanes d1, d2;
+      friction_lanes(B.p[k], B, on, limit, vt1[k], vt2[k], p[k], d1, d2);
+      if (use_bias) {
+        for (int j = k + 1; j < N; ++j) {
+          const Lanes* cp = B.coupling[at(j, k)];
+          vt1[j] += cp[0] * d1 + cp[1] * d2;
+          vt2[j] += cp[2] * d1 + cp[3] * d2;
+        }
+      } else {
+        for (int j = 0; j < k; ++j) {
+          const Lanes* cp = B.coupling[at(k, j)];
+          vt1[j] += cp[0] * d1 + cp[2] * d2;
+          vt2[j] += cp[1] * d1 + cp[3] * d2;
+        }
+      }
+      g1[k] = d1;
+      g2[k] = d2;
+    }
+    const Lanes s1 = over_points([&](int k) { return g1[k]; });
+    const Lanes s2 = over_points([&](int k) { return g2[k]; });
+    const Lanes px = s1 * B.t1x + s2 * B.t2x, py = s1 * B.t1y + s2 * B.t2y,
+                pz = s1 * B.t1z + s2 * B.t2z;
+    q.vax += B.ma * px, q.vay += B.ma * py, q.vaz += B.ma * pz;
+    q.vbx -= B.mb * px, q.vby -= B.mb * py, q.vbz -= B.mb * pz;
+    dla[0] += over_points([&](int k) { return g1[k] * B.p[k].rt1ax + g2[k] * B.p[k].rt2ax; });
+    dla[1] += over_points([&](int k) { return g1[k] * B.p[k].rt1ay + g2[k] * B.p[k].rt2ay; });
+    dla[2] += over_points([&](int k) { return g1[k] * B.p[k].rt1az + g2[k] * B.p[k].rt2az; });
+    dlb[0] -= over_points([&](int k) { return g1[k] * B.p[k].rt1bx + g2[k] * B.p[k].rt2bx; });
+    dlb[1] -= over_points([&](int k) { return g1[k] * B.p[k].rt1by + g2[k] * B.p[k].rt2by; });
+    dlb[2] -= over_points([&](int k) { return g1[k] * B.p[k].rt1bz + g2[k] * B.p[k].rt2bz; });
+  }
+  write_back_3d(st, c, L, alone, q, dla, dlb, p, N);
+  return alone;
+}
+
 }  // namespace
 
 template <int D>
 void solve_waves(const Model<D>& model, State<D>& st, Contacts<D>& c, double inv_h,
                    bool use_bias, double shift, double threshold) {
-  if constexpr (D == 3) {
-    // 3D: no waves yet (the batches hold 2D rows): the scalar pass in solve order
-    solve_contacts(model, st, c, inv_h, use_bias, shift, threshold, c.solve_order.data(),
-                   c.count.manifolds);
-    return;
-  } else {
   PassLog log = PassLog::direct(c);
   solve_wave_range(model, st, c, inv_h, use_bias, shift, threshold, 0, c.wave_count, log);
-  }
 }
 
 template <int D>
@@ -723,6 +1128,26 @@ void solve_wave_range(const Model<D>& model, State<D>& st, Contacts<D>& c, doubl
       solve_batch<true>(st, c, c.batches[i], inv_h, use_bias, shift, threshold, log);
     for (std::int64_t i = single; i < c.wave_batch[g + 1]; ++i)
       solve_batch<false>(st, c, c.batches[i], inv_h, use_bias, shift, threshold, log);
+  }
+  } else {
+  // 3D: a wave's one-point manifolds LANES at a time, then its others one by one
+  for (std::int64_t g = first; g < last; ++g) {
+    for (std::int64_t i = c.wave_batch[g]; i < c.wave_batch[g + 1]; ++i)
+      solve_batch_3d(st, c, c.batches3[i], inv_h, use_bias, shift, threshold, log);
+    for (std::int64_t i = c.wave_single_batch[g]; i < c.wave_single_batch[g + 1]; ++i) {
+      const WideFace3& F = c.faces3[i];
+      unsigned alone = 0;  // the lanes solved one manifold at a time
+      switch (F.count) {
+        case 2: alone = solve_face_3d<2>(st, c, F, inv_h, use_bias, shift, threshold, log); break;
+        case 3: alone = solve_face_3d<3>(st, c, F, inv_h, use_bias, shift, threshold, log); break;
+        default:
+          for (int l = 0; l < LANES; ++l) alone |= F.lanes.m[l] >= 0 ? 1u << l : 0u;
+          break;
+      }
+      for (int l = 0; alone && l < LANES; ++l)
+        if (alone & (1u << l))
+          solve_contacts_3d(model, st, c, inv_h, use_bias, shift, threshold, &F.lanes.m[l], 1, log);
+    }
   }
   }
 }

@@ -90,19 +90,177 @@ void pack_lane(const Model<D>& model, const Contacts<D>& c, WideBatch& w, int l,
   }
 }
 
+// 3D: v's components into lane l of x, y, z.
+inline void put3(Lanes& x, Lanes& y, Lanes& z, int l, Vec3 v) {
+  x[l] = v.x;
+  y[l] = v.y;
+  z[l] = v.z;
+}
+
+// 3D: lane l of a batch's rows and lanes (row, point fields, ids) from manifold m's row,
+// or empty (m < 0: every Lanes member of the batch before `lanes` zeroed, kn 1 (no
+// division by zero), body 0, never written). Returns the row (null for m < 0).
+template <class Batch>
+const SolverRow<3>* pack_row3(const Model<3>& model, const Contacts<3>& c, Batch& w, int l,
+                              std::int32_t m) {
+  WideLanes3& L = w.lanes;
+  L.writes &= ~((1u << l) | (1u << (LANES + l)));
+  if (m < 0) {
+    for (Lanes* f = &w.nx; f < reinterpret_cast<Lanes*>(&L); ++f) (*f)[l] = 0.0;
+    L.live[l] = 0;
+    L.m[l] = -1;
+    L.a[l] = L.b[l] = 0;
+    return nullptr;
+  }
+  const SolverRow<3>& row = c.solver_row[m];
+  const int a = c.body_a[m], b = c.body_b[m];
+  put3(w.nx, w.ny, w.nz, l, row.normal);
+  put3(w.t1x, w.t1y, w.t1z, l, row.t1);
+  put3(w.t2x, w.t2y, w.t2z, l, row.t2);
+  w.ma[l] = model.body_inv_mass[a];
+  w.mb[l] = model.body_inv_mass[b];
+  w.gamma[l] = row.gamma;
+  w.bias_rate[l] = row.bias_rate;
+  w.friction[l] = row.friction;
+  w.max_push[l] = row.max_push;
+  w.deep[l] = row.deep;
+  L.live[l] = -1;
+  L.m[l] = m;
+  L.a[l] = a;
+  L.b[l] = b;
+  if (w.ma[l] != 0.0) L.writes |= 1u << l;
+  if (w.mb[l] != 0.0) L.writes |= 1u << (LANES + l);
+  return &row;
+}
+
+// 3D: lane l of q from point k of row P (a point past the row's count: zeros, as there).
+void pack_point3(WidePoint3& q, int l, const SolverRow<3>::Points& P, int k) {
+  put3(q.rax, q.ray, q.raz, l, P.ra[k]);
+  put3(q.rbx, q.rby, q.rbz, l, P.rb[k]);
+  put3(q.rnax, q.rnay, q.rnaz, l, P.rna[k]);
+  put3(q.rnbx, q.rnby, q.rnbz, l, P.rnb[k]);
+  put3(q.rt1ax, q.rt1ay, q.rt1az, l, P.rt1a[k]);
+  put3(q.rt2ax, q.rt2ay, q.rt2az, l, P.rt2a[k]);
+  put3(q.rt1bx, q.rt1by, q.rt1bz, l, P.rt1b[k]);
+  put3(q.rt2bx, q.rt2by, q.rt2bz, l, P.rt2b[k]);
+  q.kn[l] = P.kn[k];
+  q.base[l] = P.base[k];
+  q.tm11[l] = P.tm11[k];
+  q.tm12[l] = P.tm12[k];
+  q.tm22[l] = P.tm22[k];
+  q.tangent_mass[l] = P.tangent_mass[k];
+}
+
+// 3D: lane l of batch w from one-point manifold m (or empty).
+void pack_lane3(const Model<3>& model, const Contacts<3>& c, WideBatch3& w, int l,
+                std::int32_t m) {
+  const SolverRow<3>* row = pack_row3(model, c, w, l, m);
+  if (!row) {
+    w.p.kn[l] = 1.0;
+    return;
+  }
+  pack_point3(w.p, l, row->point, 0);
+  put3(w.wnax, w.wnay, w.wnaz, l, row->point.wna[0]);
+  put3(w.wnbx, w.wnby, w.wnbz, l, row->point.wnb[0]);
+}
+
+// 3D: lane l of face batch w from manifold m of 2 to 4 points (or empty: not ok).
+void pack_face3(const Model<3>& model, const Contacts<3>& c, WideFace3& w, int l,
+                std::int32_t m) {
+  const SolverRow<3>* row = pack_row3(model, c, w, l, m);
+  if (!row) {
+    for (auto& q : w.p) q.kn[l] = 1.0;
+    return;
+  }
+  auto put_sym = [l](Lanes* f, const Sym3& s) {  // xx yy zz xy xz yz
+    f[0][l] = s.xx, f[1][l] = s.yy, f[2][l] = s.zz, f[3][l] = s.xy, f[4][l] = s.xz, f[5][l] = s.yz;
+  };
+  auto put_factor = [l](WideFace3::Factor& f, const BlockFactor& b) {
+    for (int i = 0; i < 6; ++i) f.l[i][l] = b.l[i];
+    for (int i = 0; i < 4; ++i) f.inv_d[i][l] = b.inv_d[i];
+    f.ok[l] = b.ok;
+  };
+  put_sym(&w.iaxx, row->inv_ia);
+  put_sym(&w.ibxx, row->inv_ib);
+  for (int i = 0; i < 10; ++i) w.k[i][l] = row->k[i];
+  put_factor(w.rigid, row->rigid);
+  put_factor(w.soft, row->soft);
+  for (int i = 0; i < 6; ++i)
+    for (int j = 0; j < 4; ++j) w.coupling[i][j][l] = row->tangent_coupling[i][j];
+  for (int k = 0; k < 4; ++k) pack_point3(w.p[k], l, row->point, k);
+}
+
+// 3D: within each wave of n_waves (counted into wave_start, cursors in wave_batch), the
+// one-point manifolds first, packed LANES at a time into batches3, then those of two,
+// three and four points, LANES of one count at a time into faces3 (those of four, and a
+// lone manifold of two or three, by index only: WideFace3::count), each in solve order.
+void pack_waves_3d(const Model<3>& model, Contacts<3>& c, std::int32_t n_waves) {
+  const std::int64_t n_man = c.count.manifolds;
+  auto& start = c.wave_start;
+  auto& fill = c.wave_batch;
+  for (int count = 1; count <= 4; ++count) {
+    for (std::int64_t o = 0; o < n_man; ++o) {
+      const std::int32_t m = c.solve_order[o];
+      if (c.points[m] == count) c.wave_order[fill[c.manifold_wave[m]]++] = m;
+    }
+    if (count == 1)
+      for (std::int32_t k = 0; k < n_waves; ++k) c.wave_single[k] = fill[k];
+  }
+  // a run of manifolds of one count in wave k, from i: its end
+  auto run_end = [&](std::int32_t k, std::int64_t i) {
+    std::int64_t e = i;
+    while (e < start[k + 1] && c.points[c.wave_order[e]] == c.points[c.wave_order[i]]) ++e;
+    return e;
+  };
+  std::int64_t n_single = 0, n_faces = 0;
+  for (std::int32_t k = 0; k < n_waves; ++k) {
+    n_single += (c.wave_single[k] - start[k] + LANES - 1) / LANES;
+    for (std::int64_t i = c.wave_single[k]; i < start[k + 1];) {
+      const std::int64_t e = run_end(k, i);
+      n_faces += (e - i + LANES - 1) / LANES;
+      i = e;
+    }
+  }
+  if (static_cast<std::int64_t>(c.batches3.size()) < n_single)
+    c.batches3.resize(static_cast<std::size_t>(n_single + n_single / 4));
+  if (static_cast<std::int64_t>(c.faces3.size()) < n_faces)
+    c.faces3.resize(static_cast<std::size_t>(n_faces + n_faces / 4));
+  std::int64_t n_batches = 0, n_face_batches = 0;
+  for (std::int32_t k = 0; k < n_waves; ++k) {
+    c.wave_batch[k] = n_batches;
+    c.wave_single_batch[k] = n_face_batches;
+    const std::int64_t end = c.wave_single[k];
+    for (std::int64_t i = start[k]; i < end; i += LANES) {
+      WideBatch3& w = c.batches3[n_batches++];
+      for (int l = 0; l < LANES; ++l) pack_lane3(model, c, w, l, i + l < end ? c.wave_order[i + l] : -1);
+    }
+    for (std::int64_t i = end; i < start[k + 1];) {
+      const std::int64_t e = run_end(k, i);
+      const int count = c.points[c.wave_order[i]];
+      for (; i < e; i += LANES) {
+        WideFace3& w = c.faces3[n_face_batches++];
+        w.count = count < 4 && e - i > 1 ? count : 0;
+        for (int l = 0; l < LANES; ++l) {
+          const std::int32_t m = i + l < e ? c.wave_order[i + l] : -1;
+          if (w.count != 0) pack_face3(model, c, w, l, m);
+          else w.lanes.m[l] = m;
+        }
+      }
+      i = e;  // (the last batch of the run may stop short of LANES)
+    }
+  }
+  c.wave_batch[n_waves] = n_batches;
+  c.wave_single_batch[n_waves] = n_face_batches;
+  c.wave_count = n_waves;
+  c.waves_valid = true;
+}
+
 }  // namespace
 
 template <int D>
 std::int64_t find_waves(const Model<D>& model, Contacts<D>& c) {
-  if constexpr (D == 3) {
-    // 3D rows are solved one manifold after another in solve order (solve_waves<3>):
-    // the batches hold 2D rows
-    c.wave_count = 0;
-    c.waves_valid = false;
-    return 0;
-  } else {
   const std::int64_t n_man = c.count.manifolds;
-  if (c.count.graph_unchanged == 1 && c.waves_valid) {
+  if (D == 2 && c.count.graph_unchanged == 1 && c.waves_valid) {
     // last step's manifolds in the same slots and the same solve order (support_order
     // keeps it): the waves hold, and only the rows that prepare wrote again are packed
     // again (a carried manifold's row changes in its base separations only), unless a
@@ -117,7 +275,7 @@ std::int64_t find_waves(const Model<D>& model, Contacts<D>& c) {
           w.p0.base[l] = c.solver_row[m].point[0].base;
           if (w.two[l] != 0.0) w.p1.base[l] = c.solver_row[m].point[1].base;
         } else if ((c.points[m] == 2) == (w.two[l] != 0.0)) {
-          pack_lane(model, c, w, l, m);
+          if constexpr (D == 2) pack_lane(model, c, w, l, m);
         } else {
           same_kinds = false;
           break;
@@ -160,6 +318,10 @@ std::int64_t find_waves(const Model<D>& model, Contacts<D>& c) {
   for (std::int32_t k = 0; k < n_waves; ++k) start[k + 1] += start[k];
   auto& fill = c.wave_batch;  // scratch cursors first, the batch ranges after
   for (std::int32_t k = 0; k <= n_waves; ++k) fill[k] = start[k];
+  if constexpr (D == 3) {
+    pack_waves_3d(model, c, n_waves);
+    return n_waves;
+  } else {
   // within a wave the two-point manifolds first, then the one-point ones (circles,
   // capsule ends), each in solve order and in batches of their own (a one-point batch
   // skips the second point's work)
