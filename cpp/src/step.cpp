@@ -32,8 +32,9 @@ namespace rbsim {
 namespace C = constants;
 
 // Contacts between bodies exist in both dimensions (3D: issue 16). The step list is the
-// same; what 3D does not have yet it skips inside the stages (time of impact in
-// update_manifolds; the waves, whose batches hold 2D rows: the passes run in solve order).
+// same; the stages differ inside where the dimensions do (waves.cpp: 3D packs its one-point
+// manifolds and its faces of two and three points in lanes, and leaves the others one by
+// one).
 template <int D>
 inline constexpr bool HAS_CONTACTS = D == 2 || D == 3;
 

@@ -148,7 +148,7 @@ std::int64_t support_order(const Model<D>& model, Contacts<D>& contacts);
 
 // solver/waves.cpp: the waves of the solve order (manifolds that share no dynamic body,
 // solved at once with the result of solving them in solve order) into contacts.wave_order
-// and contacts.batches; returns the number of waves.
+// and contacts.batches (3D: batches3 and faces3); returns the number of waves.
 template <int D>
 std::int64_t find_waves(const Model<D>& model, Contacts<D>& contacts);
 
@@ -238,15 +238,15 @@ void solve_contacts(const Model<D>& model, State<D>& state, Contacts<D>& contact
                     double inv_h, bool use_bias, double shift, double threshold,
                     const std::int32_t* order, std::int64_t n, PassLog& log);
 
-// solver/solve.cpp: the pass over waves [first, last) (2D; contacts.batches), listing
+// solver/solve.cpp: the pass over waves [first, last) (contacts.batches; 3D: batches3, faces3), listing
 // into `log`: a region of the solve order (regions.cpp, contacts.segment_wave).
 template <int D>
 void solve_wave_range(const Model<D>& model, State<D>& state, Contacts<D>& contacts,
                       double inv_h, bool use_bias, double shift, double threshold,
                       std::int64_t first, std::int64_t last, PassLog& log);
 
-// solver/solve.cpp: the same pass over the solve order, wave by wave: a wave's two-point
-// manifolds LANES at a time (contacts.batches), its one-point manifolds one by one.
+// solver/solve.cpp: the same pass over the whole solve order, wave by wave (find_waves'
+// batches, LANES manifolds at a time).
 template <int D>
 void solve_waves(const Model<D>& model, State<D>& state, Contacts<D>& contacts, double inv_h,
                    bool use_bias, double shift, double threshold);
