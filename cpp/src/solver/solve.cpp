@@ -181,7 +181,7 @@ inline void solve_manifold_3d(const Model<3>& model, State<3>& st, Contacts<3>& 
         return;
       }
     }
-    double sep[4], vn[4], gam[4], r[4], d[4];
+    double sep[4], vn[4], gam[4], r[4], d[4] = {0.0, 0.0, 0.0, 0.0};
     std::memcpy(sep, &sep_l, sizeof sep);
     std::memcpy(vn, &vn_l, sizeof vn);
     std::memcpy(gam, &gam_l, sizeof gam);
@@ -203,12 +203,26 @@ inline void solve_manifold_3d(const Model<3>& model, State<3>& st, Contacts<3>& 
       for (int k = 0; k < npts; ++k) block = block && lam[k] + d[k] >= 0.0;
     }
     if (block) {
-      alignas(32) double jn[4] = {0.0, 0.0, 0.0, 0.0};
-#pragma GCC unroll 4
-      for (int k = 0; k < npts; ++k)
-        jn[k] = clamp_normal(c, m, k, lam[k], d[k], vn[k], sep[k], shift, threshold, log);
+      // clamp_normal for every point at once (a point that engages is recorded one by
+      // one: rare)
+      const Lanes lam_l = load_lanes(lam), d_l = load_lanes(d), zero = splat(0.0);
+      const Lanes mx_l = load_lanes(c.max_normal_impulse[m].data());
+      const Lanes ap_l = load_lanes(c.approach_velocity[m].data());
+      const LaneMask engages =
+          live & ((mx_l <= zero) | (ap_l == splat(std::numeric_limits<double>::infinity()))) &
+          (d_l > zero);
+      for (int k = 0; any(engages) && k < npts; ++k) {
+        if (!engages[k]) continue;
+        c.approach_velocity[m][k] = vn[k];
+        c.approach_separation[m][k] = sep[k] - shift * vn[k];
+        if (vn[k] < -threshold) log.add_bounce(static_cast<std::int32_t>(m));
+      }
+      const Lanes next = vmax(lam_l + d_l, zero);
+      const Lanes j = select(live, next - lam_l, zero);  // N·s: the impulses applied
+      const Lanes lam_new = select(live, next, lam_l), mx_new = select(live, vmax(mx_l, j), mx_l);
+      std::memcpy(lam, &lam_new, sizeof lam_new);
+      std::memcpy(c.max_normal_impulse[m].data(), &mx_new, sizeof mx_new);
       // the impulses' sum and moments about each COM, summed over the lanes
-      const Lanes j = load_lanes(jn);
       const Lanes sa = sum_lanes(j, j * load_lanes(P.rna.x), j * load_lanes(P.rna.y),
                                  j * load_lanes(P.rna.z));
       const Lanes sb = sum_lanes(j * load_lanes(P.rnb.x), j * load_lanes(P.rnb.y),
