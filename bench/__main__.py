@@ -198,6 +198,9 @@ def main(argv: list[str] | None = None) -> int:
         )
         with config.threads_default(1):
             bench3d.table(scenes3d)
+            if rest := [name for name in bench3d.FROM_REST if name in scenes3d]:
+                print()
+                bench3d.rest_table(rest)
     return 0
 
 

@@ -5,7 +5,10 @@ Scenes (SCENES, written here as YAML text; every one on the plane y = 0, gravity
 9.81 m/s² down y, friction 0.6, restitution 0, density 1000 kg/m³, dt = 1/240 s, the
 step MuJoCo was measured at in issue 16): a stack of 10 unit boxes, a 5-layer square
 pyramid of unit boxes (55), 100 boxes of 0.5 m dropped tumbling in a heap, 1000 spheres
-of radius 0.1 m poured into a 4 m box, and a 10 × 10 grid of stacks of 3 boxes of 0.5 m.
+of radius 0.1 m poured into a 4 m box, a 10 × 10 grid of stacks of 3 boxes of 0.5 m,
+200 capsules dropped in a heap, and a wall of 96 bricks struck by a ball. FROM_REST of
+them are also timed block by block from step 0 against MuJoCo (rest_table): the
+landing, the impact, what the settled window leaves out.
 
 Each engine steps the scene from rest: WARMUP steps (untimed), then REPEATS timed blocks
 of STEPS steps, the engines' blocks taken in turn (rbsim's, MuJoCo's, PyBullet's, and
@@ -175,13 +178,48 @@ def stacks100() -> str:
     )
 
 
+def capsules200() -> str:
+    """200 capsules (0.4 m between their ends' centres, radius 0.1 m) in a 5 × 8 × 5 heap,
+    each turned its own way (a fixed sequence), dropped from up to 4.7 m onto the plane."""
+    lines = []
+    for k in range(200):
+        i, j, m = k // 40, k // 5 % 8, k % 5
+        axis = [math.sin(1.1 * k + 0.3), math.cos(0.9 * k), math.sin(1.7 * k + 0.5)]
+        lines.append(
+            f"  - name: c{k}\n"
+            f"    position: [{-1.6 + 0.8 * i:.3f}, {0.5 + 0.6 * j:.3f}, {-1.6 + 0.8 * m:.3f}]\n"
+            f"    rotation: {{axis: [{axis[0]:.3f}, {axis[1]:.3f}, {axis[2]:.3f}],"
+            f" angle: {0.41 * k % 3.1:.3f}}}\n"
+            "    shape: {capsule: {a: [-0.2, 0, 0], b: [0.2, 0, 0], radius: 0.1}}\n"
+            "    material: wood\n"
+        )
+    return _head("capsules200") + "".join(lines)
+
+
+def wall96() -> str:
+    """A wall of 12 × 8 bricks (0.5 × 0.25 × 0.3 m) standing on the plane, struck at 1 m
+    up by a ball of radius 0.3 m thrown at 15 m/s (it arrives after about 0.2 s)."""
+    return _head("wall96") + (
+        "  - grid: {count: [12, 8, 1], spacing: [0.5, 0.25, 0.3], origin: [-2.75, 0.125, 0],\n"
+        "           shape: {box: {size: [0.5, 0.25, 0.3]}}, material: wood}\n"
+        "  - {name: ball, position: [0, 1.0, -3], velocity: [0, 0, 15],\n"
+        "     shape: {sphere: {radius: 0.3}}, material: wood}\n"
+    )
+
+
 SCENES: dict[str, Callable[[], str]] = {
     "stack10": stack10,
     "pyramid55": pyramid55,
     "tumble100": tumble100,
     "spheres1000": spheres1000,
     "stacks3x100": stacks100,
+    "capsules200": capsules200,
+    "wall96": wall96,
 }
+# scenes also timed from rest, block by block (rest_table): what the settled window after
+# WARMUP leaves out (the landing of a heap, a wall standing and then struck)
+FROM_REST = ["tumble100", "capsules200", "wall96", "stack10"]
+REST_BLOCKS = 8  # blocks of STEPS steps from step 0: the first 2 s
 # MuJoCo options other than its defaults, per scene (stated in the table): on the 1000
 # spheres its default Newton solver took 340 ms per step at 1764 contacts and climbing
 # (2.25 s in), its CG solver 40-80 ms with 2400 (measured here, 2026-12-02)
@@ -361,6 +399,13 @@ class BulletRunner(Runner):
                 geom = {"shapeType": p.GEOM_BOX, "halfExtents": [0.5 * s for s in shape.size]}
                 geom["collisionFramePosition"] = shape.offset
                 geom["collisionFrameOrientation"] = _xyzw(shape.orientation)
+            elif shape.kind == "capsule":  # Bullet's capsule lies along its frame's z
+                a, b = np.asarray(shape.vertices[0]), np.asarray(shape.vertices[1])
+                axis = b - a
+                length = float(np.linalg.norm(axis))
+                geom = {"shapeType": p.GEOM_CAPSULE, "radius": shape.radius, "height": length}
+                geom["collisionFramePosition"] = list(0.5 * (a + b))
+                geom["collisionFrameOrientation"] = _xyzw(quat_from_z(axis / length))
             elif shape.kind == "plane":
                 geom = {"shapeType": p.GEOM_PLANE, "planeNormal": shape.normal}
                 geom["collisionFramePosition"] = shape.vertices[0]
@@ -464,6 +509,29 @@ def measure(
 ) -> dict:
     """One engine on one scene (measure_all of that engine alone)."""
     return measure_all(scene, [make], warmup, steps, repeats)[0]
+
+
+def rest_table(names: list[str] | None = None) -> list[str]:
+    """rbsim against MuJoCo from rest: REST_BLOCKS blocks of STEPS steps of each in turn
+    from step 0 (the thread's CPU time), the ratio of each round's blocks; the lines
+    printed as they are measured. Without MuJoCo, nothing."""
+    if mujoco is None:
+        return []
+    lines = [
+        f"3D from rest, rbsim / MuJoCo by block of {STEPS} steps ({STEPS / 240:.2f} s) from "
+        f"step 0 (each block's ratio, in order), and the median",
+    ]
+    print(lines[0], flush=True)
+    for name in names or FROM_REST:
+        scene = load(name)
+        engines = [RbsimRunner(scene), MujocoRunner(scene)]
+        samples = interleaved_block_times(engines, 0, STEPS, REST_BLOCKS, time.thread_time)
+        ratios = [a / b for a, b in zip(*samples, strict=True)]
+        line = f"{name:<13}" + " ".join(f"{r:5.2f}" for r in ratios)
+        line += f"   median {statistics.median(ratios):.2f}, worst {max(ratios):.2f}"
+        print(line, flush=True)
+        lines.append(line)
+    return lines
 
 
 def table(names: list[str] | None = None) -> list[str]:
