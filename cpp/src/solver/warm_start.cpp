@@ -170,7 +170,7 @@ void warm_start_batch(State<2>& st, const Contacts<2>& c, const WideBatch& B) {
 template <int D>
 void warm_start_waves(const Model<D>& model, State<D>& st, Contacts<D>& c) {
   if constexpr (D == 3) {
-    warm_start(model, st, c);  // 3D: no waves yet (the batches hold 2D rows)
+    warm_start(model, st, c);  // 3D: manifold by manifold (its batches are the solve's)
     return;
   } else {
   for (std::int64_t g = 0; g < c.wave_count; ++g) {
