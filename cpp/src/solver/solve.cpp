@@ -511,19 +511,21 @@ template void solve_contacts(const Model<3>&, State<3>&, Contacts<3>&, double, b
 
 namespace {
 
-// The clamp λ >= 0 of point k in every lane of a batch where `on`: what clamp_normal does
-// for one manifold, lane by lane. A point that engages is recorded lane by lane (rare: a
-// resting point engaged in an earlier pass).
-inline Lanes clamp_lanes(Contacts<2>& c, const WideBatch& B, int k, LaneMask on, Lanes lam,
-                         Lanes impulse, Lanes vn, Lanes s, Lanes& max_impulse, Lanes approach,
-                         double shift, double threshold, Lanes& accumulated, PassLog& log) {
+// The clamp λ >= 0 of point k in every lane of a batch where `on` (lane l: manifold ms[l]):
+// what clamp_normal does for one manifold, lane by lane (2D and 3D). A point that engages
+// is recorded lane by lane (rare: a resting point engaged in an earlier pass).
+template <int D>
+inline Lanes clamp_lanes(Contacts<D>& c, const std::int32_t (&ms)[LANES], int k, LaneMask on,
+                         Lanes lam, Lanes impulse, Lanes vn, Lanes s, Lanes& max_impulse,
+                         Lanes approach, double shift, double threshold, Lanes& accumulated,
+                         PassLog& log) {
   const Lanes zero = splat(0.0);
   const LaneMask engages =
       on & ((max_impulse <= zero) | (approach == splat(std::numeric_limits<double>::infinity()))) &
       (impulse > zero);
   for (int l = 0; any(engages) && l < LANES; ++l) {
     if (!engages[l]) continue;
-    const std::int64_t m = B.m[l];
+    const std::int64_t m = ms[l];
     c.approach_velocity[m][k] = vn[l];
     c.approach_separation[m][k] = s[l] - shift * vn[l];
     if (vn[l] < -threshold) log.add_bounce(static_cast<std::int32_t>(m));  // for restitution
@@ -635,13 +637,13 @@ void solve_batch(State<2>& st, Contacts<2>& c, const WideBatch& B, double inv_h,
     const Lanes d1b = (k00 * r1 - k01 * r0) * inv_det;
     const LaneMask block = blockable & (lam0 + d0b >= zero) & (lam1 + d1b >= zero);
     const Lanes d0 = select(block, d0b, (-vn0 - (b0 + g0 * lam0)) * (splat(1.0) / (p0.kn + g0)));
-    j0 = clamp_lanes(c, B, 0, active, lam0, d0, vn0, s0, mx0, ap0, shift, threshold, n0, log);
+    j0 = clamp_lanes(c, B.m, 0, active, lam0, d0, vn0, s0, mx0, ap0, shift, threshold, n0, log);
     vn1 = select(block, vn1, vn1 + j0 * k01);
     const Lanes d1 = select(block, d1b, (-vn1 - (b1 + g1 * lam1)) * (splat(1.0) / (p1.kn + g1)));
-    j1 = clamp_lanes(c, B, 1, active, lam1, d1, vn1, s1, mx1, ap1, shift, threshold, n1, log);
+    j1 = clamp_lanes(c, B.m, 1, active, lam1, d1, vn1, s1, mx1, ap1, shift, threshold, n1, log);
   } else {
     const Lanes d0 = (-vn0 - (b0 + g0 * lam0)) * (splat(1.0) / (p0.kn + g0));
-    j0 = clamp_lanes(c, B, 0, active, lam0, d0, vn0, s0, mx0, ap0, shift, threshold, n0, log);
+    j0 = clamp_lanes(c, B.m, 0, active, lam0, d0, vn0, s0, mx0, ap0, shift, threshold, n0, log);
   }
   // friction, as solve_contacts (the normal impulses turn the bodies: n · t = 0)
   const Lanes mu = B.friction;
@@ -808,30 +810,6 @@ inline PointImpulses gather_impulses(const Contacts<3>& c, const WideLanes3& L, 
           lanes_of(ti.data(), m, [k](const auto& r) { return r[k].z; })};
 }
 
-// clamp_normal for point k of the lanes in `on`: the impulse applied (N·s); the
-// accumulated and largest impulses updated in `p`. A point that engages is recorded
-// lane by lane (rare).
-inline Lanes clamp_lanes_3d(Contacts<3>& c, const WideLanes3& L, int k, LaneMask on,
-                            PointImpulses& p, Lanes impulse, Lanes vn, Lanes s, double shift,
-                            double threshold, PassLog& log) {
-  const Lanes zero = splat(0.0);
-  const LaneMask engages =
-      on & ((p.max <= zero) | (p.approach == splat(std::numeric_limits<double>::infinity()))) &
-      (impulse > zero);
-  for (int l = 0; any(engages) && l < LANES; ++l) {
-    if (!engages[l]) continue;
-    const std::int64_t m = L.m[l];
-    c.approach_velocity[m][k] = vn[l];
-    c.approach_separation[m][k] = s[l] - shift * vn[l];
-    if (vn[l] < -threshold) log.add_bounce(static_cast<std::int32_t>(m));
-  }
-  const Lanes next = vmax(p.lam + impulse, zero);
-  const Lanes applied = select(on, next - p.lam, zero);
-  p.lam = select(on, next, p.lam);
-  p.max = vmax(p.max, applied);
-  return applied;
-}
-
 // friction_change for one point of every lane in `on`, with the sliding velocity (vt1,
 // vt2) (m/s): the change (d1, d2) (N·s; zero where not on), p's accumulated friction
 // updated. t1, t2: the rows' tangents.
@@ -921,7 +899,8 @@ void solve_batch_3d(State<3>& st, Contacts<3>& c, const WideBatch3& B, double in
   const Lanes vn = (((q.vax - q.vbx) * B.nx + (q.vay - q.vby) * B.ny) + (q.vaz - q.vbz) * B.nz) +
                    turn_lanes(q, P.rnax, P.rnay, P.rnaz, P.rnbx, P.rnby, P.rnbz);
   const Lanes impulse = (-vn - (bias + gamma * p.lam)) * (splat(1.0) / (P.kn + gamma));
-  const Lanes jn = clamp_lanes_3d(c, L, 0, L.live, p, impulse, vn, s, shift, threshold, log);
+  const Lanes jn = clamp_lanes(c, L.m, 0, L.live, p.lam, impulse, vn, s, p.max, p.approach, shift,
+                               threshold, p.lam, log);
   // the push: v += (m jn) n, ω += jn I⁻¹(r × n), L += jn r × n
   const Lanes pa = B.ma * jn, pb = B.mb * jn;
   q.vax += pa * B.nx, q.vay += pa * B.ny, q.vaz += pa * B.nz;
@@ -1042,7 +1021,8 @@ unsigned solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double 
   }
   Lanes jn[N];
   for (int k = 0; k < N; ++k)
-    jn[k] = clamp_lanes_3d(c, L, k, block, p[k], dl[k], vn[k], sep[k], shift, threshold, log);
+    jn[k] = clamp_lanes(c, L.m, k, block, p[k].lam, dl[k], vn[k], sep[k], p[k].max, p[k].approach,
+                        shift, threshold, p[k].lam, log);
   // the impulses' sum and moments about each COM, summed over the points as sum_lanes
   auto over_points = [&](auto term) {
     if constexpr (N == 2) return term(0) + term(1);
