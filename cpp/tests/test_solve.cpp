@@ -280,4 +280,88 @@ TEST(resting_box_3d_four_points_hold_it) {
   for (int k = 0; k < 4; ++k) CHECK_NEAR(c.normal_impulse[0][k], 0.25 * 9.81 * h, 1e-6 * 9.81 * h);
 }
 
+namespace {
+
+// Four pairs of unit cubes of 1 kg side by side along x, each pair's boxes touching on a
+// face of `points` points (2 or 4; normal −x, from the right box to the left), no
+// gravity, no friction. The pairs' states, each made so that a pass asks a speed well
+// under or over FACE_IDLE_SPEED (1e-10 m/s) of the face:
+//   0: each point holds 1e-16 N·s (round-off), the boxes part at 1e-11 m/s: idle (a
+//      solve would take the impulses to zero);
+//   1: the same parting, but each point holds 4e-10 N·s (about 1e-9 m/s): busy;
+//   2: nothing held, the boxes close at 2e-10 m/s: busy;
+//   3: nothing held, the boxes close at 0.5e-10 m/s: idle.
+World<3>& side_by_side(Builder3& s, int points) {
+  const double I = 1.0 / 6.0;  // kg·m²
+  const double held[4] = {1e-16, 4e-10, 0.0, 0.0};    // N·s per point
+  const double closing[4] = {-1e-11, -1e-11, 2e-10, 0.5e-10};  // m/s
+  int box[4][2];
+  for (int i = 0; i < 4; ++i) {
+    const double x = 3.0 * i;
+    box[i][0] = s.body({x, 0, 0}, 1.0, Sym3{I, I, I, 0, 0, 0}, {}, {closing[i], 0, 0});
+    box[i][1] = s.body({x + 1.0, 0, 0}, 1.0, Sym3{I, I, I, 0, 0, 0});
+  }
+  World<3>& w = s.finish();
+  const double ys[4] = {-0.5, 0.5, 0.5, -0.5}, zs[4] = {-0.5, -0.5, 0.5, 0.5};
+  for (int i = 0; i < 4; ++i) {
+    std::vector<Vec3> p;
+    for (int k = 0; k < points; ++k)
+      p.push_back({3.0 * i + 0.5, ys[k], points == 2 ? 0.0 : zs[k]});
+    const std::int64_t m = s.manifold(box[i][0], box[i][1], {-1, 0, 0}, p, 0.0, 0.0);
+    for (int k = 0; k < points; ++k) w.contacts.normal_impulse[m][k] = held[i];
+  }
+  s.prepare();
+  return w;
+}
+
+bool same_state(const World<3>& a, const World<3>& b, int pair) {
+  bool same = true;
+  for (int j = 0; j < 2; ++j) {
+    const int i = 2 * pair + j;
+    const Vec3 va = a.state.body_v[i], vb = b.state.body_v[i];
+    same = same && va.x == vb.x && va.y == vb.y && va.z == vb.z &&
+           length(a.state.body_l[i] - b.state.body_l[i]) == 0.0;
+  }
+  for (int k = 0; k < 4; ++k)
+    same = same && a.contacts.normal_impulse[pair][k] == b.contacts.normal_impulse[pair][k];
+  return same;
+}
+
+}  // namespace
+
+// An idle face (FACE_IDLE_SPEED: what its points hold and are asked is worth less than
+// 1e-10 m/s) is left as it is by a pass, bit for bit; a face asked or holding more is
+// solved. Faces of four points (solved one at a time) and of two (four to a batch in
+// vector lanes when the pass goes wave by wave, the same answer as in solve order).
+TEST(idle_face_3d_is_left_as_it_is) {
+  for (const int points : {4, 2}) {
+    for (const bool use_bias : {true, false}) {
+      Builder3 s0, s1, s2;
+      World<3>& before = side_by_side(s0, points);
+      World<3>& w = side_by_side(s1, points);
+      World<3>& waves = side_by_side(s2, points);
+      solve_pass3(w, use_bias);
+      CHECK(same_state(w, before, 0));
+      CHECK(same_state(w, before, 3));
+      CHECK(w.contacts.normal_impulse[1][0] < 4e-10);  // parting: the held impulse let go
+      CHECK(w.contacts.normal_impulse[2][0] > 0.0);    // closing: stopped
+      CHECK(w.state.body_v[4].x < 2e-10);
+      // wave by wave: one wave of the four pairs (two points: one batch in lanes)
+      find_waves(waves.model, waves.contacts);
+      const auto& faces = waves.contacts.faces3;
+      if (points == 2) CHECK(faces.size() == 1 && faces[0].count == 2);
+      solve_waves(waves.model, waves.state, waves.contacts, 1.0 / rbsim::test::substep(waves),
+                  use_bias, 0.0, NO_BOUNCE);
+      CHECK(same_state(waves, before, 0));
+      CHECK(same_state(waves, before, 3));
+      for (const int pair : {1, 2}) {
+        const auto& lam = waves.contacts.normal_impulse[pair];
+        for (int k = 0; k < points; ++k)  // N·s: round-off of impulses of 1e-10
+          CHECK_NEAR(lam[k], w.contacts.normal_impulse[pair][k], 1e-24);
+        CHECK_NEAR(waves.state.body_v[2 * pair].x, w.state.body_v[2 * pair].x, 1e-24);
+      }
+    }
+  }
+}
+
 RBSIM_TEST_MAIN

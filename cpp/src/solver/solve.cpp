@@ -112,6 +112,21 @@ inline bool friction_points(const SolverRow<3>& row, Vec3* jt, const double* lam
   return any_change;
 }
 
+// Whether a face of N points is idle (FACE_IDLE_SPEED): each point's normal impulse lam
+// and friction impulse jt (N·s) give less than that speed along its normal row K, and
+// r (m/s, the speed its solve would remove) is at most that.
+template <int N>
+inline bool idle_face(const SolverRow<3>::Points& P, Lanes r, const double* lam, const Vec3* jt) {
+  constexpr double speed = C::FACE_IDLE_SPEED;
+  if (any(first_lanes(N) & ((load_lanes(lam) * load_lanes(P.kn) > speed) | (r > speed))))
+    return false;
+  bool held = false;
+#pragma GCC unroll 4
+  for (int k = 0; k < N; ++k)
+    held = held || length_squared(jt[k]) * (P.kn[k] * P.kn[k]) > speed * speed;
+  return !held;
+}
+
 // One manifold m of N points (1..4) in the 3D pass below (N fixed at compile time: the
 // loops over the points unrolled).
 template <int N>
@@ -166,20 +181,15 @@ inline void solve_manifold_3d(const Model<3>& model, State<3>& st, Contacts<3>& 
     deep = any((sep_l < row.deep) & live);
     const Lanes vn_l = dot(va - vb, nrm) + (dot_lanes(wa, P.rna) - dot_lanes(wb, P.rnb));
     const Lanes r_l = -vn_l - (bias + gam_l * load_lanes(lam));
-    // nothing to do: no point holds an impulse and none is asked to push (r <= 0). Then
-    // the block's answer is zero (K d = r <= 0 with d >= 0 gives dᵀK d <= 0: d = 0), and
-    // so is each point's one after the other; friction has no load and holds none. (Most
-    // of a resting wall's manifolds between neighbours side by side, which took the
-    // points one after the other: their block pulls.)
-    if (!any(live & ((load_lanes(lam) != 0.0) | (r_l > 0.0)))) {
-      bool held = false;
-      const Vec3* jt = c.tangent_impulse[m].data();
-#pragma GCC unroll 4
-      for (int k = 0; k < npts; ++k) held = held || jt[k].x != 0.0 || jt[k].y != 0.0 || jt[k].z != 0.0;
-      if (!held) {
-        if (use_bias && deep) mark_deep(log, m);
-        return;
-      }
+    // an idle face is left as it is (FACE_IDLE_SPEED: its points hold and are asked
+    // less than that speed). Where they hold nothing and are asked nothing (r <= 0), the
+    // solve's answer is exactly that: the block's is zero (K d = r <= 0 with d >= 0
+    // gives dᵀK d <= 0: d = 0), and so is each point's one after the other; friction has
+    // no load and holds none. (Most of a resting wall's manifolds between neighbours side
+    // by side, which took the points one after the other: their block pulls.)
+    if (idle_face<N>(P, r_l, lam, c.tangent_impulse[m].data())) {
+      if (use_bias && deep) mark_deep(log, m);
+      return;
     }
     double sep[4], vn[4], gam[4], r[4], d[4] = {0.0, 0.0, 0.0, 0.0};
     std::memcpy(sep, &sep_l, sizeof sep);
@@ -313,7 +323,8 @@ inline void solve_manifold_3d(const Model<3>& model, State<3>& st, Contacts<3>& 
 // its diagonal, which picks the smallest change of the impulses (the right-hand side,
 // the rigid bodies' own normal velocities, lies in K's range). When the block would pull
 // (an impulse < 0: a face tipping), the points go one after the other, the solve stage
-// forward and the relax stage backward. (factor_block, BLOCK_EPS: row.hpp)
+// forward and the relax stage backward. (factor_block, BLOCK_EPS: row.hpp) An idle face
+// (idle_face, FACE_IDLE_SPEED) is left as it is.
 void solve_contacts_3d(const Model<3>& model, State<3>& st, Contacts<3>& c, double inv_h,
                        bool use_bias, double shift, double threshold, const std::int32_t* order,
                        std::int64_t n, PassLog& log) {
@@ -1009,13 +1020,24 @@ unsigned solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double 
     dl[i] = y[i] * f.inv_d[i];
     for (int k = i + 1; k < N; ++k) dl[i] -= f.l[at(k, i)] * dl[k];
   }
-  LaneMask block = L.live & (f.ok != zero);
+  // idle lanes are left as they are (idle_face, lane by lane)
+  const Lanes speed = splat(C::FACE_IDLE_SPEED);
+  LaneMask busy{};
+  for (int k = 0; k < N; ++k) {
+    const Lanes kn = B.p[k].kn;
+    const Lanes jt2 = (p[k].jtx * p[k].jtx + p[k].jty * p[k].jty) + p[k].jtz * p[k].jtz;
+    busy |= (p[k].lam * kn > speed) | (r[k] > speed) | (jt2 * (kn * kn) > speed * speed);
+  }
+  const LaneMask idle = L.live & ~busy;
+  LaneMask block = L.live & busy & (f.ok != zero);
   for (int k = 0; k < N; ++k) block &= p[k].lam + dl[k] >= zero;
-  unsigned alone = 0;  // the lanes left to solve_manifold_3d
-  for (int l = 0; l < LANES; ++l)
-    if (L.live[l] && !block[l]) alone |= 1u << l;
+  unsigned alone = 0, skip = 0;  // the lanes left to solve_manifold_3d; and the idle ones
+  for (int l = 0; l < LANES; ++l) {
+    if (idle[l]) skip |= 1u << l;
+    else if (L.live[l] && !block[l]) alone |= 1u << l;
+  }
   if (use_bias) {  // a deep overlap: the manifold enters relax_list
-    const LaneMask is_deep = block & deep;
+    const LaneMask is_deep = (block | idle) & deep;
     for (int l = 0; any(is_deep) && l < LANES; ++l)
       if (is_deep[l]) log.add_deep(L.m[l]);
   }
@@ -1098,7 +1120,7 @@ unsigned solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double 
     dlb[1] -= over_points([&](int k) { return g1[k] * B.p[k].rt1by + g2[k] * B.p[k].rt2by; });
     dlb[2] -= over_points([&](int k) { return g1[k] * B.p[k].rt1bz + g2[k] * B.p[k].rt2bz; });
   }
-  write_back_3d(st, c, L, alone, q, dla, dlb, p, N);
+  write_back_3d(st, c, L, alone | skip, q, dla, dlb, p, N);
   return alone;
 }
 
