@@ -283,9 +283,9 @@ TEST(resting_box_3d_four_points_hold_it) {
 namespace {
 
 // Four pairs of unit cubes of 1 kg side by side along x, each pair's boxes touching on a
-// face of `points` points (2 or 4; normal −x, from the right box to the left), no
+// face of `points` points (1, 2 or 4; normal −x, from the right box to the left), no
 // gravity, no friction. The pairs' states, each made so that a pass asks a speed well
-// under or over FACE_IDLE_SPEED (1e-10 m/s) of the face:
+// under or over IDLE_SPEED (1e-10 m/s) of the face:
 //   0: each point holds 1e-16 N·s (round-off), the boxes part at 1e-11 m/s: idle (a
 //      solve would take the impulses to zero);
 //   1: the same parting, but each point holds 4e-10 N·s (about 1e-9 m/s): busy;
@@ -329,12 +329,13 @@ bool same_state(const World<3>& a, const World<3>& b, int pair) {
 
 }  // namespace
 
-// An idle face (FACE_IDLE_SPEED: what its points hold and are asked is worth less than
-// 1e-10 m/s) is left as it is by a pass, bit for bit; a face asked or holding more is
-// solved. Faces of four points (solved one at a time) and of two (four to a batch in
-// vector lanes when the pass goes wave by wave, the same answer as in solve order).
-TEST(idle_face_3d_is_left_as_it_is) {
-  for (const int points : {4, 2}) {
+// An idle manifold (IDLE_SPEED: what its points hold and are asked is worth less than
+// 1e-10 m/s) is left as it is by a pass, bit for bit; one asked or holding more is
+// solved. Faces of four points (solved one at a time), of two and single points (four
+// to a batch in vector lanes when the pass goes wave by wave, the same answer as in
+// solve order).
+TEST(idle_manifold_3d_is_left_as_it_is) {
+  for (const int points : {4, 2, 1}) {
     for (const bool use_bias : {true, false}) {
       Builder3 s0, s1, s2;
       World<3>& before = side_by_side(s0, points);
@@ -350,6 +351,7 @@ TEST(idle_face_3d_is_left_as_it_is) {
       find_waves(waves.model, waves.contacts);
       const auto& faces = waves.contacts.faces3;
       if (points == 2) CHECK(faces.size() == 1 && faces[0].count == 2);
+      if (points == 1) CHECK(faces.empty() && waves.contacts.batches3.size() == 1);
       solve_waves(waves.model, waves.state, waves.contacts, 1.0 / rbsim::test::substep(waves),
                   use_bias, 0.0, NO_BOUNCE);
       CHECK(same_state(waves, before, 0));

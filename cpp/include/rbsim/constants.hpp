@@ -69,16 +69,18 @@ inline constexpr double CONTACT_DAMPING_RATIO = 10.0;
 // times the square root of a small pair's scale (SCALE_LENGTH): 0.36 m/s for 2 mm boxes.
 inline constexpr double CONTACT_PUSH_MAX_VELOCITY = 3.0;
 
-// A 3D face (two to four points) is idle, and a pass leaves it as it is, when each point
+// A 3D manifold (a face, or one point) is idle, and a pass leaves it as it is, when each point
 // holds an impulse worth less than this speed (m/s: λ times the point's normal row K,
 // the speed the impulse gives; its friction likewise), and the pass would ask it for
 // less (the normal speed it would remove). Bricks side by side in a resting wall hold
 // impulses of round-off (1e-16 N·s) that made every pass solve them: half of a wall's
-// faces. The contact's speed error this allows, 1e-10 m/s, does not add up from pass to
-// pass (a face asked for more is solved) and is far below any scene's speeds (gravity
-// gives 0.04 m/s in a step of 1/240 s), and far above round-off. Zero: only faces that
-// hold nothing and are asked nothing are left (the answer of their solve is exactly zero).
-inline constexpr double FACE_IDLE_SPEED = 1.0e-10;
+// faces; in a heap, half the one-point contacts are speculative (neighbours not yet
+// touching) and hold nothing. The contact's speed error this allows, 1e-10 m/s, does not
+// add up from pass to pass (a contact asked for more is solved) and is far below any
+// scene's speeds (gravity gives 0.04 m/s in a step of 1/240 s), and far above round-off.
+// Zero: only contacts that hold nothing and are asked nothing are left (the answer of
+// their solve is exactly zero).
+inline constexpr double IDLE_SPEED = 1.0e-10;
 
 // An overlap deeper than this (m, 4 * LINEAR_SLOP; scaled as it) is being pushed out, not
 // resting:

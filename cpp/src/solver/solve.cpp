@@ -112,12 +112,13 @@ inline bool friction_points(const SolverRow<3>& row, Vec3* jt, const double* lam
   return any_change;
 }
 
-// Whether a face of N points is idle (FACE_IDLE_SPEED): each point's normal impulse lam
+// Whether a manifold of N points is idle (IDLE_SPEED): each point's normal impulse lam
 // and friction impulse jt (N·s) give less than that speed along its normal row K, and
-// r (m/s, the speed its solve would remove) is at most that.
+// r (m/s, lane k: the speed point k's solve would remove) is at most that.
 template <int N>
-inline bool idle_face(const SolverRow<3>::Points& P, Lanes r, const double* lam, const Vec3* jt) {
-  constexpr double speed = C::FACE_IDLE_SPEED;
+inline bool idle_manifold(const SolverRow<3>::Points& P, Lanes r, const double* lam,
+                          const Vec3* jt) {
+  constexpr double speed = C::IDLE_SPEED;
   if (any(first_lanes(N) & ((load_lanes(lam) * load_lanes(P.kn) > speed) | (r > speed))))
     return false;
   bool held = false;
@@ -168,6 +169,19 @@ inline void solve_manifold_3d(const Model<3>& model, State<3>& st, Contacts<3>& 
   const SolverRow<3>::Points& P = row.point;  // (lanes past npts: zero)
   bool deep = false;
   bool block = false;
+  if constexpr (N == 1) {
+    // an idle contact is left as it is (idle_manifold; most are speculative: a heap's
+    // neighbours not yet touching, which hold nothing and are asked nothing)
+    const auto pt = P[0];
+    const double s = row_separation(pt, moved, na, nb);
+    const auto [bias, gamma] =
+        soft_target(s, use_bias, inv_h, row.bias_rate, row.max_push, pt.kn, row.gamma);
+    const double r = -normal_speed(pt) - (bias + gamma * lam[0]);
+    if (idle_manifold<1>(P, Lanes{r, 0.0, 0.0, 0.0}, lam, c.tangent_impulse[m].data())) {
+      if (use_bias && s < row.deep) mark_deep(log, m);
+      return;
+    }
+  }
   if constexpr (N >= 2) {
     // every point's target from the same velocities, one block, the points in lanes
     const LaneMask live = first_lanes(npts);
@@ -181,13 +195,13 @@ inline void solve_manifold_3d(const Model<3>& model, State<3>& st, Contacts<3>& 
     deep = any((sep_l < row.deep) & live);
     const Lanes vn_l = dot(va - vb, nrm) + (dot_lanes(wa, P.rna) - dot_lanes(wb, P.rnb));
     const Lanes r_l = -vn_l - (bias + gam_l * load_lanes(lam));
-    // an idle face is left as it is (FACE_IDLE_SPEED: its points hold and are asked
+    // an idle face is left as it is (idle_manifold: its points hold and are asked
     // less than that speed). Where they hold nothing and are asked nothing (r <= 0), the
     // solve's answer is exactly that: the block's is zero (K d = r <= 0 with d >= 0
     // gives dᵀK d <= 0: d = 0), and so is each point's one after the other; friction has
     // no load and holds none. (Most of a resting wall's manifolds between neighbours side
     // by side, which took the points one after the other: their block pulls.)
-    if (idle_face<N>(P, r_l, lam, c.tangent_impulse[m].data())) {
+    if (idle_manifold<N>(P, r_l, lam, c.tangent_impulse[m].data())) {
       if (use_bias && deep) mark_deep(log, m);
       return;
     }
@@ -324,7 +338,7 @@ inline void solve_manifold_3d(const Model<3>& model, State<3>& st, Contacts<3>& 
 // the rigid bodies' own normal velocities, lies in K's range). When the block would pull
 // (an impulse < 0: a face tipping), the points go one after the other, the solve stage
 // forward and the relax stage backward. (factor_block, BLOCK_EPS: row.hpp) An idle face
-// (idle_face, FACE_IDLE_SPEED) is left as it is.
+// (idle_manifold, IDLE_SPEED) is left as it is.
 void solve_contacts_3d(const Model<3>& model, State<3>& st, Contacts<3>& c, double inv_h,
                        bool use_bias, double shift, double threshold, const std::int32_t* order,
                        std::int64_t n, PassLog& log) {
@@ -851,6 +865,15 @@ inline void friction_lanes(const WidePoint3& P, const WideRow3& R, LaneMask on, 
   p.jtz = select(on, u1 * R.t1z + u2 * R.t2z, p.jtz);
 }
 
+// The lanes in which a point is busy (not idle, idle_manifold): what it holds (p: its
+// normal and friction impulses, N·s) or is asked (r, m/s) is worth more than IDLE_SPEED
+// along its normal row K (kn, 1/kg).
+inline LaneMask busy_point(Lanes kn, const PointImpulses& p, Lanes r) {
+  const Lanes speed = splat(C::IDLE_SPEED);
+  const Lanes jt2 = (p.jtx * p.jtx + p.jty * p.jty) + p.jtz * p.jtz;
+  return (p.lam * kn > speed) | (r > speed) | (jt2 * (kn * kn) > speed * speed);
+}
+
 // Whether a point's friction is solved: friction and a load, or an impulse held.
 inline LaneMask friction_on(LaneMask live, Lanes mu, Lanes limit, const PointImpulses& p) {
   const Lanes zero = splat(0.0);
@@ -909,8 +932,16 @@ void solve_batch_3d(State<3>& st, Contacts<3>& c, const WideBatch3& B, double in
   }
   const Lanes vn = (((q.vax - q.vbx) * B.nx + (q.vay - q.vby) * B.ny) + (q.vaz - q.vbz) * B.nz) +
                    turn_lanes(q, P.rnax, P.rnay, P.rnaz, P.rnbx, P.rnby, P.rnbz);
-  const Lanes impulse = (-vn - (bias + gamma * p.lam)) * (splat(1.0) / (P.kn + gamma));
-  const Lanes jn = clamp_lanes(c, L.m, 0, L.live, p.lam, impulse, vn, s, p.max, p.approach, shift,
+  const Lanes r = -vn - (bias + gamma * p.lam);
+  // idle lanes are left as they are (idle_manifold), and a batch of them at once
+  // (find_waves packs the manifolds that hold nothing apart from those that do)
+  const LaneMask busy = L.live & busy_point(P.kn, p, r);
+  if (!any(busy)) return;
+  unsigned skip = 0;
+  for (int l = 0; l < LANES; ++l)
+    if (!busy[l]) skip |= 1u << l;
+  const Lanes impulse = r * (splat(1.0) / (P.kn + gamma));
+  const Lanes jn = clamp_lanes(c, L.m, 0, busy, p.lam, impulse, vn, s, p.max, p.approach, shift,
                                threshold, p.lam, log);
   // the push: v += (m jn) n, ω += jn I⁻¹(r × n), L += jn r × n
   const Lanes pa = B.ma * jn, pb = B.mb * jn;
@@ -922,7 +953,7 @@ void solve_batch_3d(State<3>& st, Contacts<3>& c, const WideBatch3& B, double in
   Lanes dlb[3] = {zero - jn * P.rnbx, zero - jn * P.rnby, zero - jn * P.rnbz};
   // friction: one 2×2 block clamped to Coulomb's circle
   const Lanes limit = B.friction * p.lam;
-  const LaneMask on = friction_on(L.live, B.friction, limit, p);
+  const LaneMask on = friction_on(busy, B.friction, limit, p);
   if (any(on)) {
     const Lanes ex = q.vax - q.vbx, ey = q.vay - q.vby, ez = q.vaz - q.vbz;
     const Lanes vt1 = ((ex * B.t1x + ey * B.t1y) + ez * B.t1z) +
@@ -942,7 +973,7 @@ void solve_batch_3d(State<3>& st, Contacts<3>& c, const WideBatch3& B, double in
     dlb[1] -= d1 * P.rt1by + d2 * P.rt2by;
     dlb[2] -= d1 * P.rt1bz + d2 * P.rt2bz;
   }
-  write_back_3d(st, c, L, 0, q, dla, dlb, &p, 1);
+  write_back_3d(st, c, L, skip, q, dla, dlb, &p, 1);
 }
 
 // A batch of LANES manifolds of N points (2 to 4; find_waves packs 2 and 3): their
@@ -1020,14 +1051,9 @@ unsigned solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double 
     dl[i] = y[i] * f.inv_d[i];
     for (int k = i + 1; k < N; ++k) dl[i] -= f.l[at(k, i)] * dl[k];
   }
-  // idle lanes are left as they are (idle_face, lane by lane)
-  const Lanes speed = splat(C::FACE_IDLE_SPEED);
+  // idle lanes are left as they are (idle_manifold, lane by lane)
   LaneMask busy{};
-  for (int k = 0; k < N; ++k) {
-    const Lanes kn = B.p[k].kn;
-    const Lanes jt2 = (p[k].jtx * p[k].jtx + p[k].jty * p[k].jty) + p[k].jtz * p[k].jtz;
-    busy |= (p[k].lam * kn > speed) | (r[k] > speed) | (jt2 * (kn * kn) > speed * speed);
-  }
+  for (int k = 0; k < N; ++k) busy |= busy_point(B.p[k].kn, p[k], r[k]);
   const LaneMask idle = L.live & ~busy;
   LaneMask block = L.live & busy & (f.ok != zero);
   for (int k = 0; k < N; ++k) block &= p[k].lam + dl[k] >= zero;

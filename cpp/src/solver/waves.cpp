@@ -20,6 +20,7 @@
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <vector>
 
 #include "rbsim/stages.hpp"
 #include "rbsim/wide.hpp"
@@ -201,13 +202,28 @@ void pack_waves_3d(const Model<3>& model, Contacts<3>& c, std::int32_t n_waves) 
   const std::int64_t n_man = c.count.manifolds;
   auto& start = c.wave_start;
   auto& fill = c.wave_batch;
-  for (int count = 1; count <= 4; ++count) {
+  // within a wave (its manifolds independent: any order is the solve order's result) the
+  // one-point manifolds first, those that hold an impulse before those that hold none
+  // (mostly speculative contacts, idle in most passes: a batch of idle ones is skipped
+  // at once, solve_batch_3d), then the faces by point count
+  // (kind by place in the solve order: 0 one point holding, 1 one point holding none,
+  // 2 to 4 the faces' point count, -1 no point)
+  std::vector<std::int8_t> kind(static_cast<std::size_t>(n_man));
+  for (std::int64_t o = 0; o < n_man; ++o) {
+    const std::int32_t m = c.solve_order[o];
+    const int count = c.points[m];
+    const Vec3 jt = c.tangent_impulse[m][0];
+    const bool holds = c.normal_impulse[m][0] != 0.0 || jt.x != 0.0 || jt.y != 0.0 || jt.z != 0.0;
+    kind[o] = static_cast<std::int8_t>(count == 1 ? (holds ? 0 : 1) : count >= 2 ? count : -1);
+  }
+  for (int k = 0; k <= 4; ++k) {
     for (std::int64_t o = 0; o < n_man; ++o) {
+      if (kind[o] != k) continue;
       const std::int32_t m = c.solve_order[o];
-      if (c.points[m] == count) c.wave_order[fill[c.manifold_wave[m]]++] = m;
+      c.wave_order[fill[c.manifold_wave[m]]++] = m;
     }
-    if (count == 1)
-      for (std::int32_t k = 0; k < n_waves; ++k) c.wave_single[k] = fill[k];
+    if (k == 1)
+      for (std::int32_t g = 0; g < n_waves; ++g) c.wave_single[g] = fill[g];
   }
   // a run of manifolds of one count in wave k, from i: its end
   auto run_end = [&](std::int32_t k, std::int64_t i) {
