@@ -98,4 +98,28 @@ TEST(warm_start_3d_applies_stored_impulses) {
   CHECK_NEAR(length(w.state.body_w[a] - wa), 0.0, 1e-14);
 }
 
+// A 3D manifold that holds no impulse (a speculative contact) has none to apply: its
+// bodies are left as they are, bit for bit, their ω too.
+TEST(warm_start_3d_skips_a_manifold_that_holds_nothing) {
+  using rbsim::test::about;
+  rbsim::test::Builder3 s;
+  const Sym3 ia{0.30, 0.45, 0.60, 0.05, -0.03, 0.02};
+  const int a = s.body({0.0, 1.0, 0.0}, 2.0, ia, about({1, 2, 3}, 0.7), {0.1, 0.2, 0.3},
+                       {0.3, -0.2, 0.5});
+  const int g = s.fixed({0, 0, 0});
+  World<3>& w = s.finish();
+  s.manifold(a, g, {0, 1, 0}, {{0.3, 0.5, 0.2}}, 0.5, 0.0, 0.01);
+  s.prepare();
+  w.state.body_w[a] = {0.31, -0.2, 0.5};  // rad/s: not the ω of its L, which a warm start sets
+  const State<3> before = w.state;
+  warm_start(w.model, w.state, w.contacts);
+  CHECK(w.state.body_v[a].x == before.body_v[a].x && w.state.body_v[a].y == before.body_v[a].y &&
+        w.state.body_v[a].z == before.body_v[a].z);
+  CHECK(length(w.state.body_l[a] - before.body_l[a]) == 0.0);
+  CHECK(length(w.state.body_w[a] - before.body_w[a]) == 0.0);
+  w.contacts.normal_impulse[0][0] = 1e-3;  // N·s: now it holds one, applied
+  warm_start(w.model, w.state, w.contacts);
+  CHECK(w.state.body_v[a].y > before.body_v[a].y);
+}
+
 RBSIM_TEST_MAIN

@@ -18,6 +18,14 @@ void warm_start_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
   const auto& im = model.body_inv_mass;
   for (std::int64_t o = first; o < last; ++o) {
     const std::int64_t m = order ? order[o] : o;
+    // a manifold that holds no impulse has none to apply (in a heap, half of them: the
+    // speculative contacts of neighbours not yet touching)
+    bool holds = false;
+    for (int k = 0; k < c.points[m]; ++k) {
+      const Vec3 jt = c.tangent_impulse[m][k];
+      holds = holds || c.normal_impulse[m][k] != 0.0 || jt.x != 0.0 || jt.y != 0.0 || jt.z != 0.0;
+    }
+    if (!holds) continue;
     const int a = c.body_a[m], b = c.body_b[m];
     const auto& row = c.solver_row[m];
     const Vec3 n = row.normal, t1 = row.t1, t2 = row.t2;
