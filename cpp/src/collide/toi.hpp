@@ -116,17 +116,16 @@ void place_shape(const Model<2>& model, const State<2>& st, int s, double t, int
 inline ShapeRef3 shape_ref(const Model<3>& model, int s, const Vec3* verts, const Vec3* faces,
                            double scale) {
   const double radius = model.shape_radius[s];  // m
-  ShapeRef3 r;
-  switch (model.shape_kind[s]) {
-    case ShapeKind::Sphere: r = sphere_ref(verts[0], radius); break;
-    case ShapeKind::Capsule: r = capsule_ref(verts[0], verts[1], radius); break;
-    case ShapeKind::Box: r = box_ref_from_corners(verts); break;
-    case ShapeKind::Convex: r = convex_ref(verts, faces, model.shape_hull[s].view()); break;
-    default: {  // a plane: its normal and its point's offset along it
-      const Vec3 n = faces[0];
-      r = plane_ref(n, dot(n, verts[0]));
+  // (made in place: a ShapeRef3 is about 300 bytes, and this runs twice per pair)
+  ShapeRef3 r = [&] {
+    switch (model.shape_kind[s]) {
+      case ShapeKind::Sphere: return sphere_ref(verts[0], radius);
+      case ShapeKind::Capsule: return capsule_ref(verts[0], verts[1], radius);
+      case ShapeKind::Box: return box_ref_from_corners(verts);
+      case ShapeKind::Convex: return convex_ref(verts, faces, model.shape_hull[s].view());
+      default: return plane_ref(faces[0], dot(faces[0], verts[0]));  // its normal, offset
     }
-  }
+  }();
   r.scale = scale;
   return r;
 }
