@@ -47,6 +47,12 @@ inline void refresh_omega(const Contacts<3>& c, State<3>& st, int i) {
   st.body_w[i] = c.body_inv_inertia_world[i] * st.body_l[i];
 }
 
+// 3D: whether point k of manifold m holds an impulse (normal or friction).
+inline bool holds_impulse(const Contacts<3>& c, std::int64_t m, int k) {
+  const Vec3 jt = c.tangent_impulse[m][k];
+  return c.normal_impulse[m][k] != 0.0 || jt.x != 0.0 || jt.y != 0.0 || jt.z != 0.0;
+}
+
 // Apply the impulse p (N·s) at a point with arms ra, rb (m): +p on a, −p on b.
 template <int D>
 inline void push_impulse(const Model<D>& model, State<D>& st, int a, int b,

@@ -21,10 +21,7 @@ void warm_start_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
     // a manifold that holds no impulse has none to apply (in a heap, half of them: the
     // speculative contacts of neighbours not yet touching)
     bool holds = false;
-    for (int k = 0; k < c.points[m]; ++k) {
-      const Vec3 jt = c.tangent_impulse[m][k];
-      holds = holds || c.normal_impulse[m][k] != 0.0 || jt.x != 0.0 || jt.y != 0.0 || jt.z != 0.0;
-    }
+    for (int k = 0; k < c.points[m]; ++k) holds = holds || holds_impulse(c, m, k);
     if (!holds) continue;
     const int a = c.body_a[m], b = c.body_b[m];
     const auto& row = c.solver_row[m];

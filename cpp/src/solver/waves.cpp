@@ -24,6 +24,7 @@
 
 #include "rbsim/stages.hpp"
 #include "rbsim/wide.hpp"
+#include "solver/row.hpp"
 
 namespace rbsim {
 
@@ -212,9 +213,8 @@ void pack_waves_3d(const Model<3>& model, Contacts<3>& c, std::int32_t n_waves) 
   for (std::int64_t o = 0; o < n_man; ++o) {
     const std::int32_t m = c.solve_order[o];
     const int count = c.points[m];
-    const Vec3 jt = c.tangent_impulse[m][0];
-    const bool holds = c.normal_impulse[m][0] != 0.0 || jt.x != 0.0 || jt.y != 0.0 || jt.z != 0.0;
-    kind[o] = static_cast<std::int8_t>(count == 1 ? (holds ? 0 : 1) : count >= 2 ? count : -1);
+    const int one = holds_impulse(c, m, 0) ? 0 : 1;
+    kind[o] = static_cast<std::int8_t>(count == 1 ? one : count >= 2 ? count : -1);
   }
   for (int k = 0; k <= 4; ++k) {
     for (std::int64_t o = 0; o < n_man; ++o) {
