@@ -408,6 +408,16 @@ std::unique_ptr<World<D>> make_world(nb::dict model, nb::dict state, nb::dict co
   return w;
 }
 
+// The manifold order a solve_contacts stage goes through (args["order"]: "relax_list",
+// "wave_order", else the solve order).
+template <int D>
+const std::int32_t* stage_order(const Contacts<D>& c, nb::dict args) {
+  const std::string list = load_value<std::string>(args, "order");
+  return list == "relax_list"   ? c.relax_list.data()
+         : list == "wave_order" ? c.wave_order.data()
+                                : c.solve_order.data();
+}
+
 // One stage by name, on the world's current storage: for tests that hold each stage
 // against the numba engine's. The step itself is step.cpp's.
 nb::object run_stage(World2& w, const std::string& name, nb::dict args) {
@@ -439,13 +449,10 @@ nb::object run_stage(World2& w, const std::string& name, nb::dict args) {
   } else if (name == "warm_start") {
     warm_start(m, st, c);
   } else if (name == "solve_contacts") {
-    std::string list = load_value<std::string>(args, "order");
-    const std::int32_t* order = list == "relax_list"    ? c.relax_list.data()
-                                : list == "wave_order" ? c.wave_order.data()
-                                                        : c.solve_order.data();
     std::int64_t n = load_value<std::int64_t>(args, "n");
     if (n < 0 || n > c.capacity()) throw std::invalid_argument("n out of range");
-    solve_contacts(m, st, c, num("inv_h"), flag("use_bias"), num("shift"), num("threshold"), order, n);
+    solve_contacts(m, st, c, num("inv_h"), flag("use_bias"), num("shift"), num("threshold"),
+                   stage_order(c, args), n);
   } else if (name == "find_waves") {
     return nb::int_(find_waves(m, c));
   } else if (name == "warm_start_waves") {
@@ -471,6 +478,8 @@ nb::object run_stage(World2& w, const std::string& name, nb::dict args) {
 nb::object run_stage3(World<3>& w, const std::string& name, nb::dict args) {
   auto& c = w.contacts;
   auto& cf = w.config;
+  auto num = [&](const char* key) { return load_value<double>(args, key); };
+  auto flag = [&](const char* key) { return load_value<bool>(args, key); };
   if (name == "transform_shapes") {
     transform_shapes(w.model, w.state, c, cf.dt);
   } else if (name == "find_pairs") {
@@ -487,20 +496,13 @@ nb::object run_stage3(World<3>& w, const std::string& name, nb::dict args) {
     w.grow(load_value<std::int64_t>(args, "capacity"));
   } else if (name == "find_waves") {
     return nb::int_(find_waves(w.model, c));
-  } else if (name == "solve_contacts" || name == "solve_waves") {
-    auto num = [&](const char* key) { return load_value<double>(args, key); };
-    const bool bias = load_value<bool>(args, "use_bias");
-    if (name == "solve_waves") {
-      solve_waves(w.model, w.state, c, num("inv_h"), bias, num("shift"), num("threshold"));
-      return nb::none();
-    }
-    std::string list = load_value<std::string>(args, "order");
-    const std::int32_t* order = list == "relax_list"    ? c.relax_list.data()
-                                : list == "wave_order" ? c.wave_order.data()
-                                                        : c.solve_order.data();
+  } else if (name == "solve_contacts") {
     const std::int64_t n = load_value<std::int64_t>(args, "n");
     if (n < 0 || n > c.count.manifolds) throw std::invalid_argument("n out of range");
-    solve_contacts(w.model, w.state, c, num("inv_h"), bias, num("shift"), num("threshold"), order, n);
+    solve_contacts(w.model, w.state, c, num("inv_h"), flag("use_bias"), num("shift"),
+                   num("threshold"), stage_order(c, args), n);
+  } else if (name == "solve_waves") {
+    solve_waves(w.model, w.state, c, num("inv_h"), flag("use_bias"), num("shift"), num("threshold"));
   } else {
     throw std::invalid_argument("no 3D stage named " + name);
   }

@@ -113,14 +113,17 @@ inline Lanes sum_lanes(Lanes a, Lanes b, Lanes c, Lanes d) {
   const Lanes cd = __builtin_shufflevector(c, d, 0, 4, 2, 6) + __builtin_shufflevector(c, d, 1, 5, 3, 7);
   return __builtin_shufflevector(ab, cd, 0, 1, 4, 5) + __builtin_shufflevector(ab, cd, 2, 3, 6, 7);
 }
-// how many lanes are set
-inline int count_lanes(LaneMask m) {
+// bit l set where lane l is set
+inline unsigned lane_bits(LaneMask m) {
 #if defined(__AVX__)
-  return __builtin_popcount(__builtin_ia32_movmskpd256((Lanes)m));
+  return static_cast<unsigned>(__builtin_ia32_movmskpd256((Lanes)m));  // the lanes' sign bits
 #else
-  return (m[0] != 0) + (m[1] != 0) + (m[2] != 0) + (m[3] != 0);
+  return (m[0] != 0 ? 1u : 0u) | (m[1] != 0 ? 2u : 0u) | (m[2] != 0 ? 4u : 0u) |
+         (m[3] != 0 ? 8u : 0u);
 #endif
 }
+// how many lanes are set
+inline int count_lanes(LaneMask m) { return __builtin_popcount(lane_bits(m)); }
 // all bits set in lanes 0..n-1
 inline LaneMask first_lanes(int n) {
   const Lanes index = {0.0, 1.0, 2.0, 3.0};

@@ -886,7 +886,6 @@ inline LaneMask friction_on(LaneMask live, Lanes mu, Lanes limit, const PointImp
 void write_back_3d(State<3>& st, Contacts<3>& c, const WideLanes3& L, unsigned skip,
                    const Bodies3& q, const Lanes (&dla)[3], const Lanes (&dlb)[3],
                    const PointImpulses* p, int n) {
-  const Sym3* iw = c.body_inv_inertia_world.data();
   for (int l = 0; l < LANES; ++l) {
     const std::int64_t m = L.m[l];
     if (m < 0 || (skip & (1u << l))) continue;
@@ -894,13 +893,13 @@ void write_back_3d(State<3>& st, Contacts<3>& c, const WideLanes3& L, unsigned s
       const int i = L.a[l];
       st.body_v[i] = {q.vax[l], q.vay[l], q.vaz[l]};
       st.body_l[i] += Vec3{dla[0][l], dla[1][l], dla[2][l]};
-      st.body_w[i] = iw[i] * st.body_l[i];
+      refresh_omega(c, st, i);
     }
     if (L.writes & (1u << (LANES + l))) {
       const int i = L.b[l];
       st.body_v[i] = {q.vbx[l], q.vby[l], q.vbz[l]};
       st.body_l[i] += Vec3{dlb[0][l], dlb[1][l], dlb[2][l]};
-      st.body_w[i] = iw[i] * st.body_l[i];
+      refresh_omega(c, st, i);
     }
     for (int k = 0; k < n; ++k) {
       c.normal_impulse[m][k] = p[k].lam[l];
@@ -937,9 +936,7 @@ void solve_batch_3d(State<3>& st, Contacts<3>& c, const WideBatch3& B, double in
   // (find_waves packs the manifolds that hold nothing apart from those that do)
   const LaneMask busy = L.live & busy_point(P.kn, p, r);
   if (!any(busy)) return;
-  unsigned skip = 0;
-  for (int l = 0; l < LANES; ++l)
-    if (!busy[l]) skip |= 1u << l;
+  const unsigned skip = lane_bits(L.live & ~busy);
   const Lanes impulse = r * (splat(1.0) / (P.kn + gamma));
   const Lanes jn = clamp_lanes(c, L.m, 0, busy, p.lam, impulse, vn, s, p.max, p.approach, shift,
                                threshold, p.lam, log);
@@ -1057,11 +1054,8 @@ unsigned solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double 
   const LaneMask idle = L.live & ~busy;
   LaneMask block = L.live & busy & (f.ok != zero);
   for (int k = 0; k < N; ++k) block &= p[k].lam + dl[k] >= zero;
-  unsigned alone = 0, skip = 0;  // the lanes left to solve_manifold_3d; and the idle ones
-  for (int l = 0; l < LANES; ++l) {
-    if (idle[l]) skip |= 1u << l;
-    else if (L.live[l] && !block[l]) alone |= 1u << l;
-  }
+  const unsigned skip = lane_bits(idle);                     // the idle lanes
+  const unsigned alone = lane_bits(L.live & busy & ~block);  // left to solve_manifold_3d
   if (use_bias) {  // a deep overlap: the manifold enters relax_list
     const LaneMask is_deep = (block | idle) & deep;
     for (int l = 0; any(is_deep) && l < LANES; ++l)

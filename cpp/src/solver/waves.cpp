@@ -196,19 +196,18 @@ void pack_face3(const Model<3>& model, const Contacts<3>& c, WideFace3& w, int l
 }
 
 // 3D: within each wave of n_waves (counted into wave_start, cursors in wave_batch), the
-// one-point manifolds first, packed LANES at a time into batches3, then those of two,
-// three and four points, LANES of one count at a time into faces3 (those of four, and a
-// lone manifold of two or three, by index only: WideFace3::count), each in solve order.
+// one-point manifolds first, packed LANES at a time into batches3 (those that hold an
+// impulse before those that hold none: mostly speculative contacts, idle in most passes,
+// so that a batch of idle ones is left at once, solve_batch_3d), then those of two, three
+// and four points, LANES of one count at a time into faces3 (those of four, and a lone
+// manifold of two or three, by index only: WideFace3::count), each kind in solve order
+// (a wave's manifolds are independent: any order gives the solve order's result).
 void pack_waves_3d(const Model<3>& model, Contacts<3>& c, std::int32_t n_waves) {
   const std::int64_t n_man = c.count.manifolds;
   auto& start = c.wave_start;
   auto& fill = c.wave_batch;
-  // within a wave (its manifolds independent: any order is the solve order's result) the
-  // one-point manifolds first, those that hold an impulse before those that hold none
-  // (mostly speculative contacts, idle in most passes: a batch of idle ones is skipped
-  // at once, solve_batch_3d), then the faces by point count
-  // (kind by place in the solve order: 0 one point holding, 1 one point holding none,
-  // 2 to 4 the faces' point count, -1 no point)
+  // each manifold's kind, by its place in the solve order: 0 one point holding an
+  // impulse, 1 one point holding none, 2 to 4 a face's point count, -1 no point
   std::vector<std::int8_t> kind(static_cast<std::size_t>(n_man));
   for (std::int64_t o = 0; o < n_man; ++o) {
     const std::int32_t m = c.solve_order[o];
