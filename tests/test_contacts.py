@@ -626,6 +626,17 @@ def test_extra_relax_passes_take_the_contacts_around_a_deep_overlap_only():
         # far end of their manifolds
         bodies = {names[i] for m in region for i in pairs[m]} - {"ground"}
         assert bodies == {f"c0b{i}" for i in range(reach + 2)}
+    # a deep overlap between bodies that have not moved this step (contacts.body_delta)
+    # is not being pushed out, as a circle wedged deep at the foot of a settled pile:
+    # no region; a move or a turn of the ball above the ground makes one again
+    ball = names.index("c0b0")
+    for dx, turn, expected in ((0.0, 0.0, 0), (2e-4, 0.0, 2), (0.0, 2e-4, 2)):
+        c.body_delta[:] = [0.0, 0.0, 1.0, 0.0]
+        c.body_delta[ball] = [0.0, dx, np.cos(turn), np.sin(turn)]
+        c.relax_list[0] = bottom
+        c.count[6] = 1
+        k = world.stage("deep_region", reach=0)
+        assert k == expected  # reach 0: the ball's two manifolds, with the ground and c0b1
 
 
 # ---------------------------------------------------------------------------------------

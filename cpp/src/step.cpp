@@ -326,8 +326,8 @@ bool World<D>::step() {
         // passes, so that the push's velocity is taken back all the way up a stack
         // instead of adding up from row to row
         timed(S::ExtraRelax, [&] {
-          std::int64_t n_near = deep_region(model, c, C::DEEP_RELAX_REACH);
-          for (int it = 0; it < cfg.iterations * (C::DEEP_RELAX_FACTOR - 1); ++it)
+          const std::int64_t n_near = deep_region(model, c, C::DEEP_RELAX_REACH);
+          for (int it = 0; n_near && it < cfg.iterations * (C::DEEP_RELAX_FACTOR - 1); ++it)
             solve_contacts(model, state, c, inv_h, false, shift, threshold, c.relax_list.data(), n_near);
         });
       }

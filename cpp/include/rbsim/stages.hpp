@@ -152,8 +152,8 @@ std::int64_t support_order(const Model<D>& model, Contacts<D>& contacts);
 template <int D>
 std::int64_t find_waves(const Model<D>& model, Contacts<D>& contacts);
 
-// solver/shock.cpp: the manifolds within `reach` contacts of a deep overlap, written to
-// contacts.relax_list; returns their count.
+// solver/shock.cpp: the manifolds within `reach` contacts of a deep overlap between
+// bodies that have moved this step, written to contacts.relax_list; returns their count.
 template <int D>
 std::int64_t deep_region(const Model<D>& model, Contacts<D>& contacts, int reach);
 

@@ -47,10 +47,20 @@ inline void refresh_omega(const Contacts<3>& c, State<3>& st, int i) {
   st.body_w[i] = c.body_inv_inertia_world[i] * st.body_l[i];
 }
 
-// 3D: whether point k of manifold m holds an impulse (normal or friction).
+// Whether point k of manifold m holds an impulse (normal or friction).
 inline bool holds_impulse(const Contacts<3>& c, std::int64_t m, int k) {
   const Vec3 jt = c.tangent_impulse[m][k];
   return c.normal_impulse[m][k] != 0.0 || jt.x != 0.0 || jt.y != 0.0 || jt.z != 0.0;
+}
+inline bool holds_impulse(const Contacts<2>& c, std::int64_t m, int k) {
+  return c.normal_impulse[m][k] != 0.0 || c.tangent_impulse[m][k] != 0.0;
+}
+// Whether any point of manifold m holds an impulse.
+template <int D>
+inline bool holds_any(const Contacts<D>& c, std::int64_t m) {
+  bool holds = false;
+  for (int k = 0; k < c.points[m]; ++k) holds = holds || holds_impulse(c, m, k);
+  return holds;
 }
 
 // Apply the impulse p (N·s) at a point with arms ra, rb (m): +p on a, −p on b.

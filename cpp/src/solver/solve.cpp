@@ -647,16 +647,27 @@ void solve_batch(State<2>& st, Contacts<2>& c, const WideBatch& B, double inv_h,
   const Lanes dvn = dvx * nx + dvy * ny, dvt = dvx * tx + dvy * ty;
   const Lanes vn0 = dvn + (wa * p0.rna - wb * p0.rnb);
   Lanes vt0 = dvt + (wa * p0.rta - wb * p0.rtb);
+  // m/s: the normal speed each point's solve would remove
+  const Lanes r0 = -vn0 - (b0 + g0 * lam0);
+  Lanes vn1 = zero, r1 = zero;
+  if constexpr (TWO) {
+    vn1 = dvn + (wa * p1.rna - wb * p1.rnb);
+    r1 = -vn1 - (b1 + g1 * lam1);
+  }
+  // a batch whose manifolds hold nothing and are asked nothing is left as it is: the
+  // pass's answer there is exactly zero (for two points, K d = r <= 0 with d >= 0 gives
+  // dᵀK d <= 0: d = 0), and friction has no load and holds none (find_waves packs such
+  // manifolds, mostly speculative contacts, after those that hold an impulse)
+  LaneMask busy = active & ((lam0 != zero) | (tl0 != zero) | (r0 > zero));
+  if constexpr (TWO) busy |= active & ((lam1 != zero) | (tl1 != zero) | (r1 > zero));
+  if (!any(busy)) return;
   Lanes n0, n1 = zero;  // the accumulated normal impulses after the clamp
   Lanes j0, j1 = zero;  // the normal impulses applied (N·s)
   if constexpr (TWO) {
-    Lanes vn1 = dvn + (wa * p1.rna - wb * p1.rnb);
     // both points as one 2x2 block, else one at a time (solve_contacts says why)
     const Lanes k00 = p0.kn + g0, k11 = p1.kn + g1, k01 = B.k01;
     const Lanes det = k00 * k11 - k01 * k01;
     const LaneMask blockable = det > splat(1.0e-9) * k00 * k11;
-    const Lanes r0 = -vn0 - (b0 + g0 * lam0);
-    const Lanes r1 = -vn1 - (b1 + g1 * lam1);
     const Lanes inv_det = splat(1.0) / select(blockable, det, splat(1.0));
     const Lanes d0b = (k11 * r0 - k01 * r1) * inv_det;
     const Lanes d1b = (k00 * r1 - k01 * r0) * inv_det;

@@ -20,9 +20,7 @@ void warm_start_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
     const std::int64_t m = order ? order[o] : o;
     // a manifold that holds no impulse has none to apply (in a heap, half of them: the
     // speculative contacts of neighbours not yet touching)
-    bool holds = false;
-    for (int k = 0; k < c.points[m]; ++k) holds = holds || holds_impulse(c, m, k);
-    if (!holds) continue;
+    if (!holds_any(c, m)) continue;
     const int a = c.body_a[m], b = c.body_b[m];
     const auto& row = c.solver_row[m];
     const Vec3 n = row.normal, t1 = row.t1, t2 = row.t2;
@@ -128,7 +126,14 @@ void warm_start_batch(State<2>& st, const Contacts<2>& c, const WideBatch& B) {
   } else {
     jn0 = Lanes{ni[m0][0], ni[m1][0], ni[m2][0], ni[m3][0]};
     jt0 = Lanes{ti[m0][0], ti[m1][0], ti[m2][0], ti[m3][0]};
+    jn1 = jt1 = splat(0.0);
   }
+  // a batch whose manifolds hold nothing has nothing to apply (find_waves packs those
+  // that hold an impulse first: in a pyramid, the speculative contacts between the
+  // boxes side by side, a quarter of its manifolds; in a pile, the neighbours not yet
+  // touching)
+  const Lanes zero = splat(0.0);
+  if (!any((jn0 != zero) | (jt0 != zero) | (jn1 != zero) | (jt1 != zero))) return;
   // the manifold's impulse (N·s) and its moments on each body (N·m·s)
   Lanes px = jn0 * nx + jt0 * tx, py = jn0 * ny + jt0 * ty;
   Lanes ta = jn0 * B.p0.rna + jt0 * B.p0.rta, tb = jn0 * B.p0.rnb + jt0 * B.p0.rtb;

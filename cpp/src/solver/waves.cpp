@@ -22,11 +22,14 @@
 #include <cstdint>
 #include <vector>
 
+#include "rbsim/constants.hpp"
 #include "rbsim/stages.hpp"
 #include "rbsim/wide.hpp"
 #include "solver/row.hpp"
 
 namespace rbsim {
+
+namespace C = constants;
 
 namespace {
 
@@ -195,6 +198,36 @@ void pack_face3(const Model<3>& model, const Contacts<3>& c, WideFace3& w, int l
   for (int k = 0; k < 4; ++k) pack_point3(w.p[k], l, row->point, k);
 }
 
+// The manifolds wave by wave (contacts.manifold_wave, n_waves waves) and within a wave
+// by kind(m) (0 to KINDS - 1), each kind in solve order, into contacts.wave_order (a
+// counting sort); each wave's first manifold into contacts.wave_start (and the end of
+// the last), its first of kind `single` or later into contacts.wave_single.
+template <int D, int KINDS, class Kind>
+void order_by_kind(Contacts<D>& c, std::int32_t n_waves, Kind kind_of, int single) {
+  const std::int64_t n_man = c.count.manifolds;
+  std::vector<std::int8_t> kind(static_cast<std::size_t>(n_man));
+  std::vector<std::int64_t> cursor(static_cast<std::size_t>(KINDS) * n_waves, 0);
+  for (std::int64_t m = 0; m < n_man; ++m) {
+    kind[m] = static_cast<std::int8_t>(kind_of(m));
+    ++cursor[KINDS * c.manifold_wave[m] + kind[m]];
+  }
+  std::int64_t at = 0;
+  for (std::int32_t g = 0; g < n_waves; ++g) {
+    c.wave_start[g] = at;
+    for (int k = 0; k < KINDS; ++k) {
+      if (k == single) c.wave_single[g] = at;
+      const std::int64_t n = cursor[KINDS * g + k];
+      cursor[KINDS * g + k] = at;
+      at += n;
+    }
+  }
+  c.wave_start[n_waves] = at;
+  for (std::int64_t o = 0; o < n_man; ++o) {
+    const std::int32_t m = c.solve_order[o];
+    c.wave_order[cursor[KINDS * c.manifold_wave[m] + kind[m]]++] = m;
+  }
+}
+
 // 3D: within each wave of n_waves (counted into wave_start, cursors in wave_batch), the
 // one-point manifolds first, packed LANES at a time into batches3 (those that hold an
 // impulse before those that hold none: mostly speculative contacts, idle in most passes,
@@ -203,27 +236,13 @@ void pack_face3(const Model<3>& model, const Contacts<3>& c, WideFace3& w, int l
 // manifold of two or three, by index only: WideFace3::count), each kind in solve order
 // (a wave's manifolds are independent: any order gives the solve order's result).
 void pack_waves_3d(const Model<3>& model, Contacts<3>& c, std::int32_t n_waves) {
-  const std::int64_t n_man = c.count.manifolds;
-  auto& start = c.wave_start;
-  auto& fill = c.wave_batch;
-  // each manifold's kind, by its place in the solve order: 0 one point holding an
-  // impulse, 1 one point holding none, 2 to 4 a face's point count, -1 no point
-  std::vector<std::int8_t> kind(static_cast<std::size_t>(n_man));
-  for (std::int64_t o = 0; o < n_man; ++o) {
-    const std::int32_t m = c.solve_order[o];
+  // each manifold's kind: 0 one point holding an impulse, 1 one point holding none, 2 to
+  // 4 a face's point count
+  order_by_kind<3, 5>(c, n_waves, [&c](std::int64_t m) {
     const int count = c.points[m];
-    const int one = holds_impulse(c, m, 0) ? 0 : 1;
-    kind[o] = static_cast<std::int8_t>(count == 1 ? one : count >= 2 ? count : -1);
-  }
-  for (int k = 0; k <= 4; ++k) {
-    for (std::int64_t o = 0; o < n_man; ++o) {
-      if (kind[o] != k) continue;
-      const std::int32_t m = c.solve_order[o];
-      c.wave_order[fill[c.manifold_wave[m]]++] = m;
-    }
-    if (k == 1)
-      for (std::int32_t g = 0; g < n_waves; ++g) c.wave_single[g] = fill[g];
-  }
+    return count == 1 ? (holds_impulse(c, m, 0) ? 0 : 1) : count;
+  }, 2);
+  const auto& start = c.wave_start;
   // a run of manifolds of one count in wave k, from i: its end
   auto run_end = [&](std::int32_t k, std::int64_t i) {
     std::int64_t e = i;
@@ -282,13 +301,19 @@ std::int64_t find_waves(const Model<D>& model, Contacts<D>& c) {
     // last step's manifolds in the same slots and the same solve order (support_order
     // keeps it): the waves hold, and only the rows that prepare wrote again are packed
     // again (a carried manifold's row changes in its base separations only), unless a
-    // manifold's point count changed (it belongs in a batch of the other kind)
+    // manifold's point count changed (it belongs in a batch of the other kind) or more
+    // than one in IDLE_SPOILED of the batches packed idle hold an impulse now (a new
+    // pile's first steps; in a settled pyramid a few contacts a step start or stop
+    // holding one, and packing again every step would cost more than it saves)
     bool same_kinds = true;
+    std::int64_t idle = 0, spoiled = 0;  // batches
     for (std::int64_t i = 0; same_kinds && i < c.wave_batch[c.wave_count]; ++i) {
       WideBatch& w = c.batches[i];
+      bool holds = false;
       for (int l = 0; l < LANES; ++l) {
         const std::int32_t m = w.m[l];
         if (m < 0) continue;
+        holds = holds || (w.idle && holds_any(c, m));
         if (c.carried[m]) {
           w.p0.base[l] = c.solver_row[m].point[0].base;
           if (w.two[l] != 0.0) w.p1.base[l] = c.solver_row[m].point[1].base;
@@ -299,8 +324,10 @@ std::int64_t find_waves(const Model<D>& model, Contacts<D>& c) {
           break;
         }
       }
+      idle += w.idle;
+      spoiled += holds;
     }
-    if (same_kinds) return c.wave_count;
+    if (same_kinds && spoiled * C::IDLE_SPOILED <= idle) return c.wave_count;
   }
   auto& last = c.body_wave;
   auto& wave = c.manifold_wave;
@@ -329,28 +356,20 @@ std::int64_t find_waves(const Model<D>& model, Contacts<D>& c) {
     }
   }
   c.segment_wave[n_segments] = n_waves;
-  // a counting sort by wave, in solve order within a wave
-  auto& start = c.wave_start;
-  for (std::int32_t k = 0; k <= n_waves; ++k) start[k] = 0;
-  for (std::int64_t m = 0; m < n_man; ++m) start[wave[m] + 1] += 1;
-  for (std::int32_t k = 0; k < n_waves; ++k) start[k + 1] += start[k];
-  auto& fill = c.wave_batch;  // scratch cursors first, the batch ranges after
-  for (std::int32_t k = 0; k <= n_waves; ++k) fill[k] = start[k];
   if constexpr (D == 3) {
     pack_waves_3d(model, c, n_waves);
     return n_waves;
   } else {
   // within a wave the two-point manifolds first, then the one-point ones (circles,
   // capsule ends), each in solve order and in batches of their own (a one-point batch
-  // skips the second point's work)
-  for (int pass = 2; pass >= 1; --pass) {
-    for (std::int64_t o = 0; o < n_man; ++o) {
-      const std::int32_t m = c.solve_order[o];
-      if ((c.points[m] == 2) == (pass == 2)) c.wave_order[fill[wave[m]]++] = m;
-    }
-    if (pass == 2)
-      for (std::int32_t k = 0; k < n_waves; ++k) c.wave_single[k] = fill[k];
-  }
+  // skips the second point's work); of each, those that hold an impulse before those
+  // that hold none (mostly speculative contacts, idle in most passes, so that a batch of
+  // idle ones is left at once: solve_batch, warm_start_batch). Each manifold's kind:
+  // 0 two points holding, 1 two points holding none, 2 and 3 one point alike
+  order_by_kind<2, 4>(c, n_waves, [&c](std::int64_t m) {
+    return (c.points[m] == 2 ? 0 : 2) + (holds_any(c, m) ? 0 : 1);
+  }, 2);
+  const auto& start = c.wave_start;
   // the batches' room: made here, for what this step packs (every batch holds 1 to
   // LANES manifolds, so up to M of them; most steps need about M / LANES plus a few per
   // wave, and room for M, about 1 KB each, took seconds to make in a large pile)
@@ -371,6 +390,7 @@ std::int64_t find_waves(const Model<D>& model, Contacts<D>& c) {
         WideBatch& w = c.batches[n_batches++];
         for (int l = 0; l < LANES; ++l)
           pack_lane(model, c, w, l, i + l < end ? c.wave_order[i + l] : -1);
+        w.idle = !holds_any(c, c.wave_order[i]);  // (those that hold come first)
       }
     }
   }
