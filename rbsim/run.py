@@ -52,13 +52,17 @@ CHUNK_SECONDS = 0.1
 # time since the last one is at least CHECKPOINT_SHARE_INVERSE times what that one took,
 # so that a large world (a checkpoint of a 40,000-circle pile: 2 GB, seconds to write)
 # spends at most a tenth of its run on checkpoints; and a run stopped by a signal saves
-# its last state only when the last checkpoint took under CHECKPOINT_STOP_SECONDS (s),
-# so that it ends within a second (else the last flush's checkpoint stays beside it).
+# its last state only when the last checkpoint took under CHECKPOINT_STOP_SECONDS (s)
+# and is at most CHECKPOINT_STOP_BYTES, so that it ends within a second (else the last
+# flush's checkpoint stays beside it): a write's time is not steady (the 195 MB checkpoint
+# of a pile of 40,000 circles took 0.2 s at a flush, then 1.3 - 2.3 s written into the
+# closed file, a shared machine's disk holding back its new pages).
 # Before a first one is timed, a checkpoint is expected to take its size over
 # CHECKPOINT_BYTES_PER_SECOND (B/s; measured 0.25-0.5 GB/s taking it, on a shared 2-core
 # machine).
 CHECKPOINT_SHARE_INVERSE = 10.0
 CHECKPOINT_STOP_SECONDS = 0.3
+CHECKPOINT_STOP_BYTES = 50e6
 CHECKPOINT_BYTES_PER_SECOND = 2.5e8
 
 
@@ -488,9 +492,13 @@ def _loop(
         ) from None
     except KeyboardInterrupt:
         status = "interrupted"
-        if world.torn or checkpoint_expected() > CHECKPOINT_STOP_SECONDS:
-            # a long step stopped inside, or a checkpoint too slow to take now: the last
-            # flush's checkpoint stays beside the file, to resume from
+        slow = (
+            checkpoint_expected() > CHECKPOINT_STOP_SECONDS
+            or world.checkpoint_size() > CHECKPOINT_STOP_BYTES
+        )
+        if world.torn or slow:
+            # a long step stopped inside, or a checkpoint too slow to take and write now:
+            # the last flush's checkpoint stays beside the file, to resume from
             keep_sidecar = True
         elif world.step_index == committed_step:  # every frame up to this state is kept
             checkpoint = world.checkpoint()

@@ -457,3 +457,27 @@ def test_resume_from_another_versions_checkpoint_says_so(reference, tmp_path) ->
     assert code == 1, err
     assert "another version of rbsim's engine (format 3, this one reads 4)" in err, err
     assert "Traceback" not in err
+
+
+@pytest.mark.parametrize("limit", [50e6, 0.0])
+def test_a_stopped_run_writes_its_last_state_only_when_it_is_small(tmp_path, monkeypatch, limit):
+    # Ctrl-C saves the world's last state into the file only when that is quick: a
+    # checkpoint larger than CHECKPOINT_STOP_BYTES (a large pile's: 195 MB, seconds to
+    # write on a busy disk) is left out, and the last flush's stays beside the file
+    import rbsim.run as run_module
+
+    monkeypatch.setattr(run_module, "CHECKPOINT_STOP_BYTES", limit)
+    scene = scene_from(
+        "version: 1\nworld: {steps: 50}\nbodies:\n  - {shape: {circle: {radius: 1}}}\n"
+    )
+
+    def stop(step: int, total: int) -> None:
+        if step >= 20:
+            raise KeyboardInterrupt
+
+    out = tmp_path / "stopped.h5"
+    with pytest.raises(KeyboardInterrupt):
+        run_scene(scene, out, progress=stop, signals=())
+    assert load_trajectory(out).status == "interrupted"
+    with h5py.File(out, "r") as f:
+        assert ("parameters/rbsim/checkpoint" in f) == (limit > 0)
