@@ -228,7 +228,7 @@ void order_by_kind(Contacts<D>& c, std::int32_t n_waves, Kind kind_of, int singl
   }
 }
 
-// 3D: within each wave of n_waves (counted into wave_start, cursors in wave_batch), the
+// 3D: within each wave of n_waves (order_by_kind, which also counts them into wave_start), the
 // one-point manifolds first, packed LANES at a time into batches3 (those that hold an
 // impulse before those that hold none: mostly speculative contacts, idle in most passes,
 // so that a batch of idle ones is left at once, solve_batch_3d), then those of two, three
