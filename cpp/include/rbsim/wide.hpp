@@ -153,8 +153,9 @@ struct WideBatch {
   // back), bit LANES + l: its body b. ALL_WRITES: every lane's two bodies
   std::uint32_t writes;
   std::int32_t a[LANES], b[LANES];  // body indices (0 for an empty lane)
-  // packed among the manifolds that held no impulse at the step's start (find_waves):
-  // mostly idle in the passes, and left at once when all are (solve_batch)
+  // packed among the manifolds that held no impulse at the step's start: mostly idle in
+  // the passes (solve_batch leaves a batch whose lanes all are); find_waves packs the
+  // waves again once too many such batches hold one
   bool idle;
 };
 

@@ -376,12 +376,12 @@ std::int64_t support_order(const Model<D>& model, Contacts<D>& c) {
 // contacts.relax_list[:count.deep_count], written in solve order over that list; returns
 // their count. Every manifold when the list is full or the scene has no gravity (the
 // contact graph, contact_levels' adjacency, is built only for the shock pass). A deep
-// overlap between two bodies that are hardly moving (each slower than STILL_DISTANCE,
-// times its scale, and STILL_ANGLE per step of dt s) is not being pushed out, and seeds
-// nothing: a circle wedged deep between two others at the foot of a settled pile stays
-// so for thousands of steps, and its extra passes cost a pile of 800 circles a quarter
-// of its step. None when no overlap seeds any. Uses contacts.queue and body_reach as
-// scratch.
+// overlap between two bodies that have not moved in the step so far (contacts.body_delta:
+// each within STILL_DISTANCE, times its scale, and STILL_ANGLE of its pose at the step's
+// start) is not being pushed out, and seeds nothing: a circle wedged deep between two
+// others at the foot of a settled pile stays so for thousands of steps, and its extra
+// passes cost a pile of 800 circles a quarter of its step. None when no overlap seeds
+// any. Uses contacts.queue and body_reach as scratch.
 template <int D>
 std::int64_t deep_region(const Model<D>& model, Contacts<D>& c, int reach) {
   auto& queue = c.queue;
