@@ -394,7 +394,7 @@ std::int64_t deep_region(const Model<D>& model, Contacts<D>& c, int reach) {
   auto moving = [&](int i) {
     const BodyDelta<D>& d = c.body_delta[i];
     const double still = c.body_scale[i] * C::STILL_DISTANCE;  // m
-    double turn2;  // sin² of the turn (2D), or of half of it (3D)
+    double turn2;  // about the turn² (rad²): sin² of the turn (2D), 4 sin² of its half (3D)
     if constexpr (D == 2)
       turn2 = d.dq.s * d.dq.s;
     else
