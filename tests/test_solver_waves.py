@@ -193,6 +193,27 @@ def test_waves_pack_the_manifolds_that_hold_an_impulse_first():
         assert kinds == {True, False}  # both kinds present: the order is tested
 
 
+def test_3d_faces_that_hold_an_impulse_go_into_lanes_four_points_too():
+    # within each wave, after the one-point manifolds: the faces that hold an impulse by
+    # point count, then (from wave_idle, solved one at a time) those that hold none; the
+    # faces of four points that hold one are packed four to a batch (solve_face_3d<4>),
+    # not left one at a time
+    w = CoreWorld.from_scene(load_scene(ROOT / "scenes/hard/pyramid5_3d.yaml"))
+    w.advance(60)
+    w.stage("find_waves")
+    c = w.contacts
+    n_held = n_idle = 0
+    for g in range(int(c.wave_count)):
+        held = [int(m) for m in c.wave_order[c.wave_single[g] : c.wave_idle[g]]]
+        idle = [int(m) for m in c.wave_order[c.wave_idle[g] : c.wave_start[g + 1]]]
+        assert all(_holds(c, m) for m in held) and not any(_holds(c, m) for m in idle)
+        counts = [int(c.points[m]) for m in held + idle]
+        assert counts[: len(held)] == sorted(counts[: len(held)]) and min(counts, default=2) >= 2
+        n_held, n_idle = n_held + len(held), n_idle + len(idle)
+    assert n_held and n_idle  # both kinds present: the order is tested
+    assert 4 in c.face_batch_points
+
+
 def test_a_manifold_packed_idle_that_holds_an_impulse_is_solved():
     # manifolds packed among those that held nothing, given an impulse after the waves
     # were packed: their batches are no longer idle, and the pass solves them as the pass

@@ -167,11 +167,18 @@ nb::dict storage(World<D>& w, nb::handle owner) {
   RBSIM_VIEW(queue) RBSIM_VIEW(bounce_kind) RBSIM_VIEW(body_mark) RBSIM_VIEW(solve_impulse)
   RBSIM_VIEW(bounce_list) RBSIM_VIEW(relax_list) RBSIM_VIEW(body_reach)
   RBSIM_VIEW(wave_order) RBSIM_VIEW(manifold_wave) RBSIM_VIEW(wave_start) RBSIM_VIEW(wave_batch)
-  RBSIM_VIEW(wave_single) RBSIM_VIEW(wave_single_batch)
+  RBSIM_VIEW(wave_single) RBSIM_VIEW(wave_single_batch) RBSIM_VIEW(wave_idle)
   RBSIM_VIEW(shape_size) RBSIM_VIEW(shape_scale) RBSIM_VIEW(body_scale)
 #undef RBSIM_VIEW
   if constexpr (D == 2) d["solver_row"] = view(c.solver_row, owner);
-  if constexpr (D == 3) d["face_world"] = view(c.face_world, owner);
+  if constexpr (D == 3) {
+    d["face_world"] = view(c.face_world, owner);
+    // each face batch's point count (WideFace3::count; 0: its manifolds go one at a
+    // time), as a list (a copy)
+    nb::list counts;
+    for (std::int64_t i = 0; i < c.wave_single_batch[c.wave_count]; ++i) counts.append(c.faces3[i].count);
+    d["face_batch_points"] = counts;
+  }
   d["wave_count"] = view(&c.wave_count, 1, owner, false);
   // the regions of the threaded passes (regions.cpp)
   d["region_count"] = view(&c.region_count, 1, owner, false);

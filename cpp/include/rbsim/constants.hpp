@@ -89,6 +89,11 @@ inline constexpr double IDLE_SPEED = 1.0e-10;
 // contacts a step start or stop holding an impulse, and packing every step cost 30 µs
 // more than it saved.
 inline constexpr std::int64_t IDLE_SPOILED = 8;
+// In 3D the faces (manifolds of two to four points) of a wave that hold an impulse go
+// into lanes, four of one point count at a time; a batch that would hold fewer than this
+// many (the last of a run) is solved one manifold at a time instead: packing a face costs
+// about what solving it on its own a few times does (dimensionless, 1 to LANES)
+inline constexpr std::int64_t FACE_LANES_MIN = 3;
 
 // An overlap deeper than this (m, 4 * LINEAR_SLOP; scaled as it) is being pushed out, not
 // resting, unless neither body has moved in the step (STILL_DISTANCE, STILL_ANGLE: a

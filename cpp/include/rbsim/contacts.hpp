@@ -264,6 +264,9 @@ struct Contacts {
                                             // manifolds of more points, solved one by one
   std::vector<std::int64_t> wave_single_batch;  // (M+1,) and their batches, from here
                                                  // to wave_batch[g+1]
+  std::vector<std::int64_t> wave_idle;     // (M+1,) 3D: wave g's faces that hold no impulse,
+                                            // wave_order[idle[g]..start[g+1]), solved one by
+                                            // one (waves.cpp)
   std::vector<WideBatch> batches;           // the waves' manifolds, LANES at a time (find_waves sizes it)
   std::vector<WideBatch3> batches3;         // 3D: the waves' one-point manifolds, LANES at a time
   std::vector<WideFace3> faces3;            // 3D: and the others, LANES of one point count at a
@@ -336,7 +339,7 @@ bool Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   heavy_on_light = false;
   reset(wave_order, m); reset(manifold_wave, m); reset(body_wave, n);
   reset(wave_start, m + 2); reset(wave_batch, m + 2); reset(wave_single, m + 1);
-  reset(wave_single_batch, m + 1);
+  reset(wave_single_batch, m + 1); reset(wave_idle, D == 3 ? m + 1 : 0);
   // made by find_waves, as many as a step packs (waves.cpp)
   batches.clear();
   batches3.clear();

@@ -210,9 +210,9 @@ struct WideFace3 : WideRow3 {
   Lanes coupling[6][4];  // SolverRow<3>::tangent_coupling
   WidePoint3 p[4];
   WideLanes3 lanes;
-  // the lanes' point count (2 or 3), or 0: manifolds lanes.m (-1: none) left to the solve
-  // of one manifold at a time, their rows not packed (a face of four points, whose solve
-  // already takes its points four at a time, or a lone manifold)
+  // the lanes' point count (2 to 4), or 0: manifolds lanes.m (-1: none) left to the solve
+  // of one manifold at a time, their rows not packed (faces that hold no impulse, and a
+  // batch of fewer than FACE_LANES_MIN: waves.cpp)
   std::int32_t count;
 };
 

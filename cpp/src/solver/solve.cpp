@@ -984,13 +984,14 @@ void solve_batch_3d(State<3>& st, Contacts<3>& c, const WideBatch3& B, double in
   write_back_3d(st, c, L, skip, q, dla, dlb, &p, 1);
 }
 
-// A batch of LANES manifolds of N points (2 to 4; find_waves packs 2 and 3): their
-// points' block, then each point's friction in order with the row's couplings
-// (solve_manifold_3d<N>). A lane whose block would pull, or has no factor (there the
-// points go one after the other: rare), is left out and its bit returned: the caller
-// solves that manifold on its own (it shares no dynamic body with the others).
+// A batch of LANES manifolds of N points (2 to 4): their points' block, or, in a lane
+// whose block would pull or has no factor, the points one after the other (the solve
+// stage forward, relax backward); then each point's friction in order with the row's
+// couplings (solve_manifold_3d<N>, lane by lane). A face of four points pulls in most
+// passes: its rigid block has rank 3, and the part of the right-hand side outside K's
+// range (the soft targets' bias, round-off) comes back divided by BLOCK_EPS.
 template <int N>
-unsigned solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double inv_h,
+void solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double inv_h,
                        bool use_bias, double shift, double threshold, PassLog& log) {
   static_assert(N >= 2 && N <= 4);
   const WideLanes3& L = B.lanes;
@@ -1000,21 +1001,32 @@ unsigned solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double 
   const Lanes zero = splat(0.0);
   // every point's target from the same velocities
   const Lanes dvn = ((q.vax - q.vbx) * B.nx + (q.vay - q.vby) * B.ny) + (q.vaz - q.vbz) * B.nz;
-  Lanes sep[N], vn[N], gam[N], r[N];
+  Lanes sep[N], vn[N], bias[N], gam[N], r[N];
   Lanes pushed = zero;  // points pushed out (soft rows)
   LaneMask deep{};
   for (int k = 0; k < N; ++k) {
     const WidePoint3& P = B.p[k];
     sep[k] = separation_lanes(q, P);
     const LaneMask out = (sep[k] <= zero) & (use_bias ? L.live : LaneMask{});
-    Lanes bias = select(sep[k] > zero, sep[k] * splat(inv_h), zero);
-    bias = select(out, vmax(B.bias_rate * sep[k], B.max_push), bias);
+    bias[k] = select(sep[k] > zero, sep[k] * splat(inv_h), zero);
+    bias[k] = select(out, vmax(B.bias_rate * sep[k], B.max_push), bias[k]);
     gam[k] = select(out, P.kn * B.gamma, zero);
     pushed += select(out, splat(1.0), zero);
     deep |= sep[k] < B.deep;
     vn[k] = dvn + turn_lanes(q, P.rnax, P.rnay, P.rnaz, P.rnbx, P.rnby, P.rnbz);
-    r[k] = -vn[k] - (bias + gam[k] * p[k].lam);
+    r[k] = -vn[k] - (bias[k] + gam[k] * p[k].lam);
   }
+  // idle lanes are left as they are (idle_manifold, lane by lane); a batch of idle lanes
+  // at once (find_waves packs the faces that hold no impulse after those that do)
+  LaneMask busy{};
+  for (int k = 0; k < N; ++k) busy |= busy_point(B.p[k].kn, p[k], r[k]);
+  const LaneMask idle = L.live & ~busy;
+  if (use_bias) {  // a deep overlap: the manifold enters relax_list
+    const LaneMask is_deep = L.live & deep;
+    for (int l = 0; any(is_deep) && l < LANES; ++l)
+      if (is_deep[l]) log.add_deep(L.m[l]);
+  }
+  if (!any(L.live & busy)) return;
   // the factor: the row's rigid one when no point is pushed out, its soft one when every
   // point is, else made here (factor_block, ldlt_factor_n)
   const LaneMask none_pushed = pushed == zero, all_pushed = pushed == splat(double(N));
@@ -1059,19 +1071,9 @@ unsigned solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double 
     dl[i] = y[i] * f.inv_d[i];
     for (int k = i + 1; k < N; ++k) dl[i] -= f.l[at(k, i)] * dl[k];
   }
-  // idle lanes are left as they are (idle_manifold, lane by lane)
-  LaneMask busy{};
-  for (int k = 0; k < N; ++k) busy |= busy_point(B.p[k].kn, p[k], r[k]);
-  const LaneMask idle = L.live & ~busy;
   LaneMask block = L.live & busy & (f.ok != zero);
   for (int k = 0; k < N; ++k) block &= p[k].lam + dl[k] >= zero;
-  const unsigned skip = lane_bits(idle);                     // the idle lanes
-  const unsigned alone = lane_bits(L.live & busy & ~block);  // left to solve_manifold_3d
-  if (use_bias) {  // a deep overlap: the manifold enters relax_list
-    const LaneMask is_deep = (block | idle) & deep;
-    for (int l = 0; any(is_deep) && l < LANES; ++l)
-      if (is_deep[l]) log.add_deep(L.m[l]);
-  }
+  const LaneMask one_by_one = L.live & busy & ~block;
   Lanes jn[N];
   for (int k = 0; k < N; ++k)
     jn[k] = clamp_lanes(c, L.m, k, block, p[k].lam, dl[k], vn[k], sep[k], p[k].max, p[k].approach,
@@ -1101,9 +1103,35 @@ unsigned solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double 
   q.wbz -= (B.ibxz * tb[0] + B.ibyz * tb[1]) + B.ibzz * tb[2];
   Lanes dla[3] = {zero + ta[0], zero + ta[1], zero + ta[2]};
   Lanes dlb[3] = {zero - tb[0], zero - tb[1], zero - tb[2]};
+  if (any(one_by_one)) {
+    // the points one after the other on the velocities after those before (their lanes'
+    // velocities untouched by the block above: its impulses there are zero)
+    const Lanes dn[3] = {B.nx, B.ny, B.nz};
+    for (int i = 0; i < N; ++i) {
+      const int k = use_bias ? i : N - 1 - i;
+      const WidePoint3& P = B.p[k];
+      const Lanes speed = ((q.vax - q.vbx) * B.nx + (q.vay - q.vby) * B.ny) + (q.vaz - q.vbz) * B.nz;
+      const Lanes v_now = speed + turn_lanes(q, P.rnax, P.rnay, P.rnaz, P.rnbx, P.rnby, P.rnbz);
+      const Lanes impulse = (-v_now - (bias[k] + gam[k] * p[k].lam)) * (splat(1.0) / (P.kn + gam[k]));
+      const Lanes j = clamp_lanes(c, L.m, k, one_by_one, p[k].lam, impulse, v_now, sep[k],
+                                  p[k].max, p[k].approach, shift, threshold, p[k].lam, log);
+      // push: v += m⁻¹ j n, ω += j I⁻¹ (r × n), L += j (r × n)
+      const Lanes ja = B.ma * j, jb = B.mb * j;
+      q.vax += ja * dn[0], q.vay += ja * dn[1], q.vaz += ja * dn[2];
+      q.vbx -= jb * dn[0], q.vby -= jb * dn[1], q.vbz -= jb * dn[2];
+      q.wax += j * ((B.iaxx * P.rnax + B.iaxy * P.rnay) + B.iaxz * P.rnaz);
+      q.way += j * ((B.iaxy * P.rnax + B.iayy * P.rnay) + B.iayz * P.rnaz);
+      q.waz += j * ((B.iaxz * P.rnax + B.iayz * P.rnay) + B.iazz * P.rnaz);
+      q.wbx -= j * ((B.ibxx * P.rnbx + B.ibxy * P.rnby) + B.ibxz * P.rnbz);
+      q.wby -= j * ((B.ibxy * P.rnbx + B.ibyy * P.rnby) + B.ibyz * P.rnbz);
+      q.wbz -= j * ((B.ibxz * P.rnbx + B.ibyz * P.rnby) + B.ibzz * P.rnbz);
+      dla[0] += j * P.rnax, dla[1] += j * P.rnay, dla[2] += j * P.rnaz;
+      dlb[0] -= j * P.rnbx, dlb[1] -= j * P.rnby, dlb[2] -= j * P.rnbz;
+    }
+  }
   // friction: each point's 2×2 block, in order (forward in the solve, backward in relax),
   // the later points' sliding velocities carried through the row's couplings
-  const LaneMask has_mu = block & (B.friction > zero);
+  const LaneMask has_mu = L.live & busy & (B.friction > zero);
   if (any(has_mu)) {
     const Lanes ex = q.vax - q.vbx, ey = q.vay - q.vby, ez = q.vaz - q.vbz;
     const Lanes e1 = (ex * B.t1x + ey * B.t1y) + ez * B.t1z;
@@ -1151,8 +1179,7 @@ unsigned solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double 
     dlb[1] -= over_points([&](int k) { return g1[k] * B.p[k].rt1by + g2[k] * B.p[k].rt2by; });
     dlb[2] -= over_points([&](int k) { return g1[k] * B.p[k].rt1bz + g2[k] * B.p[k].rt2bz; });
   }
-  write_back_3d(st, c, L, alone | skip, q, dla, dlb, p, N);
-  return alone;
+  write_back_3d(st, c, L, lane_bits(idle), q, dla, dlb, p, N);
 }
 
 }  // namespace
@@ -1177,24 +1204,28 @@ void solve_wave_range(const Model<D>& model, State<D>& st, Contacts<D>& c, doubl
       solve_batch<false>(st, c, c.batches[i], inv_h, use_bias, shift, threshold, log);
   }
   } else {
-  // 3D: a wave's one-point manifolds LANES at a time, then its others one by one
+  // 3D: a wave's one-point manifolds LANES at a time, then its faces (LANES at a time, or
+  // one by one: pack_waves_3d)
   for (std::int64_t g = first; g < last; ++g) {
     for (std::int64_t i = c.wave_batch[g]; i < c.wave_batch[g + 1]; ++i)
       solve_batch_3d(st, c, c.batches3[i], inv_h, use_bias, shift, threshold, log);
     for (std::int64_t i = c.wave_single_batch[g]; i < c.wave_single_batch[g + 1]; ++i) {
       const WideFace3& F = c.faces3[i];
-      unsigned alone = 0;  // the lanes solved one manifold at a time
       switch (F.count) {
-        case 2: alone = solve_face_3d<2>(st, c, F, inv_h, use_bias, shift, threshold, log); break;
-        case 3: alone = solve_face_3d<3>(st, c, F, inv_h, use_bias, shift, threshold, log); break;
-        default:
-          for (int l = 0; l < LANES; ++l) alone |= F.lanes.m[l] >= 0 ? 1u << l : 0u;
+        case 2: solve_face_3d<2>(st, c, F, inv_h, use_bias, shift, threshold, log); break;
+        case 3: solve_face_3d<3>(st, c, F, inv_h, use_bias, shift, threshold, log); break;
+        case 4: solve_face_3d<4>(st, c, F, inv_h, use_bias, shift, threshold, log); break;
+        default:  // a lone manifold: on its own
+          for (int l = 0; l < LANES; ++l)
+            if (F.lanes.m[l] >= 0)
+              solve_contacts_3d(model, st, c, inv_h, use_bias, shift, threshold, &F.lanes.m[l], 1, log);
           break;
       }
-      for (int l = 0; alone && l < LANES; ++l)
-        if (alone & (1u << l))
-          solve_contacts_3d(model, st, c, inv_h, use_bias, shift, threshold, &F.lanes.m[l], 1, log);
     }
+    const std::int64_t idle = c.wave_idle[g];  // the faces that hold no impulse
+    if (idle < c.wave_start[g + 1])
+      solve_contacts_3d(model, st, c, inv_h, use_bias, shift, threshold, &c.wave_order[idle],
+                        c.wave_start[g + 1] - idle, log);
   }
   }
 }

@@ -14,9 +14,8 @@
 // wave's manifolds are packed LANES at a time for solve.cpp, which solves them in vector
 // registers; a pass gives the same result however a wave is split (one by one, several
 // at a time, or on several threads). In 3D a wave's one-point manifolds go into lanes,
-// and its faces of two and three points, LANES of one count at a time; a face of four
-// points, whose solve already takes its four points in lanes, is left to the solve of one
-// manifold at a time (in lanes of manifolds it was slower: measured on a resting wall).
+// and its faces of two to four points that hold an impulse, LANES of one count at a time;
+// the others are left to the solve of one manifold at a time (pack_waves_3d).
 #include <algorithm>
 #include <array>
 #include <cstdint>
@@ -96,6 +95,18 @@ void pack_lane(const Model<D>& model, const Contacts<D>& c, WideBatch& w, int l,
     p.rby[l] = pt.rb.y;
     p.base[l] = pt.base;
   }
+}
+
+// At least `needed` batches in v. A batch is large (a WideFace3 holds 6.5 kB) and a heap's
+// first steps need more of them step after step: v's memory is taken for twice what is
+// needed, so that it is not moved (and its new pages touched again) at every step that
+// needs a few more.
+template <class Batch>
+void fit(std::vector<Batch>& v, std::int64_t needed) {
+  const auto n = static_cast<std::size_t>(needed);
+  if (v.size() >= n) return;
+  if (v.capacity() < n) v.reserve(2 * n);
+  v.resize(n + n / 4 < v.capacity() ? n + n / 4 : v.capacity());
 }
 
 // 3D: v's components into lane l of x, y, z.
@@ -201,9 +212,11 @@ void pack_face3(const Model<3>& model, const Contacts<3>& c, WideFace3& w, int l
 // The manifolds wave by wave (contacts.manifold_wave, n_waves waves) and within a wave
 // by kind(m) (0 to KINDS - 1), each kind in solve order, into contacts.wave_order (a
 // counting sort); each wave's first manifold into contacts.wave_start (and the end of
-// the last), its first of kind `single` or later into contacts.wave_single.
+// the last), its first of kind `single` or later into contacts.wave_single, and, when
+// idle < KINDS, its first of kind `idle` or later into contacts.wave_idle.
 template <int D, int KINDS, class Kind>
-void order_by_kind(Contacts<D>& c, std::int32_t n_waves, Kind kind_of, int single) {
+void order_by_kind(Contacts<D>& c, std::int32_t n_waves, Kind kind_of, int single,
+                   int idle = KINDS) {
   const std::int64_t n_man = c.count.manifolds;
   std::vector<std::int8_t> kind(static_cast<std::size_t>(n_man));
   std::vector<std::int64_t> cursor(static_cast<std::size_t>(KINDS) * n_waves, 0);
@@ -216,6 +229,7 @@ void order_by_kind(Contacts<D>& c, std::int32_t n_waves, Kind kind_of, int singl
     c.wave_start[g] = at;
     for (int k = 0; k < KINDS; ++k) {
       if (k == single) c.wave_single[g] = at;
+      if (k == idle) c.wave_idle[g] = at;
       const std::int64_t n = cursor[KINDS * g + k];
       cursor[KINDS * g + k] = at;
       at += n;
@@ -231,37 +245,42 @@ void order_by_kind(Contacts<D>& c, std::int32_t n_waves, Kind kind_of, int singl
 // 3D: within each wave of n_waves (order_by_kind, which also counts them into wave_start), the
 // one-point manifolds first, packed LANES at a time into batches3 (those that hold an
 // impulse before those that hold none: mostly speculative contacts, idle in most passes,
-// so that a batch of idle ones is left at once, solve_batch_3d), then those of two, three
-// and four points, LANES of one count at a time into faces3 (those of four, and a lone
-// manifold of two or three, by index only: WideFace3::count), each kind in solve order
-// (a wave's manifolds are independent: any order gives the solve order's result).
+// so that a batch of idle ones is left at once, solve_batch_3d), then the faces of two,
+// three and four points that hold an impulse, LANES of one count at a time into faces3 (a
+// batch of fewer than FACE_LANES_MIN by index only, for the solve of one at a time:
+// WideFace3::count 0), then the faces that hold none (from wave_idle, one at a time);
+// each kind in solve order (a wave's manifolds are independent: any order gives the solve
+// order's result).
 void pack_waves_3d(const Model<3>& model, Contacts<3>& c, std::int32_t n_waves) {
-  // each manifold's kind: 0 one point holding an impulse, 1 one point holding none, 2 to
-  // 4 a face's point count
-  order_by_kind<3, 5>(c, n_waves, [&c](std::int64_t m) {
+  // each manifold's kind: 0 one point holding an impulse, 1 one point holding none, 2 to 4
+  // a face holding one, by its point count, 5 a face holding none (mostly neighbours side
+  // by side, or a heap's speculative contacts: idle in most passes, and cheaper to leave
+  // to the solve of one at a time, which returns at once, than to pack)
+  constexpr int IDLE_FACE = 5;
+  auto kind_of = [&c](std::int64_t m) {
     const int count = c.points[m];
-    return count == 1 ? (holds_impulse(c, m, 0) ? 0 : 1) : count;
-  }, 2);
+    const bool holds = holds_any(c, m);
+    return count == 1 ? (holds ? 0 : 1) : holds ? count : IDLE_FACE;
+  };
+  order_by_kind<3, IDLE_FACE + 1>(c, n_waves, kind_of, 2, IDLE_FACE);
   const auto& start = c.wave_start;
-  // a run of manifolds of one count in wave k, from i: its end
+  // a run of faces of one point count in wave k, from i: its end
   auto run_end = [&](std::int32_t k, std::int64_t i) {
     std::int64_t e = i;
-    while (e < start[k + 1] && c.points[c.wave_order[e]] == c.points[c.wave_order[i]]) ++e;
+    while (e < c.wave_idle[k] && c.points[c.wave_order[e]] == c.points[c.wave_order[i]]) ++e;
     return e;
   };
   std::int64_t n_single = 0, n_faces = 0;
   for (std::int32_t k = 0; k < n_waves; ++k) {
     n_single += (c.wave_single[k] - start[k] + LANES - 1) / LANES;
-    for (std::int64_t i = c.wave_single[k]; i < start[k + 1];) {
+    for (std::int64_t i = c.wave_single[k]; i < c.wave_idle[k];) {
       const std::int64_t e = run_end(k, i);
       n_faces += (e - i + LANES - 1) / LANES;
       i = e;
     }
   }
-  if (static_cast<std::int64_t>(c.batches3.size()) < n_single)
-    c.batches3.resize(static_cast<std::size_t>(n_single + n_single / 4));
-  if (static_cast<std::int64_t>(c.faces3.size()) < n_faces)
-    c.faces3.resize(static_cast<std::size_t>(n_faces + n_faces / 4));
+  fit(c.batches3, n_single);
+  fit(c.faces3, n_faces);
   std::int64_t n_batches = 0, n_face_batches = 0;
   for (std::int32_t k = 0; k < n_waves; ++k) {
     c.wave_batch[k] = n_batches;
@@ -271,12 +290,12 @@ void pack_waves_3d(const Model<3>& model, Contacts<3>& c, std::int32_t n_waves) 
       WideBatch3& w = c.batches3[n_batches++];
       for (int l = 0; l < LANES; ++l) pack_lane3(model, c, w, l, i + l < end ? c.wave_order[i + l] : -1);
     }
-    for (std::int64_t i = end; i < start[k + 1];) {
+    for (std::int64_t i = end; i < c.wave_idle[k];) {
       const std::int64_t e = run_end(k, i);
       const int count = c.points[c.wave_order[i]];
       for (; i < e; i += LANES) {
         WideFace3& w = c.faces3[n_face_batches++];
-        w.count = count < 4 && e - i > 1 ? count : 0;
+        w.count = e - i >= C::FACE_LANES_MIN ? count : 0;
         for (int l = 0; l < LANES; ++l) {
           const std::int32_t m = i + l < e ? c.wave_order[i + l] : -1;
           if (w.count != 0) pack_face3(model, c, w, l, m);
@@ -377,8 +396,7 @@ std::int64_t find_waves(const Model<D>& model, Contacts<D>& c) {
   for (std::int32_t k = 0; k < n_waves; ++k)
     needed += (c.wave_single[k] - start[k] + LANES - 1) / LANES +
               (start[k + 1] - c.wave_single[k] + LANES - 1) / LANES;
-  if (static_cast<std::int64_t>(c.batches.size()) < needed)
-    c.batches.resize(static_cast<std::size_t>(needed + needed / 4));
+  fit(c.batches, needed);
   std::int64_t n_batches = 0;
   for (std::int32_t k = 0; k < n_waves; ++k) {
     c.wave_batch[k] = n_batches;

@@ -44,6 +44,7 @@ void visit(W& w, F&& f) {
   f(c.wave_count), f(c.waves_valid), f(c.heavy_on_light), f(c.unit_scale), f(c.wave_order), f(c.manifold_wave), f(c.body_wave);
   f(c.wave_start), f(c.wave_batch), f(c.wave_single), f(c.wave_single_batch), f(c.batches);
   f(c.region_count), f(c.body_region), f(c.segment_order), f(c.segment_wave), f(c.segment_shock);
+  f(c.wave_idle);  // (3D: made anew in every step, as batches3 and faces3, but sized by the store)
   // (not c.batches3, c.faces3: 3D packs them anew in every step, before any pass reads them)
 }
 
@@ -54,9 +55,9 @@ static_assert(sizeof(Grid<2>) == 8 + 16 * VEC + 3 * sizeof(Vec2) + sizeof(GridMe
               "Grid changed: update visit()");
 static_assert(sizeof(Grid<3>) == 8 + 16 * VEC + 3 * sizeof(Vec3) + sizeof(GridMeta<3>),
               "Grid changed: update visit()");
-static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 79 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 80 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
-static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 79 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 80 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
 
 template <class T>
