@@ -55,6 +55,8 @@ void World<D>::allocate() {
   }
   grid.allocate(size, dynamic, capacity);
   contacts.allocate(model.body_count(), n_shapes, model.vertex_count(), capacity);
+  found.assign(capacity, {});  // (with the store: a pair's narrowphase result each)
+  found_points.assign(capacity, 0);
   if constexpr (D == 3) contacts.face_world.assign(model.hull_face_count, Vec3{});
   // the contact tolerances' scale of every shape and body (constants.hpp, SCALE_LENGTH)
   contacts.unit_scale = true;
@@ -71,6 +73,8 @@ template <int D>
 bool World<D>::grow(std::int64_t capacity, bool stoppable) {
   if (!contacts.grow(capacity, stoppable && interrupt ? &interrupt : nullptr)) return false;
   grid.grow(capacity);
+  found.resize(contacts.capacity());
+  found_points.resize(contacts.capacity());
   return true;
 }
 
@@ -239,7 +243,8 @@ bool World<D>::collide() {
   if (stop_here()) return true;  // torn: advance ends the call
   timed(S::UpdateManifolds, [&] {
     // the narrowphase pair by pair on the threads (on one thread too, so that every
-    // count takes the same path), then the manifolds in pair order
+    // count takes the same path), then the manifolds in pair order (found: sized with
+    // the store, allocate and grow; and here after a checkpoint's store was loaded)
     if (static_cast<std::int64_t>(found.size()) < n_pairs) {
       found.resize(c.capacity());
       found_points.resize(c.capacity());
