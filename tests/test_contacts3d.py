@@ -104,6 +104,32 @@ BOX_ON_PLANE = on_ground(
 )
 
 
+def test_a_world_tensor_follows_a_rotation_set_between_steps() -> None:
+    # the step's start makes a body's world inverse inertia tensor R I⁻¹ Rᵀ again only
+    # where its rotation is not the one the last position update made it at: a rotation
+    # set from outside (through the state's views) between two steps is taken
+    text = BOX_ON_PLANE.replace("size: [1, 1, 1]", "size: [2, 1, 0.5]")
+    w = CoreWorld.from_scene(scene_from(text))
+    w.advance(3)
+    c = w.contacts
+    assert np.array_equal(c.body_inertia_q[1], w.state.body_q[1])  # made at the last update
+    half = 0.3  # rad: half the new turn, about x
+    w.state.body_q[1] = [np.cos(half), np.sin(half), 0.0, 0.0]
+    w.stage("transform_shapes")
+    qw, qx, qy, qz = w.state.body_q[1]
+    rot = np.array(
+        [
+            [1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qw * qz), 2 * (qx * qz + qw * qy)],
+            [2 * (qx * qy + qw * qz), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qw * qx)],
+            [2 * (qx * qz - qw * qy), 2 * (qy * qz + qw * qx), 1 - 2 * (qx * qx + qy * qy)],
+        ]
+    )
+    want = rot @ w.model.body_inv_inertia[1] @ rot.T
+    xx, yy, zz, xy, xz, yz = c.body_inv_inertia_world[1]
+    got = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+    np.testing.assert_allclose(got, want, rtol=1e-12)  # round-off of R's products
+
+
 def test_box_resting_on_a_plane_stays() -> None:
     _w, frames = run(BOX_ON_PLANE, 240, every=10)
     x = np.array([f[0][1] for f in frames])

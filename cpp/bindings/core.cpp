@@ -173,6 +173,10 @@ nb::dict storage(World<D>& w, nb::handle owner) {
   if constexpr (D == 2) d["solver_row"] = view(c.solver_row, owner);
   if constexpr (D == 3) {
     d["face_world"] = view(c.face_world, owner);
+    // 1/(kg·m²): each body's world inverse tensor (xx yy zz xy xz yz) and the rotation
+    // it was made at
+    d["body_inv_inertia_world"] = view(c.body_inv_inertia_world, owner);
+    d["body_inertia_q"] = view(c.body_inertia_q, owner);
     // each face batch's point count (WideFace3::count; 0: its manifolds go one at a
     // time), as a list (a copy)
     nb::list counts;

@@ -349,6 +349,11 @@ bool World<D>::step() {
     }
     if (sub + 1 < cfg.substeps && stop_here()) return false;
   }
+  if constexpr (D == 3) {
+    // the world tensors were made at these rotations (integrate_positions): the next
+    // step's start need not make them again (world_inertia)
+    if (contacts_on) c.body_inertia_q = state.body_q;
+  }
   if (contacts_on) {
     timed(S::OverlapLimit, [&] { limit_static_overlap(model, state, c, C::STATIC_OVERLAP_LIMIT); });
     timed(S::Store, [&] {

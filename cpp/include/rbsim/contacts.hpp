@@ -7,6 +7,7 @@
 // in one merge pass and a point whose feature id matches takes over last step's impulses.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <functional>
@@ -213,6 +214,9 @@ struct Contacts {
   // rotation now, R I_b⁻¹ Rᵀ (world_inertia at the step's start, integrate_positions when
   // the body turns), so that the solver's passes find ω = I⁻¹ L with one product
   std::vector<typename Dim<D>::Inertia> body_inv_inertia_world;
+  // 3D (2D: empty): the rotation each body's world tensor was made at (NaN: not made),
+  // so that the step's start makes it again only where the rotation was set from outside
+  std::vector<typename Dim<D>::Rot> body_inertia_q;
   // per vertex / shape
   // two shapes moved to their time of impact: (V,) vertex rows; (V,) normal rows in 2D,
   // (2V,) in 3D: a hull's face normals (at most 2 per vertex: a closed triangulated
@@ -327,6 +331,9 @@ bool Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   if constexpr (D == 2) unset.angle = nan;
   body_ref.assign(n, unset);
   reset(body_still, n); reset(body_delta, n); reset(body_inv_inertia_world, D == 3 ? n : 0);
+  reset(body_inertia_q, D == 3 ? n : 0);
+  for (auto& q : body_inertia_q)  // (not made yet: NaN, which equals no rotation)
+    std::fill_n(reinterpret_cast<double*>(&q), sizeof q / sizeof(double), nan);
   reset(toi_verts, v < 2 ? 2 : v); reset(toi_norms, D == 2 ? (v < 2 ? 2 : v) : 2 * v + 2);
   reset(vert_world, v); reset(norm_world, v); reset(shape_margin, s); reset(shape_turn, s);
   shape_size.assign(s, 1.0); shape_scale.assign(s, 1.0); body_scale.assign(n, 1.0);

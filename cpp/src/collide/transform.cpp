@@ -186,8 +186,14 @@ void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>&
 
 void world_inertia(const Model<3>& model, const State<3>& state, Contacts<3>& contacts,
                    Span bodies) {
-  for (std::int64_t i = bodies.first; i < bodies.last; ++i)
-    contacts.body_inv_inertia_world[i] = world_tensor(state.body_q[i], model.body_inv_inertia[i]);
+  for (std::int64_t i = bodies.first; i < bodies.last; ++i) {
+    const Quat q = state.body_q[i];
+    Quat& made = contacts.body_inertia_q[i];
+    // (the last step's position update made it at this rotation: the same bits)
+    if (q.w == made.w && q.x == made.x && q.y == made.y && q.z == made.z) continue;
+    contacts.body_inv_inertia_world[i] = world_tensor(q, model.body_inv_inertia[i]);
+    made = q;
+  }
 }
 
 bool build_shape_hulls(Model<3>& model, std::string* error) {

@@ -11,7 +11,7 @@ namespace {
 // The last byte is the format: 4 since a 3D solver row keeps its points field by field
 // (3: the contact store keeps each body's world inverse inertia; a checkpoint of another
 // format is refused with a message saying so).
-constexpr char MAGIC[8] = {'R', 'B', 'S', 'I', 'M', 'C', 'K', '4'};
+constexpr char MAGIC[8] = {'R', 'B', 'S', 'I', 'M', 'C', 'K', '5'};
 
 // Every member of the world that changes while it runs, in one fixed order. A member
 // added to State, Grid or Contacts must be added here too: the static_asserts on their
@@ -37,6 +37,7 @@ void visit(W& w, F&& f) {
   f(c.sep_anchor_a), f(c.sep_anchor_b), f(c.prev_sep_anchor_a), f(c.prev_sep_anchor_b);
   f(c.scale), f(c.shape_size), f(c.shape_scale), f(c.body_scale);
   f(c.body_ref), f(c.body_still), f(c.body_delta), f(c.body_inv_inertia_world);
+  f(c.body_inertia_q);
   f(c.toi_verts), f(c.toi_norms);
   f(c.vert_world), f(c.norm_world), f(c.face_world), f(c.shape_margin), f(c.shape_turn), f(c.body_level), f(c.shock_side);
   f(c.shock_order), f(c.solve_order), f(c.adj_start), f(c.adj), f(c.queue), f(c.bounce_kind);
@@ -55,9 +56,9 @@ static_assert(sizeof(Grid<2>) == 8 + 16 * VEC + 3 * sizeof(Vec2) + sizeof(GridMe
               "Grid changed: update visit()");
 static_assert(sizeof(Grid<3>) == 8 + 16 * VEC + 3 * sizeof(Vec3) + sizeof(GridMeta<3>),
               "Grid changed: update visit()");
-static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 80 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 81 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
-static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 80 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 81 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
 
 template <class T>
