@@ -260,7 +260,9 @@ inline void solve_manifold_3d(const Model<3>& model, State<3>& st, Contacts<3>& 
       dlb -= tb;
     }
   }
-  for (int i = 0; i < (block ? 0 : npts); ++i) {  // (the block was not taken: rare)
+  // the block was not taken: rare for two or three points, but a face of four pulls in
+  // most passes of a heap (solve_face_3d)
+  for (int i = 0; i < (block ? 0 : npts); ++i) {
     const int k = use_bias ? i : npts - 1 - i;  // forward in the solve, backward in relax
     const auto pt = P[k];
     const double s = row_separation(pt, moved, na, nb);
@@ -991,8 +993,8 @@ void solve_batch_3d(State<3>& st, Contacts<3>& c, const WideBatch3& B, double in
 // passes: its rigid block has rank 3, and the part of the right-hand side outside K's
 // range (the soft targets' bias, round-off) comes back divided by BLOCK_EPS.
 template <int N>
-void solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double inv_h,
-                       bool use_bias, double shift, double threshold, PassLog& log) {
+void solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double inv_h, bool use_bias,
+                   double shift, double threshold, PassLog& log) {
   static_assert(N >= 2 && N <= 4);
   const WideLanes3& L = B.lanes;
   Bodies3 q = gather_bodies_3d(st, c, B, L);
@@ -1016,8 +1018,8 @@ void solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double inv_
     vn[k] = dvn + turn_lanes(q, P.rnax, P.rnay, P.rnaz, P.rnbx, P.rnby, P.rnbz);
     r[k] = -vn[k] - (bias[k] + gam[k] * p[k].lam);
   }
-  // idle lanes are left as they are (idle_manifold, lane by lane); a batch of idle lanes
-  // at once (find_waves packs the faces that hold no impulse after those that do)
+  // idle lanes are left as they are (idle_manifold, lane by lane); a batch whose lanes
+  // all are, at once
   LaneMask busy{};
   for (int k = 0; k < N; ++k) busy |= busy_point(B.p[k].kn, p[k], r[k]);
   const LaneMask idle = L.live & ~busy;
@@ -1106,7 +1108,6 @@ void solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double inv_
   if (any(one_by_one)) {
     // the points one after the other on the velocities after those before (their lanes'
     // velocities untouched by the block above: its impulses there are zero)
-    const Lanes dn[3] = {B.nx, B.ny, B.nz};
     for (int i = 0; i < N; ++i) {
       const int k = use_bias ? i : N - 1 - i;
       const WidePoint3& P = B.p[k];
@@ -1117,8 +1118,8 @@ void solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double inv_
                                   p[k].max, p[k].approach, shift, threshold, p[k].lam, log);
       // push: v += m⁻¹ j n, ω += j I⁻¹ (r × n), L += j (r × n)
       const Lanes ja = B.ma * j, jb = B.mb * j;
-      q.vax += ja * dn[0], q.vay += ja * dn[1], q.vaz += ja * dn[2];
-      q.vbx -= jb * dn[0], q.vby -= jb * dn[1], q.vbz -= jb * dn[2];
+      q.vax += ja * B.nx, q.vay += ja * B.ny, q.vaz += ja * B.nz;
+      q.vbx -= jb * B.nx, q.vby -= jb * B.ny, q.vbz -= jb * B.nz;
       q.wax += j * ((B.iaxx * P.rnax + B.iaxy * P.rnay) + B.iaxz * P.rnaz);
       q.way += j * ((B.iaxy * P.rnax + B.iayy * P.rnay) + B.iayz * P.rnaz);
       q.waz += j * ((B.iaxz * P.rnax + B.iayz * P.rnay) + B.iazz * P.rnaz);
