@@ -831,6 +831,14 @@ inline Lanes turn_lanes(const Bodies3& q, Lanes rx, Lanes ry, Lanes rz, Lanes sx
   return ((q.wax * rx + q.way * ry) + q.waz * rz) - ((q.wbx * sx + q.wby * sy) + q.wbz * sz);
 }
 
+// The symmetric tensor s (its six Lanes members xx yy zz xy xz yz from s[0], as WideFace3
+// keeps the rows' inverse inertia tensors) times (x, y, z), lane by lane, into out.
+inline void sym_times(const Lanes* s, Lanes x, Lanes y, Lanes z, Lanes (&out)[3]) {
+  out[0] = (s[0] * x + s[3] * y) + s[4] * z;
+  out[1] = (s[3] * x + s[1] * y) + s[5] * z;
+  out[2] = (s[4] * x + s[5] * y) + s[2] * z;
+}
+
 // The lanes' manifolds' impulses at point k (N·s; an empty lane reads manifold 0's).
 struct PointImpulses {
   Lanes lam, max, approach, jtx, jty, jtz;
@@ -1097,12 +1105,11 @@ void solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double inv_
   q.vax += pa * B.nx, q.vay += pa * B.ny, q.vaz += pa * B.nz;
   q.vbx -= pb * B.nx, q.vby -= pb * B.ny, q.vbz -= pb * B.nz;
   // ω += I⁻¹ t (a Sym3 times a vector)
-  q.wax += (B.iaxx * ta[0] + B.iaxy * ta[1]) + B.iaxz * ta[2];
-  q.way += (B.iaxy * ta[0] + B.iayy * ta[1]) + B.iayz * ta[2];
-  q.waz += (B.iaxz * ta[0] + B.iayz * ta[1]) + B.iazz * ta[2];
-  q.wbx -= (B.ibxx * tb[0] + B.ibxy * tb[1]) + B.ibxz * tb[2];
-  q.wby -= (B.ibxy * tb[0] + B.ibyy * tb[1]) + B.ibyz * tb[2];
-  q.wbz -= (B.ibxz * tb[0] + B.ibyz * tb[1]) + B.ibzz * tb[2];
+  Lanes dwa[3], dwb[3];
+  sym_times(&B.iaxx, ta[0], ta[1], ta[2], dwa);
+  sym_times(&B.ibxx, tb[0], tb[1], tb[2], dwb);
+  q.wax += dwa[0], q.way += dwa[1], q.waz += dwa[2];
+  q.wbx -= dwb[0], q.wby -= dwb[1], q.wbz -= dwb[2];
   Lanes dla[3] = {zero + ta[0], zero + ta[1], zero + ta[2]};
   Lanes dlb[3] = {zero - tb[0], zero - tb[1], zero - tb[2]};
   if (any(one_by_one)) {
@@ -1120,12 +1127,11 @@ void solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double inv_
       const Lanes ja = B.ma * j, jb = B.mb * j;
       q.vax += ja * B.nx, q.vay += ja * B.ny, q.vaz += ja * B.nz;
       q.vbx -= jb * B.nx, q.vby -= jb * B.ny, q.vbz -= jb * B.nz;
-      q.wax += j * ((B.iaxx * P.rnax + B.iaxy * P.rnay) + B.iaxz * P.rnaz);
-      q.way += j * ((B.iaxy * P.rnax + B.iayy * P.rnay) + B.iayz * P.rnaz);
-      q.waz += j * ((B.iaxz * P.rnax + B.iayz * P.rnay) + B.iazz * P.rnaz);
-      q.wbx -= j * ((B.ibxx * P.rnbx + B.ibxy * P.rnby) + B.ibxz * P.rnbz);
-      q.wby -= j * ((B.ibxy * P.rnbx + B.ibyy * P.rnby) + B.ibyz * P.rnbz);
-      q.wbz -= j * ((B.ibxz * P.rnbx + B.ibyz * P.rnby) + B.ibzz * P.rnbz);
+      Lanes wna[3], wnb[3];  // 1/(kg·m): I⁻¹ (r × n), as prepare makes the row's
+      sym_times(&B.iaxx, P.rnax, P.rnay, P.rnaz, wna);
+      sym_times(&B.ibxx, P.rnbx, P.rnby, P.rnbz, wnb);
+      q.wax += j * wna[0], q.way += j * wna[1], q.waz += j * wna[2];
+      q.wbx -= j * wnb[0], q.wby -= j * wnb[1], q.wbz -= j * wnb[2];
       dla[0] += j * P.rnax, dla[1] += j * P.rnay, dla[2] += j * P.rnaz;
       dlb[0] -= j * P.rnbx, dlb[1] -= j * P.rnby, dlb[2] -= j * P.rnbz;
     }

@@ -105,8 +105,8 @@ template <class Batch>
 void fit(std::vector<Batch>& v, std::int64_t needed) {
   const auto n = static_cast<std::size_t>(needed);
   if (v.size() >= n) return;
-  if (v.capacity() < n) v.reserve(2 * n);
-  v.resize(n + n / 4 < v.capacity() ? n + n / 4 : v.capacity());
+  if (v.capacity() < n + n / 4) v.reserve(2 * n);
+  v.resize(n + n / 4);
 }
 
 // 3D: v's components into lane l of x, y, z.
