@@ -12,6 +12,8 @@
 #include <cstdint>
 #include <cstring>
 
+#include "rbsim/math.hpp"
+
 namespace rbsim {
 
 inline constexpr int LANES = 4;
@@ -98,6 +100,33 @@ inline void gather_quads(const double* p0, const double* p1, const double* p2, c
   f2 = __builtin_shufflevector(t0, t2, 2, 3, 6, 7);
   f1 = __builtin_shufflevector(t1, t3, 0, 1, 4, 5);
   f3 = __builtin_shufflevector(t1, t3, 2, 3, 6, 7);
+}
+// The x, y and z of the Vec3 records p[0..3] (12 doubles in a row), one record in each
+// lane; store_xyz writes them back.
+struct LanesXYZ {
+  Lanes x, y, z;
+};
+inline LanesXYZ load_xyz(const Vec3* p) {
+  const double* d = &p->x;
+  const Lanes a = load_lanes(d), b = load_lanes(d + 4), c = load_lanes(d + 8);
+  // a = x0 y0 z0 x1, b = y1 z1 x2 y2, c = z2 x3 y3 z3
+  const Lanes tx = __builtin_shufflevector(a, b, 0, 3, 6, 6);
+  const Lanes ty = __builtin_shufflevector(a, b, 1, 4, 7, 7);
+  const Lanes tz = __builtin_shufflevector(a, b, 2, 5, 5, 5);
+  return {__builtin_shufflevector(tx, c, 0, 1, 2, 5), __builtin_shufflevector(ty, c, 0, 1, 2, 6),
+          __builtin_shufflevector(tz, c, 0, 1, 4, 7)};
+}
+inline void store_xyz(Vec3* p, const LanesXYZ& v) {
+  const Lanes t0 = __builtin_shufflevector(v.x, v.z, 0, 4, 1, 1);  // x0 z0 x1 -
+  const Lanes t1 = __builtin_shufflevector(v.y, v.z, 1, 5, 2, 6);  // y1 z1 y2 z2
+  const Lanes t2 = __builtin_shufflevector(v.x, v.y, 3, 7, 3, 7);  // x3 y3 - -
+  const Lanes a = __builtin_shufflevector(t0, v.y, 0, 4, 1, 2);    // x0 y0 z0 x1
+  const Lanes b = __builtin_shufflevector(t1, v.x, 0, 1, 6, 2);    // y1 z1 x2 y2
+  const Lanes c = __builtin_shufflevector(t2, v.z, 6, 0, 1, 7);    // z2 x3 y3 z3
+  double* d = &p->x;
+  std::memcpy(d, &a, sizeof a);
+  std::memcpy(d + 4, &b, sizeof b);
+  std::memcpy(d + 8, &c, sizeof c);
 }
 // Lane l of x stored at p[l] (four scalars at scattered addresses).
 inline void scatter_scalars(double* p0, double* p1, double* p2, double* p3, Lanes x) {

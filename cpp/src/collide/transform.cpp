@@ -19,6 +19,7 @@
 
 #include "rbsim/constants.hpp"
 #include "rbsim/stages.hpp"
+#include "rbsim/wide.hpp"
 
 namespace rbsim {
 
@@ -32,6 +33,15 @@ namespace {
 // vertices, and the boxes and pairs found from them, are the same to the bit.
 inline Vec2 world_point(Vec2 x, Rot2 q, Vec2 l) {
   return {x.x + q.c * l.x - q.s * l.y, x.y + q.s * l.x + q.c * l.y};
+}
+
+// x + R l for LANES body-frame points l (m), lane by lane: Mat3 * Vec3's products and
+// sums in its order, then x added, as for one point.
+inline LanesXYZ world_points(Vec3 x, const Mat3& m, const LanesXYZ& l) {
+  auto row = [&](int i) {
+    return splat(m.r[i][0]) * l.x + splat(m.r[i][1]) * l.y + splat(m.r[i][2]) * l.z;
+  };
+  return {splat(x.x) + row(0), splat(x.y) + row(1), splat(x.z) + row(2)};
 }
 
 // |ω| (rad/s): a scalar in the plane, a vector in space.
@@ -155,7 +165,13 @@ void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>&
       // the body's rotation as a matrix, once for all its points
       const Mat3 r = rotation_matrix(q);
       const bool plane = model.shape_kind[s] == ShapeKind::Plane;
-      for (int k = k0; k < k1; ++k) {
+      int k = k0;
+      if (!plane) {
+        // LANES vertices at a time (a box's eight corners in two), by the operations of
+        // x + r * v: the same bits
+        for (; k + LANES <= k1; k += LANES) store_xyz(vw + k, world_points(x, r, load_xyz(vl + k)));
+      }
+      for (; k < k1; ++k) {
         vw[k] = x + r * vl[k];
         if (plane) nw[k] = r * nl[k];  // (only a plane has a normal row; the others' stay zero)
       }
