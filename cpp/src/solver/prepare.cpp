@@ -20,9 +20,11 @@
 // whose inverse the row keeps.
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include "rbsim/constants.hpp"
 #include "rbsim/stages.hpp"
+#include "rbsim/wide.hpp"
 #include "solver/row.hpp"
 
 namespace rbsim {
@@ -42,8 +44,36 @@ inline void approach_point(const State<D>& st, Contacts<D>& c, std::int64_t m, i
   c.approach_separation[m][k] = c.base_separation[m][k] + dot(n, sa - sb);
 }
 
+// 3D vectors in lanes, one point of a row in each (the points' x, y, z as three vectors),
+// and what prepare_points_3d does with them: the scalar operations of math.hpp in their
+// order, lane by lane.
+struct Lanes3 {
+  Lanes x, y, z;
+};
+inline Lanes3 cross(const Lanes3& a, Vec3 b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+inline Lanes dot(const Lanes3& a, const Lanes3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+inline Lanes3 times(const Sym3& m, const Lanes3& v) {
+  return {m.xx * v.x + m.xy * v.y + m.xz * v.z, m.xy * v.x + m.yy * v.y + m.yz * v.z,
+          m.xz * v.x + m.yz * v.y + m.zz * v.z};
+}
+// point k's vector of the manifold (m) in lane k, lanes past the count zero
+inline Lanes3 load_points(const std::array<Vec3, 4>& p, LaneMask live) {
+  const LanesXYZ v = load_xyz(p.data());
+  const Lanes zero = splat(0.0);
+  return {select(live, v.x, zero), select(live, v.y, zero), select(live, v.z, zero)};
+}
+inline void store_points(Vec3x4& out, const Lanes3& v) {
+  std::memcpy(out.x, &v.x, sizeof v.x);
+  std::memcpy(out.y, &v.y, sizeof v.y);
+  std::memcpy(out.z, &v.z, sizeof v.z);
+}
+
 // The points of a 3D row: inverse masses ma, mb (1/kg), world inverse inertia tensors
-// ia, ib (1/(kg·m²)) at the step's start.
+// ia, ib (1/(kg·m²)) at the step's start. The points' own fields are made in lanes, one
+// point in each (a lane past the count stays zero, as the passes expect); the couplings
+// between points and the normal block from them.
 void prepare_points_3d(const State<3>& st, Contacts<3>& c, std::int64_t m, int a, int b,
                        double ma, double mb, const Sym3& ia, const Sym3& ib) {
   auto& row = c.solver_row[m];
@@ -52,51 +82,71 @@ void prepare_points_3d(const State<3>& st, Contacts<3>& c, std::int64_t m, int a
   row.inv_ia = ia;
   row.inv_ib = ib;
   const Vec3 t1 = row.t1, t2 = row.t2;
-  Vec3 inv_rt[4][4];  // 1/(kg·m): each point's I_a⁻¹(r_a × t1), I_a⁻¹(r_a × t2), I_b⁻¹ alike
-  row.point = {};  // (the points past the count stay zero)
-  for (int k = 0; k < c.points[m]; ++k) {
-    SolverRow<3>::Point pt;
-    const Vec3 ra = c.anchor_a[m][k], rb = c.anchor_b[m][k];
-    pt.arm_a = ra;
-    pt.arm_b = rb;
-    pt.rna = cross(ra, n);
-    pt.rnb = cross(rb, n);
-    pt.wna = ia * pt.rna;
-    pt.wnb = ib * pt.rnb;
-    const double kn = ma + mb + dot(pt.rna, pt.wna) + dot(pt.rnb, pt.wnb);
-    pt.kn = kn;
-    c.normal_mass[m][k] = kn > 0.0 ? 1.0 / kn : 0.0;
-    // the tangent block and its inverse (kg)
-    const Vec3 a1 = cross(ra, t1), a2 = cross(ra, t2), b1 = cross(rb, t1), b2 = cross(rb, t2);
-    const Vec3 ia1 = ia * a1, ia2 = ia * a2, ib1 = ib * b1, ib2 = ib * b2;
-    pt.rt1a = a1, pt.rt2a = a2, pt.rt1b = b1, pt.rt2b = b2;
-    inv_rt[k][0] = ia1, inv_rt[k][1] = ia2, inv_rt[k][2] = ib1, inv_rt[k][3] = ib2;
-    const double k11 = ma + mb + dot(a1, ia1) + dot(b1, ib1);
-    const double k22 = ma + mb + dot(a2, ia2) + dot(b2, ib2);
-    const double k12 = dot(a1, ia2) + dot(b1, ib2);
-    const double det = k11 * k22 - k12 * k12;
-    if (det > 1.0e-12 * k11 * k22 && det > 0.0) {
-      const double inv = 1.0 / det;
-      pt.tm11 = k22 * inv;
-      pt.tm12 = -k12 * inv;
-      pt.tm22 = k11 * inv;
-    } else {
-      pt.tm11 = pt.tm12 = pt.tm22 = 0.0;  // two fixed bodies: no friction
-    }
-    pt.tangent_mass = k11 + k22 > 0.0 ? 2.0 / (k11 + k22) : 0.0;
-    pt.ra = c.sep_anchor_a[m][k];
-    pt.rb = c.sep_anchor_b[m][k];
-    pt.base = c.base_separation[m][k];
-    approach_point(st, c, m, k, a, b, ra, rb, pt.ra, pt.rb, n);
-    row.point.set(k, pt);
+  const int npts = c.points[m];
+  const LaneMask live = first_lanes(npts);
+  const Lanes zero = splat(0.0), mass = splat(ma + mb);
+  auto& P = row.point;
+  const Lanes3 ra = load_points(c.anchor_a[m], live), rb = load_points(c.anchor_b[m], live);
+  store_points(P.arm_a, ra);
+  store_points(P.arm_b, rb);
+  const Lanes3 rna = cross(ra, n), rnb = cross(rb, n);
+  const Lanes3 wna = times(ia, rna), wnb = times(ib, rnb);
+  store_points(P.rna, rna);
+  store_points(P.rnb, rnb);
+  store_points(P.wna, wna);
+  store_points(P.wnb, wnb);
+  const Lanes kn = (mass + dot(rna, wna)) + dot(rnb, wnb);  // 1/kg
+  const Lanes normal_mass = select(kn > zero, splat(1.0) / select(kn > zero, kn, splat(1.0)), zero);
+  // the tangent block and its inverse (kg)
+  const Lanes3 a1 = cross(ra, t1), a2 = cross(ra, t2), b1 = cross(rb, t1), b2 = cross(rb, t2);
+  const Lanes3 ia1 = times(ia, a1), ia2 = times(ia, a2), ib1 = times(ib, b1), ib2 = times(ib, b2);
+  store_points(P.rt1a, a1);
+  store_points(P.rt2a, a2);
+  store_points(P.rt1b, b1);
+  store_points(P.rt2b, b2);
+  const Lanes k11 = (mass + dot(a1, ia1)) + dot(b1, ib1);
+  const Lanes k22 = (mass + dot(a2, ia2)) + dot(b2, ib2);
+  const Lanes k12 = dot(a1, ia2) + dot(b1, ib2);
+  const Lanes det = k11 * k22 - k12 * k12;
+  // two fixed bodies: no friction
+  const LaneMask invertible = live & (det > splat(1.0e-12) * k11 * k22) & (det > zero);
+  const Lanes inv = splat(1.0) / select(invertible, det, splat(1.0));
+  const Lanes tm11 = select(invertible, k22 * inv, zero), tm12 = select(invertible, -k12 * inv, zero);
+  const Lanes tm22 = select(invertible, k11 * inv, zero);
+  const Lanes trace = k11 + k22;
+  const LaneMask slides = live & (trace > zero);
+  const Lanes tangent_mass = select(slides, splat(2.0) / select(slides, trace, splat(1.0)), zero);
+  const Lanes kn_live = select(live, kn, zero);
+  std::memcpy(P.kn, &kn_live, sizeof kn_live);
+  std::memcpy(P.tm11, &tm11, sizeof tm11);
+  std::memcpy(P.tm12, &tm12, sizeof tm12);
+  std::memcpy(P.tm22, &tm22, sizeof tm22);
+  std::memcpy(P.tangent_mass, &tangent_mass, sizeof tangent_mass);
+  const Lanes base = select(live, load_lanes(c.base_separation[m].data()), zero);
+  std::memcpy(P.base, &base, sizeof base);
+  const Lanes3 sa = load_points(c.sep_anchor_a[m], live), sb = load_points(c.sep_anchor_b[m], live);
+  store_points(P.ra, sa);
+  store_points(P.rb, sb);
+  for (int k = 0; k < npts; ++k) {
+    c.normal_mass[m][k] = normal_mass[k];
+    approach_point(st, c, m, k, a, b, P.arm_a[k], P.arm_b[k], P.ra[k], P.rb[k], n);
   }
+  // I_a⁻¹(r_a × t1), I_a⁻¹(r_a × t2), I_b⁻¹ alike (1/(kg·m)), for the couplings
+  alignas(32) double inv_rt[4][3][4];  // [which][axis][point]
+  const Lanes3* rows[4] = {&ia1, &ia2, &ib1, &ib2};
+  for (int q = 0; q < 4; ++q) {
+    std::memcpy(inv_rt[q][0], &rows[q]->x, sizeof(Lanes));
+    std::memcpy(inv_rt[q][1], &rows[q]->y, sizeof(Lanes));
+    std::memcpy(inv_rt[q][2], &rows[q]->z, sizeof(Lanes));
+  }
+  auto inv_rt_at = [&](int q, int j) { return Vec3{inv_rt[q][0][j], inv_rt[q][1][j], inv_rt[q][2][j]}; };
   // friction's coupling between points i > j: δ_ab (1/m_a + 1/m_b) + (r_a,i × t_a)·
   // I_a⁻¹(r_a,j × t_b) + (b likewise), for the directions a, b of t1, t2
   for (int i = 1; i < c.points[m]; ++i) {
     for (int j = 0; j < i; ++j) {
       const auto& pi = row.point[i];
       auto& cp = row.tangent_coupling[i * (i - 1) / 2 + j];
-      const Vec3 ja1 = inv_rt[j][0], ja2 = inv_rt[j][1], jb1 = inv_rt[j][2], jb2 = inv_rt[j][3];
+      const Vec3 ja1 = inv_rt_at(0, j), ja2 = inv_rt_at(1, j), jb1 = inv_rt_at(2, j), jb2 = inv_rt_at(3, j);
       cp[0] = ma + mb + dot(pi.rt1a, ja1) + dot(pi.rt1b, jb1);
       cp[1] = dot(pi.rt1a, ja2) + dot(pi.rt1b, jb2);
       cp[2] = dot(pi.rt2a, ja1) + dot(pi.rt2b, jb1);
