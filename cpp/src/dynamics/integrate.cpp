@@ -338,7 +338,16 @@ void move_run_3d(const Model<3>& model, State<3>& st, std::vector<BodyDelta<3>>&
   store_xyz(&st.body_w[i], b.w);
   store_quads(&st.body_q[i].w, &st.body_q[i + 1].w, &st.body_q[i + 2].w, &st.body_q[i + 3].w, b.qw,
               b.qx, b.qy, b.qz);
-  for (int l = 0; l < LANES; ++l) store_lane_3d(b, l, i + l, delta, inv_inertia_world);
+  // the world tensors (xx yy zz xy | xz yz) and the step's motion (dx | dq), transposed
+  // in registers: whole records instead of one double at a time
+  static_assert(sizeof(Sym3) == 6 * sizeof(double) && sizeof(BodyDelta<3>) == 7 * sizeof(double));
+  Sym3* t = inv_inertia_world + i;
+  store_quads(&t[0].xx, &t[1].xx, &t[2].xx, &t[3].xx, b.txx, b.tyy, b.tzz, b.txy);
+  scatter_pairs(&t[0].xz, &t[1].xz, &t[2].xz, &t[3].xz, b.txz, b.tyz);
+  BodyDelta<3>* e = &delta[i];
+  store_quads(&e[0].dq.w, &e[1].dq.w, &e[2].dq.w, &e[3].dq.w, b.ew, b.ex, b.ey, b.ez);
+  scatter_pairs(&e[0].dx.x, &e[1].dx.x, &e[2].dx.x, &e[3].dx.x, b.dx.x, b.dx.y);
+  scatter_scalars(&e[0].dx.z, &e[1].dx.z, &e[2].dx.z, &e[3].dx.z, b.dx.z);
 }
 
 // The bodies idx[0..count-1] (count <= LANES) through move_3d, picked out one by one (a
