@@ -27,6 +27,9 @@ end of that window is the "end" of the table. Settings, each engine's own defaul
   per geom (MuJoCo takes the larger of a pair; one material here).
 - PyBullet (if installed): one stepSimulation per step at fixedTimeStep = dt, its
   defaults: 50 solver iterations, no substeps; friction μ, restitution 0 per body.
+Every engine starts from the scene's velocities (the wall's ball thrown at 15 m/s: a free
+joint's qvel, PyBullet's resetBaseVelocity; until 2026-12-04 MuJoCo and PyBullet started
+every body at rest, and the ball fell in front of a wall it never struck).
 Masses and inertias are rbsim's (the MJCF's `inertial`, PyBullet's baseMass and the
 shapes' own inertia, which for boxes and spheres of uniform density are the same).
 "Stands" (stack scenes): the top boxes' largest sideways move (m, in x and z) and sag
@@ -47,6 +50,7 @@ from rbsim.engines import make_engine
 from rbsim.scene import Scene, load_scene_text
 from rbsim.scene import types as T
 from rbsim.scene.compile import build
+from rbsim.scene.geometry3d import quat_matrix
 from rbsim.tools.measure import interleaved_block_times, median_ratio
 
 try:
@@ -220,6 +224,10 @@ SCENES: dict[str, Callable[[], str]] = {
 # WARMUP leaves out (the landing of a heap, a wall standing and then struck)
 FROM_REST = ["tumble100", "capsules200", "wall96", "stack10"]
 REST_BLOCKS = 8  # blocks of STEPS steps from step 0: the first 2 s
+# runs from rest of each scene, each in fresh engines; a block's ratio is the median over
+# the runs (one run's block of 60 steps, 4 to 15 ms, is within reach of the shared
+# machine's slow spells: the same block read 0.38 to 0.60 in three runs)
+REST_RUNS = 3
 # MuJoCo options other than its defaults, per scene (stated in the table): on the 1000
 # spheres its default Newton solver took 340 ms per step at 1764 contacts and climbing
 # (2.25 s in), its CG solver 40-80 ms with 2400 (measured here, 2026-12-02)
@@ -316,6 +324,15 @@ def mjcf_contacts(scene: Scene, options: dict[str, str] | None = None) -> str:
     return "\n".join(lines)
 
 
+def start_velocities(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+    """Each body's starting velocity at its frame's origin (m/s, world) and its angular
+    velocity (rad/s, world), from the scene's (rbsim's state holds the centre of mass's:
+    v_origin = v − ω × R c, c the body-frame COM)."""
+    model, state = build(scene)
+    arm = np.einsum("nij,nj->ni", quat_matrix(state.body_q), model.body_com)  # m
+    return state.body_v - np.cross(state.body_w, arm), state.body_w.copy()
+
+
 class Runner:
     """One engine stepping one scene: advance(n) steps (each of the scene's dt),
     positions() the body origins (N,3) m, contacts() the contact points now."""
@@ -360,6 +377,15 @@ class MujocoRunner(Runner):
         options = MUJOCO_OPTIONS.get(scene.name)
         self.model = mujoco.MjModel.from_xml_string(mjcf_contacts(scene, options))
         self.data = mujoco.MjData(self.model)
+        # the scene's velocities (a thrown ball, a pushed domino): a free joint's qvel is
+        # its frame origin's velocity (world) and ω in the body's frame
+        origin_v, w = start_velocities(scene)
+        model, state = build(scene)
+        qvel = self.data.qvel.reshape(-1, 6)
+        dynamic = np.flatnonzero(model.body_type == T.BODY_DYNAMIC)
+        rot = quat_matrix(state.body_q[dynamic])
+        qvel[:, :3] = origin_v[dynamic]
+        qvel[:, 3:] = np.einsum("nji,nj->ni", rot, w[dynamic])  # Rᵀ ω
         mujoco.mj_forward(self.model, self.data)
 
     def advance(self, n: int) -> None:
@@ -368,6 +394,9 @@ class MujocoRunner(Runner):
             step(m, d)
 
     def positions(self) -> np.ndarray:
+        # xpos is made at a step's start, from the qpos before the step moved it: made
+        # again here from qpos now (mj_kinematics; the stepping is not touched)
+        mujoco.mj_kinematics(self.model, self.data)
         return np.array(self.data.xpos[1:])  # body 0 is MuJoCo's world
 
     def contacts(self) -> int:
@@ -428,6 +457,12 @@ class BulletRunner(Runner):
                 physicsClientId=c,
             )
             self.ids.append(uid)
+        # the scene's velocities: Bullet's base here is the body's frame (its inertial
+        # frame left at the origin), moving with the origin's velocity
+        origin_v, w = start_velocities(scene)
+        for i, uid in enumerate(self.ids):
+            if int(model.body_type[i]) == T.BODY_DYNAMIC and (origin_v[i].any() or w[i].any()):
+                p.resetBaseVelocity(uid, list(origin_v[i]), list(w[i]), physicsClientId=c)
 
     def advance(self, n: int) -> None:
         step, c = pybullet.stepSimulation, self.client
@@ -513,20 +548,25 @@ def measure(
 
 def rest_table(names: list[str] | None = None) -> list[str]:
     """rbsim against MuJoCo from rest: REST_BLOCKS blocks of STEPS steps of each in turn
-    from step 0 (the thread's CPU time), the ratio of each round's blocks; the lines
-    printed as they are measured. Without MuJoCo, nothing."""
+    from step 0 (the thread's CPU time), in REST_RUNS runs of fresh engines; each block's
+    ratio is the median over the runs of rbsim's block over MuJoCo's; the lines printed
+    as they are measured. Without MuJoCo, nothing."""
     if mujoco is None:
         return []
     lines = [
         f"3D from rest, rbsim / MuJoCo by block of {STEPS} steps ({STEPS / 240:.2f} s) from "
-        f"step 0 (each block's ratio, in order), and the median",
+        f"step 0 (each block's ratio, in order: the median of {REST_RUNS} runs), and the "
+        f"median",
     ]
     print(lines[0], flush=True)
     for name in names or FROM_REST:
         scene = load(name)
-        engines = [RbsimRunner(scene), MujocoRunner(scene)]
-        samples = interleaved_block_times(engines, 0, STEPS, REST_BLOCKS, time.thread_time)
-        ratios = [a / b for a, b in zip(*samples, strict=True)]
+        runs = []
+        for _ in range(REST_RUNS):
+            engines = [RbsimRunner(scene), MujocoRunner(scene)]
+            samples = interleaved_block_times(engines, 0, STEPS, REST_BLOCKS, time.thread_time)
+            runs.append([a / b for a, b in zip(*samples, strict=True)])
+        ratios = [statistics.median(block) for block in zip(*runs, strict=True)]
         line = f"{name:<13}" + " ".join(f"{r:5.2f}" for r in ratios)
         line += f"   median {statistics.median(ratios):.2f}, worst {max(ratios):.2f}"
         print(line, flush=True)
