@@ -562,6 +562,47 @@ TEST(tetrahedron_on_a_plane) {
 
 // A hull of a box's corners (triangulated as qhull might) against a box gives the box–box
 // manifold: resting face to face, turned, edge to edge, and the box first.
+// A capsule near a box, apart from it or touching, at random poses around all of its
+// faces, edges and corners: the box's closest points in closed form (segment_box_closest)
+// give the manifold that the same box as a hull gives, where the closest points are
+// found by trying the segment's ends and every edge. 3000 poses (a fixed sequence).
+TEST(capsule_near_a_box_matches_the_box_as_a_hull) {
+  const Vec3 half{0.6, 0.35, 0.45};
+  auto hull = box_as_hull(half);
+  std::uint64_t state = 12345;
+  auto uniform = [&state](double lo, double hi) {  // (a 64-bit LCG: the same sequence anywhere)
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    return lo + (hi - lo) * static_cast<double>(state >> 11) * 0x1.0p-53;
+  };
+  int compared = 0, apart = 0;
+  for (int k = 0; k < 3000; ++k) {
+    const Quat q = axis_angle({uniform(-1, 1), uniform(-1, 1), uniform(-1, 1) + 1e-3}, uniform(0, 3));
+    const Vec3 c{uniform(-2, 2), uniform(-2, 2), uniform(-2, 2)};
+    const ShapeRef3 box = box_ref(c, q, half);
+    const ShapeRef3 as_hull = hull.at(c, q);
+    // the capsule's middle within 1 m of the box's surface, any direction, any length
+    const Vec3 mid = c + Vec3{uniform(-1.3, 1.3), uniform(-1.0, 1.0), uniform(-1.1, 1.1)};
+    const Vec3 dir{uniform(-1, 1), uniform(-1, 1), uniform(-1, 1)};
+    const Vec3 half_len = (uniform(0.05, 0.6) / (length(dir) + 1e-12)) * dir;
+    const double radius = uniform(0.02, 0.2);
+    const ShapeRef3 cap = capsule_ref(mid - half_len, mid + half_len, radius);
+    const double spec = 0.3;  // m: wide, so that apart pairs make manifolds too
+    const auto a = collide(cap, box, spec), b = collide(cap, as_hull, spec);
+    CHECK(a.n == b.n);
+    if (a.n != b.n || a.n == 0) continue;
+    ++compared;
+    apart += a.m.separation[0] - 0.0 > 0.0 ? 1 : 0;
+    // 1e-9 (m, and of a unit normal): two exact methods' round-off, far above it
+    CHECK_VEC(a.m.normal, b.m.normal, 1e-9, "normal");
+    for (int i = 0; i < a.n; ++i) {
+      CHECK_VEC(a.m.point[i], b.m.point[i], 1e-9, "point");
+      CHECK_NEAR(a.m.separation[i], b.m.separation[i], 1e-9);
+    }
+  }
+  CHECK(compared > 300);  // the poses reach the pairs that make manifolds
+  CHECK(apart > 100);     // and among them, pairs apart
+}
+
 TEST(hull_of_a_box_matches_box_box) {
   auto hull = box_as_hull({0.5, 0.5, 0.5});
   const auto ground = box_ref({0, -0.5, 0}, {}, {3, 0.5, 3});

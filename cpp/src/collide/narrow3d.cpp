@@ -724,6 +724,65 @@ int capsule_on_face(const ShapeRef3& a, const Polytope& B, int f, double specula
   return count;
 }
 
+// The closest points of the segment p + s (q − p), s in [0, 1], and the box (a segment
+// apart from it): xs on the segment and xh on the box (m), and their distance. In the
+// box's frame the squared distance of a point from the box is the sum over the axes of
+// (|x_i| − h_i)² where |x_i| > h_i; along the segment it is a convex piecewise quadratic
+// in s, its pieces split where a coordinate crosses ±h_i. The pieces' minima (each a
+// quadratic's, held to its interval) give the least; a tie keeps the smaller s. The box
+// point is the segment point's coordinates held to the box.
+double segment_box_closest(Vec3 p, Vec3 q, const ShapeRef3& box, Vec3& xs, Vec3& xh) {
+  const Vec3 c = box.center;
+  const double h[3] = {box.half.x, box.half.y, box.half.z};
+  double p0[3], dd[3];
+  for (int i = 0; i < 3; ++i) {
+    p0[i] = dot(p - c, box.axes[i]);
+    dd[i] = dot(q - p, box.axes[i]);
+  }
+  // the pieces' ends: 0, 1 and every crossing of a face's plane in between
+  double cut[8] = {0.0, 1.0};
+  int n = 2;
+  for (int i = 0; i < 3; ++i) {
+    if (dd[i] == 0.0) continue;
+    for (const double side : {-h[i], h[i]}) {
+      const double t = (side - p0[i]) / dd[i];
+      if (t > 0.0 && t < 1.0) cut[n++] = t;
+    }
+  }
+  std::sort(cut, cut + n);
+  double best = INF, best_s = 0.0;
+  for (int k = 0; k + 1 < n; ++k) {
+    const double lo = cut[k], hi = cut[k + 1];
+    const double mid = 0.5 * (lo + hi);
+    // the piece's quadratic a s² + b s (+ const): the axes outside the box there
+    double a2 = 0.0, b1 = 0.0;
+    for (int i = 0; i < 3; ++i) {
+      const double x = p0[i] + mid * dd[i];
+      const double edge = x > h[i] ? h[i] : (x < -h[i] ? -h[i] : x);
+      if (edge == x) continue;  // inside the slab: no term
+      a2 += dd[i] * dd[i];
+      b1 += 2.0 * dd[i] * (p0[i] - edge);
+    }
+    const double s = a2 > 0.0 ? std::clamp(-b1 / (2.0 * a2), lo, hi) : lo;
+    double f = 0.0;
+    for (int i = 0; i < 3; ++i) {
+      const double x = p0[i] + s * dd[i];
+      const double out = x > h[i] ? x - h[i] : (x < -h[i] ? x + h[i] : 0.0);
+      f += out * out;
+    }
+    if (f < best) {
+      best = f;
+      best_s = s;
+    }
+  }
+  Vec3 local{};
+  double* l = &local.x;
+  for (int i = 0; i < 3; ++i) l[i] = std::clamp(p0[i] + best_s * dd[i], -h[i], h[i]);
+  xs = p + best_s * (q - p);
+  xh = c + (local.x * box.axes[0] + local.y * box.axes[1]) + local.z * box.axes[2];
+  return length(xs - xh);
+}
+
 // Capsule a against polytope B (a hull, or a box taken as one).
 //
 // Separating axes of the core: B's face normals and the cross products of the segment
@@ -734,7 +793,8 @@ int capsule_on_face(const ShapeRef3& a, const Polytope& B, int f, double specula
 // The edge axes are those of axis_edges[0 .. count) (nullptr: edges 0 .. count), one
 // edge per direction being enough (a box: one per axis).
 int capsule_polytope(const ShapeRef3& a, const Polytope& B, const std::int32_t* axis_edges,
-                     int axis_edge_count, double tol, double speculative, Manifold3& out) {
+                     int axis_edge_count, double tol, double speculative, Manifold3& out,
+                     const ShapeRef3* box = nullptr) {
   const Vec3 p = a.p, q = a.q, d = q - p;
   const double r = a.radius;
   double sep_f = -INF;
@@ -777,10 +837,12 @@ int capsule_polytope(const ShapeRef3& a, const Polytope& B, const std::int32_t* 
   }
 
   if (std::max(sep_f, sep_e) > 0.0) {
-    // apart: the exact closest points (an end against the hull, or the segment against an edge)
+    // apart: the exact closest points (a box: segment_box_closest; a hull: an end against
+    // the hull, or the segment against an edge)
     double best = INF;
     Vec3 xs{}, xh{};
-    for (int k = 0; k < 2; ++k) {
+    if (box) best = segment_box_closest(p, q, *box, xs, xh);
+    for (int k = 0; k < (box ? 0 : 2); ++k) {
       const Vec3 x = k == 0 ? p : q;
       const SurfacePoint c = closest_on_hull(B, x);
       if (c.distance < best) {
@@ -789,7 +851,7 @@ int capsule_polytope(const ShapeRef3& a, const Polytope& B, const std::int32_t* 
         xh = c.point;
       }
     }
-    for (int i = 0; i < B.h->edge_count; ++i) {
+    for (int i = 0; i < (box ? 0 : B.h->edge_count); ++i) {
       const Vec3 e0 = B.v[B.h->edge[i].v0], e1 = B.v[B.h->edge[i].v1];
       const auto [s, t] = segment_closest_fractions(p, q, e0, e1);
       const Vec3 cs = p + s * d, ch = e0 + t * (e1 - e0);
@@ -856,7 +918,7 @@ const std::array<std::int32_t, 3> BOX_AXIS_EDGES = [] {
 int collide_capsule_box(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
   Vec3 corners[8], normals[6];
   return capsule_polytope(a, box_polytope(b, corners, normals), BOX_AXIS_EDGES.data(), 3,
-                          face_tolerance(a, b), speculative, out);
+                          face_tolerance(a, b), speculative, out, &b);
 }
 
 int collide_capsule_convex(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
