@@ -139,6 +139,8 @@ ShapeRef3 place_shape(const Model<3>& model, const State<3>& st, int s, double t
 // θ moves no point of its surface farther than ρ θ).
 template <int D>
 inline double core_reach(const Model<D>& model, int s) {
+  // (the world's allocate keeps it per shape: the same number, sqrt being monotone)
+  if (static_cast<std::size_t>(s) < model.shape_reach.size()) return model.shape_reach[s];
   double r = 0.0;
   const int v0 = model.shape_vstart[s];
   for (int k = v0; k < v0 + model.shape_vcount[s]; ++k) r = std::max(r, length(model.vertex_local[k]));
