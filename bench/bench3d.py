@@ -6,7 +6,8 @@ Scenes (SCENES, written here as YAML text; every one on the plane y = 0, gravity
 step MuJoCo was measured at in issue 16): a stack of 10 unit boxes, a 5-layer square
 pyramid of unit boxes (55), 100 boxes of 0.5 m dropped tumbling in a heap, 1000 spheres
 of radius 0.1 m poured into a 4 m box, a 10 × 10 grid of stacks of 3 boxes of 0.5 m,
-200 capsules dropped in a heap, and a wall of 96 bricks struck by a ball. FROM_REST of
+200 capsules dropped in a heap, a wall of 96 bricks struck by a ball, and a heap of 50
+boxes, 50 spheres and 50 capsules of several sizes (every pair kind). FROM_REST of
 them are also timed block by block from step 0 against MuJoCo (rest_table): the
 landing, the impact, what the settled window leaves out.
 
@@ -211,6 +212,33 @@ def wall96() -> str:
     )
 
 
+def mixed150() -> str:
+    """A heap of 50 boxes (sides 0.3 to 0.7 m), 50 spheres (radius 0.1 to 0.3 m) and 50
+    capsules (0.5 m between their ends' centres, radius 0.12 m), in turn, 6 layers of 5 × 5
+    a metre apart, each turned its own way (a fixed sequence), dropped from up to 5.6 m
+    onto the plane: every pair kind at once, light spheres under heavy boxes."""
+    lines = []
+    for k in range(150):
+        i, j, m = k % 5, (k // 5) % 6, k // 30
+        x = -2 + 1.0 * i + 0.1 * math.sin(k)
+        y, z = 0.6 + 1.0 * j, -2 + 1.0 * m + 0.1 * math.cos(k)
+        axis = [math.sin(0.9 * k + 0.1), math.cos(1.3 * k), math.sin(0.5 * k + 2.0)]
+        if k % 3 == 0:
+            sx, sy = 0.3 + 0.4 * ((k * 7) % 5) / 4, 0.3 + 0.3 * ((k * 3) % 4) / 3
+            shape = f"{{box: {{size: [{sx:.2f}, {sy:.2f}, 0.4]}}}}"
+        elif k % 3 == 1:
+            shape = f"{{sphere: {{radius: {0.1 + 0.2 * ((k * 5) % 7) / 6:.3f}}}}}"
+        else:
+            shape = "{capsule: {a: [-0.25, 0, 0], b: [0.25, 0, 0], radius: 0.12}}"
+        lines.append(
+            f"  - name: b{k}\n    position: [{x:.3f}, {y:.3f}, {z:.3f}]\n"
+            f"    rotation: {{axis: [{axis[0]:.3f}, {axis[1]:.3f}, {axis[2]:.3f}],"
+            f" angle: {0.53 * k % 3.0:.3f}}}\n"
+            f"    shape: {shape}\n    material: wood\n"
+        )
+    return _head("mixed150") + "".join(lines)
+
+
 SCENES: dict[str, Callable[[], str]] = {
     "stack10": stack10,
     "pyramid55": pyramid55,
@@ -219,10 +247,11 @@ SCENES: dict[str, Callable[[], str]] = {
     "stacks3x100": stacks100,
     "capsules200": capsules200,
     "wall96": wall96,
+    "mixed150": mixed150,
 }
 # scenes also timed from rest, block by block (rest_table): what the settled window after
 # WARMUP leaves out (the landing of a heap, a wall standing and then struck)
-FROM_REST = ["tumble100", "capsules200", "wall96", "stack10"]
+FROM_REST = ["tumble100", "capsules200", "wall96", "stack10", "mixed150"]
 REST_BLOCKS = 8  # blocks of STEPS steps from step 0: the first 2 s
 # runs from rest of each scene, each in fresh engines; a block's ratio is the median over
 # the runs (one run's block of 60 steps, 4 to 15 ms, is within reach of the shared
