@@ -44,12 +44,10 @@ inline void approach_point(const State<D>& st, Contacts<D>& c, std::int64_t m, i
   c.approach_separation[m][k] = c.base_separation[m][k] + dot(n, sa - sb);
 }
 
-// 3D vectors in lanes, one point of a row in each (the points' x, y, z as three vectors),
-// and what prepare_points_3d does with them: the scalar operations of math.hpp in their
-// order, lane by lane.
-struct Lanes3 {
-  Lanes x, y, z;
-};
+// 3D vectors in lanes, one point of a row in each (wide.hpp's LanesXYZ), and what
+// prepare_points_3d does with them: the scalar operations of math.hpp in their order,
+// lane by lane.
+using Lanes3 = LanesXYZ;
 inline Lanes3 cross(const Lanes3& a, Vec3 b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
