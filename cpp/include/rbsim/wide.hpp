@@ -101,6 +101,31 @@ inline void gather_quads(const double* p0, const double* p1, const double* p2, c
   f1 = __builtin_shufflevector(t1, t3, 0, 1, 4, 5);
   f3 = __builtin_shufflevector(t1, t3, 2, 3, 6, 7);
 }
+// The Vec3 records at p0..p3 (scattered) as the lanes x, y and z: each record loaded as
+// three doubles (a masked load, which reads nothing past the record: the last body of an
+// array has no neighbour to read into), then transposed as gather_quads does.
+inline void gather_xyz(const Vec3* p0, const Vec3* p1, const Vec3* p2, const Vec3* p3, Lanes& x,
+                       Lanes& y, Lanes& z) {
+#if defined(__AVX__)
+  using I = long long __attribute__((vector_size(32)));
+  const I three = {-1, -1, -1, 0};
+  auto load3 = [&three](const Vec3* p) {
+    return (Lanes)__builtin_ia32_maskloadpd256(reinterpret_cast<const Lanes*>(&p->x), three);
+  };
+  const Lanes r0 = load3(p0), r1 = load3(p1), r2 = load3(p2), r3 = load3(p3);
+  const Lanes t0 = __builtin_shufflevector(r0, r1, 0, 4, 2, 6);  // x of lanes 0 1, z of 0 1
+  const Lanes t1 = __builtin_shufflevector(r0, r1, 1, 5, 3, 7);  // y of lanes 0 1
+  const Lanes t2 = __builtin_shufflevector(r2, r3, 0, 4, 2, 6);
+  const Lanes t3 = __builtin_shufflevector(r2, r3, 1, 5, 3, 7);
+  x = __builtin_shufflevector(t0, t2, 0, 1, 4, 5);
+  z = __builtin_shufflevector(t0, t2, 2, 3, 6, 7);
+  y = __builtin_shufflevector(t1, t3, 0, 1, 4, 5);
+#else
+  x = Lanes{p0->x, p1->x, p2->x, p3->x};
+  y = Lanes{p0->y, p1->y, p2->y, p3->y};
+  z = Lanes{p0->z, p1->z, p2->z, p3->z};
+#endif
+}
 // The x, y and z of the Vec3 records p[0..3] (12 doubles in a row), one record in each
 // lane; store_xyz writes them back.
 struct LanesXYZ {

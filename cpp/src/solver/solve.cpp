@@ -791,21 +791,23 @@ Bodies3 gather_bodies_3d(const State<3>& st, const Contacts<3>& c, const WideRow
   const Vec3* w = st.body_w.data();
   const BodyDelta<3>* d = c.body_delta.data();
   Bodies3 o;
-#define RBSIM_FIELD(arr, ids, expr) lanes_of(arr, ids, [](const auto& r) { return r.expr; })
-  o.vax = RBSIM_FIELD(v, L.a, x), o.vay = RBSIM_FIELD(v, L.a, y), o.vaz = RBSIM_FIELD(v, L.a, z);
-  o.vbx = RBSIM_FIELD(v, L.b, x), o.vby = RBSIM_FIELD(v, L.b, y), o.vbz = RBSIM_FIELD(v, L.b, z);
-  o.wax = RBSIM_FIELD(w, L.a, x), o.way = RBSIM_FIELD(w, L.a, y), o.waz = RBSIM_FIELD(w, L.a, z);
-  o.wbx = RBSIM_FIELD(w, L.b, x), o.wby = RBSIM_FIELD(w, L.b, y), o.wbz = RBSIM_FIELD(w, L.b, z);
-  const Lanes dax = RBSIM_FIELD(d, L.a, dx.x), day = RBSIM_FIELD(d, L.a, dx.y),
-              daz = RBSIM_FIELD(d, L.a, dx.z);
-  const Lanes dbx = RBSIM_FIELD(d, L.b, dx.x), dby = RBSIM_FIELD(d, L.b, dx.y),
-              dbz = RBSIM_FIELD(d, L.b, dx.z);
+  const auto &a = L.a, &b = L.b;
+  gather_xyz(&v[a[0]], &v[a[1]], &v[a[2]], &v[a[3]], o.vax, o.vay, o.vaz);
+  gather_xyz(&v[b[0]], &v[b[1]], &v[b[2]], &v[b[3]], o.vbx, o.vby, o.vbz);
+  gather_xyz(&w[a[0]], &w[a[1]], &w[a[2]], &w[a[3]], o.wax, o.way, o.waz);
+  gather_xyz(&w[b[0]], &w[b[1]], &w[b[2]], &w[b[3]], o.wbx, o.wby, o.wbz);
+  // a body's step motion: dx (three doubles) and dq (four) in a row
+  static_assert(sizeof(BodyDelta<3>) == 7 * sizeof(double));
+  Lanes dax, day, daz, dbx, dby, dbz;
+  gather_xyz(&d[a[0]].dx, &d[a[1]].dx, &d[a[2]].dx, &d[a[3]].dx, dax, day, daz);
+  gather_xyz(&d[b[0]].dx, &d[b[1]].dx, &d[b[2]].dx, &d[b[3]].dx, dbx, dby, dbz);
   const Lanes nx = R.nx, ny = R.ny, nz = R.nz;
   o.moved = (nx * (dax - dbx) + ny * (day - dby)) + nz * (daz - dbz);
   auto turn_back = [&](const std::int32_t(&ids)[LANES], Lanes& ox, Lanes& oy, Lanes& oz) {
-    const Lanes qw = RBSIM_FIELD(d, ids, dq.w);
-    const Lanes ux = -RBSIM_FIELD(d, ids, dq.x), uy = -RBSIM_FIELD(d, ids, dq.y),
-                uz = -RBSIM_FIELD(d, ids, dq.z);
+    Lanes qw, qx, qy, qz;
+    gather_quads(&d[ids[0]].dq.w, &d[ids[1]].dq.w, &d[ids[2]].dq.w, &d[ids[3]].dq.w, qw, qx, qy,
+                 qz);
+    const Lanes ux = -qx, uy = -qy, uz = -qz;
     const Lanes tx = splat(2.0) * (uy * nz - uz * ny);
     const Lanes ty = splat(2.0) * (uz * nx - ux * nz);
     const Lanes tz = splat(2.0) * (ux * ny - uy * nx);
@@ -813,7 +815,6 @@ Bodies3 gather_bodies_3d(const State<3>& st, const Contacts<3>& c, const WideRow
     oy = (ny + qw * ty) + (uz * tx - ux * tz);
     oz = (nz + qw * tz) + (ux * ty - uy * tx);
   };
-#undef RBSIM_FIELD
   turn_back(L.a, o.nax, o.nay, o.naz);
   turn_back(L.b, o.nbx, o.nby, o.nbz);
   return o;
