@@ -560,8 +560,6 @@ TEST(tetrahedron_on_a_plane) {
   CHECK_NEAR(up.m.separation[0], -0.001, 1e-12);
 }
 
-// A hull of a box's corners (triangulated as qhull might) against a box gives the box–box
-// manifold: resting face to face, turned, edge to edge, and the box first.
 // A capsule near a box, apart from it or touching, at random poses around all of its
 // faces, edges and corners: the box's closest points in closed form (segment_box_closest)
 // give the manifold that the same box as a hull gives, where the closest points are
@@ -591,7 +589,7 @@ TEST(capsule_near_a_box_matches_the_box_as_a_hull) {
     CHECK(a.n == b.n);
     if (a.n != b.n || a.n == 0) continue;
     ++compared;
-    apart += a.m.separation[0] - 0.0 > 0.0 ? 1 : 0;
+    apart += a.m.separation[0] > 0.0 ? 1 : 0;
     // 1e-9 (m, and of a unit normal): two exact methods' round-off, far above it
     CHECK_VEC(a.m.normal, b.m.normal, 1e-9, "normal");
     for (int i = 0; i < a.n; ++i) {
@@ -603,6 +601,8 @@ TEST(capsule_near_a_box_matches_the_box_as_a_hull) {
   CHECK(apart > 100);     // and among them, pairs apart
 }
 
+// A hull of a box's corners (triangulated as qhull might) against a box gives the box–box
+// manifold: resting face to face, turned, edge to edge, and the box first.
 TEST(hull_of_a_box_matches_box_box) {
   auto hull = box_as_hull({0.5, 0.5, 0.5});
   const auto ground = box_ref({0, -0.5, 0}, {}, {3, 0.5, 3});

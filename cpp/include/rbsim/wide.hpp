@@ -88,10 +88,10 @@ inline void scatter_pairs(double* p0, double* p1, double* p2, double* p3, Lanes 
   store_pair(p2, __builtin_shufflevector(even, even, 2, 3));
   store_pair(p3, __builtin_shufflevector(odd, odd, 2, 3));
 }
-// The records (f0, f1, f2, f3) of four doubles at p0..p3 as the lanes f0..f3.
-inline void gather_quads(const double* p0, const double* p1, const double* p2, const double* p3,
-                         Lanes& f0, Lanes& f1, Lanes& f2, Lanes& f3) {
-  const Lanes r0 = load_lanes(p0), r1 = load_lanes(p1), r2 = load_lanes(p2), r3 = load_lanes(p3);
+// The 4×4 transpose: record r0..r3 (one per lane, four fields each) as the lanes of
+// fields f0..f3.
+inline void transpose_quads(Lanes r0, Lanes r1, Lanes r2, Lanes r3, Lanes& f0, Lanes& f1,
+                            Lanes& f2, Lanes& f3) {
   const Lanes t0 = __builtin_shufflevector(r0, r1, 0, 4, 2, 6);  // f0 of lanes 0 1, f2 of 0 1
   const Lanes t1 = __builtin_shufflevector(r0, r1, 1, 5, 3, 7);  // f1, f3 of lanes 0 1
   const Lanes t2 = __builtin_shufflevector(r2, r3, 0, 4, 2, 6);
@@ -101,9 +101,14 @@ inline void gather_quads(const double* p0, const double* p1, const double* p2, c
   f1 = __builtin_shufflevector(t1, t3, 0, 1, 4, 5);
   f3 = __builtin_shufflevector(t1, t3, 2, 3, 6, 7);
 }
+// The records (f0, f1, f2, f3) of four doubles at p0..p3 as the lanes f0..f3.
+inline void gather_quads(const double* p0, const double* p1, const double* p2, const double* p3,
+                         Lanes& f0, Lanes& f1, Lanes& f2, Lanes& f3) {
+  transpose_quads(load_lanes(p0), load_lanes(p1), load_lanes(p2), load_lanes(p3), f0, f1, f2, f3);
+}
 // The Vec3 records at p0..p3 (scattered) as the lanes x, y and z: each record loaded as
 // three doubles (a masked load, which reads nothing past the record: the last body of an
-// array has no neighbour to read into), then transposed as gather_quads does.
+// array has no neighbour to read into), then transposed (transpose_quads).
 inline void gather_xyz(const Vec3* p0, const Vec3* p1, const Vec3* p2, const Vec3* p3, Lanes& x,
                        Lanes& y, Lanes& z) {
 #if defined(__AVX__)
@@ -112,14 +117,8 @@ inline void gather_xyz(const Vec3* p0, const Vec3* p1, const Vec3* p2, const Vec
   auto load3 = [&three](const Vec3* p) {
     return (Lanes)__builtin_ia32_maskloadpd256(reinterpret_cast<const Lanes*>(&p->x), three);
   };
-  const Lanes r0 = load3(p0), r1 = load3(p1), r2 = load3(p2), r3 = load3(p3);
-  const Lanes t0 = __builtin_shufflevector(r0, r1, 0, 4, 2, 6);  // x of lanes 0 1, z of 0 1
-  const Lanes t1 = __builtin_shufflevector(r0, r1, 1, 5, 3, 7);  // y of lanes 0 1
-  const Lanes t2 = __builtin_shufflevector(r2, r3, 0, 4, 2, 6);
-  const Lanes t3 = __builtin_shufflevector(r2, r3, 1, 5, 3, 7);
-  x = __builtin_shufflevector(t0, t2, 0, 1, 4, 5);
-  z = __builtin_shufflevector(t0, t2, 2, 3, 6, 7);
-  y = __builtin_shufflevector(t1, t3, 0, 1, 4, 5);
+  Lanes unused;  // (the fourth field: the masked-off zero)
+  transpose_quads(load3(p0), load3(p1), load3(p2), load3(p3), x, y, z, unused);
 #else
   x = Lanes{p0->x, p1->x, p2->x, p3->x};
   y = Lanes{p0->y, p1->y, p2->y, p3->y};

@@ -841,25 +841,28 @@ int capsule_polytope(const ShapeRef3& a, const Polytope& B, const std::int32_t* 
     // the hull, or the segment against an edge)
     double best = INF;
     Vec3 xs{}, xh{};
-    if (box) best = segment_box_closest(p, q, *box, xs, xh);
-    for (int k = 0; k < (box ? 0 : 2); ++k) {
-      const Vec3 x = k == 0 ? p : q;
-      const SurfacePoint c = closest_on_hull(B, x);
-      if (c.distance < best) {
-        best = c.distance;
-        xs = x;
-        xh = c.point;
+    if (box) {
+      best = segment_box_closest(p, q, *box, xs, xh);
+    } else {
+      for (int k = 0; k < 2; ++k) {
+        const Vec3 x = k == 0 ? p : q;
+        const SurfacePoint c = closest_on_hull(B, x);
+        if (c.distance < best) {
+          best = c.distance;
+          xs = x;
+          xh = c.point;
+        }
       }
-    }
-    for (int i = 0; i < (box ? 0 : B.h->edge_count); ++i) {
-      const Vec3 e0 = B.v[B.h->edge[i].v0], e1 = B.v[B.h->edge[i].v1];
-      const auto [s, t] = segment_closest_fractions(p, q, e0, e1);
-      const Vec3 cs = p + s * d, ch = e0 + t * (e1 - e0);
-      const double dist = length(cs - ch);
-      if (dist < best) {
-        best = dist;
-        xs = cs;
-        xh = ch;
+      for (int i = 0; i < B.h->edge_count; ++i) {
+        const Vec3 e0 = B.v[B.h->edge[i].v0], e1 = B.v[B.h->edge[i].v1];
+        const auto [s, t] = segment_closest_fractions(p, q, e0, e1);
+        const Vec3 cs = p + s * d, ch = e0 + t * (e1 - e0);
+        const double dist = length(cs - ch);
+        if (dist < best) {
+          best = dist;
+          xs = cs;
+          xh = ch;
+        }
       }
     }
     if (best - r > speculative) return 0;

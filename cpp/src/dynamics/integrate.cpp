@@ -226,12 +226,8 @@ void move_lanes_2d(State<2>& st, std::vector<BodyDelta<2>>& delta, int i, double
 // The 4×4 transpose: four records of four doubles at p0..p3 to lanes, or lanes back.
 inline void store_quads(double* p0, double* p1, double* p2, double* p3, Lanes f0, Lanes f1,
                         Lanes f2, Lanes f3) {
-  const double rows[4][4] = {{f0[0], f0[1], f0[2], f0[3]},
-                             {f1[0], f1[1], f1[2], f1[3]},
-                             {f2[0], f2[1], f2[2], f2[3]},
-                             {f3[0], f3[1], f3[2], f3[3]}};
   Lanes r0, r1, r2, r3;
-  gather_quads(rows[0], rows[1], rows[2], rows[3], r0, r1, r2, r3);
+  transpose_quads(f0, f1, f2, f3, r0, r1, r2, r3);  // (the transpose is its own inverse)
   std::memcpy(p0, &r0, sizeof r0);
   std::memcpy(p1, &r1, sizeof r1);
   std::memcpy(p2, &r2, sizeof r2);
