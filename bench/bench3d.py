@@ -50,7 +50,7 @@ import numpy as np
 from rbsim.engines import make_engine
 from rbsim.scene import Scene, load_scene_text
 from rbsim.scene import types as T
-from rbsim.scene.compile import build
+from rbsim.scene.compile import Model, State, build
 from rbsim.scene.geometry3d import quat_matrix
 from rbsim.tools.measure import interleaved_block_times, median_ratio
 
@@ -353,11 +353,10 @@ def mjcf_contacts(scene: Scene, options: dict[str, str] | None = None) -> str:
     return "\n".join(lines)
 
 
-def start_velocities(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+def start_velocities(model: Model, state: State) -> tuple[np.ndarray, np.ndarray]:
     """Each body's starting velocity at its frame's origin (m/s, world) and its angular
-    velocity (rad/s, world), from the scene's (rbsim's state holds the centre of mass's:
+    velocity (rad/s, world), from a built scene's (its state holds the centre of mass's:
     v_origin = v − ω × R c, c the body-frame COM)."""
-    model, state = build(scene)
     arm = np.einsum("nij,nj->ni", quat_matrix(state.body_q), model.body_com)  # m
     return state.body_v - np.cross(state.body_w, arm), state.body_w.copy()
 
@@ -408,8 +407,8 @@ class MujocoRunner(Runner):
         self.data = mujoco.MjData(self.model)
         # the scene's velocities (a thrown ball, a pushed domino): a free joint's qvel is
         # its frame origin's velocity (world) and ω in the body's frame
-        origin_v, w = start_velocities(scene)
         model, state = build(scene)
+        origin_v, w = start_velocities(model, state)
         qvel = self.data.qvel.reshape(-1, 6)
         dynamic = np.flatnonzero(model.body_type == T.BODY_DYNAMIC)
         rot = quat_matrix(state.body_q[dynamic])
@@ -439,7 +438,7 @@ class BulletRunner(Runner):
     name = "pybullet"
 
     def __init__(self, scene: Scene) -> None:
-        model, _ = build(scene)
+        model, state = build(scene)
         p = pybullet
         self.client = p.connect(p.DIRECT)
         c = self.client
@@ -488,7 +487,7 @@ class BulletRunner(Runner):
             self.ids.append(uid)
         # the scene's velocities: Bullet's base here is the body's frame (its inertial
         # frame left at the origin), moving with the origin's velocity
-        origin_v, w = start_velocities(scene)
+        origin_v, w = start_velocities(model, state)
         for i, uid in enumerate(self.ids):
             if int(model.body_type[i]) == T.BODY_DYNAMIC and (origin_v[i].any() or w[i].any()):
                 p.resetBaseVelocity(uid, list(origin_v[i]), list(w[i]), physicsClientId=c)
