@@ -663,6 +663,62 @@ TEST(hulls_edge_to_edge_and_face_on_box) {
   CHECK(has_point(f, {1.1 + SKIN * (1.0 + std::sqrt(2.0)), -0.0005, 0.1 - SKIN}, EPS));
 }
 
+// A prism of `sides` sides about the x axis (radius r, length 2 hx): vertex k of each
+// cap ring at angle 2πk/sides in the y-z plane; caps fanned from their first vertex.
+WorldHull prism(int sides, double r, double hx) {
+  std::vector<Vec3> v;
+  for (const double x : {-hx, hx})
+    for (int k = 0; k < sides; ++k) {
+      const double t = 2.0 * M_PI * k / sides;
+      v.push_back({x, r * std::cos(t), r * std::sin(t)});
+    }
+  std::vector<std::array<std::int32_t, 3>> tris;
+  for (int k = 0; k < sides; ++k) {  // the sides, outward
+    const int k1 = (k + 1) % sides;
+    tris.push_back({k, k1, sides + k1});
+    tris.push_back({k, sides + k1, sides + k});
+  }
+  for (int k = 1; k + 1 < sides; ++k) {  // the caps: −x then +x
+    tris.push_back({0, k + 1, k});
+    tris.push_back({sides, sides + k, sides + k + 1});
+  }
+  return WorldHull(v, tris);
+}
+
+// Two 40-sided prisms crossed, the upper one's lowest edge on the lower one's highest
+// edge: one point where the edges cross, the normal vertical. Each has 120 edges, more
+// than the edge pairs' test takes in one group (narrow3d.cpp, EDGE_GROUP), and the
+// winning pair lies past the first group, so the groups after it are tested too; the
+// other order and a turn about the vertical that keeps the edges crossing give it again.
+TEST(many_edged_hulls_crossed_edge_to_edge) {
+  const double r = 0.3, depth = 0.001;
+  auto lower = prism(40, r, 1.0), upper = prism(40, r, 1.0);
+  CHECK(lower.hull.edge.size() > 64);
+  // both turned by −90° about x: vertex 10 (at 90°) on top, vertex 30 at the bottom; the
+  // lower prism along x, its top edge up; the upper one along z (turned by 90° about y),
+  // its bottom edge down, across the lower's
+  const Quat roll = axis_angle({1, 0, 0}, -M_PI / 2);
+  const Quat across = mul(axis_angle({0, 1, 0}, M_PI / 2), roll);
+  const auto lo = lower.at({0, 0, 0}, roll);
+  const Vec3 c{0.05, 2 * r - depth, -0.02};
+  const auto up = upper.at(c, across);
+  const auto m = collide(up, lo);
+  CHECK(m.n == 1);
+  CHECK_VEC(m.m.normal, {0, 1, 0}, 1e-12, "vertical");
+  CHECK_NEAR(m.m.separation[0], -depth, 1e-12);
+  // the upper edge at x = 0.05, the lower at z = 0
+  CHECK_VEC(m.m.point[0], {0.05, r - 0.5 * depth, 0.0}, 1e-12, "where the edges cross");
+  const std::int64_t f1 = (m.m.id[0] >> 20) & 0xFFFFF, f2 = m.m.id[0] & 0xFFFFF;
+  CHECK(std::max(f1, f2) >= 64);  // a pair past the first group's edges
+  const auto w = collide(lo, up);
+  CHECK(w.n == 1);
+  CHECK_VEC(w.m.normal, {0, -1, 0}, 1e-12, "the other order");
+  CHECK_VEC(w.m.point[0], m.m.point[0], 1e-12, "same point");
+  const auto t = collide(upper.at(c, mul(axis_angle({0, 1, 0}, 0.3), across)), lo);
+  CHECK(t.n == 1);
+  CHECK_NEAR(t.m.separation[0], -depth, 1e-12);
+}
+
 // Random poses of two boxes (fixed seed): the box–box function and the hull code path
 // (both boxes as hulls) find the same manifold, pose after pose: the same SAT over the
 // same axes (the hull path tests only the edge pairs that make Minkowski faces, which

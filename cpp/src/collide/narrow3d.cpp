@@ -23,11 +23,13 @@
 #include "narrow3d.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <limits>
 
 #include "collide/segment_closest.hpp"
 #include "rbsim/constants.hpp"
+#include "rbsim/wide.hpp"
 
 namespace rbsim {
 namespace {
@@ -393,14 +395,35 @@ inline int incident_face(const Polytope& P, Vec3 n) {
   return face;
 }
 
-// Whether the arcs a-b (A's edge, between its faces' normals) and c-d (B's edge, its
-// faces' normals negated) cross on the Gauss map, i.e. the edge pair makes a face of the
-// Minkowski difference and its cross product is a candidate separating axis.
-// bxa = b × a and dxc = d × c (the edges' directions, up to sign and length).
-inline bool minkowski_face(Vec3 a, Vec3 b, Vec3 bxa, Vec3 c, Vec3 d, Vec3 dxc) {
-  const double cba = dot(c, bxa), dba = dot(d, bxa);
-  const double adc = dot(a, dxc), bdc = dot(b, dxc);
-  return cba * dba < 0.0 && adc * bdc < 0.0 && cba * bdc > 0.0;
+// The Minkowski-face test of A's edge against four of B's edges at once, lane by lane.
+// An edge pair makes a face of the Minkowski difference A − B, and so a candidate
+// separating axis, when their arcs on the Gauss map cross: A's arc a-b (a, b: the normals
+// of the edge's two faces, bxa = b × a, along the edge) and B's arc c-d (its faces'
+// normals negated, dxc = d × c).
+struct EdgeArcs {
+  Lanes cx, cy, cz, dx, dy, dz, ex, ey, ez;  // c, d and e = d × c of four edges of B
+};
+// Edges j0 .. j0 + n (n <= LANES) of B as arcs; a lane past them is zeros, which no
+// test passes.
+inline EdgeArcs edge_arcs(const Polytope& B, int j0, int n) {
+  EdgeArcs g{};
+  for (int l = 0; l < n; ++l) {
+    const HullEdge& e = B.h->edge[j0 + l];
+    const Vec3 c = -B.fn[e.f0], d = -B.fn[e.f1], dxc = cross(d, c);
+    g.cx[l] = c.x, g.cy[l] = c.y, g.cz[l] = c.z;
+    g.dx[l] = d.x, g.dy[l] = d.y, g.dz[l] = d.z;
+    g.ex[l] = dxc.x, g.ey[l] = dxc.y, g.ez[l] = dxc.z;
+  }
+  return g;
+}
+inline unsigned minkowski_faces(Vec3 a, Vec3 b, Vec3 bxa, const EdgeArcs& g) {
+  auto along = [](Vec3 v, Lanes x, Lanes y, Lanes z) {  // v · (x, y, z), as dot() rounds
+    return splat(v.x) * x + splat(v.y) * y + splat(v.z) * z;
+  };
+  const Lanes cba = along(bxa, g.cx, g.cy, g.cz), dba = along(bxa, g.dx, g.dy, g.dz);
+  const Lanes adc = along(a, g.ex, g.ey, g.ez), bdc = along(b, g.ex, g.ey, g.ez);
+  const Lanes zero = splat(0.0);
+  return lane_bits((cba * dba < zero) & (adc * bdc < zero) & (cba * bdc > zero));
 }
 
 // The tolerances of a pair: the face tolerance (m) at the smaller scale.
@@ -419,6 +442,25 @@ inline int edge_contact(Vec3 p1, Vec3 q1, Vec3 p2, Vec3 q2, Vec3 n, std::int64_t
   return single_point(ca, 0.0, cb, 0.0, n, fid, speculative, out);
 }
 
+// The least of n · (v − o) over the points v[0 .. count) (m), four at a time in lanes
+// (each as dot() rounds it).
+inline double least_along(Vec3 n, Vec3 o, const Vec3* v, int count) {
+  double s = INF;
+  int j = 0;
+  if (count >= LANES) {
+    const Lanes nx = splat(n.x), ny = splat(n.y), nz = splat(n.z);
+    const Lanes ox = splat(o.x), oy = splat(o.y), oz = splat(o.z);
+    Lanes least = splat(INF);
+    for (; j + LANES <= count; j += LANES) {
+      const LanesXYZ p = load_xyz(v + j);
+      least = vmin(least, nx * (p.x - ox) + ny * (p.y - oy) + nz * (p.z - oz));
+    }
+    s = std::min(std::min(least[0], least[1]), std::min(least[2], least[3]));
+  }
+  for (; j < count; ++j) s = std::min(s, dot(n, v[j] - o));
+  return s;
+}
+
 // The face of P that separates Q most (its deepest vertex below the face): separation
 // (m) and face. False as soon as one face separates them by more than `speculative`.
 inline bool deepest_face(const Polytope& P, const Polytope& Q, double speculative, double& sep,
@@ -426,9 +468,7 @@ inline bool deepest_face(const Polytope& P, const Polytope& Q, double speculativ
   sep = -INF;
   face = 0;
   for (int f = 0; f < P.h->face_count; ++f) {
-    const Vec3 n = P.fn[f], o = face_origin(P, f);
-    double s = INF;
-    for (int j = 0; j < Q.h->vertex_count; ++j) s = std::min(s, dot(n, Q.v[j] - o));
+    const double s = least_along(P.fn[f], face_origin(P, f), Q.v, Q.h->vertex_count);
     if (s > speculative) return false;
     if (s > sep) {
       sep = s;
@@ -439,7 +479,11 @@ inline bool deepest_face(const Polytope& P, const Polytope& Q, double speculativ
 }
 
 // Two hulls (or boxes taken as hulls): SAT over both hulls' faces and their edge pairs.
+// The edge pairs are tested a group of B's edges against every edge of A at a time, B's
+// edges made arcs once per group (EDGE_GROUP of them: a few kilobytes on the stack); of
+// pairs that separate equally the first in (A's edge, B's edge) order is kept.
 constexpr int HULL_CLIP = 2 * HULL_MAX_FACE_VERTICES;
+constexpr int EDGE_GROUP = 16 * LANES;
 int collide_polytopes(const Polytope& A, const Polytope& B, double tol, double speculative,
                       Manifold3& out) {
   double sep_a, sep_b;
@@ -453,27 +497,36 @@ int collide_polytopes(const Polytope& A, const Polytope& B, double tol, double s
   double sep_e = -INF;
   int edge_a = -1, edge_b = -1;
   Vec3 axis_e{};
-  for (int i = 0; i < A.h->edge_count; ++i) {
-    const HullEdge& ea = A.h->edge[i];
-    const Vec3 pa = A.v[ea.v0], da = A.v[ea.v1] - pa;
-    const Vec3 na0 = A.fn[ea.f0], na1 = A.fn[ea.f1];
-    const Vec3 bxa = cross(na1, na0);
-    for (int j = 0; j < B.h->edge_count; ++j) {
-      const HullEdge& eb = B.h->edge[j];
-      const Vec3 nb0 = -B.fn[eb.f0], nb1 = -B.fn[eb.f1];
-      if (!minkowski_face(na0, na1, bxa, nb0, nb1, cross(nb1, nb0))) continue;
-      const Vec3 pb = B.v[eb.v0], db = B.v[eb.v1] - pb;
-      Vec3 L = cross(da, db);
-      const double len = length(L);
-      if (len <= EDGE_PARALLEL_SIN * length(da) * length(db)) continue;
-      if (dot(L, pa - centroid_a) < 0.0) L = -L;  // out of A
-      const double s = dot(L, pb - pa) / len;
-      if (s > speculative) return 0;
-      if (s > sep_e) {
-        sep_e = s;
-        edge_a = i;
-        edge_b = j;
-        axis_e = (1.0 / len) * L;
+  const int n_b = B.h->edge_count;
+  EdgeArcs arcs[EDGE_GROUP / LANES];
+  for (int j0 = 0; j0 < n_b; j0 += EDGE_GROUP) {
+    const int n_group = std::min(EDGE_GROUP, n_b - j0);
+    for (int k = 0; k < n_group; k += LANES)
+      arcs[k / LANES] = edge_arcs(B, j0 + k, std::min(LANES, n_group - k));
+    for (int i = 0; i < A.h->edge_count; ++i) {
+      const HullEdge& ea = A.h->edge[i];
+      const Vec3 pa = A.v[ea.v0], da = A.v[ea.v1] - pa;
+      const Vec3 na0 = A.fn[ea.f0], na1 = A.fn[ea.f1];
+      const Vec3 bxa = cross(na1, na0);
+      for (int k = 0; k < n_group; k += LANES) {
+        for (unsigned bits = minkowski_faces(na0, na1, bxa, arcs[k / LANES]); bits; bits &= bits - 1) {
+          const int j = j0 + k + std::countr_zero(bits);
+          const HullEdge& eb = B.h->edge[j];
+          const Vec3 pb = B.v[eb.v0], db = B.v[eb.v1] - pb;
+          Vec3 L = cross(da, db);
+          const double len = length(L);
+          if (len <= EDGE_PARALLEL_SIN * length(da) * length(db)) continue;
+          if (dot(L, pa - centroid_a) < 0.0) L = -L;  // out of A
+          const double s = dot(L, pb - pa) / len;
+          if (s > speculative) return 0;
+          // (a later group's pair comes after an earlier group's only if its A edge does)
+          if (s > sep_e || (s == sep_e && i < edge_a)) {
+            sep_e = s;
+            edge_a = i;
+            edge_b = j;
+            axis_e = (1.0 / len) * L;
+          }
+        }
       }
     }
   }
