@@ -230,7 +230,8 @@ TEST(split_rotation_flips_at_the_closed_form_interval) {
 }
 
 // 3D `normalize` with the world tensors kept (the contact path) moves dynamic bodies in
-// lanes (integrate.cpp, move_3d): a body's bits must not depend on the bodies beside it
+// lanes (integrate.cpp, move_3d), diagonal body tensors or not: a body's bits must not
+// depend on the bodies beside it
 // or on how the bodies are split into parts (threads), and must be the one-body update's
 // to rounding.
 TEST(bodies_moved_in_lanes_get_the_same_bits_however_split) {
@@ -248,7 +249,10 @@ TEST(bodies_moved_in_lanes_get_the_same_bits_however_split) {
   s.body_l.resize(n);
   for (int i = 0; i < n; ++i) {
     const double t = 0.37 * i + 0.1;
-    m.body_inv_inertia[i] = {1.0 + t, 2.0 + 0.5 * t, 0.7 + t * t, 0.0, 0.0, 0.0};
+    // every third body's tensor not diagonal (a hull's, about axes not its principal
+    // ones); each positive definite (diagonally dominant)
+    const double off = i % 3 == 1 ? 0.3 : 0.0;
+    m.body_inv_inertia[i] = {1.0 + t, 2.0 + 0.5 * t, 0.7 + t * t, off, -0.5 * off, 0.2 * off};
     s.body_x[i] = {std::sin(3 * t), 2 * t, -t};
     s.body_v[i] = {std::cos(t), -9.0 * t, 0.25};
     s.body_q[i] = normalize(Quat{1.0, 0.3 * t, -0.2, std::sin(t)});

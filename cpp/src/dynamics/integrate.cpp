@@ -234,10 +234,11 @@ inline void store_quads(double* p0, double* p1, double* p2, double* p3, Lanes f0
   std::memcpy(p3, &r3, sizeof r3);
 }
 
-// 3D, Rotation::Normalize, the world tensors wanted: LANES dynamic bodies with diagonal
-// body tensors moved at once, one in each lane, by the operations and in the order that
-// turn(), rotation_matrix, world_tensor's diagonal case and ω = I⁻¹ L take for one body
-// (no multiply-adds in this file). A body gets the same bits in any lane and beside any
+// 3D, Rotation::Normalize, the world tensors wanted: LANES dynamic bodies moved at once,
+// one in each lane, by the operations and in the order that turn(), rotation_matrix,
+// world_tensor's general case and ω = I⁻¹ L take for one body (no multiply-adds in this
+// file; for a diagonal body tensor the general case's sums add exact zeros, and so give
+// its diagonal case's values). A body gets the same bits in any lane and beside any
 // others, so that the result does not depend on how the bodies are split between
 // threads: every such body moves here, by whole runs of LANES where they are next to each
 // other (load_xyz, gather_quads), else LANES at a time picked out one by one. (The
@@ -246,7 +247,7 @@ inline void store_quads(double* p0, double* p1, double* p2, double* p3, Lanes f0
 struct Move3 {
   LanesXYZ x, v, w, l;    // m, m/s, rad/s, kg·m²/s
   Lanes qw, qx, qy, qz;   // the rotation
-  Lanes ixx, iyy, izz;    // 1/(kg·m²): the body tensor's diagonal
+  Lanes ixx, iyy, izz, ixy, ixz, iyz;  // 1/(kg·m²): the body tensor
   LanesXYZ dx;            // m: the step's motion so far
   Lanes ew, ex, ey, ez;   // its rotation so far
   Lanes txx, tyy, tzz, txy, txz, tyz;  // out: the world tensor
@@ -281,10 +282,11 @@ struct Move3 {
   const Lanes r[3][3] = {{one - two * (yy + zz), two * (xy - wz), two * (xz + wy)},
                          {two * (xy + wz), one - two * (xx + zz), two * (yz - wx)},
                          {two * (xz - wy), two * (yz + wx), one - two * (xx + yy)}};
-  const Lanes d[3] = {b.ixx, b.iyy, b.izz};
-  auto at = [&](int i, int j) {
-    return r[i][0] * d[0] * r[j][0] + r[i][1] * d[1] * r[j][1] + r[i][2] * d[2] * r[j][2];
-  };
+  const Lanes m[3][3] = {{b.ixx, b.ixy, b.ixz}, {b.ixy, b.iyy, b.iyz}, {b.ixz, b.iyz, b.izz}};
+  Lanes a[3][3];  // R M
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) a[i][j] = r[i][0] * m[0][j] + r[i][1] * m[1][j] + r[i][2] * m[2][j];
+  auto at = [&](int i, int j) { return a[i][0] * r[j][0] + a[i][1] * r[j][1] + a[i][2] * r[j][2]; };
   b.txx = at(0, 0), b.tyy = at(1, 1), b.tzz = at(2, 2);
   b.txy = at(0, 1), b.txz = at(0, 2), b.tyz = at(1, 2);
   // ω = I⁻¹ L
@@ -321,9 +323,8 @@ void move_run_3d(const Model<3>& model, State<3>& st, std::vector<BodyDelta<3>>&
   gather_quads(&st.body_q[i].w, &st.body_q[i + 1].w, &st.body_q[i + 2].w, &st.body_q[i + 3].w,
                b.qw, b.qx, b.qy, b.qz);
   const Sym3* m = &model.body_inv_inertia[i];
-  b.ixx = Lanes{m[0].xx, m[1].xx, m[2].xx, m[3].xx};
-  b.iyy = Lanes{m[0].yy, m[1].yy, m[2].yy, m[3].yy};
-  b.izz = Lanes{m[0].zz, m[1].zz, m[2].zz, m[3].zz};
+  gather_quads(&m[0].xx, &m[1].xx, &m[2].xx, &m[3].xx, b.ixx, b.iyy, b.izz, b.ixy);
+  gather_pairs(&m[0].xz, &m[1].xz, &m[2].xz, &m[3].xz, b.ixz, b.iyz);
   const BodyDelta<3>* d = &delta[i];
   b.dx = {Lanes{d[0].dx.x, d[1].dx.x, d[2].dx.x, d[3].dx.x},
           Lanes{d[0].dx.y, d[1].dx.y, d[2].dx.y, d[3].dx.y},
@@ -365,6 +366,7 @@ void move_picked_3d(const Model<3>& model, State<3>& st, std::vector<BodyDelta<3
     b.l.x[l] = L.x, b.l.y[l] = L.y, b.l.z[l] = L.z;
     b.qw[l] = q.w, b.qx[l] = q.x, b.qy[l] = q.y, b.qz[l] = q.z;
     b.ixx[l] = m.xx, b.iyy[l] = m.yy, b.izz[l] = m.zz;
+    b.ixy[l] = m.xy, b.ixz[l] = m.xz, b.iyz[l] = m.yz;
     b.dx.x[l] = d.dx.x, b.dx.y[l] = d.dx.y, b.dx.z[l] = d.dx.z;
     b.ew[l] = d.dq.w, b.ex[l] = d.dq.x, b.ey[l] = d.dq.y, b.ez[l] = d.dq.z;
   }
@@ -378,11 +380,8 @@ void move_picked_3d(const Model<3>& model, State<3>& st, std::vector<BodyDelta<3
   }
 }
 
-// Whether body i moves through move_3d: dynamic, with a diagonal body tensor.
-inline bool moves_in_lanes(const Model<3>& model, int i) {
-  const Sym3& m = model.body_inv_inertia[i];
-  return model.is_dynamic(i) && m.xy == 0.0 && m.xz == 0.0 && m.yz == 0.0;
-}
+// Whether body i moves through move_3d: a dynamic body.
+inline bool moves_in_lanes(const Model<3>& model, int i) { return model.is_dynamic(i); }
 
 }  // namespace
 
