@@ -6,8 +6,9 @@ Scenes (SCENES, written here as YAML text; every one on the plane y = 0, gravity
 step MuJoCo was measured at in issue 16): a stack of 10 unit boxes, a 5-layer square
 pyramid of unit boxes (55), 100 boxes of 0.5 m dropped tumbling in a heap, 1000 spheres
 of radius 0.1 m poured into a 4 m box, a 10 × 10 grid of stacks of 3 boxes of 0.5 m,
-200 capsules dropped in a heap, a wall of 96 bricks struck by a ball, and a heap of 50
-boxes, 50 spheres and 50 capsules of several sizes (every pair kind). FROM_REST of
+200 capsules dropped in a heap, a wall of 96 bricks struck by a ball, a heap of 50
+boxes, 50 spheres and 50 capsules of several sizes (every pair kind), and a heap of 120
+convex pebbles (hull against hull: MuJoCo's meshes, PyBullet's convex meshes). FROM_REST of
 them are also timed block by block from step 0 against MuJoCo (rest_table): the
 landing, the impact, what the settled window leaves out.
 
@@ -32,7 +33,9 @@ Every engine starts from the scene's velocities (the wall's ball thrown at 15 m/
 joint's qvel, PyBullet's resetBaseVelocity; until 2026-12-04 MuJoCo and PyBullet started
 every body at rest, and the ball fell in front of a wall it never struck).
 Masses and inertias are rbsim's (the MJCF's `inertial`, PyBullet's baseMass and the
-shapes' own inertia, which for boxes and spheres of uniform density are the same).
+shapes' own inertia, which for boxes and spheres of uniform density are the same; for a
+pebble PyBullet takes its box's inertia about the body's frame origin, a few mm from
+its centre of mass).
 "Stands" (stack scenes): the top boxes' largest sideways move (m, in x and z) and sag
 (m, down y) at the end of the window; "contacts": contact points at the end (rbsim's
 manifold points, MuJoCo's d.ncon, PyBullet's getContactPoints).
@@ -239,6 +242,29 @@ def mixed150() -> str:
     return _head("mixed150") + "".join(lines)
 
 
+def pebbles120() -> str:
+    """120 convex pebbles, each the hull of 8 to 12 points drawn about an ellipsoid of
+    semi-axes 0.2 to 0.3 m (a fixed seed), in 4 layers of 5 × 6 a metre apart, each turned
+    its own way, dropped from up to 4.6 m onto the plane: hull against hull."""
+    rng = np.random.default_rng(7)
+    lines = []
+    for k in range(120):
+        count = 8 + k % 5
+        d = rng.normal(size=(count, 3))
+        d /= np.linalg.norm(d, axis=1)[:, None]
+        points = d * np.array([0.25, 0.18, 0.2]) * (0.8 + 0.4 * rng.random((count, 1)))
+        vertices = ", ".join(f"[{a:.3f}, {b:.3f}, {c:.3f}]" for a, b, c in points)
+        x, y, z = -2 + 1.0 * (k % 5), 0.6 + 0.8 * ((k // 5) % 6), -1.5 + 1.0 * (k // 30)
+        axis = [math.sin(0.9 * k + 0.1), math.cos(1.3 * k), math.sin(0.5 * k + 2.0)]
+        lines.append(
+            f"  - name: p{k}\n    position: [{x:.3f}, {y:.3f}, {z:.3f}]\n"
+            f"    rotation: {{axis: [{axis[0]:.3f}, {axis[1]:.3f}, {axis[2]:.3f}],"
+            f" angle: {0.53 * k % 3.0:.3f}}}\n"
+            f"    shape: {{convex: {{vertices: [{vertices}]}}}}\n    material: wood\n"
+        )
+    return _head("pebbles120") + "".join(lines)
+
+
 SCENES: dict[str, Callable[[], str]] = {
     "stack10": stack10,
     "pyramid55": pyramid55,
@@ -248,10 +274,11 @@ SCENES: dict[str, Callable[[], str]] = {
     "capsules200": capsules200,
     "wall96": wall96,
     "mixed150": mixed150,
+    "pebbles120": pebbles120,
 }
 # scenes also timed from rest, block by block (rest_table): what the settled window after
 # WARMUP leaves out (the landing of a heap, a wall standing and then struck)
-FROM_REST = ["tumble100", "capsules200", "wall96", "stack10", "mixed150"]
+FROM_REST = ["tumble100", "capsules200", "wall96", "stack10", "mixed150", "pebbles120"]
 REST_BLOCKS = 8  # blocks of STEPS steps from step 0: the first 2 s
 # runs from rest of each scene, each in fresh engines; a block's ratio is the median over
 # the runs (one run's block of 60 steps, 4 to 15 ms, is within reach of the shared
@@ -288,8 +315,9 @@ def quat_from_z(n: np.ndarray) -> np.ndarray:
     return q / np.linalg.norm(q)
 
 
-def _geoms(shape, friction: str) -> list[str]:  # noqa: ANN001 - a resolved Shape
-    """MJCF geom lines of one resolved 3D shape, in its body's frame (m)."""
+def _geoms(shape, friction: str, name: str) -> list[str]:  # noqa: ANN001 - a resolved Shape
+    """MJCF geom lines of one resolved 3D shape, in its body's frame (m); a convex hull's
+    geom names the mesh `name` (_meshes writes it)."""
     f = f' friction="{friction}"'
     if shape.kind == "sphere":
         return [
@@ -312,7 +340,21 @@ def _geoms(shape, friction: str) -> list[str]:  # noqa: ANN001 - a resolved Shap
             f'<geom type="plane" size="0 0 1" pos="{_nums(shape.vertices[0])}"'
             f' quat="{_nums(q)}"{f}/>'
         ]
+    if shape.kind == "convex":
+        return [f'<geom type="mesh" mesh="{name}"{f}/>']
     raise ValueError(f"the bench's MJCF writer has no {shape.kind!r} geom")
+
+
+def _meshes(scene: Scene) -> list[str]:
+    """MJCF <asset> lines: a mesh of each convex hull's vertices (m, its body's frame),
+    named m<body>_<shape> as _geoms names it; MuJoCo collides a mesh as its convex hull."""
+    lines = []
+    for i, body in enumerate(scene.bodies):
+        for j, shape in enumerate(body.shapes):
+            if shape.kind == "convex":
+                points = " ".join(_nums(v) for v in shape.vertices)
+                lines.append(f'    <mesh name="m{i}_{j}" vertex="{points}"/>')
+    return ["  <asset>", *lines, "  </asset>"] if lines else []
 
 
 def mjcf_contacts(scene: Scene, options: dict[str, str] | None = None) -> str:
@@ -327,6 +369,7 @@ def mjcf_contacts(scene: Scene, options: dict[str, str] | None = None) -> str:
         f'<mujoco model="{scene.name}">',
         '  <compiler angle="radian" inertiafromgeom="false"/>',
         f'  <option timestep="{_num(scene.world.dt)}" gravity="{_nums(model.gravity)}"{extra}/>',
+        *_meshes(scene),
         "  <worldbody>",
     ]
     for i, body in enumerate(scene.bodies):
@@ -345,9 +388,9 @@ def mjcf_contacts(scene: Scene, options: dict[str, str] | None = None) -> str:
                 f'      <inertial pos="{_nums(model.body_com[i])}"'
                 f' mass="{_num(model.body_mass[i])}" fullinertia="{_nums(full)}"/>',
             ]
-        for shape in body.shapes:
+        for j, shape in enumerate(body.shapes):
             friction = f"{_num(shape.material.friction)} 0.005 0.0001"
-            lines += ["      " + g for g in _geoms(shape, friction)]
+            lines += ["      " + g for g in _geoms(shape, friction, f"m{i}_{j}")]
         lines.append("    </body>")
     lines += ["  </worldbody>", "</mujoco>", ""]
     return "\n".join(lines)
@@ -466,6 +509,8 @@ class BulletRunner(Runner):
             elif shape.kind == "plane":
                 geom = {"shapeType": p.GEOM_PLANE, "planeNormal": shape.normal}
                 geom["collisionFramePosition"] = shape.vertices[0]
+            elif shape.kind == "convex":  # Bullet collides a mesh's points as their hull
+                geom = {"shapeType": p.GEOM_MESH, "vertices": [list(v) for v in shape.vertices]}
             else:
                 raise ValueError(f"the bench's PyBullet writer has no {shape.kind!r}")
             col = p.createCollisionShape(**geom, physicsClientId=c)
