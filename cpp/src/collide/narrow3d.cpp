@@ -403,12 +403,12 @@ inline int incident_face(const Polytope& P, Vec3 n) {
 struct EdgeArcs {
   Lanes cx, cy, cz, dx, dy, dz, ex, ey, ez;  // c, d and e = d × c of four edges of B
 };
-// Edges j0 .. j0 + n (n <= LANES) of B as arcs; a lane past them is zeros, which no
-// test passes.
-inline EdgeArcs edge_arcs(const Polytope& B, int j0, int n) {
+// B's edges idx[0 .. n) (n <= LANES) as arcs; a lane past them is zeros, which no test
+// passes.
+inline EdgeArcs edge_arcs(const Polytope& B, const int* idx, int n) {
   EdgeArcs g{};
   for (int l = 0; l < n; ++l) {
-    const HullEdge& e = B.h->edge[j0 + l];
+    const HullEdge& e = B.h->edge[idx[l]];
     const Vec3 c = -B.fn[e.f0], d = -B.fn[e.f1], dxc = cross(d, c);
     g.cx[l] = c.x, g.cy[l] = c.y, g.cz[l] = c.z;
     g.dx[l] = d.x, g.dy[l] = d.y, g.dz[l] = d.z;
@@ -461,14 +461,28 @@ inline double least_along(Vec3 n, Vec3 o, const Vec3* v, int count) {
   return s;
 }
 
+// Round-off allowance (m) of a bound n · (x − o) on a separation, with x the mean of a
+// hull's vertices: far above the rounding of the mean and the product (1e-16 of the
+// coordinates), far below any separation that matters.
+inline double bound_slack(Vec3 x, Vec3 o) {
+  return 1e-9 * (1.0 + std::fabs(x.x) + std::fabs(x.y) + std::fabs(x.z) + std::fabs(o.x) +
+                 std::fabs(o.y) + std::fabs(o.z));
+}
+
 // The face of P that separates Q most (its deepest vertex below the face): separation
 // (m) and face. False as soon as one face separates them by more than `speculative`.
-inline bool deepest_face(const Polytope& P, const Polytope& Q, double speculative, double& sep,
-                         int& face) {
+// A face's separation is at most n · (x − o) for x the mean of Q's vertices (a point of
+// Q): a face whose bound is below a separation already found is passed over, its
+// vertices not visited (it can neither be the deepest nor tie with it), so that the
+// result is that of measuring every face (ties to the lower index).
+inline bool deepest_face(const Polytope& P, const Polytope& Q, Vec3 q_mean, double speculative,
+                         double& sep, int& face) {
   sep = -INF;
   face = 0;
   for (int f = 0; f < P.h->face_count; ++f) {
-    const double s = least_along(P.fn[f], face_origin(P, f), Q.v, Q.h->vertex_count);
+    const Vec3 n = P.fn[f], o = face_origin(P, f);
+    if (dot(n, q_mean - o) + bound_slack(q_mean, o) < sep) continue;
+    const double s = least_along(n, o, Q.v, Q.h->vertex_count);
     if (s > speculative) return false;
     if (s > sep) {
       sep = s;
@@ -478,52 +492,80 @@ inline bool deepest_face(const Polytope& P, const Polytope& Q, double speculativ
   return true;
 }
 
+// The mean of a polytope's vertices (m): a point inside it.
+inline Vec3 vertex_mean(const Polytope& P) {
+  Vec3 sum{};
+  for (int j = 0; j < P.h->vertex_count; ++j) sum += P.v[j];
+  return (1.0 / P.h->vertex_count) * sum;
+}
+
+// Whether an edge (from p, between faces of outward normals n0 and n1) cannot be in an
+// edge pair that separates more than `least` (m, <= 0) from a convex body holding the
+// point x: along any direction L of its Gauss-map arc the edge supports its hull, and the
+// other body reaches no further than L · (x − p); over the arc that is at most the larger
+// of n0 · (x − p) and n1 · (x − p) when that is negative (L a positive combination of n0
+// and n1, no longer than their sum).
+inline bool edge_out_of_reach(Vec3 p, Vec3 n0, Vec3 n1, Vec3 x, double least) {
+  const Vec3 w = x - p;
+  return std::max(dot(n0, w), dot(n1, w)) + bound_slack(x, p) < least;
+}
+
 // Two hulls (or boxes taken as hulls): SAT over both hulls' faces and their edge pairs.
 // The edge pairs are tested a group of B's edges against every edge of A at a time, B's
 // edges made arcs once per group (EDGE_GROUP of them: a few kilobytes on the stack); of
-// pairs that separate equally the first in (A's edge, B's edge) order is kept.
+// pairs that separate equally the first in (A's edge, B's edge) order is kept. An edge
+// pair counts only if it separates more than both hulls' faces (it must, to be the
+// contact or to part the hulls beyond reach), so an edge that faces away from the other
+// hull (edge_out_of_reach) is left out of the pairs.
 constexpr int HULL_CLIP = 2 * HULL_MAX_FACE_VERTICES;
 constexpr int EDGE_GROUP = 16 * LANES;
 int collide_polytopes(const Polytope& A, const Polytope& B, double tol, double speculative,
                       Manifold3& out) {
+  const Vec3 mean_a = vertex_mean(A), mean_b = vertex_mean(B);
   double sep_a, sep_b;
   int face_a, face_b;
-  if (!deepest_face(A, B, speculative, sep_a, face_a)) return 0;
-  if (!deepest_face(B, A, speculative, sep_b, face_b)) return 0;
+  if (!deepest_face(A, B, mean_b, speculative, sep_a, face_a)) return 0;
+  if (!deepest_face(B, A, mean_a, speculative, sep_b, face_b)) return 0;
+  // an edge pair must separate more than this to matter (m)
+  const double least = std::min(std::max(sep_a, sep_b), 0.0);
   // edge pairs that make a face of the Minkowski difference
-  Vec3 centroid_a{};
-  for (int j = 0; j < A.h->vertex_count; ++j) centroid_a += A.v[j];
-  centroid_a = (1.0 / A.h->vertex_count) * centroid_a;
   double sep_e = -INF;
   int edge_a = -1, edge_b = -1;
   Vec3 axis_e{};
   const int n_b = B.h->edge_count;
   EdgeArcs arcs[EDGE_GROUP / LANES];
-  for (int j0 = 0; j0 < n_b; j0 += EDGE_GROUP) {
-    const int n_group = std::min(EDGE_GROUP, n_b - j0);
+  int group[EDGE_GROUP];  // B's edges of the group (in order)
+  for (int j = 0; j < n_b;) {
+    int n_group = 0;
+    for (; j < n_b && n_group < EDGE_GROUP; ++j) {
+      const HullEdge& eb = B.h->edge[j];
+      if (!edge_out_of_reach(B.v[eb.v0], B.fn[eb.f0], B.fn[eb.f1], mean_a, least))
+        group[n_group++] = j;
+    }
     for (int k = 0; k < n_group; k += LANES)
-      arcs[k / LANES] = edge_arcs(B, j0 + k, std::min(LANES, n_group - k));
+      arcs[k / LANES] = edge_arcs(B, group + k, std::min(LANES, n_group - k));
     for (int i = 0; i < A.h->edge_count; ++i) {
       const HullEdge& ea = A.h->edge[i];
       const Vec3 pa = A.v[ea.v0], da = A.v[ea.v1] - pa;
       const Vec3 na0 = A.fn[ea.f0], na1 = A.fn[ea.f1];
+      if (edge_out_of_reach(pa, na0, na1, mean_b, least)) continue;
       const Vec3 bxa = cross(na1, na0);
       for (int k = 0; k < n_group; k += LANES) {
         for (unsigned bits = minkowski_faces(na0, na1, bxa, arcs[k / LANES]); bits; bits &= bits - 1) {
-          const int j = j0 + k + std::countr_zero(bits);
-          const HullEdge& eb = B.h->edge[j];
+          const int jb = group[k + std::countr_zero(bits)];
+          const HullEdge& eb = B.h->edge[jb];
           const Vec3 pb = B.v[eb.v0], db = B.v[eb.v1] - pb;
           Vec3 L = cross(da, db);
           const double len = length(L);
           if (len <= EDGE_PARALLEL_SIN * length(da) * length(db)) continue;
-          if (dot(L, pa - centroid_a) < 0.0) L = -L;  // out of A
+          if (dot(L, pa - mean_a) < 0.0) L = -L;  // out of A
           const double s = dot(L, pb - pa) / len;
           if (s > speculative) return 0;
           // (a later group's pair comes after an earlier group's only if its A edge does)
           if (s > sep_e || (s == sep_e && i < edge_a)) {
             sep_e = s;
             edge_a = i;
-            edge_b = j;
+            edge_b = jb;
             axis_e = (1.0 / len) * L;
           }
         }
