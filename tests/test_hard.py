@@ -422,6 +422,12 @@ def test_3d_pyramid_of_five_layers_stands():
     must("pyramid_3d", "moved", "<", 0.05)  # settling only, as the 2D pyramids: 5 cm
 
 
+def test_3d_tower_of_bevelled_hull_bricks_stands_still():
+    # a brick lies on its face's corners, not on its bevels' (it walked 12 cm in 3 s)
+    must("hull_tower_3d", "moved", "<", 0.05)  # settling only, as the 3D pyramid: 5 cm
+    must("hull_tower_3d", "speed", "<", 0.01)  # at rest: the stacks' 1 cm/s
+
+
 def test_3d_heavy_box_does_not_sink_into_the_light_ones():
     must("heavy_top_3d", "sink", "<", 0.10)  # the 2D heavy top's 10 cm
 

@@ -1218,6 +1218,21 @@ case(
 )(lambda make: measure_moved(make, "pyramid5_3d.yaml"))
 
 
+case(
+    "hull_tower_3d",
+    "3D: tower of 36 bevelled hull bricks",
+    ["hull_tower_3d.yaml"],
+    [
+        Rule("moved", "max brick displacement in 10 s", "m", "<", 0.05, "as the 3D pyramid's 5 cm"),
+        Rule(
+            "speed", "max brick speed at 10 s", "m/s", "<", 0.01, "at rest, as the stacks' 1 cm/s"
+        ),
+    ],
+    [],
+    dimension=3,
+)(lambda make: measure_moved(make, "hull_tower_3d.yaml"))
+
+
 @case(
     "heavy_top_3d",
     "3D: mass ratio 100, heavy box on a pyramid of 14",
