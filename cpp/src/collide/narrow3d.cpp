@@ -472,18 +472,44 @@ inline double bound_slack(Vec3 x, Vec3 o) {
 
 // The face of P that separates Q most (its deepest vertex below the face): separation
 // (m) and face. False as soon as one face separates them by more than `speculative`.
-// A face's separation is at most n · (x − o) for x the mean of Q's vertices (a point of
-// Q): a face whose bound is below a separation already found is passed over, its
-// vertices not visited (it can neither be the deepest nor tie with it), so that the
+// The face most along `toward` (from P towards Q) is measured first, and the vertex x of
+// Q deepest below it kept: another face's separation is at most n · (x − o), and a face
+// whose bound is below the first face's separation is passed over, its vertices not
+// visited (it can neither be the deepest nor tie with it; most faces, those whose planes
+// pass far from where the two touch). The others are measured in order, so that the
 // result is that of measuring every face (ties to the lower index).
-inline bool deepest_face(const Polytope& P, const Polytope& Q, Vec3 q_mean, double speculative,
+inline bool deepest_face(const Polytope& P, const Polytope& Q, Vec3 toward, double speculative,
                          double& sep, int& face) {
+  int first = 0;
+  double along = -INF;
+  for (int f = 0; f < P.h->face_count; ++f) {
+    const double d = dot(P.fn[f], toward);
+    if (d > along) {
+      along = d;
+      first = f;
+    }
+  }
+  // the first face's separation, as least_along finds it, and the vertex that gives it
+  const Vec3 n1 = P.fn[first], o1 = face_origin(P, first);
+  double reached = INF;
+  Vec3 x{};
+  for (int j = 0; j < Q.h->vertex_count; ++j) {
+    const double d = dot(n1, Q.v[j] - o1);
+    if (d < reached) {
+      reached = d;
+      x = Q.v[j];
+    }
+  }
+  if (reached > speculative) return false;
   sep = -INF;
   face = 0;
   for (int f = 0; f < P.h->face_count; ++f) {
-    const Vec3 n = P.fn[f], o = face_origin(P, f);
-    if (dot(n, q_mean - o) + bound_slack(q_mean, o) < sep) continue;
-    const double s = least_along(n, o, Q.v, Q.h->vertex_count);
+    double s = reached;
+    if (f != first) {
+      const Vec3 n = P.fn[f], o = face_origin(P, f);
+      if (dot(n, x - o) + bound_slack(x, o) < reached) continue;
+      s = least_along(n, o, Q.v, Q.h->vertex_count);
+    }
     if (s > speculative) return false;
     if (s > sep) {
       sep = s;
@@ -491,6 +517,20 @@ inline bool deepest_face(const Polytope& P, const Polytope& Q, Vec3 q_mean, doub
     }
   }
   return true;
+}
+
+// The vertex of P least along n (m; the first of equals).
+inline Vec3 least_vertex(const Polytope& P, Vec3 n) {
+  int best = 0;
+  double least = INF;
+  for (int j = 0; j < P.h->vertex_count; ++j) {
+    const double d = dot(n, P.v[j]);
+    if (d < least) {
+      least = d;
+      best = j;
+    }
+  }
+  return P.v[best];
 }
 
 // The mean of a polytope's vertices (m): a point inside it.
@@ -502,13 +542,18 @@ inline Vec3 vertex_mean(const Polytope& P) {
 
 // Whether an edge (from p, between faces of outward normals n0 and n1) cannot be in an
 // edge pair that separates more than `least` (m, <= 0) from a convex body holding the
-// point x: along any direction L of its Gauss-map arc the edge supports its hull, and the
-// other body reaches no further than L · (x − p); over the arc that is at most the larger
-// of n0 · (x − p) and n1 · (x − p) when that is negative (L a positive combination of n0
-// and n1, no longer than their sum).
-inline bool edge_out_of_reach(Vec3 p, Vec3 n0, Vec3 n1, Vec3 x, double least) {
-  const Vec3 w = x - p;
-  return std::max(dot(n0, w), dot(n1, w)) + bound_slack(x, p) < least;
+// points x[0] and x[1]: along any direction L of its Gauss-map arc the edge supports its
+// hull, and the other body reaches no further than L · (x − p); over the arc that is at
+// most the larger of n0 · (x − p) and n1 · (x − p) when that is negative (L a positive
+// combination of n0 and n1, no longer than their sum). Any point of the body gives a
+// bound: its vertex mean passes over the edges that face away from it, the vertex
+// deepest below the hull's best face those away from where the two touch.
+inline bool edge_out_of_reach(Vec3 p, Vec3 n0, Vec3 n1, const Vec3* x, double least) {
+  for (int k = 0; k < 2; ++k) {
+    const Vec3 w = x[k] - p;
+    if (std::max(dot(n0, w), dot(n1, w)) + bound_slack(x[k], p) < least) return true;
+  }
+  return false;
 }
 
 // Two hulls (or boxes taken as hulls): SAT over both hulls' faces and their edge pairs.
@@ -525,10 +570,14 @@ int collide_polytopes(const Polytope& A, const Polytope& B, double tol, double s
   const Vec3 mean_a = vertex_mean(A), mean_b = vertex_mean(B);
   double sep_a, sep_b;
   int face_a, face_b;
-  if (!deepest_face(A, B, mean_b, speculative, sep_a, face_a)) return 0;
-  if (!deepest_face(B, A, mean_a, speculative, sep_b, face_b)) return 0;
+  if (!deepest_face(A, B, mean_b - mean_a, speculative, sep_a, face_a)) return 0;
+  if (!deepest_face(B, A, mean_a - mean_b, speculative, sep_b, face_b)) return 0;
   // an edge pair must separate more than this to matter (m)
   const double least = std::min(std::max(sep_a, sep_b), 0.0);
+  // points of each hull for edge_out_of_reach: its vertex mean, and its vertex deepest
+  // below the other's best face
+  const Vec3 in_a[2] = {mean_a, least_vertex(A, B.fn[face_b])};
+  const Vec3 in_b[2] = {mean_b, least_vertex(B, A.fn[face_a])};
   // edge pairs that make a face of the Minkowski difference
   double sep_e = -INF;
   int edge_a = -1, edge_b = -1;
@@ -540,7 +589,7 @@ int collide_polytopes(const Polytope& A, const Polytope& B, double tol, double s
     int n_group = 0;
     for (; j < n_b && n_group < EDGE_GROUP; ++j) {
       const HullEdge& eb = B.h->edge[j];
-      if (!edge_out_of_reach(B.v[eb.v0], B.fn[eb.f0], B.fn[eb.f1], mean_a, least))
+      if (!edge_out_of_reach(B.v[eb.v0], B.fn[eb.f0], B.fn[eb.f1], in_a, least))
         group[n_group++] = j;
     }
     for (int k = 0; k < n_group; k += LANES)
@@ -549,7 +598,7 @@ int collide_polytopes(const Polytope& A, const Polytope& B, double tol, double s
       const HullEdge& ea = A.h->edge[i];
       const Vec3 pa = A.v[ea.v0], da = A.v[ea.v1] - pa;
       const Vec3 na0 = A.fn[ea.f0], na1 = A.fn[ea.f1];
-      if (edge_out_of_reach(pa, na0, na1, mean_b, least)) continue;
+      if (edge_out_of_reach(pa, na0, na1, in_b, least)) continue;
       const Vec3 bxa = cross(na1, na0);
       for (int k = 0; k < n_group; k += LANES) {
         for (unsigned bits = minkowski_faces(na0, na1, bxa, arcs[k / LANES]); bits; bits &= bits - 1) {
