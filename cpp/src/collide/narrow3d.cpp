@@ -540,20 +540,36 @@ inline Vec3 vertex_mean(const Polytope& P) {
   return (1.0 / P.h->vertex_count) * sum;
 }
 
-// Whether an edge (from p, between faces of outward normals n0 and n1) cannot be in an
-// edge pair that separates more than `least` (m, <= 0) from a convex body holding the
-// points x[0] and x[1]: along any direction L of its Gauss-map arc the edge supports its
-// hull, and the other body reaches no further than L · (x − p); over the arc that is at
-// most the larger of n0 · (x − p) and n1 · (x − p) when that is negative (L a positive
-// combination of n0 and n1, no longer than their sum). Any point of the body gives a
-// bound: its vertex mean passes over the edges that face away from it, the vertex
-// deepest below the hull's best face those away from where the two touch.
-inline bool edge_out_of_reach(Vec3 p, Vec3 n0, Vec3 n1, const Vec3* x, double least) {
-  for (int k = 0; k < 2; ++k) {
-    const Vec3 w = x[k] - p;
-    if (std::max(dot(n0, w), dot(n1, w)) + bound_slack(x[k], p) < least) return true;
+// Which of P's edges first .. first + n (n <= LANES) may be in an edge pair that separates
+// more than `least` (m, <= 0) from a convex body holding the points x[0] and x[1]: bit l
+// for edge first + l, four edges at a time in lanes. Along any direction L of an edge's
+// Gauss-map arc the edge supports its hull, and the other body reaches no further than
+// L · (x − p) (p on the edge); over the arc that is at most the larger of its two faces'
+// n · (x − p) when that is negative (L a positive combination of the two normals, no
+// longer than their sum), and the edge is out of reach when that bound is below `least`.
+// Any point of the body gives a bound: its vertex mean passes over the edges that face
+// away from it, the vertex deepest below the hull's best face those away from where the
+// two touch.
+inline unsigned edges_in_reach(const Polytope& P, int first, int n, const Vec3* x, double least) {
+  const Vec3 *p[LANES], *n0[LANES], *n1[LANES];
+  for (int l = 0; l < LANES; ++l) {  // a lane past n repeats the last edge
+    const HullEdge& e = P.h->edge[first + std::min(l, n - 1)];
+    p[l] = &P.v[e.v0], n0[l] = &P.fn[e.f0], n1[l] = &P.fn[e.f1];
   }
-  return false;
+  Lanes px, py, pz, ax, ay, az, bx, by, bz;
+  gather_xyz(p[0], p[1], p[2], p[3], px, py, pz);
+  gather_xyz(n0[0], n0[1], n0[2], n0[3], ax, ay, az);
+  gather_xyz(n1[0], n1[1], n1[2], n1[3], bx, by, bz);
+  LaneMask out = first_lanes(0);
+  for (int k = 0; k < 2; ++k) {
+    const Lanes wx = splat(x[k].x) - px, wy = splat(x[k].y) - py, wz = splat(x[k].z) - pz;
+    const Lanes d0 = ax * wx + ay * wy + az * wz, d1 = bx * wx + by * wy + bz * wz;
+    // bound_slack(x, p), its terms added in its order
+    const double xs = 1.0 + std::fabs(x[k].x) + std::fabs(x[k].y) + std::fabs(x[k].z);
+    const Lanes slack = splat(1e-9) * (splat(xs) + vabs(px) + vabs(py) + vabs(pz));
+    out = out | (vmax(d0, d1) + slack < splat(least));
+  }
+  return lane_bits(~out & first_lanes(n));
 }
 
 // Two hulls (or boxes taken as hulls): SAT over both hulls' faces and their edge pairs.
@@ -562,7 +578,7 @@ inline bool edge_out_of_reach(Vec3 p, Vec3 n0, Vec3 n1, const Vec3* x, double le
 // pairs that separate equally the first in (A's edge, B's edge) order is kept. An edge
 // pair counts only if it separates more than both hulls' faces (it must, to be the
 // contact or to part the hulls beyond reach), so an edge that faces away from the other
-// hull (edge_out_of_reach) is left out of the pairs.
+// hull (edges_in_reach) is left out of the pairs.
 constexpr int HULL_CLIP = 2 * HULL_MAX_FACE_VERTICES;
 constexpr int EDGE_GROUP = 16 * LANES;
 int collide_polytopes(const Polytope& A, const Polytope& B, double tol, double speculative,
@@ -574,7 +590,7 @@ int collide_polytopes(const Polytope& A, const Polytope& B, double tol, double s
   if (!deepest_face(B, A, mean_a - mean_b, speculative, sep_b, face_b)) return 0;
   // an edge pair must separate more than this to matter (m)
   const double least = std::min(std::max(sep_a, sep_b), 0.0);
-  // points of each hull for edge_out_of_reach: its vertex mean, and its vertex deepest
+  // points of each hull for edges_in_reach: its vertex mean, and its vertex deepest
   // below the other's best face
   const Vec3 in_a[2] = {mean_a, least_vertex(A, B.fn[face_b])};
   const Vec3 in_b[2] = {mean_b, least_vertex(B, A.fn[face_a])};
@@ -587,36 +603,39 @@ int collide_polytopes(const Polytope& A, const Polytope& B, double tol, double s
   int group[EDGE_GROUP];  // B's edges of the group (in order)
   for (int j = 0; j < n_b;) {
     int n_group = 0;
-    for (; j < n_b && n_group < EDGE_GROUP; ++j) {
-      const HullEdge& eb = B.h->edge[j];
-      if (!edge_out_of_reach(B.v[eb.v0], B.fn[eb.f0], B.fn[eb.f1], in_a, least))
-        group[n_group++] = j;
+    for (; j < n_b && n_group + LANES <= EDGE_GROUP; j += LANES) {
+      for (unsigned bits = edges_in_reach(B, j, std::min(LANES, n_b - j), in_a, least); bits; bits &= bits - 1)
+        group[n_group++] = j + std::countr_zero(bits);
     }
     for (int k = 0; k < n_group; k += LANES)
       arcs[k / LANES] = edge_arcs(B, group + k, std::min(LANES, n_group - k));
-    for (int i = 0; i < A.h->edge_count; ++i) {
-      const HullEdge& ea = A.h->edge[i];
-      const Vec3 pa = A.v[ea.v0], da = A.v[ea.v1] - pa;
-      const Vec3 na0 = A.fn[ea.f0], na1 = A.fn[ea.f1];
-      if (edge_out_of_reach(pa, na0, na1, in_b, least)) continue;
-      const Vec3 bxa = cross(na1, na0);
-      for (int k = 0; k < n_group; k += LANES) {
-        for (unsigned bits = minkowski_faces(na0, na1, bxa, arcs[k / LANES]); bits; bits &= bits - 1) {
-          const int jb = group[k + std::countr_zero(bits)];
-          const HullEdge& eb = B.h->edge[jb];
-          const Vec3 pb = B.v[eb.v0], db = B.v[eb.v1] - pb;
-          Vec3 L = cross(da, db);
-          const double len = length(L);
-          if (len <= EDGE_PARALLEL_SIN * length(da) * length(db)) continue;
-          if (dot(L, pa - mean_a) < 0.0) L = -L;  // out of A
-          const double s = dot(L, pb - pa) / len;
-          if (s > speculative) return 0;
-          // (a later group's pair comes after an earlier group's only if its A edge does)
-          if (s > sep_e || (s == sep_e && i < edge_a)) {
-            sep_e = s;
-            edge_a = i;
-            edge_b = jb;
-            axis_e = (1.0 / len) * L;
+    const int n_a = A.h->edge_count;
+    for (int i0 = 0; i0 < n_a; i0 += LANES) {
+      const unsigned reach = edges_in_reach(A, i0, std::min(LANES, n_a - i0), in_b, least);
+      for (unsigned left = reach; left; left &= left - 1) {
+        const int i = i0 + std::countr_zero(left);
+        const HullEdge& ea = A.h->edge[i];
+        const Vec3 pa = A.v[ea.v0], da = A.v[ea.v1] - pa;
+        const Vec3 na0 = A.fn[ea.f0], na1 = A.fn[ea.f1];
+        const Vec3 bxa = cross(na1, na0);
+        for (int k = 0; k < n_group; k += LANES) {
+          for (unsigned bits = minkowski_faces(na0, na1, bxa, arcs[k / LANES]); bits; bits &= bits - 1) {
+            const int jb = group[k + std::countr_zero(bits)];
+            const HullEdge& eb = B.h->edge[jb];
+            const Vec3 pb = B.v[eb.v0], db = B.v[eb.v1] - pb;
+            Vec3 L = cross(da, db);
+            const double len = length(L);
+            if (len <= EDGE_PARALLEL_SIN * length(da) * length(db)) continue;
+            if (dot(L, pa - mean_a) < 0.0) L = -L;  // out of A
+            const double s = dot(L, pb - pa) / len;
+            if (s > speculative) return 0;
+            // (a later group's pair comes after an earlier group's only if its A edge does)
+            if (s > sep_e || (s == sep_e && i < edge_a)) {
+              sep_e = s;
+              edge_a = i;
+              edge_b = jb;
+              axis_e = (1.0 / len) * L;
+            }
           }
         }
       }
