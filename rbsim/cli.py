@@ -160,7 +160,7 @@ def _cluster_options(function):  # noqa: ANN001, ANN202 - a click decorator
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="rbsim")
 def main() -> None:
-    """rbsim: run 2D rigid-body scenes (YAML) into HDF5 trajectories."""
+    """rbsim: run 2D and 3D rigid-body scenes (YAML) into HDF5 trajectories."""
 
 
 @main.command()
