@@ -5,6 +5,8 @@ by one with `stage` and read through `CoreWorld.storage`)."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -133,6 +135,33 @@ def test_a_bevelled_hull_rests_on_its_face_not_on_its_bevels() -> None:
     # 1e-6 m/s and rad/s: at rest (it rocked at 0.05 m/s and 0.35 rad/s)
     assert np.abs(world.state.body_v[1]).max() < 1e-6
     assert np.abs(world.state.body_w[1]).max() < 1e-6
+
+
+def test_a_many_sided_prism_rests_on_its_side() -> None:
+    """A 64-sided prism (radius 0.3 m) lying on one of its sides: the side is 3 cm wide
+    and the corners beside it are 1.4 mm up, within the speculative reach and further
+    out; it rests on the side's four corners and stays put (it rocked at 0.06 rad/s on
+    the corners 1.4 mm up, moving 3 mm a second)."""
+    sides, r = 64, 0.3
+    ring = [
+        (r * math.cos(2 * math.pi * k / sides), r * math.sin(2 * math.pi * k / sides))
+        for k in range(sides)
+    ]
+    points = [[x, y, z] for x in (-0.4, 0.4) for y, z in ring]
+    # turned about x so that the side between corners 31 and 32 is at the bottom
+    text = BRICK.format(points=str(points)).replace(
+        "position: [0, 0.15, 0],",
+        f"position: [0, {r * math.cos(math.pi / sides)!r}, 0],"
+        f" rotation: {{axis: [1, 0, 0], angle: {math.pi / 2 + math.pi / sides!r}}},",
+    )
+    world = CoreWorld.from_scene(scene_from(text))
+    c, n = manifolds(world)
+    assert n == 1 and c.points[0] == 4
+    np.testing.assert_allclose(separations(c, 0), 0.0, atol=1e-9)  # m: on the ground
+    world.advance(480)
+    # 0.01 rad/s and 1 mm in 2 s: it stays on its side (it rocked at 0.06 rad/s and crept)
+    assert np.abs(world.state.body_w[1]).max() < 0.01
+    assert np.linalg.norm(world.state.body_x[1, [0, 2]]) < 1e-3
 
 
 TETRA = SCENE.format(y=0.5)

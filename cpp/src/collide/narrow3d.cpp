@@ -35,7 +35,6 @@ namespace rbsim {
 namespace {
 
 using constants::LINEAR_EPSILON;
-using constants::LINEAR_SLOP;
 using constants::REFERENCE_FACE_TOLERANCE;
 
 constexpr double INF = std::numeric_limits<double>::infinity();
@@ -670,11 +669,12 @@ inline Polytope box_polytope(const ShapeRef3& box, Vec3* corners, Vec3* normals)
 inline Polytope hull_polytope(const ShapeRef3& s) { return {s.verts, s.face_normals, &s.hull}; }
 
 // The corners of a polytope within reach of a plane (b): up to four, reduced. Where more
-// than four are within reach and three or more of them rest on the plane (within
-// LINEAR_SLOP, at the pair's scale, of the deepest), the four are chosen among the
-// resting ones: a hull with bevelled edges lies on its face's corners, not on the bevels'
-// corners a centimetre up, which reach further out and won the reduction (a bevelled
-// brick alone on the ground rested on one corner and three gaps, and rocked at 0.35 rad/s).
+// than four are within reach and three or more of them rest on the plane (within the face
+// tolerance, REFERENCE_FACE_TOLERANCE at the pair's scale, of the deepest), the four are
+// chosen among the resting ones: the reduction keeps the corners that reach furthest
+// out, and a hull's corners just off its resting face won it. A brick with 2 cm bevels
+// rested on one corner and three gaps and rocked at 0.35 rad/s; a 64-sided prism lying
+// on a side (its face 3 cm wide, the next corners 1.4 mm up) rocked at 0.06 rad/s.
 int polytope_plane(const Vec3* verts, int count, const ShapeRef3& plane, double speculative,
                    Manifold3& out) {
   const Vec3 n = plane.normal;
@@ -689,7 +689,7 @@ int polytope_plane(const Vec3* verts, int count, const ShapeRef3& plane, double 
   }
   double reach = speculative;  // m: the candidates' largest separation
   if (within > 4) {
-    const double resting = deepest + plane.scale * LINEAR_SLOP;
+    const double resting = deepest + plane.scale * REFERENCE_FACE_TOLERANCE;
     int on = 0;
     for (int i = 0; i < count; ++i) on += separation(i) <= resting ? 1 : 0;
     if (on >= 3) reach = std::min(resting, speculative);
