@@ -461,9 +461,9 @@ inline double least_along(Vec3 n, Vec3 o, const Vec3* v, int count) {
   return s;
 }
 
-// Round-off allowance (m) of a bound n · (x − o) on a separation, with x the mean of a
-// hull's vertices: far above the rounding of the mean and the product (1e-16 of the
-// coordinates), far below any separation that matters.
+// Round-off allowance (m) of a bound n · (x − o) on a separation, x a point of the other
+// hull (a vertex, or its vertices' mean): far above the rounding of the mean and the
+// product (1e-16 of the coordinates), far below any separation that matters.
 inline double bound_slack(Vec3 x, Vec3 o) {
   return 1e-9 * (1.0 + std::fabs(x.x) + std::fabs(x.y) + std::fabs(x.z) + std::fabs(o.x) +
                  std::fabs(o.y) + std::fabs(o.z));
@@ -577,7 +577,7 @@ inline unsigned edges_in_reach(const Polytope& P, int first, int n, const Vec3* 
 // pairs that separate equally the first in (A's edge, B's edge) order is kept. An edge
 // pair counts only if it separates more than both hulls' faces (it must, to be the
 // contact or to part the hulls beyond reach), so an edge that faces away from the other
-// hull (edges_in_reach) is left out of the pairs.
+// hull or lies away from where the two touch (edges_in_reach) is left out of the pairs.
 constexpr int HULL_CLIP = 2 * HULL_MAX_FACE_VERTICES;
 constexpr int EDGE_GROUP = 16 * LANES;
 int collide_polytopes(const Polytope& A, const Polytope& B, double tol, double speculative,
