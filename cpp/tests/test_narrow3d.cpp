@@ -373,6 +373,34 @@ TEST(capsule_lying_on_a_box) {
 
 // ---- boxes -------------------------------------------------------------------------------
 
+// A capsule tipping over a box's top edge onto its face: the core's closest point is
+// just past the edge (it runs down towards it), the face's separation at the edge a
+// little more. The manifold is the face's two points (the part of the core over the
+// face: at the edge and at the inner end), normal up, their separations lowered so that
+// the least is the true distance less the radius; one point at the closest points let
+// the inner end sink into the box before the next step.
+TEST(capsule_tipping_over_a_box_edge_gets_the_faces_two_points) {
+  const auto box = box_ref({0, 0, 0}, {}, {0.5, 0.5, 0.5});  // top face y = 0.5, edge x = 0.5
+  const double r = 0.1;
+  const Vec3 p{0.0, 0.62, 0.0}, q{0.6, 0.60, 0.0};  // 12 and 10 cm over the face's plane
+  const auto m = collide(capsule_ref(p, q, r), box);
+  // the true distance: past the edge the core runs down at slope k from height h over it
+  const double k = 0.02 / 0.6, h = 0.62 - k * 0.5 - 0.5;
+  const double dist = h / std::sqrt(1.0 + k * k);
+  CHECK(m.n == 2);
+  CHECK_VEC(m.m.normal, {0, 1, 0}, 1e-12, "the face's normal");
+  const double lower = (h - r) - (dist - r);  // the face's least overstated it by this
+  CHECK(lower > 1e-5);  // (the case: the closest point is off the face)
+  CHECK(has_point(m, {0.5, 0.5 + 0.5 * (h - r), 0.0}, 1e-12));  // at the edge, midway
+  double least = INFINITY, most = -INFINITY;
+  for (int k2 = 0; k2 < m.n; ++k2) {
+    least = std::min(least, m.m.separation[k2]);
+    most = std::max(most, m.m.separation[k2]);
+  }
+  CHECK_NEAR(least, dist - r, 1e-12);       // the true distance, less the radius
+  CHECK_NEAR(most, (0.12 - r) - lower, 1e-12);  // the inner end's height, lowered alike
+}
+
 // A box from its 8 corners in the model's order is the box they came from.
 TEST(box_from_its_corners) {
   const Quat q = axis_angle({1, 2, -1}, 0.8);

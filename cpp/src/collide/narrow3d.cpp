@@ -1051,10 +1051,32 @@ int capsule_polytope(const ShapeRef3& a, const Polytope& B, const std::int32_t* 
       }
     }
     if (best - r > speculative) return 0;
-    // over the face's interior the face's separation is the distance
-    if (best <= sep_f + LINEAR_EPSILON) {
-      const int n = capsule_on_face(a, B, face, speculative, out);
-      if (n >= 0) return n;
+    // over the face's interior the face's separation is the distance. Nearly over it (the
+    // core's closest point off the face by up to LINEAR_SLOP's worth of distance) the
+    // face's points serve too, their separations lowered together so that the least is
+    // the true distance (it is never overstated): with the one point there, a capsule
+    // tipping over a box's edge onto its face put its other end up to 7 mm into the box
+    // within the step, and the deep overlap cost a heap's landing extra relax passes
+    if (best <= sep_f + a.scale * constants::LINEAR_SLOP) {
+      Manifold3 on_face;
+      const int n = capsule_on_face(a, B, face, INF, on_face);
+      if (n > 0) {
+        double least = INF;
+        for (int k = 0; k < n; ++k) least = std::min(least, on_face.separation[k]);
+        const double over = least - (best - r);  // m: how far the face's points overstate it
+        const double lower = over > LINEAR_EPSILON ? over : 0.0;
+        int count = 0;
+        for (int k = 0; k < n; ++k) {
+          const double sep = on_face.separation[k] - lower;
+          if (sep > speculative) continue;
+          out.point[count] = on_face.point[k];
+          out.separation[count] = sep;
+          out.id[count] = on_face.id[k];
+          ++count;
+        }
+        out.normal = on_face.normal;
+        return count;
+      }
     }
     const Vec3 dv = xs - xh;
     const double dist = length(dv);
