@@ -135,6 +135,12 @@ inline void gather_xyz(const Vec3* p0, const Vec3* p1, const Vec3* p2, const Vec
 struct LanesXYZ {
   Lanes x, y, z;
 };
+// a · b lane by lane, the products summed x, y, z as math.hpp's dot() sums them (a Vec3
+// the same in every lane)
+inline Lanes dot(const LanesXYZ& a, const LanesXYZ& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+inline Lanes dot(Vec3 a, const LanesXYZ& b) {
+  return splat(a.x) * b.x + splat(a.y) * b.y + splat(a.z) * b.z;
+}
 inline LanesXYZ load_xyz(const Vec3* p) {
   const double* d = &p->x;
   const Lanes a = load_lanes(d), b = load_lanes(d + 4), c = load_lanes(d + 8);

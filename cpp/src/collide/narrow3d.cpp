@@ -401,7 +401,7 @@ inline int incident_face(const Polytope& P, Vec3 n) {
 // of the edge's two faces, bxa = b × a, along the edge) and B's arc c-d (its faces'
 // normals negated, dxc = d × c).
 struct EdgeArcs {
-  Lanes cx, cy, cz, dx, dy, dz, ex, ey, ez;  // c, d and e = d × c of four edges of B
+  LanesXYZ c, d, e;  // c, d and e = d × c of four edges of B
 };
 // B's edges idx[0 .. n) (n <= LANES) as arcs; a lane past them is zeros, which no test
 // passes.
@@ -410,18 +410,15 @@ inline EdgeArcs edge_arcs(const Polytope& B, const int* idx, int n) {
   for (int l = 0; l < n; ++l) {
     const HullEdge& e = B.h->edge[idx[l]];
     const Vec3 c = -B.fn[e.f0], d = -B.fn[e.f1], dxc = cross(d, c);
-    g.cx[l] = c.x, g.cy[l] = c.y, g.cz[l] = c.z;
-    g.dx[l] = d.x, g.dy[l] = d.y, g.dz[l] = d.z;
-    g.ex[l] = dxc.x, g.ey[l] = dxc.y, g.ez[l] = dxc.z;
+    g.c.x[l] = c.x, g.c.y[l] = c.y, g.c.z[l] = c.z;
+    g.d.x[l] = d.x, g.d.y[l] = d.y, g.d.z[l] = d.z;
+    g.e.x[l] = dxc.x, g.e.y[l] = dxc.y, g.e.z[l] = dxc.z;
   }
   return g;
 }
 inline unsigned minkowski_faces(Vec3 a, Vec3 b, Vec3 bxa, const EdgeArcs& g) {
-  auto along = [](Vec3 v, Lanes x, Lanes y, Lanes z) {  // v · (x, y, z), as dot() rounds
-    return splat(v.x) * x + splat(v.y) * y + splat(v.z) * z;
-  };
-  const Lanes cba = along(bxa, g.cx, g.cy, g.cz), dba = along(bxa, g.dx, g.dy, g.dz);
-  const Lanes adc = along(a, g.ex, g.ey, g.ez), bdc = along(b, g.ex, g.ey, g.ez);
+  const Lanes cba = dot(bxa, g.c), dba = dot(bxa, g.d);
+  const Lanes adc = dot(a, g.e), bdc = dot(b, g.e);
   const Lanes zero = splat(0.0);
   return lane_bits((cba * dba < zero) & (adc * bdc < zero) & (cba * bdc > zero));
 }
@@ -448,12 +445,11 @@ inline double least_along(Vec3 n, Vec3 o, const Vec3* v, int count) {
   double s = INF;
   int j = 0;
   if (count >= LANES) {
-    const Lanes nx = splat(n.x), ny = splat(n.y), nz = splat(n.z);
     const Lanes ox = splat(o.x), oy = splat(o.y), oz = splat(o.z);
     Lanes least = splat(INF);
     for (; j + LANES <= count; j += LANES) {
       const LanesXYZ p = load_xyz(v + j);
-      least = vmin(least, nx * (p.x - ox) + ny * (p.y - oy) + nz * (p.z - oz));
+      least = vmin(least, dot(n, LanesXYZ{p.x - ox, p.y - oy, p.z - oz}));
     }
     s = std::min(std::min(least[0], least[1]), std::min(least[2], least[3]));
   }
@@ -555,18 +551,17 @@ inline unsigned edges_in_reach(const Polytope& P, int first, int n, const Vec3* 
     const HullEdge& e = P.h->edge[first + std::min(l, n - 1)];
     p[l] = &P.v[e.v0], n0[l] = &P.fn[e.f0], n1[l] = &P.fn[e.f1];
   }
-  Lanes px, py, pz, ax, ay, az, bx, by, bz;
-  gather_xyz(p[0], p[1], p[2], p[3], px, py, pz);
-  gather_xyz(n0[0], n0[1], n0[2], n0[3], ax, ay, az);
-  gather_xyz(n1[0], n1[1], n1[2], n1[3], bx, by, bz);
+  LanesXYZ pl, a, b;  // each edge's start and its two faces' normals
+  gather_xyz(p[0], p[1], p[2], p[3], pl.x, pl.y, pl.z);
+  gather_xyz(n0[0], n0[1], n0[2], n0[3], a.x, a.y, a.z);
+  gather_xyz(n1[0], n1[1], n1[2], n1[3], b.x, b.y, b.z);
   LaneMask out = first_lanes(0);
   for (int k = 0; k < 2; ++k) {
-    const Lanes wx = splat(x[k].x) - px, wy = splat(x[k].y) - py, wz = splat(x[k].z) - pz;
-    const Lanes d0 = ax * wx + ay * wy + az * wz, d1 = bx * wx + by * wy + bz * wz;
+    const LanesXYZ w{splat(x[k].x) - pl.x, splat(x[k].y) - pl.y, splat(x[k].z) - pl.z};
     // bound_slack(x, p), its terms added in its order
     const double xs = 1.0 + std::fabs(x[k].x) + std::fabs(x[k].y) + std::fabs(x[k].z);
-    const Lanes slack = splat(1e-9) * (splat(xs) + vabs(px) + vabs(py) + vabs(pz));
-    out = out | (vmax(d0, d1) + slack < splat(least));
+    const Lanes slack = splat(1e-9) * (splat(xs) + vabs(pl.x) + vabs(pl.y) + vabs(pl.z));
+    out = out | (vmax(dot(a, w), dot(b, w)) + slack < splat(least));
   }
   return lane_bits(~out & first_lanes(n));
 }

@@ -38,9 +38,7 @@ inline Vec2 world_point(Vec2 x, Rot2 q, Vec2 l) {
 // x + R l for LANES body-frame points l (m), lane by lane: Mat3 * Vec3's products and
 // sums in its order, then x added, as for one point.
 inline LanesXYZ world_points(Vec3 x, const Mat3& m, const LanesXYZ& l) {
-  auto row = [&](int i) {
-    return splat(m.r[i][0]) * l.x + splat(m.r[i][1]) * l.y + splat(m.r[i][2]) * l.z;
-  };
+  auto row = [&](int i) { return dot(Vec3{m.r[i][0], m.r[i][1], m.r[i][2]}, l); };
   return {splat(x.x) + row(0), splat(x.y) + row(1), splat(x.z) + row(2)};
 }
 

@@ -44,25 +44,23 @@ inline void approach_point(const State<D>& st, Contacts<D>& c, std::int64_t m, i
   c.approach_separation[m][k] = c.base_separation[m][k] + dot(n, sa - sb);
 }
 
-// 3D vectors in lanes, one point of a row in each (wide.hpp's LanesXYZ), and what
-// prepare_points_3d does with them: the scalar operations of math.hpp in their order,
-// lane by lane.
-using Lanes3 = LanesXYZ;
-inline Lanes3 cross(const Lanes3& a, Vec3 b) {
+// 3D vectors in lanes, one point of a row in each (wide.hpp's LanesXYZ, and its dot), and
+// what prepare_points_3d does with them: the scalar operations of math.hpp in their
+// order, lane by lane.
+inline LanesXYZ cross(const LanesXYZ& a, Vec3 b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
-inline Lanes dot(const Lanes3& a, const Lanes3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-inline Lanes3 times(const Sym3& m, const Lanes3& v) {
+inline LanesXYZ times(const Sym3& m, const LanesXYZ& v) {
   return {m.xx * v.x + m.xy * v.y + m.xz * v.z, m.xy * v.x + m.yy * v.y + m.yz * v.z,
           m.xz * v.x + m.yz * v.y + m.zz * v.z};
 }
 // point k's vector of the manifold (m) in lane k, lanes past the count zero
-inline Lanes3 load_points(const std::array<Vec3, 4>& p, LaneMask live) {
+inline LanesXYZ load_points(const std::array<Vec3, 4>& p, LaneMask live) {
   const LanesXYZ v = load_xyz(p.data());
   const Lanes zero = splat(0.0);
   return {select(live, v.x, zero), select(live, v.y, zero), select(live, v.z, zero)};
 }
-inline void store_points(Vec3x4& out, const Lanes3& v) {
+inline void store_points(Vec3x4& out, const LanesXYZ& v) {
   std::memcpy(out.x, &v.x, sizeof v.x);
   std::memcpy(out.y, &v.y, sizeof v.y);
   std::memcpy(out.z, &v.z, sizeof v.z);
@@ -84,11 +82,11 @@ void prepare_points_3d(const State<3>& st, Contacts<3>& c, std::int64_t m, int a
   const LaneMask live = first_lanes(npts);
   const Lanes zero = splat(0.0), mass = splat(ma + mb);
   auto& P = row.point;
-  const Lanes3 ra = load_points(c.anchor_a[m], live), rb = load_points(c.anchor_b[m], live);
+  const LanesXYZ ra = load_points(c.anchor_a[m], live), rb = load_points(c.anchor_b[m], live);
   store_points(P.arm_a, ra);
   store_points(P.arm_b, rb);
-  const Lanes3 rna = cross(ra, n), rnb = cross(rb, n);
-  const Lanes3 wna = times(ia, rna), wnb = times(ib, rnb);
+  const LanesXYZ rna = cross(ra, n), rnb = cross(rb, n);
+  const LanesXYZ wna = times(ia, rna), wnb = times(ib, rnb);
   store_points(P.rna, rna);
   store_points(P.rnb, rnb);
   store_points(P.wna, wna);
@@ -96,8 +94,8 @@ void prepare_points_3d(const State<3>& st, Contacts<3>& c, std::int64_t m, int a
   const Lanes kn = (mass + dot(rna, wna)) + dot(rnb, wnb);  // 1/kg
   const Lanes normal_mass = select(kn > zero, splat(1.0) / select(kn > zero, kn, splat(1.0)), zero);
   // the tangent block and its inverse (kg)
-  const Lanes3 a1 = cross(ra, t1), a2 = cross(ra, t2), b1 = cross(rb, t1), b2 = cross(rb, t2);
-  const Lanes3 ia1 = times(ia, a1), ia2 = times(ia, a2), ib1 = times(ib, b1), ib2 = times(ib, b2);
+  const LanesXYZ a1 = cross(ra, t1), a2 = cross(ra, t2), b1 = cross(rb, t1), b2 = cross(rb, t2);
+  const LanesXYZ ia1 = times(ia, a1), ia2 = times(ia, a2), ib1 = times(ib, b1), ib2 = times(ib, b2);
   store_points(P.rt1a, a1);
   store_points(P.rt2a, a2);
   store_points(P.rt1b, b1);
@@ -122,7 +120,7 @@ void prepare_points_3d(const State<3>& st, Contacts<3>& c, std::int64_t m, int a
   std::memcpy(P.tangent_mass, &tangent_mass, sizeof tangent_mass);
   const Lanes base = select(live, load_lanes(c.base_separation[m].data()), zero);
   std::memcpy(P.base, &base, sizeof base);
-  const Lanes3 sa = load_points(c.sep_anchor_a[m], live), sb = load_points(c.sep_anchor_b[m], live);
+  const LanesXYZ sa = load_points(c.sep_anchor_a[m], live), sb = load_points(c.sep_anchor_b[m], live);
   store_points(P.ra, sa);
   store_points(P.rb, sb);
   for (int k = 0; k < npts; ++k) {
@@ -131,7 +129,7 @@ void prepare_points_3d(const State<3>& st, Contacts<3>& c, std::int64_t m, int a
   }
   // I_a⁻¹(r_a × t1), I_a⁻¹(r_a × t2), I_b⁻¹ alike (1/(kg·m)), for the couplings
   alignas(32) double inv_rt[4][3][4];  // [which][axis][point]
-  const Lanes3* rows[4] = {&ia1, &ia2, &ib1, &ib2};
+  const LanesXYZ* rows[4] = {&ia1, &ia2, &ib1, &ib2};
   for (int q = 0; q < 4; ++q) {
     std::memcpy(inv_rt[q][0], &rows[q]->x, sizeof(Lanes));
     std::memcpy(inv_rt[q][1], &rows[q]->y, sizeof(Lanes));

@@ -91,7 +91,7 @@ inline void push_point(const Model<D>& model, State<D>& st, int a, int b,
 
 // 3D: w · r_k for the four points' vectors r (lane k: point k).
 inline Lanes dot_lanes(Vec3 w, const Vec3x4& r) {
-  return splat(w.x) * load_lanes(r.x) + splat(w.y) * load_lanes(r.y) + splat(w.z) * load_lanes(r.z);
+  return dot(w, LanesXYZ{load_lanes(r.x), load_lanes(r.y), load_lanes(r.z)});
 }
 
 // 3D: an orthonormal tangent basis t1, t2 of the plane normal to the unit vector n, with
