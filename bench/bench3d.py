@@ -46,7 +46,7 @@ from __future__ import annotations
 import math
 import statistics
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -111,6 +111,25 @@ def _head(name: str) -> str:
     return HEAD.format(name=name)
 
 
+def _turned(
+    name: str,
+    position: Sequence[float],
+    axis: Sequence[float],
+    angle: float,
+    shape: str,
+    digits: int = 3,
+) -> str:
+    """One body's YAML lines: at `position` (m, 3 decimals), turned by `angle` (rad) about
+    `axis` (both to `digits` decimals), of the inline `shape`, in wood."""
+    x, y, z = position
+    a = ", ".join(f"{c:.{digits}f}" for c in axis)
+    return (
+        f"  - name: {name}\n    position: [{x:.3f}, {y:.3f}, {z:.3f}]\n"
+        f"    rotation: {{axis: [{a}], angle: {angle:.{digits}f}}}\n"
+        f"    shape: {shape}\n    material: wood\n"
+    )
+
+
 def stack10() -> str:
     """A stack of 10 unit boxes resting on the plane."""
     return _head("stack10") + (
@@ -134,16 +153,9 @@ def tumble100() -> str:
         for j in range(4):
             for m in range(5):
                 axis = [math.sin(1.3 * k + 0.2), math.cos(0.7 * k), math.sin(2.1 * k + 1.0)]
-                angle = 0.37 * k % math.pi
-                x, y, z = -1.8 + 0.9 * i, 0.9 + 0.9 * j, -1.8 + 0.9 * m
-                lines.append(
-                    f"  - name: box{k}\n"
-                    f"    position: [{x:.3f}, {y:.3f}, {z:.3f}]\n"
-                    f"    rotation: {{axis: [{axis[0]:.4f}, {axis[1]:.4f}, {axis[2]:.4f}],"
-                    f" angle: {angle:.4f}}}\n"
-                    "    shape: {box: {size: [0.5, 0.5, 0.5]}}\n"
-                    "    material: wood\n"
-                )
+                position = (-1.8 + 0.9 * i, 0.9 + 0.9 * j, -1.8 + 0.9 * m)
+                box = "{box: {size: [0.5, 0.5, 0.5]}}"
+                lines.append(_turned(f"box{k}", position, axis, 0.37 * k % math.pi, box, 4))
                 k += 1
     return _head("tumble100") + "".join(lines)
 
@@ -193,14 +205,9 @@ def capsules200() -> str:
     for k in range(200):
         i, j, m = k // 40, k // 5 % 8, k % 5
         axis = [math.sin(1.1 * k + 0.3), math.cos(0.9 * k), math.sin(1.7 * k + 0.5)]
-        lines.append(
-            f"  - name: c{k}\n"
-            f"    position: [{-1.6 + 0.8 * i:.3f}, {0.5 + 0.6 * j:.3f}, {-1.6 + 0.8 * m:.3f}]\n"
-            f"    rotation: {{axis: [{axis[0]:.3f}, {axis[1]:.3f}, {axis[2]:.3f}],"
-            f" angle: {0.41 * k % 3.1:.3f}}}\n"
-            "    shape: {capsule: {a: [-0.2, 0, 0], b: [0.2, 0, 0], radius: 0.1}}\n"
-            "    material: wood\n"
-        )
+        position = (-1.6 + 0.8 * i, 0.5 + 0.6 * j, -1.6 + 0.8 * m)
+        capsule = "{capsule: {a: [-0.2, 0, 0], b: [0.2, 0, 0], radius: 0.1}}"
+        lines.append(_turned(f"c{k}", position, axis, 0.41 * k % 3.1, capsule))
     return _head("capsules200") + "".join(lines)
 
 
@@ -233,12 +240,7 @@ def mixed150() -> str:
             shape = f"{{sphere: {{radius: {0.1 + 0.2 * ((k * 5) % 7) / 6:.3f}}}}}"
         else:
             shape = "{capsule: {a: [-0.25, 0, 0], b: [0.25, 0, 0], radius: 0.12}}"
-        lines.append(
-            f"  - name: b{k}\n    position: [{x:.3f}, {y:.3f}, {z:.3f}]\n"
-            f"    rotation: {{axis: [{axis[0]:.3f}, {axis[1]:.3f}, {axis[2]:.3f}],"
-            f" angle: {0.53 * k % 3.0:.3f}}}\n"
-            f"    shape: {shape}\n    material: wood\n"
-        )
+        lines.append(_turned(f"b{k}", (x, y, z), axis, 0.53 * k % 3.0, shape))
     return _head("mixed150") + "".join(lines)
 
 
@@ -256,12 +258,8 @@ def pebbles120() -> str:
         vertices = ", ".join(f"[{a:.3f}, {b:.3f}, {c:.3f}]" for a, b, c in points)
         x, y, z = -2 + 1.0 * (k % 5), 0.6 + 0.8 * ((k // 5) % 6), -1.5 + 1.0 * (k // 30)
         axis = [math.sin(0.9 * k + 0.1), math.cos(1.3 * k), math.sin(0.5 * k + 2.0)]
-        lines.append(
-            f"  - name: p{k}\n    position: [{x:.3f}, {y:.3f}, {z:.3f}]\n"
-            f"    rotation: {{axis: [{axis[0]:.3f}, {axis[1]:.3f}, {axis[2]:.3f}],"
-            f" angle: {0.53 * k % 3.0:.3f}}}\n"
-            f"    shape: {{convex: {{vertices: [{vertices}]}}}}\n    material: wood\n"
-        )
+        shape = f"{{convex: {{vertices: [{vertices}]}}}}"
+        lines.append(_turned(f"p{k}", (x, y, z), axis, 0.53 * k % 3.0, shape))
     return _head("pebbles120") + "".join(lines)
 
 
