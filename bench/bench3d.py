@@ -355,13 +355,17 @@ def _meshes(scene: Scene) -> list[str]:
     return ["  <asset>", *lines, "  </asset>"] if lines else []
 
 
-def mjcf_contacts(scene: Scene, options: dict[str, str] | None = None) -> str:
+def mjcf_contacts(
+    scene: Scene, options: dict[str, str] | None = None, model: Model | None = None
+) -> str:
     """The MJCF text of a 3D scene WITH contacts (MuJoCo's defaults, the module's
     docstring): every body a MuJoCo body at its origin with its orientation, dynamic
     ones with a free joint and rbsim's mass (kg) and inertia (kg·m², about the COM);
     static ones welded to the world; one step of the scene's dt (s); `options`: more
-    attributes of MJCF's <option> (e.g. {"solver": "CG"})."""
-    model, _ = build(scene)
+    attributes of MJCF's <option> (e.g. {"solver": "CG"}); `model`: the scene built, if
+    the caller has built it."""
+    if model is None:
+        model, _ = build(scene)
     extra = "".join(f' {k}="{v}"' for k, v in (options or {}).items())
     lines = [
         f'<mujoco model="{scene.name}">',
@@ -444,11 +448,11 @@ class MujocoRunner(Runner):
 
     def __init__(self, scene: Scene) -> None:
         options = MUJOCO_OPTIONS.get(scene.name)
-        self.model = mujoco.MjModel.from_xml_string(mjcf_contacts(scene, options))
+        model, state = build(scene)
+        self.model = mujoco.MjModel.from_xml_string(mjcf_contacts(scene, options, model))
         self.data = mujoco.MjData(self.model)
         # the scene's velocities (a thrown ball, a pushed domino): a free joint's qvel is
         # its frame origin's velocity (world) and ω in the body's frame
-        model, state = build(scene)
         origin_v, w = start_velocities(model, state)
         qvel = self.data.qvel.reshape(-1, 6)
         dynamic = np.flatnonzero(model.body_type == T.BODY_DYNAMIC)
