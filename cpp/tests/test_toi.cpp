@@ -270,6 +270,69 @@ TEST(rotating_box_meets_the_wall_with_the_corner_that_swings_in) {
   CHECK_NEAR(hit.m.normal.x, 1.0, 1e-15);  // from the plank (b) to the wall (a)
 }
 
+// A cube spinning fast about the normal of the wall it drifts into (30 rad/s about x,
+// 1 m/s along x, its face parallel to the wall's, 1 cm off): its turn moves no point
+// towards the wall, and the search's bound on the closing speed is the drift alone, so
+// that it reaches the impact, 1 cm / 1 m/s, to its tolerance. (Bounded by |ω| ρ, six
+// times the drift, each advancement closed a sixth of the gap, and 12 of them left
+// 1.2 mm.)
+TEST(cube_spinning_about_the_normal_reaches_the_impact) {
+  SceneBuilder3 s;
+  s.world.model.gravity = {0.0, 0.0, 0.0};
+  s.box({0.2 + 0.05, 0.0, 0.0}, {0.05, 2.0, 2.0}, 0.0);  // the wall's face at x = 0.2
+  s.box({0.09, 0.0, 0.0}, {0.1, 0.1, 0.1}, 1.0, {}, {}, {1.0, 0.0, 0.0}, {30.0, 0.0, 0.0});
+  World<3>& w = s.finish(1.0 / 60.0, 4);
+  const Hit3 hit = search3(w, 0, 1);
+  CHECK(hit.start_points == 4);
+  CHECK(hit.impact.points == 4);
+  CHECK_NEAR(hit.impact.t, 0.01, 2e-9);  // s: the gap over the speed, to TOI_TOLERANCE
+  CHECK(std::fabs(smallest_separation(hit)) <= 1e-9);
+  CHECK_NEAR(hit.m.normal.x, 1.0, 1e-12);
+}
+
+// A box tumbling onto the ground (1 m/s down, 10 rad/s about z, a corner 1 cm up): the
+// bound on the closing speed, 1 + 10 · 0.17 m/s, is about twice the corner's true one,
+// and the advancements alone, each halving the gap, ran out 12 calls short of the
+// tolerance. The trial steps reach the first time a corner touches, as a fine scan of
+// the corners' true (turning) paths finds it, to the search's tolerance.
+TEST(tumbling_box_reaches_the_impact_with_trial_steps) {
+  SceneBuilder3 s;
+  s.world.model.gravity = {0.0, 0.0, 0.0};
+  s.box({0.0, -0.5, 0.0}, {2.0, 0.5, 2.0}, 0.0);  // the ground's top at y = 0
+  const Vec3 h{0.1, 0.1, 0.1}, v{0.0, -1.0, 0.0}, om{0.0, 0.0, 10.0};
+  const Quat q0 = about({0.0, 0.0, 1.0}, 0.3);
+  double low = 0.0;  // m: the lowest corner below the centre at the start
+  for (int k = 0; k < 8; ++k)
+    low = std::min(low, rotate(q0, {k & 1 ? h.x : -h.x, k & 2 ? h.y : -h.y, k & 4 ? h.z : -h.z}).y);
+  const double y0 = 0.01 - low;  // m: the centre, its lowest corner 1 cm up
+  s.box({0.0, y0, 0.0}, h, 1.0, {}, q0, v, om);
+  World<3>& w = s.finish(1.0 / 60.0, 4);
+  auto bottom = [&](double t) {  // the corners' lowest y at time t on their true paths
+    const Quat q = mul(about(om, length(om) * t), q0);
+    double y = 1e9;
+    for (int k = 0; k < 8; ++k) {
+      const Vec3 c{k & 1 ? h.x : -h.x, k & 2 ? h.y : -h.y, k & 4 ? h.z : -h.z};
+      y = std::min(y, y0 + t * v.y + rotate(q, c).y);
+    }
+    return y;
+  };
+  double lo = 0.0, hi = w.config.dt;
+  CHECK(bottom(hi) < 0.0);  // it lands within the step
+  for (double t = 0.0; t < w.config.dt; t += 1e-6) {  // the first crossing, then bisect
+    if (bottom(t) <= 0.0) {
+      hi = t;
+      break;
+    }
+    lo = t;
+  }
+  for (int i = 0; i < 60; ++i) (bottom(0.5 * (lo + hi)) <= 0.0 ? hi : lo) = 0.5 * (lo + hi);
+  const Hit3 hit = search3(w, 0, 1);
+  CHECK(hit.impact.points >= 1);
+  CHECK(std::fabs(smallest_separation(hit)) <= 1e-9);
+  // the corners close at most 1 + 10 · 0.17 m/s: 1e-9 m of gap is at most 1e-9 s
+  CHECK_NEAR(hit.impact.t, hi, 2e-9);
+}
+
 // The same plank's speculative manifold at the step's start asks for the search, though
 // its nearest point at its own speed would not meet within the step: the search's bound
 // on the closing speed takes in the turn.

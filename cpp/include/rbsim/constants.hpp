@@ -143,6 +143,11 @@ inline constexpr int RESTITUTION_PASSES = 16;
 inline constexpr double TOI_TOLERANCE = 1.0e-9;
 inline constexpr int TOI_ITERATIONS = 12;
 inline constexpr double TOI_FINISH = 1.0e-6;
+// In 3D the search's faster trial steps (toi.cpp) reach no further than the bound on the
+// closing speed can close the gap plus this, m (0.2 * LINEAR_SLOP, scaled as it): the
+// most two shapes can overlap along the normal before a trial. Larger lets trials reach
+// further ahead; a shape thinner than it could be passed through.
+inline constexpr double TOI_OVERLAP = 0.2 * LINEAR_SLOP;
 
 // Narrowphase: a reference face is preferred unless another is deeper by more than
 // this, m (0.1 * LINEAR_SLOP: faces of a resting box do not flicker), and in 3D an

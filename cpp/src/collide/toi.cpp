@@ -17,15 +17,56 @@ namespace {
 // `tolerance` (m), the pair separates, or TOI_ITERATIONS advancements were made (each one
 // narrowphase call). An impact that falls after the step is taken at the step's end only
 // when the search came within `finish` (m) of it.
+//
+// In space the approach speed is a bound (search_approach), and for a turning body it
+// can be twice the gap's true rate or more: each advancement closes only part of the gap,
+// and a pebble landing at 5 m/s took all 12 to close 2 cm to a few µm. There a faster
+// step is tried first: the root of the line through the last two samples (secant), or,
+// once a sample has passed the impact, of the line to that one (regula falsi). It is kept
+// if it lands short of the impact or within `tolerance` past it, and otherwise bounds the
+// impact from above. No trial reaches further than the bound can close the gap plus
+// `overlap` (m): along the normal the shapes then overlap by no more than that at any
+// time up to the trial, so that a trial neither passes through a shape nor skips more
+// than a graze of that depth (once the gap is below `overlap` the trials can reach
+// several advancements ahead).
 template <int D, class Manifold, class Collide>
 Impact advance_to_impact(const State<D>& st, int ba, int bb, int npts, double dt,
-                         double tolerance, double finish, double reach_a, double reach_b,
-                         Manifold& out, Collide&& collide_at) {
+                         double tolerance, double finish, double overlap, double reach_a,
+                         double reach_b, Manifold& out, Collide&& collide_at) {
   double t = 0.0;
+  // 3D: the sample before t (s, and its gap, m), and the earliest one past the impact
+  double t_before = 0.0, gap_before = -1.0;
+  double t_past = dt, gap_past = 1.0;
   for (int it = 0; it < C::TOI_ITERATIONS; ++it) {
     const Approach ap = search_approach(out, npts, ba, bb, t, st, reach_a, reach_b);
     if (ap.gap <= tolerance || ap.vn >= 0.0) break;
     double step = ap.sep / -ap.vn;  // s
+    if constexpr (D == 3) {
+      double guess = 0.0;  // s: the faster step, if any
+      if (gap_past < 0.0) {
+        guess = ap.gap * (t_past - t) / (ap.gap - gap_past);
+      } else if (gap_before > ap.gap) {
+        guess = ap.gap * (t - t_before) / (gap_before - ap.gap);
+      }
+      guess = std::min(guess, (ap.gap + overlap) / -ap.vn);
+      if (guess > step && t + guess < std::min(t_past, dt)) {
+        Manifold trial = out;
+        const int n = collide_at(t + guess, trial);
+        const double gap = n > 0 ? trial.separation[nearest_point(trial, n)] : 0.0;
+        if (n > 0 && gap >= -tolerance) {  // short of the impact, or at it
+          t_before = t;
+          gap_before = ap.gap;
+          t += guess;
+          out = trial;
+          npts = n;
+          continue;
+        }
+        if (n > 0) {  // past it
+          t_past = t + guess;
+          gap_past = gap;
+        }
+      }
+    }
     const bool last = t + step >= dt;
     if (last) {
       // the impact falls after the step. Right after it (the search came within
@@ -36,6 +77,8 @@ Impact advance_to_impact(const State<D>& st, int ba, int bb, int npts, double dt
       step = dt - t;
       if (step <= 0.0 || ap.sep > finish) break;
     }
+    t_before = t;
+    gap_before = ap.gap;
     t += step;
     npts = collide_at(t, out);
     if (npts == 0) return {0, t};  // passed by after all
@@ -90,7 +133,7 @@ Impact time_of_impact(const Model<2>& model, const State<2>& st, int a, int b, i
   const ShapeRef2 sb{model.shape_kind[b], na, nb, model.shape_radius[b], scale};
   const double tolerance = scale * C::TOI_TOLERANCE, finish = scale * C::TOI_FINISH;  // m
   return advance_to_impact(st, model.shape_body[a], model.shape_body[b], npts, dt, tolerance,
-                           finish, 0.0, 0.0, out, [&](double t, Manifold2& m) {
+                           finish, 0.0, 0.0, 0.0, out, [&](double t, Manifold2& m) {
                              place_shape(model, st, a, t, 0, tv, tn);
                              place_shape(model, st, b, t, na, tv, tn);
                              return collide2d(sa, sb, tv, tn, spec, m);
@@ -105,7 +148,8 @@ Impact time_of_impact(const Model<3>& model, const State<3>& st, int a, int b, i
   const int na = model.shape_vcount[a], fa = toi_face_rows(model, a);
   const double tolerance = scale * C::TOI_TOLERANCE, finish = scale * C::TOI_FINISH;  // m
   return advance_to_impact(st, model.shape_body[a], model.shape_body[b], npts, dt, tolerance,
-                           finish, core_reach(model, a), core_reach(model, b), out,
+                           finish, scale * C::TOI_OVERLAP, core_reach(model, a),
+                           core_reach(model, b), out,
                            [&](double t, Manifold3& m) {
                              const ShapeRef3 sa = place_shape(model, st, a, t, scale, tv, tn);
                              const ShapeRef3 sb =
