@@ -747,6 +747,55 @@ TEST(many_edged_hulls_crossed_edge_to_edge) {
   CHECK_NEAR(t.m.separation[0], -depth, 1e-12);
 }
 
+// A hull with more faces than the narrowphase keeps plane offsets for (narrow3d.cpp,
+// PLANE_TABLE = 256: a face past them is never passed over): a ball of 24 meridians and
+// 13 parallels (264 quads and 48 triangles), each of several faces past the table turned
+// to lie face down on a box 1 mm deep. The face is the contact's reference face (the
+// ball is a, and a face flush on another keeps a's), with its four corners; a face past
+// the table skipped by mistake would leave another face, or an edge, to be the contact.
+TEST(hull_with_faces_past_the_plane_table_lies_on_any_face) {
+  const int meridians = 24, parallels = 13;
+  std::vector<Vec3> v{{0, -0.5, 0}};
+  for (int i = 1; i <= parallels; ++i)
+    for (int k = 0; k < meridians; ++k) {
+      const double lat = M_PI * i / (parallels + 1) - M_PI / 2, lon = 2 * M_PI * k / meridians;
+      const double r = 0.5 * std::cos(lat);  // m
+      v.push_back({r * std::cos(lon), 0.5 * std::sin(lat), r * std::sin(lon)});
+    }
+  v.push_back({0, 0.5, 0});
+  const int top = static_cast<int>(v.size()) - 1;
+  const auto at = [&](int i, int k) { return 1 + (i - 1) * meridians + (k % meridians); };
+  std::vector<std::array<std::int32_t, 3>> tris;
+  for (int k = 0; k < meridians; ++k) {
+    tris.push_back({0, at(1, k), at(1, k + 1)});
+    tris.push_back({top, at(parallels, k + 1), at(parallels, k)});
+    for (int i = 1; i < parallels; ++i) {
+      tris.push_back({at(i, k), at(i + 1, k), at(i + 1, k + 1)});
+      tris.push_back({at(i, k), at(i + 1, k + 1), at(i, k + 1)});
+    }
+  }
+  WorldHull ball(v, tris);
+  CHECK(ball.hull.face_count() == meridians * (parallels - 1) + 2 * meridians);
+  auto slab = box_as_hull({2.0, 0.25, 2.0});
+  const double depth = 0.001;  // m
+  int tried = 0;
+  for (int f = 257; f < ball.hull.face_count(); f += 9) {
+    const Vec3 n = ball.hull.face_normal[f];
+    if (ball.hull.face_start[f + 1] - ball.hull.face_start[f] != 4) continue;  // a quad
+    ++tried;
+    // turned so that face f looks straight down (−y)
+    const Vec3 axis = cross(n, {0, -1, 0});
+    const Quat q = axis_angle((1.0 / length(axis)) * axis, std::acos(-n.y));
+    const double below = dot(n, ball.hull.vertex[ball.hull.face_vertex[ball.hull.face_start[f]]]);  // m
+    const auto m = collide(ball.at({0.1, 0.25 + below - depth, -0.2}, q), slab.at({0, 0, 0}));
+    CHECK(m.n == 4);
+    CHECK_VEC(m.m.normal, {0, 1, 0}, 1e-12, "up");
+    for (int k = 0; k < m.n; ++k) CHECK_NEAR(m.m.separation[k], -depth, 1e-9);
+    CHECK(((m.m.id[0] >> 40) & 0x7FFFF) == f);  // the reference face
+  }
+  CHECK(tried >= 4);
+}
+
 // Random poses of two boxes (fixed seed): the box–box function and the hull code path
 // (both boxes as hulls) find the same manifold, pose after pose: the same SAT over the
 // same axes (the hull path tests only the edge pairs that make Minkowski faces, which

@@ -39,7 +39,12 @@ struct HullView {
   const std::int32_t* face_vertex = nullptr;  // loops: vertex indices, CCW seen from outside
   const std::int32_t* face_edge = nullptr;    // parallel to face_vertex: the edge index of
                                               // loop edge k (vertex k -> vertex k+1)
+  const std::int32_t* face_first = nullptr;   // (F,) each loop's first vertex
   const HullEdge* edge = nullptr;             // (E,)
+  // m: the most a face's vertex lies off the plane of its normal through its loop's first
+  // vertex (coplanar triangles are merged within a tolerance, and a face's normal is
+  // their area-weighted mean)
+  double flatness = 0.0;
 };
 
 // A hull's topology and body-frame geometry, owning its arrays.
@@ -49,12 +54,15 @@ struct Hull3 {
   std::vector<std::int32_t> face_start;  // (F+1,)
   std::vector<std::int32_t> face_vertex;
   std::vector<std::int32_t> face_edge;
+  std::vector<std::int32_t> face_first;  // (F,)
   std::vector<HullEdge> edge;           // (E,)
+  double flatness = 0.0;                // m (HullView::flatness)
 
   int face_count() const { return static_cast<int>(face_normal.size()); }
   HullView view() const {
     return {static_cast<int>(vertex.size()), face_count(), static_cast<int>(edge.size()),
-            face_start.data(), face_vertex.data(), face_edge.data(), edge.data()};
+            face_start.data(), face_vertex.data(), face_edge.data(), face_first.data(), edge.data(),
+            flatness};
   }
 };
 

@@ -117,7 +117,12 @@ bool build_hull(const std::vector<Vec3>& vertices,
       return fail(error, "face " + std::to_string(f) + " has more than " +
                              std::to_string(HULL_MAX_FACE_VERTICES) + " vertices");
     hull.face_start.push_back(static_cast<std::int32_t>(hull.face_vertex.size()));
-    hull.face_normal.push_back((1.0 / length(area)) * area);
+    hull.face_first.push_back(start);
+    const Vec3 n = (1.0 / length(area)) * area;
+    hull.face_normal.push_back(n);
+    const int s = hull.face_start[f], e = hull.face_start[f + 1];
+    for (int k = s + 1; k < e; ++k)
+      hull.flatness = std::max(hull.flatness, std::fabs(dot(n, vertices[hull.face_vertex[k]] - vertices[hull.face_vertex[s]])));
   }
 
   // outward: the vertices' centroid lies inside every face (triangles given clockwise

@@ -25,6 +25,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include "collide/segment_closest.hpp"
@@ -321,7 +322,7 @@ struct Polytope {
 };
 
 // The hull's face f: its loop's first vertex.
-inline Vec3 face_origin(const Polytope& P, int f) { return P.v[P.h->face_vertex[P.h->face_start[f]]]; }
+inline Vec3 face_origin(const Polytope& P, int f) { return P.v[P.h->face_first[f]]; }
 
 // Whether x (on face f's plane) lies within face f's polygon.
 inline bool inside_face(const Polytope& P, int f, Vec3 x) {
@@ -439,30 +440,85 @@ inline int edge_contact(Vec3 p1, Vec3 q1, Vec3 p2, Vec3 q2, Vec3 n, std::int64_t
   return single_point(ca, 0.0, cb, 0.0, n, fid, speculative, out);
 }
 
-// The least of n · (v − o) over the points v[0 .. count) (m), four at a time in lanes
-// (each as dot() rounds it).
-inline double least_along(Vec3 n, Vec3 o, const Vec3* v, int count) {
-  double s = INF;
+// The least of n · (v − o) over the points v[0 .. count) (m) and the first point that
+// gives it, four at a time in lanes (each as dot() rounds it). With o = 0 it is the point
+// least along n; over a hull's face normals with n = −t, the face most along t.
+struct Least {
+  double value = INF;
+  int index = 0;
+};
+inline Least least_along(Vec3 n, Vec3 o, const Vec3* v, int count) {
+  Least out;
   int j = 0;
   if (count >= LANES) {
     const Lanes ox = splat(o.x), oy = splat(o.y), oz = splat(o.z);
-    Lanes least = splat(INF);
-    for (; j + LANES <= count; j += LANES) {
+    Lanes least = splat(INF), at = splat(0.0), lane = Lanes{0.0, 1.0, 2.0, 3.0};
+    for (; j + LANES <= count; j += LANES, lane += splat(LANES)) {
       const LanesXYZ p = load_xyz(v + j);
-      least = vmin(least, dot(n, LanesXYZ{p.x - ox, p.y - oy, p.z - oz}));
+      const Lanes d = dot(n, LanesXYZ{p.x - ox, p.y - oy, p.z - oz});
+      const LaneMask lower = d < least;  // (a lane keeps its first least)
+      least = select(lower, d, least);
+      at = select(lower, lane, at);
     }
-    s = std::min(std::min(least[0], least[1]), std::min(least[2], least[3]));
+    // the least of the lanes, and the first of the lanes that hold it
+    const Lanes half = vmin(least, __builtin_shufflevector(least, least, 2, 3, 0, 1));
+    const Lanes all = vmin(half, __builtin_shufflevector(half, half, 1, 0, 3, 2));
+    const Lanes firsts = select(least == all, at, splat(INF));
+    const Lanes half_at = vmin(firsts, __builtin_shufflevector(firsts, firsts, 2, 3, 0, 1));
+    out.value = all[0];
+    out.index = static_cast<int>(std::min(half_at[0], half_at[1]));
   }
-  for (; j < count; ++j) s = std::min(s, dot(n, v[j] - o));
-  return s;
+  for (; j < count; ++j) {
+    const double d = dot(n, v[j] - o);
+    if (d < out.value) out = {d, j};
+  }
+  return out;
 }
 
-// Round-off allowance (m) of a bound n · (x − o) on a separation, x a point of the other
-// hull (a vertex, or its vertices' mean): far above the rounding of the mean and the
-// product (1e-16 of the coordinates), far below any separation that matters.
-inline double bound_slack(Vec3 x, Vec3 o) {
-  return 1e-9 * (1.0 + std::fabs(x.x) + std::fabs(x.y) + std::fabs(x.z) + std::fabs(o.x) +
-                 std::fabs(o.y) + std::fabs(o.z));
+// A polytope's face planes, for the bounds that pass over its faces and edges: each
+// face's offset d_f = n_f · o_f (m; o_f its loop's first vertex), for its first
+// PLANE_TABLE faces (a face past them is never passed over), and what a bound
+// n_f · x − d_f allows (m) for round-off (of the product and the offset: far above 1e-16
+// of the coordinates, far below any separation that matters) and for a face's vertices
+// off its plane (HullView::flatness).
+constexpr int PLANE_TABLE = 256;
+struct FacePlanes {
+  int count = 0;        // faces with an offset: min(F, PLANE_TABLE)
+  double extent = 0.0;  // m: the largest |v|_1 of the polytope's vertices
+  double flatness = 0.0;
+  double d[PLANE_TABLE];
+  double allowance(Vec3 x) const {
+    return 1e-9 * (1.0 + std::fabs(x.x) + std::fabs(x.y) + std::fabs(x.z) + extent) + flatness;
+  }
+};
+inline void face_planes(const Polytope& P, FacePlanes& out) {
+  out.count = std::min(P.h->face_count, PLANE_TABLE);
+  out.flatness = P.h->flatness;
+  double extent = 0.0;
+  for (int j = 0; j < P.h->vertex_count; ++j)
+    extent = std::max(extent, std::fabs(P.v[j].x) + std::fabs(P.v[j].y) + std::fabs(P.v[j].z));
+  out.extent = extent;
+  for (int f = 0; f < out.count; ++f) out.d[f] = dot(P.fn[f], face_origin(P, f));
+}
+
+// Which of P's faces first .. first + LANES may rise to `level` (m) over the point x: bit
+// l for face first + l, clear where n_f · x − d_f plus the allowance is below `level`
+// (every bit set past the table; lanes past the faces are left to the caller).
+inline unsigned faces_reaching(const Polytope& P, const FacePlanes& planes, int first, Vec3 x,
+                               double level) {
+  if (first + LANES > planes.count) {
+    unsigned bits = 0;
+    for (int l = 0; l < LANES; ++l) {
+      const int f = first + l;
+      if (f >= planes.count || dot(P.fn[f], x) - planes.d[f] + planes.allowance(x) >= level)
+        bits |= 1u << l;
+    }
+    return bits;
+  }
+  const LanesXYZ n = load_xyz(P.fn + first);
+  Lanes d;
+  std::memcpy(&d, planes.d + first, sizeof d);
+  return lane_bits(dot(x, n) - d + splat(planes.allowance(x)) >= splat(level));
 }
 
 // The face of P that separates Q most (its deepest vertex below the face): separation
@@ -473,59 +529,33 @@ inline double bound_slack(Vec3 x, Vec3 o) {
 // visited (it can neither be the deepest nor tie with it; most faces, those whose planes
 // pass far from where the two touch). The others are measured in order, so that the
 // result is that of measuring every face (ties to the lower index).
-inline bool deepest_face(const Polytope& P, const Polytope& Q, Vec3 toward, double speculative,
-                         double& sep, int& face) {
-  int first = 0;
-  double along = -INF;
-  for (int f = 0; f < P.h->face_count; ++f) {
-    const double d = dot(P.fn[f], toward);
-    if (d > along) {
-      along = d;
-      first = f;
-    }
-  }
-  // the first face's separation, as least_along finds it, and the vertex that gives it
-  const Vec3 n1 = P.fn[first], o1 = face_origin(P, first);
-  double reached = INF;
-  Vec3 x{};
-  for (int j = 0; j < Q.h->vertex_count; ++j) {
-    const double d = dot(n1, Q.v[j] - o1);
-    if (d < reached) {
-      reached = d;
-      x = Q.v[j];
-    }
-  }
+inline bool deepest_face(const Polytope& P, const FacePlanes& planes, const Polytope& Q,
+                         Vec3 toward, double speculative, double& sep, int& face) {
+  const int first = least_along(-toward, Vec3{}, P.fn, P.h->face_count).index;
+  // the first face's separation and the vertex that gives it
+  const Least deepest = least_along(P.fn[first], face_origin(P, first), Q.v, Q.h->vertex_count);
+  const double reached = deepest.value;
+  const Vec3 x = Q.v[deepest.index];
   if (reached > speculative) return false;
   sep = -INF;
   face = 0;
-  for (int f = 0; f < P.h->face_count; ++f) {
-    double s = reached;
-    if (f != first) {
-      const Vec3 n = P.fn[f], o = face_origin(P, f);
-      if (dot(n, x - o) + bound_slack(x, o) < reached) continue;
-      s = least_along(n, o, Q.v, Q.h->vertex_count);
-    }
-    if (s > speculative) return false;
-    if (s > sep) {
-      sep = s;
-      face = f;
+  const int count = P.h->face_count;
+  for (int f0 = 0; f0 < count; f0 += LANES) {
+    unsigned bits = faces_reaching(P, planes, f0, x, reached);
+    if (first >= f0 && first < f0 + LANES) bits |= 1u << (first - f0);
+    bits &= (1u << std::min(LANES, count - f0)) - 1;
+    for (; bits; bits &= bits - 1) {
+      const int f = f0 + std::countr_zero(bits);
+      const double s =
+          f == first ? reached : least_along(P.fn[f], face_origin(P, f), Q.v, Q.h->vertex_count).value;
+      if (s > speculative) return false;
+      if (s > sep) {
+        sep = s;
+        face = f;
+      }
     }
   }
   return true;
-}
-
-// The vertex of P least along n (m; the first of equals).
-inline Vec3 least_vertex(const Polytope& P, Vec3 n) {
-  int best = 0;
-  double least = INF;
-  for (int j = 0; j < P.h->vertex_count; ++j) {
-    const double d = dot(n, P.v[j]);
-    if (d < least) {
-      least = d;
-      best = j;
-    }
-  }
-  return P.v[best];
 }
 
 // The mean of a polytope's vertices (m): a point inside it.
@@ -535,35 +565,42 @@ inline Vec3 vertex_mean(const Polytope& P) {
   return (1.0 / P.h->vertex_count) * sum;
 }
 
-// Which of P's edges first .. first + n (n <= LANES) may be in an edge pair that separates
-// more than `least` (m, <= 0) from a convex body holding the points x[0] and x[1]: bit l
-// for edge first + l, four edges at a time in lanes. Along any direction L of an edge's
+// Which of P's edges may be in an edge pair that separates more than `least` (m, <= 0)
+// from a convex body holding the points x[0] and x[1]. Along any direction L of an edge's
 // Gauss-map arc the edge supports its hull, and the other body reaches no further than
 // L · (x − p) (p on the edge); over the arc that is at most the larger of its two faces'
 // n · (x − p) when that is negative (L a positive combination of the two normals, no
-// longer than their sum), and the edge is out of reach when that bound is below `least`.
-// Any point of the body gives a bound: its vertex mean passes over the edges that face
-// away from it, the vertex deepest below the hull's best face those away from where the
-// two touch.
-inline unsigned edges_in_reach(const Polytope& P, int first, int n, const Vec3* x, double least) {
-  const Vec3 *p[LANES], *n0[LANES], *n1[LANES];
-  for (int l = 0; l < LANES; ++l) {  // a lane past n repeats the last edge
-    const HullEdge& e = P.h->edge[first + std::min(l, n - 1)];
-    p[l] = &P.v[e.v0], n0[l] = &P.fn[e.f0], n1[l] = &P.fn[e.f1];
+// longer than their sum), and n · (x − p) is at most the face's bound n · x − d (p lies
+// on both faces' planes, up to their flatness). So an edge is out of reach when, for one
+// of the points, both its faces' bounds are below `least`: bit k of mark[f] is set where
+// face f's bound over x[k] is below it (none past the plane table), and an edge whose two
+// faces' marks share a bit is passed over. Any point of the body gives a bound: its vertex mean
+// passes over the edges that face away from it, the vertex deepest below the hull's best
+// face those away from where the two touch.
+inline void edge_marks(const Polytope& P, const FacePlanes& planes, const Vec3* x, double least,
+                       std::uint8_t* mark) {
+  // the four bits of a group of faces, each to its own byte
+  constexpr auto spread = [](unsigned bits) {
+    return (bits & 1u) | (bits & 2u) << 7 | (bits & 4u) << 14 | (bits & 8u) << 21;
+  };
+  for (int f0 = 0; f0 < planes.count; f0 += LANES) {
+    const unsigned below0 = ~faces_reaching(P, planes, f0, x[0], least) & 15u;
+    const unsigned below1 = ~faces_reaching(P, planes, f0, x[1], least) & 15u;
+    const std::uint32_t bytes = spread(below0) | spread(below1) << 1;
+    std::memcpy(mark + f0, &bytes, sizeof bytes);  // (the table has room for a whole group)
   }
-  LanesXYZ pl, a, b;  // each edge's start and its two faces' normals
-  gather_xyz(p[0], p[1], p[2], p[3], pl.x, pl.y, pl.z);
-  gather_xyz(n0[0], n0[1], n0[2], n0[3], a.x, a.y, a.z);
-  gather_xyz(n1[0], n1[1], n1[2], n1[3], b.x, b.y, b.z);
-  LaneMask out = first_lanes(0);
-  for (int k = 0; k < 2; ++k) {
-    const LanesXYZ w{splat(x[k].x) - pl.x, splat(x[k].y) - pl.y, splat(x[k].z) - pl.z};
-    // bound_slack(x, p), its terms added in its order
-    const double xs = 1.0 + std::fabs(x[k].x) + std::fabs(x[k].y) + std::fabs(x[k].z);
-    const Lanes slack = splat(1e-9) * (splat(xs) + vabs(pl.x) + vabs(pl.y) + vabs(pl.z));
-    out = out | (vmax(dot(a, w), dot(b, w)) + slack < splat(least));
+  mark[PLANE_TABLE] = 0;  // a face past the table: no bound
+}
+// Bit l of the result for P's edge first + l (l < n <= 64): whether it is in reach
+// (edge_marks).
+inline std::uint64_t edges_in_reach(const Polytope& P, int first, int n, const std::uint8_t* mark) {
+  std::uint64_t bits = 0;
+  for (int l = 0; l < n; ++l) {
+    const HullEdge& e = P.h->edge[first + l];
+    const unsigned out = mark[std::min(e.f0, PLANE_TABLE)] & mark[std::min(e.f1, PLANE_TABLE)];
+    bits |= std::uint64_t{out == 0} << l;
   }
-  return lane_bits(~out & first_lanes(n));
+  return bits;
 }
 
 // Two hulls (or boxes taken as hulls): SAT over both hulls' faces and their edge pairs.
@@ -572,22 +609,31 @@ inline unsigned edges_in_reach(const Polytope& P, int first, int n, const Vec3* 
 // pairs that separate equally the first in (A's edge, B's edge) order is kept. An edge
 // pair counts only if it separates more than both hulls' faces (it must, to be the
 // contact or to part the hulls beyond reach), so an edge that faces away from the other
-// hull or lies away from where the two touch (edges_in_reach) is left out of the pairs.
+// hull or lies away from where the two touch (edge_marks) is left out of the pairs.
 constexpr int HULL_CLIP = 2 * HULL_MAX_FACE_VERTICES;
 constexpr int EDGE_GROUP = 16 * LANES;
 int collide_polytopes(const Polytope& A, const Polytope& B, double tol, double speculative,
                       Manifold3& out) {
   const Vec3 mean_a = vertex_mean(A), mean_b = vertex_mean(B);
+  FacePlanes planes_a, planes_b;
+  face_planes(A, planes_a);
   double sep_a, sep_b;
   int face_a, face_b;
-  if (!deepest_face(A, B, mean_b - mean_a, speculative, sep_a, face_a)) return 0;
-  if (!deepest_face(B, A, mean_a - mean_b, speculative, sep_b, face_b)) return 0;
+  if (!deepest_face(A, planes_a, B, mean_b - mean_a, speculative, sep_a, face_a)) return 0;
+  face_planes(B, planes_b);
+  if (!deepest_face(B, planes_b, A, mean_a - mean_b, speculative, sep_b, face_b)) return 0;
   // an edge pair must separate more than this to matter (m)
   const double least = std::min(std::max(sep_a, sep_b), 0.0);
-  // points of each hull for edges_in_reach: its vertex mean, and its vertex deepest
-  // below the other's best face
-  const Vec3 in_a[2] = {mean_a, least_vertex(A, B.fn[face_b])};
-  const Vec3 in_b[2] = {mean_b, least_vertex(B, A.fn[face_a])};
+  // the edges in reach (edge_marks) of each hull from two points of the other: its vertex
+  // mean, and its vertex deepest below the first's best face
+  std::uint8_t mark_a[PLANE_TABLE + LANES], mark_b[PLANE_TABLE + LANES];
+  {
+    const int deep_a = least_along(B.fn[face_b], Vec3{}, A.v, A.h->vertex_count).index;
+    const int deep_b = least_along(A.fn[face_a], Vec3{}, B.v, B.h->vertex_count).index;
+    const Vec3 in_a[2] = {mean_a, A.v[deep_a]}, in_b[2] = {mean_b, B.v[deep_b]};
+    edge_marks(A, planes_a, in_b, least, mark_a);
+    edge_marks(B, planes_b, in_a, least, mark_b);
+  }
   // edge pairs that make a face of the Minkowski difference
   double sep_e = -INF;
   int edge_a = -1, edge_b = -1;
@@ -597,16 +643,18 @@ int collide_polytopes(const Polytope& A, const Polytope& B, double tol, double s
   int group[EDGE_GROUP];  // B's edges of the group (in order)
   for (int j = 0; j < n_b;) {
     int n_group = 0;
-    for (; j < n_b && n_group + LANES <= EDGE_GROUP; j += LANES) {
-      for (unsigned bits = edges_in_reach(B, j, std::min(LANES, n_b - j), in_a, least); bits; bits &= bits - 1)
+    while (j < n_b && n_group < EDGE_GROUP) {
+      const int n = std::min({64, n_b - j, EDGE_GROUP - n_group});
+      for (std::uint64_t bits = edges_in_reach(B, j, n, mark_b); bits; bits &= bits - 1)
         group[n_group++] = j + std::countr_zero(bits);
+      j += n;
     }
     for (int k = 0; k < n_group; k += LANES)
       arcs[k / LANES] = edge_arcs(B, group + k, std::min(LANES, n_group - k));
     const int n_a = A.h->edge_count;
-    for (int i0 = 0; i0 < n_a; i0 += LANES) {
-      const unsigned reach = edges_in_reach(A, i0, std::min(LANES, n_a - i0), in_b, least);
-      for (unsigned left = reach; left; left &= left - 1) {
+    for (int i0 = 0; i0 < n_a; i0 += 64) {
+      const std::uint64_t reach = edges_in_reach(A, i0, std::min(64, n_a - i0), mark_a);
+      for (std::uint64_t left = reach; left; left &= left - 1) {
         const int i = i0 + std::countr_zero(left);
         const HullEdge& ea = A.h->edge[i];
         const Vec3 pa = A.v[ea.v0], da = A.v[ea.v1] - pa;
