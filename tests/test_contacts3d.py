@@ -245,6 +245,20 @@ def test_3d_contact_runs_are_deterministic_and_resume_bit_identically() -> None:
     assert state_bytes(resumed) == state_bytes(a)
 
 
+def test_storage_of_a_world_restored_from_a_checkpoint_reads_only_batches_it_packed() -> None:
+    # a checkpoint carries the waves' counts but not the face batches, which every step
+    # packs anew: storage() of a world that had not stepped read the saved world's count
+    # of batches from its own empty list, and the process crashed
+    stepped = CoreWorld.from_scene(scene_from(STACK))
+    stepped.advance(30)
+    assert len(stepped.storage.face_batch_points) > 0
+    fresh = CoreWorld.from_scene(scene_from(STACK))
+    fresh.engine.load_checkpoint(stepped.engine.save_checkpoint())
+    assert fresh.storage.face_batch_points == []
+    fresh.advance(1)
+    assert len(fresh.storage.face_batch_points) > 0
+
+
 @pytest.mark.parametrize("e", [0.0])
 def test_sphere_with_e_zero_comes_to_rest_on_the_plane(e: float) -> None:
     text = BALL.format(dt=1 / 240, steps=480, e=e, h0=1.0)

@@ -178,9 +178,15 @@ nb::dict storage(World<D>& w, nb::handle owner) {
     d["body_inv_inertia_world"] = view(c.body_inv_inertia_world, owner);
     d["body_inertia_q"] = view(c.body_inertia_q, owner);
     // each face batch's point count (WideFace3::count; 0: its manifolds go one at a
-    // time), as a list (a copy)
+    // time), as a list (a copy). The batches are packed anew in every step, and a
+    // checkpoint restores the waves' counts but not them (checkpoint.cpp): only the
+    // batches this world has packed are read
     nb::list counts;
-    for (std::int64_t i = 0; i < c.wave_single_batch[c.wave_count]; ++i) counts.append(c.faces3[i].count);
+    const std::int64_t batches =
+        c.wave_count >= 0 && static_cast<std::size_t>(c.wave_count) < c.wave_single_batch.size()
+            ? std::min<std::int64_t>(c.wave_single_batch[c.wave_count], static_cast<std::int64_t>(c.faces3.size()))
+            : 0;
+    for (std::int64_t i = 0; i < batches; ++i) counts.append(c.faces3[i].count);
     d["face_batch_points"] = counts;
   }
   d["wave_count"] = view(&c.wave_count, 1, owner, false);
