@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <ctime>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -794,6 +795,78 @@ TEST(hull_with_faces_past_the_plane_table_lies_on_any_face) {
     CHECK(((m.m.id[0] >> 40) & 0x7FFFF) == f);  // the reference face
   }
   CHECK(tried >= 4);
+}
+
+// An ellipsoid of 80 triangles (an icosahedron split once, on the unit sphere, scaled by
+// half axes s, m): a hull of many small faces.
+WorldHull ellipsoid(Vec3 s) {
+  const double p = (1.0 + std::sqrt(5.0)) / 2.0;
+  std::vector<Vec3> v{{-1, p, 0}, {1, p, 0},  {-1, -p, 0}, {1, -p, 0}, {0, -1, p},  {0, 1, p},
+                      {0, -1, -p}, {0, 1, -p}, {p, 0, -1},  {p, 0, 1},  {-p, 0, -1}, {-p, 0, 1}};
+  std::vector<std::array<std::int32_t, 3>> tris{
+      {0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+      {11, 10, 2}, {10, 7, 6}, {7, 1, 8},   {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
+      {3, 8, 9},  {4, 9, 5},  {2, 4, 11},  {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
+  for (Vec3& x : v) x = (1.0 / length(x)) * x;
+  std::map<std::pair<int, int>, int> middle;  // each edge's midpoint, pushed to the sphere
+  const auto mid = [&](int a, int b) {
+    const auto key = std::minmax(a, b);
+    if (const auto it = middle.find(key); it != middle.end()) return it->second;
+    const Vec3 m = 0.5 * (v[a] + v[b]);
+    v.push_back((1.0 / length(m)) * m);
+    return middle[key] = static_cast<int>(v.size()) - 1;
+  };
+  std::vector<std::array<std::int32_t, 3>> split;
+  for (const auto& t : tris) {
+    const int a = mid(t[0], t[1]), b = mid(t[1], t[2]), c = mid(t[2], t[0]);
+    split.push_back({t[0], a, c});
+    split.push_back({t[1], b, a});
+    split.push_back({t[2], c, b});
+    split.push_back({a, b, c});
+  }
+  for (Vec3& x : v) x = {s.x * x.x, s.y * x.y, s.z * x.z};
+  return WorldHull(v, split);
+}
+
+// Random poses of two such ellipsoids deep in each other (fixed seed): whenever a vertex
+// of one lies inside the other, there is a manifold and it overlaps. The face most
+// anti-parallel to the reference face need not lie over it, and its clip can leave
+// nothing: one pose in a thousand had no point (no manifold, so no contact: two rocks
+// went through each other), before the hull path fell back to the incident hull's
+// vertex deepest below the reference face.
+TEST(deep_hull_pairs_always_have_a_manifold) {
+  std::uint64_t seed = 7;
+  const auto uniform = [&seed] {  // in [-1, 1)
+    seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+    return static_cast<double>(seed >> 11) * (2.0 / 9007199254740992.0) - 1.0;
+  };
+  auto a = ellipsoid({0.3, 0.22, 0.26}), b = ellipsoid({0.3, 0.22, 0.26});
+  CHECK(a.hull.face_count() == 80);
+  const auto inside = [](const WorldHull& h, Vec3 x) {  // strictly, by every face's plane
+    for (int f = 0; f < h.hull.face_count(); ++f)
+      if (dot(h.n[f], x - h.v[h.hull.face_vertex[h.hull.face_start[f]]]) > -1e-9) return false;
+    return true;
+  };
+  int deep = 0, missing = 0, apart = 0;
+  for (int k = 0; k < 40000; ++k) {
+    const Quat qa = normalize(Quat{uniform(), uniform(), uniform(), uniform()});
+    const Quat qb = normalize(Quat{uniform(), uniform(), uniform(), uniform()});
+    const Vec3 c{0.3 * uniform(), 0.3 * uniform(), 0.3 * uniform()};
+    const ShapeRef3 sa = a.at(c, qa), sb = b.at({0, 0, 0}, qb);
+    bool in = false;
+    for (const Vec3& x : a.v) in = in || inside(b, x);
+    for (const Vec3& x : b.v) in = in || inside(a, x);
+    if (!in) continue;
+    ++deep;
+    const auto m = collide(sa, sb);
+    double least = 0.0;  // m: the manifold's deepest point
+    for (int p = 0; p < m.n; ++p) least = std::min(least, m.m.separation[p]);
+    missing += m.n == 0;
+    apart += m.n > 0 && least >= 0.0;
+  }
+  CHECK(deep > 20000);
+  CHECK(missing == 0);
+  CHECK(apart == 0);
 }
 
 // Random poses of two boxes (fixed seed): the box–box function and the hull code path

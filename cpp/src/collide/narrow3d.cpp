@@ -701,7 +701,21 @@ int collide_polytopes(const Polytope& A, const Polytope& B, double tol, double s
   std::array<Vec3, HULL_MAX_FACE_VERTICES> loop;
   const int s = ref.h->face_start[rf], e = ref.h->face_start[rf + 1];
   for (int k = s; k < e; ++k) loop[k - s] = ref.v[ref.h->face_vertex[k]];
-  return face_contact(loop.data(), e - s, n_ref, poly, ref_is_b, rf, tol, speculative, out);
+  const int n = face_contact(loop.data(), e - s, n_ref, poly, ref_is_b, rf, tol, speculative, out);
+  if (n > 0) return n;
+  // The incident face clipped to nothing, though the axes found the two within reach:
+  // on hulls of many small faces the one most anti-parallel to the reference normal need
+  // not lie over the reference face (two rocks of 30 points, 12 cm into each other, had
+  // no point, so no manifold, and went on through each other for 15 steps). One point
+  // then, at the incident hull's vertex deepest below the reference face, its separation
+  // the face's.
+  const Least deepest = least_along(n_ref, loop[0], inc.v, inc.h->vertex_count);
+  const Vec3 x = inc.v[deepest.index];
+  out.normal = ref_is_b ? n_ref : -n_ref;
+  out.point[0] = x - (0.5 * deepest.value) * n_ref;
+  out.separation[0] = deepest.value;
+  out.id[0] = feature_id(FK::Single, ref_is_b, rf, 0, 0) | feature_id(FK::Vertex, 0, 0, deepest.index, 0);
+  return deepest.value <= speculative ? 1 : 0;
 }
 
 // A box as a polytope: its corners and face normals in the caller's arrays.
