@@ -102,6 +102,16 @@ std::vector<std::int64_t> ids(const Result& r) {
   return v;
 }
 
+// Numbers in [-1, 1) from a fixed seed (a 64-bit linear congruential generator), so
+// that the random tests meet the same poses on every machine.
+struct Uniform {
+  std::uint64_t seed;
+  double operator()() {
+    seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+    return static_cast<double>(seed >> 11) * (2.0 / 9007199254740992.0) - 1.0;
+  }
+};
+
 // A convex hull in the world: built once in its body frame from vertices and triangles,
 // its vertices and face normals moved to pose (c, q).
 struct WorldHull {
@@ -835,11 +845,7 @@ WorldHull ellipsoid(Vec3 s) {
 // went through each other), before the hull path fell back to the incident hull's
 // vertex deepest below the reference face.
 TEST(deep_hull_pairs_always_have_a_manifold) {
-  std::uint64_t seed = 7;
-  const auto uniform = [&seed] {  // in [-1, 1)
-    seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
-    return static_cast<double>(seed >> 11) * (2.0 / 9007199254740992.0) - 1.0;
-  };
+  Uniform uniform{7};
   auto a = ellipsoid({0.3, 0.22, 0.26}), b = ellipsoid({0.3, 0.22, 0.26});
   CHECK(a.hull.face_count() == 80);
   const auto inside = [](const WorldHull& h, Vec3 x) {  // strictly, by every face's plane
@@ -874,11 +880,7 @@ TEST(deep_hull_pairs_always_have_a_manifold) {
 // same axes (the hull path tests only the edge pairs that make Minkowski faces, which
 // hold the largest separation).
 TEST(random_box_pairs_match_the_hull_path) {
-  std::uint64_t seed = 12345;
-  const auto uniform = [&seed] {  // in [-1, 1)
-    seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
-    return static_cast<double>(seed >> 11) * (2.0 / 9007199254740992.0) - 1.0;
-  };
+  Uniform uniform{12345};
   const Vec3 ha{0.5, 0.3, 0.4}, hb{0.6, 0.5, 0.2};
   auto hull_a = box_as_hull(ha), hull_b = box_as_hull(hb);
   int contacts = 0, mismatches = 0;
@@ -918,11 +920,7 @@ double box_distance(const ShapeRef3& box, Vec3 x) {
 // reach. Through both the box and its hull (capsule–box and capsule–convex share the code,
 // sphere–box and sphere–convex do not).
 TEST(random_rounded_shapes_measure_the_true_distance_to_a_box) {
-  std::uint64_t seed = 777;
-  const auto uniform = [&seed] {  // in [-1, 1)
-    seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
-    return static_cast<double>(seed >> 11) * (2.0 / 9007199254740992.0) - 1.0;
-  };
+  Uniform uniform{777};
   const Quat qb = normalize(Quat{0.3, -0.5, 0.7, 0.1});
   const Vec3 half{0.5, 0.3, 0.4};
   const auto box = box_ref({0.1, 0.2, -0.1}, qb, half);
