@@ -29,11 +29,6 @@ inline Lanes splat(double x) { return Lanes{x, x, x, x}; }  // (one broadcast)
 inline Lanes select(LaneMask m, Lanes a, Lanes b) { return m ? a : b; }
 inline Lanes vmax(Lanes a, Lanes b) { return a > b ? a : b; }
 inline Lanes vmin(Lanes a, Lanes b) { return a < b ? a : b; }
-// |x| lane by lane (the sign bit cleared, as std::fabs)
-inline Lanes vabs(Lanes x) {
-  constexpr std::int64_t magnitude = 0x7FFFFFFFFFFFFFFF;
-  return (Lanes)((LaneMask)x & LaneMask{magnitude, magnitude, magnitude, magnitude});
-}
 // whether any lane is set
 inline bool any(LaneMask m) {
 #if defined(__AVX__)

@@ -491,12 +491,10 @@ struct FacePlanes {
     return 1e-9 * (1.0 + std::fabs(x.x) + std::fabs(x.y) + std::fabs(x.z) + extent) + flatness;
   }
 };
-inline void face_planes(const Polytope& P, FacePlanes& out) {
+// (extent: VertexSpread's, m)
+inline void face_planes(const Polytope& P, double extent, FacePlanes& out) {
   out.count = std::min(P.h->face_count, PLANE_TABLE);
   out.flatness = P.h->flatness;
-  double extent = 0.0;
-  for (int j = 0; j < P.h->vertex_count; ++j)
-    extent = std::max(extent, std::fabs(P.v[j].x) + std::fabs(P.v[j].y) + std::fabs(P.v[j].z));
   out.extent = extent;
   for (int f = 0; f < out.count; ++f) out.d[f] = dot(P.fn[f], face_origin(P, f));
 }
@@ -558,11 +556,22 @@ inline bool deepest_face(const Polytope& P, const FacePlanes& planes, const Poly
   return true;
 }
 
-// The mean of a polytope's vertices (m): a point inside it.
-inline Vec3 vertex_mean(const Polytope& P) {
+// The mean of a polytope's vertices (m): a point inside it; and the largest |v|_1 of
+// them (m), for the round-off of the bounds against its face planes (FacePlanes), in the
+// same pass.
+struct VertexSpread {
+  Vec3 mean;
+  double extent;
+};
+inline VertexSpread vertex_spread(const Polytope& P) {
   Vec3 sum{};
-  for (int j = 0; j < P.h->vertex_count; ++j) sum += P.v[j];
-  return (1.0 / P.h->vertex_count) * sum;
+  double extent = 0.0;
+  for (int j = 0; j < P.h->vertex_count; ++j) {
+    const Vec3 v = P.v[j];
+    sum += v;
+    extent = std::max(extent, std::fabs(v.x) + std::fabs(v.y) + std::fabs(v.z));
+  }
+  return {(1.0 / P.h->vertex_count) * sum, extent};
 }
 
 // Which of P's edges may be in an edge pair that separates more than `least` (m, <= 0)
@@ -614,13 +623,14 @@ constexpr int HULL_CLIP = 2 * HULL_MAX_FACE_VERTICES;
 constexpr int EDGE_GROUP = 16 * LANES;
 int collide_polytopes(const Polytope& A, const Polytope& B, double tol, double speculative,
                       Manifold3& out) {
-  const Vec3 mean_a = vertex_mean(A), mean_b = vertex_mean(B);
+  const VertexSpread spread_a = vertex_spread(A), spread_b = vertex_spread(B);
+  const Vec3 mean_a = spread_a.mean, mean_b = spread_b.mean;
   FacePlanes planes_a, planes_b;
-  face_planes(A, planes_a);
+  face_planes(A, spread_a.extent, planes_a);
   double sep_a, sep_b;
   int face_a, face_b;
   if (!deepest_face(A, planes_a, B, mean_b - mean_a, speculative, sep_a, face_a)) return 0;
-  face_planes(B, planes_b);
+  face_planes(B, spread_b.extent, planes_b);
   if (!deepest_face(B, planes_b, A, mean_a - mean_b, speculative, sep_b, face_b)) return 0;
   // an edge pair must separate more than this to matter (m)
   const double least = std::min(std::max(sep_a, sep_b), 0.0);
