@@ -62,6 +62,13 @@ bool has_point(const Result& r, Vec3 p, double tol) {
   return false;
 }
 
+// The index of r's first point of feature kind `kind` (-1: none).
+int point_of_kind(const Result& r, FeatureKind kind) {
+  for (int k = 0; k < r.n; ++k)
+    if ((r.m.id[k] >> 60) == static_cast<std::int64_t>(kind)) return k;
+  return -1;
+}
+
 bool all_finite(const Result& r) {
   bool ok = std::isfinite(r.m.normal.x) && std::isfinite(r.m.normal.y) && std::isfinite(r.m.normal.z);
   for (int k = 0; k < r.n; ++k)
@@ -725,9 +732,11 @@ WorldHull prism(int sides, double r, double hx) {
 }
 
 // Two 40-sided prisms crossed, the upper one's lowest edge on the lower one's highest
-// edge: one point where the edges cross, the normal vertical. Each has 120 edges, more
+// edge, 1 mm deep: the normal vertical (the edge pair's), the deepest point 1 mm deep
+// where the edges cross (the face beside the edge, 4.5° off, clipped, gives it and its
+// other points within reach: edge_with_face), no point deeper. Each has 120 edges, more
 // than the edge pairs' test takes in one group (narrow3d.cpp, EDGE_GROUP), and the
-// winning pair lies past the first group, so the groups after it are tested too; the
+// winning pair lies past the first group (a face normal wins otherwise, 4.5° off); the
 // other order and a turn about the vertical that keeps the edges crossing give it again.
 TEST(many_edged_hulls_crossed_edge_to_edge) {
   const double r = 0.3, depth = 0.001;
@@ -741,21 +750,74 @@ TEST(many_edged_hulls_crossed_edge_to_edge) {
   const auto lo = lower.at({0, 0, 0}, roll);
   const Vec3 c{0.05, 2 * r - depth, -0.02};
   const auto up = upper.at(c, across);
+  // the deepest point (1e-12: round-off of the clip), no deeper than the edges' crossing
+  const auto deepest = [](const Result& x) {
+    int k = 0;
+    for (int j = 1; j < x.n; ++j)
+      if (x.m.separation[j] < x.m.separation[k]) k = j;
+    return k;
+  };
   const auto m = collide(up, lo);
-  CHECK(m.n == 1);
+  CHECK(m.n >= 1);
   CHECK_VEC(m.m.normal, {0, 1, 0}, 1e-12, "vertical");
-  CHECK_NEAR(m.m.separation[0], -depth, 1e-12);
-  // the upper edge at x = 0.05, the lower at z = 0
-  CHECK_VEC(m.m.point[0], {0.05, r - 0.5 * depth, 0.0}, 1e-12, "where the edges cross");
-  const std::int64_t f1 = (m.m.id[0] >> 20) & 0xFFFFF, f2 = m.m.id[0] & 0xFFFFF;
-  CHECK(std::max(f1, f2) >= 64);  // a pair past the first group's edges
+  const int k = deepest(m);
+  CHECK_NEAR(m.m.separation[k], -depth, 1e-12);
+  // the upper edge at x = 0.05, the lower at z = 0 (within the clip skin, 0.5 mm)
+  CHECK_VEC(m.m.point[k], {0.05, r - 0.5 * depth, 0.0}, 1e-3, "where the edges cross");
   const auto w = collide(lo, up);
-  CHECK(w.n == 1);
+  CHECK(w.n == m.n);
   CHECK_VEC(w.m.normal, {0, -1, 0}, 1e-12, "the other order");
-  CHECK_VEC(w.m.point[0], m.m.point[0], 1e-12, "same point");
+  CHECK_NEAR(w.m.separation[deepest(w)], -depth, 1e-12);
+  CHECK_VEC(w.m.point[deepest(w)], m.m.point[k], 1e-3, "same point");
   const auto t = collide(upper.at(c, mul(axis_angle({0, 1, 0}, 0.3), across)), lo);
-  CHECK(t.n == 1);
-  CHECK_NEAR(t.m.separation[0], -depth, 1e-12);
+  CHECK(t.n >= 1);
+  CHECK_VEC(t.m.normal, {0, 1, 0}, 1e-12, "turned: vertical");
+  CHECK_NEAR(t.m.separation[deepest(t)], -depth, 1e-12);
+}
+
+// A unit box turned 45° about the vertical and tipped 5° on another, down towards +x and a
+// little towards +z, 0.2 mm above it where its bottom edge from its +x corner to its +z
+// corner crosses the lower box's rim x = 0.5: its +x corner hangs over that rim, below
+// the lower box's top, and the lower box's corner (0.5, 0.5) rises above the tipped box's
+// bottom plane beside its face, so an edge pair wins the axes. Its manifold also has
+// where the other bottom edge from the +x corner crosses the rim, 10 mm up: the bottom
+// face the box is about to lie on (a box tumbling like this at 10 rad/s laid its face 18
+// mm into the box below within a step when the manifold had the edge pair's point only).
+// The same through the hull path.
+TEST(box_tipped_over_a_box_rim_keeps_its_face_points) {
+  const double gap = 0.0002, tip = 5.0 * M_PI / 180.0, toward = 20.0 * M_PI / 180.0;
+  const Vec3 half{0.5, 0.5, 0.5};
+  const auto lower = box_ref({0, 0, 0}, {}, half);
+  const Vec3 down{std::cos(toward), 0.0, std::sin(toward)};  // the tip lowers this side
+  const Quat q = mul(axis_angle(cross(Vec3{0, 1, 0}, down), tip), axis_angle({0, 1, 0}, M_PI / 4));
+  // the bottom corners at +x, +z and −z (body corners turned by the 45° about y)
+  const Vec3 px = rotate(q, {0.5, -0.5, 0.5}), pz = rotate(q, {-0.5, -0.5, 0.5}),
+             mz = rotate(q, {0.5, -0.5, -0.5});
+  CHECK(px.x > 0.6 && pz.z > 0.6 && mz.z < -0.6);
+  // where the edges from the +x corner cross the rim's plane x = 0.5 (centre at the origin)
+  const auto crossing = [&](Vec3 to) { return px + ((0.5 - px.x) / (to.x - px.x)) * (to - px); };
+  const Vec3 c_low = crossing(pz), c_high = crossing(mz);
+  const Vec3 centre{0, 0.5 + gap - c_low.y, 0};
+  CHECK(c_high.y - c_low.y > 0.005 && c_high.y - c_low.y < 0.5 * SPEC);  // within reach
+  const auto tipped = box_ref(centre, q, half);
+  auto lower_hull = box_as_hull(half);
+  for (int path = 0; path < 2; ++path) {
+    const auto r = path == 0 ? collide(tipped, lower) : collide(tipped, lower_hull.at({0, 0, 0}, {}));
+    const int k = point_of_kind(r, FeatureKind::EdgeEdge);
+    CHECK(k >= 0);
+    CHECK(k >= 0 && r.m.separation[k] > 0.0 && r.m.separation[k] <= gap);
+    CHECK(r.m.normal.y > std::cos(tip));  // the edge pair's: between the faces' normals
+    // a point where the other edge crosses the rim, midway between the surfaces (within 1
+    // mm: the clip skin moves it 0.5 mm out), and none deeper than the edge pair's (1e-12:
+    // its separation from the axes and from its closest points differ by round-off)
+    const Vec3 mid = centre + c_high - Vec3{0, 0.5 * (centre.y + c_high.y - 0.5), 0};
+    bool other = false;
+    for (int j = 0; j < r.n; ++j) {
+      other = other || (j != k && length(r.m.point[j] - mid) < 0.001);
+      CHECK(k >= 0 && r.m.separation[j] >= r.m.separation[k] - 1e-12);
+    }
+    CHECK(other);
+  }
 }
 
 // A hull with more faces than the narrowphase keeps plane offsets for (narrow3d.cpp,

@@ -9,12 +9,14 @@
 // the cross products of their edge directions. The reference face is a's best face
 // unless b's separates more by the face tolerance, and an edge pair wins only when it
 // separates more than that face by a relative margin, so that a resting contact keeps
-// its face (and its four points) instead of flickering to an edge. A face contact clips
-// the incident face (the other shape's face most anti-parallel to the reference normal)
-// against the reference face's side planes (Sutherland–Hodgman), keeps the points within
-// reach and reduces them to at most four: the deepest, the one farthest from it, the one
-// spanning the largest triangle with those, and the one adding the most area. An edge
-// contact is one point at the closest points of the two edges. Box–box runs the same
+// its face (and its four points) instead of flickering to an edge; a winning edge pair
+// takes the face contact's points too where that face is near its normal
+// (edge_with_face). A face contact clips the incident face (the other shape's face most
+// anti-parallel to the reference normal) against the reference face's side planes
+// (Sutherland–Hodgman), keeps the points within reach and reduces them to at most four:
+// the deepest, the one farthest from it, the one spanning the largest triangle with
+// those, and the one adding the most area. An edge contact is one point at the closest
+// points of the two edges. Box–box runs the same
 // steps on the boxes' 15 axes directly (3 + 3 face normals, 9 edge cross products);
 // box–convex takes the box as a hull (box_hull()).
 //
@@ -432,6 +434,57 @@ inline bool edge_wins(double edge_sep, double face_sep, double tol) {
   return edge_sep > face_sep + EDGE_RELATIVE_TOLERANCE * std::fabs(face_sep) + tol;
 }
 
+// An edge pair whose axis lies within EDGE_FACE_COS of the reference face's normal takes
+// that face's clipped points into its manifold (edge_with_face), and within
+// EDGE_FACE_SAME the face contact is the manifold when it agrees with the edge pair.
+// Dimensionless cosines: 0.9 is 26°: a face turned further from the edge pair's normal is
+// not about to lie on the other shape's face within a step; 1 − 1.5e-4 is 1°: a face that
+// near is the contact, only the edge pair's axis passed over a part of the other shape
+// beyond its rim.
+constexpr double EDGE_FACE_COS = 0.9;
+constexpr double EDGE_FACE_SAME = 1.0 - 1.5e-4;
+
+// The manifold where an edge pair wins: its point (n_edge, 0 or 1, in `edge`: the normal
+// is the edge pair's, sep_e its separation, m) and the face contact's points (n_face in
+// `face`: the incident face clipped to the reference face; the caller clips only a face
+// whose normal is within EDGE_FACE_COS of the edge pair's). A box tilted a few degrees
+// over another, its corners hanging over the rim, touches it edge on edge; turning at 10
+// rad/s it laid its face down within the step and landed 18 mm deep, that face's points
+// not in the one-point manifold of the edge pair.
+//
+// Where the face's normal is within EDGE_FACE_SAME of the edge pair's and its deepest
+// point lies at the edge pair's separation (within the face tolerance tol, m), the face
+// contact is the manifold as it is: the face axis lost only to a part of the other shape
+// beyond the face's rim (a box of a pyramid's second layer on one of the four below it,
+// its corner sagging past that box's top over the next one), and the face's points are
+// all of the contact. Otherwise the face's points and the edge pair's, the face's first
+// (they keep their corners when the edge pair's point lies on one), each at its
+// separation from the reference face's plane but no deeper than the edge pair's (along
+// its normal, the separating axis, no point of the two lies deeper), reduced to four
+// along the edge pair's normal.
+int edge_with_face(const Manifold3& edge, int n_edge, double sep_e, const Manifold3& face,
+                   int n_face, double tol, Manifold3& out) {
+  if (n_face == 0) {
+    out = edge;
+    return n_edge;
+  }
+  double deepest = INF;  // m
+  for (int k = 0; k < n_face; ++k) deepest = std::min(deepest, face.separation[k]);
+  if (dot(edge.normal, face.normal) >= EDGE_FACE_SAME && std::fabs(deepest - sep_e) <= tol) {
+    out = face;
+    return n_face;
+  }
+  const auto get = [&](int i, Vec3& p, double& s, std::int64_t& id) {
+    const Manifold3& m = i < n_face ? face : edge;
+    const int k = i < n_face ? i : i - n_face;
+    p = m.point[k];
+    s = std::max(m.separation[k], sep_e);
+    id = m.id[k];
+    return true;
+  };
+  return reduce_to_four(n_face + n_edge, get, edge.normal, out);
+}
+
 // One point at the closest points of edges p1-q1 (of a) and p2-q2 (of b), normal n (b -> a).
 inline int edge_contact(Vec3 p1, Vec3 q1, Vec3 p2, Vec3 q2, Vec3 n, std::int64_t fid,
                         double speculative, Manifold3& out) {
@@ -696,22 +749,29 @@ int collide_polytopes(const Polytope& A, const Polytope& B, double tol, double s
 
   const int ref_is_b = sep_b > sep_a + tol ? 1 : 0;
   const double face_sep = ref_is_b ? sep_b : sep_a;
-  if (edge_a >= 0 && edge_wins(sep_e, face_sep, tol)) {
-    const HullEdge& ea = A.h->edge[edge_a];
-    const HullEdge& eb = B.h->edge[edge_b];
-    return edge_contact(A.v[ea.v0], A.v[ea.v1], B.v[eb.v0], B.v[eb.v1], -axis_e,
-                        feature_id(FK::EdgeEdge, 0, 0, edge_a, edge_b), speculative, out);
-  }
   const Polytope& ref = ref_is_b ? B : A;
   const Polytope& inc = ref_is_b ? A : B;
   const int rf = ref_is_b ? face_b : face_a;
   const Vec3 n_ref = ref.fn[rf];
-  ClipPolygon<HULL_CLIP> poly;
-  incident_polygon(inc, incident_face(inc, n_ref), poly);
   std::array<Vec3, HULL_MAX_FACE_VERTICES> loop;
   const int s = ref.h->face_start[rf], e = ref.h->face_start[rf + 1];
-  for (int k = s; k < e; ++k) loop[k - s] = ref.v[ref.h->face_vertex[k]];
-  const int n = face_contact(loop.data(), e - s, n_ref, poly, ref_is_b, rf, tol, speculative, out);
+  const auto clip = [&](Manifold3& m) {
+    ClipPolygon<HULL_CLIP> poly;
+    incident_polygon(inc, incident_face(inc, n_ref), poly);
+    for (int k = s; k < e; ++k) loop[k - s] = ref.v[ref.h->face_vertex[k]];
+    return face_contact(loop.data(), e - s, n_ref, poly, ref_is_b, rf, tol, speculative, m);
+  };
+  if (edge_a >= 0 && edge_wins(sep_e, face_sep, tol)) {
+    const HullEdge& ea = A.h->edge[edge_a];
+    const HullEdge& eb = B.h->edge[edge_b];
+    Manifold3 m, face;
+    const int n_edge = edge_contact(A.v[ea.v0], A.v[ea.v1], B.v[eb.v0], B.v[eb.v1], -axis_e,
+                                    feature_id(FK::EdgeEdge, 0, 0, edge_a, edge_b), speculative, m);
+    // (both normals from b towards a)
+    const bool near = dot(axis_e, ref_is_b ? -n_ref : n_ref) >= EDGE_FACE_COS;
+    return edge_with_face(m, n_edge, sep_e, face, near ? clip(face) : 0, tol, out);
+  }
+  const int n = clip(out);
   if (n > 0) return n;
   // The incident face clipped to nothing, though the axes found the two within reach:
   // on hulls of many small faces the one most anti-parallel to the reference normal need
@@ -1203,8 +1263,73 @@ int collide_capsule_convex(const ShapeRef3& a, const ShapeRef3& b, double specul
                           speculative, out);
 }
 
+// Box a against box b, the face contact: the reference face (of b if ref_is_b, else of a)
+// is the one along the reference box's axis ri, on its positive side if ref_positive; the
+// other box's face most anti-parallel to it is clipped to it. tol (m): the face tolerance.
+int box_face_contact(const ShapeRef3& a, const ShapeRef3& b, int ref_is_b, int ri,
+                     bool ref_positive, double tol, double speculative, Manifold3& out) {
+  const ShapeRef3& ref = ref_is_b ? b : a;
+  const ShapeRef3& inc = ref_is_b ? a : b;
+  const Vec3 n_ref = ref_positive ? ref.axes[ri] : -ref.axes[ri];
+  const int ref_face = 2 * ri + (ref_positive ? 1 : 0);
+  // the incident face: the other box's face most anti-parallel to n_ref
+  int ii = 0;
+  double best = -1.0;
+  for (int k = 0; k < 3; ++k) {
+    const double c = std::fabs(dot(n_ref, inc.axes[k]));
+    if (c > best) {
+      best = c;
+      ii = k;
+    }
+  }
+  const bool inc_positive = dot(n_ref, inc.axes[ii]) < 0.0;
+  const int inc_face = 2 * ii + (inc_positive ? 1 : 0);
+  // Clip in the reference box's frame: the incident corners' coordinates along its axes,
+  // so that each side plane is one coordinate against a half extent. Side k of the
+  // reference face's loop (corner k to k+1) is the plane of the axis both corners'
+  // other bit does not change: outward along that axis, with their sign on it.
+  const HullView& topo = box_hull();
+  const BoxCorners inc_corner(inc);
+  const double hr[3] = {ref.half.x, ref.half.y, ref.half.z};
+  ClipPolygon<8> poly;
+  for (int k = 0; k < 4; ++k) {
+    const int v = BOX_LOOP[inc_face][k];
+    const Vec3 r = inc_corner[v] - ref.center;
+    poly.push({dot(r, ref.axes[0]), dot(r, ref.axes[1]), dot(r, ref.axes[2])},
+              feature_id(FK::Vertex, 0, 0, v, 0), topo.face_edge[topo.face_start[inc_face] + k]);
+  }
+  ClipPolygon<8> tmp;
+  ClipPolygon<8>* cur = &poly;
+  ClipPolygon<8>* nxt = &tmp;
+  for (int k = 0; k < 4 && cur->n > 0; ++k) {
+    const int c0 = BOX_LOOP[ref_face][k], c1 = BOX_LOOP[ref_face][(k + 1) & 3];
+    const int m = 3 - ri - BIT_AXIS[c0 ^ c1];  // neither the face's axis nor the edge's
+    const bool positive = (c0 >> m) & 1;
+    const double h = hr[m] + tol;  // m: the side plane, moved out by the clip skin
+    const auto dist = [m, positive, h](Vec3 x) {
+      const double u = m == 0 ? x.x : (m == 1 ? x.y : x.z);
+      return (positive ? u : -u) - h;
+    };
+    clip_polygon(*cur, dist, k, *nxt);
+    std::swap(cur, nxt);
+  }
+  const ClipPolygon<8>& clipped = *cur;
+  const std::int64_t ref_part = feature_id(FK::Single, ref_is_b, ref_face, 0, 0);
+  const double h_face = hr[ri];
+  const auto get = [&](int i, Vec3& p, double& s, std::int64_t& id) {
+    const Vec3 l = clipped.p[i];
+    const double along = ri == 0 ? l.x : (ri == 1 ? l.y : l.z);
+    s = (ref_positive ? along : -along) - h_face;
+    p = ref.center + l.x * ref.axes[0] + l.y * ref.axes[1] + l.z * ref.axes[2] - (0.5 * s) * n_ref;
+    id = ref_part | clipped.id[i];
+    return s <= speculative;
+  };
+  return reduce_to_four(clipped.n, get, ref_is_b ? n_ref : -n_ref, out);
+}
+
 // Box a against box b: SAT over the 15 axes (3 + 3 face normals, 9 edge cross products),
-// then a face contact (the incident face clipped to the reference face) or one edge point.
+// then a face contact (the incident face clipped to the reference face) or, where an edge
+// pair wins, its point with that face contact's (edge_with_face).
 int collide_box_box(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
   const Vec3 d = a.center - b.center;  // b -> a
   const double ha[3] = {a.half.x, a.half.y, a.half.z};
@@ -1270,81 +1395,33 @@ int collide_box_box(const ShapeRef3& a, const ShapeRef3& b, double speculative, 
   const double tol = face_tolerance(a, b);
   const int ref_is_b = sep_b > sep_a + tol ? 1 : 0;
   const double face_sep = ref_is_b ? sep_b : sep_a;
-  if (edge_i >= 0 && edge_wins(sep_e, face_sep, tol)) {
-    // a's edge along axis i nearest b (towards −n), b's edge along axis j nearest a (+n)
-    const Vec3 n = (proj_e >= 0.0 ? 1.0 / len_e : -1.0 / len_e) * cross(a.axes[edge_i], b.axes[edge_j]);
-    int corner_a = 0, corner_b = 0;  // the edges' lower corners (sign bits)
-    for (int k = 0; k < 3; ++k) {
-      if (k != edge_i && dot(n, a.axes[k]) < 0.0) corner_a |= 1 << k;
-      if (k != edge_j && dot(n, b.axes[k]) > 0.0) corner_b |= 1 << k;
-    }
-    const int upper_a = corner_a | 1 << edge_i, upper_b = corner_b | 1 << edge_j;
-    return edge_contact(box_corner(a, corner_a), box_corner(a, upper_a), box_corner(b, corner_b),
-                        box_corner(b, upper_b), n,
-                        feature_id(FK::EdgeEdge, 0, 0, corner_a * 8 + upper_a, corner_b * 8 + upper_b),
-                        speculative, out);
-  }
-
-  const ShapeRef3& ref = ref_is_b ? b : a;
-  const ShapeRef3& inc = ref_is_b ? a : b;
   // the reference face faces the other box: on a, against d; on b, along d
   const int ri = ref_is_b ? axis_b : axis_a;
   const bool ref_positive = ref_is_b ? proj_b[axis_b] >= 0.0 : proj_a < 0.0;
-  const Vec3 n_ref = ref_positive ? ref.axes[ri] : -ref.axes[ri];
-  const int ref_face = 2 * ri + (ref_positive ? 1 : 0);
-  // the incident face: the other box's face most anti-parallel to n_ref
-  int ii = 0;
-  double best = -1.0;
+  if (edge_i < 0 || !edge_wins(sep_e, face_sep, tol))
+    return box_face_contact(a, b, ref_is_b, ri, ref_positive, tol, speculative, out);
+  // an edge pair wins: its point, and the face contact's (edge_with_face)
+  // a's edge along axis i nearest b (towards −n), b's edge along axis j nearest a (+n)
+  const Vec3 n = (proj_e >= 0.0 ? 1.0 / len_e : -1.0 / len_e) * cross(a.axes[edge_i], b.axes[edge_j]);
+  int corner_a = 0, corner_b = 0;  // the edges' lower corners (sign bits)
   for (int k = 0; k < 3; ++k) {
-    const double c = std::fabs(dot(n_ref, inc.axes[k]));
-    if (c > best) {
-      best = c;
-      ii = k;
-    }
+    if (k != edge_i && dot(n, a.axes[k]) < 0.0) corner_a |= 1 << k;
+    if (k != edge_j && dot(n, b.axes[k]) > 0.0) corner_b |= 1 << k;
   }
-  const bool inc_positive = dot(n_ref, inc.axes[ii]) < 0.0;
-  const int inc_face = 2 * ii + (inc_positive ? 1 : 0);
-  // Clip in the reference box's frame: the incident corners' coordinates along its axes,
-  // so that each side plane is one coordinate against a half extent. Side k of the
-  // reference face's loop (corner k to k+1) is the plane of the axis both corners'
-  // other bit does not change: outward along that axis, with their sign on it.
-  const HullView& topo = box_hull();
-  const BoxCorners inc_corner(inc);
-  const double hr[3] = {ref.half.x, ref.half.y, ref.half.z};
-  ClipPolygon<8> poly;
-  for (int k = 0; k < 4; ++k) {
-    const int v = BOX_LOOP[inc_face][k];
-    const Vec3 r = inc_corner[v] - ref.center;
-    poly.push({dot(r, ref.axes[0]), dot(r, ref.axes[1]), dot(r, ref.axes[2])},
-              feature_id(FK::Vertex, 0, 0, v, 0), topo.face_edge[topo.face_start[inc_face] + k]);
-  }
-  ClipPolygon<8> tmp;
-  ClipPolygon<8>* cur = &poly;
-  ClipPolygon<8>* nxt = &tmp;
-  for (int k = 0; k < 4 && cur->n > 0; ++k) {
-    const int c0 = BOX_LOOP[ref_face][k], c1 = BOX_LOOP[ref_face][(k + 1) & 3];
-    const int m = 3 - ri - BIT_AXIS[c0 ^ c1];  // neither the face's axis nor the edge's
-    const bool positive = (c0 >> m) & 1;
-    const double h = hr[m] + tol;  // m: the side plane, moved out by the clip skin
-    const auto dist = [m, positive, h](Vec3 x) {
-      const double u = m == 0 ? x.x : (m == 1 ? x.y : x.z);
-      return (positive ? u : -u) - h;
-    };
-    clip_polygon(*cur, dist, k, *nxt);
-    std::swap(cur, nxt);
-  }
-  const ClipPolygon<8>& clipped = *cur;
-  const std::int64_t ref_part = feature_id(FK::Single, ref_is_b, ref_face, 0, 0);
-  const double h_face = hr[ri];
-  const auto get = [&](int i, Vec3& p, double& s, std::int64_t& id) {
-    const Vec3 l = clipped.p[i];
-    const double along = ri == 0 ? l.x : (ri == 1 ? l.y : l.z);
-    s = (ref_positive ? along : -along) - h_face;
-    p = ref.center + l.x * ref.axes[0] + l.y * ref.axes[1] + l.z * ref.axes[2] - (0.5 * s) * n_ref;
-    id = ref_part | clipped.id[i];
-    return s <= speculative;
-  };
-  return reduce_to_four(clipped.n, get, ref_is_b ? n_ref : -n_ref, out);
+  const int upper_a = corner_a | 1 << edge_i, upper_b = corner_b | 1 << edge_j;
+  Manifold3 m, face;
+  const int n_edge =
+      edge_contact(box_corner(a, corner_a), box_corner(a, upper_a), box_corner(b, corner_b),
+                   box_corner(b, upper_b), n,
+                   feature_id(FK::EdgeEdge, 0, 0, corner_a * 8 + upper_a, corner_b * 8 + upper_b),
+                   speculative, m);
+  // the reference face's normal, from b towards a (box_face_contact's manifold normal)
+  const Vec3 n_face = (ref_is_b == (ref_positive ? 1 : 0) ? 1.0 : -1.0) * (ref_is_b ? b : a).axes[ri];
+  const bool near = dot(n, n_face) >= EDGE_FACE_COS;
+  return edge_with_face(
+      m, n_edge, sep_e, face,
+      near ? box_face_contact(a, b, ref_is_b, ri, ref_positive, tol, speculative, face) : 0, tol,
+      out);
 }
 
 int collide_box_plane(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
