@@ -259,6 +259,21 @@ def test_storage_of_a_world_restored_from_a_checkpoint_reads_only_batches_it_pac
     assert len(fresh.storage.face_batch_points) > 0
 
 
+def test_solve_waves_of_a_world_restored_from_a_checkpoint_asks_for_packed_waves() -> None:
+    # the same: solve_waves on a restored world solved batches it had not packed, past
+    # the end of its empty lists (the process crashed); now it says so, and solves once
+    # find_waves has packed them
+    stepped = CoreWorld.from_scene(scene_from(STACK))
+    stepped.advance(30)
+    fresh = CoreWorld.from_scene(scene_from(STACK))
+    fresh.engine.load_checkpoint(stepped.engine.save_checkpoint())
+    args = {"inv_h": 240.0, "use_bias": True, "shift": 0.0, "threshold": 1.0}
+    with pytest.raises(ValueError, match="not packed"):
+        fresh.engine.stage("solve_waves", args)
+    assert fresh.engine.stage("find_waves") > 0
+    fresh.engine.stage("solve_waves", args)
+
+
 @pytest.mark.parametrize("e", [0.0])
 def test_sphere_with_e_zero_comes_to_rest_on_the_plane(e: float) -> None:
     text = BALL.format(dt=1 / 240, steps=480, e=e, h0=1.0)

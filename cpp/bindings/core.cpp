@@ -519,6 +519,13 @@ nb::object run_stage3(World<3>& w, const std::string& name, nb::dict args) {
     solve_contacts(w.model, w.state, c, num("inv_h"), flag("use_bias"), num("shift"),
                    num("threshold"), stage_order(c, args), n);
   } else if (name == "solve_waves") {
+    // the batches are the step's scratch, packed by find_waves (a checkpoint keeps the
+    // waves' counts, not the batches): solving waves that were not packed read past them
+    const auto n = static_cast<std::size_t>(c.wave_count);
+    if (n >= c.wave_batch.size() || n >= c.wave_single_batch.size() ||
+        static_cast<std::size_t>(c.wave_batch[n]) > c.batches3.size() ||
+        static_cast<std::size_t>(c.wave_single_batch[n]) > c.faces3.size())
+      throw std::invalid_argument("solve_waves: the waves are not packed (run find_waves first)");
     solve_waves(w.model, w.state, c, num("inv_h"), flag("use_bias"), num("shift"), num("threshold"));
   } else {
     throw std::invalid_argument("no 3D stage named " + name);
