@@ -25,6 +25,7 @@ DEEP_RELAX_REACH: int = _ENGINE["DEEP_RELAX_REACH"]  # contacts
 STATIC_OVERLAP_LIMIT: float = _ENGINE["STATIC_OVERLAP_LIMIT"]  # m
 STILL_DISTANCE: float = _ENGINE["STILL_DISTANCE"]  # m
 STILL_ANGLE: float = _ENGINE["STILL_ANGLE"]  # rad
+MAX_ROTATION: float = _ENGINE["MAX_ROTATION"]  # rad: 3D, a body's most turn in a substep
 RESTITUTION_PASSES: int = _ENGINE["RESTITUTION_PASSES"]
 IMPACT_GAP: float = _ENGINE["IMPACT_GAP"]  # m: an impact at a wall is resolved within it
 REFERENCE_FACE_TOLERANCE: float = _ENGINE["REFERENCE_FACE_TOLERANCE"]  # m

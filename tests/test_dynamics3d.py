@@ -16,6 +16,7 @@ from scipy.integrate import solve_ivp
 from scipy.special import ellipk
 
 import rbsim
+from rbsim.constants import MAX_ROTATION
 from rbsim.core import CoreWorld
 from rbsim.io.trajectory import Trajectory, load_trajectory
 
@@ -280,6 +281,36 @@ def test_constant_torque_about_a_principal_axis(rotation: str) -> None:
         np.testing.assert_allclose(error, tau * dt * t / (2.0 * inertia), atol=1e-11)
         errors[dt] = error[-1]
     assert errors[0.002] / errors[0.001] == pytest.approx(2.0, rel=1e-9)  # it halves with h
+
+
+SPIN = """\
+version: 1
+world: {dimension: 3, gravity: [0, 0, 0], dt: 1/60, duration: 1}
+output: {every: 1}
+bodies:
+  - name: fast
+    position: [0, 0, 0]
+    angular_velocity: [0, 1000, 0]
+    density: 1000
+    shape: {sphere: {radius: 0.1}}
+  - name: slow
+    position: [1, 0, 0]
+    angular_velocity: [0, 100, 0]
+    density: 1000
+    shape: {sphere: {radius: 0.1}}
+"""
+
+
+def test_a_3d_body_turns_at_most_max_rotation_a_substep() -> None:
+    # 1000 rad/s at h = 1/240 s would turn 4.2 rad a substep: ω and L are held to
+    # MAX_ROTATION / h (rtol: the scaling's round-off); 100 rad/s (0.42 rad) is left alone
+    world = world_of(SPIN)
+    world.advance(1)
+    w_max = MAX_ROTATION * 240.0
+    w, ang = world.engine.body_w, world.engine.body_l
+    np.testing.assert_allclose(w[0], [0.0, w_max, 0.0], rtol=1e-12)
+    np.testing.assert_allclose(ang[0] / w[0][1], ang[1] / w[1][1], rtol=1e-12)  # L = I ω
+    assert w[1][1] == 100.0 and w[1][0] == 0.0 and w[1][2] == 0.0
 
 
 PROJECTILE = """\

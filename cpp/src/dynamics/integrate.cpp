@@ -146,10 +146,20 @@ void integrate_velocities(const Model<D>& model, State<D>& st, double h, Span bo
     if constexpr (D == 2) {
       const double alpha = model.body_inv_inertia[i] * torque;
       st.body_w[i] = (st.body_w[i] + h * alpha) * ang;
-    } else if (model.has_forces || ang != 1.0) {
-      // (without torque or damping L, and so ω, stays as it is)
-      st.body_l[i] = (st.body_l[i] + h * torque) * ang;
-      refresh_angular(model, st, i);
+    } else {
+      if (model.has_forces || ang != 1.0) {
+        // (without torque or damping L, and so ω, stays as it is)
+        st.body_l[i] = (st.body_l[i] + h * torque) * ang;
+        refresh_angular(model, st, i);
+      }
+      // at most MAX_ROTATION a substep: ω and L scaled down together
+      const double w2 = dot(st.body_w[i], st.body_w[i]);  // (rad/s)²
+      const double w_max = C::MAX_ROTATION / h;           // rad/s
+      if (w2 > w_max * w_max) {
+        const double s = w_max / std::sqrt(w2);
+        st.body_w[i] = s * st.body_w[i];
+        st.body_l[i] = s * st.body_l[i];
+      }
     }
   }
 }

@@ -344,7 +344,10 @@ PointImpulses<D> push_targets(const Model<D>& model, State<D>& st, Contacts<D>& 
     const Vec ra = c.anchor_a[m][k], rb = c.anchor_b[m][k];
     const double vn = normal_velocity(st, a, b, ra, rb, n);
     const double lam = c.normal_impulse[m][k];
-    const double next = std::fmax(lam - c.normal_mass[m][k] * (vn - t[k]), 0.0);
+    // (3D: through the tensors push_point pushes through, at the rotations now)
+    double mass = c.normal_mass[m][k];  // kg
+    if constexpr (D == 3) mass = point_mass_now(model, st, a, b, ra, rb, n);
+    const double next = std::fmax(lam - mass * (vn - t[k]), 0.0);
     const double impulse = next - lam;
     c.normal_impulse[m][k] = next;
     push_point(model, st, a, b, ra, rb, n, impulse);

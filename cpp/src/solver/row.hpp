@@ -41,10 +41,17 @@ inline void add_angular(const Model<3>& model, State<3>& st, int i, Vec3 dl) {
   st.body_l[i] += dl;
   st.body_w[i] = Dim<3>::apply_inv_inertia(model.body_inv_inertia[i], st.body_q[i], st.body_l[i]);
 }
-// 3D: body i's ω from its L after the passes changed L (a dynamic body only), through its
-// inverse inertia tensor in world axes at its rotation now (contacts.body_inv_inertia_world).
-inline void refresh_omega(const Contacts<3>& c, State<3>& st, int i) {
-  st.body_w[i] = c.body_inv_inertia_world[i] * st.body_l[i];
+// 3D: a row's impulses changed body i's angular momentum by dl (N·m·s): L += dl, and ω by
+// the row's inverse inertia tensor inv_i (world axes, the step's start: the tensor its
+// effective masses were made with), so that every pass of the step sees the response its
+// rows expect; the position update makes ω from L again at the body's new rotation. Taken
+// through the tensor at the rotation now, the response drifted from the rows' as the body
+// turned within the step, and for a body that turns fast and whose inertia is far from
+// round the passes overshot, more each pass: a 2.5 cm capsule falling on one end spun up
+// to 1000 rad/s in a step, and the next step's passes threw it 1e9 m.
+inline void add_momentum(State<3>& st, int i, const Sym3& inv_i, Vec3 dl) {
+  st.body_l[i] += dl;
+  st.body_w[i] += inv_i * dl;
 }
 
 // Whether point k of manifold m holds an impulse (normal or friction).
@@ -71,6 +78,21 @@ inline void push_impulse(const Model<D>& model, State<D>& st, int a, int b,
   add_angular(model, st, a, cross(ra, p));
   st.body_v[b] -= model.body_inv_mass[b] * p;
   add_angular(model, st, b, -cross(rb, p));
+}
+
+// 3D: the effective mass (kg) along n of a point with arms ra, rb (m) at the bodies'
+// rotations now, the tensors add_angular pushes through (a row's normal_mass is the
+// step's start's: a pass that pushes through the tensors now and steps by the start's
+// overshot on a body that turned far within the step).
+inline double point_mass_now(const Model<3>& model, const State<3>& st, int a, int b, Vec3 ra,
+                             Vec3 rb, Vec3 n) {
+  double k = model.body_inv_mass[a] + model.body_inv_mass[b];  // 1/kg
+  const Vec3 ca = cross(ra, n), cb = cross(rb, n);
+  if (model.body_inv_mass[a] != 0.0)
+    k += dot(ca, Dim<3>::apply_inv_inertia(model.body_inv_inertia[a], st.body_q[a], ca));
+  if (model.body_inv_mass[b] != 0.0)
+    k += dot(cb, Dim<3>::apply_inv_inertia(model.body_inv_inertia[b], st.body_q[b], cb));
+  return k > 0.0 ? 1.0 / k : 0.0;
 }
 
 // Apply the normal impulse j (N·s) at a point with arms ra, rb (m): +j n on a, −j n on b.

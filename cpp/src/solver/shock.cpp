@@ -189,8 +189,8 @@ bool shock_block(const std::array<double, 10>& k, const double* need, int n, dou
 }
 
 // The 3D pass: the supported body's approach taken out at a face's up to four points at
-// once (shock_block), the supporter held still; the body's v and L changed, ω found again
-// from L. Where no set of points is found, the points are taken one after the other
+// once (shock_block), the supporter held still; the body's v, L and ω changed
+// (add_momentum). Where no set of points is found, the points are taken one after the other
 // (each impulse λ >= 0 against the velocity it meets).
 void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
                         std::int64_t first, std::int64_t last, double inv_h, double threshold,
@@ -270,8 +270,7 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
     }
     if (!pushed) continue;
     st.body_v[u] = vu;
-    st.body_l[u] += dl;
-    refresh_omega(c, st, u);
+    add_momentum(st, u, a_moves ? row.inv_ia : row.inv_ib, dl);
   }
 }
 

@@ -315,13 +315,11 @@ inline void solve_manifold_3d(const Model<3>& model, State<3>& st, Contacts<3>& 
   // a static or kinematic body is not written (its velocity does not change)
   if (ma != 0.0) {
     v[a] = va;
-    l[a] += dla;
-    refresh_omega(c, st, a);
+    add_momentum(st, a, row.inv_ia, dla);
   }
   if (mb != 0.0) {
     v[b] = vb;
-    l[b] += dlb;
-    refresh_omega(c, st, b);
+    add_momentum(st, b, row.inv_ib, dlb);
   }
 }
 
@@ -329,7 +327,8 @@ inline void solve_manifold_3d(const Model<3>& model, State<3>& st, Contacts<3>& 
 // then each point's friction as one 2×2 block clamped to Coulomb's circle. The bodies'
 // velocities are followed through the manifold in local copies, with the row's world
 // inverse inertia tensors (the step's start); what the manifold changes is written back
-// once, as momentum: v += Δp/m, L += ΔL, and ω = R I_b⁻¹ Rᵀ L at the body's rotation now.
+// once, as momentum: v += Δp/m, L += ΔL, and ω += I⁻¹ ΔL through the row's tensor
+// (add_momentum; the position update makes ω = R I_b⁻¹ Rᵀ L again after it turns the body).
 //
 // A face's points (two to four) are solved as one block, as 2D solves its two: one after
 // the other, a box resting on four corners got unequal impulses and a slow spin (1e-8
@@ -903,8 +902,8 @@ inline LaneMask friction_on(LaneMask live, Lanes mu, Lanes limit, const PointImp
          ~((limit == zero) & (p.jtx == zero) & (p.jty == zero) & (p.jtz == zero));
 }
 
-// The lanes written back but those in `skip` (bits): each dynamic body's v, L += dl and
-// ω from L (refresh_omega); the manifolds' impulses of points 0..n-1.
+// The lanes written back but those in `skip` (bits): each dynamic body's v, and L and ω by
+// dl (add_momentum); the manifolds' impulses of points 0..n-1.
 void write_back_3d(State<3>& st, Contacts<3>& c, const WideLanes3& L, unsigned skip,
                    const Bodies3& q, const Lanes (&dla)[3], const Lanes (&dlb)[3],
                    const PointImpulses* p, int n) {
@@ -914,14 +913,12 @@ void write_back_3d(State<3>& st, Contacts<3>& c, const WideLanes3& L, unsigned s
     if (L.writes & (1u << l)) {
       const int i = L.a[l];
       st.body_v[i] = {q.vax[l], q.vay[l], q.vaz[l]};
-      st.body_l[i] += Vec3{dla[0][l], dla[1][l], dla[2][l]};
-      refresh_omega(c, st, i);
+      add_momentum(st, i, c.solver_row[m].inv_ia, Vec3{dla[0][l], dla[1][l], dla[2][l]});
     }
     if (L.writes & (1u << (LANES + l))) {
       const int i = L.b[l];
       st.body_v[i] = {q.vbx[l], q.vby[l], q.vbz[l]};
-      st.body_l[i] += Vec3{dlb[0][l], dlb[1][l], dlb[2][l]};
-      refresh_omega(c, st, i);
+      add_momentum(st, i, c.solver_row[m].inv_ib, Vec3{dlb[0][l], dlb[1][l], dlb[2][l]});
     }
     for (int k = 0; k < n; ++k) {
       c.normal_impulse[m][k] = p[k].lam[l];
@@ -932,7 +929,7 @@ void write_back_3d(State<3>& st, Contacts<3>& c, const WideLanes3& L, unsigned s
 }
 
 // A batch of LANES one-point manifolds (solve_manifold_3d<1>). The local ω is not turned
-// by friction here: nothing reads it after, and ω is written back from L.
+// by friction here: nothing reads it after, and ω is written back from dl.
 void solve_batch_3d(State<3>& st, Contacts<3>& c, const WideBatch3& B, double inv_h,
                     bool use_bias, double shift, double threshold, PassLog& log) {
   const WideLanes3& L = B.lanes;

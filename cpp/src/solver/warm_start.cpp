@@ -50,13 +50,11 @@ void warm_start_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
     const Vec3 la{s0[3], s1[0], s1[1]}, lb{s1[2], s1[3], lbz};  // N·m·s
     if (im[a] != 0.0) {
       st.body_v[a] += im[a] * p;
-      st.body_l[a] += la;
-      refresh_omega(c, st, a);
+      add_momentum(st, a, row.inv_ia, la);
     }
     if (im[b] != 0.0) {
       st.body_v[b] -= im[b] * p;
-      st.body_l[b] -= lb;
-      refresh_omega(c, st, b);
+      add_momentum(st, b, row.inv_ib, -lb);
     }
   }
 }
