@@ -137,7 +137,6 @@ inline void solve_manifold_3d(const Model<3>& model, State<3>& st, Contacts<3>& 
   const double* im = model.body_inv_mass.data();
   Vec3* v = st.body_v.data();
   Vec3* w = st.body_w.data();
-  Vec3* l = st.body_l.data();
   const BodyDelta<3>* delta = c.body_delta.data();
   const int a = c.body_a[m], b = c.body_b[m];
   const double ma = im[a], mb = im[b];
