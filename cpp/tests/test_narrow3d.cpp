@@ -300,6 +300,32 @@ TEST(capsules_parallel_two_points_crossed_one) {
   CHECK(collide(capsule_ref({0.5, 0.2 + 1.5 * SPEC, -1}, {0.5, 0.2 + 1.5 * SPEC, 1}, 0.1), b).n == 0);
 }
 
+// A capsule across another at 5°, its low end 0.5 mm above the other's core and its other
+// end 1 cm higher: the closest points, and the end of the two cores' common stretch under
+// its high end, within reach (12 mm), at its own distance. A capsule falling across
+// another near one end had only that point, and brought its other end down 11 mm into the
+// other within the step.
+TEST(capsule_across_another_keeps_the_far_end_of_their_stretch) {
+  const auto a = capsule_ref({-0.2, 0, 0}, {0.2, 0, 0}, 0.1);
+  const double turn = 5.0 * M_PI / 180.0;
+  const Vec3 dir{std::cos(turn), 0.0, std::sin(turn)};
+  const Vec3 low = Vec3{-0.15, 0.2005, 0.0}, high = low + 0.3 * dir + Vec3{0, 0.01, 0};
+  for (int order = 0; order < 2; ++order) {
+    const auto b = capsule_ref(order == 0 ? low : high, order == 0 ? high : low, 0.1);
+    const auto r = collide(b, a);
+    CHECK(r.n == 2);
+    CHECK_NEAR(r.m.separation[0], 0.0005, 1e-9);  // the closest points: the low end's
+    // the stretch's far end: b's high end (the whole of b's core lies over a's), at its
+    // distance from a's core
+    const double gap = length(high - Vec3{std::min(high.x, 0.2), 0.0, 0.0}) - 0.2;  // m, 12 mm
+    const int k = point_of_kind(r, FeatureKind::CapsuleEnd);
+    CHECK(k >= 0);
+    CHECK(k < 0 || std::fabs(r.m.separation[k] - gap) < 1e-12);
+    CHECK(gap > 0.01 && gap < SPEC);
+  }
+  // at 90° the stretch is a point: the closest points alone (capsules_parallel_...)
+}
+
 // A capsule lying on the ground: two points at its ends; standing on end: one; a
 // point-like capsule: one.
 TEST(capsule_on_a_plane) {
