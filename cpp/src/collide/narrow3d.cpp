@@ -464,6 +464,9 @@ constexpr double EDGE_FACE_SAME = 1.0 - 1.5e-4;
 // along the edge pair's normal.
 int edge_with_face(const Manifold3& edge, int n_edge, double sep_e, const Manifold3& face,
                    int n_face, double tol, Manifold3& out) {
+  // (the edge pair beyond reach, as its separation rounds: so is every point, none being
+  // nearer along the separating axis; and `edge` has no normal)
+  if (n_edge == 0) return 0;
   if (n_face == 0) {
     out = edge;
     return n_edge;
