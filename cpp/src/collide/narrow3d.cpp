@@ -384,19 +384,6 @@ inline void incident_polygon(const Polytope& P, int f, ClipPolygon<N>& poly) {
   }
 }
 
-// The face of P most anti-parallel to n (first on ties).
-inline int incident_face(const Polytope& P, Vec3 n) {
-  double min_dot = INF;
-  int face = 0;
-  for (int f = 0; f < P.h->face_count; ++f) {
-    const double d = dot(n, P.fn[f]);
-    if (d < min_dot) {
-      min_dot = d;
-      face = f;
-    }
-  }
-  return face;
-}
 
 // The Minkowski-face test of A's edge against four of B's edges at once, lane by lane.
 // An edge pair makes a face of the Minkowski difference A − B, and so a candidate
@@ -529,6 +516,11 @@ inline Least least_along(Vec3 n, Vec3 o, const Vec3* v, int count) {
     if (d < out.value) out = {d, j};
   }
   return out;
+}
+
+// The face of P most anti-parallel to n (first on ties).
+inline int incident_face(const Polytope& P, Vec3 n) {
+  return least_along(n, Vec3{}, P.fn, P.h->face_count).index;
 }
 
 // A polytope's face planes, for the bounds that pass over its faces and edges: each
@@ -938,50 +930,46 @@ int collide_capsule_capsule(const ShapeRef3& a, const ShapeRef3& b, double specu
       n = perpendicular(l1 >= l2 ? d1 : d2);
     }
   }
-  const Vec3 c12 = cross(d1, d2);
-  if (l1 > tiny && l2 > tiny &&
-      dot(c12, c12) <= CAPSULE_PARALLEL_SIN * CAPSULE_PARALLEL_SIN * l1 * l2) {
-    // b's ends on a's line (fractions of a), their common stretch [lo, hi]
-    const double u0 = dot(b.p - a.p, d1) / l1, u1 = dot(b.q - a.p, d1) / l1;
-    const bool b_reversed = u1 < u0;
-    const double b_lo = b_reversed ? u1 : u0, b_hi = b_reversed ? u0 : u1;
-    const double lo = std::max(0.0, b_lo), hi = std::min(1.0, b_hi);
-    if ((hi - lo) * std::sqrt(l1) > LINEAR_EPSILON) {
-      int count = 0;
-      for (int k = 0; k < 2; ++k) {
-        const double u = k == 0 ? lo : hi;
-        const Vec3 xa = a.p + u * d1;
-        const Vec3 xb = closest_on_segment(xa, b.p, b.q);
-        const double sep = dot(xa - xb, n) - radius;
-        if (sep > speculative) continue;
-        // which end made this end of the stretch: a's own (1, 2) or b's (1, 2)
-        int end_a = 0, end_b = 0;
-        if (k == 0) {
-          if (lo == 0.0 && b_lo <= 0.0) end_a = 1;
-          else end_b = b_reversed ? 2 : 1;
-        } else {
-          if (hi == 1.0 && b_hi >= 1.0) end_a = 2;
-          else end_b = b_reversed ? 1 : 2;
-        }
-        out.point[count] = 0.5 * ((xa - a.radius * n) + (xb + b.radius * n));
-        out.separation[count] = sep;
-        out.id[count] = feature_id(FK::CapsuleEnd, 0, 0, end_a, end_b);
-        ++count;
-      }
-      out.normal = n;
-      return count;
-    }
-  }
-  // Crossing: the closest points, and the ends of the two cores' common stretch (b's ends
-  // on a's line, as above) where they are within reach, each at its own distance (never
-  // less than the closest points'), along the closest points' normal. A capsule falling
-  // across another at 14°, touching near one end, brought its other end down within the
-  // step, 11 mm into the other, while its one point lifted off (capsules200). An end within
-  // the radii's half of the closest point along a adds nothing and is left out.
-  int count = single_point(ca, a.radius, cb, b.radius, n, 0, speculative, out);
-  if (l1 <= tiny || l2 <= tiny) return count;
+  if (l1 <= tiny || l2 <= tiny) return single_point(ca, a.radius, cb, b.radius, n, 0, speculative, out);
+  // b's ends on a's line (fractions of a), their common stretch [lo, hi]
   const double u0 = dot(b.p - a.p, d1) / l1, u1 = dot(b.q - a.p, d1) / l1;
-  const double lo = std::max(0.0, std::min(u0, u1)), hi = std::min(1.0, std::max(u0, u1));
+  const bool b_reversed = u1 < u0;
+  const double b_lo = b_reversed ? u1 : u0, b_hi = b_reversed ? u0 : u1;
+  const double lo = std::max(0.0, b_lo), hi = std::min(1.0, b_hi);
+  const Vec3 c12 = cross(d1, d2);
+  if (dot(c12, c12) <= CAPSULE_PARALLEL_SIN * CAPSULE_PARALLEL_SIN * l1 * l2 &&
+      (hi - lo) * std::sqrt(l1) > LINEAR_EPSILON) {
+    int count = 0;
+    for (int k = 0; k < 2; ++k) {
+      const double u = k == 0 ? lo : hi;
+      const Vec3 xa = a.p + u * d1;
+      const Vec3 xb = closest_on_segment(xa, b.p, b.q);
+      const double sep = dot(xa - xb, n) - radius;
+      if (sep > speculative) continue;
+      // which end made this end of the stretch: a's own (1, 2) or b's (1, 2)
+      int end_a = 0, end_b = 0;
+      if (k == 0) {
+        if (lo == 0.0 && b_lo <= 0.0) end_a = 1;
+        else end_b = b_reversed ? 2 : 1;
+      } else {
+        if (hi == 1.0 && b_hi >= 1.0) end_a = 2;
+        else end_b = b_reversed ? 1 : 2;
+      }
+      out.point[count] = 0.5 * ((xa - a.radius * n) + (xb + b.radius * n));
+      out.separation[count] = sep;
+      out.id[count] = feature_id(FK::CapsuleEnd, 0, 0, end_a, end_b);
+      ++count;
+    }
+    out.normal = n;
+    return count;
+  }
+  // Crossing: the closest points, and the ends of the common stretch where they are
+  // within reach, each at its own distance (never less than the closest points'), along
+  // the closest points' normal. A capsule falling across another at 14°, touching near
+  // one end, brought its other end down within the step, 11 mm into the other, while its
+  // one point lifted off (capsules200). An end within the radii's half of the closest
+  // point along a adds nothing and is left out.
+  int count = single_point(ca, a.radius, cb, b.radius, n, 0, speculative, out);
   const double apart = 0.5 * radius / std::sqrt(l1);  // fraction of a
   for (int k = 0; k < 2 && count > 0; ++k) {
     const double u = k == 0 ? lo : hi;
