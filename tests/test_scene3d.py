@@ -289,6 +289,19 @@ def test_dimension_must_be_2_or_3():
     assert line == "test.yaml:2:20: world.dimension: must be 2 or 3, got 4"
 
 
+@pytest.mark.parametrize("dimension", ["4", '"3"', "3.0", "true"])
+def test_a_wrong_dimension_is_the_only_dimension_error(dimension: str) -> None:
+    # read as the default 2D, every 3-vector and 3D shape was wrong too: not reported
+    lines = errors(
+        f"version: 1\nworld: {{dimension: {dimension}, dt: -1}}\nbodies:\n"
+        "  - {position: [0, 1, 0], velocity: [0, 0, 1], shape: {sphere: {radius: 0.1}}}\n"
+        "  - {position: [0, 1], shape: {circle: {radius: 0.1}}}\n"
+    )
+    assert len(lines) == 2, lines
+    assert lines[0].startswith("test.yaml:2:20: world.dimension: ")
+    assert "world.dt: must be between" in lines[1]  # whatever the dimension, still wrong
+
+
 def test_3d_bounds_are_the_2d_ones():
     (line,) = errors(scene_with("{position: [0, 0, 2e6], shape: {sphere: {radius: 1}}}"))
     assert line.endswith("bodies[0].position[2]: must be between -1e6 and 1e6, got 2000000")

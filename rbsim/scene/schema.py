@@ -1183,7 +1183,20 @@ def check_scene(root: Any, mark: Mark, shared: Shared | None = None) -> tuple[An
     yamlsrc.load_yaml_tree), the checks of its tree's nodes that ``root`` shares are
     worked out once and kept there (the checked values then shared too: read them only).
     """
-    checker = Checker(_dimension_of(root), shared)
+    if _dimension_is_wrong(root):
+        # the check of every key that depends on the dimension would only say what the
+        # default dimension makes of it: report what both dimensions find wrong (the
+        # dimension itself among it), nothing else
+        both = [_check_scene_as(root, mark, shared, dimension)[1] for dimension in T.DIMENSIONS]
+        return INVALID, [p for p in both[0] if all(p in other for other in both[1:])]
+    return _check_scene_as(root, mark, shared, _dimension_of(root))
+
+
+def _check_scene_as(
+    root: Any, mark: Mark, shared: Shared | None, dimension: int
+) -> tuple[Any, list[Problem]]:
+    """:func:`check_scene` for a scene read as of ``dimension`` (2 or 3)."""
+    checker = Checker(dimension, shared)
     if root is BROKEN:
         return INVALID, checker.problems
     if root is None:
@@ -1195,6 +1208,15 @@ def check_scene(root: Any, mark: Mark, shared: Shared | None = None) -> tuple[An
         return INVALID, checker.problems
     table = SCENES_BY_DIMENSION[checker.dimension]
     return checker.check(root, table, (), mark), checker.problems
+
+
+def _dimension_is_wrong(root: Any) -> bool:
+    """Whether the scene gives a world.dimension that is neither 2 nor 3."""
+    world = root.get("world") if isinstance(root, YMap) else None
+    if not isinstance(world, YMap) or world.get("dimension") is None:
+        return False
+    dimension = world["dimension"]
+    return type(dimension) is not int or dimension not in T.DIMENSIONS
 
 
 def _dimension_of(root: Any) -> int:
