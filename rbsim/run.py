@@ -627,17 +627,20 @@ def resume_run(
 def run(
     scene: Scene | str | os.PathLike | dict,
     out: str | os.PathLike | None = None,
-    overrides: Sequence[str] = (),
+    overrides: str | Sequence[str] = (),
 ) -> Trajectory:
     """Run a scene and return its trajectory (rbsim.io.trajectory.Trajectory) in memory.
 
     scene: a Scene, a path to a YAML file (str or Path), YAML text, or a dict of the
     scene format. out: a .h5 file to write as well (kept); by default a temporary file,
-    removed once read. overrides: --set lines ("world.dt=0.005"). Raises
-    rbsim.scene.SceneError for an invalid scene and RunFailed for a non-finite state."""
+    removed once read. overrides: --set lines ("world.dt=0.005"), or one such string.
+    Raises rbsim.scene.SceneError for an invalid scene, RunFailed for a non-finite state
+    and TypeError for overrides that are not strings."""
     import tempfile
 
-    from .scene import load_scene
+    from .scene import load_scene, override_lines
+
+    overrides = override_lines(overrides)
 
     if isinstance(scene, Scene):
         sc = scene
@@ -669,7 +672,7 @@ class _Module(types.ModuleType):
         self,
         scene: Scene | str | os.PathLike | dict,
         out: str | os.PathLike | None = None,
-        overrides: Sequence[str] = (),
+        overrides: str | Sequence[str] = (),
     ) -> Trajectory:
         return run(scene, out, overrides)
 

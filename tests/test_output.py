@@ -402,6 +402,18 @@ def test_run_from_python_returns_the_trajectory_in_memory(tmp_path) -> None:
     assert out.exists() and same_frames(traj, on_file, 91)
 
 
+def test_run_from_python_takes_one_override_as_a_string(tmp_path) -> None:
+    import rbsim as rb
+
+    # one string is one --set line, not a sequence of one-letter lines
+    one = rb.run(textwrap.dedent(PILE), overrides="world.steps=4")
+    assert len(one.step) == 5
+    listed = rb.run(textwrap.dedent(PILE), overrides=["world.steps=4"])
+    assert same_frames(one, listed, 5)
+    with pytest.raises(TypeError, match="overrides"):
+        rb.run(textwrap.dedent(PILE), overrides=[("world.steps", 4)])
+
+
 def test_a_run_stopped_between_frames_resumes_bit_identically(tmp_path) -> None:
     # output every 7th step: the stop lands between frames, and the checkpoint holds the
     # state of the last whole step, past the last frame

@@ -29,6 +29,7 @@ from .resolve import (
     convex_ccw,
     load_scene,
     load_scene_text,
+    override_lines,
     scene_to_dict,
 )
 
@@ -47,5 +48,6 @@ __all__ = [
     "convex_ccw",
     "load_scene",
     "load_scene_text",
+    "override_lines",
     "scene_to_dict",
 ]

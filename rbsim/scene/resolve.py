@@ -256,10 +256,11 @@ MAX_BODIES = 1_000_000
 MAX_STEPS = 1_000_000_000
 
 
-def load_scene(path: str | Path, overrides: Sequence[str] = ()) -> Scene:
+def load_scene(path: str | Path, overrides: str | Sequence[str] = ()) -> Scene:
     """Read, validate and resolve the scene file at ``path``.
 
-    ``overrides`` are ``key.path=value`` strings (``--set``), applied before validation.
+    ``overrides`` are ``key.path=value`` strings (``--set``; a single string is one),
+    applied before validation.
     Raises SceneError listing every problem found (including an unreadable file).
     """
     file = str(path)
@@ -288,7 +289,9 @@ def load_scene(path: str | Path, overrides: Sequence[str] = ()) -> Scene:
     return load_scene_text(text, path=file, overrides=overrides)
 
 
-def load_scene_text(text: str, path: str = "<string>", overrides: Sequence[str] = ()) -> Scene:
+def load_scene_text(
+    text: str, path: str = "<string>", overrides: str | Sequence[str] = ()
+) -> Scene:
     """Validate and resolve a scene given as YAML text; ``path`` is used in messages
     and for the default name. Raises SceneError listing every problem found."""
     root, mark, problems, shared = load_yaml_tree(text)
@@ -323,7 +326,20 @@ def _override_path(key: str) -> tuple[str | int, ...]:
     return tuple(int(p) if p.isdigit() else p for p in _split_key(key))
 
 
-def apply_overrides(root: YMap, overrides: Sequence[str]) -> list[Problem]:
+def override_lines(overrides: str | Sequence[str]) -> tuple[str, ...]:
+    """``overrides`` as a tuple of ``key.path=value`` lines: a single string is one line
+    (not a sequence of characters). Raises TypeError for anything but strings."""
+    lines = (overrides,) if isinstance(overrides, str) else tuple(overrides)
+    for line in lines:
+        if not isinstance(line, str):
+            raise TypeError(
+                'overrides: expected "key.path=value" strings (such as "world.dt=0.01"), '
+                f"got {type(line).__name__} {line!r}"
+            )
+    return lines
+
+
+def apply_overrides(root: YMap, overrides: str | Sequence[str]) -> list[Problem]:
     """Apply ``key.path=value`` overrides to a parsed tree in place: ``root`` changes,
     and the mappings and lists below it on an override's path are replaced by copies
     (copy_node) before they change, so that a tree whose nodes are shared with another
@@ -336,7 +352,7 @@ def apply_overrides(root: YMap, overrides: Sequence[str]) -> list[Problem]:
     Returns the problems found (malformed overrides, paths that do not exist).
     """
     problems: list[Problem] = []
-    for raw in overrides:
+    for raw in override_lines(overrides):
         key, eq, value_text = raw.partition("=")
         key = key.strip()
         origin = f"--set {key or raw}"
