@@ -253,6 +253,23 @@ def test_a_step_at_which_mujoco_tunnels_is_refused_and_the_refusal_is_real(
     assert engine.read().com[1][1] > 0.5  # bounced back up
 
 
+def test_the_tunnel_refusal_names_the_one_step_that_holds_for_every_pair():
+    """Two pellets: the 5 cm one at 10 m/s on the floor, a 1 cm one falling on it from
+    rest (its speed bounded by the fall, not predicted). One refusal names the smallest
+    step (as solver.substeps), and that number of substeps is accepted."""
+    grain = "  - {name: grain, material: m, position: [0, 0.7, 0], shape: {sphere: {radius: 0.01}}}"
+    text = PELLET.format(substeps=5, e=0.5, extra=grain)
+    with pytest.raises(UnsupportedScene) as info:
+        MujocoEngine(scene_from(text))
+    message = str(info.value)
+    assert "a bound on their approach speed" in message and "not a predicted impact" in message
+    assert "holds for every pair" in message and "could too" in message
+    substeps = int(message.rsplit("solver.substeps=", 1)[1].rstrip(")"))
+    MujocoEngine(scene_from(text.replace("substeps: 5", f"substeps: {substeps}")))
+    with pytest.raises(UnsupportedScene, match="could tunnel"):
+        MujocoEngine(scene_from(text.replace("substeps: 5", f"substeps: {substeps - 1}")))
+
+
 def test_a_restitution_below_mujocos_reach_is_refused(tmp_path: Path):
     """0 < e < MuJoCo's least rebound (about 0.016): neither e nor 0 is what it gives."""
     err = _refused(tmp_path, PELLET.format(substeps=50, e=0.005, extra=""))

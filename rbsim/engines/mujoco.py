@@ -486,6 +486,17 @@ def contact_pairs(scene: Scene, model: Model, state: State, h: float) -> list[Co
     return out
 
 
+def tunnel_free_step(speed: float, thickness: float, gravity: float) -> float:
+    """The longest MuJoCo step h (s) at which `contact_pairs`' depth estimate of an
+    impact at `speed` (m/s), v / ω0 + |g| / (d ω0²) with ω0 = π / (CONTACT_STEPS h),
+    stays within TUNNEL_FRACTION of `thickness` (m): the root of a quadratic in 1 / ω0."""
+    room = TUNNEL_FRACTION * thickness
+    a = gravity / SOLIMP[0]
+    # a x² + v x = room for x = 1 / ω0, in the form that does not cancel when a is small
+    x = 2.0 * room / (speed + math.sqrt(speed * speed + 4.0 * a * room))
+    return math.pi * x / CONTACT_STEPS
+
+
 def pair_lines(pairs: list[ContactPair], h: float) -> list[str]:
     """The MJCF <contact> element of the pairs: condim 3 (normal and two friction
     directions, no torsion or rolling), friction (μ, μ, 0, 0, 0), solref (-ω0², -2 ζ ω0),
@@ -731,24 +742,42 @@ class MujocoEngine(Engine):
             )
         floor = rebound(ZETA_MAX, self.h)
         for p in pairs:
-            who = f"bodies {p.bodies[0]!r} and {p.bodies[1]!r}"
             if 0.0 < p.restitution < floor:
                 raise UnsupportedScene(
-                    f"{who}: restitution {p.restitution:g} is out of MuJoCo's reach: its "
-                    f"contacts are soft with explicit damping, the least rebound is e = "
-                    f"{floor:.3g} (damping ratio {ZETA_MAX:g}); e = 0 is given as that"
+                    f"bodies {p.bodies[0]!r} and {p.bodies[1]!r}: restitution "
+                    f"{p.restitution:g} is out of MuJoCo's reach: its contacts are soft with "
+                    f"explicit damping, the least rebound is e = {floor:.3g} (damping ratio "
+                    f"{ZETA_MAX:g}); e = 0 is given as that"
                 )
-            if p.depth > TUNNEL_FRACTION * p.thickness:
-                # depth = v / ω0 + sag: ω0 ∝ 1/h, so the depth shrinks about as h does
-                fit = self.h * TUNNEL_FRACTION * p.thickness / p.depth
-                raise UnsupportedScene(
-                    f"{who} could tunnel in MuJoCo at its step h = {self.h:.3g} s: an impact at "
-                    f"up to {p.speed:.3g} m/s sinks about {p.depth:.3g} m into its soft contact "
-                    f"(lasting {CONTACT_STEPS} steps), more than {TUNNEL_FRACTION:g} of the "
-                    f"thinner shape's half-thickness {p.thickness:.3g} m; a step of "
-                    f"h <= {fit:.2g} s (more solver.substeps) would not"
-                )
+        self._tunnel_check(pairs)
         return pairs
+
+    def _tunnel_check(self, pairs: list[ContactPair]) -> None:
+        """Raise UnsupportedScene when an impact is estimated to tunnel at this step,
+        naming the pair that needs the shortest step and that step, which holds for
+        every pair at once (`tunnel_free_step`), as solver.substeps at the scene's dt."""
+        deep = [p for p in pairs if p.depth > TUNNEL_FRACTION * p.thickness]
+        if not deep:
+            return
+        g = float(np.linalg.norm(self.model.gravity))
+        fits = [tunnel_free_step(p.speed, p.thickness, g) for p in deep]
+        p = deep[int(np.argmin(fits))]
+        substeps = max(math.ceil(self.dt / min(fits)), self.substeps + 1)
+        while any(self.dt / substeps > fit for fit in fits):  # round-off at the boundary
+            substeps += 1
+        others = len(deep) - 1
+        also = f" ({others} other pair{'s' if others != 1 else ''} could too)" if others else ""
+        raise UnsupportedScene(
+            f"bodies {p.bodies[0]!r} and {p.bodies[1]!r} could tunnel in MuJoCo at its "
+            f"step h = {self.h:.3g} s: at {p.speed:.3g} m/s, a bound on their approach "
+            "speed from their initial speed and spin and what gravity and force could add "
+            "over a fall or the whole run (not a predicted impact), the estimated depth in its "
+            f"soft contact (lasting {CONTACT_STEPS} steps) is {p.depth:.3g} m, more than "
+            f"{TUNNEL_FRACTION:g} of the thinner shape's half-thickness {p.thickness:.3g} m; "
+            f"a step of h <= {self.dt / substeps:.3g} s holds for every pair{also}: "
+            f"solver.substeps >= {substeps} at dt = {self.dt:.3g} s "
+            f"(--set solver.substeps={substeps})"
+        )
 
     def contact_settings(self) -> str:
         """MuJoCo's contact settings in words: the step, the contact law and, per distinct

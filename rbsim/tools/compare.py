@@ -705,7 +705,8 @@ def _floor_check(engine: Engine, tol: dict[str, float]) -> None:
             raise UnsupportedScene(
                 f"bodies {p.bodies[0]!r} and {p.bodies[1]!r} have restitution 0, out of "
                 f"MuJoCo's reach: its contacts are soft with explicit damping and rebound "
-                f"at least e = {p.e_mujoco:.3g}; an impact at up to {p.speed:.3g} m/s would "
+                f"at least e = {p.e_mujoco:.3g}; an impact at up to {p.speed:.3g} m/s (a bound "
+                "on their approach speed, not a predicted impact) would "
                 f"leave at {jump:.3g} m/s in MuJoCo and at 0 in rbsim, above the velocity "
                 f"tolerance {tol['velocity']:g} m/s (compare this scene statistically, or "
                 "with a restitution MuJoCo reaches)"
