@@ -34,9 +34,12 @@ def _load(path: str, overrides: tuple[str, ...] = ()):
     from .scene import SceneError, load_scene
 
     try:
-        return load_scene(path, overrides)
+        scene = load_scene(path, overrides)
     except SceneError as err:
         _fail(EXIT_SCENE, str(err))
+    for note in scene.notes:
+        click.echo(str(note), err=True)
+    return scene
 
 
 def _raise_interrupt(signum, frame):  # noqa: ARG001 - signal handler signature
@@ -345,14 +348,15 @@ def validate(scene: str, resolved: bool, overrides: tuple[str, ...]) -> None:
     import yaml
 
     from .scene import scene_to_dict
+    from .scene.schema import counted
 
     sc = _load(scene, overrides)
     if resolved:
         click.echo(yaml.safe_dump(scene_to_dict(sc), sort_keys=False), nl=False)
     else:
-        n = len(sc.bodies)
-        bodies = "1 body" if n == 1 else f"{n} bodies"
-        click.echo(f"{scene}: ok ({bodies}, {sc.world.steps} steps of {sc.world.dt:g} s)")
+        bodies = counted(len(sc.bodies), "body", "bodies")
+        steps = counted(sc.world.steps, "step")
+        click.echo(f"{scene}: ok ({bodies}, {steps} of {sc.world.dt:g} s)")
 
 
 @main.command()

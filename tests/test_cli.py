@@ -326,6 +326,24 @@ def test_validate_prints_ok_or_the_resolved_scene(tmp_path: Path) -> None:
     assert scene_to_dict(load_scene_text(stdout, "resolved.yaml")) == resolved
 
 
+def test_a_duration_rounded_to_whole_steps_is_warned_of(tmp_path: Path) -> None:
+    scene = write(tmp_path, "ball.yaml", BALL)
+    code, stdout, stderr = rbsim("validate", scene, "--set", "world.duration=1e-12")
+    assert code == 0 and "1 step of 0.01 s" in stdout
+    assert f"{scene}: --set world.duration: warning: " in stderr and "rounded to 1 step" in stderr
+    # a whole number of steps but for round-off in duration / dt: nothing to say
+    code, _out, stderr = rbsim(
+        "validate", scene, "--set", "world.dt=1/60", "--set", "world.duration=1"
+    )
+    assert (code, stderr) == (0, "")
+    text = BALL.replace("steps: 10", "duration: 0.025")
+    out = tmp_path / "ball.h5"
+    code, stdout, stderr = rbsim("run", write(tmp_path, "b.yaml", text), "-o", out, "-q")
+    assert code == 0 and "Traceback" not in stderr
+    assert "b.yaml:3:" in stderr and "world.duration" in stderr and "rounded to 2 steps" in stderr
+    assert len(load_trajectory(out).step) == 3
+
+
 def test_validate_invalid_scene_exits_3(tmp_path: Path) -> None:
     scene = write(tmp_path, "bad.yaml", BALL.replace("radius: 0.5", "radius: -1"))
     code, _, stderr = rbsim("validate", scene)

@@ -189,6 +189,9 @@ class Scene:
     reference: dict[str, Any] = field(default_factory=dict)  # `rbsim sweep`; {} = converged
     source: str = ""
     path: str = "<string>"
+    # what the scene does that its text may not say (a duration rounded to whole steps):
+    # warnings, each naming the file, line and key; not part of the scene's value
+    notes: tuple[SceneIssue, ...] = field(default=(), compare=False)
 
 
 # ---------------------------------------------------------------------------------------
@@ -254,6 +257,9 @@ DEFAULT_MATERIAL = Material(**schema.DEFAULT_MATERIAL)
 # Guards against typos such as `pyramid: {base: 100000}` or `dt: 1e-12`.
 MAX_BODIES = 1_000_000
 MAX_STEPS = 1_000_000_000
+# How far world.duration / dt may be from a whole number (relative) and count as one:
+# round-off in the division (duration 1 at dt 1/60 is 60.00000000000001 steps).
+DURATION_ROUNDOFF = 1e-9
 
 
 def load_scene(path: str | Path, overrides: str | Sequence[str] = ()) -> Scene:
@@ -554,6 +560,7 @@ class _Resolver:
     def __init__(self, shared: Shared | None = None) -> None:
         self.shared = shared  # the parsed text's (schema.check_scene): bodies kept there
         self.problems: list[Problem] = []
+        self.notes: list[Problem] = []  # warnings: the scene is valid, but says so
         self.materials: dict[str, Material | None] = {}  # None: invalid, already reported
         self.names: dict[str, tuple[str, Mark]] = {}  # body name -> (who, where)
         self.count = 0
@@ -624,6 +631,7 @@ class _Resolver:
             reference=reference,
             source=text,
             path=path,
+            notes=tuple(_issues(path, self.notes)),
         )
 
     # Keys of `reference:` and the kinds they apply to.
@@ -676,6 +684,8 @@ class _Resolver:
         if steps > MAX_STEPS:
             self.error(w.mark_of(key), w.path_of(key), f"more than {MAX_STEPS} steps")
             return INVALID
+        if key == "duration":
+            self.note_rounding(w, steps, dt)
         steps = max(1, round(steps))
         return World(
             gravity=w["gravity"],
@@ -687,6 +697,18 @@ class _Resolver:
             restitution_mixing=mixing["restitution"],
             dimension=w["dimension"],
         )
+
+    def note_rounding(self, w: Checked, ratio: float, dt: float) -> None:
+        """A note when world.duration (``ratio`` dt) is not a whole number of steps of dt,
+        beyond round-off: the run is rounded to whole steps (at least one)."""
+        steps = max(1, round(ratio))
+        if abs(steps - ratio) <= DURATION_ROUNDOFF * max(1.0, ratio):
+            return
+        message = (
+            f"warning: {w['duration']:g} s is not a whole number of steps of dt = {dt:g} s; "
+            f"the run is rounded to {schema.counted(steps, 'step')}, {steps * dt:g} s"
+        )
+        self.notes.append(Problem(w.mark_of("duration"), w.path_of("duration"), message))
 
     # materials and shapes ----------------------------------------------------------------
 

@@ -814,6 +814,12 @@ class Checked(dict):
         return self.path + (key,)
 
 
+def counted(n: int, noun: str, nouns: str | None = None) -> str:
+    """``n`` and the noun in the number it takes: "1 step", "2 steps", "1 body" ...
+    (``nouns``: the plural, default noun + "s")."""
+    return f"{n} {noun}" if n == 1 else f"{n} {nouns or noun + 's'}"
+
+
 def describe(value: Any) -> str:
     """A short description of a parsed value for error messages."""
     if value is None:
