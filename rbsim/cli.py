@@ -363,18 +363,14 @@ def validate(scene: str, resolved: bool, overrides: tuple[str, ...]) -> None:
 @click.argument("trajectory", type=click.Path(exists=True, dir_okay=False))
 def info(trajectory: str) -> None:
     """Summarise a trajectory file written by rbsim (either engine)."""
-    import h5py
-
-    from .io.trajectory import summarize
+    from .io.trajectory import READ_ERRORS, summarize, unreadable
 
     try:
-        if not h5py.is_hdf5(trajectory):
-            _fail(EXIT_RUNTIME, f"{trajectory}: not an HDF5 file (rbsim writes .h5 trajectories)")
         text = summarize(trajectory)
     except PermissionError as err:
-        _fail(EXIT_RUNTIME, f"{trajectory}: cannot read: {_reason(err)}")
-    except (OSError, KeyError, ValueError, TypeError) as err:
-        _fail(EXIT_RUNTIME, f"{trajectory}: not an rbsim trajectory ({err})")
+        _fail(EXIT_RUNTIME, f"error: {trajectory}: cannot read: {_reason(err)}")
+    except READ_ERRORS as err:  # worded as by render and plot
+        _fail(EXIT_RUNTIME, f"error: {unreadable(trajectory, err)}")
     click.echo(text)
 
 

@@ -310,7 +310,26 @@ def test_info_on_other_files_fails_with_a_message(
     code, stdout, stderr = rbsim("info", path)
     assert code == 1
     assert stdout == ""
-    assert stderr.startswith(f"{path}: {expected}"), stderr
+    assert stderr.startswith(f"error: {path}: {expected}"), stderr
+
+
+def test_info_render_and_plot_word_an_unreadable_file_alike(tmp_path: Path) -> None:
+    other = tmp_path / "plain.h5"
+    with h5py.File(other, "w") as f:
+        f["x"] = np.arange(3)
+    good = tmp_path / "ball.h5"
+    assert rbsim("run", write(tmp_path, "ball.yaml", BALL), "-o", good, "-q")[0] == 0
+    cut = tmp_path / "cut.h5"
+    cut.write_bytes(good.read_bytes()[: good.stat().st_size // 2])
+    for path, what in ((other, "not an rbsim trajectory"), (cut, "truncated")):
+        said = set()
+        for command in (("info",), ("render", "-o", tmp_path / "x.gif"), ("plot",)):
+            code, _out, err = rbsim(*command[:1], path, *command[1:])
+            assert code == 1 and "Traceback" not in err, err
+            assert err.startswith(f"error: {path}: ") and what in err, err
+            assert err.count(str(path)) == 1 and "Unable to" not in err and "Error" not in err
+            said.add(err)
+        assert len(said) == 1, said  # one wording for all three
 
 
 def test_validate_prints_ok_or_the_resolved_scene(tmp_path: Path) -> None:

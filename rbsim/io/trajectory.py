@@ -59,6 +59,7 @@ import getpass
 import json
 import math
 import os
+import re
 import struct
 import time as _time
 from collections.abc import Callable, Iterator, Sequence
@@ -1310,34 +1311,74 @@ def open_for_reading(path: str | os.PathLike) -> h5py.File:
             except OSError:
                 pass
         if not h5py.is_hdf5(path):
-            raise TrajectoryError(f"{path}: not an HDF5 file") from None
-        if "truncated" in text or "eof" in text.lower():
-            raise TrajectoryError(f"{path}: the file is truncated ({text})") from None
-        raise TrajectoryError(f"{path}: cannot be read as HDF5 ({text})") from None
+            raise TrajectoryError(f"{path}: {NOT_HDF5}") from None
+        sizes = _TRUNCATED_RE.search(text)
+        if sizes:
+            have, size = int(sizes[1]), int(sizes[2])
+            raise TrajectoryError(
+                f"{path}: the file is truncated: {have:,} of its {size:,} bytes are there "
+                "(a copy cut short, or a disk that filled)"
+            ) from None
+        raise TrajectoryError(f"{path}: {_damaged(err)}") from None
+
+
+# The one wording of each way a file is not a readable rbsim trajectory (`rbsim info`,
+# `render`, `plot`, load_trajectory)
+NOT_HDF5 = "not an HDF5 file (rbsim writes .h5 trajectories)"
+NOT_RBSIM = (
+    "not an rbsim trajectory: an HDF5 file without /particles/bodies (written by another program?)"
+)
+_TRUNCATED_RE = re.compile(r"truncated file: eof = (\d+).*stored_eof = (\d+)")
+# h5py's wrapping of HDF5's reason: "Unable to synchronously open object (reason)"
+_H5_REASON_RE = re.compile(r"^'?Unable to [^(]*\((.*)\)'?$", re.S)
+
+
+def _damaged(err: BaseException) -> str:
+    """The message for a file whose HDF5 structure cannot be read: HDF5's own reason
+    (without h5py's wrapping)."""
+    text = str(err)
+    match = _H5_REASON_RE.match(text)
+    return f"a damaged rbsim trajectory: HDF5 cannot read it ({match[1] if match else text})"
+
+
+def unreadable(path: str | os.PathLike, err: BaseException) -> TrajectoryError:
+    """The TrajectoryError for `err`, met reading the file at `path`: `err` itself when it
+    is one, else the file is damaged (with HDF5's reason)."""
+    if isinstance(err, TrajectoryError):
+        return err
+    return TrajectoryError(f"{os.fspath(path)}: {_damaged(err)}")
+
+
+def check_rbsim(f: h5py.File, path: str | os.PathLike) -> None:
+    """Raise TrajectoryError (NOT_RBSIM) when the open file `f` is not rbsim's layout."""
+    try:
+        ours = isinstance(f.get("particles/bodies"), h5py.Group)
+    except (OSError, KeyError, ValueError, TypeError, *DAMAGED) as err:
+        raise unreadable(path, err) from None
+    if not ours:
+        raise TrajectoryError(f"{os.fspath(path)}: {NOT_RBSIM}")
 
 
 # What h5py raises on a file whose structure is damaged, besides OSError, KeyError and
 # ValueError: RuntimeError (a corrupt B-tree), IndexError, AttributeError (an object of
 # another kind where a dataset belongs).
 DAMAGED = (RuntimeError, IndexError, AttributeError)
+# Everything reading a damaged file may raise.
+READ_ERRORS = (OSError, KeyError, ValueError, TypeError, *DAMAGED)
 
 
 @contextlib.contextmanager
 def reading(path: str | os.PathLike) -> Iterator[h5py.File]:
     """open_for_reading as a context, with every error met while reading the file turned
-    into a TrajectoryError naming it: a damaged file fails at once with what is wrong,
-    never with a traceback."""
+    into a TrajectoryError naming it (`unreadable`): a damaged file fails at once with
+    what is wrong, never with a traceback; an HDF5 file of another program, as such."""
     path = os.fspath(path)
     with open_for_reading(path) as f:
+        check_rbsim(f, path)
         try:
             yield f
-        except TrajectoryError:
-            raise
-        except (OSError, KeyError, ValueError, TypeError, *DAMAGED) as err:
-            raise TrajectoryError(
-                f"{path}: not a readable rbsim trajectory (damaged, or written by another "
-                f"program: {type(err).__name__}: {err})"
-            ) from None
+        except READ_ERRORS as err:
+            raise unreadable(path, err) from None
 
 
 def _series_groups(f: h5py.File) -> tuple[list[str], list[str]]:

@@ -10,10 +10,9 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 
-import h5py
 import numpy as np
 
-from ..io.trajectory import frame_count, read_parameters, reading
+from ..io.trajectory import READ_ERRORS, frame_count, read_parameters, reading, unreadable
 from .render import RenderError, need_matplotlib
 
 __all__ = ["Observables", "plot_lines", "plot_observables", "read_observables"]
@@ -43,10 +42,6 @@ def read_observables(path: str | os.PathLike) -> Observables:
     """Read the observables of a trajectory file (either engine). Raises RenderError
     naming the file when it is not an rbsim trajectory."""
     path = os.fspath(path)
-    if not os.path.exists(path):
-        raise RenderError(f"{path}: no such file")
-    if not h5py.is_hdf5(path):
-        raise RenderError(f"{path}: not an HDF5 file (rbsim writes .h5 trajectories)")
     try:
         with reading(path) as f:  # a damaged file: TrajectoryError, an OSError
             params = read_parameters(f)
@@ -56,8 +51,8 @@ def read_observables(path: str | os.PathLike) -> Observables:
                 name: np.asarray(f[f"observables/{name}/value"][:t], dtype=float)
                 for name in f.get("observables", {})
             }
-    except (KeyError, ValueError, TypeError, OSError) as err:
-        raise RenderError(f"{path}: not an rbsim trajectory ({err})") from None
+    except READ_ERRORS as err:  # worded as by `rbsim info`
+        raise RenderError(str(unreadable(path, err))) from None
     if "kinetic_energy" in values and "potential_energy" in values:
         values.setdefault("total_energy", values["kinetic_energy"] + values["potential_energy"])
     engine = params.get("engine", "unknown")

@@ -17,17 +17,19 @@ from dataclasses import dataclass
 from types import TracebackType
 from typing import TYPE_CHECKING
 
-import h5py
 import numpy as np
 
 from ..io.trajectory import (
     DAMAGED,
+    READ_ERRORS,
     BodyTable,
+    check_rbsim,
     frame_count,
     open_for_reading,
     read_body_table,
     read_parameters,
     scene_name,
+    unreadable,
 )
 from .mesh import Camera
 
@@ -102,16 +104,13 @@ class FrameReader:
 
     def __init__(self, path: str | os.PathLike) -> None:
         self.path = os.fspath(path)
-        if not os.path.exists(self.path):
-            raise RenderError(f"{self.path}: no such file")
-        if not h5py.is_hdf5(self.path):
-            raise RenderError(f"{self.path}: not an HDF5 file (rbsim writes .h5 trajectories)")
         try:
             self._file = open_for_reading(self.path)
         except OSError as err:
-            raise RenderError(f"{self.path}: cannot read: {err}") from None
+            raise RenderError(str(unreadable(self.path, err))) from None
         try:
             f = self._file
+            check_rbsim(f, self.path)
             box = f.get("particles/bodies/box")
             # 2 or 3: /particles/bodies/box's `dimension` (files without it are 2D)
             self.dimension = int(box.attrs.get("dimension", 2)) if box is not None else 2
@@ -142,9 +141,9 @@ class FrameReader:
             if self.has_contacts:
                 self._contact_start = f["contacts/start/value"][:t]
                 self._contact_count = f["contacts/count/value"][:t]
-        except (KeyError, ValueError, TypeError, OSError, *DAMAGED) as err:
+        except READ_ERRORS as err:
             self._file.close()
-            raise RenderError(f"{self.path}: not an rbsim trajectory ({err})") from None
+            raise RenderError(str(unreadable(self.path, err))) from None
         if self._fixed is not None and not all(np.isfinite(a).all() for a in self._fixed):
             self._file.close()
             raise RenderError(f"{self.path}: the static bodies' poses are not finite (damaged)")
