@@ -285,7 +285,7 @@ def _run(
     started: float | None = None,
 ) -> RunSummary:
     """Load and run SCENE; every expected failure becomes a message and an exit code."""
-    from .run import RunFailed, run_scene
+    from .run import RunFailed, WriteFailed, run_scene
     from .scene.compile import ModelError
 
     sc = _load(scene, overrides)
@@ -310,13 +310,15 @@ def _run(
         _fail(EXIT_RUNTIME, message, progress)
     except FileExistsError:  # from mkdir: a file where a folder should be
         _fail(EXIT_RUNTIME, f"error: cannot write {out}: {out.parent} is not a folder", progress)
+    except WriteFailed as err:  # says what the file keeps
+        _fail(EXIT_RUNTIME, f"error: {err}", progress)
     except OSError as err:
         _fail(EXIT_RUNTIME, f"error: cannot write {out}: {_reason(err)}", progress)
 
 
 def _resume(path: str, progress: _Progress, started: float | None) -> RunSummary:
     """Resume the run of trajectory `path`; failures become messages and exit codes."""
-    from .run import ResumeError, RunFailed, resume_run
+    from .run import ResumeError, RunFailed, WriteFailed, resume_run
     from .scene import SceneError
 
     try:
@@ -328,6 +330,8 @@ def _resume(path: str, progress: _Progress, started: float | None) -> RunSummary
     except SceneError as err:
         _fail(EXIT_SCENE, f"{path}: the scene it records is no longer valid:\n{err}", progress)
     except RunFailed as err:
+        _fail(EXIT_RUNTIME, f"error: {err}", progress)
+    except WriteFailed as err:
         _fail(EXIT_RUNTIME, f"error: {err}", progress)
     except OSError as err:
         _fail(EXIT_RUNTIME, f"error: cannot write {path}: {_reason(err)}", progress)

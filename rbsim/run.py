@@ -70,6 +70,32 @@ def _frames(n: int) -> str:
     return f"{n} frame" if n == 1 else f"{n} frames"
 
 
+class WriteFailed(OSError):
+    """Writing the trajectory failed (a full disk, a vanished folder): errno and strerror
+    are the OSError's; `path` the trajectory, `frames` the frames its file keeps (None:
+    no file was written, or an existing one left as it was) and `marked` whether the
+    file's status says failed. str() says what was kept."""
+
+    def __init__(self, err: OSError, path: str, frames: int | None, marked: bool) -> None:
+        # the system's short reason (h5py's text around it is long)
+        super().__init__(err.errno, os.strerror(err.errno) if err.errno else str(err))
+        self.path, self.frames, self.marked = path, frames, marked
+
+    def kept(self) -> str:
+        """What the run leaves on disk, in words."""
+        if self.frames is None:
+            if os.path.exists(self.path):
+                return "nothing was written (the file is as it was)"
+            return "nothing was kept (no trajectory was written)"
+        status = "status failed" if self.marked else "its status could not be updated"
+        if self.frames == 0:
+            return f"nothing was kept: the file holds no frame ({status})"
+        return f"the file keeps {_frames(self.frames)} ({status})"
+
+    def __str__(self) -> str:
+        return f"cannot write {self.path}: {self.strerror}; {self.kept()}"
+
+
 class RunFailed(RuntimeError):
     """The state turned non-finite (or a body flew off, or an observable overflowed);
     the message names the body or the observable, and the step."""
@@ -338,7 +364,10 @@ def run_scene(
         params = parameters(scene, engine, world.settings or None)
         params["overrides"] = json.dumps(list(overrides))
         with interrupts.held():
-            writer = _writer(scene, world, out, params, engine, flush_seconds, keep=0)
+            try:
+                writer = _writer(scene, world, out, params, engine, flush_seconds, keep=0)
+            except OSError as err:  # nothing written: the file is as it was, or absent
+                raise WriteFailed(err, str(out), None, False) from err
         return _loop(scene, world, writer, interrupts, progress, t0, first_frame=True)
 
 
@@ -504,9 +533,9 @@ def _loop(
             checkpoint = world.checkpoint()
         raise RunInterrupted(str(out), writer.frames_written, last_step) from None
     except OSError as err:  # writing the file: a full disk, a vanished folder
-        status = f"failed: {err}"
-        writer.abandon()
-        raise
+        status = f"failed: {err.strerror or err}"
+        marked = writer.abandon(status)
+        raise WriteFailed(err, str(out), writer.frames_flushed, marked) from err
     except Exception as err:
         if status == "failed":  # not the non-finite state: an error writing, or a bug
             status = f"failed: {type(err).__name__}: {err}"
@@ -520,10 +549,11 @@ def _loop(
                     checkpoint=checkpoint,
                     keep_sidecar=keep_sidecar,
                 )
-            except OSError:
-                writer.abandon()
+            except OSError as err:  # the last frames or the final layout
+                failed = f"failed: {os.strerror(err.errno) if err.errno else err}"
+                marked = writer.abandon(failed)
                 if status == "complete":
-                    raise
+                    raise WriteFailed(err, str(out), writer.frames_flushed, marked) from err
     loop = time.perf_counter() - loop_start
     return RunSummary(
         steps=world.step_index,

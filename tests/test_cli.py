@@ -6,6 +6,7 @@ run `python -m rbsim.cli` in a subprocess and send it a real signal.
 
 from __future__ import annotations
 
+import errno
 import io
 import json
 import os
@@ -111,6 +112,32 @@ def test_run_writes_the_trajectory_and_prints_the_summary_line(tmp_path: Path) -
     assert tr.status == "complete"
     assert tr.step.tolist() == list(range(11))
     assert tr.bodies.name == ["ball"]
+
+
+@pytest.mark.parametrize("full", ["before_the_file", "before_the_first_frame"])
+def test_a_full_disk_says_what_was_kept_and_marks_the_file_failed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, full: str
+) -> None:
+    from rbsim.io.trajectory import TrajectoryWriter
+
+    def no_space(*_args: object, **_kwargs: object) -> None:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    # the file cannot be created at all, or is laid out but no frame can be written
+    method = "_layout" if full == "before_the_file" else "_write_block"
+    monkeypatch.setattr(TrajectoryWriter, method, no_space)
+    out = tmp_path / "ball.h5"
+    code, _out, stderr = rbsim("run", write(tmp_path, "ball.yaml", BALL), "-o", out, "-q")
+    assert code == 1 and "Traceback" not in stderr
+    assert f"cannot write {out}: No space left on device" in stderr
+    assert "nothing was kept" in stderr, stderr
+    monkeypatch.undo()
+    if full == "before_the_file":
+        assert not out.exists()
+    else:
+        tr = load_trajectory(out)
+        assert tr.status.startswith("failed") and len(tr.step) == 0
+        assert "holds no frame (status failed)" in stderr
 
 
 def test_quiet_run_prints_nothing(tmp_path: Path) -> None:

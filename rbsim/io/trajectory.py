@@ -741,6 +741,7 @@ class TrajectoryWriter:
         if final:
             self._contact_capacity = self.contact_rows_flushed
         old = open_for_reading(keep_from) if keep_from is not None and keep else None
+        offsets = self._status_offset, self._wall_offset  # the file at `path`'s, until replaced
         try:
             with h5py.File(tmp, "w", libver="earliest") as f:
                 self._write_static(f, status, wall_time, checkpoint)
@@ -748,6 +749,7 @@ class TrajectoryWriter:
                     self._series = self._plan()
                     self._write_series(f, capacity, old, keep, final)
         except BaseException:
+            self._status_offset, self._wall_offset = offsets
             if old is not None:
                 old.close()
             with contextlib.suppress(OSError):
@@ -1152,14 +1154,27 @@ class TrajectoryWriter:
             with contextlib.suppress(OSError):
                 os.unlink(self.checkpoint_path)
 
-    def abandon(self) -> None:
+    def abandon(self, status: str | None = None) -> bool:
         """Close the file descriptor without writing anything more (after an I/O error):
-        the file keeps what was flushed, and the checkpoint beside it stays."""
+        the file keeps what was flushed, and the checkpoint beside it stays. With
+        `status` ("failed: ..."), that status is written over the file's, in place (its
+        bytes are on disk already: a full disk has room for it), best effort. Returns
+        whether the file now records `status`."""
         self._closed = True
+        marked = False
+        if status is not None and self._status_offset >= 0:  # a file laid out at `path`
+            with contextlib.suppress(OSError):
+                fd = self._fd if self._fd is not None else os.open(self.path, os.O_WRONLY)
+                self._fd = fd
+                data = np.frombuffer(_status_bytes(status), np.uint8)
+                _pwrite_all(fd, data, self._status_offset, self.path)
+                os.fsync(fd)
+                marked = True
         if self._fd is not None:
             with contextlib.suppress(OSError):
                 os.close(self._fd)
             self._fd = None
+        return marked
 
     def __enter__(self) -> TrajectoryWriter:
         return self
