@@ -530,7 +530,8 @@ def render(
     quiet: bool,
 ) -> None:
     """Draw TRAJECTORY into an animated GIF or a self-contained HTML player."""
-    from .view.render import GIF_MAX_FPS, RenderError, View, render_gif
+    from .scene.schema import counted
+    from .view.render import GIF_MAX_FPS, RenderError, View, overlay_mismatch, render_gif
 
     out = Path(output) if output else Path(trajectory).with_suffix(".gif")
     kind = out.suffix.lower()
@@ -552,6 +553,9 @@ def render(
     if start is not None and end is not None and end < start:
         raise click.BadParameter(f"--end {end:g} is before --start {start:g}")
     chosen = View(*view) if view else None
+    mismatch = overlay_mismatch(trajectory, overlay) if overlay is not None else None
+    if mismatch:
+        click.echo(f"warning: {mismatch}", err=True)
     progress = _Progress(not quiet, unit="frames")
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -560,7 +564,7 @@ def render(
                 trajectory, out, fps=fps, size=size, view=chosen, overlay=overlay,
                 start=start, end=end, progress=progress, contacts=contacts,
             )  # fmt: skip
-            line = f"{result.frames} frames, {result.width}x{result.height} px"
+            line = f"{counted(result.frames, 'frame')}, {result.width}x{result.height} px"
         else:
             from .view.player import render_html
 
@@ -568,7 +572,8 @@ def render(
                 trajectory, out, fps=fps, view=chosen, overlay=overlay, start=start, end=end,
                 progress=progress, contacts=contacts,
             )  # fmt: skip
-            line = f"{page.frames} frames of {page.bodies} bodies, {page.size / 2**20:.1f} MiB"
+            shown = f"{counted(page.frames, 'frame')} of {counted(page.bodies, 'body', 'bodies')}"
+            line = f"{shown}, {page.size / 2**20:.1f} MiB"
     except RenderError as err:
         _fail(EXIT_RUNTIME, f"error: {err}", progress)
     except KeyboardInterrupt:

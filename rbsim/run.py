@@ -44,6 +44,7 @@ from .io.trajectory import (
     read_parameters,
 )
 from .scene import Scene, load_scene_text, scene_to_dict
+from .scene.schema import counted
 
 # wall time (s) the engine steps between returns to Python, so that Ctrl-C, progress
 # and flushes stay lively; the frames per call adapt to it
@@ -67,7 +68,7 @@ CHECKPOINT_BYTES_PER_SECOND = 2.5e8
 
 
 def _frames(n: int) -> str:
-    return f"{n} frame" if n == 1 else f"{n} frames"
+    return counted(n, "frame")
 
 
 class WriteFailed(OSError):
@@ -212,9 +213,10 @@ class RunSummary:
         stepping rate (steps this process took per second of its loop)."""
         taken = self.steps_run or self.steps
         rate = taken / self.loop_time if self.loop_time > 0 else float("inf")
-        bodies = "1 body" if self.bodies == 1 else f"{self.bodies} bodies"
+        bodies = counted(self.bodies, "body", "bodies")
         return (
-            f"{self.steps} steps, {bodies}, {_frames(self.frames)} in {self.wall_time:.2f} s "
+            f"{counted(self.steps, 'step')}, {bodies}, {_frames(self.frames)} in "
+            f"{self.wall_time:.2f} s "
             f"(set-up {self.setup_time:.2f} s, stepping {self.loop_time:.2f} s at "
             f"{rate:,.0f} steps/s) -> {self.path}"
         )

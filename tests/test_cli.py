@@ -86,7 +86,7 @@ bodies:
 """
 
 SUMMARY = re.compile(
-    r"^(\d+) steps, (\d+) bod(?:y|ies), (\d+) frames? in \d+\.\d\d s "
+    r"^(\d+) steps?, (\d+) bod(?:y|ies), (\d+) frames? in \d+\.\d\d s "
     r"\(set-up \d+\.\d\d s, stepping \d+\.\d\d s at [\d,]+ steps/s\) -> (.+)$"
 )
 
@@ -138,6 +138,20 @@ def test_a_full_disk_says_what_was_kept_and_marks_the_file_failed(
         tr = load_trajectory(out)
         assert tr.status.startswith("failed") and len(tr.step) == 0
         assert "holds no frame (status failed)" in stderr
+
+
+def test_one_step_one_frame_and_info_words(tmp_path: Path) -> None:
+    out = tmp_path / "one.h5"
+    scene = write(tmp_path, "one.yaml", BALL.replace("steps: 10", "steps: 1"))
+    code, stdout, stderr = rbsim("run", scene, "-o", out)
+    assert code == 0 and stdout.startswith("1 step, 1 body, 2 frames in "), stderr
+    code, stdout, _err = rbsim("render", out, "-o", tmp_path / "one.gif", "--end", "0")
+    assert code == 0 and stdout.startswith("1 frame, "), stdout
+    code, stdout, _err = rbsim("info", out)
+    assert code == 0 and "None" not in stdout
+    assert re.search(r"^\s+threads\s+not set \(the cores the process may run on", stdout, re.M)
+    # the file's wall time is the whole run's, set-up included: said so
+    assert re.search(r"^\s+wall time\s+[\d.]+ s \(the whole run, set-up included", stdout, re.M)
 
 
 def test_quiet_run_prints_nothing(tmp_path: Path) -> None:

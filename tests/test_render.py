@@ -8,6 +8,7 @@ browser (Debian's chromium driven by playwright); without chromium those tests s
 from __future__ import annotations
 
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -304,6 +305,16 @@ def test_plot_draws_energy_and_momentum_of_several_trajectories(tmp_path):
     assert code == 2 and ".png, .pdf or .svg" in err
 
 
+def test_plot_titles_name_z_only_in_3d(tmp_path):
+    from rbsim.view.plot import panel_titles, read_observables
+
+    flat = read_observables(write_trajectory(tmp_path / "a.h5", frames=3))
+    _energy, momentum, angular = panel_titles([flat])
+    assert momentum == "x (solid), y (dashed)" and angular == ""  # L is a scalar in 2D
+    solid = replace(flat, values={**flat.values, "linear_momentum": np.zeros((3, 3))})
+    assert "z (dash-dot)" in panel_titles([flat, solid])[1]
+
+
 # ---------------------------------------------------------------------------------------
 # The HTML player
 # ---------------------------------------------------------------------------------------
@@ -429,3 +440,23 @@ def test_html_player_stays_usable_at_1000_bodies_by_600_frames(tmp_path, browser
     assert (canvas_rgb(page, *last) == hex_rgb(COLOURS["dynamic_fill"])).all()
     assert errors == []
     page.close()
+
+
+def test_an_overlay_of_another_scene_is_warned_of(tmp_path):
+    """An overlay whose bodies differ in count or names from the trajectory's is drawn,
+    with a warning naming it; the same scene's run (either engine) is not."""
+    runs = {}
+    for name, bodies in (("a", ["ball"]), ("b", ["crate"]), ("c", ["ball", "crate"])):
+        scene = tmp_path / f"{name}.yaml"
+        listed = ", ".join(
+            f"{{name: {n}, position: [{i}, 1], shape: {{circle: {{radius: 0.2}}}}}}"
+            for i, n in enumerate(bodies)
+        )
+        scene.write_text(f"version: 1\nworld: {{dt: 0.01, steps: 2}}\nbodies: [{listed}]\n")
+        runs[name] = tmp_path / f"{name}.h5"
+        assert rbsim("run", scene, "-o", runs[name], "-q")[0] == 0
+    for other, what in (("b", "its body 0 is 'crate'"), ("c", "it has 2 bodies")):
+        code, _out, err = rbsim("render", runs["a"], "--overlay", runs[other], "-q")
+        assert code == 0 and err.startswith(f"warning: {runs[other]}: ") and what in err, err
+    code, _out, err = rbsim("render", runs["a"], "--overlay", runs["a"], "-q")
+    assert (code, err) == (0, "")

@@ -293,6 +293,8 @@ def test_polygon_with_many_vertices_is_allowed():
         ("[[0, 0], [1, 0], [1, 1], [1, 0]]", "same point"),
         ("[[0, 0], [1, 0], [2, 0], [1, 1]]", "on the line"),
         ("[[0, 0], [2, 1], [0, 2], [2, 0], [1, 3]]", "polygon"),
+        # a bow-tie: its loops' areas cancel, but its trouble is the crossing
+        ("[[0, 0], [1, 1], [1, 0], [0, 1]]", "the edges cross each other (edge 0-1 crosses"),
     ],
 )
 def test_bad_polygons_are_errors(vertices: str, expected: str):

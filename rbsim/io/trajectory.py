@@ -69,6 +69,7 @@ from types import TracebackType
 import h5py
 import numpy as np
 
+from ..scene.schema import counted
 from ..scene.types import BODY_TYPES, SHAPE_KINDS, SHAPE_KINDS_3D
 
 __all__ = [
@@ -1588,6 +1589,12 @@ def _format_value(value: np.ndarray) -> str:
     return "(" + ", ".join(f"{float(v):.6g}" for v in value) + ")"
 
 
+# What a solver setting left unset (None) in the file means, for `rbsim info`
+SOLVER_DEFAULT_WORDS = {
+    "threads": "not set (the cores the process may run on; 1 in batch and sweep workers)"
+}
+
+
 def summarize(path: str | os.PathLike) -> str:
     """The text `rbsim info OUT.h5` prints: engine, status, scene name, bodies by type,
     frames, step and time range (s), dt (s), wall time (s), file size, observables at
@@ -1614,7 +1621,7 @@ def summarize(path: str | os.PathLike) -> str:
         if "contacts/start" in f:
             count = f["contacts/count/value"][:t]
             used = int(f["contacts/start/value"][t - 1] + count[-1]) if t else 0
-            contact_line = f"  contacts   {used} points over {t} frames"
+            contact_line = f"  contacts   {counted(used, 'point')} over {counted(t, 'frame')}"
             if used:
                 busiest = int(np.argmax(count))
                 force = float(np.max(f["contacts/force"][:used]))
@@ -1666,10 +1673,12 @@ def summarize(path: str | os.PathLike) -> str:
     except ValueError:
         lines.append("  wall time  ?")
     else:
+        # the whole run, reading the scene and building the engine included: `rbsim
+        # run`'s summary gives the stepping's own time and rate apart
         rate = ""
         if t > 1 and wall > 0:
-            rate = f" ({float(step[-1] - step[0]) / wall:.4g} steps/s)"
-        lines.append(f"  wall time  {wall:.3f} s{rate}")
+            rate = f", {float(step[-1] - step[0]) / wall:.4g} steps/s overall"
+        lines.append(f"  wall time  {wall:.3f} s (the whole run, set-up included{rate})")
 
     if first_last:
         if "kinetic_energy" in first_last and "potential_energy" in first_last:
@@ -1704,7 +1713,10 @@ def summarize(path: str | os.PathLike) -> str:
         solver = _json_or_none(solver_text)
         if isinstance(solver, dict):
             width = max((len(str(k)) for k in solver), default=0)
-            lines += [f"    {str(k).ljust(width)}  {v}" for k, v in solver.items()]
+            shown = {
+                k: SOLVER_DEFAULT_WORDS.get(k, v) if v is None else v for k, v in solver.items()
+            }
+            lines += [f"    {str(k).ljust(width)}  {v}" for k, v in shown.items()]
         else:
             lines += [f"    {line}" for line in solver_text.splitlines()]
     return "\n".join(lines)

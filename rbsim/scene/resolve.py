@@ -461,6 +461,9 @@ def convex_ccw(points: Sequence[Vec2]) -> tuple[tuple[Vec2, ...], str | None]:
     area2 = sum(rel[i - 1][0] * p[1] - p[0] * rel[i - 1][1] for i, p in enumerate(rel))
     span = max(max(abs(x), abs(y)) for x, y in rel)
     if abs(area2) / 2 <= 1e-12 * span * span:
+        crossing = _crossing_edges(pts)
+        if crossing:  # a bow-tie: its two loops' areas cancel
+            return pts, f"the edges cross each other ({crossing})"
         return pts, "the vertices enclose no area (all on one line?)"
     clockwise = area2 < 0
     if clockwise:
@@ -484,6 +487,25 @@ def convex_ccw(points: Sequence[Vec2]) -> tuple[tuple[Vec2, ...], str | None]:
     if turning > 2 * math.pi + 1e-6:
         return pts, "the edges cross each other (the polygon winds more than once)"
     return pts, None
+
+
+def _crossing_edges(pts: Sequence[Vec2]) -> str | None:
+    """The first two edges of the closed polygon ``pts`` (as written) that cross each
+    other, not at a shared vertex, in words ("edge 0-1 crosses edge 2-3"); else None."""
+    n = len(pts)
+
+    def side(a: Vec2, b: Vec2, c: Vec2) -> float:
+        return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+
+    for i in range(n):
+        a, b = pts[i], pts[(i + 1) % n]
+        for j in range(i + 2, n):
+            if (j + 1) % n == i:  # the edge before i: they share vertex i
+                continue
+            c, d = pts[j], pts[(j + 1) % n]
+            if side(a, b, c) * side(a, b, d) < 0 and side(c, d, a) * side(c, d, b) < 0:
+                return f"edge {i}-{(i + 1) % n} crosses edge {j}-{(j + 1) % n}"
+    return None
 
 
 def _num(x: float) -> str:

@@ -85,6 +85,25 @@ def plot_lines(obs: Observables) -> list[tuple[int, str, str, np.ndarray]]:
     return lines
 
 
+def panel_titles(data: list[Observables]) -> tuple[str, str, str]:
+    """The titles of `plot_observables`' three panels for the trajectories `data`: what
+    each line style means, naming z only where a trajectory has a z component."""
+    styles = {"-": "solid", "--": "dashed", "-.": "dash-dot"}
+
+    def components(name: str) -> str:
+        n = max((obs.values[name].shape[1] for obs in data if _vector(obs, name)), default=0)
+        return ", ".join(f"{axis} ({styles[style]})" for axis, style in COMPONENTS[:n])
+
+    energy = "kinetic (dotted), potential (dashed), total (solid)"
+    angular = components("angular_momentum")
+    return energy, components("linear_momentum"), angular and f"about the world origin: {angular}"
+
+
+def _vector(obs: Observables, name: str) -> bool:
+    """Whether `obs` holds the series `name` as (T, components)."""
+    return name in obs.values and obs.values[name].ndim == 2
+
+
 def plot_observables(
     paths: list[str | os.PathLike], output: str | os.PathLike, *, size: tuple[float, float] = (8, 8)
 ) -> list[Observables]:
@@ -113,11 +132,10 @@ def plot_observables(
         for panel, label, style, values in plot_lines(obs):
             axes[panel].plot(obs.time, values, style, color=colour, label=f"{label}, {obs.label}")
     ax_e.set_ylabel("energy (J)")
-    ax_e.set_title("kinetic (dotted), potential (dashed), total (solid)", fontsize=9)
     ax_p.set_ylabel("linear momentum (kg m/s)")
-    ax_p.set_title("x (solid), y (dashed), z (dash-dot)", fontsize=9)
-    if any(obs.values.get("angular_momentum", np.zeros(0)).ndim == 2 for obs in data):
-        ax_l.set_title("about the world origin: x (solid), y (dashed), z (dash-dot)", fontsize=9)
+    for ax, title in zip(axes, panel_titles(data), strict=True):
+        if title:
+            ax.set_title(title, fontsize=9)
     ax_l.set_ylabel("angular momentum (kg m²/s)")
     ax_l.set_xlabel("time (s)")
     for ax in (ax_e, ax_p, ax_l):

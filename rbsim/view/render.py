@@ -673,6 +673,25 @@ def render_gif(
     return GifResult(output, len(idx), width, height, view, duration)
 
 
+def overlay_mismatch(path: str | os.PathLike, overlay: str | os.PathLike) -> str | None:
+    """Why the trajectory `overlay` looks like the run of another scene than `path`'s
+    (its bodies' count or names differ), in words; None when they match or either file
+    cannot be read (rendering then says why)."""
+    try:
+        with FrameReader(path) as main, FrameReader(overlay) as other:
+            ours, theirs = list(main.bodies.name), list(other.bodies.name)
+    except RenderError:
+        return None
+    if len(ours) != len(theirs):
+        why = f"it has {len(theirs)} bodies, {os.fspath(path)} {len(ours)}"
+    elif ours != theirs:
+        k = next(i for i, (a, b) in enumerate(zip(ours, theirs, strict=True)) if a != b)
+        why = f"its body {k} is {theirs[k]!r}, {os.fspath(path)}'s {ours[k]!r}"
+    else:
+        return None
+    return f"{os.fspath(overlay)}: {why}: the run of another scene? (overlaid all the same)"
+
+
 def check_dimensions(main: FrameReader, other: FrameReader | None, view: View | None) -> None:
     """Raise RenderError when the overlay `other` is of another dimension than `main`,
     or a view rectangle (2D) is given for a 3D trajectory."""
