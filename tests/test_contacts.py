@@ -11,11 +11,13 @@ from __future__ import annotations
 
 import hashlib
 import math
+import textwrap
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+import rbsim
 from rbsim.constants import SEGMENT_SKIN
 from rbsim.core import CoreWorld as World
 from rbsim.scene import load_scene
@@ -880,3 +882,58 @@ def test_thin_rod_rests_on_thin_ground_instead_of_falling_through():
     # at rest on the ground, held off it by the segment skin (plus soft-contact give)
     assert np.all(y > 0.0) and np.all(y < 2 * SEGMENT_SKIN)
     assert np.abs(world.state.body_v[1:]).max() < 1e-3  # at rest, m/s
+
+
+@pytest.mark.parametrize("e", [1.0, 0.5])
+def test_elastic_bodies_resting_on_the_floor_with_threshold_zero_stay_at_rest(e):
+    # an approach no faster than a substep of gravity is a rest, not an impact: the
+    # ball and the box bounced by g h (0.041 m/s) every substep and reported it in
+    # every frame, with that kinetic energy, while they did not move
+    tr = rbsim.run(
+        textwrap.dedent(f"""
+        version: 1
+        world: {{dt: 1/60, duration: 2}}
+        solver: {{restitution_threshold: 0.0}}
+        bodies:
+          - {{name: floor, type: static, restitution: {e},
+             shape: {{segment: {{a: [-5, 0], b: [5, 0]}}}}}}
+          - {{name: ball, position: [0, 0.25], restitution: {e}, density: 1,
+             shape: {{circle: {{radius: 0.25}}}}}}
+          - {{name: box, position: [2, 0.25], restitution: {e}, density: 1,
+             shape: {{box: {{size: [0.5, 0.5]}}}}}}
+        """)
+    )
+    # rounding (the bodies start at rest, just touching): g h is 0.041 m/s
+    assert np.abs(tr.velocity).max() < 1e-9
+    assert tr.observables["kinetic_energy"].max() < 1e-15  # J
+
+
+def test_cradle_resting_on_the_floor_keeps_its_energy_and_stays_down():
+    # two balls strike five resting in a row on the floor, e = 1, threshold 0: the row
+    # passes their velocity to its far end as without the floor (the resting floor
+    # contacts are stopped again in the impacts' exact redo), and nothing hops (the floor
+    # contacts bounced by g h every substep: momentum up 0.125 kg m/s at 3 s, the
+    # energy up 1.6 mJ)
+    balls = [("s1", -3.0, 2), ("s2", -2.5, 2)] + [(f"b{i}", 0.5 * i, 0) for i in range(5)]
+    lines = "\n".join(
+        f"  - {{name: {n}, position: [{x}, 0.25], velocity: [{v}, 0], material: steel,"
+        " shape: {circle: {radius: 0.25}}}"
+        for n, x, v in balls
+    )
+    tr = rbsim.run(
+        "version: 1\n"
+        "world: {gravity: [0, -9.81], dt: 1/120, duration: 3}\n"
+        "solver: {restitution_threshold: 0.0}\n"
+        "materials: {steel: {density: 7.8, friction: 0.0, restitution: 1.0}}\n"
+        "bodies:\n"
+        "  - {name: floor, type: static, material: steel,"
+        " shape: {segment: {a: [-20, 0], b: [20, 0]}}}\n" + lines + "\n"
+    )
+    ke = tr.observables["kinetic_energy"]
+    p = tr.observables["linear_momentum"]
+    # rounding of the impacts' bounces (each keeps the energy exactly)
+    assert np.abs(ke - ke[0]).max() < 1e-12 * ke[0]
+    assert np.abs(p[:, 1]).max() < 1e-9 * p[0, 0]  # rounding, against 6.1 kg m/s along x
+    # the two balls at the far end leave at 2 m/s, the rest are still
+    v = tr.velocity[-1, np.argsort(tr.position[0, :, 0])]
+    np.testing.assert_allclose(v[-2:, 0], 2.0, rtol=1e-9)  # rounding

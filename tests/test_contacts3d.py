@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 
+import rbsim
 from rbsim.core import CoreWorld
 
 from .conftest import scene_from
@@ -320,3 +321,22 @@ def test_sphere_with_e_zero_comes_to_rest_on_the_plane(e: float) -> None:
     y = np.array([f[0][1, 1] for f in frames])
     assert abs(y[-1] - 0.1) < 1e-3  # m: resting on its surface, within the soft sag
     assert not apexes(y[len(y) // 2 :])  # no bounce
+
+
+def test_elastic_sphere_and_box_resting_on_the_plane_with_threshold_zero_stay_at_rest() -> None:
+    # e = 1, every approach bounces: a rest (an approach of one substep of gravity) is no
+    # impact. The box bounced by g h every substep on its four corners, one after the
+    # other, and drifted sideways at 1 cm/s while turning
+    text = on_ground(
+        "dt: 0.016666666666666666, duration: 2",
+        "density: 1, friction: 0.5, restitution: 1.0",
+        """\
+  - {name: ball, position: [0, 0.25, 0], material: m, shape: {sphere: {radius: 0.25}}}
+  - {name: box, position: [2, 0.25, 0], material: m, shape: {box: {size: [0.5, 0.5, 0.5]}}}
+""",
+    )
+    tr = rbsim.run(text, overrides=["solver.restitution_threshold=0"])
+    # rounding (the bodies start at rest, just touching): g h is 0.041 m/s
+    assert np.abs(tr.velocity).max() < 1e-9
+    assert np.abs(tr.angular_velocity).max() < 1e-9
+

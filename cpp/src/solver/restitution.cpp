@@ -107,6 +107,28 @@ inline double relative_acceleration(const Model<D>& model, int a, int b, typenam
   return acc;
 }
 
+// The slowest approach (m/s) of manifold m (bodies a, b, normal n) that is an impact: the
+// restitution threshold, or twice one substep h (s) of either body's own acceleration
+// along n (gravity, constant forces), a h, if that is faster. A body resting on another
+// reaches it at a h every substep with no impact at all (the substep's acceleration,
+// before the contact stops it), and the discrete trajectory cannot tell that rest from
+// an impact as slow: its invariant there is zero, and a bounce is then the mirror root of
+// bounce_target, a hop of a h taken every substep (a ball resting on the floor with e > 0
+// and threshold 0 reported v = +g h for ever, and gained that energy). Twice a h, so that
+// the rest's own approach, exactly a h and raised by rounding or by a face's points and
+// friction coupled in the solve, is never taken for an impact; the slowest bounce kept
+// is then that of a drop from 2 a h² (0.34 mm under gravity at a substep of 1/240 s).
+template <int D>
+inline double impact_speed(const Model<D>& model, int a, int b, typename Dim<D>::Vec n,
+                           double threshold, double h) {
+  double acc = 0.0;  // m/s²: the larger of the two bodies' accelerations along n
+  if (model.body_type[a] == BodyType::Dynamic)
+    acc = std::fabs(dot(model.gravity + model.body_inv_mass[a] * model.body_force[a], n));
+  if (model.body_type[b] == BodyType::Dynamic)
+    acc = std::fmax(acc, std::fabs(dot(model.gravity + model.body_inv_mass[b] * model.body_force[b], n)));
+  return std::fmax(threshold, 2.0 * acc * h);
+}
+
 // Where point k of manifold m (bodies a, b, normal n) stands. An impact against a static
 // or kinematic body is due once the separation is within IMPACT_GAP (times the contact's
 // scale, m) of touching, so that
@@ -398,20 +420,24 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
     int bouncing = 0, waiting = 0, joining = 0, pushing = 0;
     const bool elastic = c.restitution[m] > 0.0;
     const int a = c.body_a[m], b = c.body_b[m];
+    const double slow = impact_speed(model, a, b, c.normal[m], threshold, h);  // m/s
     for (int k = 0; k < c.points[m]; ++k) {
       // (an impact over before its bodies met is still part of a lone cluster: redone
       // exactly, it may approach again)
       const Impact at =
-          impact_state(model, st, c, m, k, a, b, c.normal[m], threshold, h, explicit_euler);
+          impact_state(model, st, c, m, k, a, b, c.normal[m], slow, h, explicit_euler);
       if (at == Impact::Due || at == Impact::Over) {
         ++bouncing;
       } else if (at == Impact::Waiting) {
         ++waiting;
       } else if (c.normal_impulse[m][k] > 0.0) {
-        // pushed, slower than the threshold: in an elastic contact that carried no load
+        // pushed, slower than an impact: in an elastic contact that carried no load
         // into the step, it may be a passive part of an impact (a ball of a touching
-        // row, engaged only by its neighbour's push)
-        if (elastic && c.start_impulse[m][k] == 0.0)
+        // row, engaged only by its neighbour's push). So may a resting one where the
+        // threshold is below the impact speed (every approach that is an impact bounces):
+        // a row of balls resting on the floor is struck as the row alone is, its floor
+        // contacts only stopped again in the exact redo
+        if (elastic && (c.start_impulse[m][k] == 0.0 || threshold < slow))
           ++joining;
         else
           ++pushing;
@@ -488,12 +514,12 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
     const double e = c.restitution[m];
     const Vec n = c.normal[m];
     const double acc = relative_acceleration(model, a, b, n);
+    const double slow = impact_speed(model, a, b, n, threshold, h);  // m/s
     std::array<double, Dim<D>::max_points> target{};
     PointFlags<D> bounce{};
     bool deferred = false, any_bounce = false;
     for (int k = 0; k < c.points[m]; ++k) {
-      const Impact at =
-          impact_state(model, st, c, m, k, a, b, n, threshold, h, explicit_euler);
+      const Impact at = impact_state(model, st, c, m, k, a, b, n, slow, h, explicit_euler);
       if (at == Impact::Waiting) {  // looked at again when the stage next runs
         // an elastic one gives its speculative push back, as a lone cluster's do: kept,
         // it would cost the bounce its approach should the bodies meet only after the
@@ -542,6 +568,7 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
       const double e = c.restitution[m];
       const Vec n = c.normal[m];
       const double acc = relative_acceleration(model, a, b, n);
+      const double slow = impact_speed(model, a, b, n, threshold, h);  // m/s
       std::array<double, Dim<D>::max_points> t{}, u{};
       PointFlags<D> need{};
       double total_work = 0.0;
@@ -549,13 +576,12 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
       for (int k = 0; k < c.points[m]; ++k) {
         const double vn = normal_velocity(st, a, b, c.anchor_a[m][k], c.anchor_b[m][k], n);
         if (vn >= 0.0) continue;
-        const bool first = c.approach_velocity[m][k] < -threshold;
+        const bool first = c.approach_velocity[m][k] < -slow;
         if (first &&
-            impact_state(model, st, c, m, k, a, b, n, threshold, h, explicit_euler) ==
-                Impact::Waiting)
+            impact_state(model, st, c, m, k, a, b, n, slow, h, explicit_euler) == Impact::Waiting)
           continue;  // not met yet
         double target = 0.0, alone = 0.0, work = 0.0;
-        if (first || vn < -threshold) {
+        if (first || vn < -slow) {
           const double s_now = point_separation(c, m, k, a, b, n);
           // The invariant here and now; at its first impact the point also owes the
           // work gravity did on the bodies' centres over the part of the substep's
@@ -595,6 +621,7 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
   for (std::int64_t m = 0; m < n_man; ++m) {
     if (kind[m] != kAlone) continue;
     const int a = c.body_a[m], b = c.body_b[m];
+    const double slow = impact_speed(model, a, b, c.normal[m], threshold, h);  // m/s
     bool deferred = false;
     for (int k = 0; k < c.points[m]; ++k) {
       const double total = c.normal_impulse[m][k];
@@ -603,11 +630,11 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
         // a bounce is not warm-started; a point that only stopped an approach keeps its
         // impulse, as the solve's points do
         drop_bounce(c, m, k);
-      } else if (impact_state(model, st, c, m, k, a, b, c.normal[m], threshold, h,
+      } else if (impact_state(model, st, c, m, k, a, b, c.normal[m], slow, h,
                               explicit_euler) == Impact::Waiting) {
         deferred = true;  // looked at again when the stage next runs
         meeting = true;
-      } else if (c.approach_velocity[m][k] < -threshold) {
+      } else if (c.approach_velocity[m][k] < -slow) {
         // its impact was met by the others' bounces before it struck: it is over (a
         // later approach engages afresh in the solve)
         end_impact(c, m, k);
