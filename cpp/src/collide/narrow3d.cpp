@@ -790,17 +790,35 @@ inline Polytope box_polytope(const ShapeRef3& box, Vec3* corners, Vec3* normals)
 }
 inline Polytope hull_polytope(const ShapeRef3& s) { return {s.verts, s.face_normals, &s.hull}; }
 
-// The corners of a polytope within reach of a plane (b): up to four, reduced. Where more
-// than four are within reach and three or more of them rest on the plane (within the face
-// tolerance, REFERENCE_FACE_TOLERANCE at the pair's scale, of the deepest), the four are
-// chosen among the resting ones: the reduction keeps the corners that reach furthest
-// out, and a hull's corners just off its resting face won it. A brick with 2 cm bevels
-// rested on one corner and three gaps and rocked at 0.35 rad/s; a 64-sided prism lying
-// on a side (its face 3 cm wide, the next corners 1.4 mm up) rocked at 0.06 rad/s.
-int polytope_plane(const Vec3* verts, int count, const ShapeRef3& plane, double speculative,
-                   Manifold3& out) {
+// The corners of a polytope within reach of a plane (b): up to four, reduced. The plane is
+// the reference face, and the corners are the incident face's (the polytope's face most
+// anti-parallel to the plane's normal), as in a face contact between polytopes, with the
+// deepest corner should it lie off that face (a hull's face most anti-parallel need not
+// hold it; a box's always does). Taken from all the corners within reach, a plate
+// thinner than the speculative distance (1 cm against 2 cm) had its upper face's corners
+// too, which the reduction, keeping the corners that reach furthest out, chose over the
+// lower ones they stand over: tilted by 1e-3 rad, a 1 m steel plate rested on two
+// corners and two points 1 cm above the ground, sank 3 mm into it and rocked for ever.
+// Where more than four are within reach and three or more of them rest on the plane
+// (within the face tolerance, REFERENCE_FACE_TOLERANCE at the pair's scale, of the
+// deepest), the four are chosen among the resting ones: a hull's corners just off its
+// resting face reach further out and won the reduction (a brick with 2 cm bevels rested
+// on one corner and three gaps and rocked at 0.35 rad/s; a 64-sided prism lying on a
+// side, its face 3 cm wide, the next corners 1.4 mm up, rocked at 0.06 rad/s).
+int polytope_plane(const Polytope& P, const ShapeRef3& plane, double speculative, Manifold3& out) {
   const Vec3 n = plane.normal;
-  auto separation = [&](int i) { return dot(n, verts[i]) - plane.offset; };  // m
+  std::array<int, HULL_MAX_FACE_VERTICES + 1> corner;  // the candidates' vertex indices
+  const int f = incident_face(P, n);
+  int count = 0;
+  for (int k = P.h->face_start[f]; k < P.h->face_start[f + 1]; ++k)
+    corner[count++] = P.h->face_vertex[k];
+  const int deepest_vertex = least_along(n, Vec3{}, P.v, P.h->vertex_count).index;
+  if (std::find(corner.begin(), corner.begin() + count, deepest_vertex) == corner.begin() + count)
+    corner[count++] = deepest_vertex;
+  // in vertex order, as when every corner was a candidate: where those within reach are
+  // the incident face's (any box thicker than the reach), the same points in the same order
+  std::sort(corner.begin(), corner.begin() + count);
+  auto separation = [&](int i) { return dot(n, P.v[corner[i]]) - plane.offset; };  // m
   double deepest = INF;
   int within = 0;
   for (int i = 0; i < count; ++i) {
@@ -818,8 +836,8 @@ int polytope_plane(const Vec3* verts, int count, const ShapeRef3& plane, double 
   }
   const auto get = [&](int i, Vec3& p, double& s, std::int64_t& id) {
     s = separation(i);
-    p = verts[i] - (0.5 * s) * n;
-    id = feature_id(FK::Vertex, 0, 0, i, 0);
+    p = P.v[corner[i]] - (0.5 * s) * n;
+    id = feature_id(FK::Vertex, 0, 0, corner[i], 0);
     return s <= reach;
   };
   return reduce_to_four(count, get, n, out);
@@ -1440,10 +1458,8 @@ int collide_box_box(const ShapeRef3& a, const ShapeRef3& b, double speculative, 
 }
 
 int collide_box_plane(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
-  const BoxCorners corner(a);
-  Vec3 corners[8];
-  for (int k = 0; k < 8; ++k) corners[k] = corner[k];
-  return polytope_plane(corners, 8, b, speculative, out);
+  Vec3 corners[8], normals[6];
+  return polytope_plane(box_polytope(a, corners, normals), b, speculative, out);
 }
 
 int collide_box_convex(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
@@ -1464,7 +1480,7 @@ int collide_convex_convex(const ShapeRef3& a, const ShapeRef3& b, double specula
 }
 
 int collide_convex_plane(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out) {
-  return polytope_plane(a.verts, a.hull.vertex_count, b, speculative, out);
+  return polytope_plane(hull_polytope(a), b, speculative, out);
 }
 
 // Two half-spaces: no manifold (planes are static ground).
