@@ -112,4 +112,39 @@ TEST(heavy_body_on_a_light_one_is_found) {
   }
 }
 
+// Only touching contacts hold bodies up: a 100 kg disc resting on a 1 cm plate has the
+// ground within its speculative distance, and counted as standing on it (level 1, as the
+// plate) it was no load of the plate's in the shock pass, and pushed the plate through
+// the ground. The disc is the plate's load: level 2, its contact in the shock order.
+TEST(a_speculative_contact_holds_nothing_up) {
+  SceneBuilder s;
+  s.ground();
+  const int plate = s.box({0.0, 0.005}, 0.1, 0.005, 1.0);
+  const int disc = s.circle({0.0, 0.31}, 0.3, 100.0);
+  World<2>& w = s.finish();
+  rbsim::test::collide(w);
+  const auto& c = w.contacts;
+  CHECK(manifold_of(w, 0, disc) >= 0);  // the ground, 1 cm below the disc: speculative
+  CHECK(!c.support[manifold_of(w, 0, disc)] && c.support[manifold_of(w, plate, disc)]);
+  CHECK(c.body_level[plate] == 1 && c.body_level[disc] == 2);
+  CHECK(c.shock_side[manifold_of(w, plate, disc)] != 0);
+}
+
+// The load a body bears: its own mass and, split over their supports, that of the
+// bodies resting on it (a 100 kg box on two 1 kg boxes side by side on the ground).
+TEST(borne_loads_come_down_the_supports) {
+  SceneBuilder s;
+  s.ground();
+  const int left = s.box({-0.5, 0.5}, 0.5, 0.5, 1.0);
+  const int right = s.box({0.5, 0.5}, 0.5, 0.5, 1.0);
+  const int top = s.box({0.0, 1.5}, 1.0, 0.5, 100.0);
+  World<2>& w = s.finish();
+  rbsim::test::collide(w);
+  const auto& c = w.contacts;
+  CHECK(c.heavy_on_light);
+  CHECK_NEAR(c.body_load[top], 100.0, 1e-12);  // kg: exact sums of exact halves
+  CHECK_NEAR(c.body_load[left], 51.0, 1e-12);
+  CHECK_NEAR(c.body_load[right], 51.0, 1e-12);
+}
+
 RBSIM_TEST_MAIN

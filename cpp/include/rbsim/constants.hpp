@@ -172,6 +172,13 @@ inline constexpr double LINEAR_EPSILON = 1.0e-9;
 inline constexpr double SHOCK_COS = 0.7071;
 inline constexpr double SHOCK_MIN_APPROACH = 1.0e-4;
 
+// A contact holds its bodies up (counts for the support levels, shock.cpp) while a point
+// of it is within this gap at the step's start, m (times the pair's scale): far below
+// the gaps of speculative contacts that matter (a ball on a 1 cm plate is 1 cm from the
+// ground), above the soft contacts' flicker about zero at rest. Larger values count more
+// near misses as support (the plate's ball then stood on the ground too: see shock.cpp).
+inline constexpr double SUPPORT_GAP = 0.1 * LINEAR_SLOP;
+
 // Mass ratio of a heavy body resting on a light dynamic one, dimensionless: while a step
 // has a supported body at least this many times heavier than its (dynamic) supporter,
 // the shock pass also runs before the positions move (step.cpp), so that the light body,
@@ -180,6 +187,19 @@ inline constexpr double SHOCK_MIN_APPROACH = 1.0e-4;
 // 33 cm in all). Smaller ratios are solved as before; lower values run the extra pass in
 // more scenes (one pass over the supported contacts per substep).
 inline constexpr double HEAVY_RATIO = 10.0;
+
+// Ratio of the load a body bears (its mass and what rests on it, shock.cpp's body_load)
+// to the mass of the lighter of it and its (dynamic) supporter, dimensionless, past which
+// the load crushes: while a heavy body rests on a light one, the shock pass then takes
+// out its approach however slow (3D: in the pass before the positions move, which in 2D
+// takes every approach anyway) and however elastic (2D and 3D: an impact is otherwise
+// the restitution stage's). Below it the soft contacts carry a load, and hold a box on
+// one r times lighter about r × 0.07 mm deep at dt = 1/60 (7 mm at 100); above it they
+// could not: a 100 kg box sank into a 0.01 kg one at 3.6 cm/s without end, and a 6 t slab
+// dropped on a 16 kg box (e = 0.2) knocked it into the ground and went through it. Lower
+// values take more loads out in the pass (a 100:1 box on a pyramid, all of its load taken
+// so, rocked at 1 cm/s: the pass and the contacts' warm start shared it).
+inline constexpr double CRUSH_RATIO = 150.0;
 
 // Broadphase grid: cell size in median half-diagonals (plus two fat margins); hash
 // buckets per shape, at least; shapes made big (tested against every shape) while a

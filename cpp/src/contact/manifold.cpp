@@ -210,6 +210,10 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
     const double scale = std::min(c.shape_scale[a], c.shape_scale[b]);
     // motion of the two bodies since their reference poses (m)
     const Vec dd = (st.body_x[ba] - c.body_ref[ba].x) - (st.body_x[bb] - c.body_ref[bb].x);
+    // whether a point is within the support gap at the step's start (shock.cpp: only
+    // touching contacts hold bodies up); the levels hold while no manifold changes this
+    const double gap = scale * C::SUPPORT_GAP;  // m
+    bool touching = false;
     if (in_slot && still) {
       // neither body has moved, and last step's manifold is still in this slot
       // (store_impulses copied it to prev_*, so the two agree): only its separation and
@@ -218,10 +222,13 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
       for (int k = 0; k < c.points[m]; ++k) {
         const Vec ra = c.sep_anchor_a[m][k], rb = c.sep_anchor_b[m][k];
         const double sep = c.ref_separation[m][k] + dot(n, dd);
+        touching = touching || sep <= gap;
         c.base_separation[m][k] = sep - dot(n, ra - rb);
         c.start_impulse[m][k] = c.normal_impulse[m][k];
         c.max_normal_impulse[m][k] = 0.0;
       }
+      same = same && c.support[m] == touching;
+      c.support[m] = touching;
       c.carried[m] = 1;
       ++m;
       continue;
@@ -241,6 +248,7 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
         const double ref_sep = c.prev_ref_separation[j][k];
         c.ref_separation[m][k] = ref_sep;
         const double sep = ref_sep + dot(n, dd);
+        touching = touching || sep <= gap;
         c.base_separation[m][k] = sep - dot(n, ra - rb);
         c.feature[m][k] = c.prev_feature[j][k];
         c.normal_impulse[m][k] = c.prev_normal_impulse[j][k];
@@ -333,6 +341,7 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
         const double base = out.separation[k] - moved;
         c.base_separation[m][k] = base;
         const double start = base + dot(n, sa_k - sb_k);
+        touching = touching || start <= gap;
         c.ref_separation[m][k] = start - dot(n, dd);
         c.feature[m][k] = out.id[k];
         double jn = 0.0;  // N·s
@@ -354,7 +363,8 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
         if (matched) carry_unmatched(c, m, j, npts, scale * C::WARM_MATCH_DISTANCE);
       }
     }
-    same = same && in_slot;
+    same = same && in_slot && c.support[m] == touching;
+    c.support[m] = touching;
     c.carried[m] = 0;
     c.shape_a[m] = a;
     c.shape_b[m] = b;

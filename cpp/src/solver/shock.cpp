@@ -47,8 +47,13 @@ inline bool all_zero(Vec3 v) { return v.x == 0.0 && v.y == 0.0 && v.z == 0.0; }
 
 // contacts.body_level (N,): 0 for static and kinematic bodies, 1 for the bodies they
 // touch, ..., UNREACHED for bodies not connected to one (breadth first over the manifolds
-// with points). Builds the contact graph's adjacency (compressed rows in adj_start, adj;
-// deep_region walks it too) and uses contacts.queue as scratch.
+// that touch, contacts.support: a point within SUPPORT_GAP at the step's start, found by
+// update_manifolds). Only such contacts hold bodies up: a ball resting on a 1 cm plate
+// has the ground within its speculative distance, and counted as standing on it (level
+// 1, as the plate) it was no load of the plate's in the shock pass, and a 100 kg ball
+// pushed a 1 kg plate through the ground. Builds the contact graph's adjacency
+// (compressed rows in adj_start, adj; deep_region walks it too) and uses contacts.queue
+// as scratch.
 template <int D>
 void contact_levels(const Model<D>& model, Contacts<D>& c) {
   auto& level = c.body_level;
@@ -60,7 +65,7 @@ void contact_levels(const Model<D>& model, Contacts<D>& c) {
   // adjacency of the contact graph (compressed rows, manifolds with points only)
   for (std::int64_t i = 0; i <= n_bodies; ++i) adj_start[i] = 0;
   for (std::int64_t m = 0; m < n_man; ++m) {
-    if (c.points[m] > 0) {
+    if (c.support[m]) {
       adj_start[c.body_a[m] + 1] += 1;
       adj_start[c.body_b[m] + 1] += 1;
     }
@@ -68,7 +73,7 @@ void contact_levels(const Model<D>& model, Contacts<D>& c) {
   for (std::int64_t i = 0; i < n_bodies; ++i) adj_start[i + 1] += adj_start[i];
   for (std::int64_t i = 0; i < n_bodies; ++i) queue[i] = adj_start[i];  // fill cursor
   for (std::int64_t m = 0; m < n_man; ++m) {
-    if (c.points[m] > 0) {
+    if (c.support[m]) {
       const int a = c.body_a[m], b = c.body_b[m];
       adj[queue[a]++] = b;
       adj[queue[b]++] = a;
@@ -188,6 +193,18 @@ bool shock_block(const std::array<double, 10>& k, const double* need, int n, dou
   return false;
 }
 
+// Whether manifold m's supported body bears a load (contacts.body_load, known while
+// heavy_on_light) CRUSH_RATIO or more times the mass of the lighter of it and its
+// (dynamic) supporter: a slab on a box, or the box under it on the ground.
+template <int D>
+inline bool crushing(const Model<D>& model, const Contacts<D>& c, std::int32_t m) {
+  if (!c.heavy_on_light) return false;
+  const bool a_moves = c.shock_side[m] == 2;
+  const int u = a_moves ? c.body_a[m] : c.body_b[m], s = a_moves ? c.body_b[m] : c.body_a[m];
+  const double lighter = std::max(model.body_inv_mass[u], model.body_inv_mass[s]);  // 1/kg
+  return c.body_load[u] * lighter >= C::CRUSH_RATIO;
+}
+
 // The 3D pass: the supported body's approach taken out at a face's up to four points at
 // once (shock_block), the supporter held still; the body's v, L and ω changed
 // (add_momentum). Where no set of points is found, the points are taken one after the other
@@ -205,13 +222,19 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
     const SolverRow<3>::Points& P = row.point;
     // each point's normal velocity (m/s), the points in lanes: (ω × r) · n = ω · (r × n)
     const Lanes vel_l = dot(n, va - vb) + (dot_lanes(wa, P.rna) - dot_lanes(wb, P.rnb));
-    // most supported points are not approaching: skip them before any other work
-    if (!any((vel_l < -min_approach) & first_lanes(npts))) continue;
+    // most supported points are not approaching: skip them before any other work. A load
+    // that would crush its supporter is taken out however slowly it approaches: the soft
+    // contacts do not carry it (CRUSH_RATIO)
+    const LaneMask live = first_lanes(npts);
+    if (!any((vel_l < -min_approach) & live) &&
+        !(min_approach > C::SHOCK_MIN_APPROACH && any((vel_l < -C::SHOCK_MIN_APPROACH) & live) &&
+          crushing(model, c, m)))
+      continue;
     double vel[4];
     std::memcpy(vel, &vel_l, sizeof vel);
     double slowest = 0.0;  // m/s: the fastest approach among the points
     for (int k = 0; k < npts; ++k) slowest = std::min(slowest, vel[k]);
-    if (c.restitution[m] > 0.0 && slowest < -threshold) continue;
+    if (c.restitution[m] > 0.0 && slowest < -threshold && !crushing(model, c, m)) continue;
     const BodyDelta<3>& da = c.body_delta[a];
     const BodyDelta<3>& db = c.body_delta[b];
     const double moved = dot(n, da.dx - db.dx);  // m
@@ -276,6 +299,31 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
 
 }  // namespace
 
+// contacts.body_load (N,): the mass (kg) each dynamic body bears, its own and that of the
+// bodies resting on it, each of those split evenly over its supporters (the shock order's
+// contacts); 0 for the others. shock_order lists the supports by the supporter's level,
+// and a supported body's level is above its supporter's, so taken from the end the load
+// of each supported body is complete before it is handed down. Uses contacts.queue.
+template <int D>
+void borne_loads(const Model<D>& model, Contacts<D>& c, std::int64_t n_order) {
+  auto& load = c.body_load;
+  auto& supports = c.queue;  // how many supports hold each body up
+  const std::int64_t n_bodies = static_cast<std::int64_t>(load.size());
+  for (std::int64_t i = 0; i < n_bodies; ++i) {
+    load[i] = model.is_dynamic(static_cast<int>(i)) ? 1.0 / model.body_inv_mass[i] : 0.0;
+    supports[i] = 0;
+  }
+  auto supported = [&c](std::int32_t m) {
+    return c.shock_side[m] == 2 ? c.body_a[m] : c.body_b[m];
+  };
+  for (std::int64_t o = 0; o < n_order; ++o) supports[supported(c.shock_order[o])] += 1;
+  for (std::int64_t o = n_order - 1; o >= 0; --o) {
+    const std::int32_t m = c.shock_order[o];
+    const int u = supported(m), s = c.shock_side[m] == 2 ? c.body_b[m] : c.body_a[m];
+    if (model.is_dynamic(s)) load[s] += load[u] / static_cast<double>(supports[u]);
+  }
+}
+
 // Support level of every body, and the orders of the solver's and the shock pass.
 //
 // Writes contacts.solve_order (M,): every manifold, lowest supporter level first (the
@@ -298,7 +346,8 @@ std::int64_t support_order(const Model<D>& model, Contacts<D>& c) {
   const std::int64_t n_man = c.count.manifolds;
   const Vec gravity = model.gravity;
   const double g = std::sqrt(dot(gravity, gravity));  // m/s²
-  // the same manifolds as last step, in the same slots: its levels and solve order hold
+  // the same manifolds as last step, in the same slots, touching as they did: its levels
+  // and solve order hold
   const bool same = c.count.graph_unchanged == 1;
   for (std::int64_t m = 0; m < n_man; ++m) {
     side[m] = 0;
@@ -367,6 +416,7 @@ std::int64_t support_order(const Model<D>& model, Contacts<D>& c) {
       continue;
     order[count[lv]++] = static_cast<std::int32_t>(m);
   }
+  if (heavy) borne_loads(model, c, total);  // (crushing reads them)
   return total;
 }
 
@@ -450,7 +500,9 @@ std::int64_t deep_region(const Model<D>& model, Contacts<D>& c, int reach) {
 // gap (m) may still close it within the substep (1/inv_h s). An elastic contact
 // (restitution > 0) approaching faster than `threshold` (m/s) is an impact, not a load: it
 // is left to the next substep's solve and bounce (taken here, its energy would be lost: a
-// ball struck down onto the floor stopped dead).
+// ball struck down onto the floor stopped dead), unless its load crushes (CRUSH_RATIO: a
+// 6 t slab landing on a 16 kg box knocked the box into the ground in the restitution
+// stage, and went through it). A crushing load is taken however slowly it approaches.
 template <int D>
 void propagate_shock(const Model<D>& model, State<D>& st, Contacts<D>& c, std::int64_t n_order,
                      double inv_h, double threshold, double min_approach) {
@@ -486,7 +538,8 @@ void propagate_shock_range(const Model<D>& model, State<D>& st, Contacts<D>& c,
       approaching = approaching || vel1 < -min_approach;
     }
     if (!approaching) continue;
-    if (c.restitution[m] > 0.0 && std::min(vel0, vel1) < -threshold) continue;
+    if (c.restitution[m] > 0.0 && std::min(vel0, vel1) < -threshold && !crushing(model, c, m))
+      continue;
     const BodyDelta<D>& da = c.body_delta[a];
     const BodyDelta<D>& db = c.body_delta[b];
     const double moved = dot(n, da.dx - db.dx);  // m
