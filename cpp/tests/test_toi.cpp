@@ -93,6 +93,34 @@ TEST(separating_or_slow_pair_stays_at_start) {
   }
 }
 
+// Two balls whose free paths pass 1.06 m apart (1.26 m between centres): a at 500 m/s
+// along x, b 4 m above it at (400, −300) m/s. At the step's start b closes on a at
+// 300 m/s, 4 m in 13 ms, so the search runs; it finds them separating where they pass,
+// far clear of each other, and leaves them at the step's start (normal along y, 3.8 m
+// apart). (The manifold where they pass, its plane running through both starts, held a
+// ball stopped by a wall to the other body's x.)
+TEST(pair_whose_paths_pass_clear_stays_at_start) {
+  SceneBuilder s;
+  s.world.model.gravity = {0.0, 0.0};
+  s.circle({0.0, 0.0}, 0.1, 1.0, {}, {500.0, 0.0});
+  s.circle({0.0, 4.0}, 0.1, 1.0, {}, {400.0, -300.0});
+  World<2>& w = s.finish(1.0 / 60.0, 4);
+  auto& c = w.contacts;
+  transform_shapes(w.model, w.state, c, w.config.dt);
+  const auto& m = w.model;
+  const double spec = 6.0;  // m: the pair's relative move in the step, 5.3 m, and more
+  const ShapeRef2 sa{m.shape_kind[0], m.shape_vstart[0], 1, 0.1};
+  const ShapeRef2 sb{m.shape_kind[1], m.shape_vstart[1], 1, 0.1};
+  Manifold2 out{};
+  CHECK(collide2d(sa, sb, c.vert_world.data(), c.norm_world.data(), spec, out) == 1);
+  CHECK(meets_within(out, 1, 0, 1, w.config.dt, constants::LINEAR_SLOP, w.state));
+  const Impact hit = time_of_impact(m, w.state, 0, 1, 1, w.config.dt, spec, 1.0,
+                                    c.toi_verts.data(), c.toi_norms.data(), out);
+  CHECK(hit.t == 0.0 && hit.points == 1);
+  CHECK_NEAR(out.separation[0], 3.8, 1e-12);  // m: 4 m between centres less the radii
+  CHECK_NEAR(out.normal.y, -1.0, 1e-15);      // from b towards a, as at the start
+}
+
 // ---- 3D ---------------------------------------------------------------------------------
 
 namespace {
