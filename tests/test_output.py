@@ -447,7 +447,7 @@ def test_resume_from_a_damaged_checkpoint_is_a_message(reference, tmp_path) -> N
     with h5py.File(out, "a") as f:  # as a killed run leaves it, with a cut checkpoint
         f["parameters/rbsim/status"][()] = b"running"
     Path(f"{out}{CHECKPOINT_SUFFIX}").write_bytes(
-        b"RBSIMRS1" + (31).to_bytes(8, "little") * 2 + b"RBSIMCK5"
+        b"RBSIMRS1" + (31).to_bytes(8, "little") * 2 + b"RBSIMCK6"
     )
     code, _o, err = rbsim("run", "--resume", out)
     assert code == 1 and "checkpoint" in err and "Traceback" not in err
@@ -468,7 +468,7 @@ def test_resume_from_another_versions_checkpoint_says_so(reference, tmp_path) ->
     )
     code, _o, err = rbsim("run", "--resume", out)
     assert code == 1, err
-    assert "another version of rbsim's engine (format 4, this one reads 5)" in err, err
+    assert "another version of rbsim's engine (format 4, this one reads 6)" in err, err
     assert "Traceback" not in err
 
 

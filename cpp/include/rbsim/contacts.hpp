@@ -31,10 +31,10 @@ struct ContactCounts {
   std::int64_t shock_count = 0;     // manifolds in the shock pass's order
   std::int64_t bounce_count = 0;    // entries in bounce_list
   std::int64_t deep_count = 0;      // entries in relax_list: points deeper than DEEP_OVERLAP
-  // 1: the manifolds are last step's pairs in the same slots, touching (support) as they did
-  std::int64_t graph_unchanged = 0;
+  std::int64_t graph_unchanged = 0; // 1: the manifolds are last step's pairs in the same slots
   std::int64_t bounce_carried = 0;  // entries of bounce_list carried from the last restitution
   std::int64_t elastic_listed = 0;  // 1 once an elastic manifold was listed this step
+  std::int64_t support_changed = 0; // 1: a pair touches where it did not last step, or no longer
 };
 
 // One pair's narrowphase result, found ahead of update_manifolds by the threaded step
@@ -239,6 +239,7 @@ struct Contacts {
   // the shock pass and the solve order (shock.cpp)
   std::vector<std::int64_t> body_level;     // (N,)
   std::vector<std::int8_t> support;         // (M,) 1: a point within SUPPORT_GAP (manifold.cpp)
+  std::vector<std::int8_t> prev_support;    // (M,) last step's, as prev_key
   std::vector<double> body_load;            // (N,) kg each body bears (while heavy_on_light)
   std::vector<std::int8_t> shock_side;      // (M,)
   std::vector<std::int32_t> shock_order;    // (M,)
@@ -340,7 +341,8 @@ bool Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   reset(toi_verts, v < 2 ? 2 : v); reset(toi_norms, D == 2 ? (v < 2 ? 2 : v) : 2 * v + 2);
   reset(vert_world, v); reset(norm_world, v); reset(shape_margin, s); reset(shape_turn, s);
   shape_size.assign(s, 1.0); shape_scale.assign(s, 1.0); body_scale.assign(n, 1.0);
-  reset(body_level, n); reset(support, m); reset(body_load, n); reset(shock_side, m);
+  reset(body_level, n); reset(support, m); reset(prev_support, m); reset(body_load, n);
+  reset(shock_side, m);
   reset(shock_order, m); reset(solve_order, m);
   reset(adj_start, n + 1); reset(adj, 2 * m); reset(queue, n + 2);
   reset(bounce_kind, m); reset(body_mark, n); reset(solve_impulse, m);
@@ -387,6 +389,7 @@ bool Contacts<D>::grow(std::int64_t new_capacity, const std::function<bool()>* s
     prev_ref_separation[i] = old.prev_ref_separation[i];
     prev_sep_anchor_a[i] = old.prev_sep_anchor_a[i];
     prev_sep_anchor_b[i] = old.prev_sep_anchor_b[i];
+    prev_support[i] = old.prev_support[i];
   }
   face_world = std::move(old.face_world);
   body_ref = std::move(old.body_ref);

@@ -197,6 +197,7 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
   std::int64_t j = 0;  // merge pointer into last step's manifolds (both sorted by key)
   std::int64_t m = 0;
   bool same = true;  // every manifold so far is last step's pair in the same slot
+  bool touch_changed = false;  // and one of them touches where it did not, or no longer
   for (std::int64_t p = 0; p < n_pairs; ++p) {
     const int a = c.pairs[p][0], b = c.pairs[p][1];
     if (disjoint<D>(box[a], box[b])) continue;  // near in the fat boxes only: out of reach
@@ -211,8 +212,10 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
     // motion of the two bodies since their reference poses (m)
     const Vec dd = (st.body_x[ba] - c.body_ref[ba].x) - (st.body_x[bb] - c.body_ref[bb].x);
     // whether a point is within the support gap at the step's start (shock.cpp: only
-    // touching contacts hold bodies up); the levels hold while no manifold changes this
-    const double gap = scale * C::SUPPORT_GAP;  // m
+    // touching contacts hold bodies up), twice that for a pair that touched last step: a
+    // contact resting about the gap would otherwise change the levels step by step
+    const bool touched = matched && c.prev_support[j];
+    const double gap = (touched ? 2.0 : 1.0) * scale * C::SUPPORT_GAP;  // m
     bool touching = false;
     if (in_slot && still) {
       // neither body has moved, and last step's manifold is still in this slot
@@ -227,7 +230,7 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
         c.start_impulse[m][k] = c.normal_impulse[m][k];
         c.max_normal_impulse[m][k] = 0.0;
       }
-      same = same && c.support[m] == touching;
+      touch_changed = touch_changed || touched != touching;
       c.support[m] = touching;
       c.carried[m] = 1;
       ++m;
@@ -363,7 +366,8 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
         if (matched) carry_unmatched(c, m, j, npts, scale * C::WARM_MATCH_DISTANCE);
       }
     }
-    same = same && in_slot && c.support[m] == touching;
+    same = same && in_slot;
+    touch_changed = touch_changed || touched != touching;
     c.support[m] = touching;
     c.carried[m] = 0;
     c.shape_a[m] = a;
@@ -381,6 +385,7 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
   }
   c.count.manifolds = m;
   c.count.graph_unchanged = (same && m == n_prev) ? 1 : 0;
+  c.count.support_changed = touch_changed ? 1 : 0;
 }
 
 template void update_manifolds(const Model<2>&, const State<2>&, Contacts<2>&, const Grid<2>&,

@@ -16,6 +16,7 @@ template <int D>
 std::int64_t store_impulses(Contacts<D>& c, Span manifolds) {
   std::int64_t touching = 0;  // points that pushed (max normal impulse > 0) this step
   for (std::int64_t i = manifolds.first; i < manifolds.last; ++i) {
+    c.prev_support[i] = c.support[i];
     if (c.carried[i]) {  // the slot's prev_* already hold all but the impulses
       for (int k = 0; k < c.points[i]; ++k) {
         c.prev_normal_impulse[i][k] = c.normal_impulse[i][k];

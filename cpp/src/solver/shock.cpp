@@ -346,9 +346,9 @@ std::int64_t support_order(const Model<D>& model, Contacts<D>& c) {
   const std::int64_t n_man = c.count.manifolds;
   const Vec gravity = model.gravity;
   const double g = std::sqrt(dot(gravity, gravity));  // m/s²
-  // the same manifolds as last step, in the same slots, touching as they did: its levels
-  // and solve order hold
-  const bool same = c.count.graph_unchanged == 1;
+  // the same manifolds as last step, in the same slots: its levels and solve order hold,
+  // unless one of them touches where it did not, or no longer, and the levels change
+  bool same = c.count.graph_unchanged == 1;
   for (std::int64_t m = 0; m < n_man; ++m) {
     side[m] = 0;
     if (!same) solve_order[m] = static_cast<std::int32_t>(m);
@@ -356,7 +356,19 @@ std::int64_t support_order(const Model<D>& model, Contacts<D>& c) {
   c.heavy_on_light = false;
   if (g == 0.0 || n_man == 0) return 0;
   const Vec up = (-1.0 / g) * gravity;
-  if (!same) contact_levels(model, c);
+  if (!same) {
+    contact_levels(model, c);
+  } else if (c.count.support_changed) {
+    // (a side contact flickering about the gap in a settled pyramid moves no level: its
+    // solve order and waves are kept)
+    auto& before = c.body_reach;  // (deep_region's scratch)
+    std::copy(level.begin(), level.end(), before.begin());
+    contact_levels(model, c);
+    if (!std::equal(level.begin(), level.end(), before.begin())) {
+      same = false;
+      c.count.graph_unchanged = 0;  // the regions and waves are made anew too
+    }
+  }
   // which side supports, and a counting sort by the supporter's level; whether a body
   // rests on a far lighter dynamic one (the supported body's inverse mass HEAVY_RATIO
   // times the supporter's, or less)

@@ -8,10 +8,10 @@
 namespace rbsim {
 namespace {
 
-// The last byte is the format: 4 since a 3D solver row keeps its points field by field
-// (3: the contact store keeps each body's world inverse inertia; a checkpoint of another
-// format is refused with a message saying so).
-constexpr char MAGIC[8] = {'R', 'B', 'S', 'I', 'M', 'C', 'K', '5'};
+// The last byte is the format: 6 since the contact store keeps which manifolds touch and
+// the load each body bears (5 and before: without them; a checkpoint of another format is
+// refused with a message saying so).
+constexpr char MAGIC[8] = {'R', 'B', 'S', 'I', 'M', 'C', 'K', '6'};
 
 // Every member of the world that changes while it runs, in one fixed order. A member
 // added to State, Grid or Contacts must be added here too: the static_asserts on their
@@ -40,7 +40,7 @@ void visit(W& w, F&& f) {
   f(c.body_inertia_q);
   f(c.toi_verts), f(c.toi_norms);
   f(c.vert_world), f(c.norm_world), f(c.face_world), f(c.shape_margin), f(c.shape_turn), f(c.body_level);
-  f(c.support), f(c.body_load), f(c.shock_side);
+  f(c.support), f(c.prev_support), f(c.body_load), f(c.shock_side);
   f(c.shock_order), f(c.solve_order), f(c.adj_start), f(c.adj), f(c.queue), f(c.bounce_kind);
   f(c.body_mark), f(c.solve_impulse), f(c.bounce_list), f(c.relax_list), f(c.body_reach);
   f(c.wave_count), f(c.waves_valid), f(c.heavy_on_light), f(c.unit_scale), f(c.wave_order), f(c.manifold_wave), f(c.body_wave);
@@ -57,9 +57,9 @@ static_assert(sizeof(Grid<2>) == 8 + 16 * VEC + 3 * sizeof(Vec2) + sizeof(GridMe
               "Grid changed: update visit()");
 static_assert(sizeof(Grid<3>) == 8 + 16 * VEC + 3 * sizeof(Vec3) + sizeof(GridMeta<3>),
               "Grid changed: update visit()");
-static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 83 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 84 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
-static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 83 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 84 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
 
 template <class T>
