@@ -13,7 +13,9 @@ interrupted thread does not accrue. A second table times `rbsim run` end to end 
 written every step, and only the first and last) beside the engine alone and pymunk
 alone, and the writer's own cost per frame. The from-rest scenes (FROM_REST) are timed
 instead over their whole run from step 0, which a settled window leaves out (a pyramid
-settling, a pile forming): REST_REPEATS fresh runs of each engine, in turn.
+settling, a pile forming): REST_REPEATS fresh runs of each engine, in turn, round k's
+pair on the scene with gravity changed by k parts in 10⁹ (bench.the_round: one
+trajectory's time is one draw from a spread).
 Timings report; they do not fail. After them, the 3D table (bench/bench3d.py): rbsim
 against MuJoCo and PyBullet (where installed) on 3D contact scenes at dt = 1/240 s.
 Between them, the threads table (bench/threads.py): rbsim on 1 and 2 threads, and the
@@ -35,7 +37,7 @@ from rbsim.engines.pymunk import PymunkSettings
 from rbsim.scene import load_scene
 from rbsim.tools.measure import interleaved_block_times, median_ratio
 
-from . import bench3d, print_header, threads
+from . import bench3d, print_header, the_round, threads
 
 HERE = Path(__file__).parent
 SCENES = ["pyramid20", "circles1000", "pyramid40", "pyramids4x4", "pyramid30", "rain800"]
@@ -44,7 +46,7 @@ STEPS = 60
 REPEATS = 9
 # scenes timed over their whole run from rest (the scene's steps)
 FROM_REST = {"pyramid30", "rain800"}
-REST_REPEATS = 3
+REST_REPEATS = 5
 
 
 def time_engines(engines: list[Engine]) -> tuple[list[float], float]:
@@ -55,16 +57,16 @@ def time_engines(engines: list[Engine]) -> tuple[list[float], float]:
     return [statistics.median(s) for s in samples], median_ratio(samples[0], samples[1])
 
 
-def time_from_rest(makes) -> tuple[list[float], float, int]:  # noqa: ANN001 - () -> Engine
+def time_from_rest(makes) -> tuple[list[float], float, int]:  # noqa: ANN001 - (round) -> Engine
     """Median µs per step of each engine over whole runs from step 0 (the scene's steps),
-    each run in a fresh engine, the engines' runs taken in turn (REST_REPEATS rounds); the
-    median ratio of the first's runs to the second's, and the first's contact points at
-    the end of its last run."""
+    each run in a fresh engine made from round k's scene (the_round), the engines' runs
+    taken in turn (REST_REPEATS rounds); the median ratio of the first's runs to the
+    second's, and the first's contact points at the end of its last run."""
     samples: list[list[float]] = [[] for _ in makes]
     contacts = 0
-    for _ in range(REST_REPEATS):
+    for r in range(REST_REPEATS):
         for k, (make, out) in enumerate(zip(makes, samples, strict=True)):
-            engine = make()
+            engine = make(r)
             steps = engine.scene.world.steps
             t0 = time.thread_time()
             engine.advance(steps)
@@ -145,8 +147,8 @@ def table2d(names: list[str], iterations: int) -> None:
         scene = load_scene(HERE / "scenes" / f"{name}.yaml")
         if name in FROM_REST:
             makes = [
-                lambda s=scene: make_engine("rbsim", s),
-                lambda s=scene: pymunk_engine(s, iterations),
+                lambda r, s=scene: make_engine("rbsim", the_round(s, r)),
+                lambda r, s=scene: pymunk_engine(the_round(s, r), iterations),
             ]
             (rb, pm), ratio, rb_contacts = time_from_rest(makes)
             name = f"{name} (rest)"
