@@ -1558,10 +1558,11 @@ def measure_tunnel_plank_3d(make: Maker) -> dict[str, float]:
     """At each of TUNNEL_DTS: the farthest x any point of the plank and of the box
     reached (m), how far short of the wall each stayed (m), and the largest rise of the
     total energy over the start's, per the start's. The box's shortfall is reported, not
-    judged: at dt = 1/60 s it turns 0.25 rad per substep, and the restitution stage takes
-    an impact whose point turns on an arc longer than IMPACT_GAP within a substep as met
-    where it engaged, a substep before the box reaches the wall (restitution.cpp,
-    impact_state)."""
+    judged: at dt = 1/60 s it turns 0.25 rad per substep, and an impact whose point turns
+    on an arc longer than IMPACT_GAP within a substep is met by its shape's projection on
+    the normal, or taken as it stands should the turn bring another part of it nearer
+    than the manifold's points (restitution.cpp, impact_state: 0.487 m short when every
+    such impact was taken as it stood, a substep before the box reached the wall)."""
     out = {"reach": -math.inf, "box_reach": -math.inf, "short": 0.0, "gain": 0.0}
     out["box_short"] = 0.0
     for dt in TUNNEL_DTS:
