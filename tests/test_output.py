@@ -447,7 +447,7 @@ def test_resume_from_a_damaged_checkpoint_is_a_message(reference, tmp_path) -> N
     with h5py.File(out, "a") as f:  # as a killed run leaves it, with a cut checkpoint
         f["parameters/rbsim/status"][()] = b"running"
     Path(f"{out}{CHECKPOINT_SUFFIX}").write_bytes(
-        b"RBSIMRS1" + (31).to_bytes(8, "little") * 2 + b"RBSIMCK6"
+        b"RBSIMRS1" + (31).to_bytes(8, "little") * 2 + b"RBSIMCK7"
     )
     code, _o, err = rbsim("run", "--resume", out)
     assert code == 1 and "checkpoint" in err and "Traceback" not in err
@@ -460,15 +460,15 @@ def test_resume_from_another_versions_checkpoint_says_so(reference, tmp_path) ->
     assert code == 0, err
     with h5py.File(out, "a") as f:  # as a killed run leaves it
         f["parameters/rbsim/status"][()] = b"running"
-    # an engine checkpoint of format 4 (before the store kept each 3D wave's idle faces
-    # and the rotations its world tensors were made at: read by this engine, every array
-    # after them would be misread)
+    # an engine checkpoint of format 6 (before a solver row kept the distance within
+    # which its points touch: read by this engine, every row and every array after them
+    # would be misread)
     Path(f"{out}{CHECKPOINT_SUFFIX}").write_bytes(
-        b"RBSIMRS1" + (31).to_bytes(8, "little") * 2 + b"RBSIMCK4" + bytes(64)
+        b"RBSIMRS1" + (31).to_bytes(8, "little") * 2 + b"RBSIMCK6" + bytes(64)
     )
     code, _o, err = rbsim("run", "--resume", out)
     assert code == 1, err
-    assert "another version of rbsim's engine (format 4, this one reads 6)" in err, err
+    assert "another version of rbsim's engine (format 6, this one reads 7)" in err, err
     assert "Traceback" not in err
 
 

@@ -71,7 +71,8 @@ struct SolverRow<2> {
   std::array<Point, 2> point;
   double max_push = 0;      // m/s, < 0: the fastest push-out (CONTACT_PUSH_MAX_VELOCITY, scaled)
   double deep = 0;          // m, < 0: a separation below it is a deep overlap (DEEP_OVERLAP)
-  double pad[2] = {0, 0};
+  double touch = 0;         // m: a point within it touches and has friction (LINEAR_SLOP)
+  double pad = 0;
 };
 static_assert(sizeof(SolverRow<2>) == 32 * sizeof(double));
 // In 3D a manifold has up to four points and two friction directions t1, t2 (an
@@ -146,6 +147,7 @@ struct SolverRow<3> {
   double friction = 0;     // the mixed friction coefficient
   double max_push = 0;     // m/s, < 0: the fastest push-out (CONTACT_PUSH_MAX_VELOCITY, scaled)
   double deep = 0;         // m, < 0: a separation below it is a deep overlap (DEEP_OVERLAP)
+  double touch = 0;        // m: a point within it touches and has friction (LINEAR_SLOP)
   // 1/kg: the points' normal block K (symmetric 4×4, rows 0..points-1), its upper
   // triangle by rows: K00 K01 K02 K03 K11 K12 K13 K22 K23 K33
   std::array<double, 10> k{};

@@ -203,6 +203,7 @@ struct WideBatch {
   Lanes nx, ny;              // the normal, from b towards a
   Lanes k01, gamma, bias_rate, friction;
   Lanes max_push, deep;      // m/s and m, < 0: the rows' push-out bound and deep overlap
+  Lanes touch;               // m: the rows' touching distance (SolverRow::touch)
   Lanes ma, mb, ia, ib;      // inverse masses (1/kg) and inertias (1/(kg·m²))
   Lanes two;                 // 1 where the manifold has two points, else 0
   WidePoint p0, p1;          // p1: a two-point batch's (a one-point batch never reads it)
@@ -234,7 +235,7 @@ struct WideRow3 {
   Lanes t1x, t1y, t1z;  // the tangent basis
   Lanes t2x, t2y, t2z;
   Lanes ma, mb;         // inverse masses (1/kg)
-  Lanes gamma, bias_rate, friction, max_push, deep;
+  Lanes gamma, bias_rate, friction, max_push, deep, touch;
 };
 
 // The lanes' manifolds and bodies, after a batch's rows.

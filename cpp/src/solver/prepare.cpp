@@ -244,6 +244,7 @@ void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c,
     const double scale = c.scale[m];
     row.max_push = -C::CONTACT_PUSH_MAX_VELOCITY * (scale < 1.0 ? std::sqrt(scale) : 1.0);
     row.deep = -scale * C::DEEP_OVERLAP;
+    row.touch = scale * C::LINEAR_SLOP;
     row.friction = c.friction[m];
     if constexpr (D == 3) {
       // the world tensors at the step's start, as transform_shapes made them

@@ -27,6 +27,7 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 #include "rbsim/constants.hpp"
 #include "rbsim/stages.hpp"
@@ -247,10 +248,15 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
     const double mu = model.body_inv_mass[u];
     // how far each point is from allowed (m/s): a gap may close within the substep
     double need[4];
+    double nearest = std::numeric_limits<double>::infinity();  // m: the least separation
     for (int k = 0; k < npts; ++k) {
       const double sep = row_separation(P, k, moved, na, nb);
+      nearest = std::min(nearest, sep);
       need[k] = (sep > 0.0 ? -sep * inv_h : 0.0) - vel[k];
     }
+    // an impact still apart waits for its bodies to meet (restitution.cpp), elastic or
+    // not, and gets its friction when they do: pushed here, it would close without any
+    if (slowest < -threshold && nearest > row.touch && !crushing(model, c, m)) continue;
     // the supported body's block: K_ij = 1/m + (r_i × n)·I⁻¹(r_j × n) (1/kg)
     std::array<double, 10> kb{};
     int e = 0;
@@ -567,12 +573,17 @@ void propagate_shock_range(const Model<D>& model, State<D>& st, Contacts<D>& c,
     const double sep0 = row_separation(pt0, moved, na, nb);
     const double need0 = (sep0 > 0.0 ? -sep0 * inv_h : 0.0) - vel0;
     const double r0 = a_moves ? pt0.rna : pt0.rnb;  // m: the supported body's lever
-    double need1 = 0.0, r1 = 0.0;
+    double need1 = 0.0, r1 = 0.0, nearest = sep0;  // m: the least separation
     if (npts == 2) {
       const double sep1 = row_separation(pt1, moved, na, nb);
       need1 = (sep1 > 0.0 ? -sep1 * inv_h : 0.0) - vel1;
       r1 = a_moves ? pt1.rna : pt1.rnb;
+      nearest = std::min(nearest, sep1);
     }
+    // an impact still apart waits for its bodies to meet (restitution.cpp), elastic or
+    // not, and gets its friction when they do: pushed here, it would close without any
+    if (std::min(vel0, vel1) < -threshold && nearest > row.touch && !crushing(model, c, m))
+      continue;
     // impulses (N·s) along the supported body's push direction, λ >= 0, that bring every
     // point to at least its target: the two-point case is a 2x2 complementarity problem,
     // solved by trying both points, then each alone

@@ -70,8 +70,8 @@ inline void mark_deep(PassLog& log, std::int64_t m) { log.add_deep(static_cast<s
 // circle, in order (FORWARD: 0..N-1, the solve stage; else N-1..0, relax). vt1, vt2
 // (m/s): every point's sliding velocity before any of them, carried from point to point
 // through the row's couplings; jt (N·s): the points' accumulated friction impulses,
-// updated; lam (N·s): their normal impulses; e1, e2 (N·s): each point's change along t1,
-// t2 (left zero where none). Returns whether any point changed. (N and the order fixed
+// updated; lam (N·s): their normal impulses, zero where a point is apart (no friction
+// there); e1, e2 (N·s): each point's change along t1, t2 (left zero where none). Returns whether any point changed. (N and the order fixed
 // at compile time: the loops over the points unrolled.)
 template <int N, bool FORWARD>
 inline bool friction_points(const SolverRow<3>& row, Vec3* jt, const double* lam, double mu,
@@ -289,9 +289,15 @@ inline void solve_manifold_3d(const Model<3>& model, State<3>& st, Contacts<3>& 
     std::memcpy(vt2, &vt2_l, sizeof vt2);
     alignas(32) double e1[4] = {0.0, 0.0, 0.0, 0.0}, e2[4] = {0.0, 0.0, 0.0, 0.0};  // N·s
     Vec3* jt = c.tangent_impulse[m].data();
+    // the normal impulses of the points that touch (within row.touch): a push while apart
+    // is speculative, no contact force, and has no friction (solve_contacts)
+    const Lanes sep_t = row_separation(P, moved, na, nb);
+    const Lanes held_l = select(sep_t <= splat(row.touch), load_lanes(lam), splat(0.0));
+    alignas(32) double held[4];
+    std::memcpy(held, &held_l, sizeof held);
     const bool any_change = use_bias
-        ? friction_points<N, true>(row, jt, lam, mu, vt1, vt2, e1, e2)
-        : friction_points<N, false>(row, jt, lam, mu, vt1, vt2, e1, e2);
+        ? friction_points<N, true>(row, jt, held, mu, vt1, vt2, e1, e2)
+        : friction_points<N, false>(row, jt, held, mu, vt1, vt2, e1, e2);
     if (any_change) {
       // the impulse and its moments about each COM, summed over the lanes
       const Lanes g1 = load_lanes(e1), g2 = load_lanes(e2);
@@ -415,7 +421,11 @@ void solve_contacts(const Model<D>& model, State<D>& st, Contacts<D>& c, double 
       double jt = 0.0;
       const double mu = row.friction;
       lam = c.tangent_impulse[m][0];
-      const double limit = mu * c.normal_impulse[m][0];
+      // friction only where the point touches (within row.touch): a push while apart is
+      // speculative, no contact force; it gets its friction in the relax pass once the
+      // positions have brought the point to the surface (the limit is the substep's
+      // accumulated normal impulse), or from the impact (restitution.cpp)
+      const double limit = s <= row.touch ? mu * c.normal_impulse[m][0] : 0.0;
       if (mu > 0.0 && !(limit == 0.0 && lam == 0.0)) {  // no normal force, no friction
         // the normal impulse turns the bodies (n · t = 0: it adds no sliding)
         vt += jn * (ia * rna * rta + ib * rnb * rtb);
@@ -484,9 +494,10 @@ void solve_contacts(const Model<D>& model, State<D>& st, Contacts<D>& c, double 
     double f0 = 0.0, f1 = 0.0;  // the friction impulses applied (N·s)
     const double mu = row.friction;
     if (mu > 0.0) {
-      // the normal impulses turn the bodies (n · t = 0: they add no sliding)
+      // the normal impulses turn the bodies (n · t = 0: they add no sliding); friction
+      // only where a point touches (as for one point)
       double lam = c.tangent_impulse[m][0];
-      double limit = mu * c.normal_impulse[m][0];
+      double limit = s0 <= row.touch ? mu * c.normal_impulse[m][0] : 0.0;
       if (!(limit == 0.0 && lam == 0.0)) {  // no normal force, no friction
         vt0 += j0 * (ia * rna0 * rta0 + ib * rnb0 * rtb0);
         vt0 += j1 * (ia * rna1 * rta0 + ib * rnb1 * rtb0);
@@ -495,7 +506,7 @@ void solve_contacts(const Model<D>& model, State<D>& st, Contacts<D>& c, double 
         c.tangent_impulse[m][0] = next;
       }
       lam = c.tangent_impulse[m][1];
-      limit = mu * c.normal_impulse[m][1];
+      limit = s1 <= row.touch ? mu * c.normal_impulse[m][1] : 0.0;
       if (!(limit == 0.0 && lam == 0.0)) {
         vt1 += j0 * (ia * rna0 * rta1 + ib * rnb0 * rtb1);
         vt1 += j1 * (ia * rna1 * rta1 + ib * rnb1 * rtb1);
@@ -681,12 +692,14 @@ void solve_batch(State<2>& st, Contacts<2>& c, const WideBatch& B, double inv_h,
     const Lanes d0 = (-vn0 - (b0 + g0 * lam0)) * (splat(1.0) / (p0.kn + g0));
     j0 = clamp_lanes(c, B.m, 0, active, lam0, d0, vn0, s0, mx0, ap0, shift, threshold, n0, log);
   }
-  // friction, as solve_contacts (the normal impulses turn the bodies: n · t = 0)
+  // friction, as solve_contacts (the normal impulses turn the bodies: n · t = 0), only
+  // where a point touches
   const Lanes mu = B.friction;
+  const Lanes touch = unit ? splat(C::LINEAR_SLOP) : B.touch;
   const LaneMask has_mu = active & (mu > zero);
   Lanes f0 = zero, f1 = zero;  // the friction impulses applied (N·s)
   {
-    const Lanes lam = tl0, limit = mu * n0;
+    const Lanes lam = tl0, limit = select(s0 <= touch, mu * n0, zero);
     const LaneMask on = has_mu & ~((limit == zero) & (lam == zero));
     vt0 += j0 * (ia * p0.rna * p0.rta + ib * p0.rnb * p0.rtb);
     if constexpr (TWO) vt0 += j1 * (ia * p1.rna * p0.rta + ib * p1.rnb * p0.rtb);
@@ -696,7 +709,7 @@ void solve_batch(State<2>& st, Contacts<2>& c, const WideBatch& B, double inv_h,
   }
   if constexpr (TWO) {
     Lanes vt1 = dvt + (wa * p1.rta - wb * p1.rtb);
-    const Lanes lam = tl1, limit = mu * n1;
+    const Lanes lam = tl1, limit = select(s1 <= touch, mu * n1, zero);
     const LaneMask on = has_mu & ~((limit == zero) & (lam == zero));
     vt1 += j0 * (ia * p0.rna * p1.rta + ib * p0.rnb * p1.rtb);
     vt1 += j1 * (ia * p1.rna * p1.rta + ib * p1.rnb * p1.rtb);
@@ -966,8 +979,8 @@ void solve_batch_3d(State<3>& st, Contacts<3>& c, const WideBatch3& B, double in
   q.wbx -= jn * B.wnbx, q.wby -= jn * B.wnby, q.wbz -= jn * B.wnbz;
   Lanes dla[3] = {zero + jn * P.rnax, zero + jn * P.rnay, zero + jn * P.rnaz};
   Lanes dlb[3] = {zero - jn * P.rnbx, zero - jn * P.rnby, zero - jn * P.rnbz};
-  // friction: one 2×2 block clamped to Coulomb's circle
-  const Lanes limit = B.friction * p.lam;
+  // friction: one 2×2 block clamped to Coulomb's circle, where the point touches
+  const Lanes limit = select(s <= B.touch, B.friction * p.lam, zero);
   const LaneMask on = friction_on(busy, B.friction, limit, p);
   if (any(on)) {
     const Lanes ex = q.vax - q.vbx, ey = q.vay - q.vby, ez = q.vaz - q.vbz;
@@ -1149,7 +1162,7 @@ void solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double inv_
     }
     for (int i = 0; i < N; ++i) {
       const int k = use_bias ? i : N - 1 - i;
-      const Lanes limit = B.friction * p[k].lam;
+      const Lanes limit = select(sep[k] <= B.touch, B.friction * p[k].lam, zero);
       const LaneMask on = friction_on(has_mu, B.friction, limit, p[k]);
       if (!any(on)) continue;
       Lanes d1, d2;

@@ -43,7 +43,7 @@ void pack_lane(const Model<D>& model, const Contacts<D>& c, WideBatch& w, int l,
     w.writes &= ~bits;
     w.a[l] = w.b[l] = 0;
     w.nx[l] = w.ny[l] = w.k01[l] = w.gamma[l] = w.bias_rate[l] = w.friction[l] = 0.0;
-    w.max_push[l] = w.deep[l] = 0.0;
+    w.max_push[l] = w.deep[l] = w.touch[l] = 0.0;
     w.ma[l] = w.mb[l] = w.ia[l] = w.ib[l] = w.two[l] = 0.0;
     for (WidePoint* p : {&w.p0, &w.p1}) {
       p->rna[l] = p->rnb[l] = p->rta[l] = p->rtb[l] = 0.0;
@@ -67,6 +67,7 @@ void pack_lane(const Model<D>& model, const Contacts<D>& c, WideBatch& w, int l,
   if (!c.unit_scale) {  // (else the solve takes the constants: solve_batch)
     w.max_push[l] = row.max_push;
     w.deep[l] = row.deep;
+    w.touch[l] = row.touch;
   }
   w.ma[l] = model.body_inv_mass[a];
   w.mb[l] = model.body_inv_mass[b];
@@ -143,6 +144,7 @@ const SolverRow<3>* pack_row3(const Model<3>& model, const Contacts<3>& c, Batch
   w.friction[l] = row.friction;
   w.max_push[l] = row.max_push;
   w.deep[l] = row.deep;
+  w.touch[l] = row.touch;
   L.live[l] = -1;
   L.m[l] = m;
   L.a[l] = a;

@@ -8,10 +8,11 @@
 namespace rbsim {
 namespace {
 
-// The last byte is the format: 6 since the contact store keeps which manifolds touch and
-// the load each body bears (5 and before: without them; a checkpoint of another format is
-// refused with a message saying so).
-constexpr char MAGIC[8] = {'R', 'B', 'S', 'I', 'M', 'C', 'K', '6'};
+// The last byte is the format: 7 since a solver row (and a 2D batch's lanes) keeps the
+// distance within which its points touch and have friction (6: the contact store keeps
+// which manifolds touch and the load each body bears; 5 and before: without them; a
+// checkpoint of another format is refused with a message saying so).
+constexpr char MAGIC[8] = {'R', 'B', 'S', 'I', 'M', 'C', 'K', '7'};
 
 // Every member of the world that changes while it runs, in one fixed order. A member
 // added to State, Grid or Contacts must be added here too: the static_asserts on their
