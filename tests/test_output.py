@@ -283,6 +283,22 @@ def test_a_subset_of_bodies_keeps_their_rows_and_stores_the_rest_once(tmp_path) 
     assert "ground" not in moving.bodies.name and len(moving.bodies) == len(full.bodies) - 2
 
 
+def test_a_list_of_output_bodies_keeps_the_scene_text_so_batch_and_resume_work(
+    tmp_path,
+) -> None:
+    """A list under output.bodies once replaced the recorded scene text with its last item
+    (a loop variable shadowed the text): batch and --resume then exited 3."""
+    path = tmp_path / "s.yaml"
+    path.write_text(PILE + "output: {bodies: [ball, 'pyramid[0,*]']}\n")
+    out = tmp_path / "s.h5"
+    code, _o, err = rbsim("run", path, "-o", out, "-q")
+    assert code == 0, err
+    with h5py.File(out, "r") as f:
+        assert f["parameters/rbsim/scene"][()].decode() == path.read_text()
+    code, _o, err = rbsim("batch", path, "-o", tmp_path / "b", "-q")
+    assert code == 0 and "Traceback" not in err, err
+
+
 def test_output_bodies_that_match_nothing_is_an_invalid_scene(tmp_path) -> None:
     path = tmp_path / "s.yaml"
     path.write_text(PILE + "output: {bodies: [bal]}\n")

@@ -629,12 +629,12 @@ class _Resolver:
         output = dict(output)
         if isinstance(output.get("bodies"), list):
             names = [b.name for b in bodies]
-            for i, text in enumerate(output["bodies"]):
-                if not any(_pattern(text).fullmatch(n) for n in names):
+            for i, wanted in enumerate(output["bodies"]):
+                if not any(_pattern(wanted).fullmatch(n) for n in names):
                     mark = c["output"].mark_of("bodies")
-                    close = did_you_mean(text, names)
+                    close = did_you_mean(wanted, names)
                     hint = f"; did you mean {close}?" if close else ""
-                    self.error(mark, ("output", "bodies", i), f"no body matches {text!r}{hint}")
+                    self.error(mark, ("output", "bodies", i), f"no body matches {wanted!r}{hint}")
             output["bodies"] = tuple(output["bodies"])
             if self.problems:
                 return None
