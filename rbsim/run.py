@@ -31,6 +31,7 @@ from .io.trajectory import (
     CHECKPOINT_SUFFIX,
     OBSERVABLES,
     STATUS_RUNNING,
+    TRAJECTORY_ID,
     BodyTable,
     FixedBodies,
     Trajectory,
@@ -622,16 +623,20 @@ def resume_run(
         raise ResumeError(f"{path}: the run is complete; there is nothing to resume")
     frames, step, data = -1, -1, b""
     sidecar = read_checkpoint(path + CHECKPOINT_SUFFIX)
+    foreign = sidecar is not None and sidecar[3] != params.get(TRAJECTORY_ID, "")
+    if foreign:  # written by another run at this path (a new run removes it; a copy?)
+        sidecar = None
     # the checkpoint beside the file: a killed run's, or an interrupted one's whose long
     # step was stopped inside (the file then holds none)
     if sidecar is not None and (status == STATUS_RUNNING or stored is None):
-        frames, step, data = sidecar
+        frames, step, data, _owner = sidecar
     elif stored is not None:
         frames, step, data = on_file, -1, stored
     if not data:
+        other = f"; {path}{CHECKPOINT_SUFFIX} is another run's checkpoint" if foreign else ""
         raise ResumeError(
             f"{path}: no checkpoint to resume from (status {status!r}; a run killed before "
-            "its first flush, or one that failed, starts again with rbsim run)"
+            f"its first flush, or one that failed, starts again with rbsim run){other}"
         )
     if frames > on_file:
         raise ResumeError(

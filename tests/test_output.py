@@ -27,10 +27,12 @@ from rbsim.io.trajectory import (
     BLOCK_MAX_FRAMES,
     CHECKPOINT_SUFFIX,
     OBSERVABLES,
+    TRAJECTORY_ID,
     BodyTable,
     TrajectoryWriter,
     load_trajectory,
     summarize,
+    write_checkpoint,
 )
 from rbsim.run import frame_steps, resume_run, run_scene
 
@@ -204,6 +206,50 @@ def test_a_run_stopped_by_sigterm_keeps_its_checkpoint_and_resumes(reference, tm
     done = load_trajectory(out)
     assert done.parameters["resumed"] == "1"
     assert same_frames(ref, done, len(ref.step))
+
+
+def killed_after_its_checkpoint(out: Path, scene: Path, *sets: str, other: bytes = b"") -> bytes:
+    """Start `rbsim run SCENE -o OUT` (with --set SETS), SIGKILL it once the file exists
+    and a checkpoint other than `other` lies beside it; that checkpoint's bytes."""
+    proc = start_run(scene, "-o", out, *(a for s in sets for a in ("--set", s)))
+    checkpoint = Path(f"{out}{CHECKPOINT_SUFFIX}")
+
+    def own() -> bool:
+        return out.exists() and checkpoint.exists() and checkpoint.read_bytes() != other
+
+    deadline = time.monotonic() + 60
+    while not own() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    if not own():
+        pytest.skip("the run finished before the kill")
+    return checkpoint.read_bytes()
+
+
+def test_a_checkpoint_resumes_only_the_run_that_wrote_it(reference, tmp_path) -> None:
+    """A killed run's OUT.h5.resume once stayed when a new run wrote OUT.h5; resuming
+    the new run (killed before its own first checkpoint) continued from the old run's
+    state, said complete, and its frames were wrong by metres. A new run now removes
+    the checkpoint at its path before it writes, and a checkpoint records the
+    identifier of its trajectory, which resume checks."""
+    _folder, scene, _ref = reference
+    out = tmp_path / "x.h5"
+    checkpoint = Path(f"{out}{CHECKPOINT_SUFFIX}")
+    old = killed_after_its_checkpoint(out, scene, "world.steps=5000")
+    # a new run at the same path removes the old checkpoint before anything else
+    seen: list[bool] = []
+    run_scene(scene_from(PILE), out, progress=lambda *_: seen.append(checkpoint.exists()))
+    assert seen and not any(seen) and not checkpoint.exists()
+    # a different run killed; the old run's checkpoint put back beside its file
+    killed_after_its_checkpoint(out, scene, "world.steps=5000", "world.gravity=[0,-3]", other=old)
+    kept = load_trajectory(out)
+    checkpoint.write_bytes(old)
+    code, _o, err = rbsim("run", "--resume", out, "-q")
+    assert code == 1 and "another run's checkpoint" in err and "Traceback" not in err
+    after = load_trajectory(out)
+    assert after.status == "running" and same_frames(kept, after, len(kept.step))
+    assert len(after.step) == len(kept.step)
 
 
 def test_resume_refuses_a_complete_run_with_a_message(reference) -> None:
@@ -479,9 +525,8 @@ def test_resume_from_another_versions_checkpoint_says_so(reference, tmp_path) ->
     # an engine checkpoint of format 6 (before a solver row kept the distance within
     # which its points touch: read by this engine, every row and every array after them
     # would be misread)
-    Path(f"{out}{CHECKPOINT_SUFFIX}").write_bytes(
-        b"RBSIMRS1" + (31).to_bytes(8, "little") * 2 + b"RBSIMCK6" + bytes(64)
-    )
+    owner = load_trajectory(out).parameters[TRAJECTORY_ID]
+    write_checkpoint(f"{out}{CHECKPOINT_SUFFIX}", 31, 31, b"RBSIMCK6" + bytes(64), owner=owner)
     code, _o, err = rbsim("run", "--resume", out)
     assert code == 1, err
     assert "another version of rbsim's engine (format 6, this one reads 7)" in err, err

@@ -457,7 +457,15 @@ STATUS_BYTES = 256
 WALL_TIME_BYTES = 32
 # The engine checkpoint written beside a running trajectory (OUT.h5 + this suffix).
 CHECKPOINT_SUFFIX = ".resume"
-_CHECKPOINT_MAGIC = b"RBSIMRS1"
+# A checkpoint file: magic, frames and step (two little-endian int64), the identifier of
+# the trajectory that wrote it (TRAJECTORY_ID_BYTES of ASCII hex), then the engine's bytes.
+# Format 1 (no identifier) is still read, with the identifier "".
+_CHECKPOINT_MAGIC = b"RBSIMRS2"
+_CHECKPOINT_MAGIC_1 = b"RBSIMRS1"
+# /parameters/rbsim/trajectory_id: a digest of a new run's parameters, kept when it is
+# resumed; its checkpoints record it, and resume uses only a checkpoint that matches.
+TRAJECTORY_ID = "trajectory_id"
+TRAJECTORY_ID_BYTES = 32
 
 _STR = h5py.string_dtype("utf-8")
 
@@ -526,11 +534,28 @@ def grow_contact_rows(block: dict[str, np.ndarray], extra: int) -> None:
 CHECKPOINT_CHUNK = 1 << 26
 
 
+def trajectory_id(parameters: dict[str, str]) -> str:
+    """The identifier of a new trajectory with these /parameters/rbsim entries: the
+    first TRAJECTORY_ID_BYTES hex digits of the SHA-256 of their sorted JSON (a digest,
+    so that a run's file stays deterministic; two runs with the same parameters make the
+    same frames, and may share a checkpoint)."""
+    import hashlib
+
+    text = json.dumps(parameters, sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:TRAJECTORY_ID_BYTES]
+
+
 def write_checkpoint(
-    path: str, frames: int, step: int, data: bytes, stop: Callable[[], bool] | None = None
+    path: str,
+    frames: int,
+    step: int,
+    data: bytes,
+    stop: Callable[[], bool] | None = None,
+    owner: str = "",
 ) -> bool:
     """Write the engine checkpoint of a running trajectory at `path` atomically (a
-    temporary file renamed over it): `frames` frames are on file, the last at `step`.
+    temporary file renamed over it): `frames` frames are on file, the last at `step`;
+    `owner` is the trajectory's identifier (TRAJECTORY_ID), which resume checks.
     stop() is asked between chunks of CHECKPOINT_CHUNK bytes (a large world's checkpoint
     is hundreds of MB); when true the write is dropped, the file at `path` left as it
     was, and False returned."""
@@ -538,7 +563,8 @@ def write_checkpoint(
     view = memoryview(data)
     dropped = False
     with open(tmp, "wb") as f:
-        f.write(_CHECKPOINT_MAGIC + struct.pack("<qq", frames, step))
+        tag = owner.encode("ascii").ljust(TRAJECTORY_ID_BYTES, b"\0")[:TRAJECTORY_ID_BYTES]
+        f.write(_CHECKPOINT_MAGIC + struct.pack("<qq", frames, step) + tag)
         for start in range(0, len(view), CHECKPOINT_CHUNK):
             dropped = stop is not None and stop()
             if dropped:
@@ -551,17 +577,23 @@ def write_checkpoint(
     return True
 
 
-def read_checkpoint(path: str) -> tuple[int, int, bytes] | None:
-    """(frames, step, engine bytes) of a checkpoint file, or None if it is not one."""
+def read_checkpoint(path: str) -> tuple[int, int, bytes, str] | None:
+    """(frames, step, engine bytes, owner) of a checkpoint file, or None if it is not
+    one; owner: the identifier of the trajectory that wrote it ("" in format 1)."""
     try:
         with open(path, "rb") as f:
             raw = f.read()
     except OSError:
         return None
-    if len(raw) < 24 or not raw.startswith(_CHECKPOINT_MAGIC):
+    if len(raw) >= 24 and raw.startswith(_CHECKPOINT_MAGIC_1):
+        frames, step = struct.unpack("<qq", raw[8:24])
+        return frames, step, raw[24:], ""
+    end = 24 + TRAJECTORY_ID_BYTES
+    if len(raw) < end or not raw.startswith(_CHECKPOINT_MAGIC):
         return None
     frames, step = struct.unpack("<qq", raw[8:24])
-    return frames, step, raw[24:]
+    owner = raw[24:end].rstrip(b"\0").decode("ascii", "replace")
+    return frames, step, raw[end:], owner
 
 
 class TrajectoryWriter:
@@ -629,6 +661,8 @@ class TrajectoryWriter:
             raise ValueError(f"parameters {reserved} are written by TrajectoryWriter.close")
         if params.setdefault("engine", engine) != engine:
             raise ValueError(f"parameters['engine']={params['engine']!r} but engine={engine!r}")
+        if not keep:  # a new trajectory; a resumed one keeps the identifier it has
+            params.setdefault(TRAJECTORY_ID, trajectory_id(params))
         if flush_seconds < 0:
             raise ValueError(f"flush_seconds must be >= 0, got {flush_seconds}")
         if precision not in PRECISIONS:
@@ -638,6 +672,12 @@ class TrajectoryWriter:
 
         self.path = os.fspath(path)
         self.checkpoint_path = self.path + CHECKPOINT_SUFFIX
+        if not keep:
+            # a checkpoint left at this path by an earlier run (killed) is not this run's:
+            # removed before this run writes anything, so that it never resumes this one
+            for stale in (self.checkpoint_path, f"{self.checkpoint_path}.tmp"):
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(stale)
         self.bodies = bodies
         self.engine = engine
         self.parameters = params
@@ -1089,7 +1129,8 @@ class TrajectoryWriter:
         self._write_block()
         if checkpoint is not None and self.frames_flushed:
             at = self._last_step if step is None else int(step)
-            write_checkpoint(self.checkpoint_path, self.frames_flushed, at, checkpoint, stop)
+            owner = self.parameters.get(TRAJECTORY_ID, "")
+            write_checkpoint(self.checkpoint_path, self.frames_flushed, at, checkpoint, stop, owner)
         self._last_flush = _time.monotonic()
 
     def close(
