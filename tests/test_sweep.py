@@ -260,3 +260,21 @@ def test_3d_sweep_from_the_command_line(tmp_path: Path):
     assert "shorter than one period" in out
     code, _o, err = rbsim("sweep", scene, "--rotation", "splt")
     assert code == 2 and "expected one of normalize, exact, split" in err
+
+
+def test_3d_sweep_too_short_for_a_period_still_plots_and_says_why(tmp_path: Path):
+    """With every period error NaN (2 s, a period is 12.9 s) the plot once raised
+    matplotlib's "Data cannot be log-scaled" (a traceback, no PNG): the period panel now
+    says why instead, and the JSON's notes say why the period errors are NaN."""
+    pytest.importorskip("matplotlib")
+    scene = tmp_path / "brick.yaml"
+    scene.write_text(BRICK_3D)
+    code, _o, err = rbsim(
+        "sweep", scene, "-o", tmp_path / "sw", "--dt", "0.004", "--substeps", "1",
+        "--rotation", "split", "--repeats", "1", "--duration", "2",
+    )  # fmt: skip
+    assert code == 0 and "Traceback" not in err, err
+    data = json.loads((tmp_path / "sw" / "brick.json").read_text())
+    assert all(p["period_error_rel"] is None for p in data["points"])  # NaN: JSON null
+    assert any("shorter than one period" in n and "NaN" in n for n in data["notes"])
+    assert (tmp_path / "sw" / "brick.png").stat().st_size > 0

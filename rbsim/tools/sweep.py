@@ -20,6 +20,7 @@ import csv
 import json
 import math
 import statistics
+import textwrap
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
@@ -1161,10 +1162,22 @@ def run_rotation_sweep(
     if _torque_free(scene, body):
         period = free_body_period(world.model.body_moments[body], wp)
     notes = []
-    if period is not None and total < period:
+    unmeasured = [p for p in points if p.status == "ok" and not math.isfinite(p.period_error)]
+    if period is None:
         notes.append(
-            f"the run ({total:g} s) is shorter than one period ({period:.4g} s): no period "
-            "errors; use --duration"
+            f"no closed-form period of ω in the body of {model_body.name!r} (not torque-free, "
+            "two equal moments, or on the separatrix): the period errors are NaN"
+        )
+    elif total < period:
+        notes.append(
+            f"the run ({total:g} s) is shorter than one period ({period:.4g} s): the period "
+            "errors are NaN (no whole period to measure); use --duration"
+        )
+    elif unmeasured:
+        notes.append(
+            f"{len(unmeasured)} of the runs ({total:g} s) made no whole period of ω in the body "
+            f"(measured between two downward sign changes of its intermediate component, up "
+            f"to twice the period, {period:.4g} s): their period errors are NaN; use --duration"
         )
     return RotationSweepResult(
         scene=scene.name,
@@ -1187,17 +1200,29 @@ def plot_rotation_sweep(result: RotationSweepResult, path: str | Path) -> None:
         if p.status == "ok" and math.isfinite(p.cpu):
             curves.setdefault((p.rotation, p.substeps), []).append(p)
     colors = {"normalize": "tab:red", "exact": "tab:orange", "split": "tab:blue"}
+    attrs = ("energy_error", "period_error")
+    plotted = dict.fromkeys(attrs, False)
     for (rot, sub), pts in curves.items():
         pts = sorted(pts, key=lambda q: q.dt, reverse=True)
-        for ax, attr in zip(axes, ("energy_error", "period_error"), strict=True):
-            ys = [max(getattr(q, attr), 1e-16) for q in pts]
-            ax.plot([1e3 * q.cpu for q in pts], ys, "o-", color=colors.get(rot), ms=4,
-                    label=f"{rot} s{sub}")  # fmt: skip
-    for ax, label in zip(axes, ("energy error |E − E0| / E0", "period error"), strict=True):
-        ax.set_xscale("log")
-        ax.set_yscale("log")
+        for ax, attr in zip(axes, attrs, strict=True):
+            # a NaN error (no whole period in the run) is left out, not drawn at the floor
+            xy = [(1e3 * q.cpu, max(getattr(q, attr), 1e-16)) for q in pts
+                  if math.isfinite(getattr(q, attr))]  # fmt: skip
+            if xy:
+                xs, ys = zip(*xy, strict=True)
+                ax.plot(xs, ys, "o-", color=colors.get(rot), ms=4, label=f"{rot} s{sub}")
+                plotted[attr] = True
+    labels = ("energy error |E − E0| / E0", "period error")
+    for ax, attr, label in zip(axes, attrs, labels, strict=True):
         ax.set_xlabel("CPU time per simulated second, ms")
         ax.set_ylabel(label)
+        if not plotted[attr]:  # nothing measured: say why (log axes need a value)
+            why = "\n".join(textwrap.wrap(result.notes[0], 50)) if result.notes else ""
+            ax.text(0.5, 0.5, f"no {label.split(' |')[0]} measured\n{why}", ha="center",
+                    va="center", fontsize=8, transform=ax.transAxes)  # fmt: skip
+            continue
+        ax.set_xscale("log")
+        ax.set_yscale("log")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
     fig.suptitle(f"{result.scene}: rotation updates, work against error", fontsize=10)
