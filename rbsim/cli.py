@@ -160,7 +160,46 @@ def _cluster_options(function):  # noqa: ANN001, ANN202 - a click decorator
     )
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+def _interrupted(message: str = "interrupted") -> NoReturn:
+    """Exit 130 with `message` for a Ctrl-C (or SIGTERM) that no command handled; a
+    second one meanwhile (in the main thread) is ignored, so that the exit stays clean."""
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main_thread else None
+    try:
+        _fail(EXIT_INTERRUPTED, message)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+
+
+class _Commands(click.Group):
+    """click's group, whose Ctrl-C ends with exit 130 and a message at any moment: click
+    itself turns a KeyboardInterrupt that no command caught (one while the arguments are
+    parsed, or before a command has installed its own handling) into "Aborted!" and
+    exit 1."""
+
+    def make_context(
+        self,
+        info_name: str | None,
+        args: list[str],
+        parent: click.Context | None = None,
+        **extra: object,
+    ) -> click.Context:
+        """click's, with a Ctrl-C while parsing the arguments exiting 130."""
+        try:
+            return super().make_context(info_name, args, parent, **extra)  # type: ignore[arg-type]
+        except KeyboardInterrupt:
+            _interrupted()
+
+    def invoke(self, ctx: click.Context) -> object:
+        """click's, with a Ctrl-C that the command did not handle exiting 130."""
+        try:
+            return super().invoke(ctx)
+        except KeyboardInterrupt:
+            _interrupted()
+
+
+@click.group(cls=_Commands, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="rbsim")
 def main() -> None:
     """rbsim: run 2D and 3D rigid-body scenes (YAML) into HDF5 trajectories."""
@@ -919,4 +958,6 @@ def schema() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from .__main__ import entry
+
+    entry()

@@ -317,6 +317,28 @@ def test_signal_exits_130_and_keeps_a_valid_trajectory(
     assert np.isfinite(tr.position).all() and np.isfinite(tr.angular_velocity).all()
 
 
+@pytest.mark.parametrize("command", ["run", "batch"])
+def test_ctrl_c_at_any_moment_of_the_start_exits_130_without_a_traceback(
+    tmp_path: Path, command: str
+) -> None:
+    """Ctrl-C in a run's or batch's first half second once ended in click's "Aborted!"
+    and exit 1 (before the command installed its handling), or in a KeyboardInterrupt
+    traceback (while Python imported the command line)."""
+    scene = write(tmp_path, "long.yaml", LONG)
+    for k, delay in enumerate((0.05, 0.1, 0.15, 0.2, 0.3, 0.45, 0.7)):
+        out = tmp_path / f"{command}{k}"
+        args = ("-o", out) if command == "batch" else ("-o", f"{out}.h5")
+        with started_rbsim(command, scene, *args, "-q") as proc:
+            time.sleep(delay)
+            proc.send_signal(signal.SIGINT)
+            _stdout, stderr = proc.communicate(timeout=60)
+        if proc.returncode == -signal.SIGINT and not stderr:
+            continue  # before the interpreter set its handler: the default action, silent
+        assert proc.returncode == 130, f"at {delay} s: {stderr}"
+        assert "interrupted" in stderr and "Traceback" not in stderr, f"at {delay} s: {stderr}"
+        assert "Aborted" not in stderr, f"at {delay} s: {stderr}"
+
+
 # info, validate, schema ---------------------------------------------------------------------
 
 
