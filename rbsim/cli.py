@@ -937,12 +937,15 @@ def batch(
     if len(result.failures) > len(shown):
         click.echo(f"... and {len(result.failures) - len(shown)} more failed runs", err=True)
     if not quiet:
+        from .scene.schema import counted
+
         skipped = f" ({result.skipped} already)" if result.skipped else ""
         rate = ""
         if result.ran and result.wall_time > 0:
             rate = f" ({result.ran / result.wall_time * 60:,.1f} runs/min)"
         click.echo(
-            f"{result.total} runs: {result.complete} complete{skipped}, {result.failed} failed "
+            f"{counted(result.total, 'run')}: {result.complete} complete{skipped}, "
+            f"{result.failed} failed "
             f"in {result.wall_time:.1f} s{rate} -> {result.paths[0]}"
         )
     if result.failed:

@@ -255,6 +255,12 @@ def test_one_progress_line_counts_runs_failures_and_the_time_left(monkeypatch) -
 # on a LocalCluster ------------------------------------------------------------------------
 
 
+def test_a_batch_of_one_run_says_1_run(tmp_path: Path) -> None:
+    code, out, err = rbsim("batch", BOUNCE, "-o", tmp_path / "one", "--workers", "1")
+    assert code == 0, err
+    assert "1 run: 1 complete, 0 failed" in out, out
+
+
 def test_grid_on_two_workers_equals_single_runs_bit_for_bit_and_reruns_skip(
     tmp_path: Path,
 ) -> None:

@@ -269,6 +269,7 @@ def test_render_3d_cli_rejects_a_2d_view_and_a_2d_overlay(tmp_path):
     for out in ("x.gif", "x.html"):
         code, _, err = rbsim("render", path, "--overlay", flat, "-o", tmp_path / out)
         assert code == 1 and "2D trajectory cannot be overlaid" in err
+        assert "overlaid all the same" not in err  # only the error, no warning before it
     code, _, err = rbsim("render", path, "-o", tmp_path / "x.html", "--view", "0", "0", "1", "1")
     assert code == 1 and "3D trajectory: --view" in err
 

@@ -675,10 +675,13 @@ def render_gif(
 
 def overlay_mismatch(path: str | os.PathLike, overlay: str | os.PathLike) -> str | None:
     """Why the trajectory `overlay` looks like the run of another scene than `path`'s
-    (its bodies' count or names differ), in words; None when they match or either file
-    cannot be read (rendering then says why)."""
+    (its bodies' count or names differ), in words; None when they match, when either
+    file cannot be read or they differ in dimension (rendering then fails, and says why:
+    "overlaid all the same" would not be true)."""
     try:
         with FrameReader(path) as main, FrameReader(overlay) as other:
+            if main.dimension != other.dimension:
+                return None
             ours, theirs = list(main.bodies.name), list(other.bodies.name)
     except RenderError:
         return None
