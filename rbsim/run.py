@@ -368,7 +368,9 @@ def run_scene(
         params["overrides"] = json.dumps(list(overrides))
         with interrupts.held():
             try:
-                writer = _writer(scene, world, out, params, engine, flush_seconds, keep=0)
+                writer = _writer(
+                    scene, world, out, params, engine, flush_seconds, keep=0, started=t0
+                )
             except OSError as err:  # nothing written: the file is as it was, or absent
                 raise WriteFailed(err, str(out), None, False) from err
         return _loop(scene, world, writer, interrupts, progress, t0, first_frame=True)
@@ -382,9 +384,12 @@ def _writer(
     engine: str,
     flush_seconds: float,
     keep: int,
+    started: float | None = None,
+    wall_before: float = 0.0,
 ) -> TrajectoryWriter:
     """The trajectory writer of a run of `scene` (its output options) into `path`,
-    keeping the first `keep` frames of the file there (resume)."""
+    keeping the first `keep` frames of the file there (resume); its wall time counts
+    from `started` and adds `wall_before` (the earlier segments' of a resumed run)."""
     bodies, select, fixed = output_layout(scene, world)
     contacts = scene.output.contacts == "points" and world.records_contacts
     contact_bodies = None
@@ -412,6 +417,8 @@ def _writer(
         keep=keep,
         contacts=contacts,
         contact_bodies=contact_bodies,
+        started=started,
+        wall_before=wall_before,
     )
 
 
@@ -546,9 +553,8 @@ def _loop(
     finally:
         with interrupts.held():
             try:
-                writer.close(
+                writer.close(  # the wall time since t0, the file's last write included
                     status=status,
-                    wall_time=time.perf_counter() - t0,
                     checkpoint=checkpoint,
                     keep_sidecar=keep_sidecar,
                 )
@@ -558,11 +564,13 @@ def _loop(
                 if status == "complete":
                     raise WriteFailed(err, str(out), writer.frames_flushed, marked) from err
     loop = time.perf_counter() - loop_start
+    # this process's part of the recorded wall time (all of it but for a resume)
+    wall = writer.wall_time - writer.wall_before
     return RunSummary(
         steps=world.step_index,
         bodies=len(scene.bodies),
         frames=writer.frames_written,
-        wall_time=time.perf_counter() - t0,
+        wall_time=wall if math.isfinite(wall) else time.perf_counter() - t0,
         step_time=world.step_time,
         path=str(out),
         setup_time=setup,
@@ -654,10 +662,15 @@ def resume_run(
             raise ResumeError(f"{path}: {err}") from None
         if step >= 0 and world.step_index != step:
             raise ResumeError(f"{path}: the checkpoint is at step {world.step_index}, not {step}")
+        try:  # the earlier segments' (to the last flush of a killed one; none: 0)
+            before = max(float(params.get("wall_time", "")), 0.0)
+        except ValueError:
+            before = 0.0
+        before = before if math.isfinite(before) else 0.0
         params = {k: v for k, v in params.items() if k not in ("status", "wall_time", "checkpoint")}
         params["resumed"] = str(int(params.get("resumed", "0")) + 1)
         with interrupts.held():
-            writer = _writer(scene, world, path, params, engine, flush_seconds, keep=frames)
+            writer = _writer(scene, world, path, params, engine, flush_seconds, frames, t0, before)
         return _loop(scene, world, writer, interrupts, progress, t0, first_frame=False)
 
 

@@ -252,6 +252,31 @@ def test_a_checkpoint_resumes_only_the_run_that_wrote_it(reference, tmp_path) ->
     assert len(after.step) == len(kept.step)
 
 
+def test_the_wall_time_of_a_resumed_run_is_the_sum_of_its_segments(reference, tmp_path) -> None:
+    """The wall time a resumed run recorded was its last segment's alone (1.3 s of a 7 s
+    run resumed 3 times); it is now the sum: the killed segment's to its last flush
+    (rewritten at each), then the resume's."""
+    _folder, scene, _ref = reference
+    out = tmp_path / "w.h5"
+    killed_after_its_checkpoint(out, scene, "world.steps=1400")
+    before = float(load_trajectory(out).parameters["wall_time"])
+    assert before > 0.5  # at least the first flush's second
+    summary = resume_run(out)
+    after = float(load_trajectory(out).parameters["wall_time"])
+    assert after == pytest.approx(before + summary.wall_time, rel=1e-12)
+    assert "the sum of its 2 segments, resumed 1 time" in summarize(out)
+
+
+def test_the_recorded_wall_time_is_the_summarys_compression_included(tmp_path) -> None:
+    """A gzip file recorded its wall time before the compressed final layout, which the
+    run's summary line counted: they now agree."""
+    scene = scene_from(PILE, ["output.compression=gzip"])
+    summary = run_scene(scene, tmp_path / "g.h5")
+    assert float(load_trajectory(tmp_path / "g.h5").parameters["wall_time"]) == pytest.approx(
+        summary.wall_time, rel=1e-12
+    )
+
+
 def test_resume_refuses_a_complete_run_with_a_message(reference) -> None:
     folder, _scene, _ref = reference
     code, _o, err = rbsim("run", "--resume", folder / "ref.h5")

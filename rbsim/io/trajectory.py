@@ -620,6 +620,10 @@ class TrajectoryWriter:
     observables: name -> (shape, dtype) of each observable (default OBSERVABLES); when
         None and frames are appended with `append`, the first frame's decide.
     keep: resume: keep the first `keep` frames of the trajectory already at `path`.
+    started: time.perf_counter() when this run (segment) started (default: now).
+    wall_before: s of wall time of the run's earlier segments (resume: what the file
+        records); the wall time recorded is their sum with this one's, rewritten at
+        every flush (a killed run keeps it to its last flush) and at close.
     contacts: record each frame's contact points (/contacts; the block's contact_* keys,
         which the engine fills, see `block`).
     contact_bodies: (rows of what is appended,) the index of each appended body in the
@@ -651,6 +655,8 @@ class TrajectoryWriter:
         keep: int = 0,
         contacts: bool = False,
         contact_bodies: np.ndarray | None = None,
+        started: float | None = None,
+        wall_before: float = 0.0,
     ) -> None:
         params = {str(k): v for k, v in parameters.items()}
         for key, value in params.items():
@@ -701,7 +707,10 @@ class TrajectoryWriter:
         self.frames_flushed = 0  # frames on file
         self._rows = 0  # frames in the block
         self._closed = False
-        self._started = _time.perf_counter()
+        # the wall time recorded: wall_before + the time since `started` (this segment)
+        self._started = _time.perf_counter() if started is None else float(started)
+        self.wall_before = float(wall_before)
+        self.wall_time = math.nan  # s recorded at close: every segment of the run
         self._last_flush = _time.monotonic()
         self._fd: int | None = None
         self._spec = dict(observables) if observables is not None else None
@@ -1127,6 +1136,7 @@ class TrajectoryWriter:
         if self._closed:
             return
         self._write_block()
+        self._write_wall(self._wall_now())
         if checkpoint is not None and self.frames_flushed:
             at = self._last_step if step is None else int(step)
             owner = self.parameters.get(TRAJECTORY_ID, "")
@@ -1145,7 +1155,9 @@ class TrajectoryWriter:
 
         status: "complete", "interrupted" (Ctrl-C, SIGTERM) or "failed", optionally with
             a detail after a colon; stored up to STATUS_BYTES bytes of UTF-8.
-        wall_time: s; by default the time since the writer was created.
+        wall_time: s of this segment; by default the time since `started`, read once
+            the file is written (a compressed file's final layout included). The file
+            records wall_before + wall_time, also left in self.wall_time.
         checkpoint: the engine's state at the last frame; stored in the file (a run that
             did not complete can then be resumed from it).
         keep_sidecar: leave the checkpoint file of the last flush beside the trajectory
@@ -1155,6 +1167,7 @@ class TrajectoryWriter:
         """
         if self._closed:
             return
+        measured = wall_time is None
         if wall_time is None:
             wall_time = _time.perf_counter() - self._started
         try:
@@ -1162,7 +1175,7 @@ class TrajectoryWriter:
                 self._spec = dict(OBSERVABLES)
                 self._layout(self._capacity, keep_from=None, series=True)
             self._write_block()
-            wall = repr(float(wall_time))
+            wall = repr(self.wall_before + float(wall_time))
             exact = self.frames_flushed == self._capacity
             exact = exact and self.contact_rows_flushed == self._contact_capacity
             if exact and self.compression == "none" and checkpoint is None:
@@ -1173,10 +1186,9 @@ class TrajectoryWriter:
                     self._status_offset,
                     self.path,
                 )
-                wall_bytes = wall.encode().ljust(WALL_TIME_BYTES, b"\0")[:WALL_TIME_BYTES]
-                _pwrite_all(
-                    self._fd, np.frombuffer(wall_bytes, np.uint8), self._wall_offset, self.path
-                )
+                if measured:
+                    wall = repr(self._wall_now())
+                self._write_wall(float(wall))
             else:
                 self._layout(
                     self.frames_flushed,
@@ -1187,6 +1199,11 @@ class TrajectoryWriter:
                     wall_time=wall,
                     checkpoint=checkpoint,
                 )
+                if measured:  # the final layout's time included (gzip: most of it)
+                    wall = repr(self._wall_now())
+                    self._fd = os.open(self.path, os.O_WRONLY)
+                    self._write_wall(float(wall))
+            self.wall_time = float(wall)
         finally:
             self._closed = True
             if self._fd is not None:
@@ -1195,6 +1212,17 @@ class TrajectoryWriter:
         if not keep_sidecar:
             with contextlib.suppress(OSError):
                 os.unlink(self.checkpoint_path)
+
+    def _wall_now(self) -> float:
+        """The run's wall time so far, s: earlier segments and this one."""
+        return self.wall_before + (_time.perf_counter() - self._started)
+
+    def _write_wall(self, seconds: float) -> None:
+        """Write `seconds` over the file's wall_time, in place (its fixed bytes)."""
+        if self._fd is None or self._wall_offset < 0:
+            return
+        wall = repr(float(seconds)).encode().ljust(WALL_TIME_BYTES, b"\0")[:WALL_TIME_BYTES]
+        _pwrite_all(self._fd, np.frombuffer(wall, np.uint8), self._wall_offset, self.path)
 
     def abandon(self, status: str | None = None) -> bool:
         """Close the file descriptor without writing anything more (after an I/O error):
@@ -1719,6 +1747,10 @@ def summarize(path: str | os.PathLike) -> str:
         rate = ""
         if t > 1 and wall > 0:
             rate = f", {float(step[-1] - step[0]) / wall:.4g} steps/s overall"
+        resumed = params.get("resumed", "0")
+        resumed = int(resumed) if resumed.isdigit() else 0
+        if resumed:  # the sum over the segments (a killed one's: to its last flush)
+            rate += f"; the sum of its {resumed + 1} segments, resumed {counted(resumed, 'time')}"
         lines.append(f"  wall time  {wall:.3f} s (the whole run, set-up included{rate})")
 
     if first_last:
