@@ -7,6 +7,19 @@ import sys
 EXIT_INTERRUPTED = 130  # rbsim.cli's, not imported from there: that is what may be stopped
 
 
+def _forget_the_interrupt() -> None:
+    """Clear CPython's record of a KeyboardInterrupt that went through code run by
+    PyRun_* (a compiled module's start-up code, say) even when it was then handled: at
+    exit, CPython 3.11 would kill the process with SIGINT (exit -2) over our exit 130.
+    Best effort: other versions keep that record elsewhere (nothing is done)."""
+    try:
+        import ctypes
+
+        ctypes.c_int.in_dll(ctypes.pythonapi, "_Py_UnhandledKeyboardInterrupt").value = 0
+    except (ImportError, ValueError, AttributeError, OSError):
+        pass
+
+
 def entry() -> None:
     """Run the command line; a KeyboardInterrupt before click has started (the imports)
     exits 130 with a message, as the commands do."""
@@ -16,7 +29,12 @@ def entry() -> None:
         main()
     except KeyboardInterrupt:
         sys.stderr.write("interrupted before the command started\n")
+        _forget_the_interrupt()
         sys.exit(EXIT_INTERRUPTED)
+    except SystemExit as done:
+        if done.code == EXIT_INTERRUPTED:  # a Ctrl-C handled: exit 130, not SIGINT
+            _forget_the_interrupt()
+        raise
 
 
 if __name__ == "__main__":  # not when a worker process imports it (spawn)

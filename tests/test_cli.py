@@ -325,7 +325,7 @@ def test_ctrl_c_at_any_moment_of_the_start_exits_130_without_a_traceback(
     and exit 1 (before the command installed its handling), or in a KeyboardInterrupt
     traceback (while Python imported the command line)."""
     scene = write(tmp_path, "long.yaml", LONG)
-    for k, delay in enumerate((0.05, 0.1, 0.15, 0.2, 0.3, 0.45, 0.7)):
+    for k, delay in enumerate((0.05, 0.1, 0.15, 0.18, 0.2, 0.22, 0.25, 0.3, 0.45, 0.7)):
         out = tmp_path / f"{command}{k}"
         args = ("-o", out) if command == "batch" else ("-o", f"{out}.h5")
         with started_rbsim(command, scene, *args, "-q") as proc:
