@@ -100,14 +100,18 @@ inline double bounce_target(double invariant, double s_now, double acc, double e
   return 0.5 * (-ah + std::sqrt(std::fmax(ah * ah + 8.0 * rhs, 0.0)));
 }
 
+// Body i's acceleration (m/s²) along n from gravity and its constant force.
+template <int D>
+inline double own_acceleration(const Model<D>& model, int i, typename Dim<D>::Vec n) {
+  return dot(model.gravity + model.body_inv_mass[i] * model.body_force[i], n);
+}
+
 // Relative normal acceleration (m/s²) of bodies a and b along n from gravity and forces.
 template <int D>
 inline double relative_acceleration(const Model<D>& model, int a, int b, typename Dim<D>::Vec n) {
   double acc = 0.0;
-  if (model.body_type[a] == BodyType::Dynamic)
-    acc += dot(model.gravity + model.body_inv_mass[a] * model.body_force[a], n);
-  if (model.body_type[b] == BodyType::Dynamic)
-    acc -= dot(model.gravity + model.body_inv_mass[b] * model.body_force[b], n);
+  if (model.body_type[a] == BodyType::Dynamic) acc += own_acceleration(model, a, n);
+  if (model.body_type[b] == BodyType::Dynamic) acc -= own_acceleration(model, b, n);
   return acc;
 }
 
@@ -126,10 +130,9 @@ template <int D>
 inline double impact_speed(const Model<D>& model, int a, int b, typename Dim<D>::Vec n,
                            double threshold, double h) {
   double acc = 0.0;  // m/s²: the larger of the two bodies' accelerations along n
-  if (model.body_type[a] == BodyType::Dynamic)
-    acc = std::fabs(dot(model.gravity + model.body_inv_mass[a] * model.body_force[a], n));
+  if (model.body_type[a] == BodyType::Dynamic) acc = std::fabs(own_acceleration(model, a, n));
   if (model.body_type[b] == BodyType::Dynamic)
-    acc = std::fmax(acc, std::fabs(dot(model.gravity + model.body_inv_mass[b] * model.body_force[b], n)));
+    acc = std::fmax(acc, std::fabs(own_acceleration(model, b, n)));
   return std::fmax(threshold, 2.0 * acc * h);
 }
 
@@ -144,8 +147,10 @@ double projected_gap(const Model<D>& model, const State<D>& st, const Contacts<D
     const int i = model.shape_body[s];
     const int v0 = model.shape_vstart[s];
     double most = -kInf;
-    for (int k = v0; k < v0 + model.shape_vcount[s]; ++k)
-      most = std::fmax(most, dir * dot(st.body_x[i] + rotate(st.body_q[i], model.vertex_local[k]), n));
+    for (int k = v0; k < v0 + model.shape_vcount[s]; ++k) {
+      const auto p = st.body_x[i] + rotate(st.body_q[i], model.vertex_local[k]);  // m
+      most = std::fmax(most, dir * dot(p, n));
+    }
     return most + model.shape_radius[s];
   };
   return -extent(c.shape_a[m], -1.0) - extent(c.shape_b[m], 1.0);
@@ -347,10 +352,10 @@ using PointFlags = std::array<bool, Dim<D>::max_points>;
 // need[k], by impulses added to normal_impulse (kept >= 0). In 2D both points at once are
 // one 2x2 block (a box landing flat gets mirror-image impulses; one after the other would
 // tip it); in 3D a face whose every point needs it, with no work owed, likewise (the
-// row's factor). When the block would pull, and otherwise in 3D, one point at a time; with `single`, only
-// the point furthest below its target (the caller comes back for the others with targets
-// from their velocities then: the first point's impulse changes them). Returns the
-// impulses applied.
+// row's factor). When the block would pull, and otherwise in 3D, one point at a time;
+// with `single`, only the point furthest below its target (the caller comes back for the
+// others with targets from their velocities then: the first point's impulse changes
+// them). Returns the impulses applied.
 //
 // With owed.work != 0 the block raises both targets by the same c for which its impulses
 // do e² times that work; a single point takes u[k], its own target with its own share of

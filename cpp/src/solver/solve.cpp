@@ -71,8 +71,9 @@ inline void mark_deep(PassLog& log, std::int64_t m) { log.add_deep(static_cast<s
 // (m/s): every point's sliding velocity before any of them, carried from point to point
 // through the row's couplings; jt (N·s): the points' accumulated friction impulses,
 // updated; lam (N·s): their normal impulses, zero where a point is apart (no friction
-// there); e1, e2 (N·s): each point's change along t1, t2 (left zero where none). Returns whether any point changed. (N and the order fixed
-// at compile time: the loops over the points unrolled.)
+// there); e1, e2 (N·s): each point's change along t1, t2 (left zero where none). Returns
+// whether any point changed. (N and the order fixed at compile time: the loops over the
+// points unrolled.)
 template <int N, bool FORWARD>
 inline bool friction_points(const SolverRow<3>& row, Vec3* jt, const double* lam, double mu,
                             double* vt1, double* vt2, double* e1, double* e2) {

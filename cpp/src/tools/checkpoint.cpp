@@ -40,7 +40,8 @@ void visit(W& w, F&& f) {
   f(c.body_ref), f(c.body_still), f(c.body_delta), f(c.body_inv_inertia_world);
   f(c.body_inertia_q);
   f(c.toi_verts), f(c.toi_norms);
-  f(c.vert_world), f(c.norm_world), f(c.face_world), f(c.shape_margin), f(c.shape_turn), f(c.body_level);
+  f(c.vert_world), f(c.norm_world), f(c.face_world), f(c.shape_margin), f(c.shape_turn);
+  f(c.body_level);
   f(c.support), f(c.prev_support), f(c.body_load), f(c.shock_side);
   f(c.shock_order), f(c.solve_order), f(c.adj_start), f(c.adj), f(c.queue), f(c.bounce_kind);
   f(c.body_mark), f(c.solve_impulse), f(c.bounce_list), f(c.relax_list), f(c.body_reach);
