@@ -72,6 +72,12 @@ def _frames(n: int) -> str:
     return counted(n, "frame")
 
 
+def system_reason(err: OSError) -> str:
+    """The system's short reason for an OSError ("No space left on device"), else its
+    text (h5py's wording around the reason is long)."""
+    return os.strerror(err.errno) if err.errno else str(err)
+
+
 class WriteFailed(OSError):
     """Writing the trajectory failed (a full disk, a vanished folder): errno and strerror
     are the OSError's; `path` the trajectory, `frames` the frames its file keeps (None:
@@ -79,8 +85,7 @@ class WriteFailed(OSError):
     file's status says failed. str() says what was kept."""
 
     def __init__(self, err: OSError, path: str, frames: int | None, marked: bool) -> None:
-        # the system's short reason (h5py's text around it is long)
-        super().__init__(err.errno, os.strerror(err.errno) if err.errno else str(err))
+        super().__init__(err.errno, system_reason(err))
         self.path, self.frames, self.marked = path, frames, marked
 
     def kept(self) -> str:
@@ -543,7 +548,7 @@ def _loop(
             checkpoint = world.checkpoint()
         raise RunInterrupted(str(out), writer.frames_written, last_step) from None
     except OSError as err:  # writing the file: a full disk, a vanished folder
-        status = f"failed: {err.strerror or err}"
+        status = f"failed: {system_reason(err)}"
         marked = writer.abandon(status)
         raise WriteFailed(err, str(out), writer.frames_flushed, marked) from err
     except Exception as err:
@@ -559,7 +564,7 @@ def _loop(
                     keep_sidecar=keep_sidecar,
                 )
             except OSError as err:  # the last frames or the final layout
-                failed = f"failed: {os.strerror(err.errno) if err.errno else err}"
+                failed = f"failed: {system_reason(err)}"
                 marked = writer.abandon(failed)
                 if status == "complete":
                     raise WriteFailed(err, str(out), writer.frames_flushed, marked) from err

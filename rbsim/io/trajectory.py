@@ -1438,7 +1438,7 @@ def check_rbsim(f: h5py.File, path: str | os.PathLike) -> None:
     """Raise TrajectoryError (NOT_RBSIM) when the open file `f` is not rbsim's layout."""
     try:
         ours = isinstance(f.get("particles/bodies"), h5py.Group)
-    except (OSError, KeyError, ValueError, TypeError, *DAMAGED) as err:
+    except READ_ERRORS as err:
         raise unreadable(path, err) from None
     if not ours:
         raise TrajectoryError(f"{os.fspath(path)}: {NOT_RBSIM}")

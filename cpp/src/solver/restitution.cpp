@@ -196,7 +196,8 @@ Impact impact_state(const Model<D>& model, const State<D>& st, const Contacts<D>
   if (explicit_euler) return Impact::Due;
   const double s_now = point_separation(c, m, k, a, b, n);
   const double tol = c.scale[m] * C::IMPACT_GAP;  // m: how close counts as met
-  if (model.is_dynamic(a) && model.is_dynamic(b)) {
+  const bool both_dynamic = model.is_dynamic(a) && model.is_dynamic(b);
+  if (both_dynamic) {
     if (s_now <= c.scale[m] * C::SPECULATIVE_DISTANCE) return Impact::Due;
   } else if (s_now <= tol) {
     return Impact::Due;
@@ -208,7 +209,6 @@ Impact impact_state(const Model<D>& model, const State<D>& st, const Contacts<D>
   arc += ang_dot(tb, tb) * length(c.sep_anchor_b[m][k]);
   if (0.5 * arc < tol) return Impact::Waiting;
   // a turning body: met once its shape, wherever its points, is within reach
-  const bool both_dynamic = model.is_dynamic(a) && model.is_dynamic(b);
   const double gap = projected_gap(model, st, c, m, n);  // m
   if (gap <= (both_dynamic ? c.scale[m] * C::SPECULATIVE_DISTANCE : tol)) return Impact::Due;
   const double sweep = std::sqrt(ang_dot(ta, ta)) * length(c.sep_anchor_a[m][k]) +

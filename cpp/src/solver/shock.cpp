@@ -194,14 +194,24 @@ bool shock_block(const std::array<double, 10>& k, const double* need, int n, dou
   return false;
 }
 
+// The supported body and its supporter in shock-order manifold m (shock_side 2: body b
+// supports body a; 1: a supports b).
+struct Support {
+  int supported, supporter;
+};
+template <int D>
+inline Support support_of(const Contacts<D>& c, std::int32_t m) {
+  if (c.shock_side[m] == 2) return {c.body_a[m], c.body_b[m]};
+  return {c.body_b[m], c.body_a[m]};
+}
+
 // Whether manifold m's supported body bears a load (contacts.body_load, known while
 // heavy_on_light) CRUSH_RATIO or more times the mass of the lighter of it and its
 // (dynamic) supporter: a slab on a box, or the box under it on the ground.
 template <int D>
 inline bool crushing(const Model<D>& model, const Contacts<D>& c, std::int32_t m) {
   if (!c.heavy_on_light) return false;
-  const bool a_moves = c.shock_side[m] == 2;
-  const int u = a_moves ? c.body_a[m] : c.body_b[m], s = a_moves ? c.body_b[m] : c.body_a[m];
+  const auto [u, s] = support_of(c, m);
   const double lighter = std::max(model.body_inv_mass[u], model.body_inv_mass[s]);  // 1/kg
   return c.body_load[u] * lighter >= C::CRUSH_RATIO;
 }
@@ -235,7 +245,10 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
     std::memcpy(vel, &vel_l, sizeof vel);
     double slowest = 0.0;  // m/s: the fastest approach among the points
     for (int k = 0; k < npts; ++k) slowest = std::min(slowest, vel[k]);
-    if (c.restitution[m] > 0.0 && slowest < -threshold && !crushing(model, c, m)) continue;
+    // an impact (faster than the threshold) that does not crush: the restitution stage's
+    // when elastic, and left alone while apart (below)
+    const bool impact = slowest < -threshold && !crushing(model, c, m);
+    if (impact && c.restitution[m] > 0.0) continue;
     const BodyDelta<3>& da = c.body_delta[a];
     const BodyDelta<3>& db = c.body_delta[b];
     const double moved = dot(n, da.dx - db.dx);  // m
@@ -256,7 +269,7 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
     }
     // an impact still apart waits for its bodies to meet (restitution.cpp), elastic or
     // not, and gets its friction when they do: pushed here, it would close without any
-    if (slowest < -threshold && nearest > row.touch && !crushing(model, c, m)) continue;
+    if (impact && nearest > row.touch) continue;
     // the supported body's block: K_ij = 1/m + (r_i × n)·I⁻¹(r_j × n) (1/kg)
     std::array<double, 10> kb{};
     int e = 0;
@@ -319,13 +332,10 @@ void borne_loads(const Model<D>& model, Contacts<D>& c, std::int64_t n_order) {
     load[i] = model.is_dynamic(static_cast<int>(i)) ? 1.0 / model.body_inv_mass[i] : 0.0;
     supports[i] = 0;
   }
-  auto supported = [&c](std::int32_t m) {
-    return c.shock_side[m] == 2 ? c.body_a[m] : c.body_b[m];
-  };
-  for (std::int64_t o = 0; o < n_order; ++o) supports[supported(c.shock_order[o])] += 1;
+  for (std::int64_t o = 0; o < n_order; ++o)
+    supports[support_of(c, c.shock_order[o]).supported] += 1;
   for (std::int64_t o = n_order - 1; o >= 0; --o) {
-    const std::int32_t m = c.shock_order[o];
-    const int u = supported(m), s = c.shock_side[m] == 2 ? c.body_b[m] : c.body_a[m];
+    const auto [u, s] = support_of(c, c.shock_order[o]);
     if (model.is_dynamic(s)) load[s] += load[u] / static_cast<double>(supports[u]);
   }
 }
@@ -556,8 +566,9 @@ void propagate_shock_range(const Model<D>& model, State<D>& st, Contacts<D>& c,
       approaching = approaching || vel1 < -min_approach;
     }
     if (!approaching) continue;
-    if (c.restitution[m] > 0.0 && std::min(vel0, vel1) < -threshold && !crushing(model, c, m))
-      continue;
+    // an impact that does not crush: as in the 3D pass
+    const bool impact = std::min(vel0, vel1) < -threshold && !crushing(model, c, m);
+    if (impact && c.restitution[m] > 0.0) continue;
     const BodyDelta<D>& da = c.body_delta[a];
     const BodyDelta<D>& db = c.body_delta[b];
     const double moved = dot(n, da.dx - db.dx);  // m
@@ -582,8 +593,7 @@ void propagate_shock_range(const Model<D>& model, State<D>& st, Contacts<D>& c,
     }
     // an impact still apart waits for its bodies to meet (restitution.cpp), elastic or
     // not, and gets its friction when they do: pushed here, it would close without any
-    if (std::min(vel0, vel1) < -threshold && nearest > row.touch && !crushing(model, c, m))
-      continue;
+    if (impact && nearest > row.touch) continue;
     // impulses (N·s) along the supported body's push direction, λ >= 0, that bring every
     // point to at least its target: the two-point case is a 2x2 complementarity problem,
     // solved by trying both points, then each alone
