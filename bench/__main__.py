@@ -18,8 +18,8 @@ pair on the scene with gravity changed by k parts in 10⁹ (bench.the_round: one
 trajectory's time is one draw from a spread).
 Timings report; they do not fail. After them, the 3D table (bench/bench3d.py): rbsim
 against MuJoCo and PyBullet (where installed) on 3D contact scenes at dt = 1/240 s.
-Between them, the threads table (bench/threads.py): rbsim on 1 and 2 threads, and the
-serial fraction.
+Between them, the threads table (bench/threads.py): rbsim on 1 and 2 threads and as a run
+without solver.threads chooses, and the serial fraction.
 """
 
 from __future__ import annotations

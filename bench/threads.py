@@ -1,11 +1,14 @@
 """`make bench`, threads: rbsim's step on 1 and on 2 threads (solver.threads), wall µs per
-step and their ratio, on a settled window (WARMUP steps, then the median of REPEATS
-blocks of STEPS) of the scenes in SCENES; and the serial fraction s of the step, measured
-on one thread (World.parallel_seconds: the wall time of the work the step splits over its
-threads, against the stages' total), from which Amdahl's law bounds the 2-thread speed-up
-at 1 / (s + (1 - s) / 2). The results are the same, bit for bit, on every thread count
-(tests/test_threads.py); only the time differs. Needs idle cores: on a loaded machine the
-ratio says little. Run alone: python -m bench.threads [scenes].
+step and their ratio, on a settled window (WARMUP steps, then REPEATS blocks of STEPS,
+the runs' blocks taken in turn so that a slow spell of the host falls on each alike) of
+the scenes in SCENES; "chosen", the step with solver.threads not set (the cores, each
+step on one thread or on two as the run's trials time them: ThreadChoice in
+cpp/include/rbsim/pool.hpp), its trials' steps included; and the serial fraction s of the
+step, measured on one thread (World.parallel_seconds: the wall time of the work the step
+splits over its threads, against the stages' total), from which Amdahl's law bounds the
+2-thread speed-up at 1 / (s + (1 - s) / 2). The results are the same, bit for bit, on
+every thread count (tests/test_threads.py); only the time differs. Needs idle cores: on a
+loaded machine the ratio says little. Run alone: python -m bench.threads [scenes].
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ from pathlib import Path
 from rbsim import config
 from rbsim.engines import Engine, make_engine
 from rbsim.scene import Scene, load_scene
-from rbsim.tools.measure import block_times
+from rbsim.tools.measure import interleaved_block_times
 
 from . import print_header
 
@@ -31,16 +34,19 @@ REPEATS = 5
 TARGET = 1.7  # issue 13: at least 1.7x on two threads for these scenes
 
 
-def engine(scene: Scene, threads: int) -> Engine:
-    """rbsim on the scene, on `threads` threads."""
+def engine(scene: Scene, threads: int | None) -> Engine:
+    """rbsim on the scene, on `threads` threads (None: as a scene without solver.threads
+    runs in `rbsim run`: the cores, the step choosing between one thread and them)."""
     with config.threads_default(threads):
         return make_engine("rbsim", scene)
 
 
-def step_time(scene: Scene, threads: int) -> float:
-    """Median wall µs per step on `threads` threads, after WARMUP steps."""
-    samples = block_times(engine(scene, threads), WARMUP, STEPS, REPEATS, time.perf_counter)
-    return statistics.median(samples)
+def step_times(scene: Scene) -> tuple[float, float, float]:
+    """Mean wall µs per step on 1 thread, on 2 and as chosen, after WARMUP steps."""
+    runs = [engine(scene, 1), engine(scene, 2), engine(scene, None)]
+    samples = interleaved_block_times(runs, WARMUP, STEPS, REPEATS, time.perf_counter)
+    one, two, chosen = (statistics.fmean(s) for s in samples)
+    return one, two, chosen
 
 
 def serial_fraction(scene: Scene) -> float:
@@ -57,21 +63,24 @@ def serial_fraction(scene: Scene) -> float:
 def table(names: list[str]) -> None:
     """Print the threads table for the bench scenes `names`."""
     print(
-        f"threads: wall µs per step after {WARMUP} steps (median of {REPEATS} blocks of "
-        f"{STEPS}); serial fraction s on one thread, bound 1 / (s + (1 - s) / 2); "
-        f"target {TARGET}x"
+        f"threads: wall µs per step after {WARMUP} steps (mean of {REPEATS} blocks of "
+        f"{STEPS}, the three runs' blocks in turn); chosen: solver.threads not set (the step "
+        f"times one thread against {config.available_cores()} as it runs); serial fraction s "
+        f"on one thread, bound 1 / (s + (1 - s) / 2); target {TARGET}x"
     )
     header = (
-        f"{'scene':<17}{'1 thread':>10}{'2 threads':>11}{'speed-up':>10}{'serial':>8}{'bound':>7}"
+        f"{'scene':<17}{'1 thread':>10}{'2 threads':>11}{'speed-up':>10}{'chosen':>8}"
+        f"{'serial':>8}{'bound':>7}"
     )
     print_header(header)
     for name in names:
         scene = load_scene(HERE / "scenes" / f"{name}.yaml")
-        one, two = step_time(scene, 1), step_time(scene, 2)
+        one, two, chosen = step_times(scene)
         s = serial_fraction(scene)
         bound = 1.0 / (s + (1.0 - s) / 2.0)
         print(
-            f"{name:<17}{one:>10.1f}{two:>11.1f}{one / two:>9.2f}x{s:>8.2f}{bound:>6.2f}x",
+            f"{name:<17}{one:>10.1f}{two:>11.1f}{one / two:>9.2f}x{chosen:>8.1f}"
+            f"{s:>8.2f}{bound:>6.2f}x",
             flush=True,
         )
 

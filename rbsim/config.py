@@ -93,9 +93,11 @@ class Config(NamedTuple):
     scene.types.ROTATION_CODE: normalize 0, exact 1, split 2; in 2D split turns as exact
     does, the rotation having one axis), restitution_threshold (m/s),
     friction_rule and restitution_rule (MIX_*), elastic (some material has
-    restitution > 0), threads (the step's threads, >= 1). The engine derives the soft
-    contacts' stiffness from dt and substeps itself (set_contact_softness in
-    cpp/src/step.cpp)."""
+    restitution > 0), threads (the step's threads, >= 1), choose_threads (solver.threads
+    not set and no threads_default in force: each step runs on one thread or on
+    `threads`, whichever the run's trials timed faster; the same result). The engine
+    derives the soft contacts' stiffness from dt and substeps itself
+    (set_contact_softness in cpp/src/step.cpp)."""
 
     dt: float
     substeps: int
@@ -107,6 +109,7 @@ class Config(NamedTuple):
     restitution_rule: int
     elastic: bool
     threads: int = 1
+    choose_threads: bool = False
 
 
 def make_config(scene: Scene) -> Config:
@@ -123,4 +126,5 @@ def make_config(scene: Scene) -> Config:
         restitution_rule=MIXING[scene.world.restitution_mixing],
         elastic=any(sh.material.restitution > 0.0 for b in scene.bodies for sh in b.shapes),
         threads=int(sol.threads) if sol.threads is not None else default_threads(),
+        choose_threads=sol.threads is None and _process_threads is None,
     )

@@ -83,6 +83,26 @@ def test_every_thread_count_gives_the_same_bits(name):
     assert digests[2] == digests[0]
 
 
+def test_a_run_that_chooses_its_threads_gives_the_same_bits():
+    # solver.threads not set: each step runs on one thread or on all, whichever the run's
+    # trials timed faster, a trial alternating the two; the state must not move by a bit
+    scene = load_scene(ROOT / "bench/scenes/circles1000.yaml")
+    model, state = build(scene)
+    cfg = make_config(scene)._replace(threads=2, choose_threads=True)
+    chooser = CoreWorld.from_arrays(model, state, cfg, scene.world.dimension, scene)
+    steps = 0
+    # (the first trial begins after 0.05 s of stepping: its time, not a step count)
+    while chooser.engine.thread_trials < 2 and steps < 20000:
+        chooser.advance(10)
+        steps += 10
+    assert chooser.engine.thread_trials >= 2
+    assert chooser.engine.threads_chosen in (1, 2)
+    one = _world(scene, 1)
+    one.advance(steps)
+    assert one.engine.thread_trials == 0 and one.engine.threads_chosen == 1
+    assert _digest(chooser) == _digest(one)
+
+
 def test_regions_are_strips_across_gravity_with_few_joining_manifolds():
     scene = load_scene(ROOT / "bench/scenes/pyramid40.yaml")
     world = _world(scene, 1)
@@ -139,9 +159,12 @@ def test_threads_default_to_the_cores_and_to_one_in_workers():
     plain = load_scene_text("version: 1\nworld: {dt: 0.01, steps: 1}\n" + BODY)
     assert plain.solver.threads is None
     assert make_config(plain).threads == min(config.available_cores(), 64)
+    # without the key the step chooses between one thread and the cores as it runs
+    assert make_config(plain).choose_threads and not make_config(scene).choose_threads
     with config.threads_default(1):  # rbsim batch and sweep workers
         assert make_config(plain).threads == 1
         assert make_config(scene).threads == 3  # the scene's own wins
+        assert not make_config(plain).choose_threads
     assert make_config(plain).threads == min(config.available_cores(), 64)
 
 

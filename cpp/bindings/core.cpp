@@ -421,6 +421,8 @@ std::unique_ptr<World<D>> make_world(nb::dict model, nb::dict state, nb::dict co
   cf.threads = config.contains("threads") ? load_value<int>(config, "threads") : 1;
   if (cf.threads < 1 || cf.threads > THREADS_MAX)
     throw std::invalid_argument("threads must be between 1 and " + std::to_string(THREADS_MAX));
+  // and whether each step picks between one thread and those (solver.threads not set)
+  cf.choose_threads = config.contains("choose_threads") && load_value<bool>(config, "choose_threads");
   set_contact_softness(cf);
   w->allocate();
   return w;
@@ -956,7 +958,13 @@ nb::class_<World<D>> bind_world(nb::module_& mod, const char* name, const char* 
               "Seconds (wall) since profiling began of the work the step splits over its "
               "threads (what more threads shorten; the stages' other time is serial).")
       .def_prop_ro("threads", [](const W& w) { return w.config.threads; },
-                   "Threads the step runs on (solver.threads).");
+                   "Threads the step may run on (solver.threads, else the cores).")
+      .def_prop_ro("threads_chosen", &W::threads_chosen,
+                   "Threads the steps run on: threads, or where the step chooses (solver.threads "
+                   "not set) the last trial's faster of one thread and threads.")
+      .def_prop_ro("thread_trials",
+                   [](const W& w) { return w.thread_choice ? w.thread_choice->trials() : 0; },
+                   "The trials of one thread against threads so far (where the step chooses).");
   // the state as views of the engine's arrays (no copies): body_angle is empty in 3D,
   // body_l in 2D
 #define RBSIM_STATE(name, doc) \

@@ -110,7 +110,7 @@ void World<D>::parallel_timed(F&& run) {
 template <int D>
 template <class F>
 void World<D>::parallel(std::int64_t n, F&& f) {
-  const std::int64_t threads = pool ? pool->size() : 1;
+  const std::int64_t threads = active_threads();
   const std::int64_t parts = std::min<std::int64_t>(n / C::TASK_ITEMS, 4 * threads);
   if (n < 2 * C::TASK_ITEMS) {  // too few items to split
     f(Span{0, n});
@@ -130,7 +130,7 @@ void World<D>::over_segments(bool with_logs, F&& f) {
   auto& c = contacts;
   const int regions = static_cast<int>(c.region_count);
   const int n_segments = segment_count(regions);
-  if (regions == 1 || !pool) {
+  if (regions == 1 || active_threads() < 2) {
     // one thread: the segments in order, listing straight into the store's lists (what
     // the threads' logs, appended in segment order, also give)
     PassLog log = PassLog::direct(c);
@@ -470,13 +470,18 @@ Status World<D>::advance(std::int64_t n_steps, std::int64_t* taken, std::int64_t
   }
   const std::int64_t limit = pair_limit();
   bool grew = false;  // the step under way found the store too small and grew it
+  if (config.choose_threads && config.threads > 1 && !thread_choice)
+    thread_choice.emplace(config.threads, C::THREAD_TRIAL_BLOCK, C::THREAD_TRIAL_FIRST_SECONDS,
+                          C::THREAD_TRIAL_EVERY_SECONDS);
   while (*taken < n_steps) {
     // a step that may be long is asked inside too (stop_here): one the store grew for
     // has more contacts than the last step had
     stoppable_ = static_cast<bool>(interrupt) && (grew || step_may_be_long());
+    if (thread_choice) step_threads_ = thread_choice->next();
     const auto start = std::chrono::steady_clock::now();
     const bool done = step();
     stoppable_ = false;
+    step_threads_ = 0;
     if (torn) {
       *bad_body = -1;
       return Status::Interrupted;
@@ -502,6 +507,8 @@ Status World<D>::advance(std::int64_t n_steps, std::int64_t* taken, std::int64_t
     }
     last_step_seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    // (a step the store grew for is not timed: its time is not the choice's)
+    if (thread_choice && !grew) thread_choice->took(last_step_seconds);
     grew = false;
     ++*taken;
     ++step_index;

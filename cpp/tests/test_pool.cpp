@@ -41,4 +41,49 @@ TEST(no_task_and_one_task) {
   CHECK(hardware_threads() >= 1);
 }
 
+// ThreadChoice: before its first trial the steps run on one thread; a trial alternates
+// blocks of one thread and of all, and the faster wins until the next trial, which
+// begins once `every` seconds of stepping have passed since the last ended.
+namespace {
+// Steps of `one` and `most` seconds (one thread, all) from the choice `c`: n steps; the
+// threads of each step in `seen` (appended).
+void run_steps(ThreadChoice& c, int n, double one, double most, std::vector<int>& seen) {
+  for (int k = 0; k < n; ++k) {
+    const int t = c.next();
+    seen.push_back(t);
+    c.took(t == 1 ? one : most);
+  }
+}
+}  // namespace
+
+TEST(thread_choice_takes_the_faster) {
+  // (times in powers of two, so that the sums are exact)
+  // block 2, first trial after 0.125 s, then every 1 s
+  ThreadChoice c(2, 2, 0.125, 1.0);
+  std::vector<int> seen;
+  run_steps(c, 2, 0.0625, 0.125, seen);  // 0.125 s on one thread: the trial starts after
+  CHECK(c.chosen() == 1);
+  for (int t : seen) CHECK(t == 1);
+  seen.clear();
+  run_steps(c, 8, 0.0625, 0.03125, seen);  // the trial: 1 1 2 2 1 1 2 2, two threads faster
+  const std::vector<int> trial = {1, 1, 2, 2, 1, 1, 2, 2};
+  CHECK(seen == trial);
+  CHECK(c.chosen() == 2);
+  seen.clear();
+  run_steps(c, 32, 0.0625, 0.03125, seen);  // 1 s on two threads, no trial within it
+  for (int t : seen) CHECK(t == 2);
+  seen.clear();
+  run_steps(c, 8, 0.03125, 0.0625, seen);  // the next trial: now one thread is faster
+  CHECK(seen == trial);
+  CHECK(c.chosen() == 1);
+  CHECK(c.trials() == 2);
+  // a trial of equal times keeps one thread (no gain for the hand-offs)
+  ThreadChoice same(3, 1, 0.0, 1.0);
+  seen.clear();
+  run_steps(same, 4, 0.25, 0.25, seen);
+  const std::vector<int> short_trial = {1, 3, 1, 3};
+  CHECK(seen == short_trial);
+  CHECK(same.chosen() == 1);
+}
+
 RBSIM_TEST_MAIN

@@ -1660,7 +1660,10 @@ def _format_value(value: np.ndarray) -> str:
 
 # What a solver setting left unset (None) in the file means, for `rbsim info`
 SOLVER_DEFAULT_WORDS = {
-    "threads": "not set (the cores the process may run on; 1 in batch and sweep workers)"
+    "threads": (
+        "not set (the cores the process may run on, each step on one thread or on all as the "
+        "run timed them; 1 in batch and sweep workers)"
+    )
 }
 
 

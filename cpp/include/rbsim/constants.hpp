@@ -278,8 +278,25 @@ inline constexpr int TASK_ITEMS = 128;
 // at 150 rad/s turns 0.16 rad a substep at dt 1/240).
 inline constexpr double MAX_ROTATION = 0.7853981633974483;
 
-// µs a worker spins for the next parallel stage before it sleeps, typically 50: stages
-// follow one another within microseconds; longer spins waste CPU between steps.
-inline constexpr int POOL_SPIN_MICROSECONDS = 50;
+// µs a worker spins for the next parallel stage before it sleeps, typically 1000: the
+// serial stages between two parallel ones take up to some hundred µs in a pile of a
+// thousand bodies, and a worker woken from its sleep came tens of µs late, every step (at
+// 50, 3 sleeps a step: 1000 circles 330 -> 288 µs a step on two threads, pyramid-40 750 ->
+// 733). Longer spins only burn a core between advance calls.
+inline constexpr int POOL_SPIN_MICROSECONDS = 1000;
+
+// Threads chosen as the run goes (Config::choose_threads: solver.threads not set): the
+// step runs on one thread or on all of config.threads, whichever a trial timed faster
+// (rbsim/pool.hpp, ThreadChoice). A trial is 4 blocks of THREAD_TRIAL_BLOCK steps, one
+// thread and all in turn (a scene that grows or settles drifts both ways alike); the
+// first after THREAD_TRIAL_FIRST_SECONDS of stepping (past the start, when few bodies
+// touch), then one every THREAD_TRIAL_EVERY_SECONDS (the cost of the two threads' hand-offs
+// varies with the host: on the machines rbsim is measured on, two threads ran a pile 1.3x
+// faster than one in some minutes and 2x slower in others). Steps, typically 4: fewer
+// time single steps, which vary more; more spend longer on the slower choice. Seconds,
+// typically 0.05 and 1: a trial costs at most half its steps' time, a few ms a second.
+inline constexpr int THREAD_TRIAL_BLOCK = 4;
+inline constexpr double THREAD_TRIAL_FIRST_SECONDS = 0.05;
+inline constexpr double THREAD_TRIAL_EVERY_SECONDS = 1.0;
 
 }  // namespace rbsim::constants

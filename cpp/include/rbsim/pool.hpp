@@ -1,11 +1,14 @@
 // A small persistent pool of worker threads for the step's parallel stages.
 //
 // run(n, f) calls f(task) for every task in [0, n), on the calling thread and the
-// workers, and returns when all are done (a barrier). Tasks are taken from a shared
-// counter, so which thread runs which task varies from call to call: a stage that uses
-// the pool must make each task write only its own outputs (a range of bodies, of
-// manifolds, a region of the solve), so that its result does not depend on the number of
-// threads or on the schedule. Between calls a worker spins for POOL_SPIN_MICROSECONDS
+// workers, and returns when all are done (a barrier). Each thread has its share of the
+// tasks, the same contiguous run of them call after call (the caller the first), and
+// takes it from the front; a thread done with its share takes what is left of another's
+// from the back. So a stage's items stay, stage after stage, with the thread (and the
+// core's cache) that had them, and which thread runs which task still varies with the
+// schedule: a stage that uses the pool must make each task write only its own outputs (a
+// range of bodies, of manifolds, a region of the solve), so that its result does not
+// depend on the number of threads or on the schedule. Between calls a worker spins for POOL_SPIN_MICROSECONDS
 // (the next stage usually follows within microseconds) and then sleeps on a futex
 // (std::atomic::wait), so an idle pool costs no CPU.
 #pragma once
@@ -47,16 +50,23 @@ class Pool {
  private:
   using Call = void (*)(void*, std::int64_t);
   void dispatch(std::int64_t n, Call call, void* ctx);
-  void work();                      // a worker's loop
-  void take_tasks(std::uint32_t g);  // run call g's tasks until none is left
+  void work(int self);                         // worker `self`'s loop (1 .. size() - 1)
+  void take_tasks(std::uint32_t g, int self);  // run call g's tasks until none is left
+
+  // A thread's share of a call's tasks: the call's generation (high 32 bits), the share's
+  // next task (16 bits) and its end (16 bits). Its owner takes tasks from the front,
+  // another thread from the back; a worker that wakes late for an earlier call finds
+  // another generation there and takes nothing, so a call waits only for the tasks,
+  // never for a sleeping worker.
+  struct alignas(64) Share {
+    std::atomic<std::uint64_t> word{0};
+  };
 
   std::vector<std::thread> workers_;
+  std::vector<Share> shares_;  // one per thread, the caller's first
   Call call_ = nullptr;
   void* ctx_ = nullptr;
-  // the call's generation (high 32 bits), its next task (16 bits) and its task count (16
-  // bits): a worker that wakes late for an earlier call finds another generation there
-  // and takes nothing, so a call waits only for the tasks, never for a sleeping worker
-  alignas(64) std::atomic<std::uint64_t> next_{0};
+  std::int64_t total_ = 0;  // the call's tasks
   alignas(64) std::atomic<std::int64_t> done_{0};         // tasks of this call done
   alignas(64) std::atomic<std::uint32_t> generation_{0};  // one more per call
   std::atomic<bool> stop_{false};
@@ -64,5 +74,53 @@ class Pool {
 
 // The machine's hardware threads (at least 1).
 int hardware_threads();
+
+// Which of one thread and `most` threads the next step runs on, from the wall times of
+// the steps taken (Config::choose_threads). A step's result is the same bits on any
+// number of threads, so the choice changes only the time. Most of the time the step
+// runs on the last trial's faster choice; a trial is 4 blocks of `block` steps, one
+// thread and `most` in turn, and begins after `first` s of stepping and then every
+// `every` s (constants.hpp, THREAD_TRIAL_*).
+class ThreadChoice {
+ public:
+  ThreadChoice(int most, int block, double first, double every)
+      : most_(most), block_(block), every_(every), since_(every - first) {}
+
+  // Threads for the next step: 1 or `most`.
+  int next() {
+    if (trial_ < 0 && since_ >= every_) {  // a trial begins
+      trial_ = 0;
+      spent_[0] = spent_[1] = 0.0;
+    }
+    if (trial_ < 0) return chosen_;
+    return (trial_ / block_) % 2 == 0 ? 1 : most_;
+  }
+  // The step that next() was asked for took `seconds` (wall time).
+  void took(double seconds) {
+    if (trial_ < 0) {
+      since_ += seconds;
+      return;
+    }
+    spent_[(trial_ / block_) % 2] += seconds;
+    if (++trial_ < 4 * block_) return;
+    chosen_ = spent_[1] < spent_[0] ? most_ : 1;
+    ++trials_;
+    trial_ = -1;
+    since_ = 0.0;
+  }
+  // The choice of the last trial (1 before the first).
+  int chosen() const { return chosen_; }
+  // The trials ended so far.
+  int trials() const { return trials_; }
+
+ private:
+  int most_, block_;
+  double every_;
+  double since_;      // s of stepping since the last trial ended
+  int trial_ = -1;    // the step of the trial under way (-1: none)
+  double spent_[2]{};  // s: the trial's steps on one thread, on `most`
+  int chosen_ = 1;
+  int trials_ = 0;
+};
 
 }  // namespace rbsim

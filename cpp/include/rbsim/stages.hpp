@@ -51,6 +51,9 @@ struct Config {
   Soft soft;                      // contacts between two dynamic bodies
   Soft soft_static;               // contacts with a static or kinematic body (stiffer)
   int threads = 1;                // the step's threads (solver.threads), >= 1
+  // solver.threads not set: each step runs on one thread or on `threads`, whichever the
+  // run's trials timed faster (ThreadChoice); the result is the same bits either way
+  bool choose_threads = false;
 };
 
 // The soft contacts of config's substep h = dt / substeps: CONTACT_HERTZ, capped at a

@@ -5,6 +5,7 @@
 #include <array>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -71,6 +72,9 @@ struct World {
   // use for them), and the segment logs of the threaded passes
   std::unique_ptr<Pool> pool;
   std::vector<SegmentLog> logs;
+  // config.choose_threads: which of one thread and config.threads each step of advance
+  // runs on (made at advance's first step)
+  std::optional<ThreadChoice> thread_choice;
   // the pairs' narrowphase, found in parallel ahead of update_manifolds (narrow_pairs)
   std::vector<PairManifold<D>> found;
   std::vector<std::int8_t> found_points;
@@ -106,11 +110,19 @@ struct World {
   bool grow(std::int64_t capacity, bool stoppable = false);
   // Whether the next step may take STEP_STOP_SECONDS or more (constants.hpp).
   bool step_may_be_long() const;
+  // The threads the steps run on: config.threads, or with choose_threads the last trial's
+  // choice (1 before the first).
+  int threads_chosen() const { return thread_choice ? thread_choice->chosen() : config.threads; }
   // Contact points that pushed in the last step.
   std::int64_t contact_count() const { return model.has_shapes ? contacts.count.points_touching : 0; }
 
  private:
   bool stoppable_ = false;  // the step under way may be stopped inside
+  int step_threads_ = 0;    // threads of the step under way (0: config.threads)
+  // the threads the stages may use: step_threads_ (or config.threads), where a pool is
+  int active_threads() const {
+    return pool ? (step_threads_ > 0 ? step_threads_ : pool->size()) : 1;
+  }
   // interrupt() asked, when the step under way may be stopped; true sets torn
   bool stop_here();
   bool collide();

@@ -1,6 +1,6 @@
 // The worker pool (rbsim/pool.hpp): a generation counter that a call advances and the
-// workers wait on, one atomic word with the call's generation and its next task, and a
-// count of the tasks done that the caller waits on.
+// workers wait on, one atomic word per thread with the call's generation and that
+// thread's share of the tasks, and a count of the tasks done that the caller waits on.
 #include "rbsim/pool.hpp"
 
 #include <chrono>
@@ -22,8 +22,8 @@ inline void relax_cpu() {
 
 }  // namespace
 
-Pool::Pool(int threads) {
-  for (int k = 1; k < threads; ++k) workers_.emplace_back([this] { work(); });
+Pool::Pool(int threads) : shares_(static_cast<std::size_t>(threads < 1 ? 1 : threads)) {
+  for (int k = 1; k < threads; ++k) workers_.emplace_back([this, k] { work(k); });
 }
 
 Pool::~Pool() {
@@ -33,19 +33,25 @@ Pool::~Pool() {
   for (auto& t : workers_) t.join();
 }
 
-void Pool::take_tasks(std::uint32_t g) {
-  std::uint64_t v = next_.load(std::memory_order_acquire);
-  for (;;) {
-    const std::uint64_t task = (v >> 16) & 0xffff, n = v & 0xffff;
-    if ((v >> 32) != g || task >= n) return;
-    if (!next_.compare_exchange_weak(v, v + (std::uint64_t{1} << 16), std::memory_order_acq_rel,
-                                     std::memory_order_acquire))
-      continue;  // (v reloaded)
-    // the task is this call's and not done: the call's fields stay until it is
-    call_(ctx_, static_cast<std::int64_t>(task));
-    if (done_.fetch_add(1, std::memory_order_acq_rel) + 1 == static_cast<std::int64_t>(n))
-      done_.notify_all();
-    v = next_.load(std::memory_order_acquire);
+void Pool::take_tasks(std::uint32_t g, int self) {
+  const int n_shares = static_cast<int>(shares_.size());
+  // its own share from the front, then the others' from the back, the next thread's first
+  for (int k = 0; k < n_shares; ++k) {
+    const bool own = k == 0;
+    std::atomic<std::uint64_t>& word = shares_[(self + k) % n_shares].word;
+    std::uint64_t v = word.load(std::memory_order_acquire);
+    for (;;) {
+      const std::uint64_t next = (v >> 16) & 0xffff, end = v & 0xffff;
+      if ((v >> 32) != g) return;  // a later call has begun: this one's tasks are all taken
+      if (next >= end) break;
+      const std::uint64_t taken = own ? v + (std::uint64_t{1} << 16) : v - 1;
+      if (!word.compare_exchange_weak(v, taken, std::memory_order_acq_rel, std::memory_order_acquire))
+        continue;  // (v reloaded)
+      // the task is this call's and not done: the call's fields stay until it is
+      call_(ctx_, static_cast<std::int64_t>(own ? next : end - 1));
+      if (done_.fetch_add(1, std::memory_order_acq_rel) + 1 == total_) done_.notify_all();
+      v = word.load(std::memory_order_acquire);
+    }
   }
 }
 
@@ -53,12 +59,18 @@ void Pool::dispatch(std::int64_t n, Call call, void* ctx) {
   using clock = std::chrono::steady_clock;
   call_ = call;
   ctx_ = ctx;
+  total_ = n;
   done_.store(0, std::memory_order_relaxed);
   const std::uint32_t g = generation_.load(std::memory_order_relaxed) + 1;
-  next_.store((std::uint64_t{g} << 32) | static_cast<std::uint64_t>(n), std::memory_order_release);
+  const std::int64_t n_shares = static_cast<std::int64_t>(shares_.size());
+  for (std::int64_t s = 0; s < n_shares; ++s) {
+    const auto first = static_cast<std::uint64_t>(n * s / n_shares);
+    const auto end = static_cast<std::uint64_t>(n * (s + 1) / n_shares);
+    shares_[s].word.store((std::uint64_t{g} << 32) | (first << 16) | end, std::memory_order_release);
+  }
   generation_.store(g, std::memory_order_release);
   generation_.notify_all();
-  take_tasks(g);
+  take_tasks(g, 0);
   // the tasks the workers took: spin a little, then sleep until the last one is done
   const auto until = clock::now() + std::chrono::microseconds(constants::POOL_SPIN_MICROSECONDS);
   for (int k = 0;; ++k) {
@@ -69,7 +81,7 @@ void Pool::dispatch(std::int64_t n, Call call, void* ctx) {
   }
 }
 
-void Pool::work() {
+void Pool::work(int self) {
   using clock = std::chrono::steady_clock;
   const auto spin = std::chrono::microseconds(constants::POOL_SPIN_MICROSECONDS);
   std::uint32_t seen = 0;  // (the generation at the pool's making)
@@ -84,7 +96,7 @@ void Pool::work() {
     }
     seen = now;
     if (stop_.load(std::memory_order_acquire)) return;
-    take_tasks(now);
+    take_tasks(now, self);
   }
 }
 
