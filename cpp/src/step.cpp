@@ -57,6 +57,7 @@ void World<D>::allocate() {
   contacts.allocate(model.body_count(), n_shapes, model.vertex_count(), capacity);
   found.assign(capacity, {});  // (with the store: a pair's narrowphase result each)
   found_points.assign(capacity, 0);
+  found_slot.assign(capacity + 1, 0);
   if constexpr (D == 3) contacts.face_world.assign(model.hull_face_count, Vec3{});
   // the contact tolerances' scale of every shape and body (constants.hpp, SCALE_LENGTH)
   contacts.unit_scale = true;
@@ -75,6 +76,7 @@ bool World<D>::grow(std::int64_t capacity, bool stoppable) {
   grid.grow(capacity);
   found.resize(contacts.capacity());
   found_points.resize(contacts.capacity());
+  found_slot.resize(contacts.capacity() + 1);
   return true;
 }
 
@@ -242,18 +244,28 @@ bool World<D>::collide() {
   });
   if (stop_here()) return true;  // torn: advance ends the call
   timed(S::UpdateManifolds, [&] {
-    // the narrowphase pair by pair on the threads (on one thread too, so that every
-    // count takes the same path), then the manifolds in pair order (found: sized with
+    // the narrowphase pair by pair on the threads, each manifold's slot (a prefix count in
+    // pair order), then the manifolds into their slots on the threads (on one thread the
+    // same calls over all the pairs: every count takes the same path). (found: sized with
     // the store, allocate and grow; and here after a checkpoint's store was loaded)
-    if (static_cast<std::int64_t>(found.size()) < n_pairs) {
+    if (static_cast<std::int64_t>(found_slot.size()) < n_pairs + 1) {
       found.resize(c.capacity());
       found_points.resize(c.capacity());
+      found_slot.resize(c.capacity() + 1);
     }
     parallel(n_pairs, [&](Span part) {
       narrow_pairs(model, state, c, grid, cfg.dt, part, found.data(), found_points.data());
     });
-    update_manifolds(model, state, c, grid, n_pairs, cfg.friction_rule, cfg.restitution_rule,
-                     cfg.dt, found.data(), found_points.data());
+    manifold_slots<D>(Span{0, n_pairs}, found_points.data(), found_slot.data());
+    std::atomic<bool> same{true}, touch_changed{false};
+    parallel(n_pairs, [&](Span part) {
+      const MergeFlags f = merge_manifolds(model, state, c, part, cfg.friction_rule,
+                                           cfg.restitution_rule, found.data(),
+                                           found_points.data(), found_slot.data());
+      if (!f.same) same = false;  // (flags: the same whatever the parts' order)
+      if (f.touch_changed) touch_changed = true;
+    });
+    finish_manifolds(c, found_slot[n_pairs], MergeFlags{same.load(), touch_changed.load()});
   });
   timed(S::Prepare, [&] {
     parallel(c.count.manifolds, [&](Span part) { prepare_contacts(model, state, c, cfg, part); });

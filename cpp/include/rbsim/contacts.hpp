@@ -47,7 +47,13 @@ struct PairManifold {
   std::array<typename Dim<D>::Vec, P> point;
   std::array<double, P> separation;
   std::array<std::int64_t, P> id;
+  double t = 0.0;  // s: the time of impact it was moved to (0: the step's start)
 };
+
+// What narrow_pairs found of a pair besides its point count (0 or more, after the time of
+// impact): its tight boxes apart, or a still pair whose last manifold is carried.
+inline constexpr std::int8_t FOUND_APART = -2;
+inline constexpr std::int8_t FOUND_CARRIED = -1;
 
 // What the solver's passes read of one manifold, in one record of four cache lines.
 template <int D>

@@ -103,28 +103,43 @@ std::int64_t find_pairs(const Model<D>& model, Grid<D>& grid, Contacts<D>& conta
 
 // contact/manifold.cpp: narrowphase (time of impact for fast speculative pairs) for the
 // first n_pairs pairs, warm-start matching against last step's manifolds, carried
-// manifolds for still bodies.
+// manifolds for still bodies: narrow_pairs, manifold_slots, merge_manifolds and
+// finish_manifolds over all the pairs, on the caller's thread.
 template <int D>
 void update_manifolds(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
                       const Grid<D>& grid, std::int64_t n_pairs, MixRule friction_rule,
                       MixRule restitution_rule, double dt);
 
-// contact/manifold.cpp: the same, with the narrowphase of pair p already found where
-// found_points[p] >= 0 (its point count; the result in found[p]); -1: not found there.
-template <int D>
-void update_manifolds(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
-                      const Grid<D>& grid, std::int64_t n_pairs, MixRule friction_rule,
-                      MixRule restitution_rule, double dt, const PairManifold<D>* found,
-                      const std::int8_t* found_points);
-
-// contact/manifold.cpp: the narrowphase of the pairs in `pairs` that update_manifolds
-// will ask for (tight boxes that overlap, bodies not both still with last step's
-// manifold to carry), into found[p] and found_points[p] (-1 for the others): the
-// threaded step's first, parallel half of update_manifolds. Time of impact stays there.
+// The stage in parts, for the step's threads (each part writes only its own pairs' and
+// manifolds' rows; the result is the same bits for any parts):
+// contact/manifold.cpp: what each pair of `pairs` holds: found_points[p] FOUND_APART
+// (tight boxes apart), FOUND_CARRIED (bodies still, last step's manifold carried), else
+// its point count after the narrowphase and, for a pair that meets within the step, the
+// time of impact (found[p]: its manifold there, and the time).
 template <int D>
 void narrow_pairs(const Model<D>& model, const State<D>& state, const Contacts<D>& contacts,
                   const Grid<D>& grid, double dt, Span pairs, PairManifold<D>* found,
                   std::int8_t* found_points);
+// Each pair's manifold slot: slot[p] the manifolds of the pairs before p in `pairs`,
+// slot[pairs.last] all of them (a prefix count; on one thread).
+template <int D>
+void manifold_slots(Span pairs, const std::int8_t* found_points, std::int64_t* slot);
+// What merge_manifolds tells of its pairs: whether every manifold is last step's pair in
+// the same slot, and whether one touches where it did not, or no longer does.
+struct MergeFlags {
+  bool same = true;
+  bool touch_changed = false;
+};
+// The manifolds of `pairs` into their slots (warm starting from last step's, carried
+// ones updated).
+template <int D>
+MergeFlags merge_manifolds(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
+                           Span pairs, MixRule friction_rule, MixRule restitution_rule,
+                           const PairManifold<D>* found, const std::int8_t* found_points,
+                           const std::int64_t* slot);
+// The store's counts from the merge: `manifolds` made, the parts' flags combined.
+template <int D>
+void finish_manifolds(Contacts<D>& contacts, std::int64_t manifolds, MergeFlags flags);
 
 // contact/store.cpp: this step's manifolds become last step's (for warm starting).
 template <int D>

@@ -75,9 +75,11 @@ struct World {
   // config.choose_threads: which of one thread and config.threads each step of advance
   // runs on (made at advance's first step)
   std::optional<ThreadChoice> thread_choice;
-  // the pairs' narrowphase, found in parallel ahead of update_manifolds (narrow_pairs)
+  // the pairs' narrowphase (narrow_pairs) and their manifolds' slots (manifold_slots), for
+  // the manifold stage in parts (step.cpp)
   std::vector<PairManifold<D>> found;
   std::vector<std::int8_t> found_points;
+  std::vector<std::int64_t> found_slot;
   // Asked by advance after it grew the contact store, and inside a step that may be long
   // (step_may_be_long: after its contacts are found and between its substeps): true ends
   // advance with Status::Interrupted. Set by the caller for the length of its advance

@@ -3,9 +3,13 @@
 // Run the narrowphase on every pair whose tight boxes overlap, and keep the manifolds
 // with points. A point whose feature id matches one of last step's points in the same
 // pair takes over that point's accumulated impulses (warm start); both lists are sorted
-// by key = a · S + b, so the matching is one merge pass. A pair of bodies that have not
-// moved from their reference poses carries last step's manifold forward instead (only
-// its separation changes, by the bodies' motion since those poses). A speculative pair
+// by key = a · S + b, so the matching is a merge pass (one per part of the pairs on the
+// step's threads, each from its first pair's place in last step's list). The stage runs
+// in two halves: each pair's narrowphase and time of impact (narrow_pairs), then, once
+// a prefix count has given each pair its manifold's slot, each pair's manifold into its
+// slot (merge_manifolds); every part writes only its own pairs' rows. A pair of bodies
+// that have not moved from their reference poses carries last step's manifold forward
+// instead (only its separation changes, by the bodies' motion since those poses). A speculative pair
 // that meets within the step is moved to its time of impact first (collide/toi.cpp).
 //
 // In 3D the narrowphase is collide/narrow3d.cpp's, on each shape's world geometry from
@@ -146,27 +150,60 @@ template <int D>
 void narrow_pairs(const Model<D>& model, const State<D>& st, const Contacts<D>& c,
                   const Grid<D>& grid, double dt, Span pairs, PairManifold<D>* found,
                   std::int8_t* found_points) {
+  using Vec = typename Dim<D>::Vec;
   const auto& box = grid.shape_aabb;
   const std::int64_t n_shapes = model.shape_count();
   const std::int64_t* prev = c.prev_key.data();
   const std::int64_t n_prev = c.count.manifolds_prev;
   std::conditional_t<D == 2, Manifold2, Manifold3> out;
+  std::vector<Vec> toi_verts, toi_norms;  // the time of impact's room, made when first asked
   for (std::int64_t p = pairs.first; p < pairs.last; ++p) {
-    found_points[p] = -1;
+    found_points[p] = FOUND_APART;
     const int a = c.pairs[p][0], b = c.pairs[p][1];
-    if (disjoint<D>(box[a], box[b])) continue;
+    if (disjoint<D>(box[a], box[b])) continue;  // near in the fat boxes only: out of reach
     const int ba = model.shape_body[a], bb = model.shape_body[b];
     if (c.body_still[ba] && c.body_still[bb]) {
       // last step's manifold of a still pair is carried: no narrowphase
       const std::int64_t key = static_cast<std::int64_t>(a) * n_shapes + b;
-      if (std::binary_search(prev, prev + n_prev, key)) continue;
+      if (std::binary_search(prev, prev + n_prev, key)) {
+        found_points[p] = FOUND_CARRIED;
+        continue;
+      }
     }
+    // the contact tolerances' scale: the smaller shape's (constants.hpp, SCALE_LENGTH)
     const double scale = std::min(c.shape_scale[a], c.shape_scale[b]);
     const double spec = speculative(model, st, c, dt, a, b, scale);
-    const int npts = narrow_pair(model, c, a, b, scale, spec, out);
+    int npts = narrow_pair(model, c, a, b, scale, spec, out);
+    // only a pair that is clearly apart can turn its normal before the impact, and only
+    // if it meets within the step: most such pairs do not (two balls falling side by
+    // side), and their test is made here, as the search's first, so that they skip the
+    // call (in 3D at a bound on the closing speed that takes in the bodies' turns, from
+    // each shape's reach, looked up only for a pair that is apart)
+    const double slop = scale * C::LINEAR_SLOP;  // m
+    bool meets = false;
+    if (npts > 0 && out.separation[nearest_point(out, npts)] > slop) {
+      double reach_a = 0.0, reach_b = 0.0;  // m
+      if constexpr (D == 3) {
+        reach_a = core_reach(model, a);
+        reach_b = core_reach(model, b);
+      }
+      meets = meets_within(out, npts, ba, bb, dt, slop, st, reach_a, reach_b);
+    }
+    double t = 0.0;  // s
+    if (meets) {
+      if (toi_verts.empty()) {
+        toi_verts.resize(c.toi_verts.size());
+        toi_norms.resize(c.toi_norms.size());
+      }
+      const Impact hit = time_of_impact(model, st, a, b, npts, dt, spec, scale, toi_verts.data(),
+                                        toi_norms.data(), out);
+      npts = hit.points;
+      t = hit.t;
+    }
     found_points[p] = static_cast<std::int8_t>(npts);
     PairManifold<D>& f = found[p];
     f.normal = out.normal;
+    f.t = t;
     for (int k = 0; k < npts; ++k) {
       f.point[k] = out.point[k];
       f.separation[k] = out.separation[k];
@@ -176,38 +213,44 @@ void narrow_pairs(const Model<D>& model, const State<D>& st, const Contacts<D>& 
 }
 
 template <int D>
-void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
-                      const Grid<D>& grid, std::int64_t n_pairs, MixRule friction_rule,
-                      MixRule restitution_rule, double dt) {
-  update_manifolds(model, st, c, grid, n_pairs, friction_rule, restitution_rule, dt,
-                   static_cast<const PairManifold<D>*>(nullptr), nullptr);
+void manifold_slots(Span pairs, const std::int8_t* found_points, std::int64_t* slot) {
+  std::int64_t m = 0;
+  for (std::int64_t p = pairs.first; p < pairs.last; ++p) {
+    slot[p] = m;
+    m += found_points[p] == FOUND_CARRIED || found_points[p] > 0;
+  }
+  slot[pairs.last] = m;
 }
 
 template <int D>
-void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
-                      const Grid<D>& grid, std::int64_t n_pairs, MixRule friction_rule,
-                      MixRule restitution_rule, double dt, const PairManifold<D>* found,
-                      const std::int8_t* found_points) {
+MergeFlags merge_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
+                           Span pairs, MixRule friction_rule, MixRule restitution_rule,
+                           const PairManifold<D>* found, const std::int8_t* found_points,
+                           const std::int64_t* slot) {
   using Vec = typename Dim<D>::Vec;
   using Rot = typename Dim<D>::Rot;
-  const auto& box = grid.shape_aabb;
   const std::int64_t n_shapes = model.shape_count();
   const std::int64_t n_prev = c.count.manifolds_prev;
-  std::conditional_t<D == 2, Manifold2, Manifold3> out;  // one narrowphase result
-  std::int64_t j = 0;  // merge pointer into last step's manifolds (both sorted by key)
-  std::int64_t m = 0;
-  bool same = true;  // every manifold so far is last step's pair in the same slot
-  bool touch_changed = false;  // and one of them touches where it did not, or no longer
-  for (std::int64_t p = 0; p < n_pairs; ++p) {
+  MergeFlags flags;
+  if (pairs.first >= pairs.last) return flags;
+  // the merge pointer into last step's manifolds (both lists sorted by key), from the
+  // first pair's place among them
+  const std::int64_t first_key =
+      static_cast<std::int64_t>(c.pairs[pairs.first][0]) * n_shapes + c.pairs[pairs.first][1];
+  std::int64_t j = std::lower_bound(c.prev_key.data(), c.prev_key.data() + n_prev, first_key) -
+                   c.prev_key.data();
+  std::int64_t m = slot[pairs.first];
+  for (std::int64_t p = pairs.first; p < pairs.last; ++p) {
+    if (found_points[p] == FOUND_APART) continue;
     const int a = c.pairs[p][0], b = c.pairs[p][1];
-    if (disjoint<D>(box[a], box[b])) continue;  // near in the fat boxes only: out of reach
     const int ba = model.shape_body[a], bb = model.shape_body[b];
     const std::int64_t key = static_cast<std::int64_t>(a) * n_shapes + b;
     while (j < n_prev && c.prev_key[j] < key) ++j;
     const bool matched = j < n_prev && c.prev_key[j] == key;
+    // (slot m still holds last step's manifold m: every manifold of this step before it
+    // went to a slot before m)
     const bool in_slot = matched && j == m && c.key[m] == key;
-    const bool still = c.body_still[ba] && c.body_still[bb];
-    // the contact tolerances' scale: the smaller shape's (constants.hpp, SCALE_LENGTH)
+    const bool still = found_points[p] == FOUND_CARRIED;
     const double scale = std::min(c.shape_scale[a], c.shape_scale[b]);
     // motion of the two bodies since their reference poses (m)
     const Vec dd = (st.body_x[ba] - c.body_ref[ba].x) - (st.body_x[bb] - c.body_ref[bb].x);
@@ -230,7 +273,7 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
         c.start_impulse[m][k] = c.normal_impulse[m][k];
         c.max_normal_impulse[m][k] = 0.0;
       }
-      touch_changed = touch_changed || touched != touching;
+      flags.touch_changed = flags.touch_changed || touched != touching;
       c.support[m] = touching;
       c.carried[m] = 1;
       ++m;
@@ -238,7 +281,7 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
     }
     Vec n;
     int npts;
-    if (matched && still) {
+    if (still) {
       // neither body has moved: carry last step's manifold forward
       n = c.prev_normal[j];
       npts = c.prev_points[j];
@@ -260,45 +303,12 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
         c.max_normal_impulse[m][k] = 0.0;
       }
     } else {
-      const double spec = speculative(model, st, c, dt, a, b, scale);
-      const double radius_a = model.shape_radius[a], radius_b = model.shape_radius[b];  // m
-      double t = 0.0;  // s
-      if (found && found_points[p] >= 0) {  // found ahead, on the step's threads
-        npts = found_points[p];
-        const PairManifold<D>& f = found[p];
-        out.normal = f.normal;
-        for (int k = 0; k < npts; ++k) {
-          out.point[k] = f.point[k];
-          out.separation[k] = f.separation[k];
-          out.id[k] = f.id[k];
-        }
-      } else {
-        npts = narrow_pair(model, c, a, b, scale, spec, out);
-      }
-      // only a pair that is clearly apart can turn its normal before the impact, and
-      // only if it meets within the step: most such pairs do not (two balls falling
-      // side by side), and their test is made here, as the search's first, so that they
-      // skip the call
-      // (in 3D at a bound on the closing speed that takes in the bodies' turns, from
-      // each shape's reach, looked up only for a pair that is apart)
-      const double slop = scale * C::LINEAR_SLOP;  // m
-      bool meets = false;
-      if (npts > 0 && out.separation[nearest_point(out, npts)] > slop) {
-        double reach_a = 0.0, reach_b = 0.0;  // m
-        if constexpr (D == 3) {
-          reach_a = core_reach(model, a);
-          reach_b = core_reach(model, b);
-        }
-        meets = meets_within(out, npts, ba, bb, dt, slop, st, reach_a, reach_b);
-      }
-      if (meets) {
-        const Impact hit = time_of_impact(model, st, a, b, npts, dt, spec, scale,
-                                          c.toi_verts.data(), c.toi_norms.data(), out);
-        npts = hit.points;
-        t = hit.t;
-      }
+      npts = found_points[p];
       if (npts == 0) continue;
-      n = out.normal;
+      const PairManifold<D>& f = found[p];
+      const double radius_a = model.shape_radius[a], radius_b = model.shape_radius[b];  // m
+      const double t = f.t;  // s: the impact's time (narrow_pairs), 0 for most pairs
+      n = f.normal;
       // the bodies' free motion to the impact (t = 0 unless it was moved there)
       const Vec da = t * st.body_v[ba], db = t * st.body_v[bb];
       Rot qa{}, qb{};  // the rotations by ω t; t = 0 is the common case, and then
@@ -312,9 +322,9 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
         // +n, b's along −n): where a ball will touch what it approaches, so that friction
         // turns it as its surface is pushed (at the midpoint, a ball a few centimetres from
         // a wall was turned as if it were larger)
-        const double half = 0.5 * std::max(out.separation[k], 0.0);  // m
-        Vec ra = out.point[k] - st.body_x[ba] - da;
-        Vec rb = out.point[k] - st.body_x[bb] - db;
+        const double half = 0.5 * std::max(f.separation[k], 0.0);  // m
+        Vec ra = f.point[k] - st.body_x[ba] - da;
+        Vec rb = f.point[k] - st.body_x[bb] - db;
         if (radius_a > 0.0) ra = ra + half * n;
         if (radius_b > 0.0) rb = rb - half * n;
         c.anchor_a[m][k] = ra;
@@ -341,17 +351,17 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
           turned_b = rotate(qb, sb_k);
         }
         const double moved = dot(n, da + turned_a - db - turned_b);
-        const double base = out.separation[k] - moved;
+        const double base = f.separation[k] - moved;
         c.base_separation[m][k] = base;
         const double start = base + dot(n, sa_k - sb_k);
         touching = touching || start <= gap;
         c.ref_separation[m][k] = start - dot(n, dd);
-        c.feature[m][k] = out.id[k];
+        c.feature[m][k] = f.id[k];
         double jn = 0.0;  // N·s
         std::remove_cvref_t<decltype(c.tangent_impulse[m][k])> jt{};  // N·s (2D: one direction)
         if (matched) {
           for (int kk = 0; kk < c.prev_points[j]; ++kk) {
-            if (c.prev_feature[j][kk] == out.id[k]) {
+            if (c.prev_feature[j][kk] == f.id[k]) {
               jn = c.prev_normal_impulse[j][kk];
               jt = c.prev_tangent_impulse[j][kk];
             }
@@ -366,8 +376,8 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
         if (matched) carry_unmatched(c, m, j, npts, scale * C::WARM_MATCH_DISTANCE);
       }
     }
-    same = same && in_slot;
-    touch_changed = touch_changed || touched != touching;
+    flags.same = flags.same && in_slot;
+    flags.touch_changed = flags.touch_changed || touched != touching;
     c.support[m] = touching;
     c.carried[m] = 0;
     c.shape_a[m] = a;
@@ -383,24 +393,48 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
     c.scale[m] = scale;
     ++m;
   }
-  c.count.manifolds = m;
-  c.count.graph_unchanged = (same && m == n_prev) ? 1 : 0;
-  c.count.support_changed = touch_changed ? 1 : 0;
+  return flags;
+}
+
+template <int D>
+void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
+                      const Grid<D>& grid, std::int64_t n_pairs, MixRule friction_rule,
+                      MixRule restitution_rule, double dt) {
+  std::vector<PairManifold<D>> found(n_pairs);
+  std::vector<std::int8_t> found_points(n_pairs);
+  std::vector<std::int64_t> slot(n_pairs + 1);
+  const Span all{0, n_pairs};
+  narrow_pairs(model, st, c, grid, dt, all, found.data(), found_points.data());
+  manifold_slots<D>(all, found_points.data(), slot.data());
+  const MergeFlags flags = merge_manifolds(model, st, c, all, friction_rule, restitution_rule,
+                                           found.data(), found_points.data(), slot.data());
+  finish_manifolds(c, slot[n_pairs], flags);
+}
+
+template <int D>
+void finish_manifolds(Contacts<D>& c, std::int64_t manifolds, MergeFlags flags) {
+  c.count.manifolds = manifolds;
+  c.count.graph_unchanged = (flags.same && manifolds == c.count.manifolds_prev) ? 1 : 0;
+  c.count.support_changed = flags.touch_changed ? 1 : 0;
 }
 
 template void update_manifolds(const Model<2>&, const State<2>&, Contacts<2>&, const Grid<2>&,
                                std::int64_t, MixRule, MixRule, double);
 template void update_manifolds(const Model<3>&, const State<3>&, Contacts<3>&, const Grid<3>&,
                                std::int64_t, MixRule, MixRule, double);
-template void update_manifolds(const Model<2>&, const State<2>&, Contacts<2>&, const Grid<2>&,
-                               std::int64_t, MixRule, MixRule, double, const PairManifold<2>*,
-                               const std::int8_t*);
-template void update_manifolds(const Model<3>&, const State<3>&, Contacts<3>&, const Grid<3>&,
-                               std::int64_t, MixRule, MixRule, double, const PairManifold<3>*,
-                               const std::int8_t*);
 template void narrow_pairs(const Model<2>&, const State<2>&, const Contacts<2>&, const Grid<2>&,
                            double, Span, PairManifold<2>*, std::int8_t*);
 template void narrow_pairs(const Model<3>&, const State<3>&, const Contacts<3>&, const Grid<3>&,
                            double, Span, PairManifold<3>*, std::int8_t*);
+template void manifold_slots<2>(Span, const std::int8_t*, std::int64_t*);
+template void manifold_slots<3>(Span, const std::int8_t*, std::int64_t*);
+template MergeFlags merge_manifolds(const Model<2>&, const State<2>&, Contacts<2>&, Span, MixRule,
+                                    MixRule, const PairManifold<2>*, const std::int8_t*,
+                                    const std::int64_t*);
+template MergeFlags merge_manifolds(const Model<3>&, const State<3>&, Contacts<3>&, Span, MixRule,
+                                    MixRule, const PairManifold<3>*, const std::int8_t*,
+                                    const std::int64_t*);
+template void finish_manifolds(Contacts<2>&, std::int64_t, MergeFlags);
+template void finish_manifolds(Contacts<3>&, std::int64_t, MergeFlags);
 
 }  // namespace rbsim
