@@ -60,23 +60,35 @@ TEST(thread_choice_takes_the_faster) {
   // (times in powers of two, so that the sums are exact)
   // block 2, first trial after 0.125 s, then every 1 s
   ThreadChoice c(2, 2, 0.125, 1.0);
+  const double fast = 1.0 / 512, slow = 1.0 / 256;  // s a step
   std::vector<int> seen;
-  run_steps(c, 2, 0.0625, 0.125, seen);  // 0.125 s on one thread: the trial starts after
+  run_steps(c, 32, slow, fast, seen);  // 0.125 s on one thread: the trial starts after
   CHECK(c.chosen() == 1);
   for (int t : seen) CHECK(t == 1);
   seen.clear();
-  run_steps(c, 8, 0.0625, 0.03125, seen);  // the trial: 1 1 2 2 1 1 2 2, two threads faster
+  run_steps(c, 8, slow, fast, seen);  // the trial: 1 1 2 2 1 1 2 2, two threads faster
   const std::vector<int> trial = {1, 1, 2, 2, 1, 1, 2, 2};
   CHECK(seen == trial);
   CHECK(c.chosen() == 2);
   seen.clear();
-  run_steps(c, 32, 0.0625, 0.03125, seen);  // 1 s on two threads, no trial within it
+  run_steps(c, 512, slow, fast, seen);  // 1 s on two threads, no trial within it
   for (int t : seen) CHECK(t == 2);
   seen.clear();
-  run_steps(c, 8, 0.03125, 0.0625, seen);  // the next trial: now one thread is faster
+  run_steps(c, 8, fast, slow, seen);  // the next trial: now one thread is faster
   CHECK(seen == trial);
   CHECK(c.chosen() == 1);
   CHECK(c.trials() == 2);
+  // steps of 0.25 s: a trial takes 2 s (block 2), and the next waits 15 times that, 30 s
+  ThreadChoice long_steps(2, 2, 0.0, 1.0);
+  seen.clear();
+  run_steps(long_steps, 8, 0.25, 0.25, seen);
+  CHECK(long_steps.trials() == 1);
+  seen.clear();
+  run_steps(long_steps, 120, 0.25, 0.25, seen);  // 30 s on one thread
+  CHECK(long_steps.trials() == 1);
+  for (int t : seen) CHECK(t == 1);
+  run_steps(long_steps, 8, 0.25, 0.25, seen);  // the next trial
+  CHECK(long_steps.trials() == 2);
   // a trial of equal times keeps one thread (no gain for the hand-offs)
   ThreadChoice same(3, 1, 0.0, 1.0);
   seen.clear();

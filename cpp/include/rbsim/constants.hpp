@@ -294,7 +294,9 @@ inline constexpr int POOL_SPIN_MICROSECONDS = 1000;
 // varies with the host: on the machines rbsim is measured on, two threads ran a pile 1.3x
 // faster than one in some minutes and 2x slower in others). Steps, typically 4: fewer
 // time single steps, which vary more; more spend longer on the slower choice. Seconds,
-// typically 0.05 and 1: a trial costs at most half its steps' time, a few ms a second.
+// typically 0.05 and 1: a trial costs at most half its steps' time, a few ms a second
+// (where a trial takes longer than a fifteenth of that, steps of 60 ms or more, the
+// next waits fifteen times the trial: ThreadChoice).
 inline constexpr int THREAD_TRIAL_BLOCK = 4;
 inline constexpr double THREAD_TRIAL_FIRST_SECONDS = 0.05;
 inline constexpr double THREAD_TRIAL_EVERY_SECONDS = 1.0;

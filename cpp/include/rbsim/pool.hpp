@@ -8,11 +8,12 @@
 // core's cache) that had them, and which thread runs which task still varies with the
 // schedule: a stage that uses the pool must make each task write only its own outputs (a
 // range of bodies, of manifolds, a region of the solve), so that its result does not
-// depend on the number of threads or on the schedule. Between calls a worker spins for POOL_SPIN_MICROSECONDS
-// (the next stage usually follows within microseconds) and then sleeps on a futex
-// (std::atomic::wait), so an idle pool costs no CPU.
+// depend on the number of threads or on the schedule. Between calls a worker spins for
+// POOL_SPIN_MICROSECONDS (the next stage usually follows within microseconds) and then
+// sleeps on a futex (std::atomic::wait), so an idle pool costs no CPU.
 #pragma once
 
+#include <algorithm>
 #include <atomic>
 #include <cstdint>
 #include <thread>
@@ -80,7 +81,8 @@ int hardware_threads();
 // number of threads, so the choice changes only the time. Most of the time the step
 // runs on the last trial's faster choice; a trial is 4 blocks of `block` steps, one
 // thread and `most` in turn, and begins after `first` s of stepping and then every
-// `every` s (constants.hpp, THREAD_TRIAL_*).
+// `every` s (constants.hpp, THREAD_TRIAL_*), or every 15 times the last trial's own time
+// where that is longer (steps of a second or more: trials would be most of the run).
 class ThreadChoice {
  public:
   ThreadChoice(int most, int block, double first, double every)
@@ -106,7 +108,7 @@ class ThreadChoice {
     chosen_ = spent_[1] < spent_[0] ? most_ : 1;
     ++trials_;
     trial_ = -1;
-    since_ = 0.0;
+    since_ = std::min(0.0, every_ - 15.0 * (spent_[0] + spent_[1]));
   }
   // The choice of the last trial (1 before the first).
   int chosen() const { return chosen_; }
@@ -116,7 +118,7 @@ class ThreadChoice {
  private:
   int most_, block_;
   double every_;
-  double since_;      // s of stepping since the last trial ended
+  double since_;      // s of stepping since the last trial ended, less any wait beyond every
   int trial_ = -1;    // the step of the trial under way (-1: none)
   double spent_[2]{};  // s: the trial's steps on one thread, on `most`
   int chosen_ = 1;

@@ -114,7 +114,10 @@ struct World {
   bool step_may_be_long() const;
   // The threads the steps run on: config.threads, or with choose_threads the last trial's
   // choice (1 before the first).
-  int threads_chosen() const { return thread_choice ? thread_choice->chosen() : config.threads; }
+  int threads_chosen() const {
+    if (!config.choose_threads || config.threads == 1) return config.threads;
+    return thread_choice ? thread_choice->chosen() : 1;
+  }
   // Contact points that pushed in the last step.
   std::int64_t contact_count() const { return model.has_shapes ? contacts.count.points_touching : 0; }
 
