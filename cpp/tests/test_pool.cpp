@@ -89,6 +89,15 @@ TEST(thread_choice_takes_the_faster) {
   for (int t : seen) CHECK(t == 1);
   run_steps(long_steps, 8, 0.25, 0.25, seen);  // the next trial
   CHECK(long_steps.trials() == 2);
+  // one step the host held up does not decide a trial: two threads' steps take half of
+  // one thread's but one of them 40 times longer (their sum the larger), and two win
+  ThreadChoice held(2, 2, 0.0, 1.0);
+  for (int k = 0; k < 8; ++k) {
+    const int t = held.next();
+    held.took(t == 1 ? 1.0 / 64 : (k == 2 ? 40.0 / 128 : 1.0 / 128));
+  }
+  CHECK(held.trials() == 1);
+  CHECK(held.chosen() == 2);
   // a trial of equal times keeps one thread (no gain for the hand-offs)
   ThreadChoice same(3, 1, 0.0, 1.0);
   seen.clear();

@@ -82,17 +82,20 @@ int hardware_threads();
 // runs on the last trial's faster choice; a trial is 4 blocks of `block` steps, one
 // thread and `most` in turn, and begins after `first` s of stepping and then every
 // `every` s (constants.hpp, THREAD_TRIAL_*), or every 15 times the last trial's own time
-// where that is longer (steps of a second or more: trials would be most of the run).
+// where that is longer (steps of a second or more: trials would be most of the run). The
+// faster is the one whose steps' median time is less.
 class ThreadChoice {
  public:
   ThreadChoice(int most, int block, double first, double every)
-      : most_(most), block_(block), every_(every), since_(every - first) {}
+      : most_(most), block_(block), every_(every), since_(every - first) {
+    for (auto& t : times_) t.reserve(2 * static_cast<std::size_t>(block));
+  }
 
   // Threads for the next step: 1 or `most`.
   int next() {
     if (trial_ < 0 && since_ >= every_) {  // a trial begins
       trial_ = 0;
-      spent_[0] = spent_[1] = 0.0;
+      for (auto& t : times_) t.clear();
     }
     if (trial_ < 0) return chosen_;
     return (trial_ / block_) % 2 == 0 ? 1 : most_;
@@ -103,12 +106,17 @@ class ThreadChoice {
       since_ += seconds;
       return;
     }
-    spent_[(trial_ / block_) % 2] += seconds;
+    times_[(trial_ / block_) % 2].push_back(seconds);
     if (++trial_ < 4 * block_) return;
-    chosen_ = spent_[1] < spent_[0] ? most_ : 1;
+    // the medians: a step that the host held up (a page fault, another process on the
+    // core) does not decide the trial
+    chosen_ = median(times_[1]) < median(times_[0]) ? most_ : 1;
     ++trials_;
     trial_ = -1;
-    since_ = std::min(0.0, every_ - 15.0 * (spent_[0] + spent_[1]));
+    double spent = 0.0;  // s: the trial's time
+    for (const auto& t : times_)
+      for (const double x : t) spent += x;
+    since_ = std::min(0.0, every_ - 15.0 * spent);
   }
   // The choice of the last trial (1 before the first).
   int chosen() const { return chosen_; }
@@ -116,11 +124,16 @@ class ThreadChoice {
   int trials() const { return trials_; }
 
  private:
+  static double median(std::vector<double>& t) {
+    const auto mid = t.begin() + static_cast<std::ptrdiff_t>(t.size() / 2);
+    std::nth_element(t.begin(), mid, t.end());
+    return *mid;
+  }
   int most_, block_;
   double every_;
-  double since_;      // s of stepping since the last trial ended, less any wait beyond every
-  int trial_ = -1;    // the step of the trial under way (-1: none)
-  double spent_[2]{};  // s: the trial's steps on one thread, on `most`
+  double since_;  // s of stepping since the last trial ended, less any wait beyond every
+  int trial_ = -1;  // the step of the trial under way (-1: none)
+  std::vector<double> times_[2];  // s: the trial's steps on one thread, on `most`
   int chosen_ = 1;
   int trials_ = 0;
 };
