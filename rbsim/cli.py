@@ -106,8 +106,11 @@ def _fail(code: int, message: str, progress: _Progress | None = None) -> NoRetur
 
 
 def _reason(err: OSError) -> str:
-    """The system's short reason for an OSError ("Permission denied"), else its text."""
-    return os.strerror(err.errno) if err.errno else str(err)
+    """The system's short reason for an OSError ("Permission denied"), else its text
+    (run.system_reason, imported only on this error path: the front starts without it)."""
+    from .run import system_reason
+
+    return system_reason(err)
 
 
 class _BatchProgress(_Progress):
