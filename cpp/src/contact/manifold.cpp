@@ -157,6 +157,13 @@ void narrow_pairs(const Model<D>& model, const State<D>& st, const Contacts<D>& 
   const std::int64_t n_prev = c.count.manifolds_prev;
   std::conditional_t<D == 2, Manifold2, Manifold3> out;
   std::vector<Vec> toi_verts, toi_norms;  // the time of impact's room, made when first asked
+  if (pairs.first >= pairs.last) return;
+  // a pointer into last step's keys, from the first pair's place among them: the pairs
+  // are sorted by key too, so it only moves on (a binary search per still pair was half
+  // of this stage in a settled pile)
+  const std::int64_t first_key =
+      static_cast<std::int64_t>(c.pairs[pairs.first][0]) * n_shapes + c.pairs[pairs.first][1];
+  std::int64_t j = std::lower_bound(prev, prev + n_prev, first_key) - prev;
   for (std::int64_t p = pairs.first; p < pairs.last; ++p) {
     found_points[p] = FOUND_APART;
     const int a = c.pairs[p][0], b = c.pairs[p][1];
@@ -165,7 +172,8 @@ void narrow_pairs(const Model<D>& model, const State<D>& st, const Contacts<D>& 
     if (c.body_still[ba] && c.body_still[bb]) {
       // last step's manifold of a still pair is carried: no narrowphase
       const std::int64_t key = static_cast<std::int64_t>(a) * n_shapes + b;
-      if (std::binary_search(prev, prev + n_prev, key)) {
+      while (j < n_prev && prev[j] < key) ++j;
+      if (j < n_prev && prev[j] == key) {
         found_points[p] = FOUND_CARRIED;
         continue;
       }
