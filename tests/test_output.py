@@ -88,7 +88,9 @@ def start_run(*args: str | Path) -> subprocess.Popen:
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory) -> tuple[Path, Path, object]:
     folder = tmp_path_factory.mktemp("reference")
-    scene = big_scene(folder, 700)
+    # long enough that a run goes on well past its first checkpoint (a second in): at 700
+    # steps a run on two threads ended 0.2 s after it, and the kill tests skipped
+    scene = big_scene(folder, 1500)
     out = folder / "ref.h5"
     t0 = time.monotonic()
     proc = start_run(scene, "-o", out)
@@ -504,7 +506,9 @@ def test_run_from_python_takes_one_override_as_a_string(tmp_path) -> None:
 def test_a_run_stopped_between_frames_resumes_bit_identically(tmp_path) -> None:
     # output every 7th step: the stop lands between frames, and the checkpoint holds the
     # state of the last whole step, past the last frame
-    scene = big_scene(tmp_path, 900)  # the first checkpoint (a second in) well before the end
+    # the first checkpoint (a second in) well before the end (at 900 steps, on two threads,
+    # SIGTERM came as the run ended, and killed it outright)
+    scene = big_scene(tmp_path, 1800)
     ref = tmp_path / "ref7.h5"
     code, _o, err = rbsim("run", scene, "-o", ref, "-q", "--set", "output.every=7")
     assert code == 0, err
