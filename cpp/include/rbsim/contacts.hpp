@@ -37,9 +37,9 @@ struct ContactCounts {
   std::int64_t support_changed = 0; // 1: a pair touches where it did not last step, or no longer
 };
 
-// One pair's narrowphase result, found ahead of update_manifolds by the threaded step
-// (manifold.cpp, narrow_pairs): the normal, up to Dim<D>::max_points points midway
-// between the surfaces (m), their signed separations (m) and feature ids.
+// One pair's narrowphase result (manifold.cpp, narrow_pairs), at its time of impact where
+// it meets within the step: the normal, up to Dim<D>::max_points points midway between
+// the surfaces (m), their signed separations (m) and feature ids, and that time.
 template <int D>
 struct PairManifold {
   static constexpr int P = Dim<D>::max_points;

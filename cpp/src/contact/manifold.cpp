@@ -9,8 +9,9 @@
 // a prefix count has given each pair its manifold's slot, each pair's manifold into its
 // slot (merge_manifolds); every part writes only its own pairs' rows. A pair of bodies
 // that have not moved from their reference poses carries last step's manifold forward
-// instead (only its separation changes, by the bodies' motion since those poses). A speculative pair
-// that meets within the step is moved to its time of impact first (collide/toi.cpp).
+// instead (only its separation changes, by the bodies' motion since those poses). A
+// speculative pair that meets within the step is moved to its time of impact first
+// (collide/toi.cpp).
 //
 // In 3D the narrowphase is collide/narrow3d.cpp's, on each shape's world geometry from
 // the transform stage (ShapeRef3), with up to four points per manifold; a fast pair's
@@ -144,6 +145,16 @@ void carry_unmatched(Contacts<3>& c, std::int64_t m, std::int64_t j, int npts, d
   for (int k = 0; k < npts; ++k) c.start_impulse[m][k] = c.normal_impulse[m][k];
 }
 
+// Where pair p's key falls among last step's manifolds' (the first not below it): a
+// part's merge pointer starts there.
+template <int D>
+std::int64_t first_match(const Model<D>& model, const Contacts<D>& c, std::int64_t p) {
+  const std::int64_t key =
+      static_cast<std::int64_t>(c.pairs[p][0]) * model.shape_count() + c.pairs[p][1];
+  const std::int64_t* prev = c.prev_key.data();
+  return std::lower_bound(prev, prev + c.count.manifolds_prev, key) - prev;
+}
+
 }  // namespace
 
 template <int D>
@@ -158,12 +169,9 @@ void narrow_pairs(const Model<D>& model, const State<D>& st, const Contacts<D>& 
   std::conditional_t<D == 2, Manifold2, Manifold3> out;
   std::vector<Vec> toi_verts, toi_norms;  // the time of impact's room, made when first asked
   if (pairs.first >= pairs.last) return;
-  // a pointer into last step's keys, from the first pair's place among them: the pairs
-  // are sorted by key too, so it only moves on (a binary search per still pair was half
-  // of this stage in a settled pile)
-  const std::int64_t first_key =
-      static_cast<std::int64_t>(c.pairs[pairs.first][0]) * n_shapes + c.pairs[pairs.first][1];
-  std::int64_t j = std::lower_bound(prev, prev + n_prev, first_key) - prev;
+  // a pointer into last step's keys: the pairs are sorted by key too, so it only moves on
+  // (a binary search per still pair was half of this stage in a settled pile)
+  std::int64_t j = first_match(model, c, pairs.first);
   for (std::int64_t p = pairs.first; p < pairs.last; ++p) {
     found_points[p] = FOUND_APART;
     const int a = c.pairs[p][0], b = c.pairs[p][1];
@@ -241,12 +249,8 @@ MergeFlags merge_manifolds(const Model<D>& model, const State<D>& st, Contacts<D
   const std::int64_t n_prev = c.count.manifolds_prev;
   MergeFlags flags;
   if (pairs.first >= pairs.last) return flags;
-  // the merge pointer into last step's manifolds (both lists sorted by key), from the
-  // first pair's place among them
-  const std::int64_t first_key =
-      static_cast<std::int64_t>(c.pairs[pairs.first][0]) * n_shapes + c.pairs[pairs.first][1];
-  std::int64_t j = std::lower_bound(c.prev_key.data(), c.prev_key.data() + n_prev, first_key) -
-                   c.prev_key.data();
+  // the merge pointer into last step's manifolds (both lists sorted by key)
+  std::int64_t j = first_match(model, c, pairs.first);
   std::int64_t m = slot[pairs.first];
   for (std::int64_t p = pairs.first; p < pairs.last; ++p) {
     if (found_points[p] == FOUND_APART) continue;

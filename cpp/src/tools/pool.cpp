@@ -45,7 +45,8 @@ void Pool::take_tasks(std::uint32_t g, int self) {
       if ((v >> 32) != g) return;  // a later call has begun: this one's tasks are all taken
       if (next >= end) break;
       const std::uint64_t taken = own ? v + (std::uint64_t{1} << 16) : v - 1;
-      if (!word.compare_exchange_weak(v, taken, std::memory_order_acq_rel, std::memory_order_acquire))
+      if (!word.compare_exchange_weak(v, taken, std::memory_order_acq_rel,
+                                      std::memory_order_acquire))
         continue;  // (v reloaded)
       // the task is this call's and not done: the call's fields stay until it is
       call_(ctx_, static_cast<std::int64_t>(own ? next : end - 1));
@@ -66,7 +67,8 @@ void Pool::dispatch(std::int64_t n, Call call, void* ctx) {
   for (std::int64_t s = 0; s < n_shares; ++s) {
     const auto first = static_cast<std::uint64_t>(n * s / n_shares);
     const auto end = static_cast<std::uint64_t>(n * (s + 1) / n_shares);
-    shares_[s].word.store((std::uint64_t{g} << 32) | (first << 16) | end, std::memory_order_release);
+    shares_[s].word.store((std::uint64_t{g} << 32) | (first << 16) | end,
+                          std::memory_order_release);
   }
   generation_.store(g, std::memory_order_release);
   generation_.notify_all();
