@@ -422,7 +422,8 @@ std::unique_ptr<World<D>> make_world(nb::dict model, nb::dict state, nb::dict co
   if (cf.threads < 1 || cf.threads > THREADS_MAX)
     throw std::invalid_argument("threads must be between 1 and " + std::to_string(THREADS_MAX));
   // and whether each step picks between one thread and those (solver.threads not set)
-  cf.choose_threads = config.contains("choose_threads") && load_value<bool>(config, "choose_threads");
+  cf.choose_threads =
+      config.contains("choose_threads") && load_value<bool>(config, "choose_threads");
   set_contact_softness(cf);
   w->allocate();
   return w;
