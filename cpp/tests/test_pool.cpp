@@ -58,7 +58,7 @@ void run_steps(ThreadChoice& c, int n, double one, double most, std::vector<int>
 
 TEST(thread_choice_takes_the_faster) {
   // (times in powers of two, so that the sums are exact)
-  // block 2, first trial after 0.125 s, then every 1 s
+  // block 2; the first trial after 0.125 s, the next 0.5 s after it, then 1 s (the cap)
   ThreadChoice c(2, 2, 0.125, 1.0);
   const double fast = 1.0 / 512, slow = 1.0 / 256;  // s a step
   std::vector<int> seen;
@@ -71,13 +71,21 @@ TEST(thread_choice_takes_the_faster) {
   CHECK(seen == trial);
   CHECK(c.chosen() == 2);
   seen.clear();
-  run_steps(c, 512, slow, fast, seen);  // 1 s on two threads, no trial within it
+  run_steps(c, 256, slow, fast, seen);  // 0.5 s on two threads, no trial within it
   for (int t : seen) CHECK(t == 2);
   seen.clear();
   run_steps(c, 8, fast, slow, seen);  // the next trial: now one thread is faster
   CHECK(seen == trial);
   CHECK(c.chosen() == 1);
   CHECK(c.trials() == 2);
+  seen.clear();
+  run_steps(c, 512, fast, slow, seen);  // 1 s (twice 0.5, the cap) on one thread
+  for (int t : seen) CHECK(t == 1);
+  CHECK(c.trials() == 2);
+  seen.clear();
+  run_steps(c, 8, fast, slow, seen);
+  CHECK(seen == trial);
+  CHECK(c.trials() == 3);
   // steps of 0.25 s: a trial takes 2 s (block 2), and the next waits 15 times that, 30 s
   ThreadChoice long_steps(2, 2, 0.0, 1.0);
   seen.clear();

@@ -289,14 +289,16 @@ inline constexpr int POOL_SPIN_MICROSECONDS = 1000;
 // step runs on one thread or on all of config.threads, whichever a trial timed faster
 // (rbsim/pool.hpp, ThreadChoice). A trial is 4 blocks of THREAD_TRIAL_BLOCK steps, one
 // thread and all in turn (a scene that grows or settles drifts both ways alike); the
-// first after THREAD_TRIAL_FIRST_SECONDS of stepping (past the start, when few bodies
-// touch), then one every THREAD_TRIAL_EVERY_SECONDS (the cost of the two threads' hand-offs
-// varies with the host: on the machines rbsim is measured on, two threads ran a pile 1.3x
-// faster than one in some minutes and 2x slower in others). Steps, typically 4: fewer
-// time single steps, which vary more; more spend longer on the slower choice. Seconds,
-// typically 0.05 and 1: a trial costs at most half its steps' time, a few ms a second
-// (where a trial takes longer than a fifteenth of that, steps of 60 ms or more, the
-// next waits fifteen times the trial: ThreadChoice).
+// first after THREAD_TRIAL_FIRST_SECONDS of stepping, the next 4 times that after it,
+// each wait twice the last up to THREAD_TRIAL_EVERY_SECONDS (a scene changes most as it
+// starts: its bodies fall, then pile up; 1000 spheres poured into a box ran their first
+// second on two threads, chosen as they fell, where one was 15% faster once they piled).
+// The cost of the two threads' hand-offs varies with the host too: on the machines rbsim
+// is measured on, two threads ran a pile 1.3x faster than one in some minutes and 2x
+// slower in others. Steps, typically 4: fewer time single steps, which vary more; more
+// spend longer on the slower choice. Seconds, typically 0.05 and 1: a trial costs at most
+// half its steps' time, a few ms a second (where a trial takes longer than a fifteenth of
+// the wait, steps of 60 ms or more, the next waits fifteen times the trial).
 inline constexpr int THREAD_TRIAL_BLOCK = 4;
 inline constexpr double THREAD_TRIAL_FIRST_SECONDS = 0.05;
 inline constexpr double THREAD_TRIAL_EVERY_SECONDS = 1.0;

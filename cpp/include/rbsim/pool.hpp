@@ -79,21 +79,23 @@ int hardware_threads();
 // Which of one thread and `most` threads the next step runs on, from the wall times of
 // the steps taken (Config::choose_threads). A step's result is the same bits on any
 // number of threads, so the choice changes only the time. Most of the time the step
-// runs on the last trial's faster choice; a trial is 4 blocks of `block` steps, one
-// thread and `most` in turn, and begins after `first` s of stepping and then every
-// `every` s (constants.hpp, THREAD_TRIAL_*), or every 15 times the last trial's own time
-// where that is longer (steps of a second or more: trials would be most of the run). The
-// faster is the one whose steps' median time is less.
+// runs on the last trial's faster choice: the one whose steps' median time is less (a
+// step that the host held up does not decide it). A trial is 4 blocks of `block` steps,
+// one thread and `most` in turn. The first begins after `first` s of stepping, the next
+// 4 `first` s after it ends, and each wait is twice the last, up to `every` s (a scene
+// changes most as it starts: bodies fall, then pile up), or 15 times the last trial's
+// own time where that is longer (steps of a second or more: trials would be most of the
+// run). Constants: THREAD_TRIAL_* (constants.hpp).
 class ThreadChoice {
  public:
   ThreadChoice(int most, int block, double first, double every)
-      : most_(most), block_(block), every_(every), since_(every - first) {
+      : most_(most), block_(block), first_(first), every_(every), wait_(first) {
     for (auto& t : times_) t.reserve(2 * static_cast<std::size_t>(block));
   }
 
   // Threads for the next step: 1 or `most`.
   int next() {
-    if (trial_ < 0 && since_ >= every_) {  // a trial begins
+    if (trial_ < 0 && since_ >= wait_) {  // a trial begins
       trial_ = 0;
       for (auto& t : times_) t.clear();
     }
@@ -108,15 +110,15 @@ class ThreadChoice {
     }
     times_[(trial_ / block_) % 2].push_back(seconds);
     if (++trial_ < 4 * block_) return;
-    // the medians: a step that the host held up (a page fault, another process on the
-    // core) does not decide the trial
     chosen_ = median(times_[1]) < median(times_[0]) ? most_ : 1;
     ++trials_;
     trial_ = -1;
     double spent = 0.0;  // s: the trial's time
     for (const auto& t : times_)
       for (const double x : t) spent += x;
-    since_ = std::min(0.0, every_ - 15.0 * spent);
+    gap_ = std::min(every_, trials_ == 1 ? 4.0 * first_ : 2.0 * gap_);
+    wait_ = std::max(gap_, 15.0 * spent);
+    since_ = 0.0;
   }
   // The choice of the last trial (1 before the first).
   int chosen() const { return chosen_; }
@@ -130,9 +132,11 @@ class ThreadChoice {
     return *mid;
   }
   int most_, block_;
-  double every_;
-  double since_;  // s of stepping since the last trial ended, less any wait beyond every
-  int trial_ = -1;  // the step of the trial under way (-1: none)
+  double first_, every_;
+  double gap_ = 0.0;    // s: the last wait between trials (before 15 times a trial's time)
+  double wait_;         // s of stepping from the last trial's end to the next trial
+  double since_ = 0.0;  // s of stepping since the last trial ended
+  int trial_ = -1;      // the step of the trial under way (-1: none)
   std::vector<double> times_[2];  // s: the trial's steps on one thread, on `most`
   int chosen_ = 1;
   int trials_ = 0;
