@@ -55,9 +55,7 @@ void World<D>::allocate() {
   }
   grid.allocate(size, dynamic, capacity);
   contacts.allocate(model.body_count(), n_shapes, model.vertex_count(), capacity);
-  found.assign(capacity, {});  // (with the store: a pair's narrowphase result each)
-  found_points.assign(capacity, 0);
-  found_slot.assign(capacity + 1, 0);
+  size_pair_buffers();
   if constexpr (D == 3) contacts.face_world.assign(model.hull_face_count, Vec3{});
   // the contact tolerances' scale of every shape and body (constants.hpp, SCALE_LENGTH)
   contacts.unit_scale = true;
@@ -71,12 +69,18 @@ void World<D>::allocate() {
 }
 
 template <int D>
+void World<D>::size_pair_buffers() {
+  const std::int64_t capacity = contacts.capacity();
+  found.resize(capacity);  // (a pair's narrowphase result each)
+  found_points.resize(capacity);
+  found_slot.resize(capacity + 1);
+}
+
+template <int D>
 bool World<D>::grow(std::int64_t capacity, bool stoppable) {
   if (!contacts.grow(capacity, stoppable && interrupt ? &interrupt : nullptr)) return false;
   grid.grow(capacity);
-  found.resize(contacts.capacity());
-  found_points.resize(contacts.capacity());
-  found_slot.resize(contacts.capacity() + 1);
+  size_pair_buffers();
   return true;
 }
 
@@ -246,17 +250,14 @@ bool World<D>::collide() {
   timed(S::UpdateManifolds, [&] {
     // the narrowphase pair by pair on the threads, each manifold's slot (a prefix count in
     // pair order), then the manifolds into their slots on the threads (on one thread the
-    // same calls over all the pairs: every count takes the same path). (found: sized with
-    // the store, allocate and grow; and here after a checkpoint's store was loaded)
-    if (static_cast<std::int64_t>(found_slot.size()) < n_pairs + 1) {
-      found.resize(c.capacity());
-      found_points.resize(c.capacity());
-      found_slot.resize(c.capacity() + 1);
-    }
+    // same calls over all the pairs: every count takes the same path). (The buffers are
+    // sized with the store, at allocate and grow; and here after a checkpoint's store was
+    // loaded)
+    if (static_cast<std::int64_t>(found_slot.size()) < n_pairs + 1) size_pair_buffers();
     parallel(n_pairs, [&](Span part) {
       narrow_pairs(model, state, c, grid, cfg.dt, part, found.data(), found_points.data());
     });
-    manifold_slots<D>(Span{0, n_pairs}, found_points.data(), found_slot.data());
+    manifold_slots(Span{0, n_pairs}, found_points.data(), found_slot.data());
     std::atomic<bool> same{true}, touch_changed{false};
     parallel(n_pairs, [&](Span part) {
       const MergeFlags f = merge_manifolds(model, state, c, part, cfg.friction_rule,

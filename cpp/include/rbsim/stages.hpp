@@ -122,7 +122,6 @@ void narrow_pairs(const Model<D>& model, const State<D>& state, const Contacts<D
                   std::int8_t* found_points);
 // Each pair's manifold slot: slot[p] the manifolds of the pairs before p in `pairs`,
 // slot[pairs.last] all of them (a prefix count; on one thread).
-template <int D>
 void manifold_slots(Span pairs, const std::int8_t* found_points, std::int64_t* slot);
 // What merge_manifolds tells of its pairs: whether every manifold is last step's pair in
 // the same slot, and whether one touches where it did not, or no longer does.

@@ -131,6 +131,8 @@ struct World {
   // interrupt() asked, when the step under way may be stopped; true sets torn
   bool stop_here();
   bool collide();
+  // found, found_points and found_slot for the contact store's capacity
+  void size_pair_buffers();
   bool step_free();
   template <class F>
   void timed(StageId stage, F&& run);

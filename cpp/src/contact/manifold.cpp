@@ -228,7 +228,6 @@ void narrow_pairs(const Model<D>& model, const State<D>& st, const Contacts<D>& 
   }
 }
 
-template <int D>
 void manifold_slots(Span pairs, const std::int8_t* found_points, std::int64_t* slot) {
   std::int64_t m = 0;
   for (std::int64_t p = pairs.first; p < pairs.last; ++p) {
@@ -417,7 +416,7 @@ void update_manifolds(const Model<D>& model, const State<D>& st, Contacts<D>& c,
   std::vector<std::int64_t> slot(n_pairs + 1);
   const Span all{0, n_pairs};
   narrow_pairs(model, st, c, grid, dt, all, found.data(), found_points.data());
-  manifold_slots<D>(all, found_points.data(), slot.data());
+  manifold_slots(all, found_points.data(), slot.data());
   const MergeFlags flags = merge_manifolds(model, st, c, all, friction_rule, restitution_rule,
                                            found.data(), found_points.data(), slot.data());
   finish_manifolds(c, slot[n_pairs], flags);
@@ -438,8 +437,6 @@ template void narrow_pairs(const Model<2>&, const State<2>&, const Contacts<2>&,
                            double, Span, PairManifold<2>*, std::int8_t*);
 template void narrow_pairs(const Model<3>&, const State<3>&, const Contacts<3>&, const Grid<3>&,
                            double, Span, PairManifold<3>*, std::int8_t*);
-template void manifold_slots<2>(Span, const std::int8_t*, std::int64_t*);
-template void manifold_slots<3>(Span, const std::int8_t*, std::int64_t*);
 template MergeFlags merge_manifolds(const Model<2>&, const State<2>&, Contacts<2>&, Span, MixRule,
                                     MixRule, const PairManifold<2>*, const std::int8_t*,
                                     const std::int64_t*);
