@@ -372,8 +372,10 @@ SOLVER = Key(
         ),
         "threads": Key(
             "integer",
-            "Threads the step runs on; default: the machine's cores (1 in `rbsim batch` "
-            "and `rbsim sweep` workers). The result is the same, bit for bit, for any count.",
+            "Threads the step runs on. Without it the step may use the machine's cores and "
+            "runs on one thread or on all, whichever short trials as the run goes time faster "
+            "(1 in `rbsim batch` and `rbsim sweep` workers). The result is the same, bit for "
+            "bit, for any count.",
             ge=1,
             le=THREADS_MAX,
         ),
