@@ -56,7 +56,11 @@ void World<D>::allocate() {
   grid.allocate(size, dynamic, capacity);
   contacts.allocate(model.body_count(), n_shapes, model.vertex_count(), capacity);
   size_pair_buffers();
-  if constexpr (D == 3) contacts.face_world.assign(model.hull_face_count, Vec3{});
+  if constexpr (D == 3) {
+    contacts.face_world.assign(model.hull_face_count, Vec3{});
+    contacts.face_offset.assign(model.hull_face_count, 0.0);
+    contacts.shape_spread.assign(n_shapes, HullSpread{});
+  }
   // the contact tolerances' scale of every shape and body (constants.hpp, SCALE_LENGTH)
   contacts.unit_scale = true;
   for (int s = 0; s < static_cast<int>(size.size()); ++s) {

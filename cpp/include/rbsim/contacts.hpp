@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "constants.hpp"
+#include "hull3d.hpp"
 #include "math.hpp"
 #include "state.hpp"
 #include "wide.hpp"
@@ -234,6 +235,10 @@ struct Contacts {
   std::vector<Vec> vert_world, norm_world;  // (V,) shape geometry in the world this step
   std::vector<Vec> face_world;  // 3D: (Model::hull_face_count,) convex hulls' face normals
                                 // in the world this step (sized by World::allocate)
+  // 3D, made with face_world (2D: empty): each hull face's plane offset n · o (m, o its
+  // loop's first vertex), and each hull shape's HullSpread (S,; the others' unused)
+  std::vector<double> face_offset;
+  std::vector<HullSpread> shape_spread;
   // how far each shape's surface can move this step (collide/transform.cpp), m: its
   // box's reach, |dt v - frame| + dt² |a| + shape_turn, about the move of the frame of
   // the moving bodies (frame_move; a static shape's |frame|); and what its turning adds,
@@ -400,6 +405,8 @@ bool Contacts<D>::grow(std::int64_t new_capacity, const std::function<bool()>* s
     prev_support[i] = old.prev_support[i];
   }
   face_world = std::move(old.face_world);
+  face_offset = std::move(old.face_offset);
+  shape_spread = std::move(old.shape_spread);
   body_ref = std::move(old.body_ref);
   body_still = std::move(old.body_still);
   shape_size = std::move(old.shape_size);

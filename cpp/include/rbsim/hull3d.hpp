@@ -9,7 +9,9 @@
 // hull (0 .. count-1).
 #pragma once
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -46,6 +48,30 @@ struct HullView {
   // their area-weighted mean)
   double flatness = 0.0;
 };
+
+// What the narrowphase's bounds read of a hull's world vertices (made once per step by
+// the transform stage, for every pair the hull is in; hull_spread): their mean (m, a
+// point inside the hull) and the largest |v|_1 of them (m, for the round-off allowed
+// a bound against the hull's face planes).
+struct HullSpread {
+  Vec3 mean{};
+  double extent = 0.0;
+};
+// The HullSpread of the points v[0 .. count) (count >= 1), summed in order.
+inline HullSpread hull_spread(const Vec3* v, int count) {
+  Vec3 sum{};
+  double extent = 0.0;
+  for (int j = 0; j < count; ++j) {
+    sum += v[j];
+    extent = std::max(extent, std::fabs(v[j].x) + std::fabs(v[j].y) + std::fabs(v[j].z));
+  }
+  return {(1.0 / count) * sum, extent};
+}
+// Each face's plane offset n_f · o_f (m) into offset[0 .. F): n_f its world normal (fn), o_f
+// the first vertex of its loop (v, world).
+inline void hull_face_offsets(const HullView& h, const Vec3* v, const Vec3* fn, double* offset) {
+  for (int f = 0; f < h.face_count; ++f) offset[f] = dot(fn[f], v[h.face_first[f]]);
+}
 
 // A hull's topology and body-frame geometry, owning its arrays.
 struct Hull3 {

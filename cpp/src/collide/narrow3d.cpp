@@ -316,11 +316,14 @@ struct BoxCorners {
 };
 inline Vec3 box_corner(const ShapeRef3& box, int k) { return BoxCorners(box)[k]; }
 
-// A polytope as the hull code reads it: world vertices, world face normals, topology.
+// A polytope as the hull code reads it: world vertices, world face normals, topology;
+// and where made already this step, its faces' plane offsets (m) and its HullSpread.
 struct Polytope {
   const Vec3* v;
   const Vec3* fn;
   const HullView* h;
+  const double* d = nullptr;
+  const HullSpread* spread = nullptr;
 };
 
 // The hull's face f: its loop's first vertex.
@@ -534,17 +537,23 @@ struct FacePlanes {
   int count = 0;        // faces with an offset: min(F, PLANE_TABLE)
   double extent = 0.0;  // m: the largest |v|_1 of the polytope's vertices
   double flatness = 0.0;
-  double d[PLANE_TABLE];
+  const double* d = nullptr;  // the offsets: the polytope's own (Polytope::d), else `made`
+  double made[PLANE_TABLE];
   double allowance(Vec3 x) const {
     return 1e-9 * (1.0 + std::fabs(x.x) + std::fabs(x.y) + std::fabs(x.z) + extent) + flatness;
   }
 };
-// (extent: VertexSpread's, m)
+// (extent: HullSpread's, m)
 inline void face_planes(const Polytope& P, double extent, FacePlanes& out) {
   out.count = std::min(P.h->face_count, PLANE_TABLE);
   out.flatness = P.h->flatness;
   out.extent = extent;
-  for (int f = 0; f < out.count; ++f) out.d[f] = dot(P.fn[f], face_origin(P, f));
+  if (P.d) {
+    out.d = P.d;
+    return;
+  }
+  for (int f = 0; f < out.count; ++f) out.made[f] = dot(P.fn[f], face_origin(P, f));
+  out.d = out.made;
 }
 
 // Which of P's faces first .. first + LANES may rise to `level` (m) over the point x: bit
@@ -568,7 +577,8 @@ inline unsigned faces_reaching(const Polytope& P, const FacePlanes& planes, int 
 }
 
 // The face of P that separates Q most (its deepest vertex below the face): separation
-// (m) and face. False as soon as one face separates them by more than `speculative`.
+// (m), face and that vertex of Q (the first that gives the separation). False as soon as
+// one face separates them by more than `speculative`.
 // The face most along `toward` (from P towards Q) is measured first, and the vertex x of
 // Q deepest below it kept: another face's separation is at most n · (x − o), and a face
 // whose bound is below the first face's separation is passed over, its vertices not
@@ -576,7 +586,7 @@ inline unsigned faces_reaching(const Polytope& P, const FacePlanes& planes, int 
 // pass far from where the two touch). The others are measured in order, so that the
 // result is that of measuring every face (ties to the lower index).
 inline bool deepest_face(const Polytope& P, const FacePlanes& planes, const Polytope& Q,
-                         Vec3 toward, double speculative, double& sep, int& face) {
+                         Vec3 toward, double speculative, double& sep, int& face, int& vertex) {
   const int first = least_along(-toward, Vec3{}, P.fn, P.h->face_count).index;
   // the first face's separation and the vertex that gives it
   const Least deepest = least_along(P.fn[first], face_origin(P, first), Q.v, Q.h->vertex_count);
@@ -585,6 +595,7 @@ inline bool deepest_face(const Polytope& P, const FacePlanes& planes, const Poly
   if (reached > speculative) return false;
   sep = -INF;
   face = 0;
+  vertex = 0;
   const int count = P.h->face_count;
   for (int f0 = 0; f0 < count; f0 += LANES) {
     unsigned bits = faces_reaching(P, planes, f0, x, reached);
@@ -592,12 +603,13 @@ inline bool deepest_face(const Polytope& P, const FacePlanes& planes, const Poly
     bits &= (1u << std::min(LANES, count - f0)) - 1;
     for (; bits; bits &= bits - 1) {
       const int f = f0 + std::countr_zero(bits);
-      const double s =
-          f == first ? reached : least_along(P.fn[f], face_origin(P, f), Q.v, Q.h->vertex_count).value;
-      if (s > speculative) return false;
-      if (s > sep) {
-        sep = s;
+      const Least at =
+          f == first ? deepest : least_along(P.fn[f], face_origin(P, f), Q.v, Q.h->vertex_count);
+      if (at.value > speculative) return false;
+      if (at.value > sep) {
+        sep = at.value;
         face = f;
+        vertex = at.index;
       }
     }
   }
@@ -605,21 +617,10 @@ inline bool deepest_face(const Polytope& P, const FacePlanes& planes, const Poly
 }
 
 // The mean of a polytope's vertices (m): a point inside it; and the largest |v|_1 of
-// them (m), for the round-off of the bounds against its face planes (FacePlanes), in the
-// same pass.
-struct VertexSpread {
-  Vec3 mean;
-  double extent;
-};
-inline VertexSpread vertex_spread(const Polytope& P) {
-  Vec3 sum{};
-  double extent = 0.0;
-  for (int j = 0; j < P.h->vertex_count; ++j) {
-    const Vec3 v = P.v[j];
-    sum += v;
-    extent = std::max(extent, std::fabs(v.x) + std::fabs(v.y) + std::fabs(v.z));
-  }
-  return {(1.0 / P.h->vertex_count) * sum, extent};
+// them (m), for the round-off of the bounds against its face planes (FacePlanes): the
+// transform stage's where it made them.
+inline HullSpread vertex_spread(const Polytope& P) {
+  return P.spread ? *P.spread : hull_spread(P.v, P.h->vertex_count);
 }
 
 // Which of P's edges may be in an edge pair that separates more than `least` (m, <= 0)
@@ -671,23 +672,21 @@ constexpr int HULL_CLIP = 2 * HULL_MAX_FACE_VERTICES;
 constexpr int EDGE_GROUP = 16 * LANES;
 int collide_polytopes(const Polytope& A, const Polytope& B, double tol, double speculative,
                       Manifold3& out) {
-  const VertexSpread spread_a = vertex_spread(A), spread_b = vertex_spread(B);
+  const HullSpread spread_a = vertex_spread(A), spread_b = vertex_spread(B);
   const Vec3 mean_a = spread_a.mean, mean_b = spread_b.mean;
   FacePlanes planes_a, planes_b;
   face_planes(A, spread_a.extent, planes_a);
   double sep_a, sep_b;
-  int face_a, face_b;
-  if (!deepest_face(A, planes_a, B, mean_b - mean_a, speculative, sep_a, face_a)) return 0;
+  int face_a, face_b, deep_a, deep_b;  // (deep_b: B's vertex deepest below face_a)
+  if (!deepest_face(A, planes_a, B, mean_b - mean_a, speculative, sep_a, face_a, deep_b)) return 0;
   face_planes(B, spread_b.extent, planes_b);
-  if (!deepest_face(B, planes_b, A, mean_a - mean_b, speculative, sep_b, face_b)) return 0;
+  if (!deepest_face(B, planes_b, A, mean_a - mean_b, speculative, sep_b, face_b, deep_a)) return 0;
   // an edge pair must separate more than this to matter (m)
   const double least = std::min(std::max(sep_a, sep_b), 0.0);
   // the edges in reach (edge_marks) of each hull from two points of the other: its vertex
-  // mean, and its vertex deepest below the first's best face
+  // mean, and its vertex deepest below the first's best face (any point of it bounds them)
   std::uint8_t mark_a[PLANE_TABLE + LANES], mark_b[PLANE_TABLE + LANES];
   {
-    const int deep_a = least_along(B.fn[face_b], Vec3{}, A.v, A.h->vertex_count).index;
-    const int deep_b = least_along(A.fn[face_a], Vec3{}, B.v, B.h->vertex_count).index;
     const Vec3 in_a[2] = {mean_a, A.v[deep_a]}, in_b[2] = {mean_b, B.v[deep_b]};
     edge_marks(A, planes_a, in_b, least, mark_a);
     edge_marks(B, planes_b, in_a, least, mark_b);
@@ -788,7 +787,9 @@ inline Polytope box_polytope(const ShapeRef3& box, Vec3* corners, Vec3* normals)
   box_geometry(box, corners, normals);
   return {corners, normals, &box_hull()};
 }
-inline Polytope hull_polytope(const ShapeRef3& s) { return {s.verts, s.face_normals, &s.hull}; }
+inline Polytope hull_polytope(const ShapeRef3& s) {
+  return {s.verts, s.face_normals, &s.hull, s.face_offsets, s.spread};
+}
 
 // The corners of a polytope within reach of a plane (b): up to four, reduced. The plane is
 // the reference face, and the corners are the incident face's (the polytope's face most

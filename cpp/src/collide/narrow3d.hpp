@@ -64,6 +64,10 @@ struct ShapeRef3 {
   const Vec3* verts = nullptr;         // convex: (V,) m, world vertices (hull's order)
   const Vec3* face_normals = nullptr;  // convex: (F,) world outward unit normals
   HullView hull{};                     // convex: topology
+  // convex, where the transform stage made them this step (else null, made per pair): its
+  // faces' plane offsets (F,; m) and its HullSpread
+  const double* face_offsets = nullptr;
+  const HullSpread* spread = nullptr;
 };
 
 inline ShapeRef3 sphere_ref(Vec3 center, double radius) {

@@ -173,10 +173,16 @@ void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>&
         vw[k] = x + r * vl[k];
         if (plane) nw[k] = r * nl[k];  // (only a plane has a normal row; the others' stay zero)
       }
-      // a convex hull's face normals (the box's come from its corners, narrow3d.hpp)
+      // a convex hull's face normals (the box's come from its corners, narrow3d.hpp), and
+      // what the narrowphase's bounds read of it, once here for all its pairs
       const Hull3& hull = model.shape_hull[s];
       Vec3* fw = contacts.face_world.data() + model.shape_hface[s];
       for (int f = 0; f < hull.face_count(); ++f) fw[f] = r * hull.face_normal[f];
+      if (model.shape_kind[s] == ShapeKind::Convex) {
+        const HullView view = hull.view();
+        hull_face_offsets(view, vw + k0, fw, contacts.face_offset.data() + model.shape_hface[s]);
+        contacts.shape_spread[s] = hull_spread(vw + k0, view.vertex_count);
+      }
     } else {
       for (int k = k0; k < k1; ++k) {
         vw[k] = world_point(x, q, vl[k]);

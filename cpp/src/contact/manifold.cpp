@@ -60,7 +60,12 @@ ShapeRef3 world_shape(const Model<3>& model, const Contacts<3>& c, int s, double
   const Vec3* faces = model.shape_kind[s] == ShapeKind::Plane
                           ? c.norm_world.data() + k
                           : c.face_world.data() + model.shape_hface[s];
-  return shape_ref(model, s, c.vert_world.data() + k, faces, scale);
+  ShapeRef3 r = shape_ref(model, s, c.vert_world.data() + k, faces, scale);
+  if (model.shape_kind[s] == ShapeKind::Convex) {  // (made by the transform stage)
+    r.face_offsets = c.face_offset.data() + model.shape_hface[s];
+    r.spread = &c.shape_spread[s];
+  }
+  return r;
 }
 
 // Pair a, b's narrowphase at the pair's tolerance scale and speculative distance.

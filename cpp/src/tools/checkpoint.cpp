@@ -40,7 +40,8 @@ void visit(W& w, F&& f) {
   f(c.body_ref), f(c.body_still), f(c.body_delta), f(c.body_inv_inertia_world);
   f(c.body_inertia_q);
   f(c.toi_verts), f(c.toi_norms);
-  f(c.vert_world), f(c.norm_world), f(c.face_world), f(c.shape_margin), f(c.shape_turn);
+  f(c.vert_world), f(c.norm_world), f(c.face_world), f(c.face_offset), f(c.shape_spread);
+  f(c.shape_margin), f(c.shape_turn);
   f(c.body_level);
   f(c.support), f(c.prev_support), f(c.body_load), f(c.shock_side);
   f(c.shock_order), f(c.solve_order), f(c.adj_start), f(c.adj), f(c.queue), f(c.bounce_kind);
@@ -59,9 +60,9 @@ static_assert(sizeof(Grid<2>) == 8 + 16 * VEC + 3 * sizeof(Vec2) + sizeof(GridMe
               "Grid changed: update visit()");
 static_assert(sizeof(Grid<3>) == 8 + 16 * VEC + 3 * sizeof(Vec3) + sizeof(GridMeta<3>),
               "Grid changed: update visit()");
-static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 84 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 86 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
-static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 84 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 86 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
 
 template <class T>
