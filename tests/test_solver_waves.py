@@ -167,30 +167,29 @@ def _holds(c, m: int) -> bool:
     return bool(np.any(c.normal_impulse[m, :k] != 0) or np.any(c.tangent_impulse[m, :k] != 0))
 
 
-def test_waves_pack_the_manifolds_that_hold_an_impulse_first():
-    # within each wave, of the two-point manifolds and then of the one-point ones, those
-    # that hold an impulse go before those that hold none (mostly speculative contacts,
-    # idle in most passes: a batch of four idle ones is left at once)
-    # (steps: the circles hold nothing between neighbours once the box has filled)
-    for name, steps in (
-        ("bench/scenes/pyramid20.yaml", 120),
-        ("bench/scenes/circles1000.yaml", 300),
+def test_batches_fill_their_lanes_across_waves():
+    # a manifold goes into the first batch of its point count with room after the last
+    # batch of the manifolds before it on its bodies, not only into its own wave's: a
+    # pyramid's waves hold 4 or 5 manifolds, and packed wave by wave three lanes in four
+    # were used (0.77 of pyramid-20's, 0.84 of the circles'). Each batch is a wave of its
+    # own, of one point count, its manifolds sharing no dynamic body
+    for name, steps, fill in (
+        ("bench/scenes/pyramid20.yaml", 120, 0.85),
+        ("bench/scenes/circles1000.yaml", 300, 0.9),
     ):
         w = CoreWorld.from_scene(load_scene(ROOT / name))
         w.advance(steps)
         c = w.contacts
         c.count[7] = 0  # graph_unchanged: the waves packed anew, not kept from the last step
+        n = int(c.count[0])
         w.stage("find_waves")
-        kinds = set()
-        for g in range(int(c.wave_count)):
-            for lo, hi in (
-                (c.wave_start[g], c.wave_single[g]),
-                (c.wave_single[g], c.wave_start[g + 1]),
-            ):
-                held = [_holds(c, int(m)) for m in c.wave_order[lo:hi]]
-                assert held == sorted(held, reverse=True)
-                kinds |= set(held)
-        assert kinds == {True, False}  # both kinds present: the order is tested
+        batches = int(c.wave_count)
+        assert int(c.wave_start[batches]) == n  # every manifold, once
+        for g in range(batches):
+            members = c.wave_order[c.wave_start[g] : c.wave_start[g + 1]]
+            assert 1 <= len(members) <= 4
+            assert len({int(c.points[m]) for m in members}) == 1
+        assert n / (4 * batches) >= fill, (name, n / (4 * batches))
 
 
 def test_3d_faces_that_hold_an_impulse_go_into_lanes_four_points_too():

@@ -13,9 +13,12 @@
 // solve order, one manifold after another, reordered only where that changes nothing. A
 // wave's manifolds are packed LANES at a time for solve.cpp, which solves them in vector
 // registers; a pass gives the same result however a wave is split (one by one, several
-// at a time, or on several threads). In 3D a wave's one-point manifolds go into lanes,
-// and its faces of two to four points that hold an impulse, LANES of one count at a time;
-// the others are left to the solve of one manifold at a time (pack_waves_3d).
+// at a time, or on several threads). In 2D a batch may also take manifolds of later
+// waves, where none of their bodies' earlier manifolds comes after it (pack_batches_2d:
+// a pyramid's waves of 4 or 5 filled three lanes in four), and each batch is then a wave
+// of its own. In 3D a wave's one-point manifolds go into lanes, and its faces of two to
+// four points that hold an impulse, LANES of one count at a time; the others are left to
+// the solve of one manifold at a time (pack_waves_3d).
 #include <algorithm>
 #include <array>
 #include <cstdint>
@@ -313,6 +316,105 @@ void pack_waves_3d(const Model<3>& model, Contacts<3>& c, std::int32_t n_waves) 
   c.waves_valid = true;
 }
 
+// 2D: the batches, from the waves (wave_order, by wave and kind). A wave of a few
+// manifolds fills its batches poorly (a pyramid's waves hold 4 or 5, and three lanes in
+// four were used), so a manifold is not held to its wave's batches: it goes into the first
+// batch of its point count with an empty lane that comes after the last batch of every
+// manifold before it (in solve order) that shares one of its dynamic bodies, and a batch
+// of its own where none has room. Every body's manifolds are still solved in solve order
+// and a batch's manifolds share no dynamic body, so the passes give the solve order's
+// result as the waves did. The manifolds are placed wave by wave, each wave's in
+// order_by_kind's order (two points, then one; those that hold an impulse first), so that
+// a batch fills before another of its kind is begun, and batches are only made up to the
+// count the waves would have packed. Up to OPEN_BATCHES batches of each point count are
+// kept open, the oldest closed when another is begun. Segment by segment, each segment's
+// batches after the last's. Each batch is then a wave of its own (wave_start, wave_order,
+// manifold_wave, wave_batch, segment_wave: what the passes and the tests read); returns
+// the count.
+constexpr int OPEN_BATCHES = 8;
+std::int64_t pack_batches_2d(const Model<2>& model, Contacts<2>& c, int n_segments) {
+  const std::int64_t n_man = c.count.manifolds;
+  // (copies: the waves' lists are written over with the batches')
+  const std::vector<std::int32_t> order(c.wave_order.begin(), c.wave_order.begin() + n_man);
+  std::vector<std::int64_t> segment_start(static_cast<std::size_t>(n_segments) + 1);
+  for (int g = 0; g <= n_segments; ++g) segment_start[g] = c.wave_start[c.segment_wave[g]];
+  auto& next = c.body_wave;  // each body's first batch its next manifold may go in
+  std::fill(next.begin(), next.end(), 0);
+  struct Open {
+    std::int64_t batch;
+    int fill;  // lanes filled
+  };
+  Open open[2][OPEN_BATCHES];  // of two points, of one; oldest first
+  int n_open[2] = {0, 0};
+  auto close = [&](const Open& o) {
+    WideBatch& w = c.batches[o.batch];
+    for (int l = o.fill; l < LANES; ++l) pack_lane(model, c, w, l, -1);
+  };
+  std::int64_t n_batches = 0;
+  for (int g = 0; g < n_segments; ++g) {
+    const std::int64_t first = n_batches;
+    for (std::int64_t o = segment_start[g]; o < segment_start[g + 1]; ++o) {
+      const std::int32_t m = order[o];
+      const int a = c.body_a[m], b = c.body_b[m];
+      const bool da = model.is_dynamic(a), db = model.is_dynamic(b);
+      const std::int64_t earliest =
+          std::max({first, da ? std::int64_t{next[a]} : 0, db ? std::int64_t{next[b]} : 0});
+      const int t = c.points[m] == 2 ? 0 : 1;
+      Open* list = open[t];
+      int i = 0;
+      while (i < n_open[t] && list[i].batch < earliest) ++i;
+      std::int64_t batch;
+      if (i < n_open[t]) {
+        batch = list[i].batch;
+        pack_lane(model, c, c.batches[batch], list[i].fill++, m);
+        if (list[i].fill == LANES) {
+          std::copy(list + i + 1, list + n_open[t], list + i);
+          --n_open[t];
+        }
+      } else {
+        batch = n_batches++;
+        pack_lane(model, c, c.batches[batch], 0, m);
+        if (n_open[t] == OPEN_BATCHES) {
+          close(list[0]);
+          std::copy(list + 1, list + n_open[t], list);
+          --n_open[t];
+        }
+        list[n_open[t]++] = {batch, 1};
+      }
+      if (da) next[a] = batch + 1;
+      if (db) next[b] = batch + 1;
+    }
+    for (int t = 0; t < 2; ++t) {
+      for (int i = 0; i < n_open[t]; ++i) close(open[t][i]);
+      n_open[t] = 0;
+    }
+    c.segment_wave[g] = first;
+  }
+  c.segment_wave[n_segments] = n_batches;
+  // each batch a wave: its manifolds, its kind
+  std::int64_t at = 0;
+  for (std::int64_t k = 0; k < n_batches; ++k) {
+    WideBatch& w = c.batches[k];
+    c.wave_start[k] = at;
+    c.wave_batch[k] = k;
+    w.idle = true;
+    for (int l = 0; l < LANES && w.m[l] >= 0; ++l) {
+      c.wave_order[at++] = w.m[l];
+      c.manifold_wave[w.m[l]] = static_cast<std::int32_t>(k);
+      w.idle = w.idle && !holds_any(c, w.m[l]);
+    }
+    const bool two = c.points[w.m[0]] == 2;
+    c.wave_single[k] = two ? at : c.wave_start[k];
+    c.wave_single_batch[k] = two ? k + 1 : k;
+  }
+  c.wave_start[n_batches] = at;
+  c.wave_batch[n_batches] = n_batches;
+  c.wave_single_batch[n_batches] = n_batches;
+  c.wave_count = n_batches;
+  c.waves_valid = true;
+  return n_batches;
+}
+
 }  // namespace
 
 template <int D>
@@ -382,42 +484,27 @@ std::int64_t find_waves(const Model<D>& model, Contacts<D>& c) {
     return n_waves;
   } else {
   // within a wave the two-point manifolds first, then the one-point ones (circles,
-  // capsule ends), each in solve order and in batches of their own (a one-point batch
+  // capsule ends), each in solve order, into batches of their own (a one-point batch
   // skips the second point's work); of each, those that hold an impulse before those
-  // that hold none (mostly speculative contacts, idle in most passes, so that a batch of
-  // idle ones is left at once: solve_batch, warm_start_batch). Each manifold's kind:
-  // 0 two points holding, 1 two points holding none, 2 and 3 one point alike
+  // that hold none (mostly speculative contacts, idle in most passes: placed last, they
+  // fill batches of their own where they can, which are left at once: solve_batch,
+  // warm_start_batch). Each manifold's kind: 0 two points holding, 1 two points holding
+  // none, 2 and 3 one point alike
   order_by_kind<2, 4>(c, n_waves, [&c](std::int64_t m) {
     return (c.points[m] == 2 ? 0 : 2) + (holds_any(c, m) ? 0 : 1);
   }, 2);
   const auto& start = c.wave_start;
   // the batches' room: made here, for what this step packs (every batch holds 1 to
   // LANES manifolds, so up to M of them; most steps need about M / LANES plus a few per
-  // wave, and room for M, about 1 KB each, took seconds to make in a large pile)
+  // wave, and room for M, about 1 KB each, took seconds to make in a large pile): as
+  // many as packing each wave's kinds on their own would take, which pack_batches_2d
+  // never exceeds
   std::int64_t needed = 0;
   for (std::int32_t k = 0; k < n_waves; ++k)
     needed += (c.wave_single[k] - start[k] + LANES - 1) / LANES +
               (start[k + 1] - c.wave_single[k] + LANES - 1) / LANES;
   fit(c.batches, needed);
-  std::int64_t n_batches = 0;
-  for (std::int32_t k = 0; k < n_waves; ++k) {
-    c.wave_batch[k] = n_batches;
-    for (int part = 0; part < 2; ++part) {  // the two-point batches, then the one-point ones
-      const std::int64_t from = part == 0 ? start[k] : c.wave_single[k];
-      const std::int64_t end = part == 0 ? c.wave_single[k] : start[k + 1];
-      if (part == 1) c.wave_single_batch[k] = n_batches;
-      for (std::int64_t i = from; i < end; i += LANES) {
-        WideBatch& w = c.batches[n_batches++];
-        for (int l = 0; l < LANES; ++l)
-          pack_lane(model, c, w, l, i + l < end ? c.wave_order[i + l] : -1);
-        w.idle = !holds_any(c, c.wave_order[i]);  // (those that hold come first)
-      }
-    }
-  }
-  c.wave_batch[n_waves] = n_batches;
-  c.wave_count = n_waves;
-  c.waves_valid = true;
-  return n_waves;
+  return pack_batches_2d(model, c, n_segments);
   }
 }
 
