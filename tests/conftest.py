@@ -21,6 +21,17 @@ from rbsim import cli
 from rbsim.io.trajectory import Trajectory, load_trajectory
 from rbsim.scene import Scene, load_scene_text
 
+# A child `python -m rbsim` as this interpreter runs: with -S and -P where this process
+# has them, so that it imports the same rbsim. `make sanitize` runs pytest with both, its
+# sanitized engine on PYTHONPATH; without them a child took the editable install's
+# engine (its .pth file), another build, and a run it stopped and the test resumed here
+# differed from the reference by a bit of a body's ω (1e-15 rad/s)
+PYTHON = [
+    sys.executable,
+    *(["-S"] if sys.flags.no_site else []),
+    *(["-P"] if sys.flags.safe_path else []),
+]
+
 
 def scene_from(text: str, overrides: tuple[str, ...] = ()) -> Scene:
     """A resolved scene from inline YAML (dedented)."""
@@ -62,7 +73,7 @@ def started_rbsim(*args: str | Path, env: dict | None = None) -> Iterator[subpro
     running the tests in the background may ignore SIGINT, and Python would then too);
     killed on leaving if it still runs."""
     proc = subprocess.Popen(
-        [sys.executable, "-m", "rbsim", *map(str, args)],
+        [*PYTHON, "-m", "rbsim", *map(str, args)],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,

@@ -13,7 +13,6 @@ import random
 import shutil
 import signal
 import subprocess
-import sys
 import textwrap
 import time
 from pathlib import Path
@@ -36,7 +35,7 @@ from rbsim.io.trajectory import (
 )
 from rbsim.run import frame_steps, resume_run, run_scene
 
-from .conftest import rbsim, scene_from
+from .conftest import PYTHON, rbsim, scene_from
 
 SERIES = ("step", "time", "position", "orientation", "angle", "velocity", "angular_velocity")
 
@@ -79,7 +78,7 @@ def same_frames(a, b, n: int | None = None) -> bool:
 
 def start_run(*args: str | Path) -> subprocess.Popen:
     return subprocess.Popen(
-        [sys.executable, "-m", "rbsim", "run", *map(str, args), "-q"],
+        [*PYTHON, "-m", "rbsim", "run", *map(str, args), "-q"],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
     )

@@ -193,24 +193,34 @@ def test_batches_fill_their_lanes_across_waves():
 
 
 def test_3d_faces_that_hold_an_impulse_go_into_lanes_four_points_too():
-    # within each wave, after the one-point manifolds: the faces that hold an impulse by
-    # point count, then (from wave_idle, solved one at a time) those that hold none; the
-    # faces of four points that hold one are packed four to a batch (solve_face_3d<4>),
-    # not left one at a time
+    # each wave is one unit: one-point manifolds (before wave_single), or faces of one point
+    # count that hold an impulse (wave_single to wave_idle, in a batch of faces3), or faces
+    # that hold none (from wave_idle, solved one at a time), up to four, sharing no dynamic
+    # body; the faces of four points that hold one are packed four to a batch
+    # (solve_face_3d<4>), not left one at a time, and across waves: the units of a 5-layer
+    # pyramid's faces fill 0.70 of their lanes (wave by wave 0.645, 35 of 69 batches of
+    # fewer than three faces left one at a time)
     w = CoreWorld.from_scene(load_scene(ROOT / "scenes/hard/pyramid5_3d.yaml"))
     w.advance(60)
     w.stage("find_waves")
     c = w.contacts
+    dynamic = w.model.body_type == 0
     n_held = n_idle = 0
     for g in range(int(c.wave_count)):
+        members = [int(m) for m in c.wave_order[c.wave_start[g] : c.wave_start[g + 1]]]
         held = [int(m) for m in c.wave_order[c.wave_single[g] : c.wave_idle[g]]]
         idle = [int(m) for m in c.wave_order[c.wave_idle[g] : c.wave_start[g + 1]]]
+        assert 1 <= len(members) <= 4 and (not held or not idle)
         assert all(_holds(c, m) for m in held) and not any(_holds(c, m) for m in idle)
-        counts = [int(c.points[m]) for m in held + idle]
-        assert counts[: len(held)] == sorted(counts[: len(held)]) and min(counts, default=2) >= 2
+        assert len({int(c.points[m]) for m in held}) <= 1
+        assert min((int(c.points[m]) for m in held + idle), default=2) >= 2
+        bodies = [b for m in members for b in (c.body_a[m], c.body_b[m]) if dynamic[b]]
+        assert len(bodies) == len(set(bodies))
         n_held, n_idle = n_held + len(held), n_idle + len(idle)
-    assert n_held and n_idle  # both kinds present: the order is tested
-    assert 4 in c.face_batch_points
+    assert n_held and n_idle  # both kinds present
+    faces = int(c.wave_single_batch[int(c.wave_count)])
+    assert 4 in c.face_batch_points[:faces]
+    assert n_held / (4 * faces) >= 0.68
 
 
 def test_a_manifold_packed_idle_that_holds_an_impulse_is_solved():

@@ -13,12 +13,12 @@
 // solve order, one manifold after another, reordered only where that changes nothing. A
 // wave's manifolds are packed LANES at a time for solve.cpp, which solves them in vector
 // registers; a pass gives the same result however a wave is split (one by one, several
-// at a time, or on several threads). In 2D a batch may also take manifolds of later
-// waves, where none of their bodies' earlier manifolds comes after it (pack_batches_2d:
-// a pyramid's waves of 4 or 5 filled three lanes in four), and each batch is then a wave
-// of its own. In 3D a wave's one-point manifolds go into lanes, and its faces of two to
-// four points that hold an impulse, LANES of one count at a time; the others are left to
-// the solve of one manifold at a time (pack_waves_3d).
+// at a time, or on several threads). The lanes are filled across waves too: a batch also
+// takes manifolds of later waves, where none of their bodies' earlier manifolds comes
+// after it (schedule_units: a pyramid's waves of 4 or 5 filled three lanes in four), and
+// each batch is then a wave of its own. In 3D one-point manifolds go into lanes, and faces
+// of two to four points that hold an impulse, LANES of one count at a time; the others
+// are left to the solve of one manifold at a time (pack_waves_3d).
 #include <algorithm>
 #include <array>
 #include <cstdint>
@@ -247,16 +247,109 @@ void order_by_kind(Contacts<D>& c, std::int32_t n_waves, Kind kind_of, int singl
   }
 }
 
-// 3D: within each wave of n_waves (order_by_kind, which also counts them into wave_start), the
-// one-point manifolds first, packed LANES at a time into batches3 (those that hold an
-// impulse before those that hold none: mostly speculative contacts, idle in most passes,
-// so that a batch of idle ones is left at once, solve_batch_3d), then the faces of two,
-// three and four points that hold an impulse, LANES of one count at a time into faces3 (a
-// batch of fewer than FACE_LANES_MIN by index only, for the solve of one at a time:
-// WideFace3::count 0), then the faces that hold none (from wave_idle, one at a time);
-// each kind in solve order (a wave's manifolds are independent: any order gives the solve
-// order's result).
-void pack_waves_3d(const Model<3>& model, Contacts<3>& c, std::int32_t n_waves) {
+// The units of the passes, from the waves (wave_order, by wave and kind): each unit up to
+// LANES manifolds of one type (type_of(m), 0 .. TYPES - 1), sharing no dynamic body. A
+// wave of a few manifolds fills its batches poorly (a pyramid's waves hold 4 or 5, and
+// packed wave by wave three lanes in four were used), so a manifold is not held to its
+// wave's units: it goes into the first unit of its type with room that comes after the
+// last unit of every manifold before it (in solve order) that shares one of its dynamic
+// bodies, and into a unit of its own where none has room. Every body's manifolds are
+// still solved in solve order and a unit's manifolds share no dynamic body, so the passes
+// give the solve order's result as the waves did. The manifolds are placed wave by wave,
+// each wave's in order_by_kind's order, so that a unit fills before another of its type
+// is begun: there are never more units of a type than packing each wave's on their own
+// would make. Up to OPEN_UNITS units of each type are kept open, the oldest closed when
+// another is begun. Segment by segment, each segment's units after the last's
+// (segment_wave: the first unit of each). Each unit is then a wave of its own
+// (finish_units).
+struct Unit {
+  std::int8_t type;
+  std::int8_t fill;  // lanes filled
+  std::int32_t m[LANES];
+};
+constexpr int OPEN_UNITS = 8;
+template <int D, int TYPES, class Type>
+std::vector<Unit> schedule_units(const Model<D>& model, Contacts<D>& c, int n_segments,
+                                 Type type_of) {
+  const std::int64_t n_man = c.count.manifolds;
+  // (copies: the waves' lists are written over with the units')
+  const std::vector<std::int32_t> order(c.wave_order.begin(), c.wave_order.begin() + n_man);
+  std::vector<std::int64_t> segment_start(static_cast<std::size_t>(n_segments) + 1);
+  for (int g = 0; g <= n_segments; ++g) segment_start[g] = c.wave_start[c.segment_wave[g]];
+  auto& next = c.body_wave;  // each body's first unit its next manifold may go in
+  std::fill(next.begin(), next.end(), 0);
+  std::vector<Unit> units;
+  units.reserve(static_cast<std::size_t>(n_man / 2 + 8));
+  std::int32_t open[TYPES][OPEN_UNITS];  // each type's open units, oldest first
+  int n_open[TYPES] = {};
+  for (int g = 0; g < n_segments; ++g) {
+    const auto first = static_cast<std::int32_t>(units.size());
+    c.segment_wave[g] = first;
+    for (std::int64_t o = segment_start[g]; o < segment_start[g + 1]; ++o) {
+      const std::int32_t m = order[o];
+      const int a = c.body_a[m], b = c.body_b[m];
+      const bool da = model.is_dynamic(a), db = model.is_dynamic(b);
+      const std::int32_t earliest = std::max({first, da ? next[a] : 0, db ? next[b] : 0});
+      const int t = type_of(m);
+      std::int32_t* list = open[t];
+      int i = 0;
+      while (i < n_open[t] && list[i] < earliest) ++i;
+      std::int32_t u;
+      if (i < n_open[t]) {
+        u = list[i];
+        Unit& unit = units[u];
+        unit.m[unit.fill++] = m;
+        if (unit.fill == LANES) {  // full: no longer open
+          std::copy(list + i + 1, list + n_open[t], list + i);
+          --n_open[t];
+        }
+      } else {
+        u = static_cast<std::int32_t>(units.size());
+        units.push_back({static_cast<std::int8_t>(t), 1, {m, -1, -1, -1}});
+        if (n_open[t] == OPEN_UNITS) {  // the oldest is closed
+          std::copy(list + 1, list + n_open[t], list);
+          --n_open[t];
+        }
+        list[n_open[t]++] = u;
+      }
+      if (da) next[a] = u + 1;
+      if (db) next[b] = u + 1;
+    }
+    std::fill_n(n_open, TYPES, 0);
+  }
+  c.segment_wave[n_segments] = static_cast<std::int64_t>(units.size());
+  return units;
+}
+
+// Each unit a wave of its own: wave_start, wave_order, manifold_wave (what the passes and
+// the tests read); wave_single from where each unit's type ends its first part (`single`:
+// the types before it; the unit's manifolds count as before or after it whole).
+template <int D>
+void finish_units(Contacts<D>& c, const std::vector<Unit>& units, int single) {
+  std::int64_t at = 0;
+  for (std::size_t k = 0; k < units.size(); ++k) {
+    c.wave_start[k] = at;
+    for (int l = 0; l < units[k].fill; ++l) {
+      c.wave_order[at++] = units[k].m[l];
+      c.manifold_wave[units[k].m[l]] = static_cast<std::int32_t>(k);
+    }
+    c.wave_single[k] = units[k].type < single ? at : c.wave_start[k];
+  }
+  c.wave_start[units.size()] = at;
+  c.wave_count = static_cast<std::int64_t>(units.size());
+  c.waves_valid = true;
+}
+
+// 3D: the units (scheduled as in 2D: schedule_units) packed for the passes, each a wave
+// of its own: a unit of one-point manifolds into a batch of batches3; a unit of faces of
+// two, three or four points that hold an impulse, of one count, into a batch of faces3
+// (one of fewer than FACE_LANES_MIN faces by index only, for the solve of one at a time:
+// WideFace3::count 0); a unit of faces that hold none, to the solve of one at a time
+// (from wave_idle). The waves' order within each wave (order_by_kind): the one-point
+// manifolds that hold an impulse, those that hold none, the faces that hold one by point
+// count, those that hold none (any order of a wave's manifolds gives the solve order's
+// result).
+void pack_waves_3d(const Model<3>& model, Contacts<3>& c, std::int32_t n_waves, int n_segments) {
   // each manifold's kind: 0 one point holding an impulse, 1 one point holding none, 2 to 4
   // a face holding one, by its point count, 5 a face holding none (mostly neighbours side
   // by side, or a heap's speculative contacts: idle in most passes, and cheaper to leave
@@ -268,151 +361,66 @@ void pack_waves_3d(const Model<3>& model, Contacts<3>& c, std::int32_t n_waves) 
     return count == 1 ? (holds ? 0 : 1) : holds ? count : IDLE_FACE;
   };
   order_by_kind<3, IDLE_FACE + 1>(c, n_waves, kind_of, 2, IDLE_FACE);
-  const auto& start = c.wave_start;
-  // a run of faces of one point count in wave k, from i: its end
-  auto run_end = [&](std::int32_t k, std::int64_t i) {
-    std::int64_t e = i;
-    while (e < c.wave_idle[k] && c.points[c.wave_order[e]] == c.points[c.wave_order[i]]) ++e;
-    return e;
-  };
+  // each unit's type: 0 one point, 1 to 3 faces of 2 to 4 points that hold an impulse,
+  // 4 faces that hold none
+  constexpr int IDLE_UNIT = 4;
+  const std::vector<Unit> units =
+      schedule_units<3, IDLE_UNIT + 1>(model, c, n_segments, [&c, &kind_of](std::int32_t m) {
+        const int kind = kind_of(m);
+        return kind <= 1 ? 0 : kind == IDLE_FACE ? IDLE_UNIT : kind - 1;
+      });
   std::int64_t n_single = 0, n_faces = 0;
-  for (std::int32_t k = 0; k < n_waves; ++k) {
-    n_single += (c.wave_single[k] - start[k] + LANES - 1) / LANES;
-    for (std::int64_t i = c.wave_single[k]; i < c.wave_idle[k];) {
-      const std::int64_t e = run_end(k, i);
-      n_faces += (e - i + LANES - 1) / LANES;
-      i = e;
-    }
+  for (const Unit& unit : units) {
+    n_single += unit.type == 0;
+    n_faces += unit.type != 0 && unit.type != IDLE_UNIT;
   }
   fit(c.batches3, n_single);
   fit(c.faces3, n_faces);
-  std::int64_t n_batches = 0, n_face_batches = 0;
-  for (std::int32_t k = 0; k < n_waves; ++k) {
+  const auto n = static_cast<std::int64_t>(units.size());
+  std::int64_t n_batches = 0, n_face_batches = 0, at = 0;
+  for (std::int64_t k = 0; k < n; ++k) {
+    const Unit& unit = units[k];
     c.wave_batch[k] = n_batches;
     c.wave_single_batch[k] = n_face_batches;
-    const std::int64_t end = c.wave_single[k];
-    for (std::int64_t i = start[k]; i < end; i += LANES) {
+    if (unit.type == 0) {
       WideBatch3& w = c.batches3[n_batches++];
-      for (int l = 0; l < LANES; ++l) pack_lane3(model, c, w, l, i + l < end ? c.wave_order[i + l] : -1);
-    }
-    for (std::int64_t i = end; i < c.wave_idle[k];) {
-      const std::int64_t e = run_end(k, i);
-      const int count = c.points[c.wave_order[i]];
-      for (; i < e; i += LANES) {
-        WideFace3& w = c.faces3[n_face_batches++];
-        w.count = e - i >= C::FACE_LANES_MIN ? count : 0;
-        for (int l = 0; l < LANES; ++l) {
-          const std::int32_t m = i + l < e ? c.wave_order[i + l] : -1;
-          if (w.count != 0) pack_face3(model, c, w, l, m);
-          else w.lanes.m[l] = m;
-        }
+      for (int l = 0; l < LANES; ++l) pack_lane3(model, c, w, l, unit.m[l]);
+    } else if (unit.type != IDLE_UNIT) {
+      WideFace3& w = c.faces3[n_face_batches++];
+      w.count = unit.fill >= C::FACE_LANES_MIN ? unit.type + 1 : 0;
+      for (int l = 0; l < LANES; ++l) {
+        if (w.count != 0) pack_face3(model, c, w, l, unit.m[l]);
+        else w.lanes.m[l] = unit.m[l];
       }
-      i = e;  // (the last batch of the run may stop short of LANES)
     }
+    // (the faces that hold none: from wave_idle, the whole unit)
+    at += unit.fill;
+    c.wave_idle[k] = unit.type == IDLE_UNIT ? at - unit.fill : at;
   }
-  c.wave_batch[n_waves] = n_batches;
-  c.wave_single_batch[n_waves] = n_face_batches;
-  c.wave_count = n_waves;
-  c.waves_valid = true;
+  c.wave_batch[n] = n_batches;
+  c.wave_single_batch[n] = n_face_batches;
+  finish_units(c, units, 1);
 }
 
-// 2D: the batches, from the waves (wave_order, by wave and kind). A wave of a few
-// manifolds fills its batches poorly (a pyramid's waves hold 4 or 5, and three lanes in
-// four were used), so a manifold is not held to its wave's batches: it goes into the first
-// batch of its point count with an empty lane that comes after the last batch of every
-// manifold before it (in solve order) that shares one of its dynamic bodies, and a batch
-// of its own where none has room. Every body's manifolds are still solved in solve order
-// and a batch's manifolds share no dynamic body, so the passes give the solve order's
-// result as the waves did. The manifolds are placed wave by wave, each wave's in
-// order_by_kind's order (two points, then one; those that hold an impulse first), so that
-// a batch fills before another of its kind is begun, and batches are only made up to the
-// count the waves would have packed. Up to OPEN_BATCHES batches of each point count are
-// kept open, the oldest closed when another is begun. Segment by segment, each segment's
-// batches after the last's. Each batch is then a wave of its own (wave_start, wave_order,
-// manifold_wave, wave_batch, segment_wave: what the passes and the tests read); returns
-// the count.
-constexpr int OPEN_BATCHES = 8;
+// 2D: the units (two-point manifolds, one-point) packed into batches, one per wave.
 std::int64_t pack_batches_2d(const Model<2>& model, Contacts<2>& c, int n_segments) {
-  const std::int64_t n_man = c.count.manifolds;
-  // (copies: the waves' lists are written over with the batches')
-  const std::vector<std::int32_t> order(c.wave_order.begin(), c.wave_order.begin() + n_man);
-  std::vector<std::int64_t> segment_start(static_cast<std::size_t>(n_segments) + 1);
-  for (int g = 0; g <= n_segments; ++g) segment_start[g] = c.wave_start[c.segment_wave[g]];
-  auto& next = c.body_wave;  // each body's first batch its next manifold may go in
-  std::fill(next.begin(), next.end(), 0);
-  struct Open {
-    std::int64_t batch;
-    int fill;  // lanes filled
-  };
-  Open open[2][OPEN_BATCHES];  // of two points, of one; oldest first
-  int n_open[2] = {0, 0};
-  auto close = [&](const Open& o) {
-    WideBatch& w = c.batches[o.batch];
-    for (int l = o.fill; l < LANES; ++l) pack_lane(model, c, w, l, -1);
-  };
-  std::int64_t n_batches = 0;
-  for (int g = 0; g < n_segments; ++g) {
-    const std::int64_t first = n_batches;
-    for (std::int64_t o = segment_start[g]; o < segment_start[g + 1]; ++o) {
-      const std::int32_t m = order[o];
-      const int a = c.body_a[m], b = c.body_b[m];
-      const bool da = model.is_dynamic(a), db = model.is_dynamic(b);
-      const std::int64_t earliest =
-          std::max({first, da ? std::int64_t{next[a]} : 0, db ? std::int64_t{next[b]} : 0});
-      const int t = c.points[m] == 2 ? 0 : 1;
-      Open* list = open[t];
-      int i = 0;
-      while (i < n_open[t] && list[i].batch < earliest) ++i;
-      std::int64_t batch;
-      if (i < n_open[t]) {
-        batch = list[i].batch;
-        pack_lane(model, c, c.batches[batch], list[i].fill++, m);
-        if (list[i].fill == LANES) {
-          std::copy(list + i + 1, list + n_open[t], list + i);
-          --n_open[t];
-        }
-      } else {
-        batch = n_batches++;
-        pack_lane(model, c, c.batches[batch], 0, m);
-        if (n_open[t] == OPEN_BATCHES) {
-          close(list[0]);
-          std::copy(list + 1, list + n_open[t], list);
-          --n_open[t];
-        }
-        list[n_open[t]++] = {batch, 1};
-      }
-      if (da) next[a] = batch + 1;
-      if (db) next[b] = batch + 1;
-    }
-    for (int t = 0; t < 2; ++t) {
-      for (int i = 0; i < n_open[t]; ++i) close(open[t][i]);
-      n_open[t] = 0;
-    }
-    c.segment_wave[g] = first;
-  }
-  c.segment_wave[n_segments] = n_batches;
-  // each batch a wave: its manifolds, its kind
-  std::int64_t at = 0;
-  for (std::int64_t k = 0; k < n_batches; ++k) {
+  const std::vector<Unit> units = schedule_units<2, 2>(
+      model, c, n_segments, [&c](std::int32_t m) { return c.points[m] == 2 ? 0 : 1; });
+  const auto n = static_cast<std::int64_t>(units.size());
+  for (std::int64_t k = 0; k < n; ++k) {
+    const Unit& unit = units[k];
     WideBatch& w = c.batches[k];
-    c.wave_start[k] = at;
-    c.wave_batch[k] = k;
     w.idle = true;
-    for (int l = 0; l < LANES && w.m[l] >= 0; ++l) {
-      c.wave_order[at++] = w.m[l];
-      c.manifold_wave[w.m[l]] = static_cast<std::int32_t>(k);
-      w.idle = w.idle && !holds_any(c, w.m[l]);
+    for (int l = 0; l < LANES; ++l) {
+      pack_lane(model, c, w, l, unit.m[l]);
+      if (unit.m[l] >= 0) w.idle = w.idle && !holds_any(c, unit.m[l]);
     }
-    const bool two = c.points[w.m[0]] == 2;
-    c.wave_single[k] = two ? at : c.wave_start[k];
-    c.wave_single_batch[k] = two ? k + 1 : k;
+    c.wave_batch[k] = k;
+    c.wave_single_batch[k] = unit.type == 0 ? k + 1 : k;
   }
-  c.wave_start[n_batches] = at;
-  c.wave_batch[n_batches] = n_batches;
-  c.wave_single_batch[n_batches] = n_batches;
-  c.wave_count = n_batches;
-  c.waves_valid = true;
-  return n_batches;
+  c.wave_batch[n] = c.wave_single_batch[n] = n;
+  finish_units(c, units, 1);
+  return n;
 }
 
 }  // namespace
@@ -480,8 +488,8 @@ std::int64_t find_waves(const Model<D>& model, Contacts<D>& c) {
   }
   c.segment_wave[n_segments] = n_waves;
   if constexpr (D == 3) {
-    pack_waves_3d(model, c, n_waves);
-    return n_waves;
+    pack_waves_3d(model, c, n_waves, n_segments);
+    return c.wave_count;
   } else {
   // within a wave the two-point manifolds first, then the one-point ones (circles,
   // capsule ends), each in solve order, into batches of their own (a one-point batch
