@@ -407,6 +407,10 @@ std::int64_t pack_batches_2d(const Model<2>& model, Contacts<2>& c, int n_segmen
   const std::vector<Unit> units = schedule_units<2, 2>(
       model, c, n_segments, [&c](std::int32_t m) { return c.points[m] == 2 ? 0 : 1; });
   const auto n = static_cast<std::int64_t>(units.size());
+  // the batches' room: made here, for what this step packs (every batch holds 1 to
+  // LANES manifolds, so up to M of them; most steps need about M / LANES plus a few, and
+  // room for M, about 1 KB each, took seconds to make in a large pile)
+  fit(c.batches, n);
   for (std::int64_t k = 0; k < n; ++k) {
     const Unit& unit = units[k];
     WideBatch& w = c.batches[k];
@@ -501,17 +505,6 @@ std::int64_t find_waves(const Model<D>& model, Contacts<D>& c) {
   order_by_kind<2, 4>(c, n_waves, [&c](std::int64_t m) {
     return (c.points[m] == 2 ? 0 : 2) + (holds_any(c, m) ? 0 : 1);
   }, 2);
-  const auto& start = c.wave_start;
-  // the batches' room: made here, for what this step packs (every batch holds 1 to
-  // LANES manifolds, so up to M of them; most steps need about M / LANES plus a few per
-  // wave, and room for M, about 1 KB each, took seconds to make in a large pile): as
-  // many as packing each wave's kinds on their own would take, which pack_batches_2d
-  // never exceeds
-  std::int64_t needed = 0;
-  for (std::int32_t k = 0; k < n_waves; ++k)
-    needed += (c.wave_single[k] - start[k] + LANES - 1) / LANES +
-              (start[k + 1] - c.wave_single[k] + LANES - 1) / LANES;
-  fit(c.batches, needed);
   return pack_batches_2d(model, c, n_segments);
   }
 }
