@@ -161,7 +161,7 @@ nb::dict storage(World<D>& w, nb::handle owner) {
   RBSIM_VIEW(prev_points) RBSIM_VIEW(prev_feature) RBSIM_VIEW(prev_normal_impulse)
   RBSIM_VIEW(prev_tangent_impulse) RBSIM_VIEW(prev_normal) RBSIM_VIEW(prev_anchor_a)
   RBSIM_VIEW(prev_anchor_b) RBSIM_VIEW(prev_ref_separation) RBSIM_VIEW(body_ref)
-  RBSIM_VIEW(body_delta) RBSIM_VIEW(toi_verts) RBSIM_VIEW(toi_norms) RBSIM_VIEW(vert_world)
+  RBSIM_VIEW(body_delta) RBSIM_VIEW(vert_world)
   RBSIM_VIEW(norm_world) RBSIM_VIEW(shape_margin) RBSIM_VIEW(body_level) RBSIM_VIEW(support)
   RBSIM_VIEW(body_load) RBSIM_VIEW(shock_side)
   RBSIM_VIEW(shock_order) RBSIM_VIEW(solve_order) RBSIM_VIEW(adj_start) RBSIM_VIEW(adj)

@@ -13,6 +13,15 @@ using rbsim::test::SceneBuilder3;
 
 namespace {
 
+// time_of_impact with room of its own (ToiRoom)
+template <int D, class Manifold>
+Impact toi(const Model<D>& m, const State<D>& st, int a, int b, int npts, double dt,
+           double spec, double scale, Manifold& out) {
+  ToiRoom<D> room(m.vertex_count());
+  return time_of_impact(m, st, a, b, npts, dt, spec, scale, room.verts.data(),
+                        room.norms.data(), out);
+}
+
 struct Hit {
   Impact impact;
   Manifold2 m;
@@ -29,8 +38,7 @@ Hit search(World<2>& w, int a, int b) {
   const ShapeRef2 sb{m.shape_kind[b], m.shape_vstart[b], m.shape_vcount[b], m.shape_radius[b]};
   Hit h{};
   h.start_points = collide2d(sa, sb, c.vert_world.data(), c.norm_world.data(), spec, h.m);
-  h.impact = time_of_impact(m, w.state, a, b, h.start_points, w.config.dt, spec, 1.0,
-                            c.toi_verts.data(), c.toi_norms.data(), h.m);
+  h.impact = toi(m, w.state, a, b, h.start_points, w.config.dt, spec, 1.0, h.m);
   return h;
 }
 
@@ -86,8 +94,7 @@ TEST(separating_or_slow_pair_stays_at_start) {
     const ShapeRef2 sa{m.shape_kind[0], m.shape_vstart[0], m.shape_vcount[0], 0.0};
     const ShapeRef2 sb{m.shape_kind[1], m.shape_vstart[1], 1, 0.25};
     CHECK(collide2d(sa, sb, c.vert_world.data(), c.norm_world.data(), 1.0, out) == 1);
-    const Impact hit = time_of_impact(m, w.state, 0, 1, 1, w.config.dt, 1.0, 1.0, c.toi_verts.data(),
-                                      c.toi_norms.data(), out);
+    const Impact hit = toi(m, w.state, 0, 1, 1, w.config.dt, 1.0, 1.0, out);
     CHECK(hit.t == 0.0 && hit.points == 1);
     CHECK_NEAR(out.separation[0], 0.5, 1e-15);
   }
@@ -114,8 +121,7 @@ TEST(pair_whose_paths_pass_clear_stays_at_start) {
   Manifold2 out{};
   CHECK(collide2d(sa, sb, c.vert_world.data(), c.norm_world.data(), spec, out) == 1);
   CHECK(meets_within(out, 1, 0, 1, w.config.dt, constants::LINEAR_SLOP, w.state));
-  const Impact hit = time_of_impact(m, w.state, 0, 1, 1, w.config.dt, spec, 1.0,
-                                    c.toi_verts.data(), c.toi_norms.data(), out);
+  const Impact hit = toi(m, w.state, 0, 1, 1, w.config.dt, spec, 1.0, out);
   CHECK(hit.t == 0.0 && hit.points == 1);
   CHECK_NEAR(out.separation[0], 3.8, 1e-12);  // m: 4 m between centres less the radii
   CHECK_NEAR(out.normal.y, -1.0, 1e-15);      // from b towards a, as at the start
@@ -146,8 +152,7 @@ Hit3 search3(World<3>& w, int a, int b) {
   };
   Hit3 h{};
   h.start_points = collide3d(world(a), world(b), spec, h.m);
-  h.impact = time_of_impact(m, w.state, a, b, h.start_points, w.config.dt, spec, 1.0,
-                            c.toi_verts.data(), c.toi_norms.data(), h.m);
+  h.impact = toi(m, w.state, a, b, h.start_points, w.config.dt, spec, 1.0, h.m);
   return h;
 }
 
@@ -409,8 +414,7 @@ TEST(separating_or_slow_3d_pair_stays_at_start) {
     const ShapeRef3 ball = shape_ref(m, 1, c.vert_world.data() + 8, c.face_world.data(), 1.0);
     CHECK(collide3d(box, ball, 1.0, out) == 1);  // a speculative distance long enough
     CHECK(!meets_within(out, 1, 0, 1, w.config.dt, constants::LINEAR_SLOP, w.state));
-    const Impact hit = time_of_impact(m, w.state, 0, 1, 1, w.config.dt, 1.0, 1.0,
-                                      c.toi_verts.data(), c.toi_norms.data(), out);
+    const Impact hit = toi(m, w.state, 0, 1, 1, w.config.dt, 1.0, 1.0, out);
     CHECK(hit.t == 0.0 && hit.points == 1);
     CHECK_NEAR(out.separation[0], 0.5, 1e-15);
   }

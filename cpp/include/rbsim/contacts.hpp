@@ -228,10 +228,6 @@ struct Contacts {
   // so that the step's start makes it again only where the rotation was set from outside
   std::vector<typename Dim<D>::Rot> body_inertia_q;
   // per vertex / shape
-  // two shapes moved to their time of impact: (V,) vertex rows; (V,) normal rows in 2D,
-  // (2V,) in 3D: a hull's face normals (at most 2 per vertex: a closed triangulated
-  // surface has 2V - 4 triangles) or a plane's normal (collide/toi.hpp)
-  std::vector<Vec> toi_verts, toi_norms;
   std::vector<Vec> vert_world, norm_world;  // (V,) shape geometry in the world this step
   std::vector<Vec> face_world;  // 3D: (Model::hull_face_count,) convex hulls' face normals
                                 // in the world this step (sized by World::allocate)
@@ -351,7 +347,6 @@ bool Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   reset(body_inertia_q, D == 3 ? n : 0);
   for (auto& q : body_inertia_q)  // (not made yet: NaN, which equals no rotation)
     std::fill_n(reinterpret_cast<double*>(&q), sizeof q / sizeof(double), nan);
-  reset(toi_verts, v < 2 ? 2 : v); reset(toi_norms, D == 2 ? (v < 2 ? 2 : v) : 2 * v + 2);
   reset(vert_world, v); reset(norm_world, v); reset(shape_margin, s); reset(shape_turn, s);
   shape_size.assign(s, 1.0); shape_scale.assign(s, 1.0); body_scale.assign(n, 1.0);
   reset(body_level, n); reset(support, m); reset(prev_support, m); reset(body_load, n);

@@ -17,6 +17,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "collide/narrow2d.hpp"
 #include "collide/narrow3d.hpp"
@@ -152,9 +153,24 @@ inline double core_reach(const Model<D>& model, int s) {
   return r;
 }
 
-// The rows of the store's toi_norms one 3D shape needs at its time of impact: a hull's
+// The rows of a ToiRoom's norms one 3D shape needs at its time of impact: a hull's
 // faces, a plane's normal, none for the others.
 int toi_face_rows(const Model<3>& model, int s);
+
+// Room for two shapes moved to their time of impact, for a model of v vertex rows: v
+// vertex rows; v normal rows in 2D, 2v + 2 in 3D (a hull's face normals, at most 2 per
+// vertex: a closed triangulated surface has 2v - 4 triangles, or a plane's normal). Each
+// caller keeps its own (each part of the manifold stage: narrow_pairs).
+template <int D>
+struct ToiRoom {
+  std::vector<typename Dim<D>::Vec> verts, norms;
+  ToiRoom() = default;  // (empty: fit before use)
+  explicit ToiRoom(int v) { fit(v); }
+  void fit(int v) {
+    verts.resize(std::max(v, 2));
+    norms.resize(D == 2 ? std::max(v, 2) : 2 * v + 2);
+  }
+};
 
 struct Impact {
   int points;  // the manifold's point count at the impact (0: the pair passed by)
@@ -165,8 +181,8 @@ struct Impact {
 // start) to the moment of impact: the manifold at the last t replaces `out` (normal,
 // points, separations, ids). spec: the narrowphase's speculative distance (m); scale:
 // the pair's tolerance scale (SCALE_LENGTH); tv, tn: room for both shapes' vertices and
-// normals (the store's toi_verts, toi_norms; in 3D toi_norms holds the hulls' face
-// normals and a plane's normal, toi_face_rows).
+// normals (a ToiRoom's verts and norms; in 3D the norms hold the hulls' face normals and
+// a plane's normal, toi_face_rows).
 Impact time_of_impact(const Model<2>& model, const State<2>& st, int a, int b, int npts,
                       double dt, double spec, double scale, Vec2* tv, Vec2* tn,
                       Manifold2& out);

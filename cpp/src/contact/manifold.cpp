@@ -172,7 +172,7 @@ void narrow_pairs(const Model<D>& model, const State<D>& st, const Contacts<D>& 
   const std::int64_t* prev = c.prev_key.data();
   const std::int64_t n_prev = c.count.manifolds_prev;
   std::conditional_t<D == 2, Manifold2, Manifold3> out;
-  std::vector<Vec> toi_verts, toi_norms;  // the time of impact's room, made when first asked
+  ToiRoom<D> room;  // the time of impact's, made when first asked
   if (pairs.first >= pairs.last) return;
   // a pointer into last step's keys: the pairs are sorted by key too, so it only moves on
   // (a binary search per still pair was half of this stage in a settled pile)
@@ -212,12 +212,9 @@ void narrow_pairs(const Model<D>& model, const State<D>& st, const Contacts<D>& 
     }
     double t = 0.0;  // s
     if (meets) {
-      if (toi_verts.empty()) {
-        toi_verts.resize(c.toi_verts.size());
-        toi_norms.resize(c.toi_norms.size());
-      }
-      const Impact hit = time_of_impact(model, st, a, b, npts, dt, spec, scale, toi_verts.data(),
-                                        toi_norms.data(), out);
+      if (room.norms.empty()) room.fit(model.vertex_count());
+      const Impact hit = time_of_impact(model, st, a, b, npts, dt, spec, scale, room.verts.data(),
+                                        room.norms.data(), out);
       npts = hit.points;
       t = hit.t;
     }

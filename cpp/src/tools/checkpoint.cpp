@@ -8,11 +8,13 @@
 namespace rbsim {
 namespace {
 
-// The last byte is the format: 7 since a solver row (and a 2D batch's lanes) keeps the
-// distance within which its points touch and have friction (6: the contact store keeps
+// The last byte is the format: 8 since the contact store keeps each hull's plane offsets
+// and vertex spread and no longer the time of impact's room (7: a solver row, and a 2D
+// batch's lanes, keeps the distance within which its points touch and have friction; 6:
+// the contact store keeps
 // which manifolds touch and the load each body bears; 5 and before: without them; a
 // checkpoint of another format is refused with a message saying so).
-constexpr char MAGIC[8] = {'R', 'B', 'S', 'I', 'M', 'C', 'K', '7'};
+constexpr char MAGIC[8] = {'R', 'B', 'S', 'I', 'M', 'C', 'K', '8'};
 
 // Every member of the world that changes while it runs, in one fixed order. A member
 // added to State, Grid or Contacts must be added here too: the static_asserts on their
@@ -39,7 +41,6 @@ void visit(W& w, F&& f) {
   f(c.scale), f(c.shape_size), f(c.shape_scale), f(c.body_scale);
   f(c.body_ref), f(c.body_still), f(c.body_delta), f(c.body_inv_inertia_world);
   f(c.body_inertia_q);
-  f(c.toi_verts), f(c.toi_norms);
   f(c.vert_world), f(c.norm_world), f(c.face_world), f(c.face_offset), f(c.shape_spread);
   f(c.shape_margin), f(c.shape_turn);
   f(c.body_level);
@@ -60,9 +61,9 @@ static_assert(sizeof(Grid<2>) == 8 + 16 * VEC + 3 * sizeof(Vec2) + sizeof(GridMe
               "Grid changed: update visit()");
 static_assert(sizeof(Grid<3>) == 8 + 16 * VEC + 3 * sizeof(Vec3) + sizeof(GridMeta<3>),
               "Grid changed: update visit()");
-static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 86 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 84 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
-static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 86 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 84 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
 
 template <class T>
