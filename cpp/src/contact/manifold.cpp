@@ -150,12 +150,15 @@ void carry_unmatched(Contacts<3>& c, std::int64_t m, std::int64_t j, int npts, d
   for (int k = 0; k < npts; ++k) c.start_impulse[m][k] = c.normal_impulse[m][k];
 }
 
+// The store's key of the pair of shapes a < b, of n_shapes: a · S + b, in the order of the
+// pair list (the order of last step's manifolds too, prev_key).
+inline std::int64_t pair_key(std::int64_t n_shapes, int a, int b) { return a * n_shapes + b; }
+
 // Where pair p's key falls among last step's manifolds' (the first not below it): a
 // part's merge pointer starts there.
 template <int D>
 std::int64_t first_match(const Model<D>& model, const Contacts<D>& c, std::int64_t p) {
-  const std::int64_t key =
-      static_cast<std::int64_t>(c.pairs[p][0]) * model.shape_count() + c.pairs[p][1];
+  const std::int64_t key = pair_key(model.shape_count(), c.pairs[p][0], c.pairs[p][1]);
   const std::int64_t* prev = c.prev_key.data();
   return std::lower_bound(prev, prev + c.count.manifolds_prev, key) - prev;
 }
@@ -184,7 +187,7 @@ void narrow_pairs(const Model<D>& model, const State<D>& st, const Contacts<D>& 
     const int ba = model.shape_body[a], bb = model.shape_body[b];
     if (c.body_still[ba] && c.body_still[bb]) {
       // last step's manifold of a still pair is carried: no narrowphase
-      const std::int64_t key = static_cast<std::int64_t>(a) * n_shapes + b;
+      const std::int64_t key = pair_key(n_shapes, a, b);
       while (j < n_prev && prev[j] < key) ++j;
       if (j < n_prev && prev[j] == key) {
         found_points[p] = FOUND_CARRIED;
@@ -257,7 +260,7 @@ MergeFlags merge_manifolds(const Model<D>& model, const State<D>& st, Contacts<D
     if (found_points[p] == FOUND_APART) continue;
     const int a = c.pairs[p][0], b = c.pairs[p][1];
     const int ba = model.shape_body[a], bb = model.shape_body[b];
-    const std::int64_t key = static_cast<std::int64_t>(a) * n_shapes + b;
+    const std::int64_t key = pair_key(n_shapes, a, b);
     while (j < n_prev && c.prev_key[j] < key) ++j;
     const bool matched = j < n_prev && c.prev_key[j] == key;
     // (slot m still holds last step's manifold m: every manifold of this step before it
