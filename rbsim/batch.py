@@ -52,7 +52,7 @@ from typing import Any
 import numpy as np
 
 from . import __version__, config
-from .forkserver import WORKER_MODULES, start_fork_server
+from .forkserver import WORKER_MODULES, holding_sigint, ignoring_sigint, start_fork_server
 from .scene import Scene, SceneError, load_scene, load_scene_text, scene_to_dict
 from .scene.yamlsrc import YList, YMap, load_yaml
 
@@ -731,8 +731,10 @@ def _connect(scheduler: str) -> tuple[Cluster, Callable[[], None]]:
 def _start_local(n: int, forked: bool) -> tuple[Cluster, Callable[[], None]]:
     """A LocalCluster of `n` single-threaded worker processes on the loopback interface
     (LOCAL_CONFIG; forked from the fork server when `forked`), its client, and the
-    function that closes both. In the main thread, SIGINT is ignored while the workers
-    start (they inherit it, and keep it ignored: dask_setup)."""
+    function that closes both. In the main thread, a Ctrl-C while the cluster starts
+    waits until it has started (and is then raised, the cluster closed), where it
+    would have left a half-made cluster; without a fork server, SIGINT is ignored
+    meanwhile instead, so that the spawned workers inherit it (dask_setup keeps it)."""
     from distributed import Client, LocalCluster
 
     dashboard_address = "127.0.0.1:0" if importlib.util.find_spec("bokeh") else None
@@ -740,42 +742,45 @@ def _start_local(n: int, forked: bool) -> tuple[Cluster, Callable[[], None]]:
     if forked:
         settings["distributed.worker.multiprocessing-method"] = "forkserver"
     main = threading.current_thread() is threading.main_thread()
+    if not main:
+        guard = contextlib.nullcontext()
+    else:
+        guard = holding_sigint() if forked else ignoring_sigint()
     config = dask_config(settings)
     config.__enter__()  # for the cluster's whole life: a lost worker restarts alike
-    try:
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
-        try:
-            cluster = LocalCluster(
-                n_workers=n,
-                threads_per_worker=1,
-                processes=True,
-                host="127.0.0.1",
-                dashboard_address=dashboard_address,
-                silence_logs=logging.CRITICAL,  # shutdown races (a last heartbeat) log errors
-                preload=[__name__],
-            )
-        except (OSError, RuntimeError, TimeoutError) as err:
-            raise BatchError(f"cannot start a local Dask cluster of {n} workers: {err}") from None
-        finally:
-            if main:
-                signal.signal(signal.SIGINT, previous)
-        try:
-            client = Client(cluster, set_as_default=False)
-        except BaseException:
-            cluster.close()
-            raise
-    except BaseException:
-        config.__exit__(None, None, None)
-        raise
+    cluster = client = None
 
     def close() -> None:
         try:
-            client.close()
+            if client is not None:
+                client.close()
         finally:
             try:
-                cluster.close()
+                if cluster is not None:
+                    cluster.close()
             finally:
                 config.__exit__(None, None, None)
+
+    try:
+        with guard:
+            try:
+                cluster = LocalCluster(
+                    n_workers=n,
+                    threads_per_worker=1,
+                    processes=True,
+                    host="127.0.0.1",
+                    dashboard_address=dashboard_address,
+                    silence_logs=logging.CRITICAL,  # shutdown races (a last heartbeat) log
+                    preload=[__name__],
+                )
+            except (OSError, RuntimeError, TimeoutError) as err:
+                raise BatchError(
+                    f"cannot start a local Dask cluster of {n} workers: {err}"
+                ) from None
+            client = Client(cluster, set_as_default=False)
+    except BaseException:
+        close()
+        raise
 
     dashboard = client.dashboard_link if dashboard_address else None
     return Cluster(client, local=True, dashboard=dashboard, workers=n), close

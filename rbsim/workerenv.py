@@ -9,9 +9,16 @@ from __future__ import annotations
 
 import importlib.util
 import os
+import signal
 
-import dask
-import yaml
+# The fork server starts with SIGINT blocked (rbsim.forkserver): from here on it and its
+# workers ignore it (a Ctrl-C held back so far is dropped), and it is unblocked.
+if signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, ()):
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+import dask  # noqa: E402 - after the signal's handling, which should come first
+import yaml  # noqa: E402
 
 
 def _pre_spawn_environ() -> dict[str, str]:

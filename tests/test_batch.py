@@ -35,7 +35,7 @@ from rbsim.batch import (
     write_summary,
 )
 from rbsim.io.trajectory import load_trajectory
-from tests.conftest import rbsim
+from tests.conftest import PYTHON, rbsim
 
 ROOT = Path(__file__).parent.parent
 BOUNCE = ROOT / "scenes" / "bounce.yaml"
@@ -576,6 +576,68 @@ def test_sweep_on_two_workers_measures_the_same_errors(tmp_path: Path) -> None:
     assert len(errors("pool")) == 6
 
 
+def run_script(script: str) -> str:
+    """The stdout of `script` run by this Python in a process of its own (a Ctrl-C sent
+    to pytest's own process would end the session); fails on a non-zero exit."""
+    done = subprocess.run(
+        [*PYTHON, "-c", textwrap.dedent(script)], capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 0, done.stderr
+    return done.stdout
+
+
+def test_ctrl_c_while_the_fork_server_starts_is_raised_once_it_has_started() -> None:
+    # it was ignored while the server started (the server must ignore it, and inherited
+    # that): a Ctrl-C in those tenths of a second was lost and the batch ran on
+    out = run_script(
+        """
+        import os, signal
+        from multiprocessing import forkserver
+        from rbsim.forkserver import start_fork_server
+        forkserver.ensure_running = lambda: os.kill(os.getpid(), signal.SIGINT)
+        seed = os.environ.get("PYTHONHASHSEED")
+        try:
+            start_fork_server()
+            print("went on")
+        except KeyboardInterrupt:
+            print("raised", os.environ.get("PYTHONHASHSEED") == seed)
+        """
+    )
+    assert out.split() == ["raised", "True"]
+
+
+def test_ctrl_c_while_a_local_cluster_starts_is_raised_once_it_started_and_closes_it() -> None:
+    # a batch into a folder with trajectories starts its cluster in the main thread;
+    # a Ctrl-C meanwhile was lost as above (and one let through would leave it half made)
+    out = run_script(
+        """
+        import os, signal
+        import distributed
+        closed = []
+        class Cluster:
+            def __init__(self, **settings):
+                os.kill(os.getpid(), signal.SIGINT)
+                print("started")
+            def close(self):
+                closed.append("cluster")
+        class Client:
+            dashboard_link = None
+            def __init__(self, cluster, set_as_default):
+                pass
+            def close(self):
+                closed.append("client")
+        distributed.LocalCluster, distributed.Client = Cluster, Client
+        from rbsim.batch import _start_local
+        try:
+            _start_local(1, forked=True)
+            print("went on")
+        except KeyboardInterrupt:
+            print("raised", *closed)
+        """
+    )
+    assert out.split() == ["started", "raised", "client", "cluster"]
+
+
 def test_local_workers_start_with_dasks_environment_from_the_early_fork_server() -> None:
     # rbsim batch starts the fork server before it imports Dask (rbsim.forkserver); the
     # workers forked from it must still run as Dask runs a worker it spawns: one BLAS
@@ -583,7 +645,10 @@ def test_local_workers_start_with_dasks_environment_from_the_early_fork_server()
     # in the worker after the fork, comes too late for the library) and a fixed hash seed
     script = textwrap.dedent(
         """
-        import ctypes, os, sys
+        import ctypes, os, signal, sys
+        def sigint():  # ignored, blocked
+            held = signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, ())
+            return f"{signal.getsignal(signal.SIGINT) == signal.SIG_IGN}/{held}"
         def blas_threads():
             paths = {l.split()[-1] for l in open("/proc/self/maps") if "openblas" in l}
             for path in sorted(paths):
@@ -600,6 +665,7 @@ def test_local_workers_start_with_dasks_environment_from_the_early_fork_server()
                 client = start.get().client
                 print(client.submit(blas_threads).result())
                 print(client.submit(lambda: os.environ.get("PYTHONHASHSEED")).result())
+                print(client.submit(sigint).result(), sigint())
         """
     )
     keep = ("PYTHONHASHSEED", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS")
@@ -608,7 +674,8 @@ def test_local_workers_start_with_dasks_environment_from_the_early_fork_server()
         [sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=120
     )
     assert done.returncode == 0, done.stderr
-    threads, seed = done.stdout.split("\n")[:2]
+    threads, seed, sigint = done.stdout.split("\n")[:3]
+    assert sigint == "True/False False/False"  # the worker ignores Ctrl-C, the batch not
     if threads == "None":
         pytest.skip("numpy's BLAS here is not OpenBLAS")
     assert (threads, seed) == ("1", "6640")
