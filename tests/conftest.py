@@ -67,6 +67,13 @@ def rbsim(*args: str | Path) -> tuple[int, str, str]:
     return result.exit_code, result.stdout, result.stderr
 
 
+def TAKE_CTRL_C() -> None:  # noqa: N802 - a constant's name: a child's preexec_fn
+    """Run in a child before it starts (subprocess's preexec_fn): SIGINT's default action,
+    which Python turns into KeyboardInterrupt (a shell running the tests in the background
+    may ignore SIGINT, and the child would inherit that)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @contextlib.contextmanager
 def started_rbsim(*args: str | Path, env: dict | None = None) -> Iterator[subprocess.Popen]:
     """`python -m rbsim ARGS` as a child process (text pipes) that takes Ctrl-C (a shell
@@ -77,7 +84,7 @@ def started_rbsim(*args: str | Path, env: dict | None = None) -> Iterator[subpro
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        preexec_fn=TAKE_CTRL_C,
         env=env,
     )
     try:

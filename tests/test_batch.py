@@ -35,7 +35,7 @@ from rbsim.batch import (
     write_summary,
 )
 from rbsim.io.trajectory import load_trajectory
-from tests.conftest import PYTHON, rbsim
+from tests.conftest import PYTHON, TAKE_CTRL_C, rbsim
 
 ROOT = Path(__file__).parent.parent
 BOUNCE = ROOT / "scenes" / "bounce.yaml"
@@ -346,8 +346,7 @@ def test_ctrl_c_keeps_every_finished_run_recorded_and_stops_the_workers(tmp_path
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,  # its own process group, as a terminal's foreground job
-        # a shell running us in the background may ignore SIGINT; Python then ignores it too
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        preexec_fn=TAKE_CTRL_C,
     )  # fmt: skip
     try:
         deadline = time.monotonic() + TIMEOUT
@@ -578,9 +577,14 @@ def test_sweep_on_two_workers_measures_the_same_errors(tmp_path: Path) -> None:
 
 def run_script(script: str) -> str:
     """The stdout of `script` run by this Python in a process of its own (a Ctrl-C sent
-    to pytest's own process would end the session); fails on a non-zero exit."""
+    to pytest's own process would end the session) that takes Ctrl-C; fails on a non-zero
+    exit."""
     done = subprocess.run(
-        [*PYTHON, "-c", textwrap.dedent(script)], capture_output=True, text=True, timeout=120
+        [*PYTHON, "-c", textwrap.dedent(script)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        preexec_fn=TAKE_CTRL_C,
     )
     assert done.returncode == 0, done.stderr
     return done.stdout
@@ -671,7 +675,12 @@ def test_local_workers_start_with_dasks_environment_from_the_early_fork_server()
     keep = ("PYTHONHASHSEED", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS")
     env = {k: v for k, v in os.environ.items() if k not in keep}
     done = subprocess.run(
-        [sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=120
+        [sys.executable, "-c", script],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+        preexec_fn=TAKE_CTRL_C,
     )
     assert done.returncode == 0, done.stderr
     threads, seed, sigint = done.stdout.split("\n")[:3]
