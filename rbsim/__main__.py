@@ -2,9 +2,20 @@
 of rbsim.cli, with a Ctrl-C that lands while Python still imports it ending as one during
 a command does (exit 130 and a message, no traceback)."""
 
+import signal
 import sys
 
 EXIT_INTERRUPTED = 130  # rbsim.cli's, not imported from there: that is what may be stopped
+
+_ctrl_c = [0]  # Ctrl-Cs received by _noting_handler
+
+
+def _noting_handler(signum: int, frame: object) -> None:  # noqa: ARG001 - a signal handler
+    """Python's own SIGINT handler (raise KeyboardInterrupt), which also counts the Ctrl-C:
+    one that lands while a compiled module is imported reaches the command line as that
+    module's ImportError (h5py's: "Failed to import 'zlib.decompress'")."""
+    _ctrl_c[0] += 1
+    raise KeyboardInterrupt
 
 
 def _forget_the_interrupt() -> None:
@@ -23,6 +34,8 @@ def _forget_the_interrupt() -> None:
 def entry() -> None:
     """Run the command line; a KeyboardInterrupt before click has started (the imports)
     exits 130 with a message, as the commands do."""
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        signal.signal(signal.SIGINT, _noting_handler)
     try:
         from .cli import main
 
@@ -35,6 +48,12 @@ def entry() -> None:
         if done.code == EXIT_INTERRUPTED:  # a Ctrl-C handled: exit 130, not SIGINT
             _forget_the_interrupt()
         raise
+    except Exception:
+        if not _ctrl_c[0]:
+            raise
+        sys.stderr.write("interrupted\n")  # what it broke (an import) raised something else
+        _forget_the_interrupt()
+        sys.exit(EXIT_INTERRUPTED)
 
 
 if __name__ == "__main__":  # not when a worker process imports it (spawn)

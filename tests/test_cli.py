@@ -29,7 +29,7 @@ from rbsim.io.trajectory import load_trajectory
 from rbsim.scene import load_scene_text, scene_to_dict
 from rbsim.scene.schema import json_schema
 
-from .conftest import rbsim, started_rbsim
+from .conftest import PYTHON, TAKE_CTRL_C, rbsim, started_rbsim
 
 REPO = Path(__file__).resolve().parents[1]
 SCENES = sorted((REPO / "scenes").glob("*.yaml"))
@@ -337,6 +337,30 @@ def test_ctrl_c_at_any_moment_of_the_start_exits_130_without_a_traceback(
         assert proc.returncode == 130, f"at {delay} s: {stderr}"
         assert "interrupted" in stderr and "Traceback" not in stderr, f"at {delay} s: {stderr}"
         assert "Aborted" not in stderr, f"at {delay} s: {stderr}"
+
+
+def test_ctrl_c_that_breaks_an_import_exits_130_without_a_traceback() -> None:
+    # Ctrl-C while h5py's compiled modules were imported (0.22 s into a run, here) came
+    # out as their ImportError ("Failed to import 'zlib.decompress' - cannot initialise
+    # module strings"): a traceback and exit 1. This child breaks an import the same way
+    script = textwrap.dedent(
+        """
+        import os, signal
+        import rbsim.cli
+        def main():
+            try:
+                os.kill(os.getpid(), signal.SIGINT)
+            except KeyboardInterrupt:
+                raise ImportError("Failed to import 'zlib.decompress'") from None
+        rbsim.cli.main = main
+        from rbsim.__main__ import entry
+        entry()
+        """
+    )
+    done = subprocess.run(
+        [*PYTHON, "-c", script], capture_output=True, text=True, timeout=60, preexec_fn=TAKE_CTRL_C
+    )
+    assert (done.returncode, done.stderr) == (130, "interrupted\n")
 
 
 # info, validate, schema ---------------------------------------------------------------------
