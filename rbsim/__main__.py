@@ -2,20 +2,11 @@
 of rbsim.cli, with a Ctrl-C that lands while Python still imports it ending as one during
 a command does (exit 130 and a message, no traceback)."""
 
-import signal
 import sys
 
+from . import ctrlc
+
 EXIT_INTERRUPTED = 130  # rbsim.cli's, not imported from there: that is what may be stopped
-
-_ctrl_c = [0]  # Ctrl-Cs received by _noting_handler
-
-
-def _noting_handler(signum: int, frame: object) -> None:  # noqa: ARG001 - a signal handler
-    """Python's own SIGINT handler (raise KeyboardInterrupt), which also counts the Ctrl-C:
-    one that lands while a compiled module is imported reaches the command line as that
-    module's ImportError (h5py's: "Failed to import 'zlib.decompress'")."""
-    _ctrl_c[0] += 1
-    raise KeyboardInterrupt
 
 
 def _forget_the_interrupt() -> None:
@@ -34,8 +25,7 @@ def _forget_the_interrupt() -> None:
 def entry() -> None:
     """Run the command line; a KeyboardInterrupt before click has started (the imports)
     exits 130 with a message, as the commands do."""
-    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-        signal.signal(signal.SIGINT, _noting_handler)
+    ctrlc.install()
     try:
         from .cli import main
 
@@ -49,7 +39,7 @@ def entry() -> None:
             _forget_the_interrupt()
         raise
     except Exception:
-        if not _ctrl_c[0]:
+        if not ctrlc.arrived():
             raise
         sys.stderr.write("interrupted\n")  # what it broke (an import) raised something else
         _forget_the_interrupt()

@@ -51,7 +51,7 @@ from typing import Any
 
 import numpy as np
 
-from . import __version__, config
+from . import __version__, config, ctrlc
 from .forkserver import WORKER_MODULES, holding_sigint, ignoring_sigint, start_fork_server
 from .scene import Scene, SceneError, load_scene, load_scene_text, scene_to_dict
 from .scene.yamlsrc import YList, YMap, load_yaml
@@ -1001,6 +1001,7 @@ def run_batch(
                 running = start.get()
                 if running.dashboard and notify is not None:
                     notify(f"dashboard: {running.dashboard}")
+                ctrlc.raise_if_arrived()  # one lost while Dask was imported (rbsim.ctrlc)
                 _run_tasks(running, todo, out, retries, state)
     except KeyboardInterrupt:
         interrupted = True

@@ -24,7 +24,7 @@ from types import FrameType
 
 import numpy as np
 
-from . import __version__
+from . import __version__, ctrlc
 from .engines import DEFAULT_ENGINE, Engine, NonFiniteState, TooManyPairs, make_engine
 from .io.trajectory import (
     BLOCK_MAX_FRAMES,
@@ -191,6 +191,8 @@ class _Interrupts:
                 if handler is not None and handler != signal.SIG_IGN:
                     previous[signum] = signal.signal(signum, self._handle)
         try:
+            if signal.SIGINT in previous:
+                ctrlc.raise_if_arrived()  # one lost before (rbsim.ctrlc) stops the run now
             yield
         finally:
             for signum, handler in previous.items():
