@@ -4,8 +4,6 @@ a command does (exit 130 and a message, no traceback)."""
 
 import sys
 
-from . import ctrlc
-
 EXIT_INTERRUPTED = 130  # rbsim.cli's, not imported from there: that is what may be stopped
 
 
@@ -25,8 +23,10 @@ def _forget_the_interrupt() -> None:
 def entry() -> None:
     """Run the command line; a KeyboardInterrupt before click has started (the imports)
     exits 130 with a message, as the commands do."""
-    ctrlc.install()
     try:
+        from . import ctrlc  # (inside: a Ctrl-C may land in any import)
+
+        ctrlc.install()
         from .cli import main
 
         main()
@@ -39,7 +39,8 @@ def entry() -> None:
             _forget_the_interrupt()
         raise
     except Exception:
-        if not ctrlc.arrived():
+        ctrlc = sys.modules.get(f"{__package__}.ctrlc")
+        if ctrlc is None or not ctrlc.arrived():
             raise
         sys.stderr.write("interrupted\n")  # what it broke (an import) raised something else
         _forget_the_interrupt()
