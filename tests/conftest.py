@@ -74,6 +74,19 @@ def TAKE_CTRL_C() -> None:  # noqa: N802 - a constant's name: a child's preexec_
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
+def python_child(script: str, env: dict | None = None) -> subprocess.CompletedProcess:
+    """`script` (dedented) run by this Python (PYTHON) in a process of its own that takes
+    Ctrl-C (TAKE_CTRL_C), its output captured as text; at most 120 s."""
+    return subprocess.run(
+        [*PYTHON, "-c", textwrap.dedent(script)],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+        preexec_fn=TAKE_CTRL_C,
+    )
+
+
 @contextlib.contextmanager
 def started_rbsim(*args: str | Path, env: dict | None = None) -> Iterator[subprocess.Popen]:
     """`python -m rbsim ARGS` as a child process (text pipes) that takes Ctrl-C (a shell

@@ -35,7 +35,7 @@ from rbsim.batch import (
     write_summary,
 )
 from rbsim.io.trajectory import load_trajectory
-from tests.conftest import PYTHON, TAKE_CTRL_C, rbsim
+from tests.conftest import TAKE_CTRL_C, python_child, rbsim
 
 ROOT = Path(__file__).parent.parent
 BOUNCE = ROOT / "scenes" / "bounce.yaml"
@@ -579,13 +579,7 @@ def run_script(script: str) -> str:
     """The stdout of `script` run by this Python in a process of its own (a Ctrl-C sent
     to pytest's own process would end the session) that takes Ctrl-C; fails on a non-zero
     exit."""
-    done = subprocess.run(
-        [*PYTHON, "-c", textwrap.dedent(script)],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        preexec_fn=TAKE_CTRL_C,
-    )
+    done = python_child(script)
     assert done.returncode == 0, done.stderr
     return done.stdout
 
@@ -674,14 +668,7 @@ def test_local_workers_start_with_dasks_environment_from_the_early_fork_server()
     )
     keep = ("PYTHONHASHSEED", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS")
     env = {k: v for k, v in os.environ.items() if k not in keep}
-    done = subprocess.run(
-        [sys.executable, "-c", script],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=120,
-        preexec_fn=TAKE_CTRL_C,
-    )
+    done = python_child(script, env)
     assert done.returncode == 0, done.stderr
     threads, seed, sigint = done.stdout.split("\n")[:3]
     assert sigint == "True/False False/False"  # the worker ignores Ctrl-C, the batch not

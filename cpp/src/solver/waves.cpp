@@ -365,7 +365,7 @@ void pack_waves_3d(const Model<3>& model, Contacts<3>& c, std::int32_t n_waves, 
   // 4 faces that hold none
   constexpr int IDLE_UNIT = 4;
   const std::vector<Unit> units =
-      schedule_units<3, IDLE_UNIT + 1>(model, c, n_segments, [&c, &kind_of](std::int32_t m) {
+      schedule_units<3, IDLE_UNIT + 1>(model, c, n_segments, [&kind_of](std::int32_t m) {
         const int kind = kind_of(m);
         return kind <= 1 ? 0 : kind == IDLE_FACE ? IDLE_UNIT : kind - 1;
       });

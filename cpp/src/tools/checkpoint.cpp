@@ -11,9 +11,9 @@ namespace {
 // The last byte is the format: 8 since the contact store keeps each hull's plane offsets
 // and vertex spread and no longer the time of impact's room (7: a solver row, and a 2D
 // batch's lanes, keeps the distance within which its points touch and have friction; 6:
-// the contact store keeps
-// which manifolds touch and the load each body bears; 5 and before: without them; a
-// checkpoint of another format is refused with a message saying so).
+// the contact store keeps which manifolds touch and the load each body bears; 5 and
+// before: without them; a checkpoint of another format is refused with a message saying
+// so).
 constexpr char MAGIC[8] = {'R', 'B', 'S', 'I', 'M', 'C', 'K', '8'};
 
 // Every member of the world that changes while it runs, in one fixed order. A member
