@@ -8,15 +8,19 @@ inside a compiled module's import it comes out as that module's ImportError (h5p
 of importlib's module locks, while Dask is imported) Python prints "Exception ignored"
 and goes on. Any Ctrl-C ends the program, so a count above zero where the program goes
 on means one was lost: `raise_if_arrived` raises it again where a command is about to
-start its long work.
+start its long work. The "Exception ignored" report of one lost so (a traceback) is not
+printed.
 """
 
 from __future__ import annotations
 
 import signal
+import sys
 from types import FrameType
+from typing import Any
 
 _arrived = 0  # Ctrl-Cs handled by `handler`
+_report = sys.unraisablehook  # how an exception that cannot be raised is reported
 
 
 def handler(signum: int, frame: FrameType | None) -> None:  # noqa: ARG001 - a signal handler
@@ -26,11 +30,21 @@ def handler(signum: int, frame: FrameType | None) -> None:  # noqa: ARG001 - a s
     raise KeyboardInterrupt
 
 
+def _unraisable(unraisable: Any) -> None:
+    """sys.unraisablehook: silent for a KeyboardInterrupt of `handler`'s (it is raised
+    again: raise_if_arrived), the report before for anything else."""
+    if not (_arrived and isinstance(unraisable.exc_value, KeyboardInterrupt)):
+        _report(unraisable)
+
+
 def install() -> None:
     """Handle SIGINT with `handler` where Python's own handler is in place (not where it
     is ignored, as in a background job; only from the main thread)."""
+    global _report
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         signal.signal(signal.SIGINT, handler)
+        _report = sys.unraisablehook
+        sys.unraisablehook = _unraisable
 
 
 def arrived() -> bool:
