@@ -87,6 +87,21 @@ def python_child(script: str, env: dict | None = None) -> subprocess.CompletedPr
     )
 
 
+# Python source of blas_threads(): the threads numpy's OpenBLAS runs on in the process
+# that calls it (None where numpy's BLAS is not OpenBLAS), for a child's script
+BLAS_THREADS = """
+def blas_threads():
+    import ctypes
+    paths = {l.split()[-1] for l in open("/proc/self/maps") if "openblas" in l}
+    for path in sorted(paths):
+        lib = ctypes.CDLL(path)
+        for name in ("scipy_openblas_get_num_threads64_", "openblas_get_num_threads"):
+            if hasattr(lib, name):
+                return getattr(lib, name)()
+    return None
+"""
+
+
 @contextlib.contextmanager
 def started_rbsim(*args: str | Path, env: dict | None = None) -> Iterator[subprocess.Popen]:
     """`python -m rbsim ARGS` as a child process (text pipes) that takes Ctrl-C (a shell

@@ -35,7 +35,7 @@ from rbsim.batch import (
     write_summary,
 )
 from rbsim.io.trajectory import load_trajectory
-from tests.conftest import TAKE_CTRL_C, python_child, rbsim
+from tests.conftest import BLAS_THREADS, TAKE_CTRL_C, python_child, rbsim
 
 ROOT = Path(__file__).parent.parent
 BOUNCE = ROOT / "scenes" / "bounce.yaml"
@@ -643,18 +643,10 @@ def test_local_workers_start_with_dasks_environment_from_the_early_fork_server()
     # in the worker after the fork, comes too late for the library) and a fixed hash seed
     script = textwrap.dedent(
         """
-        import ctypes, os, signal, sys
+        import os, signal, sys
         def sigint():  # ignored, blocked
             held = signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, ())
             return f"{signal.getsignal(signal.SIGINT) == signal.SIG_IGN}/{held}"
-        def blas_threads():
-            paths = {l.split()[-1] for l in open("/proc/self/maps") if "openblas" in l}
-            for path in sorted(paths):
-                lib = ctypes.CDLL(path)
-                for name in ("scipy_openblas_get_num_threads64_", "openblas_get_num_threads"):
-                    if hasattr(lib, name):
-                        return getattr(lib, name)()
-            return None
         if __name__ == "__main__":
             from rbsim.forkserver import start_fork_server
             assert start_fork_server()
@@ -668,7 +660,7 @@ def test_local_workers_start_with_dasks_environment_from_the_early_fork_server()
     )
     keep = ("PYTHONHASHSEED", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS")
     env = {k: v for k, v in os.environ.items() if k not in keep}
-    done = python_child(script, env)
+    done = python_child(BLAS_THREADS + script, env)
     assert done.returncode == 0, done.stderr
     threads, seed, sigint = done.stdout.split("\n")[:3]
     assert sigint == "True/False False/False"  # the worker ignores Ctrl-C, the batch not

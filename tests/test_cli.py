@@ -29,7 +29,7 @@ from rbsim.io.trajectory import load_trajectory
 from rbsim.scene import load_scene_text, scene_to_dict
 from rbsim.scene.schema import json_schema
 
-from .conftest import python_child, rbsim, started_rbsim
+from .conftest import BLAS_THREADS, python_child, rbsim, started_rbsim
 
 REPO = Path(__file__).resolve().parents[1]
 SCENES = sorted((REPO / "scenes").glob("*.yaml"))
@@ -392,6 +392,33 @@ def test_ctrl_c_lost_where_it_landed_still_stops_the_command(tmp_path: Path, com
 
 
 # info, validate, schema ---------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("chosen", [None, "2"])
+def test_a_command_runs_numpys_blas_on_one_thread_unless_the_user_chose(chosen: str | None) -> None:
+    # OpenBLAS's idle threads spin on the other cores after each call (0.15 s of CPU in
+    # every command's start); a user's OPENBLAS_NUM_THREADS is kept
+    script = """
+        import sys
+        from rbsim.__main__ import entry
+        sys.argv = ["rbsim", "schema"]
+        try:
+            entry()
+        except SystemExit:
+            pass
+        print(blas_threads(), file=sys.stderr)
+        """
+    keep = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+    env = {k: v for k, v in os.environ.items() if k not in keep}
+    if chosen:
+        env["OPENBLAS_NUM_THREADS"] = chosen
+    done = python_child(BLAS_THREADS + textwrap.dedent(script), env)
+    threads = done.stderr.split()[-1]
+    if threads == "None":
+        pytest.skip("numpy's BLAS here is not OpenBLAS")
+    if chosen and os.cpu_count() < int(chosen):
+        pytest.skip("fewer cores than the threads chosen: OpenBLAS takes the cores")
+    assert threads == (chosen or "1")
 
 
 def test_info_prints_engine_bodies_and_frames(tmp_path: Path) -> None:
