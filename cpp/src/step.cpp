@@ -190,8 +190,12 @@ void World<D>::over_segments(bool with_logs, F&& f) {
 template <int D>
 void World<D>::warm_start_pass() {
   auto& c = contacts;
+  take_impulses(c);  // (2D: the passes read and write them in the batches until given back)
   if (c.region_count == 1) {
-    warm_start_waves(model, state, c);
+    if constexpr (D == 2)
+      warm_start_range(model, state, c, 0, c.wave_count);
+    else
+      warm_start_waves(model, state, c);
     return;
   }
   const auto& bounds = D == 2 ? c.segment_wave : c.segment_order;
@@ -203,6 +207,7 @@ void World<D>::warm_start_pass() {
 template <int D>
 void World<D>::solve_pass(double inv_h, bool use_bias, double shift, double threshold) {
   auto& c = contacts;
+  take_impulses(c);
   over_segments(true, [&](int g, PassLog& log) {
     solve_wave_range(model, state, c, inv_h, use_bias, shift, threshold, c.segment_wave[g],
                      c.segment_wave[g + 1], log);
@@ -304,7 +309,7 @@ bool World<D>::step() {
   // m/s²: |g|, for the shock passes' slowest approaches
   const double g_norm = std::sqrt(dot(model.gravity, model.gravity));
   // the restitution stage's list names this step's manifolds
-  c.count.bounce_count = c.count.bounce_carried = c.count.elastic_listed = 0;
+  start_restitution(c);
   const std::int64_t n_bodies = model.body_count();
   // 3D with contacts: each body's world inverse inertia kept with its rotation, for the
   // solver's passes (contacts.body_inv_inertia_world)
@@ -336,7 +341,10 @@ bool World<D>::step() {
       timed(S::Shock, [&] { shock_pass(inv_h, threshold, impact); });
     }
     if (!cfg.explicit_euler) {
-      if (contacts_on && cfg.elastic) keep_solve_impulses(c);
+      if (contacts_on && cfg.elastic) {
+        give_impulses(c);
+        keep_solve_impulses(c);
+      }
       timed(S::IntegratePositions, move);
     }
     if (contacts_on) {
@@ -349,13 +357,25 @@ bool World<D>::step() {
         // instead of adding up from row to row
         timed(S::ExtraRelax, [&] {
           const std::int64_t n_near = deep_region(model, c, C::DEEP_RELAX_REACH);
+          // (passes of one manifold at a time, on the store's impulses)
+          give_impulses(c, c.relax_list.data(), n_near);
           for (int it = 0; n_near && it < cfg.iterations * (C::DEEP_RELAX_FACTOR - 1); ++it)
             solve_contacts(model, state, c, inv_h, false, shift, threshold, c.relax_list.data(), n_near);
+          take_impulses(c, c.relax_list.data(), n_near);
         });
       }
       // bounces first: the shock pass then leaves them alone, and would otherwise take a
       // ball struck down onto the floor as a load and stop it dead
-      timed(S::Restitution, [&] { apply_restitution(model, state, c, threshold, h, sign); });
+      timed(S::Restitution, [&] {
+        // it reads and writes the store's impulses: of the manifolds listed, or of all
+        const int reach = restitution_reach(c);
+        if (reach == 2) give_impulses(c);
+        const std::int64_t n_listed = reach == 1 ? c.count.bounce_count : 0;
+        listed.assign(c.bounce_list.begin(), c.bounce_list.begin() + n_listed);
+        give_impulses(c, listed.data(), n_listed);
+        apply_restitution(model, state, c, threshold, h, sign);
+        take_impulses(c, listed.data(), n_listed);
+      });
       // In 3D, unless a heavy body rests on a light one, an approach no faster than one
       // substep of gravity gives is left to the soft contacts as a resting load: after the
       // relax pass most resting points still approach by a little, and taking each out
@@ -364,7 +384,10 @@ bool World<D>::step() {
       const double slowest = std::max(load, C::SHOCK_MIN_APPROACH);
       timed(S::Shock, [&] { shock_pass(inv_h, threshold, slowest); });
     }
-    if (sub + 1 < cfg.substeps && stop_here()) return false;
+    if (sub + 1 < cfg.substeps && stop_here()) {
+      give_impulses(c);
+      return false;
+    }
   }
   if constexpr (D == 3) {
     // the world tensors were made at these rotations (integrate_positions): the next
@@ -374,6 +397,7 @@ bool World<D>::step() {
   if (contacts_on) {
     timed(S::OverlapLimit, [&] { limit_static_overlap(model, state, c, C::STATIC_OVERLAP_LIMIT); });
     timed(S::Store, [&] {
+      give_impulses(c);  // (2D: the batches held them through the passes)
       // each part counts its touching points (an integer sum: the same in any order)
       const std::int64_t n = c.count.manifolds;
       std::atomic<std::int64_t> touching{0};

@@ -58,6 +58,93 @@ TEST(warm_start_leaves_static_body_alone) {
   CHECK(w.state.body_v[g].x == 0.0 && w.state.body_v[g].y == 0.0 && w.state.body_w[g] == 0.0);
 }
 
+// 2D: the batches take their manifolds' impulses (take_impulses) and the step's passes
+// read and write them there; give_impulses writes back what they hold. Taken and given
+// back untouched, the store is unchanged to the bit; while the batches hold them, the
+// store's copy is not what a pass reads; the passes on the batches' impulses, given back,
+// are the passes one manifold at a time on the store's (a wave's manifolds share no
+// dynamic body, so the two orders agree to the bit).
+TEST(batches_hold_the_impulses_between_take_and_give) {
+  auto scene = [](SceneBuilder& s) -> World<2>& {
+    s.world.model.gravity = {0.0, -10.0};
+    s.ground();
+    s.box({-2.0, 0.49}, 0.5, 0.5, 2.0);           // two points on the ground
+    s.box({-2.0, 1.48}, 0.5, 0.5, 1.0);           // and on the box
+    s.circle({1.0, 0.245}, 0.25, 1.0);            // one point
+    s.circle({1.5, 0.245}, 0.25, 1.0, {}, {-0.3, 0.0});  // and one between the two balls
+    return s.finish();
+  };
+  SceneBuilder s0, s1;
+  World<2>& lanes = scene(s0);
+  World<2>& one = scene(s1);
+  for (World<2>* w : {&lanes, &one}) {
+    rbsim::test::collide(*w);
+    auto& c = w->contacts;
+    for (std::int64_t m = 0; m < c.count.manifolds; ++m) {  // N·s: some held, some not
+      c.normal_impulse[m] = {0.02 * static_cast<double>(m), 0.01};
+      c.tangent_impulse[m] = {0.003 * static_cast<double>(m % 2), -0.001};
+    }
+  }
+  auto& c = lanes.contacts;
+  CHECK(c.count.manifolds == 5);
+  find_waves(lanes.model, c);
+  const auto before_n = c.normal_impulse;
+  const auto before_t = c.tangent_impulse;
+  take_impulses(c);
+  CHECK(c.impulses_in_lanes);
+  give_impulses(c);
+  CHECK(!c.impulses_in_lanes);
+  for (std::int64_t m = 0; m < c.count.manifolds; ++m) {
+    for (int k = 0; k < c.points[m]; ++k) {
+      CHECK(c.normal_impulse[m][k] == before_n[m][k]);
+      CHECK(c.tangent_impulse[m][k] == before_t[m][k]);
+    }
+  }
+  // one manifold's row changed in the store while the batches hold the impulses (as the
+  // restitution stage changes those it lists): taken alone, it is what is given back
+  take_impulses(c);
+  const std::int32_t pick[] = {3};
+  c.normal_impulse[3][0] = 0.75;
+  c.normal_impulse[1][0] = 9.0;  // (not taken: the batches' value is given back)
+  take_impulses(c, pick, 1);
+  give_impulses(c);
+  CHECK(c.normal_impulse[3][0] == 0.75 && c.normal_impulse[1][0] == before_n[1][0]);
+  // and given alone, only its row is written
+  take_impulses(c);
+  c.normal_impulse[1][0] = 9.0;
+  c.normal_impulse[3][0] = 8.0;
+  give_impulses(c, pick, 1);
+  CHECK(c.normal_impulse[3][0] == 0.75 && c.normal_impulse[1][0] == 9.0);
+  give_impulses(c);
+  c.normal_impulse[3] = before_n[3];
+  // while taken, the store's copy is not read: scribbled over, the pass is the same
+  const double inv_h = 1.0 / rbsim::test::substep(lanes);
+  take_impulses(c);
+  for (auto& lam : c.normal_impulse) lam = {7.0, 7.0};
+  for (auto& lam : c.tangent_impulse) lam = {-7.0, -7.0};
+  warm_start_range(lanes.model, lanes.state, c, 0, c.wave_count);
+  PassLog log = PassLog::direct(c);
+  solve_wave_range(lanes.model, lanes.state, c, inv_h, true, 0.0, 1.0, 0, c.wave_count, log);
+  solve_wave_range(lanes.model, lanes.state, c, inv_h, false, 0.0, 1.0, 0, c.wave_count, log);
+  give_impulses(c);
+  // the same passes one manifold at a time, in solve order, on the store's impulses
+  auto& o = one.contacts;
+  warm_start(one.model, one.state, o);
+  solve_contacts(one.model, one.state, o, inv_h, true, 0.0, 1.0, o.solve_order.data(),
+                 o.count.manifolds);
+  solve_contacts(one.model, one.state, o, inv_h, false, 0.0, 1.0, o.solve_order.data(),
+                 o.count.manifolds);
+  CHECK(rbsim::test::same_bits(lanes.state, one.state));
+  for (std::int64_t m = 0; m < c.count.manifolds; ++m) {
+    for (int k = 0; k < c.points[m]; ++k) {
+      CHECK(c.normal_impulse[m][k] == o.normal_impulse[m][k]);
+      CHECK(c.tangent_impulse[m][k] == o.tangent_impulse[m][k]);
+      CHECK(c.max_normal_impulse[m][k] == o.max_normal_impulse[m][k]);
+      CHECK(c.approach_velocity[m][k] == o.approach_velocity[m][k]);
+    }
+  }
+}
+
 // 3D warm start: each point's stored normal and friction impulses are applied again, as
 // momentum: Δv = Σ p / m and ΔL = Σ r × p on each body (ω from L), with the part of a
 // stored friction impulse along this step's normal dropped.

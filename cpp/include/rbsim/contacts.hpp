@@ -268,6 +268,10 @@ struct Contacts {
   // the waves of the solve order (waves.cpp): groups of independent manifolds
   std::int64_t wave_count = 0;             // waves
   bool waves_valid = false;                 // the waves are this contact graph's
+  // 2D: the batches hold the impulses of their manifolds (normal_impulse,
+  // tangent_impulse, max_normal_impulse and approach_velocity are behind them) while the
+  // passes run: take_impulses, give_impulses (waves.cpp)
+  bool impulses_in_lanes = false;
   bool heavy_on_light = false;              // a body rests on one HEAVY_RATIO times lighter
   bool unit_scale = true;                   // every shape's scale is 1 (SCALE_LENGTH)
   std::vector<std::int32_t> wave_order;    // (M,) the manifolds wave by wave
@@ -357,6 +361,7 @@ bool Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   reset(bounce_list, (P + 1) * m + 2); reset(relax_list, m); reset(body_reach, n);
   wave_count = 0;
   waves_valid = false;
+  impulses_in_lanes = false;
   heavy_on_light = false;
   reset(wave_order, m); reset(manifold_wave, m); reset(body_wave, n);
   reset(wave_start, m + 2); reset(wave_batch, m + 2); reset(wave_single, m + 1);

@@ -169,6 +169,22 @@ std::int64_t support_order(const Model<D>& model, Contacts<D>& contacts);
 template <int D>
 std::int64_t find_waves(const Model<D>& model, Contacts<D>& contacts);
 
+// solver/waves.cpp (2D): the batches' lanes take their manifolds' impulses (normal,
+// tangent, largest normal, approach speed) for the passes, which then read and write them
+// there instead of gathering and scattering them every pass; give_impulses writes them
+// back before anything else reads or writes them (restitution, the extra relax passes,
+// the store). Each does nothing when the impulses are already where it puts them, and
+// both nothing in 3D.
+template <int D>
+void take_impulses(Contacts<D>& contacts);
+template <int D>
+void give_impulses(Contacts<D>& contacts);
+// The same for the manifolds list[0..n) alone (a manifold listed twice is harmless).
+template <int D>
+void take_impulses(Contacts<D>& contacts, const std::int32_t* list, std::int64_t n);
+template <int D>
+void give_impulses(Contacts<D>& contacts, const std::int32_t* list, std::int64_t n);
+
 // solver/shock.cpp: the manifolds within `reach` contacts of a deep overlap between
 // bodies that have moved this step, written to contacts.relax_list; returns their count.
 template <int D>
@@ -209,7 +225,8 @@ void world_inertia(const Model<3>& model, const State<3>& state, Contacts<3>& co
 template <int D>
 void warm_start(const Model<D>& model, State<D>& state, Contacts<D>& contacts);
 
-// solver/warm_start.cpp: the same, wave by wave, LANES manifolds at a time (the step's).
+// solver/warm_start.cpp: the same, wave by wave, LANES manifolds at a time (the step's
+// warm_start_range over every wave); the impulses in the store before and after.
 template <int D>
 void warm_start_waves(const Model<D>& model, State<D>& state, Contacts<D>& contacts);
 
@@ -256,20 +273,22 @@ void solve_contacts(const Model<D>& model, State<D>& state, Contacts<D>& contact
                     const std::int32_t* order, std::int64_t n, PassLog& log);
 
 // solver/solve.cpp: the pass over waves [first, last) (contacts.batches; 3D: batches3, faces3), listing
-// into `log`: a region of the solve order (regions.cpp, contacts.segment_wave).
+// into `log`: a region of the solve order (regions.cpp, contacts.segment_wave). In 2D the
+// batches hold the impulses: the caller takes them first (take_impulses).
 template <int D>
 void solve_wave_range(const Model<D>& model, State<D>& state, Contacts<D>& contacts,
                       double inv_h, bool use_bias, double shift, double threshold,
                       std::int64_t first, std::int64_t last, PassLog& log);
 
 // solver/solve.cpp: the same pass over the whole solve order, wave by wave (find_waves'
-// batches, LANES manifolds at a time).
+// batches, LANES manifolds at a time); the impulses in the store before and after.
 template <int D>
 void solve_waves(const Model<D>& model, State<D>& state, Contacts<D>& contacts, double inv_h,
                    bool use_bias, double shift, double threshold);
 
-// solver/warm_start.cpp: the warm start of waves [first, last) (2D), or, in 3D, of
-// solve_order[first, last): a region of the solve order (regions.cpp).
+// solver/warm_start.cpp: the warm start of waves [first, last) (2D: the batches' impulses,
+// taken first by the caller), or, in 3D, of solve_order[first, last): a region of the
+// solve order (regions.cpp).
 template <int D>
 void warm_start_range(const Model<D>& model, State<D>& state, Contacts<D>& contacts,
                       std::int64_t first, std::int64_t last);
@@ -304,6 +323,15 @@ void keep_solve_impulses(Contacts<D>& contacts);
 template <int D>
 void apply_restitution(const Model<D>& model, State<D>& state, Contacts<D>& contacts,
                        double threshold, double h, double sign);
+// solver/restitution.cpp: a step's start for the stage (nothing listed, no manifold's kind
+// left from the last step's calls); and what its next call reads and writes of the
+// manifolds' impulses: 0 nothing (nothing listed since the last), 1 the listed manifolds'
+// alone (contacts.bounce_list[0..count.bounce_count)), 2 any manifold's (an elastic one
+// is listed this step: clusters are found over the whole contact graph).
+template <int D>
+void start_restitution(Contacts<D>& contacts);
+template <int D>
+int restitution_reach(const Contacts<D>& contacts);
 
 // solver/overlap_limit.cpp: a body deeper than max_overlap (m; times the contact's scale,
 // SCALE_LENGTH) in a static or kinematic body is moved out directly.

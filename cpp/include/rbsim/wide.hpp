@@ -217,6 +217,11 @@ struct WideBatch {
   // the passes (solve_batch leaves a batch whose lanes all are); find_waves packs the
   // waves again once too many such batches hold one
   bool idle;
+  // The lanes' impulses while the passes run (take_impulses, give_impulses): the
+  // accumulated normal and tangent impulses (N·s), the largest normal impulse applied
+  // this step (N·s) and the approach speed where the point engaged (m/s), of points 0 and
+  // 1 (a one-point batch's point 1 is zero); an empty lane's are zero
+  Lanes n0, n1, t0, t1, x0, x1, ap0, ap1;
 };
 
 // 3D: one point of LANES rows (SolverRow<3>::Points, point k of each), lane by lane.

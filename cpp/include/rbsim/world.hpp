@@ -80,6 +80,9 @@ struct World {
   std::vector<PairManifold<D>> found;
   std::vector<std::int8_t> found_points;
   std::vector<std::int64_t> found_slot;
+  // the manifolds the restitution stage is to look at (its list, which it rewrites), whose
+  // impulses the batches give it and take back (step.cpp)
+  std::vector<std::int32_t> listed;
   // Asked by advance after it grew the contact store, and inside a step that may be long
   // (step_may_be_long: after its contacts are found and between its substeps): true ends
   // advance with Status::Interrupted. Set by the caller for the length of its advance

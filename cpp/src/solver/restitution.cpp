@@ -495,6 +495,25 @@ void keep_solve_impulses(Contacts<D>& c) {
 }
 
 template <int D>
+void start_restitution(Contacts<D>& c) {
+  c.count.bounce_count = c.count.bounce_carried = c.count.elastic_listed = 0;
+  // (a call that found clusters over the whole graph leaves every manifold's kind; the
+  // next step's manifolds are in other slots, and a call that looks at the listed ones
+  // alone must find the others quiet)
+  std::fill_n(c.bounce_kind.begin(), c.count.manifolds, std::int8_t{kQuiet});
+}
+
+template <int D>
+int restitution_reach(const Contacts<D>& c) {
+  const auto& count = c.count;
+  if (count.bounce_count == count.bounce_carried) return 0;  // (apply_restitution's own test)
+  if (count.elastic_listed == 1) return 2;
+  for (std::int64_t i = 0; i < count.bounce_count; ++i)
+    if (c.restitution[c.bounce_list[i]] > 0.0) return 2;
+  return 1;
+}
+
+template <int D>
 void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, double threshold,
                        double h, double sign) {
   using Vec = typename Dim<D>::Vec;
@@ -802,6 +821,10 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
 
 template void keep_solve_impulses(Contacts<2>&);
 template void apply_restitution(const Model<2>&, State<2>&, Contacts<2>&, double, double, double);
+template void start_restitution(Contacts<2>&);
+template void start_restitution(Contacts<3>&);
+template int restitution_reach(const Contacts<2>&);
+template int restitution_reach(const Contacts<3>&);
 template void keep_solve_impulses(Contacts<3>&);
 template void apply_restitution(const Model<3>&, State<3>&, Contacts<3>&, double, double, double);
 

@@ -551,11 +551,13 @@ namespace {
 // The clamp λ >= 0 of point k in every lane of a batch where `on` (lane l: manifold ms[l]):
 // what clamp_normal does for one manifold, lane by lane (2D and 3D). A point that engages
 // is recorded lane by lane (rare: a resting point engaged in an earlier pass).
+// `held`, when given, is the lanes' own copy of the approach speeds (2D: the batch's,
+// take_impulses), written too.
 template <int D>
 inline Lanes clamp_lanes(Contacts<D>& c, const std::int32_t (&ms)[LANES], int k, LaneMask on,
                          Lanes lam, Lanes impulse, Lanes vn, Lanes s, Lanes& max_impulse,
                          Lanes approach, double shift, double threshold, Lanes& accumulated,
-                         PassLog& log) {
+                         PassLog& log, Lanes* held = nullptr) {
   const Lanes zero = splat(0.0);
   const LaneMask engages =
       on & ((max_impulse <= zero) | (approach == splat(std::numeric_limits<double>::infinity()))) &
@@ -564,6 +566,7 @@ inline Lanes clamp_lanes(Contacts<D>& c, const std::int32_t (&ms)[LANES], int k,
     if (!engages[l]) continue;
     const std::int64_t m = ms[l];
     c.approach_velocity[m][k] = vn[l];
+    if (held) (*held)[l] = vn[l];
     c.approach_separation[m][k] = s[l] - shift * vn[l];
     if (vn[l] < -threshold) log.add_bounce(static_cast<std::int32_t>(m));  // for restitution
   }
@@ -575,9 +578,10 @@ inline Lanes clamp_lanes(Contacts<D>& c, const std::int32_t (&ms)[LANES], int k,
 }
 
 // One batch of LANES manifolds of one wave, all with TWO points or all with one:
-// solve_contacts' code for that count, lane by lane.
+// solve_contacts' code for that count, lane by lane. The impulses are the batch's own
+// (take_impulses).
 template <bool TWO>
-void solve_batch(State<2>& st, Contacts<2>& c, const WideBatch& B, double inv_h, bool use_bias,
+void solve_batch(State<2>& st, Contacts<2>& c, WideBatch& B, double inv_h, bool use_bias,
                  double shift, double threshold, PassLog& log) {
   static_assert(LANES == 4, "the gathers below are written for four lanes");
   Vec2* v = st.body_v.data();
@@ -597,28 +601,12 @@ void solve_batch(State<2>& st, Contacts<2>& c, const WideBatch& B, double inv_h,
   gather_quads(&delta[a0].dx.x, &delta[a1].dx.x, &delta[a2].dx.x, &delta[a3].dx.x, dax, day, dac, das);
   gather_quads(&delta[b0i].dx.x, &delta[b1i].dx.x, &delta[b2i].dx.x, &delta[b3i].dx.x, dbx, dby, dbc,
                dbs);
-  // an empty lane reads manifold 0's impulses (its rows are zero: it changes nothing and
-  // is not written back)
-  const std::int32_t m0 = B.m[0] < 0 ? 0 : B.m[0], m1 = B.m[1] < 0 ? 0 : B.m[1];
-  const std::int32_t m2 = B.m[2] < 0 ? 0 : B.m[2], m3 = B.m[3] < 0 ? 0 : B.m[3];
+  // (an empty lane's impulses are zero, as its rows: it changes nothing)
   const Lanes zero = splat(0.0);
-  auto* ni = c.normal_impulse.data();
-  auto* ti = c.tangent_impulse.data();
-  auto* xi = c.max_normal_impulse.data();
-  const auto* av = c.approach_velocity.data();
-  Lanes lam0, tl0, mx0, ap0;
-  Lanes lam1 = zero, tl1 = zero, mx1 = zero, ap1 = zero;
-  if constexpr (TWO) {
-    gather_pairs(ni[m0].data(), ni[m1].data(), ni[m2].data(), ni[m3].data(), lam0, lam1);
-    gather_pairs(ti[m0].data(), ti[m1].data(), ti[m2].data(), ti[m3].data(), tl0, tl1);
-    gather_pairs(xi[m0].data(), xi[m1].data(), xi[m2].data(), xi[m3].data(), mx0, mx1);
-    gather_pairs(av[m0].data(), av[m1].data(), av[m2].data(), av[m3].data(), ap0, ap1);
-  } else {
-    lam0 = Lanes{ni[m0][0], ni[m1][0], ni[m2][0], ni[m3][0]};
-    tl0 = Lanes{ti[m0][0], ti[m1][0], ti[m2][0], ti[m3][0]};
-    mx0 = Lanes{xi[m0][0], xi[m1][0], xi[m2][0], xi[m3][0]};
-    ap0 = Lanes{av[m0][0], av[m1][0], av[m2][0], av[m3][0]};
-  }
+  const Lanes lam0 = B.n0, ap0 = B.ap0;
+  Lanes tl0 = B.t0, mx0 = B.x0;
+  const Lanes lam1 = TWO ? B.n1 : zero, ap1 = TWO ? B.ap1 : zero;
+  Lanes tl1 = TWO ? B.t1 : zero, mx1 = TWO ? B.x1 : zero;
   const LaneMask active = B.live;
   const Lanes nx = B.nx, ny = B.ny;
   const Lanes tx = ny, ty = -nx;  // t = (n_y, −n_x)
@@ -685,13 +673,16 @@ void solve_batch(State<2>& st, Contacts<2>& c, const WideBatch& B, double inv_h,
     const Lanes d1b = (k00 * r1 - k01 * r0) * inv_det;
     const LaneMask block = blockable & (lam0 + d0b >= zero) & (lam1 + d1b >= zero);
     const Lanes d0 = select(block, d0b, (-vn0 - (b0 + g0 * lam0)) * (splat(1.0) / (p0.kn + g0)));
-    j0 = clamp_lanes(c, B.m, 0, active, lam0, d0, vn0, s0, mx0, ap0, shift, threshold, n0, log);
+    j0 = clamp_lanes(c, B.m, 0, active, lam0, d0, vn0, s0, mx0, ap0, shift, threshold, n0, log,
+                     &B.ap0);
     vn1 = select(block, vn1, vn1 + j0 * k01);
     const Lanes d1 = select(block, d1b, (-vn1 - (b1 + g1 * lam1)) * (splat(1.0) / (p1.kn + g1)));
-    j1 = clamp_lanes(c, B.m, 1, active, lam1, d1, vn1, s1, mx1, ap1, shift, threshold, n1, log);
+    j1 = clamp_lanes(c, B.m, 1, active, lam1, d1, vn1, s1, mx1, ap1, shift, threshold, n1, log,
+                     &B.ap1);
   } else {
     const Lanes d0 = (-vn0 - (b0 + g0 * lam0)) * (splat(1.0) / (p0.kn + g0));
-    j0 = clamp_lanes(c, B.m, 0, active, lam0, d0, vn0, s0, mx0, ap0, shift, threshold, n0, log);
+    j0 = clamp_lanes(c, B.m, 0, active, lam0, d0, vn0, s0, mx0, ap0, shift, threshold, n0, log,
+                     &B.ap0);
   }
   // friction, as solve_contacts (the normal impulses turn the bodies: n · t = 0), only
   // where a point touches
@@ -751,29 +742,13 @@ void solve_batch(State<2>& st, Contacts<2>& c, const WideBatch& B, double inv_h,
       }
     }
   }
-  if (B.m[LANES - 1] >= 0) {  // every lane holds a manifold (an empty lane is a batch's last)
-    if constexpr (TWO) {
-      scatter_pairs(ni[m0].data(), ni[m1].data(), ni[m2].data(), ni[m3].data(), n0, n1);
-      scatter_pairs(ti[m0].data(), ti[m1].data(), ti[m2].data(), ti[m3].data(), tl0, tl1);
-      scatter_pairs(xi[m0].data(), xi[m1].data(), xi[m2].data(), xi[m3].data(), mx0, mx1);
-    } else {
-      scatter_scalars(&ni[m0][0], &ni[m1][0], &ni[m2][0], &ni[m3][0], n0);
-      scatter_scalars(&ti[m0][0], &ti[m1][0], &ti[m2][0], &ti[m3][0], tl0);
-      scatter_scalars(&xi[m0][0], &xi[m1][0], &xi[m2][0], &xi[m3][0], mx0);
-    }
-  } else {
-    for (int l = 0; l < LANES; ++l) {
-      const std::int64_t m = B.m[l];
-      if (m < 0) continue;
-      ni[m][0] = n0[l];
-      ti[m][0] = tl0[l];
-      xi[m][0] = mx0[l];
-      if constexpr (TWO) {
-        ni[m][1] = n1[l];
-        ti[m][1] = tl1[l];
-        xi[m][1] = mx1[l];
-      }
-    }
+  B.n0 = n0;
+  B.t0 = tl0;
+  B.x0 = mx0;
+  if constexpr (TWO) {
+    B.n1 = n1;
+    B.t1 = tl1;
+    B.x1 = mx1;
   }
 }
 
@@ -1206,7 +1181,9 @@ template <int D>
 void solve_waves(const Model<D>& model, State<D>& st, Contacts<D>& c, double inv_h,
                    bool use_bias, double shift, double threshold) {
   PassLog log = PassLog::direct(c);
+  take_impulses(c);
   solve_wave_range(model, st, c, inv_h, use_bias, shift, threshold, 0, c.wave_count, log);
+  give_impulses(c);
 }
 
 template <int D>

@@ -109,23 +109,12 @@ namespace {
 // manifolds share no dynamic body, so the order in which their impulses reach the bodies
 // changes only the rounding of the sums.
 template <bool TWO>
-void warm_start_batch(State<2>& st, const Contacts<2>& c, const WideBatch& B) {
+void warm_start_batch(State<2>& st, const WideBatch& B) {
   static_assert(LANES == 4, "the gathers below are written for four lanes");
-  const std::int32_t m0 = B.m[0] < 0 ? 0 : B.m[0], m1 = B.m[1] < 0 ? 0 : B.m[1];
-  const std::int32_t m2 = B.m[2] < 0 ? 0 : B.m[2], m3 = B.m[3] < 0 ? 0 : B.m[3];
-  const auto* ni = c.normal_impulse.data();
-  const auto* ti = c.tangent_impulse.data();
   const Lanes nx = B.nx, ny = B.ny;
   const Lanes tx = ny, ty = -nx;  // t = (n_y, −n_x)
-  Lanes jn0, jt0, jn1, jt1;
-  if constexpr (TWO) {
-    gather_pairs(ni[m0].data(), ni[m1].data(), ni[m2].data(), ni[m3].data(), jn0, jn1);
-    gather_pairs(ti[m0].data(), ti[m1].data(), ti[m2].data(), ti[m3].data(), jt0, jt1);
-  } else {
-    jn0 = Lanes{ni[m0][0], ni[m1][0], ni[m2][0], ni[m3][0]};
-    jt0 = Lanes{ti[m0][0], ti[m1][0], ti[m2][0], ti[m3][0]};
-    jn1 = jt1 = splat(0.0);
-  }
+  // the impulses are the batch's own (take_impulses); a one-point batch's point 1 is zero
+  const Lanes jn0 = B.n0, jt0 = B.t0, jn1 = TWO ? B.n1 : splat(0.0), jt1 = TWO ? B.t1 : splat(0.0);
   // a batch whose manifolds hold nothing has nothing to apply (find_waves packs those
   // that hold an impulse first: in a pyramid, the speculative contacts between the
   // boxes side by side, a quarter of its manifolds; in a pile, the neighbours not yet
@@ -181,12 +170,9 @@ void warm_start_waves(const Model<D>& model, State<D>& st, Contacts<D>& c) {
     warm_start(model, st, c);  // 3D: manifold by manifold (its batches are the solve's)
     return;
   } else {
-  for (std::int64_t g = 0; g < c.wave_count; ++g) {
-    const std::int64_t single = c.wave_single_batch[g];
-    for (std::int64_t i = c.wave_batch[g]; i < single; ++i) warm_start_batch<true>(st, c, c.batches[i]);
-    for (std::int64_t i = single; i < c.wave_batch[g + 1]; ++i)
-      warm_start_batch<false>(st, c, c.batches[i]);
-  }
+    take_impulses(c);
+    warm_start_range(model, st, c, 0, c.wave_count);
+    give_impulses(c);
   }
 }
 
@@ -202,9 +188,9 @@ void warm_start_range(const Model<D>& model, State<D>& st, Contacts<D>& c, std::
     for (std::int64_t g = first; g < last; ++g) {
       const std::int64_t single = c.wave_single_batch[g];
       for (std::int64_t i = c.wave_batch[g]; i < single; ++i)
-        warm_start_batch<true>(st, c, c.batches[i]);
+        warm_start_batch<true>(st, c.batches[i]);
       for (std::int64_t i = single; i < c.wave_batch[g + 1]; ++i)
-        warm_start_batch<false>(st, c, c.batches[i]);
+        warm_start_batch<false>(st, c.batches[i]);
     }
   }
 }
