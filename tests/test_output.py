@@ -537,7 +537,7 @@ def test_resume_from_a_damaged_checkpoint_is_a_message(reference, tmp_path) -> N
     with h5py.File(out, "a") as f:  # as a killed run leaves it, with a cut checkpoint
         f["parameters/rbsim/status"][()] = b"running"
     Path(f"{out}{CHECKPOINT_SUFFIX}").write_bytes(
-        b"RBSIMRS1" + (31).to_bytes(8, "little") * 2 + b"RBSIMCK8"
+        b"RBSIMRS1" + (31).to_bytes(8, "little") * 2 + b"RBSIMCK9"
     )
     code, _o, err = rbsim("run", "--resume", out)
     assert code == 1 and "checkpoint" in err and "Traceback" not in err
@@ -557,7 +557,7 @@ def test_resume_from_another_versions_checkpoint_says_so(reference, tmp_path) ->
     write_checkpoint(f"{out}{CHECKPOINT_SUFFIX}", 31, 31, b"RBSIMCK6" + bytes(64), owner=owner)
     code, _o, err = rbsim("run", "--resume", out)
     assert code == 1, err
-    assert "another version of rbsim's engine (format 6, this one reads 8)" in err, err
+    assert "another version of rbsim's engine (format 6, this one reads 9)" in err, err
     assert "Traceback" not in err
 
 

@@ -8,13 +8,14 @@
 namespace rbsim {
 namespace {
 
-// The last byte is the format: 8 since the contact store keeps each hull's plane offsets
-// and vertex spread and no longer the time of impact's room (7: a solver row, and a 2D
+// The last byte is the format: 9 since a 2D batch holds its manifolds' impulses while the
+// passes run (WideBatch::n0 ...; 8: the contact store keeps each hull's plane offsets
+// and vertex spread and no longer the time of impact's room; 7: a solver row, and a 2D
 // batch's lanes, keeps the distance within which its points touch and have friction; 6:
 // the contact store keeps which manifolds touch and the load each body bears; 5 and
 // before: without them; a checkpoint of another format is refused with a message saying
 // so).
-constexpr char MAGIC[8] = {'R', 'B', 'S', 'I', 'M', 'C', 'K', '8'};
+constexpr char MAGIC[8] = {'R', 'B', 'S', 'I', 'M', 'C', 'K', '9'};
 
 // Every member of the world that changes while it runs, in one fixed order. A member
 // added to State, Grid or Contacts must be added here too: the static_asserts on their
@@ -51,7 +52,9 @@ void visit(W& w, F&& f) {
   f(c.wave_start), f(c.wave_batch), f(c.wave_single), f(c.wave_single_batch), f(c.batches);
   f(c.region_count), f(c.body_region), f(c.segment_order), f(c.segment_wave), f(c.segment_shock);
   f(c.wave_idle);  // (3D: made anew in every step, as batches3 and faces3, but sized by the store)
-  // (not c.batches3, c.faces3: 3D packs them anew in every step, before any pass reads them)
+  // (not c.batches3, c.faces3: 3D packs them anew in every step, before any pass reads them;
+  // not c.impulses_in_lanes: false between steps, the store holding the impulses, and the
+  // batches' copies taken anew by the next step's passes)
 }
 
 constexpr std::size_t VEC = sizeof(std::vector<int>);
