@@ -428,64 +428,27 @@ std::int64_t pack_batches_2d(const Model<2>& model, Contacts<2>& c, int n_segmen
   return n;
 }
 
-}  // namespace
-
-template <int D>
-void take_impulses(Contacts<D>& c) {
-  if constexpr (D == 2) {
-    if (c.impulses_in_lanes) return;
-    const std::int64_t n = c.wave_count > 0 ? c.wave_batch[c.wave_count] : 0;
-    const auto* ni = c.normal_impulse.data();
-    const auto* ti = c.tangent_impulse.data();
-    const auto* xi = c.max_normal_impulse.data();
-    const auto* av = c.approach_velocity.data();
-    const Lanes zero = splat(0.0);
-    for (std::int64_t i = 0; i < n; ++i) {
-      WideBatch& w = c.batches[i];
-      w.n0 = w.n1 = w.t0 = w.t1 = w.x0 = w.x1 = w.ap0 = w.ap1 = zero;
-      for (int l = 0; l < LANES; ++l) {
-        const std::int32_t m = w.m[l];
-        if (m < 0) continue;
-        w.n0[l] = ni[m][0];
-        w.t0[l] = ti[m][0];
-        w.x0[l] = xi[m][0];
-        w.ap0[l] = av[m][0];
-        if (w.two[l] == 0.0) continue;
-        w.n1[l] = ni[m][1];
-        w.t1[l] = ti[m][1];
-        w.x1[l] = xi[m][1];
-        w.ap1[l] = av[m][1];
-      }
-    }
-    c.impulses_in_lanes = true;
-  }
+// Lane l of batch w takes manifold m's impulses from the store, or gives them back
+// (the approach speeds are written to the store where a point engages, and stay there).
+inline void take_lane(WideBatch& w, int l, const Contacts<2>& c, std::int32_t m) {
+  w.n0[l] = c.normal_impulse[m][0];
+  w.t0[l] = c.tangent_impulse[m][0];
+  w.x0[l] = c.max_normal_impulse[m][0];
+  w.ap0[l] = c.approach_velocity[m][0];
+  if (w.two[l] == 0.0) return;
+  w.n1[l] = c.normal_impulse[m][1];
+  w.t1[l] = c.tangent_impulse[m][1];
+  w.x1[l] = c.max_normal_impulse[m][1];
+  w.ap1[l] = c.approach_velocity[m][1];
 }
-
-template <int D>
-void give_impulses(Contacts<D>& c) {
-  if constexpr (D == 2) {
-    if (!c.impulses_in_lanes) return;
-    const std::int64_t n = c.wave_count > 0 ? c.wave_batch[c.wave_count] : 0;
-    auto* ni = c.normal_impulse.data();
-    auto* ti = c.tangent_impulse.data();
-    auto* xi = c.max_normal_impulse.data();
-    // (the approach speeds are written to the store where a point engages, and stay there)
-    for (std::int64_t i = 0; i < n; ++i) {
-      const WideBatch& w = c.batches[i];
-      for (int l = 0; l < LANES; ++l) {
-        const std::int32_t m = w.m[l];
-        if (m < 0) continue;
-        ni[m][0] = w.n0[l];
-        ti[m][0] = w.t0[l];
-        xi[m][0] = w.x0[l];
-        if (w.two[l] == 0.0) continue;
-        ni[m][1] = w.n1[l];
-        ti[m][1] = w.t1[l];
-        xi[m][1] = w.x1[l];
-      }
-    }
-    c.impulses_in_lanes = false;
-  }
+inline void give_lane(const WideBatch& w, int l, Contacts<2>& c, std::int32_t m) {
+  c.normal_impulse[m][0] = w.n0[l];
+  c.tangent_impulse[m][0] = w.t0[l];
+  c.max_normal_impulse[m][0] = w.x0[l];
+  if (w.two[l] == 0.0) return;
+  c.normal_impulse[m][1] = w.n1[l];
+  c.tangent_impulse[m][1] = w.t1[l];
+  c.max_normal_impulse[m][1] = w.x1[l];
 }
 
 // Where manifold m is among the batches (2D): its batch (each unit is a batch of its own:
@@ -497,22 +460,45 @@ inline std::pair<WideBatch*, int> lane_of(Contacts<2>& c, std::int32_t m) {
   return {&w, l};
 }
 
+}  // namespace
+
+template <int D>
+void take_impulses(Contacts<D>& c) {
+  if constexpr (D == 2) {
+    if (c.impulses_in_lanes) return;
+    const std::int64_t n = c.wave_count > 0 ? c.wave_batch[c.wave_count] : 0;
+    const Lanes zero = splat(0.0);
+    for (std::int64_t i = 0; i < n; ++i) {
+      WideBatch& w = c.batches[i];
+      w.n0 = w.n1 = w.t0 = w.t1 = w.x0 = w.x1 = w.ap0 = w.ap1 = zero;
+      for (int l = 0; l < LANES; ++l)
+        if (w.m[l] >= 0) take_lane(w, l, c, w.m[l]);
+    }
+    c.impulses_in_lanes = true;
+  }
+}
+
+template <int D>
+void give_impulses(Contacts<D>& c) {
+  if constexpr (D == 2) {
+    if (!c.impulses_in_lanes) return;
+    const std::int64_t n = c.wave_count > 0 ? c.wave_batch[c.wave_count] : 0;
+    for (std::int64_t i = 0; i < n; ++i) {
+      const WideBatch& w = c.batches[i];
+      for (int l = 0; l < LANES; ++l)
+        if (w.m[l] >= 0) give_lane(w, l, c, w.m[l]);
+    }
+    c.impulses_in_lanes = false;
+  }
+}
+
 template <int D>
 void take_impulses(Contacts<D>& c, const std::int32_t* list, std::int64_t n) {
   if constexpr (D == 2) {
     if (!c.impulses_in_lanes) return;  // (taken in full by the next pass)
     for (std::int64_t i = 0; i < n; ++i) {
-      const std::int32_t m = list[i];
-      const auto [w, l] = lane_of(c, m);
-      w->n0[l] = c.normal_impulse[m][0];
-      w->t0[l] = c.tangent_impulse[m][0];
-      w->x0[l] = c.max_normal_impulse[m][0];
-      w->ap0[l] = c.approach_velocity[m][0];
-      if (w->two[l] == 0.0) continue;
-      w->n1[l] = c.normal_impulse[m][1];
-      w->t1[l] = c.tangent_impulse[m][1];
-      w->x1[l] = c.max_normal_impulse[m][1];
-      w->ap1[l] = c.approach_velocity[m][1];
+      const auto [w, l] = lane_of(c, list[i]);
+      take_lane(*w, l, c, list[i]);
     }
   }
 }
@@ -522,15 +508,8 @@ void give_impulses(Contacts<D>& c, const std::int32_t* list, std::int64_t n) {
   if constexpr (D == 2) {
     if (!c.impulses_in_lanes) return;
     for (std::int64_t i = 0; i < n; ++i) {
-      const std::int32_t m = list[i];
-      const auto [w, l] = lane_of(c, m);
-      c.normal_impulse[m][0] = w->n0[l];
-      c.tangent_impulse[m][0] = w->t0[l];
-      c.max_normal_impulse[m][0] = w->x0[l];
-      if (w->two[l] == 0.0) continue;
-      c.normal_impulse[m][1] = w->n1[l];
-      c.tangent_impulse[m][1] = w->t1[l];
-      c.max_normal_impulse[m][1] = w->x1[l];
+      const auto [w, l] = lane_of(c, list[i]);
+      give_lane(*w, l, c, list[i]);
     }
   }
 }
