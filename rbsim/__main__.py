@@ -24,8 +24,8 @@ def _forget_the_interrupt() -> None:
 # numpy's BLAS and OpenMP on one thread where the user has not chosen (set before numpy
 # loads, which reads them once), as Dask sets them for its workers: rbsim's arrays are
 # small, and OpenBLAS's idle threads spin on the other cores after each call, about 0.15 s
-# of CPU in every command's start (`rbsim run` of a 5-body scene: 0.32 - 0.43 s of user
-# time, 0.19 - 0.27 s on one thread, the same wall time)
+# of CPU in every command's start (`rbsim run` of a 5-body scene: 0.32 - 0.45 s of user
+# time, 0.19 - 0.30 s on one thread)
 ONE_THREAD = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
 

@@ -25,6 +25,7 @@ import pytest
 import yaml
 
 from rbsim import cli
+from rbsim.__main__ import ONE_THREAD
 from rbsim.io.trajectory import load_trajectory
 from rbsim.scene import load_scene_text, scene_to_dict
 from rbsim.scene.schema import json_schema
@@ -408,11 +409,11 @@ def test_a_command_runs_numpys_blas_on_one_thread_unless_the_user_chose(chosen: 
             pass
         print(blas_threads(), file=sys.stderr)
         """
-    keep = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
-    env = {k: v for k, v in os.environ.items() if k not in keep}
+    env = {k: v for k, v in os.environ.items() if k not in ONE_THREAD}
     if chosen:
         env["OPENBLAS_NUM_THREADS"] = chosen
     done = python_child(BLAS_THREADS + textwrap.dedent(script), env)
+    assert done.returncode == 0, done.stderr
     threads = done.stderr.split()[-1]
     if threads == "None":
         pytest.skip("numpy's BLAS here is not OpenBLAS")
