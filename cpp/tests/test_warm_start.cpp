@@ -117,6 +117,13 @@ TEST(batches_hold_the_impulses_between_take_and_give) {
   CHECK(c.normal_impulse[3][0] == 0.75 && c.normal_impulse[1][0] == 9.0);
   give_impulses(c);
   c.normal_impulse[3] = before_n[3];
+  // a list of more than half the manifolds is given as all of them: the batches no longer
+  // hold the impulses (the next pass takes them all), and the store has every one
+  take_impulses(c);
+  const std::int32_t most[] = {0, 1, 2};
+  c.normal_impulse[4][0] = 9.0;
+  give_impulses(c, most, 3);
+  CHECK(!c.impulses_in_lanes && c.normal_impulse[4][0] == before_n[4][0]);
   // while taken, the store's copy is not read: scribbled over, the pass is the same
   const double inv_h = 1.0 / rbsim::test::substep(lanes);
   take_impulses(c);

@@ -89,6 +89,12 @@ inline constexpr double IDLE_SPEED = 1.0e-10;
 // contacts a step start or stop holding an impulse, and packing every step cost 30 µs
 // more than it saved.
 inline constexpr std::int64_t IDLE_SPOILED = 8;
+// In 2D the batches hold the impulses through the passes (waves.cpp, take_impulses); a
+// stage that reads or writes some manifolds' (the restitution stage's list, the region of
+// a deep overlap) is handed those alone, unless they are more than one in HANDOVER_WHOLE
+// of the manifolds: then all, in batch order (dimensionless; one manifold looked up alone
+// costs about what two do in order).
+inline constexpr std::int64_t HANDOVER_WHOLE = 2;
 // In 3D the faces (manifolds of two to four points) of a wave that hold an impulse go
 // into lanes, four of one point count at a time; a batch that would hold fewer than this
 // many (the last of a run) is solved one manifold at a time instead: packing a face costs

@@ -179,7 +179,9 @@ template <int D>
 void take_impulses(Contacts<D>& contacts);
 template <int D>
 void give_impulses(Contacts<D>& contacts);
-// The same for the manifolds list[0..n) alone (a manifold listed twice is harmless).
+// The same for the manifolds list[0..n) alone (a manifold listed twice is harmless); a
+// list of more than one in HANDOVER_WHOLE of the manifolds is given as all of them (the
+// take that follows then does nothing: the next pass takes them all).
 template <int D>
 void take_impulses(Contacts<D>& contacts, const std::int32_t* list, std::int64_t n);
 template <int D>

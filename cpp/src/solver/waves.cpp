@@ -507,6 +507,10 @@ template <int D>
 void give_impulses(Contacts<D>& c, const std::int32_t* list, std::int64_t n) {
   if constexpr (D == 2) {
     if (!c.impulses_in_lanes) return;
+    if (n * C::HANDOVER_WHOLE > c.count.manifolds) {  // (then taken in full by the next pass)
+      give_impulses(c);
+      return;
+    }
     for (std::int64_t i = 0; i < n; ++i) {
       const auto [w, l] = lane_of(c, list[i]);
       give_lane(*w, l, c, list[i]);
