@@ -8,15 +8,24 @@ step, measured on one thread (World.parallel_seconds: the wall time of the work 
 splits over its threads, against the stages' total), from which Amdahl's law bounds the
 2-thread speed-up at 1 / (s + (1 - s) / 2). The results are the same, bit for bit, on
 every thread count (tests/test_threads.py); only the time differs. Needs idle cores: on a
-loaded machine the ratio says little. Run alone: python -m bench.threads [scenes].
+loaded machine the ratio says little. So the table also says what the host gives two
+threads of this work in the same run ("host"): the throughput of two one-thread copies of
+the scene stepping at once, in processes of their own that share nothing, against one
+copy alone (2.0 on two free cores; less where the two cores share one's execution units
+or another tenant's load). Run alone: python -m bench.threads [scenes].
 """
 
 from __future__ import annotations
 
 import argparse
+import multiprocessing
+import queue
 import statistics
 import sys
 import time
+from multiprocessing.process import BaseProcess
+from multiprocessing.queues import Queue
+from multiprocessing.synchronize import Barrier
 from pathlib import Path
 
 from rbsim import config
@@ -32,6 +41,8 @@ WARMUP = 60
 STEPS = 60
 REPEATS = 5
 TARGET = 1.7  # issue 13: at least 1.7x on two threads for these scenes
+HOST_ROUNDS = 2  # rounds of one copy alone, then two at once
+HOST_TIMEOUT = 600.0  # s: a copy that has not answered by then has failed
 
 
 def engine(scene: Scene, threads: int | None) -> Engine:
@@ -60,27 +71,85 @@ def serial_fraction(scene: Scene) -> float:
     return 1.0 - core.parallel_seconds / sum(core.stage_times().values())
 
 
+def _timed_copy(path: str, steps: int, start: Barrier, out: Queue) -> None:
+    """(In a process of its own.) rbsim on one thread on the scene at `path`: WARMUP
+    steps, then, once every copy is ready (the barrier `start`), `steps` more, whose wall
+    seconds go to the queue `out`."""
+    e = engine(load_scene(path), 1)
+    e.advance(WARMUP)
+    start.wait()
+    t0 = time.perf_counter()
+    e.advance(steps)
+    out.put(time.perf_counter() - t0)
+
+
+def host_scaling(path: Path, steps: int = REPEATS * STEPS, rounds: int = HOST_ROUNDS) -> float:
+    """The throughput of two one-thread copies of the scene at `path` stepping at once
+    (each `steps` steps after WARMUP, in processes of their own), against one copy alone:
+    2 t1 / t2, t1 one copy's wall seconds and t2 the slower of the two's, each the mean of
+    `rounds` rounds (one copy, then two, in turn). RuntimeError when a copy fails."""
+    ctx = multiprocessing.get_context("spawn")  # (a fork would copy the pools' threads)
+    alone: list[float] = []
+    paired: list[float] = []
+    for _ in range(rounds):
+        for copies, times in ((1, alone), (2, paired)):
+            start, out = ctx.Barrier(copies), ctx.Queue()
+            procs = [
+                ctx.Process(target=_timed_copy, args=(str(path), steps, start, out))
+                for _ in range(copies)
+            ]
+            for p in procs:
+                p.start()
+            try:
+                times.append(max(_answer(out, procs) for _ in procs))
+            except BaseException:
+                for p in procs:  # (a copy left waiting at the barrier would wait for ever)
+                    p.kill()
+                raise
+            finally:
+                for p in procs:
+                    p.join()
+    return 2.0 * statistics.fmean(alone) / statistics.fmean(paired)
+
+
+def _answer(out: Queue, procs: list[BaseProcess]) -> float:
+    """The next copy's wall seconds from the queue `out`; RuntimeError once one of
+    `procs` has ended without answering (its traceback is on stderr), or when none has
+    answered within HOST_TIMEOUT."""
+    deadline = time.monotonic() + HOST_TIMEOUT
+    while time.monotonic() < deadline:
+        try:
+            return out.get(timeout=0.5)
+        except queue.Empty:
+            if any(p.exitcode not in (None, 0) for p in procs):
+                raise RuntimeError("a timed copy of the scene failed (its error above)") from None
+    raise RuntimeError(f"no timed copy of the scene answered within {HOST_TIMEOUT:.0f} s")
+
+
 def table(names: list[str]) -> None:
     """Print the threads table for the bench scenes `names`."""
     print(
         f"threads: wall µs per step after {WARMUP} steps (mean of {REPEATS} blocks of "
         f"{STEPS}, the three runs' blocks in turn); chosen: solver.threads not set (the step "
         f"times one thread against {config.available_cores()} as it runs); serial fraction s "
-        f"on one thread, bound 1 / (s + (1 - s) / 2); target {TARGET}x"
+        f"on one thread, bound 1 / (s + (1 - s) / 2); host: two one-thread copies at once "
+        f"against one alone (2.00x on two free cores); target {TARGET}x"
     )
     header = (
         f"{'scene':<17}{'1 thread':>10}{'2 threads':>11}{'speed-up':>10}{'chosen':>8}"
-        f"{'serial':>8}{'bound':>7}"
+        f"{'serial':>8}{'bound':>7}{'host':>7}"
     )
     print_header(header)
     for name in names:
-        scene = load_scene(HERE / "scenes" / f"{name}.yaml")
+        path = HERE / "scenes" / f"{name}.yaml"
+        scene = load_scene(path)
         one, two, chosen = step_times(scene)
         s = serial_fraction(scene)
         bound = 1.0 / (s + (1.0 - s) / 2.0)
+        host = host_scaling(path)
         print(
             f"{name:<17}{one:>10.1f}{two:>11.1f}{one / two:>9.2f}x{chosen:>8.1f}"
-            f"{s:>8.2f}{bound:>6.2f}x",
+            f"{s:>8.2f}{bound:>6.2f}x{host:>6.2f}x",
             flush=True,
         )
 
