@@ -12,7 +12,9 @@ loaded machine the ratio says little. So the table also says what the host gives
 threads of this work in the same run ("host"): the throughput of two one-thread copies of
 the scene stepping at once, in processes of their own that share nothing, against one
 copy alone (2.0 on two free cores; less where the two cores share one's execution units
-or another tenant's load). Run alone: python -m bench.threads [scenes].
+or another tenant's load); and how much longer the passes' region tasks take side by
+side on two threads than one after the other on one ("tasks", World.region_task_seconds:
+1.0 where the threads do not slow each other). Run alone: python -m bench.threads [scenes].
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from multiprocessing.synchronize import Barrier
 from pathlib import Path
 
 from rbsim import config
+from rbsim.core import EngineWorld
 from rbsim.engines import Engine, make_engine
 from rbsim.scene import Scene, load_scene
 from rbsim.tools.measure import interleaved_block_times
@@ -60,15 +63,33 @@ def step_times(scene: Scene) -> tuple[float, float, float]:
     return one, two, chosen
 
 
-def serial_fraction(scene: Scene) -> float:
-    """The share of one thread's step time spent outside the work the step splits over
-    its threads (stages timed by the engine's profile after WARMUP steps)."""
-    e = engine(scene, 1)
+def profiled(scene: Scene, threads: int) -> EngineWorld:
+    """The compiled world of rbsim on `threads` threads after WARMUP steps and then
+    REPEATS blocks of STEPS with its profile on (stage times, region tasks)."""
+    e = engine(scene, threads)
     e.advance(WARMUP)
-    core = e.world.engine  # the compiled world, for its profile
+    core = e.world.engine
     core.profile = True
     e.advance(REPEATS * STEPS)
-    return 1.0 - core.parallel_seconds / sum(core.stage_times().values())
+    return core
+
+
+def serial_fraction(one_thread: EngineWorld) -> float:
+    """The share of one thread's step time spent outside the work the step splits over
+    its threads (stages timed by the engine's profile: `profiled`, one thread)."""
+    return 1.0 - one_thread.parallel_seconds / sum(one_thread.stage_times().values())
+
+
+def task_slowdown(one_thread: EngineWorld, two_threads: EngineWorld) -> float | None:
+    """How much longer a region's task of the solver's passes takes side by side with the
+    other's on two threads than one after the other on one (wall seconds a pass, summed
+    over the regions; `profiled` worlds); None for a scene of one region. 1.0 where the
+    two threads do not slow each other."""
+    alone_s, alone_n = one_thread.region_task_seconds["alone"]
+    paired_s, paired_n = two_threads.region_task_seconds["paired"]
+    if alone_n == 0 or paired_n == 0:
+        return None
+    return (paired_s / paired_n) / (alone_s / alone_n)
 
 
 def _timed_copy(path: str, steps: int, start: Barrier, out: Queue) -> None:
@@ -132,24 +153,29 @@ def table(names: list[str]) -> None:
         f"threads: wall µs per step after {WARMUP} steps (mean of {REPEATS} blocks of "
         f"{STEPS}, the three runs' blocks in turn); chosen: solver.threads not set (the step "
         f"times one thread against {config.available_cores()} as it runs); serial fraction s "
-        f"on one thread, bound 1 / (s + (1 - s) / 2); host: two one-thread copies at once "
-        f"against one alone (2.00x on two free cores); target {TARGET}x"
+        f"on one thread, bound 1 / (s + (1 - s) / 2); tasks: a region's task of the passes "
+        f"side by side on 2 threads against one after the other (1.00x: no slowing); host: "
+        f"two one-thread copies at once against one alone (2.00x on two free cores); target "
+        f"{TARGET}x"
     )
     header = (
         f"{'scene':<17}{'1 thread':>10}{'2 threads':>11}{'speed-up':>10}{'chosen':>8}"
-        f"{'serial':>8}{'bound':>7}{'host':>7}"
+        f"{'serial':>8}{'bound':>7}{'tasks':>7}{'host':>7}"
     )
     print_header(header)
     for name in names:
         path = HERE / "scenes" / f"{name}.yaml"
         scene = load_scene(path)
         one, two, chosen = step_times(scene)
-        s = serial_fraction(scene)
+        one_thread, two_threads = profiled(scene, 1), profiled(scene, 2)
+        s = serial_fraction(one_thread)
         bound = 1.0 / (s + (1.0 - s) / 2.0)
+        slowdown = task_slowdown(one_thread, two_threads)
+        tasks = f"{slowdown:>6.2f}x" if slowdown is not None else f"{'-':>7}"
         host = host_scaling(path)
         print(
             f"{name:<17}{one:>10.1f}{two:>11.1f}{one / two:>9.2f}x{chosen:>8.1f}"
-            f"{s:>8.2f}{bound:>6.2f}x{host:>6.2f}x",
+            f"{s:>8.2f}{bound:>6.2f}x{tasks}{host:>6.2f}x",
             flush=True,
         )
 

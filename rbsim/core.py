@@ -34,8 +34,9 @@ POSITION_LIMIT: float = float(_core.POSITION_LIMIT)
 THREADS_MAX: int = int(_core.THREADS_MAX)
 
 
-# the engine's world class by dimension
+# the engine's world class by dimension, and the type of either
 WORLDS = {2: _core.World2, 3: _core.World3}
+EngineWorld = _core.World2 | _core.World3
 
 
 def _model_arrays(model: Model) -> dict:
@@ -53,7 +54,7 @@ class CoreWorld:
     scene: Scene | None
     model: Model
     config: Config
-    engine: _core.World2 | _core.World3
+    engine: EngineWorld
     dimension: int = 2
 
     @classmethod

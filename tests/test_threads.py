@@ -41,9 +41,25 @@ bodies:
 """
 
 
+CIRCLES_PADDLE = (
+    (ROOT / "bench/scenes/circles1000.yaml").read_text()
+    + """
+  - name: paddle
+    type: kinematic
+    position: [-9, 1]
+    velocity: [2, 0]
+    angular_velocity: 0.5
+    shape: {box: {size: [0.5, 2]}}
+    material: ball
+"""
+)
+
+
 def _world(scene, threads: int) -> CoreWorld:  # noqa: ANN001 - a Scene
+    # every step on `threads` threads (a scene without solver.threads would have the step
+    # choose, and its steps before the first trial run on one)
     model, state = build(scene)
-    cfg = make_config(scene)._replace(threads=threads)
+    cfg = make_config(scene)._replace(threads=threads, choose_threads=False)
     return CoreWorld.from_arrays(model, state, cfg, scene.world.dimension, scene)
 
 
@@ -61,6 +77,10 @@ CASES = {
     # 1000 circles falling into a box (one-point manifolds, bounces, time of impact)
     "circles1000": (lambda: load_scene(ROOT / "bench/scenes/circles1000.yaml"), 100),
     "spheres3d": (lambda: load_scene_text(SPHERES_3D), 10),
+    # the circles with a turning kinematic paddle driven through them: a body of neither
+    # region whose velocity both regions' passes read (each region's copy of the
+    # velocities takes it once a step) and whose motion the first region's thread makes
+    "circles_paddle": (lambda: load_scene_text(CIRCLES_PADDLE), 60),
 }
 
 
@@ -125,6 +145,28 @@ def test_regions_are_strips_across_gravity_with_few_joining_manifolds():
     # the cut down the middle joins about two manifolds per row of 40: a few percent
     assert 0 < joints < 0.05 * n
     assert dynamic.sum() == 820
+
+
+def test_the_profile_clocks_the_region_tasks_alone_and_side_by_side():
+    # (World.region_task_seconds, bench/threads.py's "tasks" column) one thread runs the
+    # two regions' tasks one after the other, two threads side by side; without the
+    # profile nothing is clocked
+    scene = load_scene(ROOT / "bench/scenes/pyramid40.yaml")
+    clocked = {}
+    for threads in (1, 2):
+        world = _world(scene, threads)
+        world.advance(2)
+        assert world.engine.region_task_seconds == {"alone": (0.0, 0), "paired": (0.0, 0)}
+        world.engine.profile = True
+        world.advance(3)
+        clocked[threads] = world.engine.region_task_seconds
+    # each substep's warm start, solve, relax and shock pass: 4 passes of 4 substeps a step
+    alone_s, alone_n = clocked[1]["alone"]
+    assert alone_n >= 3 * 4 * 4 and alone_s > 0.0
+    assert clocked[1]["paired"] == (0.0, 0)
+    paired_s, paired_n = clocked[2]["paired"]
+    assert paired_n == alone_n and paired_s > 0.0
+    assert clocked[2]["alone"] == (0.0, 0)
 
 
 def test_a_small_scene_is_one_region_and_keeps_the_sequential_order():

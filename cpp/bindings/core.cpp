@@ -958,6 +958,17 @@ nb::class_<World<D>> bind_world(nb::module_& mod, const char* name, const char* 
       .def_ro("parallel_seconds", &W::parallel_seconds,
               "Seconds (wall) since profiling began of the work the step splits over its "
               "threads (what more threads shorten; the stages' other time is serial).")
+      .def_prop_ro(
+          "region_task_seconds",
+          [](const W& w) {
+            nb::dict d;
+            d["alone"] = nb::make_tuple(w.region_task_seconds[0], w.region_task_passes[0]);
+            d["paired"] = nb::make_tuple(w.region_task_seconds[1], w.region_task_passes[1]);
+            return d;
+          },
+          "With profile set, the solver's region tasks (a scene of more than one region): "
+          "(seconds summed over the tasks, passes) run one after the other on one thread "
+          "(alone) and side by side on the threads (paired).")
       .def_prop_ro("threads", [](const W& w) { return w.config.threads; },
                    "Threads the step may run on (solver.threads, else the cores).")
       .def_prop_ro("threads_chosen", &W::threads_chosen,

@@ -68,6 +68,18 @@ struct World {
   // with profile set, the wall time (s) of the work that runs in parts on the threads
   // (each part on one thread): what more threads can shorten, the rest being serial
   double parallel_seconds = 0.0;
+  // with profile set: the solver's region tasks (over_segments, a scene of more than one
+  // region), their summed wall time (s) and the passes that ran them, [0] one after the
+  // other on one thread, [1] side by side on the threads: how much longer a region's task
+  // takes beside another than alone (bench/threads.py)
+  std::array<double, 2> region_task_seconds{};
+  std::array<std::int64_t, 2> region_task_passes{};
+  // 2D on the threads with the solver's regions (begin_regions, at each step's start):
+  // each region's dynamic bodies as runs of indices, the static and kinematic bodies'
+  // runs, and each region's copy of the velocities for its passes (over_segments)
+  std::vector<std::vector<Span>> region_runs;
+  std::vector<Span> shared_runs;
+  std::vector<State<D>> region_state;
   // the threads of config.threads beyond the caller (made at the first step that has a
   // use for them), and the segment logs of the threaded passes
   std::unique_ptr<Pool> pool;
@@ -146,11 +158,14 @@ struct World {
   // only its own items)
   template <class F>
   void parallel(std::int64_t n, F&& f);
-  // f(segment, log) over the solve's segments (regions.cpp): the regions at once, then
-  // the cuts between regions 2k and 2k + 1 at once, then the rest; what the passes list
-  // is appended to the store's lists in segment order (with_logs)
+  // f(segment, log, state) over the solve's segments (regions.cpp): the regions at once,
+  // then the cuts between regions 2k and 2k + 1 at once, then the rest; what the passes
+  // list is appended to the store's lists in segment order (with_logs). `state` is the
+  // world's, or in 2D, for a region on the threads, that region's copy of the velocities
+  // (region_state: only body_v and body_w, which the passes read and write)
   template <class F>
   void over_segments(bool with_logs, F&& f);
+  void begin_regions();  // region_runs, shared_runs, region_state (2D, threaded regions)
   void warm_start_pass();
   void solve_pass(double inv_h, bool use_bias, double shift, double threshold);
   // the shock pass over the regions' shock orders; approaches slower than min_approach
