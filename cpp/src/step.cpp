@@ -103,6 +103,16 @@ void clocked(bool profile, double& total, F&& run) {
   total += dt.count();
 }
 
+// The velocities (body_v, body_w) of the bodies in `bodies` from one state to another
+// (the regions' copies: over_segments, begin_regions).
+template <int D>
+void copy_velocities(const State<D>& from, State<D>& to, Span bodies) {
+  std::copy(from.body_v.begin() + bodies.first, from.body_v.begin() + bodies.last,
+            to.body_v.begin() + bodies.first);
+  std::copy(from.body_w.begin() + bodies.first, from.body_w.begin() + bodies.last,
+            to.body_w.begin() + bodies.first);
+}
+
 }  // namespace
 
 template <int D>
@@ -184,19 +194,9 @@ void World<D>::over_segments(bool with_logs, F&& f) {
   auto run_region = [&](std::int64_t g) {
     if constexpr (D == 2) {
       State<D>& own = region_state[g];
-      for (const Span run : region_runs[g]) {
-        std::copy(state.body_v.begin() + run.first, state.body_v.begin() + run.last,
-                  own.body_v.begin() + run.first);
-        std::copy(state.body_w.begin() + run.first, state.body_w.begin() + run.last,
-                  own.body_w.begin() + run.first);
-      }
+      for (const Span run : region_runs[g]) copy_velocities(state, own, run);
       run_on(g, own);
-      for (const Span run : region_runs[g]) {
-        std::copy(own.body_v.begin() + run.first, own.body_v.begin() + run.last,
-                  state.body_v.begin() + run.first);
-        std::copy(own.body_w.begin() + run.first, own.body_w.begin() + run.last,
-                  state.body_w.begin() + run.first);
-      }
+      for (const Span run : region_runs[g]) copy_velocities(own, state, run);
     } else {
       run(g);
     }
@@ -346,12 +346,7 @@ void World<D>::begin_regions() {
   for (auto& own : region_state) {
     own.body_v.resize(state.body_v.size());
     own.body_w.resize(state.body_w.size());
-    for (const Span run : shared_runs) {
-      std::copy(state.body_v.begin() + run.first, state.body_v.begin() + run.last,
-                own.body_v.begin() + run.first);
-      std::copy(state.body_w.begin() + run.first, state.body_w.begin() + run.last,
-                own.body_w.begin() + run.first);
-    }
+    for (const Span run : shared_runs) copy_velocities(state, own, run);
   }
 }
 
