@@ -40,12 +40,20 @@ from rbsim.tools.measure import interleaved_block_times, median_ratio
 from . import bench3d, print_header, the_round, threads
 
 HERE = Path(__file__).parent
-SCENES = ["pyramid20", "circles1000", "pyramid40", "pyramids4x4", "pyramid30", "rain800"]
+SCENES = [
+    "pyramid20",
+    "circles1000",
+    "pyramid40",
+    "pyramids4x4",
+    "pyramid30",
+    "rain800",
+    "boxpile600",
+]
 WARMUP = 60
 STEPS = 60
 REPEATS = 9
 # scenes timed over their whole run from rest (the scene's steps)
-FROM_REST = {"pyramid30", "rain800"}
+FROM_REST = {"pyramid30", "rain800", "boxpile600"}
 REST_REPEATS = 5
 
 

@@ -130,7 +130,9 @@ def test_resting_stack_impulses_carry_the_weight_above():
 
 def test_warm_start_second_step_begins_with_first_steps_impulse():
     w = world(STACK)
-    w.advance(120)
+    # settled to round-off (the ground contact, as stiff as the others at dt 1/60 since
+    # 2026-12-05, takes longer: at step 120 its impulse still moved by 1.4e-12 a step)
+    w.advance(240)
     c = w.contacts
     m = manifold_of(c, 0, 1)
     w.advance(1)

@@ -46,23 +46,31 @@ TEST(rows_hold_effective_masses_and_approach_velocities) {
 }
 
 // Contacts between two dynamic bodies take the scene's softness; contacts with a static
-// body the stiffer one.
+// body the stiffer one: twice the hertz, within the same cap of a quarter of the substep
+// rate. At dt 1/60 and 4 substeps the scene's 60 Hz is the cap, and both are 60 Hz; with
+// 8 substeps the cap is 120 Hz, and a static contact is twice as stiff.
 TEST(static_contacts_take_the_stiffer_softness) {
-  SceneBuilder s;
-  s.ground();
-  s.box({0.0, 0.5}, 0.5, 0.5, 1.0);
-  s.box({0.0, 1.5}, 0.5, 0.5, 1.0);
-  World<2>& w = s.finish();
-  rbsim::test::collide(w);
-  const auto& c = w.contacts;
-  CHECK(c.count.manifolds == 2);
-  const Soft soft = w.config.soft, hard = w.config.soft_static;
-  CHECK(hard.bias_rate != soft.bias_rate);
-  for (std::int64_t m = 0; m < 2; ++m) {
-    const bool on_ground = !w.model.is_dynamic(c.body_a[m]) || !w.model.is_dynamic(c.body_b[m]);
-    const Soft want = on_ground ? hard : soft;
-    CHECK_NEAR(c.solver_row[m].gamma, want.impulse_scale / want.mass_scale, 1e-15);
-    CHECK(c.solver_row[m].bias_rate == want.bias_rate);
+  for (const int substeps : {4, 8}) {
+    SceneBuilder s;
+    s.ground();
+    s.box({0.0, 0.5}, 0.5, 0.5, 1.0);
+    s.box({0.0, 1.5}, 0.5, 0.5, 1.0);
+    World<2>& w = s.finish(1.0 / 60.0, substeps);
+    rbsim::test::collide(w);
+    const auto& c = w.contacts;
+    CHECK(c.count.manifolds == 2);
+    const double h = rbsim::test::substep(w), cap = 0.25 / h;  // s, Hz
+    const double hertz = std::min(constants::CONTACT_HERTZ, cap);
+    const Soft soft = w.config.soft, hard = w.config.soft_static;
+    const Soft want_hard = soft_parameters(std::min(2.0 * hertz, cap), constants::CONTACT_DAMPING_RATIO, h);
+    CHECK(hard.bias_rate == want_hard.bias_rate && hard.mass_scale == want_hard.mass_scale);
+    CHECK((hard.bias_rate != soft.bias_rate) == (substeps == 8));
+    for (std::int64_t m = 0; m < 2; ++m) {
+      const bool on_ground = !w.model.is_dynamic(c.body_a[m]) || !w.model.is_dynamic(c.body_b[m]);
+      const Soft want = on_ground ? hard : soft;
+      CHECK_NEAR(c.solver_row[m].gamma, want.impulse_scale / want.mass_scale, 1e-15);
+      CHECK(c.solver_row[m].bias_rate == want.bias_rate);
+    }
   }
 }
 

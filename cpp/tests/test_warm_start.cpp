@@ -63,7 +63,9 @@ TEST(warm_start_leaves_static_body_alone) {
 // back untouched, the store is unchanged to the bit; while the batches hold them, the
 // store's copy is not what a pass reads; the passes on the batches' impulses, given back,
 // are the passes one manifold at a time on the store's (a wave's manifolds share no
-// dynamic body, so the two orders agree to the bit).
+// dynamic body, so the two orders agree, to the rounding of the multiply-adds that the
+// compiler fuses in the solver's files, -ffp-contract=fast, not always alike in the lanes'
+// code and in the one-at-a-time code).
 TEST(batches_hold_the_impulses_between_take_and_give) {
   auto scene = [](SceneBuilder& s) -> World<2>& {
     s.world.model.gravity = {0.0, -10.0};
@@ -141,13 +143,19 @@ TEST(batches_hold_the_impulses_between_take_and_give) {
                  o.count.manifolds);
   solve_contacts(one.model, one.state, o, inv_h, false, 0.0, 1.0, o.solve_order.data(),
                  o.count.manifolds);
-  CHECK(rbsim::test::same_bits(lanes.state, one.state));
+  // (tolerances: the rounding of a few fused operations on impulses of 0.1 N·s and
+  // velocities of 1 m/s; a lane solved otherwise differs by far more)
+  for (std::size_t i = 0; i < lanes.state.body_v.size(); ++i) {
+    CHECK_NEAR(lanes.state.body_v[i].x, one.state.body_v[i].x, 1e-15);
+    CHECK_NEAR(lanes.state.body_v[i].y, one.state.body_v[i].y, 1e-15);
+    CHECK_NEAR(lanes.state.body_w[i], one.state.body_w[i], 1e-15);
+  }
   for (std::int64_t m = 0; m < c.count.manifolds; ++m) {
     for (int k = 0; k < c.points[m]; ++k) {
-      CHECK(c.normal_impulse[m][k] == o.normal_impulse[m][k]);
-      CHECK(c.tangent_impulse[m][k] == o.tangent_impulse[m][k]);
-      CHECK(c.max_normal_impulse[m][k] == o.max_normal_impulse[m][k]);
-      CHECK(c.approach_velocity[m][k] == o.approach_velocity[m][k]);
+      CHECK_NEAR(c.normal_impulse[m][k], o.normal_impulse[m][k], 1e-16);
+      CHECK_NEAR(c.tangent_impulse[m][k], o.tangent_impulse[m][k], 1e-16);
+      CHECK_NEAR(c.max_normal_impulse[m][k], o.max_normal_impulse[m][k], 1e-16);
+      CHECK_NEAR(c.approach_velocity[m][k], o.approach_velocity[m][k], 1e-15);
     }
   }
 }

@@ -49,7 +49,7 @@ struct Config {
   MixRule restitution_rule = MixRule::Max;
   bool elastic = false;           // some material has restitution > 0
   Soft soft;                      // contacts between two dynamic bodies
-  Soft soft_static;               // contacts with a static or kinematic body (stiffer)
+  Soft soft_static;               // contacts with a static or kinematic body (stiffer, to the cap)
   int threads = 1;                // the step's threads (solver.threads), >= 1
   // solver.threads not set: each step runs on one thread or on `threads`, whichever the
   // run's trials timed faster (ThreadChoice); the result is the same bits either way
@@ -191,6 +191,12 @@ void give_impulses(Contacts<D>& contacts, const std::int32_t* list, std::int64_t
 // bodies that have moved this step, written to contacts.relax_list; returns their count.
 template <int D>
 std::int64_t deep_region(const Model<D>& model, Contacts<D>& contacts, int reach);
+
+// solver/shock.cpp: whether a deep overlap the solve pass met (contacts.relax_list[:
+// count.deep_count]) has a point closing faster than min_approach (m/s).
+template <int D>
+bool deep_approaching(const Model<D>& model, const State<D>& state, const Contacts<D>& contacts,
+                      double min_approach);
 
 // solver/shock.cpp: one pass from the ground up, the supporting body held still; a point
 // approaching slower than min_approach (m/s) is left alone.

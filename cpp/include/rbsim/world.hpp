@@ -33,13 +33,13 @@ inline constexpr int THREADS_MAX = 64;
 enum class StageId : int {
   Transform, FindPairs, UpdateManifolds, Prepare, SupportOrder, Waves, IntegrateVelocities,
   WarmStart, Solve, IntegratePositions, Relax, ExtraRelax, Restitution, Shock, OverlapLimit,
-  Store, Regions, Count
+  Store, Regions, DeepSolve, Count
 };
 inline constexpr const char* STAGE_NAMES[] = {
     "transform", "find_pairs", "update_manifolds", "prepare", "support_order", "waves",
     "integrate_velocities", "warm_start", "solve", "integrate_positions", "relax",
     "extra_relax", "restitution", "shock", "limit_static_overlap", "store_impulses",
-    "regions"};
+    "regions", "deep_solve"};
 
 // What one segment of a threaded pass lists (a PassLog's own storage; step.cpp appends it
 // to the contact store's lists in segment order).
@@ -95,6 +95,9 @@ struct World {
   // the manifolds the restitution stage is to look at (its list, which it rewrites), whose
   // impulses the batches give it and take back (step.cpp)
   std::vector<std::int32_t> listed;
+  // the deep overlaps a solve pass met (contacts.relax_list's first count.deep_count),
+  // kept while the region around them is solved once more (step.cpp, deep_solve)
+  std::vector<std::int32_t> deep_seeds;
   // Asked by advance after it grew the contact store, and inside a step that may be long
   // (step_may_be_long: after its contacts are found and between its substeps): true ends
   // advance with Status::Interrupted. Set by the caller for the length of its advance
@@ -172,6 +175,9 @@ struct World {
   // (m/s) are left alone
   void shock_pass(double inv_h, double threshold,
                   double min_approach = constants::SHOCK_MIN_APPROACH);
+  // the contacts around the deep overlaps the solve pass met, solved once more with the
+  // soft bias, one manifold at a time, in solve order (nothing listed: the solve pass has)
+  void deep_solve(double inv_h, double threshold);
 };
 
 // Half the diagonal (m) of each shape's own bounding box, radius included.

@@ -179,10 +179,10 @@ void prepare_blocks_3d(SolverRow<3>& row, int npts) {
 }  // namespace
 
 // config's soft and soft_static: (mass scale, impulse scale, bias rate) for contacts
-// between two dynamic bodies and for contacts with a static or kinematic body (stiffer),
-// both for shapes of STIFFNESS_LENGTH and larger; a contact between smaller shapes is
-// stiffer by sqrt(STIFFNESS_LENGTH / size) (the smaller shape's size), capped at a quarter
-// of the substep rate as config's are. The contact's scale (SCALE_LENGTH) sets its
+// between two dynamic bodies and for contacts with a static or kinematic body (twice as
+// stiff), both for shapes of STIFFNESS_LENGTH and larger; a contact between smaller shapes
+// is stiffer by sqrt(STIFFNESS_LENGTH / size) (the smaller shape's size); every one capped
+// at a quarter of the substep rate as config's are. The contact's scale (SCALE_LENGTH) sets its
 // fastest push-out and the depth of a deep overlap.
 template <int D>
 void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c,
@@ -232,13 +232,13 @@ void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c,
     const bool fixed = ma == 0.0 || mb == 0.0;
     row.gamma = fixed ? gamma_static : gamma;
     row.bias_rate = fixed ? soft_static.bias_rate : soft.bias_rate;
-    double row_hertz = fixed ? 2.0 * hertz : hertz;  // Hz: config's soft or soft_static
+    double row_hertz = fixed ? std::min(2.0 * hertz, hertz_cap) : hertz;  // Hz: as soft_static, soft
     bool own = false;  // the row's own soft constraint (rare): a small pair
     const double size = std::min(c.shape_size[c.shape_a[m]], c.shape_size[c.shape_b[m]]);  // m
     if (size < C::STIFFNESS_LENGTH && stiffer) {
       // a small pair, and room under the cap: stiffer
       const double stiff = std::min(hertz * std::sqrt(C::STIFFNESS_LENGTH / size), hertz_cap);
-      row_hertz = fixed ? 2.0 * stiff : stiff;
+      row_hertz = fixed ? std::min(2.0 * stiff, hertz_cap) : stiff;
       own = true;
     }
     const double scale = c.scale[m];

@@ -523,6 +523,31 @@ std::int64_t deep_region(const Model<D>& model, Contacts<D>& c, int reach) {
   return count;
 }
 
+// Whether a manifold of contacts.relax_list[:count.deep_count] (the deep overlaps the
+// solve pass met) has a point closing faster than min_approach (m/s) at the bodies'
+// velocities now, each point's lever arms those of its solver row (as the shock pass).
+template <int D>
+bool deep_approaching(const Model<D>& model, const State<D>& st, const Contacts<D>& c,
+                      double min_approach) {
+  (void)model;
+  for (std::int64_t k = 0; k < c.count.deep_count; ++k) {
+    const std::int32_t m = c.relax_list[k];
+    const int a = c.body_a[m], b = c.body_b[m];
+    const SolverRow<D>& row = c.solver_row[m];
+    const double along = dot(row.normal, st.body_v[a] - st.body_v[b]);  // m/s
+    for (int p = 0; p < c.points[m]; ++p) {
+      double vel;  // m/s, > 0 parting
+      if constexpr (D == 2)
+        vel = along + (angular_along(st.body_w[a], row.point[p].rna) -
+                       angular_along(st.body_w[b], row.point[p].rnb));
+      else
+        vel = along + (dot(st.body_w[a], row.point.rna[p]) - dot(st.body_w[b], row.point.rnb[p]));
+      if (vel < -min_approach) return true;
+    }
+  }
+  return false;
+}
+
 // One pass over the supported contacts, lowest first, that removes each supported body's
 // approach towards its supporter (the supporter taken as infinitely heavy). A point with a
 // gap (m) may still close it within the substep (1/inv_h s). An elastic contact
@@ -638,6 +663,8 @@ template std::int64_t support_order(const Model<2>&, Contacts<2>&);
 template std::int64_t deep_region(const Model<2>&, Contacts<2>&, int);
 template void propagate_shock(const Model<2>&, State<2>&, Contacts<2>&, std::int64_t, double,
                               double, double);
+template bool deep_approaching(const Model<2>&, const State<2>&, const Contacts<2>&, double);
+template bool deep_approaching(const Model<3>&, const State<3>&, const Contacts<3>&, double);
 template void propagate_shock_range(const Model<2>&, State<2>&, Contacts<2>&, std::int64_t,
                                     std::int64_t, double, double, double);
 template void propagate_shock_range(const Model<3>&, State<3>&, Contacts<3>&, std::int64_t,
