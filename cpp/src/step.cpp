@@ -437,7 +437,7 @@ bool World<D>::step() {
       const double impact = D == 3 ? g_norm * cfg.dt : C::SHOCK_MIN_APPROACH;  // m/s
       timed(S::Shock, [&] { shock_pass(inv_h, threshold, impact); });
     } else if (contacts_on && c.count.deep_count > 0 &&
-               deep_approaching(model, state, c, C::SHOCK_MIN_APPROACH)) {
+               deep_approaching(state, c, C::SHOCK_MIN_APPROACH)) {
       // a deep overlap (DEEP_OVERLAP) comes out of the solve pass still closing: the pass
       // solves ground first, and a deep contact's push-out above drives the bodies below it
       // together after their own contacts were solved, which the positions would then move

@@ -147,4 +147,31 @@ TEST(borne_loads_come_down_the_supports) {
   CHECK_NEAR(c.body_load[right], 51.0, 1e-12);
 }
 
+// deep_approaching: whether a deep overlap the solve pass listed (relax_list[:deep_count])
+// still closes at the bodies' velocities now (the lever arms of its solver row). The
+// stack's middle box pressed into the bottom one: closing, then parting, then closing
+// slower than the bound; a box closing that is not listed does not count.
+TEST(deep_approaching_reads_the_listed_overlaps_only) {
+  SceneBuilder s;
+  World<2>& w = stack(s);
+  auto& c = w.contacts;
+  const int m = manifold_of(w, 1, 2);
+  c.relax_list[0] = m;
+  c.count.deep_count = 1;
+  // (the normal points from body b to body a: a's velocity along it parts the two)
+  const double sign = c.body_a[m] == 2 ? 1.0 : -1.0;
+  w.state.body_v[2] = {0.0, -0.5 * sign * c.normal[m].y};  // m/s, body 2 into body 1
+  CHECK(deep_approaching(w.state, c, 1e-4));
+  w.state.body_v[2] = {0.0, 0.5 * sign * c.normal[m].y};  // parting
+  CHECK(!deep_approaching(w.state, c, 1e-4));
+  w.state.body_v[2] = {0.0, -1e-5 * sign * c.normal[m].y};  // closing, slower than the bound
+  CHECK(!deep_approaching(w.state, c, 1e-4));
+  w.state.body_v[2] = {0.0, 0.0};
+  w.state.body_v[3] = {0.0, -2.0};  // box 3 into box 2, its manifold not listed
+  CHECK(!deep_approaching(w.state, c, 1e-4));
+  c.count.deep_count = 0;
+  w.state.body_v[2] = {0.0, -0.5 * sign * c.normal[m].y};
+  CHECK(!deep_approaching(w.state, c, 1e-4));  // nothing listed
+}
+
 RBSIM_TEST_MAIN

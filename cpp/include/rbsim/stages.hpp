@@ -195,8 +195,7 @@ std::int64_t deep_region(const Model<D>& model, Contacts<D>& contacts, int reach
 // solver/shock.cpp: whether a deep overlap the solve pass met (contacts.relax_list[:
 // count.deep_count]) has a point closing faster than min_approach (m/s).
 template <int D>
-bool deep_approaching(const Model<D>& model, const State<D>& state, const Contacts<D>& contacts,
-                      double min_approach);
+bool deep_approaching(const State<D>& state, const Contacts<D>& contacts, double min_approach);
 
 // solver/shock.cpp: one pass from the ground up, the supporting body held still; a point
 // approaching slower than min_approach (m/s) is left alone.

@@ -169,7 +169,6 @@ template <int D>
 void narrow_pairs(const Model<D>& model, const State<D>& st, const Contacts<D>& c,
                   const Grid<D>& grid, double dt, Span pairs, PairManifold<D>* found,
                   std::int8_t* found_points) {
-  using Vec = typename Dim<D>::Vec;
   const auto& box = grid.shape_aabb;
   const std::int64_t n_shapes = model.shape_count();
   const std::int64_t* prev = c.prev_key.data();

@@ -527,9 +527,7 @@ std::int64_t deep_region(const Model<D>& model, Contacts<D>& c, int reach) {
 // solve pass met) has a point closing faster than min_approach (m/s) at the bodies'
 // velocities now, each point's lever arms those of its solver row (as the shock pass).
 template <int D>
-bool deep_approaching(const Model<D>& model, const State<D>& st, const Contacts<D>& c,
-                      double min_approach) {
-  (void)model;
+bool deep_approaching(const State<D>& st, const Contacts<D>& c, double min_approach) {
   for (std::int64_t k = 0; k < c.count.deep_count; ++k) {
     const std::int32_t m = c.relax_list[k];
     const int a = c.body_a[m], b = c.body_b[m];
@@ -663,8 +661,8 @@ template std::int64_t support_order(const Model<2>&, Contacts<2>&);
 template std::int64_t deep_region(const Model<2>&, Contacts<2>&, int);
 template void propagate_shock(const Model<2>&, State<2>&, Contacts<2>&, std::int64_t, double,
                               double, double);
-template bool deep_approaching(const Model<2>&, const State<2>&, const Contacts<2>&, double);
-template bool deep_approaching(const Model<3>&, const State<3>&, const Contacts<3>&, double);
+template bool deep_approaching(const State<2>&, const Contacts<2>&, double);
+template bool deep_approaching(const State<3>&, const Contacts<3>&, double);
 template void propagate_shock_range(const Model<2>&, State<2>&, Contacts<2>&, std::int64_t,
                                     std::int64_t, double, double, double);
 template void propagate_shock_range(const Model<3>&, State<3>&, Contacts<3>&, std::int64_t,
