@@ -609,41 +609,20 @@ def test_deep_overlap_under_a_column_is_pushed_out_gently():
     assert world.state.body_x[1, 1] == pytest.approx(0.5, abs=0.01)  # pushed out
 
 
-def box_pile_scene(count: int = 600) -> str:
-    """`count` boxes of 0.6 m, each turned its own way (a fixed seed), in rows of 24 from
-    1 m up, raining into an open box 24 m wide."""
-    angles = np.random.default_rng(5).random(count)
-    boxes = "".join(
-        f"  - {{name: b{k}, position: [{-11 + 0.9 * (k % 24):.3f}, {1 + 0.9 * (k // 24):.3f}], "
-        f"angle: {angles[k]:.3f}, shape: {{box: {{size: [0.6, 0.6]}}}}}}\n"
-        for k in range(count)
-    )
-    return (
-        f"""
-version: 1
-world: {{dt: {DT!r}, steps: 600}}
-bodies:
-  - {{name: floor, type: static, shape: {{segment: {{a: [-12, 0], b: [12, 0]}}}}}}
-  - {{name: left, type: static, shape: {{segment: {{a: [-12, 0], b: [-12, 60]}}}}}}
-  - {{name: right, type: static, shape: {{segment: {{a: [12, 0], b: [12, 60]}}}}}}
-"""
-        + boxes
-    )
-
-
 def test_box_pile_keeps_its_overlaps_shallow():
-    # 600 boxes raining into a box and piling up 25 high. The solve pass goes ground
-    # first, and a deep contact's push-out drove the boxes below it into their supporters
-    # after their own contacts were solved: the overlaps walked down the columns and were
-    # held there. Now the contacts around a deep overlap still closing after the pass are
-    # solved once more (deep_solve), and a static contact is no stiffer than the substep
-    # allows. The pile is chaotic, so the figure is the mean of the deepest overlap at
-    # five moments: over six runs with gravity changed by parts in 10⁹ (bench.the_round)
-    # 2.9 - 5.0 cm (before: 6.9 - 8.9; pymunk, 10 iterations, in the first: 1.2)
+    # 600 boxes raining into a box and piling up 25 high (the bench's from-rest pile,
+    # bench/scenes/boxpile600.yaml). The solve pass goes ground first, and a deep
+    # contact's push-out drove the boxes below it into their supporters after their own
+    # contacts were solved: the overlaps walked down the columns and were held there.
+    # Now the contacts around a deep overlap still closing after the pass are solved once
+    # more (deep_solve), and a static contact is no stiffer than the substep allows. The
+    # pile is chaotic, so the figure is the mean of the deepest overlap at five moments:
+    # over six runs with gravity changed by parts in 10⁹ (bench.the_round) 2.9 - 5.0 cm
+    # (before: 6.9 - 8.9; pymunk, 10 iterations, in the first: 1.2)
     from rbsim.engines import make_engine
     from rbsim.tools.hard import Geometry
 
-    scene = scene_from(box_pile_scene())
+    scene = load_scene(SCENES.parent / "bench/scenes/boxpile600.yaml")
     engine = make_engine("rbsim", scene)
     geometry = Geometry(scene)
     engine.advance(360)

@@ -738,7 +738,7 @@ void set_contact_softness(Config& cfg) {
   const double cap = 0.25 / h;  // Hz
   const double hertz = std::min(C::CONTACT_HERTZ, cap);
   cfg.soft = soft_parameters(hertz, C::CONTACT_DAMPING_RATIO, h);
-  cfg.soft_static = soft_parameters(std::min(2.0 * hertz, cap), C::CONTACT_DAMPING_RATIO, h);
+  cfg.soft_static = soft_parameters(static_hertz(hertz, cap), C::CONTACT_DAMPING_RATIO, h);
 }
 
 template struct World<2>;

@@ -3,6 +3,7 @@
 // dimensions it serves.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <string>
 
@@ -25,6 +26,11 @@ struct Soft {
 // An implicit damped spring of `hertz` (Hz) and damping ratio zeta, integrated with step
 // h (s), as scalings of the rigid impulse. hertz = 0 is a rigid constraint.
 Soft soft_parameters(double hertz, double zeta, double h);
+
+// The stiffness (Hz) of a contact with a static or kinematic body, where one between two
+// dynamic bodies has `hertz`: twice that, within the same cap (Hz, a quarter of the
+// substep rate).
+inline double static_hertz(double hertz, double cap) { return std::min(2.0 * hertz, cap); }
 
 // A range [first, last) of items (bodies, shapes, manifolds): a part of a stage that the
 // step runs on one of its threads (step.cpp).

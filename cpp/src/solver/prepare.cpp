@@ -232,13 +232,13 @@ void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c,
     const bool fixed = ma == 0.0 || mb == 0.0;
     row.gamma = fixed ? gamma_static : gamma;
     row.bias_rate = fixed ? soft_static.bias_rate : soft.bias_rate;
-    double row_hertz = fixed ? std::min(2.0 * hertz, hertz_cap) : hertz;  // Hz: as soft_static, soft
+    double row_hertz = fixed ? static_hertz(hertz, hertz_cap) : hertz;  // Hz: as config's
     bool own = false;  // the row's own soft constraint (rare): a small pair
     const double size = std::min(c.shape_size[c.shape_a[m]], c.shape_size[c.shape_b[m]]);  // m
     if (size < C::STIFFNESS_LENGTH && stiffer) {
       // a small pair, and room under the cap: stiffer
       const double stiff = std::min(hertz * std::sqrt(C::STIFFNESS_LENGTH / size), hertz_cap);
-      row_hertz = fixed ? std::min(2.0 * stiff, hertz_cap) : stiff;
+      row_hertz = fixed ? static_hertz(stiff, hertz_cap) : stiff;
       own = true;
     }
     const double scale = c.scale[m];
