@@ -1,5 +1,6 @@
 // solver/shock.cpp: support levels through the contact graph, the solve order, and the
 // shock pass that holds the supporter still.
+#include <array>
 #include <cmath>
 
 #include "check.hpp"
@@ -172,6 +173,29 @@ TEST(deep_approaching_reads_the_listed_overlaps_only) {
   c.count.deep_count = 0;
   w.state.body_v[2] = {0.0, -0.5 * sign * c.normal[m].y};
   CHECK(!deep_approaching(w.state, c, 1e-4));  // nothing listed
+}
+
+// keep_closing: the listed manifolds with a point closing faster than the bound, moved to
+// the list's front in their order (the deep solve's passes without the bias). The stack's
+// two box-on-box manifolds listed; the middle box driven into the bottom one at 2 m/s.
+TEST(keep_closing_keeps_the_manifolds_driven_in) {
+  SceneBuilder s;
+  World<2>& w = stack(s);
+  auto& c = w.contacts;
+  const int low = manifold_of(w, 1, 2), high = manifold_of(w, 2, 3);
+  std::array<std::int32_t, 2> list{high, low};
+  // (the normal points from body b to body a: a's velocity along it parts the two)
+  const double sign = c.body_a[low] == 2 ? 1.0 : -1.0;
+  w.state.body_v[2] = {0.0, -2.0 * sign * c.normal[low].y};  // m/s, body 2 into body 1
+  w.state.body_v[3] = w.state.body_v[2];  // box 3 along with it: its manifold still
+  CHECK(keep_closing(w.state, c, list.data(), 2, 1.0) == 1);
+  CHECK(list[0] == low);
+  list = {high, low};
+  CHECK(keep_closing(w.state, c, list.data(), 2, 2.5) == 0);  // slower than that bound
+  w.state.body_v[3] = {0.0, 0.0};  // box 2 now also parts from box 3 above it
+  list = {high, low};
+  CHECK(keep_closing(w.state, c, list.data(), 2, 1.0) == 1);
+  CHECK(list[0] == low);
 }
 
 RBSIM_TEST_MAIN

@@ -202,6 +202,12 @@ std::int64_t deep_region(const Model<D>& model, Contacts<D>& contacts, int reach
 // count.deep_count]) has a point closing faster than min_approach (m/s).
 template <int D>
 bool deep_approaching(const State<D>& state, const Contacts<D>& contacts, double min_approach);
+// solver/shock.cpp: the manifolds of list[0..n) with a point closing faster than
+// min_approach (m/s) at the bodies' velocities now, moved to the list's front in their
+// order; returns their count.
+template <int D>
+std::int64_t keep_closing(const State<D>& state, const Contacts<D>& contacts, std::int32_t* list,
+                          std::int64_t n, double min_approach);
 
 // solver/shock.cpp: one pass from the ground up, the supporting body held still; a point
 // approaching slower than min_approach (m/s) is left alone.

@@ -96,7 +96,7 @@ struct World {
   // impulses the batches give it and take back (step.cpp)
   std::vector<std::int32_t> listed;
   // the deep overlaps a solve pass met (contacts.relax_list's first count.deep_count),
-  // kept while the region around them is solved once more (step.cpp, deep_solve)
+  // kept while the regions around them are solved again (step.cpp, deep_solve)
   std::vector<std::int32_t> deep_seeds;
   // Asked by advance after it grew the contact store, and inside a step that may be long
   // (step_may_be_long: after its contacts are found and between its substeps): true ends
@@ -176,7 +176,9 @@ struct World {
   void shock_pass(double inv_h, double threshold,
                   double min_approach = constants::SHOCK_MIN_APPROACH);
   // the contacts around the deep overlaps the solve pass met, solved once more with the
-  // soft bias, one manifold at a time, in solve order (nothing listed: the solve pass has)
+  // soft bias, one manifold at a time, in solve order (nothing listed: the solve pass has);
+  // first, while one still closes at DEEP_CLOSING_SPEED, the contacts around those without
+  // the bias (at most DEEP_SOLVE_PASSES - 1 passes)
   void deep_solve(double inv_h, double threshold);
 };
 

@@ -523,27 +523,49 @@ std::int64_t deep_region(const Model<D>& model, Contacts<D>& c, int reach) {
   return count;
 }
 
+namespace {
+
+// How fast manifold m's fastest point closes (m/s, > 0 closing, < 0 all parting) at the
+// bodies' velocities now, each point's lever arms those of its solver row (as the shock
+// pass).
+template <int D>
+double closing_speed(const State<D>& st, const Contacts<D>& c, std::int32_t m) {
+  const int a = c.body_a[m], b = c.body_b[m];
+  const SolverRow<D>& row = c.solver_row[m];
+  const double along = dot(row.normal, st.body_v[a] - st.body_v[b]);  // m/s
+  double fastest = -std::numeric_limits<double>::infinity();
+  for (int p = 0; p < c.points[m]; ++p) {
+    double vel;  // m/s, > 0 parting
+    if constexpr (D == 2)
+      vel = along + (angular_along(st.body_w[a], row.point[p].rna) -
+                     angular_along(st.body_w[b], row.point[p].rnb));
+    else
+      vel = along + (dot(st.body_w[a], row.point.rna[p]) - dot(st.body_w[b], row.point.rnb[p]));
+    fastest = std::max(fastest, -vel);
+  }
+  return fastest;
+}
+
+}  // namespace
+
 // Whether a manifold of contacts.relax_list[:count.deep_count] (the deep overlaps the
-// solve pass met) has a point closing faster than min_approach (m/s) at the bodies'
-// velocities now, each point's lever arms those of its solver row (as the shock pass).
+// solve pass met) has a point closing faster than min_approach (m/s).
 template <int D>
 bool deep_approaching(const State<D>& st, const Contacts<D>& c, double min_approach) {
-  for (std::int64_t k = 0; k < c.count.deep_count; ++k) {
-    const std::int32_t m = c.relax_list[k];
-    const int a = c.body_a[m], b = c.body_b[m];
-    const SolverRow<D>& row = c.solver_row[m];
-    const double along = dot(row.normal, st.body_v[a] - st.body_v[b]);  // m/s
-    for (int p = 0; p < c.points[m]; ++p) {
-      double vel;  // m/s, > 0 parting
-      if constexpr (D == 2)
-        vel = along + (angular_along(st.body_w[a], row.point[p].rna) -
-                       angular_along(st.body_w[b], row.point[p].rnb));
-      else
-        vel = along + (dot(st.body_w[a], row.point.rna[p]) - dot(st.body_w[b], row.point.rnb[p]));
-      if (vel < -min_approach) return true;
-    }
-  }
+  for (std::int64_t k = 0; k < c.count.deep_count; ++k)
+    if (closing_speed(st, c, c.relax_list[k]) > min_approach) return true;
   return false;
+}
+
+// The manifolds of list[0..n) with a point closing faster than min_approach (m/s), moved
+// to its front in their order; returns their count.
+template <int D>
+std::int64_t keep_closing(const State<D>& st, const Contacts<D>& c, std::int32_t* list,
+                          std::int64_t n, double min_approach) {
+  std::int64_t kept = 0;
+  for (std::int64_t k = 0; k < n; ++k)
+    if (closing_speed(st, c, list[k]) > min_approach) list[kept++] = list[k];
+  return kept;
 }
 
 // One pass over the supported contacts, lowest first, that removes each supported body's
@@ -663,6 +685,10 @@ template void propagate_shock(const Model<2>&, State<2>&, Contacts<2>&, std::int
                               double, double);
 template bool deep_approaching(const State<2>&, const Contacts<2>&, double);
 template bool deep_approaching(const State<3>&, const Contacts<3>&, double);
+template std::int64_t keep_closing(const State<2>&, const Contacts<2>&, std::int32_t*,
+                                   std::int64_t, double);
+template std::int64_t keep_closing(const State<3>&, const Contacts<3>&, std::int32_t*,
+                                   std::int64_t, double);
 template void propagate_shock_range(const Model<2>&, State<2>&, Contacts<2>&, std::int64_t,
                                     std::int64_t, double, double, double);
 template void propagate_shock_range(const Model<3>&, State<3>&, Contacts<3>&, std::int64_t,
