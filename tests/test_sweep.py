@@ -247,6 +247,21 @@ def test_3d_sweep_shows_the_rotation_updates_side_by_side(tmp_path: Path):
     assert data["closed_form_period_s"] == pytest.approx(result.period)
 
 
+def test_3d_sweep_says_when_its_energy_error_is_the_whole_scenes():
+    # A new user's scene had a ball, a capsule and a box sliding with friction; the table
+    # named the ball, and its energy error (0.245, the box's friction) was the scene's.
+    # With one dynamic body no note; with a second, a note says whose it is
+    from rbsim.tools.sweep import run_rotation_sweep
+
+    grid = Grid(dts=(0.004,), substeps=(1,), rotations=("split",))
+    alone = run_rotation_sweep(scene_from(BRICK_3D), grid, repeats=1, duration=0.1)
+    assert not any("whole scene" in n for n in alone.notes)
+    second = "  - {name: other, position: [3, 1, 0], shape: {sphere: {radius: 0.1}}}\n"
+    pair = run_rotation_sweep(scene_from(BRICK_3D + second), grid, repeats=1, duration=0.1)
+    assert any("whole scene's (2 dynamic bodies" in n for n in pair.notes), pair.notes
+    assert "energy err: the scene's kinetic + potential energy" in pair.table()
+
+
 def test_3d_sweep_from_the_command_line(tmp_path: Path):
     scene = tmp_path / "brick.yaml"
     scene.write_text(BRICK_3D)

@@ -974,8 +974,8 @@ class RotationSweepResult:
             f"{self.scene}: the rotation updates, work against error, {self.duration:g} s "
             f"simulated, body {self.body!r}",
             f"  closed-form period of ω in the body (Euler's equations, elliptic K): {period}",
-            "  energy err: max over the run of |E - E0| / E0; period err: the first whole "
-            "period against the closed form",
+            "  energy err: the scene's kinetic + potential energy E, max over the run of "
+            "|E - E0| / E0; period err: the body's first whole period against the closed form",
             "  cost: median CPU time per simulated second, compile and setup excluded",
         ]
         lines += [f"  note: {n}" for n in self.notes]
@@ -1162,6 +1162,12 @@ def run_rotation_sweep(
     if _torque_free(scene, body):
         period = free_body_period(world.model.body_moments[body], wp)
     notes = []
+    others = sum(b.type == "dynamic" for b in scene.bodies) - 1
+    if others > 0:
+        notes.append(
+            f"the energy error is the whole scene's ({others + 1} dynamic bodies, contacts and "
+            f"friction included), not {model_body.name!r}'s alone: the period error is its"
+        )
     unmeasured = [p for p in points if p.status == "ok" and not math.isfinite(p.period_error)]
     if period is None:
         notes.append(
