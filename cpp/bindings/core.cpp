@@ -486,6 +486,8 @@ nb::object run_stage(World2& w, const std::string& name, nb::dict args) {
     apply_restitution(m, st, c, num("threshold"), num("h"), num("sign"));
   } else if (name == "limit_static_overlap") {
     limit_static_overlap(m, st, c, num("max_overlap"));
+  } else if (name == "limit_dynamic_overlap") {
+    return nb::int_(limit_dynamic_overlap(m, st, c, num("max_overlap"), load_value<int>(args, "passes")));
   } else if (name == "store_impulses") {
     store_impulses(c);
   } else {
@@ -1027,7 +1029,8 @@ NB_MODULE(_core, mod) {
     RBSIM_CONSTANT(CONTACT_HERTZ) RBSIM_CONSTANT(CONTACT_DAMPING_RATIO)
     RBSIM_CONSTANT(CONTACT_PUSH_MAX_VELOCITY) RBSIM_CONSTANT(DEEP_OVERLAP)
     RBSIM_CONSTANT(DEEP_RELAX_FACTOR) RBSIM_CONSTANT(DEEP_RELAX_REACH)
-    RBSIM_CONSTANT(STATIC_OVERLAP_LIMIT) RBSIM_CONSTANT(STILL_DISTANCE) RBSIM_CONSTANT(STILL_ANGLE)
+    RBSIM_CONSTANT(STATIC_OVERLAP_LIMIT) RBSIM_CONSTANT(DYNAMIC_OVERLAP_LIMIT)
+    RBSIM_CONSTANT(OVERLAP_LIMIT_PASSES) RBSIM_CONSTANT(STILL_DISTANCE) RBSIM_CONSTANT(STILL_ANGLE)
     RBSIM_CONSTANT(RESTITUTION_PASSES) RBSIM_CONSTANT(IMPACT_GAP) RBSIM_CONSTANT(TOI_TOLERANCE) RBSIM_CONSTANT(TOI_ITERATIONS)
     RBSIM_CONSTANT(TOI_FINISH) RBSIM_CONSTANT(REFERENCE_FACE_TOLERANCE) RBSIM_CONSTANT(SEGMENT_SKIN)
     RBSIM_CONSTANT(LINEAR_EPSILON) RBSIM_CONSTANT(SHOCK_COS) RBSIM_CONSTANT(SHOCK_MIN_APPROACH)

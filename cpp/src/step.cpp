@@ -7,7 +7,7 @@
 //       body rests on a light one) (-> deep_solve, while a deep overlap still closes)
 //       -> integrate_positions
 //       -> relax (-> extra relax passes near a deep overlap) -> restitution -> shock]
-//   -> limit_static_overlap -> store_impulses
+//   -> limit_dynamic_overlap -> limit_static_overlap -> store_impulses
 //
 // A scene without contacts possible skips the contact stages; one without forces skips
 // their evaluation (integrate.cpp).
@@ -533,7 +533,10 @@ bool World<D>::step() {
     if (contacts_on) c.body_inertia_q = state.body_q;
   }
   if (contacts_on) {
-    timed(S::OverlapLimit, [&] { limit_static_overlap(model, state, c, C::STATIC_OVERLAP_LIMIT); });
+    timed(S::OverlapLimit, [&] {
+      limit_dynamic_overlap(model, state, c, C::DYNAMIC_OVERLAP_LIMIT, C::OVERLAP_LIMIT_PASSES);
+      limit_static_overlap(model, state, c, C::STATIC_OVERLAP_LIMIT);
+    });
     timed(S::Store, [&] {
       give_impulses(c);  // (2D: the batches held them through the passes)
       // each part counts its touching points (an integer sum: the same in any order)

@@ -1,6 +1,7 @@
 // solver/overlap_limit.cpp: a body deeper than the limit in a static one is moved out
 // along the normal to the limit, its velocity untouched; shallower overlaps and overlaps
-// between dynamic bodies are left to the solver.
+// between dynamic bodies are left to the solver. Two dynamic bodies deeper than their own
+// limit are moved apart to it, each by its share of the inverse mass.
 #include "check.hpp"
 #include "scene_builder.hpp"
 
@@ -61,6 +62,59 @@ TEST(limit_follows_the_size_of_the_shapes) {
   const double scale = std::hypot(0.001, 0.001) / constants::SCALE_LENGTH;
   CHECK_NEAR(w.state.body_x[small].y, 0.001 - scale * LIMIT, 1e-12);
   CHECK(w.state.body_x[big].y == 0.5 - 0.0005);
+}
+
+// Box b (three times as dense) 10 cm into box a: moved apart to the limit along the
+// normal, a by three quarters of the 9 cm, b by a quarter; velocities untouched.
+TEST(dynamic_pair_moves_apart_by_inverse_mass) {
+  SceneBuilder s;
+  s.world.model.gravity = {0.0, 0.0};
+  const int a = s.box({0.0, 0.0}, 0.5, 0.5, 1.0, {}, 0.0, {0.5, 0.0});
+  const int b = s.box({0.0, 0.9}, 0.5, 0.5, 3.0);
+  World<2>& w = s.finish();
+  rbsim::test::collide(w);
+  const double limit = constants::DYNAMIC_OVERLAP_LIMIT;  // (the boxes' scale is 1)
+  CHECK(limit_dynamic_overlap(w.model, w.state, w.contacts, limit, 4) == 1);
+  const double excess = 0.1 - limit;  // m
+  CHECK_NEAR(w.state.body_x[a].y, -0.75 * excess, 1e-12);
+  CHECK_NEAR(w.state.body_x[b].y, 0.9 + 0.25 * excess, 1e-12);
+  CHECK_NEAR(w.state.body_x[b].y - w.state.body_x[a].y, 1.0 - limit, 1e-12);
+  CHECK_NEAR(w.contacts.body_delta[a].dx.y, -0.75 * excess, 1e-12);
+  CHECK(w.state.body_v[a].x == 0.5 && w.state.body_v[a].y == 0.0 && w.state.body_v[b].y == 0.0);
+  CHECK(w.state.body_x[a].x == 0.0 && w.state.body_x[b].x == 0.0);
+}
+
+// Within the limit nothing moves; and a pair with a static body is the static limit's.
+TEST(shallow_dynamic_pair_and_static_pair_are_left) {
+  SceneBuilder s;
+  s.ground();
+  const int a = s.box({-3.0, 0.5 - 0.05}, 0.5, 0.5, 1.0);  // 5 cm into the ground
+  const int b = s.box({3.0, 0.5}, 0.5, 0.5, 1.0);
+  const int c = s.box({3.0, 1.5 - 0.005}, 0.5, 0.5, 1.0);  // 5 mm into b
+  World<2>& w = s.finish();
+  rbsim::test::collide(w);
+  CHECK(limit_dynamic_overlap(w.model, w.state, w.contacts, constants::DYNAMIC_OVERLAP_LIMIT, 4) == 0);
+  CHECK(w.state.body_x[a].y == 0.5 - 0.05 && w.state.body_x[b].y == 0.5);
+  CHECK(w.state.body_x[c].y == 1.5 - 0.005);
+}
+
+// A box wedged between two others, 4 cm into each, in a row: the passes take both
+// overlaps to the limit (one pass moves the middle box back into the first pair).
+TEST(wedge_of_three_settles_at_the_limit) {
+  SceneBuilder s;
+  s.world.model.gravity = {0.0, 0.0};
+  const int left = s.box({-0.96, 0.0}, 0.5, 0.5, 1.0);
+  const int mid = s.box({0.0, 0.0}, 0.5, 0.5, 1.0);
+  const int right = s.box({0.96, 0.0}, 0.5, 0.5, 1.0);
+  World<2>& w = s.finish();
+  rbsim::test::collide(w);
+  const double limit = constants::DYNAMIC_OVERLAP_LIMIT;
+  limit_dynamic_overlap(w.model, w.state, w.contacts, limit, 16);
+  const auto& x = w.state.body_x;
+  CHECK(x[mid].x - x[left].x >= 1.0 - limit - 1e-5);  // m: the two overlaps, at the
+  CHECK(x[right].x - x[mid].x >= 1.0 - limit - 1e-5);  // limit, less what 16 passes,
+  // each halving the other's excess, leave (4 cm / 2^16)
+  CHECK_NEAR(x[left].x + x[mid].x + x[right].x, 0.0, 1e-12);  // equal masses: no drift
 }
 
 RBSIM_TEST_MAIN

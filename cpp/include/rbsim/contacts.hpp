@@ -195,6 +195,7 @@ struct Contacts {
   std::vector<PerPoint<Vec>> sep_anchor_a, sep_anchor_b;
   std::vector<PerPoint<double>> base_separation;    // m: separation minus the anchors' part
   std::vector<PerPoint<double>> ref_separation;     // m: at both bodies' reference poses
+  std::vector<double> start_separation;             // m: its deepest point's at the step's start
   std::vector<PerPoint<std::int64_t>> feature;      // feature ids
   std::vector<PerPoint<double>> normal_impulse;     // N·s, per substep
   std::vector<PerPoint<double>> start_impulse;      // N·s carried into this step
@@ -265,6 +266,8 @@ struct Contacts {
   std::vector<std::int32_t> bounce_list;
   std::vector<std::int32_t> relax_list;     // (M,) deep manifolds, then the extra passes' set
   std::vector<std::int64_t> body_reach;     // (N,) deep_region's scratch
+  std::vector<std::int32_t> overlap_list;   // (M,) limit_dynamic_overlap's: the deep pairs
+  std::vector<double> body_motion;          // (N,) m: how far its points moved, at most
   // the waves of the solve order (waves.cpp): groups of independent manifolds
   std::int64_t wave_count = 0;             // waves
   bool waves_valid = false;                 // the waves are this contact graph's
@@ -334,6 +337,7 @@ bool Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   reset(key, m); reset(normal, m); reset(points, m); reset(friction, m); reset(restitution, m);
   reset(scale, m);
   reset(anchor_a, m); reset(anchor_b, m); reset(base_separation, m); reset(ref_separation, m);
+  reset(start_separation, m);
   reset(sep_anchor_a, m); reset(sep_anchor_b, m);
   reset(feature, m); reset(normal_impulse, m); reset(start_impulse, m);
   reset(tangent_impulse, m); reset(normal_mass, m); reset(solver_row, m);
@@ -359,6 +363,7 @@ bool Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   reset(adj_start, n + 1); reset(adj, 2 * m); reset(queue, n + 2);
   reset(bounce_kind, m); reset(body_mark, n); reset(solve_impulse, m);
   reset(bounce_list, (P + 1) * m + 2); reset(relax_list, m); reset(body_reach, n);
+  reset(overlap_list, m); reset(body_motion, n);
   wave_count = 0;
   waves_valid = false;
   impulses_in_lanes = false;

@@ -357,5 +357,13 @@ int restitution_reach(const Contacts<D>& contacts);
 template <int D>
 void limit_static_overlap(const Model<D>& model, State<D>& state, Contacts<D>& contacts,
                           double max_overlap);
+// The same between two dynamic bodies: each is moved by its share of the inverse mass,
+// in up to `passes` passes over the pairs that may be deeper than max_overlap (their
+// deepest point at the step's start, contacts.start_separation, less what the bodies'
+// motion since can have closed; their list in contacts.overlap_list). Returns the number
+// of moves.
+template <int D>
+std::int64_t limit_dynamic_overlap(const Model<D>& model, State<D>& state,
+                                   Contacts<D>& contacts, double max_overlap, int passes);
 
 }  // namespace rbsim

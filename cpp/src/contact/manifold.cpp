@@ -19,6 +19,7 @@
 // vector ω t).
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <type_traits>
 
 #include "collide/narrow2d.hpp"
@@ -280,9 +281,11 @@ MergeFlags merge_manifolds(const Model<D>& model, const State<D>& st, Contacts<D
       // (store_impulses copied it to prev_*, so the two agree): only its separation and
       // this step's impulse records change
       const Vec n = c.normal[m];
+      double deepest = std::numeric_limits<double>::infinity();  // m
       for (int k = 0; k < c.points[m]; ++k) {
         const Vec ra = c.sep_anchor_a[m][k], rb = c.sep_anchor_b[m][k];
         const double sep = c.ref_separation[m][k] + dot(n, dd);
+        deepest = std::min(deepest, sep);
         touching = touching || sep <= gap;
         c.base_separation[m][k] = sep - dot(n, ra - rb);
         c.start_impulse[m][k] = c.normal_impulse[m][k];
@@ -290,12 +293,14 @@ MergeFlags merge_manifolds(const Model<D>& model, const State<D>& st, Contacts<D
       }
       flags.touch_changed = flags.touch_changed || touched != touching;
       c.support[m] = touching;
+      c.start_separation[m] = deepest;
       c.carried[m] = 1;
       ++m;
       continue;
     }
     Vec n;
     int npts;
+    double deepest = std::numeric_limits<double>::infinity();  // m: at the step's start
     if (still) {
       // neither body has moved: carry last step's manifold forward
       n = c.prev_normal[j];
@@ -309,6 +314,7 @@ MergeFlags merge_manifolds(const Model<D>& model, const State<D>& st, Contacts<D
         const double ref_sep = c.prev_ref_separation[j][k];
         c.ref_separation[m][k] = ref_sep;
         const double sep = ref_sep + dot(n, dd);
+        deepest = std::min(deepest, sep);
         touching = touching || sep <= gap;
         c.base_separation[m][k] = sep - dot(n, ra - rb);
         c.feature[m][k] = c.prev_feature[j][k];
@@ -369,6 +375,7 @@ MergeFlags merge_manifolds(const Model<D>& model, const State<D>& st, Contacts<D
         const double base = f.separation[k] - moved;
         c.base_separation[m][k] = base;
         const double start = base + dot(n, sa_k - sb_k);
+        deepest = std::min(deepest, start);
         touching = touching || start <= gap;
         c.ref_separation[m][k] = start - dot(n, dd);
         c.feature[m][k] = f.id[k];
@@ -394,6 +401,7 @@ MergeFlags merge_manifolds(const Model<D>& model, const State<D>& st, Contacts<D
     flags.same = flags.same && in_slot;
     flags.touch_changed = flags.touch_changed || touched != touching;
     c.support[m] = touching;
+    c.start_separation[m] = deepest;
     c.carried[m] = 0;
     c.shape_a[m] = a;
     c.shape_b[m] = b;

@@ -8,12 +8,26 @@
 // is rigid, so here the overlap is taken off the position directly. Resting contacts
 // overlap far less than max_overlap (a fraction of a millimetre on static ground), so
 // this acts only in such overload.
+//
+// Between two dynamic bodies (limit_dynamic_overlap) the soft contacts carry any resting
+// load well within DYNAMIC_OVERLAP_LIMIT, but a body wedged between others (against a
+// wall and its neighbour, or between two columns of a pile) is pushed out of both at once
+// and held where the pushes balance, centimetres deep, step after step. There both are
+// moved apart along the normal by the overlap beyond the limit, a body's share its inverse
+// mass's (a heavy body moves little), as Box2D v2's position solver moves them; a few
+// passes over the deep pairs let a wedge of three settle. Velocities are not touched, so
+// no push-out speed is left to carry up a stack.
 #include <algorithm>
+#include <cmath>
 
+#include "collide/toi.hpp"
+#include "rbsim/constants.hpp"
 #include "rbsim/stages.hpp"
 #include "solver/row.hpp"
 
 namespace rbsim {
+
+namespace C = constants;
 
 template <int D>
 void limit_static_overlap(const Model<D>& model, State<D>& st, Contacts<D>& c,
@@ -42,6 +56,79 @@ void limit_static_overlap(const Model<D>& model, State<D>& st, Contacts<D>& c,
   }
 }
 
+namespace {
+
+// Bounds without square roots, for a test made on every manifold: |v| at most its
+// components' absolute sum; |R - I| of a rotation (the most it moves a point at unit
+// distance from its centre, 2 sin(θ/2)) at most the sum over the unit complex number's
+// (c - 1, s) or twice the quaternion's vector part's.
+inline double norm1(Vec2 v) { return std::fabs(v.x) + std::fabs(v.y); }
+inline double norm1(Vec3 v) { return std::fabs(v.x) + std::fabs(v.y) + std::fabs(v.z); }
+inline double chord(Rot2 q) { return std::fabs(q.c - 1.0) + std::fabs(q.s); }
+inline double chord(Quat q) { return 2.0 * (std::fabs(q.x) + std::fabs(q.y) + std::fabs(q.z)); }
+
+}  // namespace
+
+template <int D>
+std::int64_t limit_dynamic_overlap(const Model<D>& model, State<D>& st, Contacts<D>& c,
+                                   double max_overlap, int passes) {
+  using Vec = typename Dim<D>::Vec;
+  const std::int64_t n_man = c.count.manifolds;
+  const double* im = model.body_inv_mass.data();
+  // the pairs that may be that deep now: their deepest point at the step's start less the
+  // most the two bodies' motion since can have closed it. A body's motion bounds how far
+  // any point of its shapes has moved (a separation anchor lies within its shape's core
+  // reach of the body's centre); the largest of them passes over most manifolds of a
+  // resting scene on one comparison each
+  auto& motion = c.body_motion;  // m
+  std::fill(motion.begin(), motion.end(), 0.0);
+  double fastest = 0.0;  // m
+  for (int s = 0; s < model.shape_count(); ++s) {
+    const int i = model.shape_body[s];
+    if (!model.is_dynamic(i)) continue;
+    const BodyDelta<D>& d = c.body_delta[i];
+    motion[i] = std::max(motion[i], norm1(d.dx) + chord(d.dq) * core_reach(model, s));
+    fastest = std::max(fastest, motion[i]);
+  }
+  std::int64_t n_deep = 0;
+  for (std::int64_t m = 0; m < n_man; ++m) {
+    const double limit = -c.scale[m] * max_overlap;  // m
+    if (c.start_separation[m] - 2.0 * fastest >= limit) continue;
+    const int a = c.body_a[m], b = c.body_b[m];
+    if (!model.is_dynamic(a) || !model.is_dynamic(b)) continue;
+    if (c.start_separation[m] - motion[a] - motion[b] < limit)
+      c.overlap_list[n_deep++] = static_cast<std::int32_t>(m);
+  }
+  std::int64_t moves = 0;
+  for (int pass = 0; pass < passes; ++pass) {
+    std::int64_t moved = 0;
+    for (std::int64_t o = 0; o < n_deep; ++o) {
+      const std::int32_t m = c.overlap_list[o];
+      const int a = c.body_a[m], b = c.body_b[m];
+      const Vec n = c.normal[m];
+      double deepest = 0.0;
+      for (int k = 0; k < c.points[m]; ++k)
+        deepest = std::min(deepest, point_separation(c, m, k, a, b, n));
+      // (a pair at the limit, to rounding, is left: another pass would move it by 1e-17 m)
+      const double push = -deepest - c.scale[m] * max_overlap;  // m
+      if (push <= c.scale[m] * C::LINEAR_EPSILON) continue;
+      // the normal points from b to a: a moves along +n, b along -n
+      const double share_a = im[a] / (im[a] + im[b]);
+      const Vec da = (share_a * push) * n, db = ((1.0 - share_a) * push) * n;
+      st.body_x[a] += da;
+      c.body_delta[a].dx += da;
+      st.body_x[b] -= db;
+      c.body_delta[b].dx -= db;
+      ++moved;
+    }
+    moves += moved;
+    if (moved == 0) break;
+  }
+  return moves;
+}
+
+template std::int64_t limit_dynamic_overlap(const Model<2>&, State<2>&, Contacts<2>&, double, int);
+template std::int64_t limit_dynamic_overlap(const Model<3>&, State<3>&, Contacts<3>&, double, int);
 template void limit_static_overlap(const Model<2>&, State<2>&, Contacts<2>&, double);
 template void limit_static_overlap(const Model<3>&, State<3>&, Contacts<3>&, double);
 

@@ -8,14 +8,15 @@
 namespace rbsim {
 namespace {
 
-// The last byte is the format: 9 since a 2D batch holds its manifolds' impulses while the
-// passes run (WideBatch::n0 ...; 8: the contact store keeps each hull's plane offsets
+// The last byte is the format: A since the contact store keeps each manifold's deepest
+// separation at the step's start and the dynamic overlap limit's list (9: a 2D batch holds
+// its manifolds' impulses while the passes run, WideBatch::n0 ...; 8: the contact store keeps each hull's plane offsets
 // and vertex spread and no longer the time of impact's room; 7: a solver row, and a 2D
 // batch's lanes, keeps the distance within which its points touch and have friction; 6:
 // the contact store keeps which manifolds touch and the load each body bears; 5 and
 // before: without them; a checkpoint of another format is refused with a message saying
 // so).
-constexpr char MAGIC[8] = {'R', 'B', 'S', 'I', 'M', 'C', 'K', '9'};
+constexpr char MAGIC[8] = {'R', 'B', 'S', 'I', 'M', 'C', 'K', 'A'};
 
 // Every member of the world that changes while it runs, in one fixed order. A member
 // added to State, Grid or Contacts must be added here too: the static_asserts on their
@@ -34,6 +35,7 @@ void visit(W& w, F&& f) {
   f(c.count), f(c.carried), f(c.pairs), f(c.shape_a), f(c.shape_b), f(c.body_a), f(c.body_b);
   f(c.key), f(c.normal), f(c.points), f(c.friction), f(c.restitution), f(c.anchor_a);
   f(c.anchor_b), f(c.base_separation), f(c.ref_separation), f(c.feature), f(c.normal_impulse);
+  f(c.start_separation), f(c.overlap_list), f(c.body_motion);
   f(c.start_impulse), f(c.tangent_impulse), f(c.normal_mass), f(c.solver_row);
   f(c.approach_velocity), f(c.approach_separation), f(c.max_normal_impulse), f(c.prev_key);
   f(c.prev_points), f(c.prev_feature), f(c.prev_normal_impulse), f(c.prev_tangent_impulse);
@@ -64,9 +66,9 @@ static_assert(sizeof(Grid<2>) == 8 + 16 * VEC + 3 * sizeof(Vec2) + sizeof(GridMe
               "Grid changed: update visit()");
 static_assert(sizeof(Grid<3>) == 8 + 16 * VEC + 3 * sizeof(Vec3) + sizeof(GridMeta<3>),
               "Grid changed: update visit()");
-static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 84 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 87 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
-static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 84 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 87 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
 
 template <class T>
