@@ -158,6 +158,13 @@ def test_key_written_one_level_too_high_gets_a_hint():
     assert "unknown key 'dt'; did you mean world.dt?" in message
 
 
+def test_a_material_key_inside_the_shape_kind_says_where_it_goes():
+    # a new user wrote sphere: {radius: 0.2, density: 5} and was told only the kind's keys
+    message = errors("version: 1\nbodies: [{shape: {circle: {radius: 1, density: 5}}}]\n")
+    assert "unknown key 'density' in circle: it goes beside it, in the shape" in message
+    assert "(shape: {circle: {...}, density: ...}), or on the body" in message
+
+
 def test_every_error_is_reported_not_only_the_first():
     text = """\
     version: 1

@@ -1174,6 +1174,14 @@ class Checker:
 
 
 def _unknown_key(name: str, key: Key) -> str:
+    kinds = {**SHAPE_KINDS, **SHAPE_KINDS_3D}
+    kind = next((k for k, v in kinds.items() if v is key), None)
+    if kind is not None and name in {**INLINE_MATERIAL, **INLINE_MATERIAL_3D}:
+        # a material key written inside the kind's mapping, where the shape's geometry goes
+        return (
+            f"unknown key {name!r} in {kind}: it goes beside it, in the shape "
+            f"(shape: {{{kind}: {{...}}, {name}: ...}}), or on the body"
+        )
     close = did_you_mean(name, key.fields)
     if close:
         return f"unknown key {name!r}; did you mean {close}?"
