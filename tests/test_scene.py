@@ -163,6 +163,9 @@ def test_a_material_key_inside_the_shape_kind_says_where_it_goes():
     message = errors("version: 1\nbodies: [{shape: {circle: {radius: 1, density: 5}}}]\n")
     assert "unknown key 'density' in circle: it goes beside it, in the shape" in message
     assert "(shape: {circle: {...}, density: ...}), or on the body" in message
+    # a 2D box too (3D has a box of its own, a different key)
+    message = errors("version: 1\nbodies: [{shape: {box: {size: [1, 1], friction: 1}}}]\n")
+    assert "unknown key 'friction' in box: it goes beside it" in message
 
 
 def test_every_error_is_reported_not_only_the_first():

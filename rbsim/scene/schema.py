@@ -1174,9 +1174,10 @@ class Checker:
 
 
 def _unknown_key(name: str, key: Key) -> str:
-    kinds = {**SHAPE_KINDS, **SHAPE_KINDS_3D}
-    kind = next((k for k, v in kinds.items() if v is key), None)
-    if kind is not None and name in {**INLINE_MATERIAL, **INLINE_MATERIAL_3D}:
+    # (by identity, each dimension's table apart: both have a `box`)
+    kinds = (*SHAPE_KINDS.items(), *SHAPE_KINDS_3D.items())
+    kind = next((k for k, v in kinds if v is key), None)
+    if kind is not None and name in INLINE_MATERIAL_3D:  # (2D's keys and density)
         # a material key written inside the kind's mapping, where the shape's geometry goes
         return (
             f"unknown key {name!r} in {kind}: it goes beside it, in the shape "
