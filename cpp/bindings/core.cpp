@@ -487,7 +487,8 @@ nb::object run_stage(World2& w, const std::string& name, nb::dict args) {
   } else if (name == "limit_static_overlap") {
     limit_static_overlap(m, st, c, num("max_overlap"));
   } else if (name == "limit_dynamic_overlap") {
-    return nb::int_(limit_dynamic_overlap(m, st, c, num("max_overlap"), load_value<int>(args, "passes")));
+    const int passes = load_value<int>(args, "passes");
+    return nb::int_(limit_dynamic_overlap(m, st, c, num("max_overlap"), passes));
   } else if (name == "store_impulses") {
     store_impulses(c);
   } else {

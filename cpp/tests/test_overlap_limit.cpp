@@ -93,7 +93,8 @@ TEST(shallow_dynamic_pair_and_static_pair_are_left) {
   const int c = s.box({3.0, 1.5 - 0.005}, 0.5, 0.5, 1.0);  // 5 mm into b
   World<2>& w = s.finish();
   rbsim::test::collide(w);
-  CHECK(limit_dynamic_overlap(w.model, w.state, w.contacts, constants::DYNAMIC_OVERLAP_LIMIT, 4) == 0);
+  const double limit = constants::DYNAMIC_OVERLAP_LIMIT;
+  CHECK(limit_dynamic_overlap(w.model, w.state, w.contacts, limit, 4) == 0);
   CHECK(w.state.body_x[a].y == 0.5 - 0.05 && w.state.body_x[b].y == 0.5);
   CHECK(w.state.body_x[c].y == 1.5 - 0.005);
 }

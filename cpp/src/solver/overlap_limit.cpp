@@ -29,33 +29,6 @@ namespace rbsim {
 
 namespace C = constants;
 
-template <int D>
-void limit_static_overlap(const Model<D>& model, State<D>& st, Contacts<D>& c,
-                          double max_overlap) {
-  using Vec = typename Dim<D>::Vec;
-  const std::int64_t n_man = c.count.manifolds;
-  for (std::int64_t m = 0; m < n_man; ++m) {
-    const int a = c.body_a[m], b = c.body_b[m];
-    const bool a_fixed = !model.is_dynamic(a);
-    const bool b_fixed = !model.is_dynamic(b);
-    if (a_fixed == b_fixed) continue;  // two dynamic bodies (left to the solver) or two fixed
-    const Vec n = c.normal[m];
-    double deepest = 0.0;
-    const int npts = c.points[m];
-    for (int k = 0; k < npts; ++k) deepest = std::min(deepest, point_separation(c, m, k, a, b, n));
-    const double push = -deepest - c.scale[m] * max_overlap;  // m
-    if (push <= 0.0) continue;
-    const Vec d = push * n;
-    if (b_fixed) {  // the normal points from b to a: a moves along +n
-      st.body_x[a] += d;
-      c.body_delta[a].dx += d;
-    } else {
-      st.body_x[b] -= d;
-      c.body_delta[b].dx -= d;
-    }
-  }
-}
-
 namespace {
 
 // Bounds without square roots, for a test made on every manifold: |v| at most its
@@ -67,7 +40,46 @@ inline double norm1(Vec3 v) { return std::fabs(v.x) + std::fabs(v.y) + std::fabs
 inline double chord(Rot2 q) { return std::fabs(q.c - 1.0) + std::fabs(q.s); }
 inline double chord(Quat q) { return 2.0 * (std::fabs(q.x) + std::fabs(q.y) + std::fabs(q.z)); }
 
+// How far manifold m's deepest point lies beyond max_overlap (m, times the contact's
+// scale) now, its bodies moved as far as contacts.body_delta says; <= 0 within it.
+template <int D>
+double excess_overlap(const Contacts<D>& c, std::int64_t m, double max_overlap) {
+  const int a = c.body_a[m], b = c.body_b[m];
+  double deepest = 0.0;  // m
+  for (int k = 0; k < c.points[m]; ++k)
+    deepest = std::min(deepest, point_separation(c, m, k, a, b, c.normal[m]));
+  return -deepest - c.scale[m] * max_overlap;
+}
+
+// Move body i by d (m), its motion since the step's start with it.
+template <int D>
+void shift(State<D>& st, Contacts<D>& c, int i, typename Dim<D>::Vec d) {
+  st.body_x[i] += d;
+  c.body_delta[i].dx += d;
+}
+
 }  // namespace
+
+template <int D>
+void limit_static_overlap(const Model<D>& model, State<D>& st, Contacts<D>& c,
+                          double max_overlap) {
+  using Vec = typename Dim<D>::Vec;
+  const std::int64_t n_man = c.count.manifolds;
+  for (std::int64_t m = 0; m < n_man; ++m) {
+    const int a = c.body_a[m], b = c.body_b[m];
+    const bool a_fixed = !model.is_dynamic(a);
+    const bool b_fixed = !model.is_dynamic(b);
+    if (a_fixed == b_fixed) continue;  // two dynamic bodies (limit_dynamic_overlap) or two fixed
+    const double push = excess_overlap(c, m, max_overlap);  // m
+    if (push <= 0.0) continue;
+    const Vec d = push * c.normal[m];
+    if (b_fixed) {  // the normal points from b to a: a moves along +n
+      shift(st, c, a, d);
+    } else {
+      shift(st, c, b, -d);
+    }
+  }
+}
 
 template <int D>
 std::int64_t limit_dynamic_overlap(const Model<D>& model, State<D>& st, Contacts<D>& c,
@@ -104,21 +116,15 @@ std::int64_t limit_dynamic_overlap(const Model<D>& model, State<D>& st, Contacts
     std::int64_t moved = 0;
     for (std::int64_t o = 0; o < n_deep; ++o) {
       const std::int32_t m = c.overlap_list[o];
-      const int a = c.body_a[m], b = c.body_b[m];
-      const Vec n = c.normal[m];
-      double deepest = 0.0;
-      for (int k = 0; k < c.points[m]; ++k)
-        deepest = std::min(deepest, point_separation(c, m, k, a, b, n));
       // (a pair at the limit, to rounding, is left: another pass would move it by 1e-17 m)
-      const double push = -deepest - c.scale[m] * max_overlap;  // m
+      const double push = excess_overlap(c, m, max_overlap);  // m
       if (push <= c.scale[m] * C::LINEAR_EPSILON) continue;
       // the normal points from b to a: a moves along +n, b along -n
+      const int a = c.body_a[m], b = c.body_b[m];
+      const Vec n = c.normal[m];
       const double share_a = im[a] / (im[a] + im[b]);
-      const Vec da = (share_a * push) * n, db = ((1.0 - share_a) * push) * n;
-      st.body_x[a] += da;
-      c.body_delta[a].dx += da;
-      st.body_x[b] -= db;
-      c.body_delta[b].dx -= db;
+      shift(st, c, a, (share_a * push) * n);
+      shift(st, c, b, -(((1.0 - share_a) * push) * n));
       ++moved;
     }
     moves += moved;
