@@ -68,7 +68,7 @@ RBSIM_FLAT_LAYOUT(Dim<2>::RefPose, double, 3)
 RBSIM_FLAT_LAYOUT(Dim<3>::RefPose, double, 7)
 RBSIM_FLAT_LAYOUT(BodyDelta<2>, double, 4)
 RBSIM_FLAT_LAYOUT(BodyDelta<3>, double, 7)
-RBSIM_FLAT_LAYOUT(ContactCounts, std::int64_t, 11)
+RBSIM_FLAT_LAYOUT(ContactCounts, std::int64_t, 12)
 RBSIM_FLAT_LAYOUT(GridMeta<2>, std::int64_t, 7)
 RBSIM_FLAT_LAYOUT(GridMeta<3>, std::int64_t, 9)
 #undef RBSIM_FLAT_LAYOUT
@@ -83,7 +83,7 @@ static_assert(sizeof(GridMeta<2>) == 7 * sizeof(std::int64_t));
 static_assert(sizeof(Dim<3>::RefPose) == 7 * sizeof(double));
 static_assert(sizeof(BodyDelta<3>) == 7 * sizeof(double));
 static_assert(sizeof(GridMeta<3>) == 9 * sizeof(std::int64_t));
-static_assert(sizeof(ContactCounts) == 11 * sizeof(std::int64_t));
+static_assert(sizeof(ContactCounts) == 12 * sizeof(std::int64_t));
 
 using Array = nb::ndarray<nb::numpy>;
 

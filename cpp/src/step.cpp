@@ -358,7 +358,10 @@ bool World<D>::collide() {
     parallel(c.count.manifolds, [&](Span part) { prepare_contacts(model, state, c, cfg, part); });
   });
   if (stop_here()) return true;
-  timed(S::SupportOrder, [&] { c.count.shock_count = support_order(model, c); });
+  timed(S::SupportOrder, [&] {
+    c.count.shock_count = support_order(model, c);
+    friction_loads(model, c, c.count.shock_count, cfg.dt / cfg.substeps);
+  });
   timed(S::Regions, [&] { partition_regions(model, state, c); });
   timed(S::Waves, [&] { find_waves(model, c); });
   return true;

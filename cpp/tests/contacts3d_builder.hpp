@@ -134,12 +134,15 @@ class Builder3 {
     return m;
   }
 
-  // The rows, the solve order and zero body motion: what a step's collide leaves.
+  // The rows, the solve order, the friction loads and zero body motion: what a step's
+  // collide leaves.
   void prepare() {
     World<3>& w = world;
     world_inertia(w.model, w.state, w.contacts, Span{0, w.model.body_count()});
     prepare_contacts(w.model, w.state, w.contacts, w.config);
     w.contacts.count.shock_count = support_order(w.model, w.contacts);
+    friction_loads(w.model, w.contacts, w.contacts.count.shock_count,
+                   w.config.dt / w.config.substeps);
     for (auto& d : w.contacts.body_delta) d = BodyDelta<3>{};
   }
 

@@ -131,7 +131,7 @@ class SceneBuilder {
 };
 
 // The collision stages of a step (World::collide): transform, pairs, manifolds, rows,
-// support order. Returns the manifold count.
+// support order and friction loads. Returns the manifold count.
 inline std::int64_t collide(World<2>& w) {
   const Config& cfg = w.config;
   transform_shapes(w.model, w.state, w.contacts, cfg.dt);
@@ -141,6 +141,7 @@ inline std::int64_t collide(World<2>& w) {
                    cfg.restitution_rule, cfg.dt);
   prepare_contacts(w.model, w.state, w.contacts, cfg);
   w.contacts.count.shock_count = support_order(w.model, w.contacts);
+  friction_loads(w.model, w.contacts, w.contacts.count.shock_count, cfg.dt / cfg.substeps);
   for (auto& d : w.contacts.body_delta) d = BodyDelta<2>{};
   return w.contacts.count.manifolds;
 }

@@ -1,5 +1,6 @@
 // solver/shock.cpp: support levels through the contact graph, the solve order, and the
 // shock pass that holds the supporter still.
+#include <algorithm>
 #include <array>
 #include <cmath>
 
@@ -146,6 +147,62 @@ TEST(borne_loads_come_down_the_supports) {
   CHECK_NEAR(c.body_load[top], 100.0, 1e-12);  // kg: exact sums of exact halves
   CHECK_NEAR(c.body_load[left], 51.0, 1e-12);
   CHECK_NEAR(c.body_load[right], 51.0, 1e-12);
+}
+
+// The friction loads: the weight each support carries, shared over the supported body's
+// supports, up to CRUSH_RATIO times the lighter body of a pair; none without a heavy body
+// on a light one, and those of an earlier step cleared.
+TEST(friction_loads_are_the_borne_weight_up_to_the_crush_ratio) {
+  for (const double top_mass : {100.0, 1000.0}) {
+    SceneBuilder s;
+    s.ground();
+    const int left = s.box({-0.5, 0.5}, 0.5, 0.5, 1.0);
+    s.box({0.5, 0.5}, 0.5, 0.5, 1.0);
+    const int top = s.box({0.0, 1.5}, 1.0, 0.5, top_mass);
+    World<2>& w = s.finish();
+    rbsim::test::collide(w);
+    const auto& c = w.contacts;
+    const double weight = 9.81 * rbsim::test::substep(w);  // N·s per kg in a substep
+    const double crush = constants::CRUSH_RATIO;           // kg: 1 kg boxes
+    const double on_top = std::min(top_mass, crush) / 2.0;  // kg: two supports
+    const double under = std::min(1.0 + top_mass / 2.0, crush);
+    CHECK_NEAR(c.solver_row[manifold_of(w, left, top)].friction_load, on_top * weight, 1e-12);
+    CHECK_NEAR(c.solver_row[manifold_of(w, 0, left)].friction_load, under * weight, 1e-12);
+  }
+  SceneBuilder s;  // equal boxes: none
+  World<2>& w = stack(s);
+  auto& c = w.contacts;
+  w.model.body_inv_mass[2] = 1.0;  // (the 10 kg box made 1 kg: no heavy body on a light one)
+  rbsim::test::collide(w);
+  CHECK(!c.heavy_on_light && c.count.friction_loaded == 0);
+  for (int m = 0; m < c.count.manifolds; ++m) CHECK(c.solver_row[m].friction_load == 0.0);
+  c.solver_row[0].friction_load = 1.0;  // as an earlier step left a carried row
+  c.count.friction_loaded = 1;
+  friction_loads(w.model, c, c.count.shock_count, rbsim::test::substep(w));
+  CHECK(c.solver_row[0].friction_load == 0.0 && c.count.friction_loaded == 0);
+}
+
+// While a heavy body rests on a light one, a dynamic supporter's turn towards the body it
+// supports is not handed on, its travel is. The 1 kg box under the 10 kg one rising at
+// 1 m/s (as on a lift) lifts it at 1 m/s; rising at 1 m/s and turning at 2 rad/s too (its
+// top right corner at 2 m/s, its top left one still, its bottom parting from the ground),
+// it lifts the corner it pushes at 1 m/s, not 2: the turn is left to the ordinary solve.
+TEST(a_light_supporter_hands_on_its_travel_not_its_turn) {
+  for (const double turn : {0.0, 2.0}) {  // rad/s
+    SceneBuilder s;
+    World<2>& w = stack(s);
+    CHECK(w.contacts.heavy_on_light);
+    w.state.body_v[1] = {0.0, 1.0};
+    w.state.body_w[1] = turn;
+    const double h = rbsim::test::substep(w);
+    propagate_shock(w.model, w.state, w.contacts, w.contacts.count.shock_count, 1.0 / h, 1.0);
+    CHECK(w.state.body_v[1].y == 1.0 && w.state.body_w[1] == turn);  // the supporter
+    // m/s: the 10 kg box's bottom right corner (0.5 m right of its centre) rises at the
+    // supporter's travel, its bottom left one does not go into box 1's still corner
+    CHECK_NEAR(w.state.body_v[2].y + 0.5 * w.state.body_w[2], 1.0, 1e-12);
+    CHECK(w.state.body_v[2].y - 0.5 * w.state.body_w[2] >= -1e-12);
+    if (turn == 0.0) CHECK_NEAR(w.state.body_w[2], 0.0, 1e-12);
+  }
 }
 
 // deep_approaching: whether a deep overlap the solve pass listed (relax_list[:deep_count])

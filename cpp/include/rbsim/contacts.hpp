@@ -36,6 +36,7 @@ struct ContactCounts {
   std::int64_t bounce_carried = 0;  // entries of bounce_list carried from the last restitution
   std::int64_t elastic_listed = 0;  // 1 once an elastic manifold was listed this step
   std::int64_t support_changed = 0; // 1: a pair touches where it did not last step, or no longer
+  std::int64_t friction_loaded = 0; // 1: rows hold a friction_load (shock.cpp, friction_loads)
 };
 
 // One pair's narrowphase result (manifold.cpp, narrow_pairs), at its time of impact where
@@ -79,7 +80,10 @@ struct SolverRow<2> {
   double max_push = 0;      // m/s, < 0: the fastest push-out (CONTACT_PUSH_MAX_VELOCITY, scaled)
   double deep = 0;          // m, < 0: a separation below it is a deep overlap (DEEP_OVERLAP)
   double touch = 0;         // m: a point within it touches and has friction (LINEAR_SLOP)
-  double pad = 0;
+  // N·s: the least normal impulse the manifold's friction is bounded by (μ times the larger
+  // of it and its points' sum): the weight a heavy body's support carries through the
+  // shock pass, else 0 (shock.cpp, friction_loads; solve.cpp, bounding_impulses)
+  double friction_load = 0;
 };
 static_assert(sizeof(SolverRow<2>) == 32 * sizeof(double));
 // In 3D a manifold has up to four points and two friction directions t1, t2 (an
@@ -155,6 +159,7 @@ struct SolverRow<3> {
   double max_push = 0;     // m/s, < 0: the fastest push-out (CONTACT_PUSH_MAX_VELOCITY, scaled)
   double deep = 0;         // m, < 0: a separation below it is a deep overlap (DEEP_OVERLAP)
   double touch = 0;        // m: a point within it touches and has friction (LINEAR_SLOP)
+  double friction_load = 0;  // N·s: as SolverRow<2>'s
   // 1/kg: the points' normal block K (symmetric 4×4, rows 0..points-1), its upper
   // triangle by rows: K00 K01 K02 K03 K11 K12 K13 K22 K23 K33
   std::array<double, 10> k{};

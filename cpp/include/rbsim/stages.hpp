@@ -168,6 +168,11 @@ void prepare_contacts(const Model<D>& model, const State<D>& state, Contacts<D>&
 // solver/shock.cpp: support levels and the solve order; returns the shock pass's count.
 template <int D>
 std::int64_t support_order(const Model<D>& model, Contacts<D>& contacts);
+// solver/shock.cpp: each manifold's friction load (SolverRow::friction_load), the weight
+// a heavy body's support carries through the shock pass, per substep h (s); after
+// support_order, whose shock order (n_order manifolds) and borne loads it reads.
+template <int D>
+void friction_loads(const Model<D>& model, Contacts<D>& contacts, std::int64_t n_order, double h);
 
 // solver/waves.cpp: the waves of the solve order (manifolds that share no dynamic body,
 // solved at once with the result of solving them in solve order) into contacts.wave_order

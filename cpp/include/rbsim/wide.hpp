@@ -202,6 +202,7 @@ struct WidePoint {
 struct WideBatch {
   Lanes nx, ny;              // the normal, from b towards a
   Lanes k01, gamma, bias_rate, friction;
+  Lanes load;                // N·s: the rows' friction_load
   Lanes max_push, deep;      // m/s and m, < 0: the rows' push-out bound and deep overlap
   Lanes touch;               // m: the rows' touching distance (SolverRow::touch)
   Lanes ma, mb, ia, ib;      // inverse masses (1/kg) and inertias (1/(kg·m²))
@@ -241,6 +242,7 @@ struct WideRow3 {
   Lanes t2x, t2y, t2z;
   Lanes ma, mb;         // inverse masses (1/kg)
   Lanes gamma, bias_rate, friction, max_push, deep, touch;
+  Lanes load;           // N·s: the rows' friction_load
 };
 
 // The lanes' manifolds and bodies, after a batch's rows.

@@ -246,6 +246,7 @@ void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c,
     row.deep = -scale * C::DEEP_OVERLAP;
     row.touch = scale * C::LINEAR_SLOP;
     row.friction = c.friction[m];
+    row.friction_load = 0.0;  // (friction_loads: only while a heavy body rests on a light one)
     if constexpr (D == 3) {
       // the world tensors at the step's start, as transform_shapes made them
       prepare_points_3d(st, c, m, a, b, ma, mb, c.body_inv_inertia_world[a],

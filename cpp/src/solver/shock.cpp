@@ -20,6 +20,16 @@
 // is left to the ordinary solve. (Guendelman, Bridson and Fedkiw 2003 introduced shock
 // propagation for stacking; this is a velocity-level variant of it.)
 //
+// Lifting: while a heavy body rests on a light one (heavy_on_light), a dynamic
+// supporter's turn towards the body it supports is not handed on, only the supported
+// body's approach and the supporter's own travel are taken out: held still, a 1 kg plate
+// tipping under a 100 kg box (the load's friction on its top face and the ground's on its
+// bottom turn it) lifted the box at the speed of its rising edge, energy from nowhere (a
+// 100 kg box sliding on two such plates reached 1.7 times its kinetic energy, and 3
+// times once friction carried the load). The turn is left to the ordinary solve, which
+// weighs the plate as it is. Its travel is handed on (a plate carried up by a kinematic
+// lift lifts what rests on it), and so is all of a static or kinematic supporter's move.
+//
 // The same file finds the solve order of the solver's passes (support level first) and
 // the region around a deep overlap that the relax stage gives extra passes.
 #include <algorithm>
@@ -270,6 +280,14 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
     // an impact still apart waits for its bodies to meet (restitution.cpp), elastic or
     // not, and gets its friction when they do: pushed here, it would close without any
     if (impact && nearest > row.touch) continue;
+    if (c.heavy_on_light && model.is_dynamic(a_moves ? b : a)) {
+      // a dynamic supporter's turn towards u is not handed on (lifting, the file's head)
+      const Vec3 ws = a_moves ? wb : wa;
+      for (int k = 0; k < npts; ++k) {
+        const double turn = sgn * dot(ws, a_moves ? P.rnb[k] : P.rna[k]);
+        need[k] -= std::max(turn, 0.0);
+      }
+    }
     // the supported body's block: K_ij = 1/m + (r_i × n)·I⁻¹(r_j × n) (1/kg)
     std::array<double, 10> kb{};
     int e = 0;
@@ -446,6 +464,42 @@ std::int64_t support_order(const Model<D>& model, Contacts<D>& c) {
   }
   if (heavy) borne_loads(model, c, total);  // (crushing reads them)
   return total;
+}
+
+// Each manifold's friction load (SolverRow::friction_load, N·s), for the passes' friction
+// bounds: μ times the larger of it and a point's normal impulse. While a heavy body rests
+// on a light one (heavy_on_light) the shock pass carries the loads the soft contacts do
+// not, and its impulses are in no contact's normal impulse (there they would starve the
+// warm start: a 100 t box on 1 t ones jittered), so friction bounded by those alone was
+// too weak: a 100 kg crate on a 1 kg pallet slid 3 m down a 20° ramp of μ = 0.8, and a
+// plate under 30 times its mass, sliding, stopped in twice Coulomb's time. A supporting
+// manifold (shock_order) whose supported body u bears a load (borne_loads) HEAVY_RATIO or
+// more times the lighter of u and its supporter gets that load's share of a substep's
+// weight along its normal, body_load[u] |g·n| h / (u's supports), h the substep (s); the
+// passes share it over the manifold's points (solve.cpp, bounding_impulses). Every other
+// manifold gets 0 (the rows prepare_contacts did not write again are cleared here when a
+// step before set any). Uses contacts.queue.
+template <int D>
+void friction_loads(const Model<D>& model, Contacts<D>& c, std::int64_t n_order, double h) {
+  const std::int64_t n_man = c.count.manifolds;
+  if (c.count.friction_loaded)
+    for (std::int64_t m = 0; m < n_man; ++m) c.solver_row[m].friction_load = 0.0;
+  c.count.friction_loaded = c.heavy_on_light;
+  if (!c.heavy_on_light) return;
+  auto& supports = c.queue;  // how many supports hold each body up
+  std::fill(supports.begin(), supports.begin() + model.body_count(), 0);
+  for (std::int64_t o = 0; o < n_order; ++o)
+    supports[support_of(c, c.shock_order[o]).supported] += 1;
+  const auto& im = model.body_inv_mass;
+  for (std::int64_t o = 0; o < n_order; ++o) {
+    const std::int32_t m = c.shock_order[o];
+    const auto [u, s] = support_of(c, m);
+    const double lighter = std::max(im[u], im[s]);  // 1/kg
+    if (c.body_load[u] * lighter < C::HEAVY_RATIO) continue;
+    const double borne = std::min(c.body_load[u], C::CRUSH_RATIO / lighter);  // kg
+    const double weight = borne * std::fabs(dot(model.gravity, c.normal[m])) * h;  // N·s
+    c.solver_row[m].friction_load = weight / static_cast<double>(supports[u]);
+  }
 }
 
 // The manifolds near a deep overlap, for the relax stage's extra passes: those of the
@@ -627,7 +681,7 @@ void propagate_shock_range(const Model<D>& model, State<D>& st, Contacts<D>& c,
     const double mu = model.body_inv_mass[u], iu = model.body_inv_inertia[u];
     // how far each point is from allowed (m/s): a gap may close within the substep
     const double sep0 = row_separation(pt0, moved, na, nb);
-    const double need0 = (sep0 > 0.0 ? -sep0 * inv_h : 0.0) - vel0;
+    double need0 = (sep0 > 0.0 ? -sep0 * inv_h : 0.0) - vel0;
     const double r0 = a_moves ? pt0.rna : pt0.rnb;  // m: the supported body's lever
     double need1 = 0.0, r1 = 0.0, nearest = sep0;  // m: the least separation
     if (npts == 2) {
@@ -639,6 +693,13 @@ void propagate_shock_range(const Model<D>& model, State<D>& st, Contacts<D>& c,
     // an impact still apart waits for its bodies to meet (restitution.cpp), elastic or
     // not, and gets its friction when they do: pushed here, it would close without any
     if (impact && nearest > row.touch) continue;
+    if (c.heavy_on_light && model.is_dynamic(a_moves ? b : a)) {
+      // a dynamic supporter's turn towards u is not handed on (lifting, the file's head)
+      const int s = a_moves ? b : a;
+      const double rs0 = a_moves ? pt0.rnb : pt0.rna, rs1 = a_moves ? pt1.rnb : pt1.rna;
+      need0 -= std::max(sgn * angular_along(w[s], rs0), 0.0);
+      if (npts == 2) need1 -= std::max(sgn * angular_along(w[s], rs1), 0.0);
+    }
     // impulses (N·s) along the supported body's push direction, λ >= 0, that bring every
     // point to at least its target: the two-point case is a 2x2 complementarity problem,
     // solved by trying both points, then each alone
@@ -694,6 +755,8 @@ template void propagate_shock_range(const Model<2>&, State<2>&, Contacts<2>&, st
 template void propagate_shock_range(const Model<3>&, State<3>&, Contacts<3>&, std::int64_t,
                                     std::int64_t, double, double, double);
 template std::int64_t support_order(const Model<3>&, Contacts<3>&);
+template void friction_loads(const Model<2>&, Contacts<2>&, std::int64_t, double);
+template void friction_loads(const Model<3>&, Contacts<3>&, std::int64_t, double);
 template std::int64_t deep_region(const Model<3>&, Contacts<3>&, int);
 template void propagate_shock(const Model<3>&, State<3>&, Contacts<3>&, std::int64_t, double,
                               double, double);

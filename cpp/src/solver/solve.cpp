@@ -129,6 +129,20 @@ inline bool idle_manifold(const SolverRow<3>::Points& P, Lanes r, const double* 
   return !held;
 }
 
+// The normal impulses (N·s) that bound the friction at a manifold's N points: each
+// point's own (lam), and where they sum to less than the row's friction load (load, N·s:
+// the weight a heavy body's support carries through the shock pass, friction_loads) the
+// shortfall shared evenly over the points, so that the friction of the whole manifold is
+// bounded by μ times the larger of the two. Without a load, the points' own to the bit.
+// (The 2D passes and the 3D batches write the same in their own variables.)
+template <int N>
+inline Lanes bounding_impulses(Lanes lam, double load) {
+  double total = 0.0;
+  for (int k = 0; k < N; ++k) total += lam[k];
+  if (!(load > total)) return lam;
+  return select(first_lanes(N), lam + splat((load - total) / N), lam);
+}
+
 // One manifold m of N points (1..4) in the 3D pass below (N fixed at compile time: the
 // loops over the points unrolled).
 template <int N>
@@ -177,7 +191,8 @@ inline void solve_manifold_3d(const Model<3>& model, State<3>& st, Contacts<3>& 
     const auto [bias, gamma] =
         soft_target(s, use_bias, inv_h, row.bias_rate, row.max_push, pt.kn, row.gamma);
     const double r = -normal_speed(pt) - (bias + gamma * lam[0]);
-    if (idle_manifold<1>(P, Lanes{r, 0.0, 0.0, 0.0}, lam, c.tangent_impulse[m].data())) {
+    if (row.friction_load == 0.0 &&
+        idle_manifold<1>(P, Lanes{r, 0.0, 0.0, 0.0}, lam, c.tangent_impulse[m].data())) {
       if (use_bias && s < row.deep) mark_deep(log, m);
       return;
     }
@@ -201,7 +216,7 @@ inline void solve_manifold_3d(const Model<3>& model, State<3>& st, Contacts<3>& 
     // gives dᵀK d <= 0: d = 0), and so is each point's one after the other; friction has
     // no load and holds none. (Most of a resting wall's manifolds between neighbours side
     // by side, which took the points one after the other: their block pulls.)
-    if (idle_manifold<N>(P, r_l, lam, c.tangent_impulse[m].data())) {
+    if (row.friction_load == 0.0 && idle_manifold<N>(P, r_l, lam, c.tangent_impulse[m].data())) {
       if (use_bias && deep) mark_deep(log, m);
       return;
     }
@@ -293,7 +308,9 @@ inline void solve_manifold_3d(const Model<3>& model, State<3>& st, Contacts<3>& 
     // the normal impulses of the points that touch (within row.touch): a push while apart
     // is speculative, no contact force, and has no friction (solve_contacts)
     const Lanes sep_t = row_separation(P, moved, na, nb);
-    const Lanes held_l = select(sep_t <= splat(row.touch), load_lanes(lam), splat(0.0));
+    const Lanes held_l = select(sep_t <= splat(row.touch),
+                                bounding_impulses<N>(load_lanes(lam), row.friction_load),
+                                splat(0.0));
     alignas(32) double held[4];
     std::memcpy(held, &held_l, sizeof held);
     const bool any_change = use_bias
@@ -426,7 +443,9 @@ void solve_contacts(const Model<D>& model, State<D>& st, Contacts<D>& c, double 
       // speculative, no contact force; it gets its friction in the relax pass once the
       // positions have brought the point to the surface (the limit is the substep's
       // accumulated normal impulse), or from the impact (restitution.cpp)
-      const double limit = s <= row.touch ? mu * c.normal_impulse[m][0] : 0.0;
+      // (or by a heavy body's load, which the shock pass carries: bounding_impulses)
+      const double held = std::max(c.normal_impulse[m][0], row.friction_load);  // N·s
+      const double limit = s <= row.touch ? mu * held : 0.0;
       if (mu > 0.0 && !(limit == 0.0 && lam == 0.0)) {  // no normal force, no friction
         // the normal impulse turns the bodies (n · t = 0: it adds no sliding)
         vt += jn * (ia * rna * rta + ib * rnb * rtb);
@@ -497,8 +516,11 @@ void solve_contacts(const Model<D>& model, State<D>& st, Contacts<D>& c, double 
     if (mu > 0.0) {
       // the normal impulses turn the bodies (n · t = 0: they add no sliding); friction
       // only where a point touches (as for one point)
+      double held0 = c.normal_impulse[m][0], held1 = c.normal_impulse[m][1];  // N·s
+      const double load = row.friction_load, sum = held0 + held1;  // (bounding_impulses)
+      if (load > sum) held0 += 0.5 * (load - sum), held1 += 0.5 * (load - sum);
       double lam = c.tangent_impulse[m][0];
-      double limit = s0 <= row.touch ? mu * c.normal_impulse[m][0] : 0.0;
+      double limit = s0 <= row.touch ? mu * held0 : 0.0;
       if (!(limit == 0.0 && lam == 0.0)) {  // no normal force, no friction
         vt0 += j0 * (ia * rna0 * rta0 + ib * rnb0 * rtb0);
         vt0 += j1 * (ia * rna1 * rta0 + ib * rnb1 * rtb0);
@@ -507,7 +529,7 @@ void solve_contacts(const Model<D>& model, State<D>& st, Contacts<D>& c, double 
         c.tangent_impulse[m][0] = next;
       }
       lam = c.tangent_impulse[m][1];
-      limit = s1 <= row.touch ? mu * c.normal_impulse[m][1] : 0.0;
+      limit = s1 <= row.touch ? mu * held1 : 0.0;
       if (!(limit == 0.0 && lam == 0.0)) {
         vt1 += j0 * (ia * rna0 * rta1 + ib * rnb0 * rtb1);
         vt1 += j1 * (ia * rna1 * rta1 + ib * rnb1 * rtb1);
@@ -659,6 +681,9 @@ void solve_batch(State<2>& st, Contacts<2>& c, WideBatch& B, double inv_h, bool 
   // dᵀK d <= 0: d = 0), and friction has no load and holds none (find_waves packs such
   // manifolds, mostly speculative contacts, after those that hold an impulse)
   LaneMask busy = active & ((lam0 != zero) | (tl0 != zero) | (r0 > zero));
+  // (friction_loads: a scene without a heavy body on a light one has none)
+  const bool loaded = c.count.friction_loaded != 0;
+  if (loaded) busy |= active & (B.load > zero);
   if constexpr (TWO) busy |= active & ((lam1 != zero) | (tl1 != zero) | (r1 > zero));
   if (!any(busy)) return;
   Lanes n0, n1 = zero;  // the accumulated normal impulses after the clamp
@@ -690,8 +715,16 @@ void solve_batch(State<2>& st, Contacts<2>& c, WideBatch& B, double inv_h, bool 
   const Lanes touch = unit ? splat(C::LINEAR_SLOP) : B.touch;
   const LaneMask has_mu = active & (mu > zero);
   Lanes f0 = zero, f1 = zero;  // the friction impulses applied (N·s)
+  Lanes held0 = n0, held1 = n1;  // N·s: what bounds the friction (bounding_impulses)
+  if (loaded && TWO) {
+    const Lanes sum = n0 + n1, spread = (B.load - sum) * splat(0.5);
+    held0 = select(B.load > sum, n0 + spread, n0);
+    held1 = select(B.load > sum, n1 + spread, n1);
+  } else if (loaded) {
+    held0 = select(B.load > n0, B.load, n0);
+  }
   {
-    const Lanes lam = tl0, limit = select(s0 <= touch, mu * n0, zero);
+    const Lanes lam = tl0, limit = select(s0 <= touch, mu * held0, zero);
     const LaneMask on = has_mu & ~((limit == zero) & (lam == zero));
     vt0 += j0 * (ia * p0.rna * p0.rta + ib * p0.rnb * p0.rtb);
     if constexpr (TWO) vt0 += j1 * (ia * p1.rna * p0.rta + ib * p1.rnb * p0.rtb);
@@ -701,7 +734,7 @@ void solve_batch(State<2>& st, Contacts<2>& c, WideBatch& B, double inv_h, bool 
   }
   if constexpr (TWO) {
     Lanes vt1 = dvt + (wa * p1.rta - wb * p1.rtb);
-    const Lanes lam = tl1, limit = select(s1 <= touch, mu * n1, zero);
+    const Lanes lam = tl1, limit = select(s1 <= touch, mu * held1, zero);
     const LaneMask on = has_mu & ~((limit == zero) & (lam == zero));
     vt1 += j0 * (ia * p0.rna * p1.rta + ib * p0.rnb * p1.rtb);
     vt1 += j1 * (ia * p1.rna * p1.rta + ib * p1.rnb * p1.rtb);
@@ -941,7 +974,9 @@ void solve_batch_3d(State<3>& st, Contacts<3>& c, const WideBatch3& B, double in
   const Lanes r = -vn - (bias + gamma * p.lam);
   // idle lanes are left as they are (idle_manifold), and a batch of them at once
   // (find_waves packs the manifolds that hold nothing apart from those that do)
-  const LaneMask busy = L.live & busy_point(P.kn, p, r);
+  const bool loaded = c.count.friction_loaded != 0;  // (friction_loads)
+  const LaneMask busy = L.live & (loaded ? busy_point(P.kn, p, r) | (B.load > zero)
+                                         : busy_point(P.kn, p, r));
   if (!any(busy)) return;
   const unsigned skip = lane_bits(L.live & ~busy);
   const Lanes impulse = r * (splat(1.0) / (P.kn + gamma));
@@ -956,7 +991,8 @@ void solve_batch_3d(State<3>& st, Contacts<3>& c, const WideBatch3& B, double in
   Lanes dla[3] = {zero + jn * P.rnax, zero + jn * P.rnay, zero + jn * P.rnaz};
   Lanes dlb[3] = {zero - jn * P.rnbx, zero - jn * P.rnby, zero - jn * P.rnbz};
   // friction: one 2×2 block clamped to Coulomb's circle, where the point touches
-  const Lanes limit = select(s <= B.touch, B.friction * p.lam, zero);
+  const Lanes held = loaded ? select(B.load > p.lam, B.load, p.lam) : p.lam;  // N·s
+  const Lanes limit = select(s <= B.touch, B.friction * held, zero);
   const LaneMask on = friction_on(busy, B.friction, limit, p);
   if (any(on)) {
     const Lanes ex = q.vax - q.vbx, ey = q.vay - q.vby, ez = q.vaz - q.vbz;
@@ -1016,6 +1052,8 @@ void solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double inv_
   // all are, at once
   LaneMask busy{};
   for (int k = 0; k < N; ++k) busy |= busy_point(B.p[k].kn, p[k], r[k]);
+  const bool loaded = c.count.friction_loaded != 0;  // (friction_loads)
+  if (loaded) busy |= B.load > zero;
   const LaneMask idle = L.live & ~busy;
   if (use_bias) {  // a deep overlap: the manifold enters relax_list
     const LaneMask is_deep = L.live & deep;
@@ -1136,9 +1174,18 @@ void solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double inv_
       vt2[k] = e2 + turn_lanes(q, P.rt2ax, P.rt2ay, P.rt2az, P.rt2bx, P.rt2by, P.rt2bz);
       g1[k] = g2[k] = zero;
     }
+    // N·s: what bounds each point's friction (bounding_impulses)
+    Lanes held[N];
+    for (int k = 0; k < N; ++k) held[k] = p[k].lam;
+    if (loaded) {
+      Lanes sum = p[0].lam;
+      for (int k = 1; k < N; ++k) sum += p[k].lam;
+      const Lanes spread = (B.load - sum) * splat(1.0 / N);
+      for (int k = 0; k < N; ++k) held[k] = select(B.load > sum, p[k].lam + spread, p[k].lam);
+    }
     for (int i = 0; i < N; ++i) {
       const int k = use_bias ? i : N - 1 - i;
-      const Lanes limit = select(sep[k] <= B.touch, B.friction * p[k].lam, zero);
+      const Lanes limit = select(sep[k] <= B.touch, B.friction * held[k], zero);
       const LaneMask on = friction_on(has_mu, B.friction, limit, p[k]);
       if (!any(on)) continue;
       Lanes d1, d2;

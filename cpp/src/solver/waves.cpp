@@ -47,6 +47,7 @@ void pack_lane(const Model<D>& model, const Contacts<D>& c, WideBatch& w, int l,
     w.writes &= ~bits;
     w.a[l] = w.b[l] = 0;
     w.nx[l] = w.ny[l] = w.k01[l] = w.gamma[l] = w.bias_rate[l] = w.friction[l] = 0.0;
+    w.load[l] = 0.0;
     w.max_push[l] = w.deep[l] = w.touch[l] = 0.0;
     w.ma[l] = w.mb[l] = w.ia[l] = w.ib[l] = w.two[l] = 0.0;
     for (WidePoint* p : {&w.p0, &w.p1}) {
@@ -68,6 +69,7 @@ void pack_lane(const Model<D>& model, const Contacts<D>& c, WideBatch& w, int l,
   w.gamma[l] = row.gamma;
   w.bias_rate[l] = row.bias_rate;
   w.friction[l] = row.friction;
+  w.load[l] = row.friction_load;
   if (!c.unit_scale) {  // (else the solve takes the constants: solve_batch)
     w.max_push[l] = row.max_push;
     w.deep[l] = row.deep;
@@ -146,6 +148,7 @@ const SolverRow<3>* pack_row3(const Model<3>& model, const Contacts<3>& c, Batch
   w.gamma[l] = row.gamma;
   w.bias_rate[l] = row.bias_rate;
   w.friction[l] = row.friction;
+  w.load[l] = row.friction_load;
   w.max_push[l] = row.max_push;
   w.deep[l] = row.deep;
   w.touch[l] = row.touch;
@@ -534,11 +537,11 @@ std::int64_t find_waves(const Model<D>& model, Contacts<D>& c) {
   if (D == 2 && c.count.graph_unchanged == 1 && c.waves_valid) {
     // last step's manifolds in the same slots and the same solve order (support_order
     // keeps it): the waves hold, and only the rows that prepare wrote again are packed
-    // again (a carried manifold's row changes in its base separations only), unless a
-    // manifold's point count changed (it belongs in a batch of the other kind) or more
-    // than one in IDLE_SPOILED of the batches packed idle hold an impulse now (a new
-    // pile's first steps; in a settled pyramid a few contacts a step start or stop
-    // holding one, and packing again every step would cost more than it saves)
+    // again (a carried manifold's row changes in its base separations and friction load
+    // only), unless a manifold's point count changed (it belongs in a batch of the other
+    // kind) or more than one in IDLE_SPOILED of the batches packed idle hold an impulse
+    // now (a new pile's first steps; in a settled pyramid a few contacts a step start or
+    // stop holding one, and packing again every step would cost more than it saves)
     bool same_kinds = true;
     std::int64_t idle = 0, spoiled = 0;  // batches
     for (std::int64_t i = 0; same_kinds && i < c.wave_batch[c.wave_count]; ++i) {
@@ -551,6 +554,7 @@ std::int64_t find_waves(const Model<D>& model, Contacts<D>& c) {
         if (c.carried[m]) {
           w.p0.base[l] = c.solver_row[m].point[0].base;
           if (w.two[l] != 0.0) w.p1.base[l] = c.solver_row[m].point[1].base;
+          w.load[l] = c.solver_row[m].friction_load;  // (friction_loads: written every step)
         } else if ((c.points[m] == 2) == (w.two[l] != 0.0)) {
           if constexpr (D == 2) pack_lane(model, c, w, l, m);
         } else {
