@@ -27,7 +27,9 @@
 // step: in a touching row struck at one end, the solve's joint push engages them at a
 // fraction of the striker's speed. A pair's bounce with e = 1 keeps the kinetic energy
 // exactly, so the cluster does. After RESTITUTION_PASSES passes what still approaches is
-// left to the next substep's solve. Clusters that also hold resting contacts (a ball
+// left to the next substep's solve. A resting elastic contact on a static or kinematic
+// body (a ball of the row resting on the floor) is taken in the same way and only stopped
+// again. Clusters that also hold resting contacts between two dynamic bodies (a ball
 // landing on a stack) keep the solve's impulses and get the targets from the recorded
 // approach.
 //
@@ -543,6 +545,7 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
     int bouncing = 0, waiting = 0, joining = 0, pushing = 0;
     const bool elastic = c.restitution[m] > 0.0;
     const int a = c.body_a[m], b = c.body_b[m];
+    const bool fixed = !model.is_dynamic(a) || !model.is_dynamic(b);  // against a wall
     const double slow = impact_speed(model, a, b, c.normal[m], threshold, h);  // m/s
     for (int k = 0; k < c.points[m]; ++k) {
       // (an impact over before its bodies met is still part of a lone cluster: redone
@@ -557,10 +560,12 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
         // pushed, slower than an impact: in an elastic contact that carried no load
         // into the step, it may be a passive part of an impact (a ball of a touching
         // row, engaged only by its neighbour's push). So may a resting one where the
-        // threshold is below the impact speed (every approach that is an impact bounces):
-        // a row of balls resting on the floor is struck as the row alone is, its floor
-        // contacts only stopped again in the exact redo
-        if (elastic && (c.start_impulse[m][k] == 0.0 || threshold < slow))
+        // threshold is below the impact speed (every approach that is an impact bounces),
+        // and one that rests on a static or kinematic body: a row of balls resting on the
+        // floor is struck as the row alone is, its floor contacts only stopped again in
+        // the exact redo (kept as loads, they joined the row's impacts to the solve, which
+        // took two thirds of a struck row of five's energy)
+        if (elastic && (c.start_impulse[m][k] == 0.0 || threshold < slow || fixed))
           ++joining;
         else
           ++pushing;
