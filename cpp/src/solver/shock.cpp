@@ -338,7 +338,9 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
 
 // contacts.body_load (N,): the mass (kg) each dynamic body bears, its own and that of the
 // bodies resting on it, each of those split evenly over its supporters (the shock order's
-// contacts); 0 for the others. shock_order lists the supports by the supporter's level,
+// contacts that touch, contacts.support: a speculative one, as the ground 1 cm under a
+// box resting on a 2 cm plate, holds none of the load up, and counted, it halved what the
+// plate bore); 0 for the others. shock_order lists the supports by the supporter's level,
 // and a supported body's level is above its supporter's, so taken from the end the load
 // of each supported body is complete before it is handed down. Uses contacts.queue.
 template <int D>
@@ -351,8 +353,9 @@ void borne_loads(const Model<D>& model, Contacts<D>& c, std::int64_t n_order) {
     supports[i] = 0;
   }
   for (std::int64_t o = 0; o < n_order; ++o)
-    supports[support_of(c, c.shock_order[o]).supported] += 1;
+    if (c.support[c.shock_order[o]]) supports[support_of(c, c.shock_order[o]).supported] += 1;
   for (std::int64_t o = n_order - 1; o >= 0; --o) {
+    if (!c.support[c.shock_order[o]]) continue;  // (a speculative contact holds nothing up)
     const auto [u, s] = support_of(c, c.shock_order[o]);
     if (model.is_dynamic(s)) load[s] += load[u] / static_cast<double>(supports[u]);
   }
@@ -473,12 +476,15 @@ std::int64_t support_order(const Model<D>& model, Contacts<D>& c) {
 // warm start: a 100 t box on 1 t ones jittered), so friction bounded by those alone was
 // too weak: a 100 kg crate on a 1 kg pallet slid 3 m down a 20° ramp of μ = 0.8, and a
 // plate under 30 times its mass, sliding, stopped in twice Coulomb's time. A supporting
-// manifold (shock_order) whose supported body u bears a load (borne_loads) HEAVY_RATIO or
-// more times the lighter of u and its supporter gets that load's share of a substep's
-// weight along its normal, body_load[u] |g·n| h / (u's supports), h the substep (s); the
-// passes share it over the manifold's points (solve.cpp, bounding_impulses). Every other
-// manifold gets 0 (the rows prepare_contacts did not write again are cleared here when a
-// step before set any). Uses contacts.queue.
+// manifold (shock_order, touching) whose supported body u bears a load (borne_loads)
+// HEAVY_RATIO or more times the lighter of u and its supporter gets that load's share of
+// a substep's weight along its normal, body_load[u] |g·n| h / (u's supports that touch),
+// h the substep (s), the load taken up to CRUSH_RATIO times the lighter body (beyond it
+// the light body between two large friction forces was pulled to and fro by the passes:
+// a 1 kg plate under 1000 kg, sliding, reached 4 times the start's kinetic energy); the
+// passes share it over the manifold's touching points (solve.cpp, bounding_impulses).
+// Every other manifold gets 0 (the rows prepare_contacts did not write again are cleared
+// here when a step before set any). Uses contacts.queue.
 template <int D>
 void friction_loads(const Model<D>& model, Contacts<D>& c, std::int64_t n_order, double h) {
   const std::int64_t n_man = c.count.manifolds;
@@ -489,10 +495,11 @@ void friction_loads(const Model<D>& model, Contacts<D>& c, std::int64_t n_order,
   auto& supports = c.queue;  // how many supports hold each body up
   std::fill(supports.begin(), supports.begin() + model.body_count(), 0);
   for (std::int64_t o = 0; o < n_order; ++o)
-    supports[support_of(c, c.shock_order[o]).supported] += 1;
+    if (c.support[c.shock_order[o]]) supports[support_of(c, c.shock_order[o]).supported] += 1;
   const auto& im = model.body_inv_mass;
   for (std::int64_t o = 0; o < n_order; ++o) {
     const std::int32_t m = c.shock_order[o];
+    if (!c.support[m]) continue;  // (a speculative contact holds nothing up)
     const auto [u, s] = support_of(c, m);
     const double lighter = std::max(im[u], im[s]);  // 1/kg
     if (c.body_load[u] * lighter < C::HEAVY_RATIO) continue;

@@ -130,17 +130,28 @@ inline bool idle_manifold(const SolverRow<3>::Points& P, Lanes r, const double* 
 }
 
 // The normal impulses (N·s) that bound the friction at a manifold's N points: each
-// point's own (lam), and where they sum to less than the row's friction load (load, N·s:
-// the weight a heavy body's support carries through the shock pass, friction_loads) the
-// shortfall shared evenly over the points, so that the friction of the whole manifold is
-// bounded by μ times the larger of the two. Without a load, the points' own to the bit.
-// (The 2D passes and the 3D batches write the same in their own variables.)
+// touching point's own (lam; `touching`: within the row's touch distance, the others
+// get none), and where those sum to less than the row's friction load (load, N·s: the
+// weight a heavy body's support carries through the shock pass, friction_loads) the
+// shortfall shared evenly over the touching points, so that the friction of the whole
+// manifold is bounded by μ times the larger of the two (shared over all the points, a
+// box pitched forward by its sliding, its trailing points lifted, kept half its load's
+// friction). Without a load, the touching points' own to the bit. (The 2D passes and the
+// 3D batches write the same in their own variables.)
 template <int N>
-inline Lanes bounding_impulses(Lanes lam, double load) {
+inline Lanes bounding_impulses(Lanes lam, double load, LaneMask touching) {
+  const LaneMask on = touching & first_lanes(N);
+  const Lanes own = select(on, lam, splat(0.0));
+  if (!(load > 0.0)) return own;
   double total = 0.0;
-  for (int k = 0; k < N; ++k) total += lam[k];
-  if (!(load > total)) return lam;
-  return select(first_lanes(N), lam + splat((load - total) / N), lam);
+  int n = 0;
+  for (int k = 0; k < N; ++k) {
+    if (!on[k]) continue;
+    total += lam[k];
+    ++n;
+  }
+  if (n == 0 || !(load > total)) return own;
+  return select(on, lam + splat((load - total) / n), own);
 }
 
 // One manifold m of N points (1..4) in the 3D pass below (N fixed at compile time: the
@@ -308,9 +319,8 @@ inline void solve_manifold_3d(const Model<3>& model, State<3>& st, Contacts<3>& 
     // the normal impulses of the points that touch (within row.touch): a push while apart
     // is speculative, no contact force, and has no friction (solve_contacts)
     const Lanes sep_t = row_separation(P, moved, na, nb);
-    const Lanes held_l = select(sep_t <= splat(row.touch),
-                                bounding_impulses<N>(load_lanes(lam), row.friction_load),
-                                splat(0.0));
+    const Lanes held_l =
+        bounding_impulses<N>(load_lanes(lam), row.friction_load, sep_t <= splat(row.touch));
     alignas(32) double held[4];
     std::memcpy(held, &held_l, sizeof held);
     const bool any_change = use_bias
@@ -516,11 +526,19 @@ void solve_contacts(const Model<D>& model, State<D>& st, Contacts<D>& c, double 
     if (mu > 0.0) {
       // the normal impulses turn the bodies (n · t = 0: they add no sliding); friction
       // only where a point touches (as for one point)
-      double held0 = c.normal_impulse[m][0], held1 = c.normal_impulse[m][1];  // N·s
-      const double load = row.friction_load, sum = held0 + held1;  // (bounding_impulses)
-      if (load > sum) held0 += 0.5 * (load - sum), held1 += 0.5 * (load - sum);
+      // N·s: the touching points' normal impulses, and their share of the row's friction
+      // load beyond them (bounding_impulses)
+      const bool on0 = s0 <= row.touch, on1 = s1 <= row.touch;
+      double held0 = on0 ? c.normal_impulse[m][0] : 0.0;
+      double held1 = on1 ? c.normal_impulse[m][1] : 0.0;
+      const double load = row.friction_load, sum = held0 + held1;
+      if (load > sum && (on0 || on1)) {
+        const double share = (load - sum) / (on0 && on1 ? 2.0 : 1.0);
+        if (on0) held0 += share;
+        if (on1) held1 += share;
+      }
       double lam = c.tangent_impulse[m][0];
-      double limit = s0 <= row.touch ? mu * held0 : 0.0;
+      double limit = mu * held0;
       if (!(limit == 0.0 && lam == 0.0)) {  // no normal force, no friction
         vt0 += j0 * (ia * rna0 * rta0 + ib * rnb0 * rtb0);
         vt0 += j1 * (ia * rna1 * rta0 + ib * rnb1 * rtb0);
@@ -529,7 +547,7 @@ void solve_contacts(const Model<D>& model, State<D>& st, Contacts<D>& c, double 
         c.tangent_impulse[m][0] = next;
       }
       lam = c.tangent_impulse[m][1];
-      limit = s1 <= row.touch ? mu * held1 : 0.0;
+      limit = mu * held1;
       if (!(limit == 0.0 && lam == 0.0)) {
         vt1 += j0 * (ia * rna0 * rta1 + ib * rnb0 * rtb1);
         vt1 += j1 * (ia * rna1 * rta1 + ib * rnb1 * rtb1);
@@ -716,15 +734,20 @@ void solve_batch(State<2>& st, Contacts<2>& c, WideBatch& B, double inv_h, bool 
   const LaneMask has_mu = active & (mu > zero);
   Lanes f0 = zero, f1 = zero;  // the friction impulses applied (N·s)
   Lanes held0 = n0, held1 = n1;  // N·s: what bounds the friction (bounding_impulses)
+  const LaneMask on0 = s0 <= touch, on1 = s1 <= touch;  // the points that touch
   if (loaded && TWO) {
-    const Lanes sum = n0 + n1, spread = (B.load - sum) * splat(0.5);
-    held0 = select(B.load > sum, n0 + spread, n0);
-    held1 = select(B.load > sum, n1 + spread, n1);
+    const Lanes own0 = select(on0, n0, zero), own1 = select(on1, n1, zero);
+    const Lanes sum = own0 + own1;
+    const Lanes count = select(on0, splat(1.0), zero) + select(on1, splat(1.0), zero);
+    const LaneMask short_of = (B.load > sum) & (count > zero);
+    const Lanes spread = (B.load - sum) / select(count > zero, count, splat(1.0));
+    held0 = select(short_of & on0, n0 + spread, n0);
+    held1 = select(short_of & on1, n1 + spread, n1);
   } else if (loaded) {
     held0 = select(B.load > n0, B.load, n0);
   }
   {
-    const Lanes lam = tl0, limit = select(s0 <= touch, mu * held0, zero);
+    const Lanes lam = tl0, limit = select(on0, mu * held0, zero);
     const LaneMask on = has_mu & ~((limit == zero) & (lam == zero));
     vt0 += j0 * (ia * p0.rna * p0.rta + ib * p0.rnb * p0.rtb);
     if constexpr (TWO) vt0 += j1 * (ia * p1.rna * p0.rta + ib * p1.rnb * p0.rtb);
@@ -734,7 +757,7 @@ void solve_batch(State<2>& st, Contacts<2>& c, WideBatch& B, double inv_h, bool 
   }
   if constexpr (TWO) {
     Lanes vt1 = dvt + (wa * p1.rta - wb * p1.rtb);
-    const Lanes lam = tl1, limit = select(s1 <= touch, mu * held1, zero);
+    const Lanes lam = tl1, limit = select(on1, mu * held1, zero);
     const LaneMask on = has_mu & ~((limit == zero) & (lam == zero));
     vt1 += j0 * (ia * p0.rna * p1.rta + ib * p0.rnb * p1.rtb);
     vt1 += j1 * (ia * p1.rna * p1.rta + ib * p1.rnb * p1.rtb);
@@ -1177,11 +1200,16 @@ void solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double inv_
     // N·s: what bounds each point's friction (bounding_impulses)
     Lanes held[N];
     for (int k = 0; k < N; ++k) held[k] = p[k].lam;
-    if (loaded) {
-      Lanes sum = p[0].lam;
-      for (int k = 1; k < N; ++k) sum += p[k].lam;
-      const Lanes spread = (B.load - sum) * splat(1.0 / N);
-      for (int k = 0; k < N; ++k) held[k] = select(B.load > sum, p[k].lam + spread, p[k].lam);
+    if (loaded) {  // (over the touching points)
+      Lanes sum = zero, count = zero;
+      for (int k = 0; k < N; ++k) {
+        sum += select(sep[k] <= B.touch, p[k].lam, zero);
+        count += select(sep[k] <= B.touch, splat(1.0), zero);
+      }
+      const LaneMask short_of = (B.load > sum) & (count > zero);
+      const Lanes spread = (B.load - sum) / select(count > zero, count, splat(1.0));
+      for (int k = 0; k < N; ++k)
+        held[k] = select(short_of & (sep[k] <= B.touch), p[k].lam + spread, p[k].lam);
     }
     for (int i = 0; i < N; ++i) {
       const int k = use_bias ? i : N - 1 - i;
