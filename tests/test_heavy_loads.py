@@ -145,17 +145,23 @@ bodies:
     return head + "\n".join(lines) + "\n"
 
 
-@pytest.mark.parametrize(("degrees", "friction"), [(20, 0.8), (40, 1.2)], ids=["20 deg", "40 deg"])
+@pytest.mark.parametrize(
+    ("degrees", "friction", "crate"),
+    [(20, 0.8, 100), (40, 1.2, 100), (20, 0.8, 1000)],
+    ids=["20 deg", "40 deg", "1000 kg"],
+)
 def test_a_heavy_crate_on_a_light_pallet_stays_on_a_ramp_friction_holds(
-    degrees: float, friction: float
+    degrees: float, friction: float, crate: float
 ):
-    """100 kg on 1 kg, friction above tan θ: nothing slides (the crate slid 3.1 m down the
-    pallet at 20° and tumbled off in 3 s: the shock pass carried its weight, and its
-    friction was bounded by the contact's normal impulse alone, near zero; at 40° both slid
-    1.5 m in 2 s when the load's friction went to the pallet's lifted end too)."""
-    tr = rbsim.run(pallet_on_ramp(degrees, friction, 100))
+    """100 kg (and 1000 kg) on 1 kg, friction above tan θ: nothing slides (the crate slid
+    3.1 m down the pallet at 20° and tumbled off in 3 s: the shock pass carried its weight,
+    and its friction was bounded by the contact's normal impulse alone, near zero; at 40°
+    both slid 1.5 m in 2 s when the load's friction went to the pallet's lifted end too;
+    1000 kg took the pallet 4.6 m down with it while the passes' friction was bounded and
+    the shock pass had none)."""
+    tr = rbsim.run(pallet_on_ramp(degrees, friction, crate))
     moved = np.linalg.norm(tr.position[-1, 1:] - tr.position[0, 1:], axis=1)
-    assert moved.max() < 0.15  # m: the pair settles by a few cm (2.4 and 7.8 measured)
+    assert moved.max() < 0.15  # m: the pair settles by a cm or two (0.7 to 1.7 measured)
 
 
 @pytest.mark.parametrize("dimension", [2, 3])
@@ -219,5 +225,48 @@ def test_a_heavy_box_on_a_light_one_rides_a_kinematic_lift():
     y = tr.position[:, :, 1]
     lift_gap = (y[:, 1] - 0.1) - (y[:, 0] + 0.1)  # m
     box_gap = (y[:, 2] - 0.5) - (y[:, 1] + 0.1)
-    assert min(lift_gap.min(), box_gap.min()) > -0.001  # m: the soft contacts' rest overlap
+    # m: within the collision slop (1.3 mm measured); handing on none of the light box's
+    # travel, the heavy one sank 2 cm
+    assert min(lift_gap.min(), box_gap.min()) > -0.005
     assert abs(tr.velocity[-1, 2, 1] - 1.0) < 0.01  # m/s: riding with the lift
+
+
+@pytest.mark.parametrize("dimension", [2, 3])
+def test_a_plate_under_a_thousand_times_its_mass_stops_with_its_load(dimension: int):
+    """1 kg under 1000 kg, sliding at 1.5 m/s (μ = 0.6): the load stops where Coulomb says,
+    0.191 m (1.26 m while the shock pass had no friction), never faster than it started."""
+    tr = rbsim.run(sliding_stack(dimension, [1, 1000], [0.1, 0.5], 1.5, 0.6))
+    coulomb = 1.5**2 / (2 * 0.6 * 9.81)  # m
+    slid = tr.position[-1, 1:, 0] - tr.position[0, 1:, 0]
+    assert abs(slid[1] - coulomb) < 0.04, slid  # m: the substeps' slip (0.19 - 0.22 measured)
+    # m: the plate, a thousand times lighter, stops first, by its own slip (0.14 - 0.20)
+    assert abs(slid[0] - coulomb) < 0.06, slid
+    speed = np.linalg.norm(tr.velocity[:, 2], axis=1)
+    assert speed.max() <= 1.5 * (1 + 1e-9)  # m/s: (rounding of the start's)
+
+
+def test_a_light_box_on_a_plank_under_a_heavy_load_has_its_own_friction():
+    """2D: a 1 kg box and a 100 kg one on a 1 kg plank, all sliding at 3 m/s (μ = 1): the
+    light box stops after about v²/(2 μ g) = 0.46 m. While a heavy body rests on a light
+    one the 2D shock pass takes every approach it meets, the light box's load too, and its
+    friction saw none of it: it slid 0.84 m on the plank."""
+    plank = """
+version: 1
+name: plank
+world: {dt: 1/60, duration: 3}
+materials:
+  m: {density: 1, friction: 1.0, restitution: 0}
+bodies:
+  - {name: ground, type: static, material: m, shape: {segment: {a: [-50, 0], b: [50, 0]}}}
+  - {name: plank, material: m, position: [0, 0.025], velocity: [3, 0], mass: 1,
+     shape: {box: {size: [4, 0.05]}}}
+  - {name: light, material: m, position: [-1, 0.35], velocity: [3, 0], mass: 1,
+     shape: {box: {size: [0.6, 0.6]}}}
+  - {name: heavy, material: m, position: [1, 0.55], velocity: [3, 0], mass: 100,
+     shape: {box: {size: [1, 1]}}}
+"""
+    tr = rbsim.run(plank)
+    slid = tr.position[-1, 1:, 0] - tr.position[0, 1:, 0]
+    coulomb = 3.0**2 / (2 * 9.81)  # m
+    # m: the substeps' slip, and the plank's own stop (0.48 - 0.50 measured)
+    assert np.all(np.abs(slid - coulomb) < 0.08), slid

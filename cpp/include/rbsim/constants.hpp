@@ -234,6 +234,17 @@ inline constexpr double HEAVY_RATIO = 10.0;
 // so, rocked at 1 cm/s: the pass and the contacts' warm start shared it).
 inline constexpr double CRUSH_RATIO = 150.0;
 
+// Ratio of the load a body bears (shock.cpp's body_load) to the mass of the lighter of it
+// and its supporter, dimensionless, up to which a support's friction is bounded through
+// the passes by the weight it carries (friction_loads), typically 50. Beyond it the rest
+// of the load's friction is the shock pass's (shock_friction): in the passes a light body
+// between two large friction forces is pulled to and fro (at 150, a 100 kg box sliding on
+// two stacked 1 kg plates reached 2.7 times its kinetic energy; without a bound, a 1 kg
+// plate under 1000 kg 4 times). Lower values hand more of the friction to the shock pass,
+// which holds the supporter still (at 20 a 100 kg box on a 2 kg plate, sliding, ran 20%
+// past Coulomb's stop); higher ones bring the passes' instability back.
+inline constexpr double FRICTION_LOAD_RATIO = 50.0;
+
 // Broadphase grid: cell size in median half-diagonals (plus two fat margins); hash
 // buckets per shape, at least; shapes made big (tested against every shape) while a
 // wider cut allows; a shape wider than BIG_CELLS_MAX cells is always big; bits of a pair

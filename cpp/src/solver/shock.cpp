@@ -226,6 +226,19 @@ inline bool crushing(const Model<D>& model, const Contacts<D>& c, std::int32_t m
   return c.body_load[u] * lighter >= C::CRUSH_RATIO;
 }
 
+// The fraction of manifold m's load whose friction is the shock pass's (shock friction):
+// while a heavy body rests on a light one, what the supported body bears beyond
+// FRICTION_LOAD_RATIO times the lighter of it and its supporter (friction_loads bounds
+// the passes' friction by the rest), 1 − FRICTION_LOAD_RATIO / ratio; 0 below it.
+template <int D>
+inline double shock_friction_share(const Model<D>& model, const Contacts<D>& c, std::int32_t m) {
+  if (!c.heavy_on_light || !(c.friction[m] > 0.0)) return 0.0;
+  const auto [u, s] = support_of(c, m);
+  const double ratio =
+      c.body_load[u] * std::max(model.body_inv_mass[u], model.body_inv_mass[s]);
+  return ratio > C::FRICTION_LOAD_RATIO ? 1.0 - C::FRICTION_LOAD_RATIO / ratio : 0.0;
+}
+
 // The 3D pass: the supported body's approach taken out at a face's up to four points at
 // once (shock_block), the supporter held still; the body's v, L and ω changed
 // (add_momentum). Where no set of points is found, the points are taken one after the other
@@ -322,6 +335,7 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
         const double k_u = mu + dot(rn, wn);  // 1/kg
         if (!(short_k > 0.0 && k_u > 0.0)) continue;
         const double l = short_k / k_u;  // N·s along the supported body's push direction
+        lam[k] = l;
         vu += (sgn * mu * l) * n;
         wu += (sgn * l) * wn;
         dl += (sgn * l) * rn;
@@ -331,6 +345,57 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
     if (!pushed) continue;
     st.body_v[u] = vu;
     add_momentum(st, u, a_moves ? row.inv_ia : row.inv_ib, dl);
+    // shock friction: the slip of the supported body on its supporter taken out as well,
+    // the supporter held still, within μ times the share of each point's push here that
+    // the passes' friction does not bound (shock_friction_share): a 1 kg pallet under
+    // 1000 kg slid 4.6 m down a 20° ramp of μ = 0.8 with its crate, bounded in the passes
+    // by what they can carry, and without that bound it was thrown about
+    const double share = shock_friction_share(model, c, m);
+    if (share > 0.0) {
+      // at the points' centre by their pushes (as in 2D): the slip there and the
+      // supported body's levers r × t1, r × t2 there, each the pushes' mean of the points'
+      const Sym3& inv_i = a_moves ? row.inv_ia : row.inv_ib;
+      double total = 0.0;  // N·s
+      Vec3 rel{}, r1{}, r2{}, arm{};
+      for (int k = 0; k < npts; ++k) {
+        if (!(lam[k] > 0.0)) continue;
+        const auto pt = P[k];
+        const Vec3 point_rel = (st.body_v[a] + cross(st.body_w[a], pt.arm_a)) -
+                               (st.body_v[b] + cross(st.body_w[b], pt.arm_b));  // m/s
+        total += lam[k];
+        rel += lam[k] * point_rel;
+        arm += lam[k] * (a_moves ? pt.arm_a : pt.arm_b);
+        r1 += lam[k] * (a_moves ? pt.rt1a : pt.rt1b);
+        r2 += lam[k] * (a_moves ? pt.rt2a : pt.rt2b);
+      }
+      if (total > 0.0) {
+        const double inv_total = 1.0 / total;
+        rel = inv_total * rel, arm = inv_total * arm, r1 = inv_total * r1, r2 = inv_total * r2;
+        const double v1 = dot(rel, row.t1), v2 = dot(rel, row.t2);
+        // the supported body's own 2×2 tangent block there (1/kg)
+        const Vec3 i1 = inv_i * r1, i2 = inv_i * r2;
+        const double k11 = mu + dot(r1, i1), k22 = mu + dot(r2, i2), k12 = dot(r1, i2);
+        const double det = k11 * k22 - k12 * k12;
+        if (det > 1e-12 * k11 * k22) {
+          // N·s: the impulse along t1, t2 that stops the slip, within Coulomb's circle
+          double p1 = -(k22 * v1 - k12 * v2) / det, p2 = -(k11 * v2 - k12 * v1) / det;
+          const double bound = row.friction * total * share, len = std::hypot(p1, p2);
+          if (len > bound) p1 *= bound / len, p2 *= bound / len;
+          // never faster in the tangent plane than u goes there (as in 2D): the change
+          // sgn K p of u's point scaled down until |own + change| <= |own|
+          const Vec3 own = st.body_v[u] + cross(st.body_w[u], arm);  // m/s
+          const double o1 = dot(own, row.t1), o2 = dot(own, row.t2);
+          const double c1 = sgn * (k11 * p1 + k12 * p2), c2 = sgn * (k12 * p1 + k22 * p2);
+          const double along = o1 * c1 + o2 * c2, change2 = c1 * c1 + c2 * c2;  // m²/s²
+          if (change2 > 0.0) {
+            const double scale = std::clamp(-2.0 * along / change2, 0.0, 1.0);
+            p1 *= scale, p2 *= scale;
+          }
+          st.body_v[u] += (sgn * mu) * (p1 * row.t1 + p2 * row.t2);
+          add_momentum(st, u, inv_i, sgn * (p1 * r1 + p2 * r2));
+        }
+      }
+    }
   }
 }
 
@@ -470,21 +535,21 @@ std::int64_t support_order(const Model<D>& model, Contacts<D>& c) {
 }
 
 // Each manifold's friction load (SolverRow::friction_load, N·s), for the passes' friction
-// bounds: μ times the larger of it and a point's normal impulse. While a heavy body rests
-// on a light one (heavy_on_light) the shock pass carries the loads the soft contacts do
-// not, and its impulses are in no contact's normal impulse (there they would starve the
-// warm start: a 100 t box on 1 t ones jittered), so friction bounded by those alone was
-// too weak: a 100 kg crate on a 1 kg pallet slid 3 m down a 20° ramp of μ = 0.8, and a
-// plate under 30 times its mass, sliding, stopped in twice Coulomb's time. A supporting
-// manifold (shock_order, touching) whose supported body u bears a load (borne_loads)
-// HEAVY_RATIO or more times the lighter of u and its supporter gets that load's share of
-// a substep's weight along its normal, body_load[u] |g·n| h / (u's supports that touch),
-// h the substep (s), the load taken up to CRUSH_RATIO times the lighter body (beyond it
-// the light body between two large friction forces was pulled to and fro by the passes:
-// a 1 kg plate under 1000 kg, sliding, reached 4 times the start's kinetic energy); the
-// passes share it over the manifold's touching points (solve.cpp, bounding_impulses).
-// Every other manifold gets 0 (the rows prepare_contacts did not write again are cleared
-// here when a step before set any). Uses contacts.queue.
+// bounds: μ times the larger of it and the manifold's normal impulses. While a heavy body
+// rests on a light one (heavy_on_light) the shock pass carries the loads the soft
+// contacts do not (in 2D every approach it meets, not only at the heavy body), and its
+// impulses are in no contact's normal impulse (there they would starve the warm start: a
+// 100 t box on 1 t ones jittered), so friction bounded by those alone was too weak: a
+// 100 kg crate on a 1 kg pallet slid 3 m down a 20° ramp of μ = 0.8, a plate under 30
+// times its mass, sliding, stopped in twice Coulomb's time, and a 1 kg box sliding on a
+// plank that carried a heavy one went 1.7 m where Coulomb stops it in 0.46. So each
+// supporting manifold (shock_order, touching) gets its supported body u's load
+// (borne_loads) along its normal for a substep, body_load[u] |g·n| h / (u's supports that
+// touch), h the substep (s), the load taken up to FRICTION_LOAD_RATIO times the lighter
+// of u and its supporter (the shock pass's friction takes the rest: shock_friction_share);
+// the passes share it over the manifold's touching points (solve.cpp, bounding_impulses).
+// Without a heavy body on a light one every manifold gets 0 (the rows prepare_contacts
+// did not write again are cleared here when a step before set any). Uses contacts.queue.
 template <int D>
 void friction_loads(const Model<D>& model, Contacts<D>& c, std::int64_t n_order, double h) {
   const std::int64_t n_man = c.count.manifolds;
@@ -502,8 +567,7 @@ void friction_loads(const Model<D>& model, Contacts<D>& c, std::int64_t n_order,
     if (!c.support[m]) continue;  // (a speculative contact holds nothing up)
     const auto [u, s] = support_of(c, m);
     const double lighter = std::max(im[u], im[s]);  // 1/kg
-    if (c.body_load[u] * lighter < C::HEAVY_RATIO) continue;
-    const double borne = std::min(c.body_load[u], C::CRUSH_RATIO / lighter);  // kg
+    const double borne = std::min(c.body_load[u], C::FRICTION_LOAD_RATIO / lighter);  // kg
     const double weight = borne * std::fabs(dot(model.gravity, c.normal[m])) * h;  // N·s
     c.solver_row[m].friction_load = weight / static_cast<double>(supports[u]);
   }
@@ -743,6 +807,31 @@ void propagate_shock_range(const Model<D>& model, State<D>& st, Contacts<D>& c,
     if (impulse == 0.0) continue;
     v[u] += (sgn * mu * impulse) * n;
     w[u] += sgn * iu * (l0 * r0 + l1 * r1);
+    // shock friction (as in the 3D pass): the slip on the supporter, held still, taken out
+    // within μ times the share of the push the passes' friction does not bound, at the
+    // points' centre by their pushes (point by point, the second after the first turned
+    // the body, a box resting on a lighter one drifted sideways)
+    const double share = shock_friction_share(model, c, m);
+    if (share > 0.0) {
+      const Vec t = cross(n, 1.0);
+      const double rta = (l0 * pt0.rta + l1 * pt1.rta) / impulse;  // m: the levers there
+      const double rtb = (l0 * pt0.rtb + l1 * pt1.rtb) / impulse;
+      const double rtu = a_moves ? rta : rtb;  // m: the supported body's
+      const double vt = dot(v[a] - v[b], t) + (w[a] * rta - w[b] * rtb);  // m/s
+      const double kt = mu + iu * rtu * rtu;  // 1/kg
+      if (kt > 0.0) {
+        const double bound = row.friction * impulse * share;
+        double f = std::clamp(-vt / kt, -bound, bound);  // N·s along t
+        // never faster along t than u goes there (a light supporter's slip is not handed
+        // on: followed, a 100 kg box on a 0.01 kg one took up the light box's rounding,
+        // grown step by step to mm/s)
+        const double own = dot(v[u], t) + w[u] * rtu;  // m/s: u's point along t
+        const double change = sgn * f * kt;           // m/s: what f does to it
+        if (change != 0.0) f *= std::clamp(-2.0 * own / change, 0.0, 1.0);
+        v[u] += (sgn * mu * f) * t;
+        w[u] += sgn * iu * f * rtu;
+      }
+    }
   }
   }
 }
