@@ -270,3 +270,35 @@ bodies:
     coulomb = 3.0**2 / (2 * 9.81)  # m
     # m: the substeps' slip, and the plank's own stop (0.48 - 0.50 measured)
     assert np.all(np.abs(slid - coulomb) < 0.08), slid
+
+
+@pytest.mark.parametrize("dimension", [2, 3])
+def test_a_light_plate_between_two_heavy_boxes_passes_the_friction_on(dimension: int):
+    """10 t on a 1 kg plate on 10 t, all sliding at 3 m/s (μ = 0.4): the three stop
+    together after v²/(2 μ g) = 1.15 m. The ground's friction counted the upper box's whole
+    load, whose friction the shock pass takes into the ground, and the lower box stopped at
+    0.57 m while the upper one slid on over the plate to 1.8 m."""
+    masses = [10000.0, 1.0, 10000.0]  # kg
+    if dimension == 2:
+        sizes = ["[1, 0.5]", "[1, 0.05]", "[0.5, 0.5]"]
+        ys, v = [0.25, 0.525, 0.8], "[3, 0]"
+        ground = "{segment: {a: [-30, 0], b: [30, 0]}}"
+    else:
+        sizes = ["[1, 0.5, 1]", "[1, 0.05, 1]", "[0.5, 0.5, 0.5]"]
+        ys, v = [0.25, 0.525, 0.8], "[3, 0, 0]"
+        ground = "{plane: {}}"
+    at = (lambda y: f"[0, {y}]") if dimension == 2 else (lambda y: f"[0, {y}, 0]")
+    bodies = "".join(
+        f"  - {{name: b{k}, material: m, position: {at(y)}, velocity: {v}, mass: {mass},"
+        f" shape: {{box: {{size: {size}}}}}}}\n"
+        for k, (mass, size, y) in enumerate(zip(masses, sizes, ys, strict=True))
+    )
+    dt = "1/60" if dimension == 2 else "1/240"
+    tr = rbsim.run(
+        f"version: 1\nworld: {{dimension: {dimension}, dt: {dt}, duration: 2.5}}\n"
+        "materials: {m: {density: 1, friction: 0.4, restitution: 0}}\n"
+        f"bodies:\n  - {{name: ground, type: static, material: m, shape: {ground}}}\n" + bodies
+    )
+    slid = tr.position[-1, 1:, 0] - tr.position[0, 1:, 0]
+    coulomb = 3.0**2 / (2 * 0.4 * 9.81)  # m
+    assert np.all(np.abs(slid - coulomb) < 0.1), slid  # m: the substeps' slip (≤ 0.05)

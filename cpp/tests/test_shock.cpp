@@ -149,9 +149,9 @@ TEST(borne_loads_come_down_the_supports) {
   CHECK_NEAR(c.body_load[right], 51.0, 1e-12);
 }
 
-// The friction loads: the weight each support carries, shared over the supported body's
-// supports, up to FRICTION_LOAD_RATIO times the lighter body of a pair; none without a
-// heavy body on a light one, and those of an earlier step cleared.
+// The friction loads: the weight each support passes on, shared over the supported body's
+// supports, each body's up to FRICTION_LOAD_RATIO times the lighter body of its pair; none
+// without a heavy body on a light one, and those of an earlier step cleared.
 TEST(friction_loads_are_the_borne_weight_up_to_a_ratio) {
   for (const double top_mass : {100.0, 1000.0}) {
     SceneBuilder s;
@@ -165,7 +165,8 @@ TEST(friction_loads_are_the_borne_weight_up_to_a_ratio) {
     const double weight = 9.81 * rbsim::test::substep(w);  // N·s per kg in a substep
     const double most = constants::FRICTION_LOAD_RATIO;    // kg: 1 kg boxes
     const double on_top = std::min(top_mass, most) / 2.0;  // kg: two supports
-    const double under = std::min(1.0 + top_mass / 2.0, most);
+    // kg: the left box passes on its own mass and what the top one passes to it
+    const double under = std::min(1.0 + std::min(top_mass, most) / 2.0, most);
     CHECK_NEAR(c.solver_row[manifold_of(w, left, top)].friction_load, on_top * weight, 1e-12);
     CHECK_NEAR(c.solver_row[manifold_of(w, 0, left)].friction_load, under * weight, 1e-12);
   }
