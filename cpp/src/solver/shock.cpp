@@ -825,9 +825,9 @@ void propagate_shock_range(const Model<D>& model, State<D>& st, Contacts<D>& c,
     v[u] += (sgn * mu * impulse) * n;
     w[u] += sgn * iu * (l0 * r0 + l1 * r1);
     // shock friction (as in the 3D pass): the slip on the supporter, held still, taken out
-    // within μ times the share of the push the passes' friction does not bound, at the
-    // points' centre by their pushes (point by point, the second after the first turned
-    // the body, a box resting on a lighter one drifted sideways)
+    // within μ times the share of the push the passes' friction does not bound, as one
+    // impulse at the points' centre by their pushes (a face's points alike, whatever
+    // their order)
     const double share = shock_friction_share(model, c, m);
     if (share > 0.0) {
       const Vec t = cross(n, 1.0);
