@@ -401,18 +401,19 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
 
 }  // namespace
 
-// contacts.body_load (N,): the mass (kg) each dynamic body bears, its own and that of the
-// bodies resting on it, each of those split evenly over its supporters (the shock order's
-// contacts that touch, contacts.support: a speculative one, as the ground 1 cm under a
-// box resting on a 2 cm plate, holds none of the load up, and counted, it halved what the
-// plate bore); 0 for the others. shock_order lists the supports by the supporter's level,
-// and a supported body's level is above its supporter's, so taken from the end the load
-// of each supported body is complete before it is handed down. Uses contacts.queue.
-template <int D>
-void borne_loads(const Model<D>& model, Contacts<D>& c, std::int64_t n_order) {
-  auto& load = c.body_load;
-  auto& supports = c.queue;  // how many supports hold each body up
-  const std::int64_t n_bodies = static_cast<std::int64_t>(load.size());
+// Each dynamic body's load (kg) into `load` (N,), 0 for the others: its own mass and what
+// the bodies resting on it hand down, each of those split evenly over its supporters (the
+// shock order's contacts that touch, contacts.support: a speculative one, as the ground
+// 1 cm under a box resting on a 2 cm plate, holds none of the load up, and counted, it
+// halved what the plate bore; their count per body into `supports`), a body u's share to
+// its supporter s taken up to most(u, s) kg. shock_order lists the supports by the
+// supporter's level, and a supported body's level is above its supporter's, so taken from
+// the end the load of each supported body is complete before it is handed down.
+template <int D, class Most>
+void hand_down_loads(const Model<D>& model, const Contacts<D>& c, std::int64_t n_order,
+                     std::vector<double>& load, std::vector<std::int64_t>& supports,
+                     Most most) {
+  const std::int64_t n_bodies = model.body_count();
   for (std::int64_t i = 0; i < n_bodies; ++i) {
     load[i] = model.is_dynamic(static_cast<int>(i)) ? 1.0 / model.body_inv_mass[i] : 0.0;
     supports[i] = 0;
@@ -422,8 +423,17 @@ void borne_loads(const Model<D>& model, Contacts<D>& c, std::int64_t n_order) {
   for (std::int64_t o = n_order - 1; o >= 0; --o) {
     if (!c.support[c.shock_order[o]]) continue;  // (a speculative contact holds nothing up)
     const auto [u, s] = support_of(c, c.shock_order[o]);
-    if (model.is_dynamic(s)) load[s] += load[u] / static_cast<double>(supports[u]);
+    if (model.is_dynamic(s))
+      load[s] += std::min(load[u], most(u, s)) / static_cast<double>(supports[u]);
   }
+}
+
+// contacts.body_load (N,): the mass (kg) each dynamic body bears, its own and all that
+// rests on it (hand_down_loads, no share bounded). Uses contacts.queue.
+template <int D>
+void borne_loads(const Model<D>& model, Contacts<D>& c, std::int64_t n_order) {
+  constexpr double all = std::numeric_limits<double>::infinity();
+  hand_down_loads(model, c, n_order, c.body_load, c.queue, [](int, int) { return all; });
 }
 
 // Support level of every body, and the orders of the solver's and the shock pass.
@@ -543,13 +553,18 @@ std::int64_t support_order(const Model<D>& model, Contacts<D>& c) {
 // 100 kg crate on a 1 kg pallet slid 3 m down a 20° ramp of μ = 0.8, a plate under 30
 // times its mass, sliding, stopped in twice Coulomb's time, and a 1 kg box sliding on a
 // plank that carried a heavy one went 1.7 m where Coulomb stops it in 0.46. So each
-// supporting manifold (shock_order, touching) gets its supported body u's load
-// (borne_loads) along its normal for a substep, body_load[u] |g·n| h / (u's supports that
-// touch), h the substep (s), the load taken up to FRICTION_LOAD_RATIO times the lighter
-// of u and its supporter (the shock pass's friction takes the rest: shock_friction_share);
-// the passes share it over the manifold's touching points (solve.cpp, bounding_impulses).
-// Without a heavy body on a light one every manifold gets 0 (the rows prepare_contacts
-// did not write again are cleared here when a step before set any). Uses contacts.queue.
+// supporting manifold (shock_order, touching) gets the load its supported body u passes
+// on through the passes' friction along its normal for a substep, |g·n| h / (u's
+// supports that touch), h the substep (s): u's own mass and what the bodies resting on it
+// pass on (hand_down_loads), each body's share, u's too, up to FRICTION_LOAD_RATIO times
+// the lighter of its pair. The shock pass's friction takes the rest of a load into the
+// ground (shock_friction_share): counted here, a 10 t box on a 1 kg plate on a 10 t one,
+// sliding, gave the lower box the ground's friction for 20 t, and it stopped at 0.57 m
+// where all three stop at 1.15. The passes share the load over the manifold's touching
+// points (solve.cpp, bounding_impulses). Without a heavy body on a light one every
+// manifold gets 0 (the rows prepare_contacts did not write again are cleared here when a
+// step before set any). Uses contacts.queue and body_motion (as scratch: the overlap
+// limit makes it anew at the step's end).
 template <int D>
 void friction_loads(const Model<D>& model, Contacts<D>& c, std::int64_t n_order, double h) {
   const std::int64_t n_man = c.count.manifolds;
@@ -557,29 +572,11 @@ void friction_loads(const Model<D>& model, Contacts<D>& c, std::int64_t n_order,
     for (std::int64_t m = 0; m < n_man; ++m) c.solver_row[m].friction_load = 0.0;
   c.count.friction_loaded = c.heavy_on_light;
   if (!c.heavy_on_light) return;
-  auto& supports = c.queue;  // how many supports hold each body up
-  std::fill(supports.begin(), supports.begin() + model.body_count(), 0);
-  for (std::int64_t o = 0; o < n_order; ++o)
-    if (c.support[c.shock_order[o]]) supports[support_of(c, c.shock_order[o]).supported] += 1;
   const auto& im = model.body_inv_mass;
-  // kg: the load each body passes on through the passes' friction, its own mass and what
-  // the bodies resting on it pass on, shared over their supports that touch, each up to
-  // FRICTION_LOAD_RATIO times the lighter of the pair (the shock pass's friction takes a
-  // load's rest into the ground: counted below, a 10 t box on a 1 kg plate on a 10 t one,
-  // sliding, gave the lower box the ground's friction for 20 t, and it stopped at 0.57 m
-  // where all three stop at 1.15). (Scratch: the overlap limit makes it anew at the end)
-  auto& passed = c.body_motion;
-  const std::int64_t n_bodies = model.body_count();
-  for (std::int64_t i = 0; i < n_bodies; ++i)
-    passed[i] = model.is_dynamic(static_cast<int>(i)) ? 1.0 / im[i] : 0.0;
   auto most = [&](int u, int s) { return C::FRICTION_LOAD_RATIO / std::max(im[u], im[s]); };
-  for (std::int64_t o = n_order - 1; o >= 0; --o) {  // (as borne_loads: from the top down)
-    const std::int32_t m = c.shock_order[o];
-    if (!c.support[m]) continue;
-    const auto [u, s] = support_of(c, m);
-    if (model.is_dynamic(s))
-      passed[s] += std::min(passed[u], most(u, s)) / static_cast<double>(supports[u]);
-  }
+  auto& passed = c.body_motion;  // kg
+  auto& supports = c.queue;
+  hand_down_loads(model, c, n_order, passed, supports, most);
   for (std::int64_t o = 0; o < n_order; ++o) {
     const std::int32_t m = c.shock_order[o];
     if (!c.support[m]) continue;  // (a speculative contact holds nothing up)

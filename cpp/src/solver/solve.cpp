@@ -154,6 +154,23 @@ inline Lanes bounding_impulses(Lanes lam, double load, LaneMask touching) {
   return select(on, lam + splat((load - total) / n), own);
 }
 
+// bounding_impulses lane by lane, LANES manifolds of N points each: held[k] (N·s), point
+// k's normal impulses lam[k], raised where the touching points' (on[k]) sum to less than
+// the rows' friction load by the shortfall shared over those points.
+template <int N>
+inline void bounding_lanes(const Lanes (&lam)[N], const LaneMask (&on)[N], Lanes load,
+                           Lanes (&held)[N]) {
+  const Lanes zero = splat(0.0);
+  Lanes sum = select(on[0], lam[0], zero), count = select(on[0], splat(1.0), zero);
+  for (int k = 1; k < N; ++k) {
+    sum += select(on[k], lam[k], zero);
+    count += select(on[k], splat(1.0), zero);
+  }
+  const LaneMask short_of = (load > sum) & (count > zero);
+  const Lanes spread = (load - sum) / select(count > zero, count, splat(1.0));
+  for (int k = 0; k < N; ++k) held[k] = select(short_of & on[k], lam[k] + spread, lam[k]);
+}
+
 // One manifold m of N points (1..4) in the 3D pass below (N fixed at compile time: the
 // loops over the points unrolled).
 template <int N>
@@ -736,13 +753,9 @@ void solve_batch(State<2>& st, Contacts<2>& c, WideBatch& B, double inv_h, bool 
   Lanes held0 = n0, held1 = n1;  // N·s: what bounds the friction (bounding_impulses)
   const LaneMask on0 = s0 <= touch, on1 = s1 <= touch;  // the points that touch
   if (loaded && TWO) {
-    const Lanes own0 = select(on0, n0, zero), own1 = select(on1, n1, zero);
-    const Lanes sum = own0 + own1;
-    const Lanes count = select(on0, splat(1.0), zero) + select(on1, splat(1.0), zero);
-    const LaneMask short_of = (B.load > sum) & (count > zero);
-    const Lanes spread = (B.load - sum) / select(count > zero, count, splat(1.0));
-    held0 = select(short_of & on0, n0 + spread, n0);
-    held1 = select(short_of & on1, n1 + spread, n1);
+    Lanes held[2];
+    bounding_lanes<2>({n0, n1}, {on0, on1}, B.load, held);
+    held0 = held[0], held1 = held[1];
   } else if (loaded) {
     held0 = select(B.load > n0, B.load, n0);
   }
@@ -1198,19 +1211,10 @@ void solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double inv_
       g1[k] = g2[k] = zero;
     }
     // N·s: what bounds each point's friction (bounding_impulses)
-    Lanes held[N];
-    for (int k = 0; k < N; ++k) held[k] = p[k].lam;
-    if (loaded) {  // (over the touching points)
-      Lanes sum = zero, count = zero;
-      for (int k = 0; k < N; ++k) {
-        sum += select(sep[k] <= B.touch, p[k].lam, zero);
-        count += select(sep[k] <= B.touch, splat(1.0), zero);
-      }
-      const LaneMask short_of = (B.load > sum) & (count > zero);
-      const Lanes spread = (B.load - sum) / select(count > zero, count, splat(1.0));
-      for (int k = 0; k < N; ++k)
-        held[k] = select(short_of & (sep[k] <= B.touch), p[k].lam + spread, p[k].lam);
-    }
+    Lanes held[N], lam[N];
+    LaneMask on[N];
+    for (int k = 0; k < N; ++k) held[k] = lam[k] = p[k].lam, on[k] = sep[k] <= B.touch;
+    if (loaded) bounding_lanes<N>(lam, on, B.load, held);
     for (int i = 0; i < N; ++i) {
       const int k = use_bias ? i : N - 1 - i;
       const Lanes limit = select(sep[k] <= B.touch, B.friction * held[k], zero);
