@@ -145,6 +145,17 @@ bodies:
     return head + "\n".join(lines) + "\n"
 
 
+def coulomb_stop(speed: float, friction: float) -> float:
+    """How far (m) a body sliding at `speed` (m/s) goes before friction stops it,
+    v² / (2 μ g), under rbsim's default gravity."""
+    return speed**2 / (2 * friction * 9.81)
+
+
+def slid(tr) -> np.ndarray:  # noqa: ANN001 - a trajectory
+    """How far (m) each dynamic body (all but the first, the ground) moved along x."""
+    return tr.position[-1, 1:, 0] - tr.position[0, 1:, 0]
+
+
 @pytest.mark.parametrize(
     ("degrees", "friction", "crate"),
     [(20, 0.8, 100), (40, 1.2, 100), (20, 0.8, 1000)],
@@ -164,30 +175,30 @@ def test_a_heavy_crate_on_a_light_pallet_stays_on_a_ramp_friction_holds(
     assert moved.max() < 0.15  # m: the pair settles by a cm or two (0.7 to 1.7 measured)
 
 
-@pytest.mark.parametrize("dimension", [2, 3])
-def test_a_heavy_cube_on_a_thin_plate_slides_to_coulombs_stop(dimension: int):
-    """100 kg on a 2 kg plate 2 cm thick, both sliding at 3 m/s (μ = 0.2): they stop
-    together after v²/(2 μ g) = 2.29 m (the cube slipped 1.3 m over the plate and off it:
-    the ground 1 cm under the cube, a speculative contact, counted as one of its two
-    supports and halved its friction's load)."""
-    tr = rbsim.run(sliding_stack(dimension, [2, 100], [0.02, 1.0], 3.0, 0.2))
-    coulomb = 3.0**2 / (2 * 0.2 * 9.81)  # m
-    slid = tr.position[-1, 1:, 0] - tr.position[0, 1:, 0]
-    # m: the soft contacts' slip while the load settles on the plate (2.04 - 2.30 measured)
-    assert np.all(np.abs(slid - coulomb) < 0.3), slid
-    assert np.abs(tr.velocity[-1, 1:]).max() < 0.01  # m/s: at rest at the end
+# Stacks sliding on the ground that stop together where Coulomb says, v²/(2 μ g):
+# masses (kg), heights (m), speed (m/s), friction, and the tolerance (m) on each body's
+# distance with its reason. Before the friction loads:
+# - a 1 kg plate carrying 100 kg (1.5 m/s, μ = 0.6; Coulomb 0.191 m) slid 0.55 m and its
+#   load 1.26 m in 2D, 0.51 and 0.55 m in 3D: the ground's friction on the plate did not
+#   see the load (the soft contacts' slip and the substeps: 0.167 - 0.189 measured);
+# - 100 kg on a 2 kg plate 2 cm thick (3 m/s, μ = 0.2; 2.29 m): the cube slipped 1.3 m
+#   over the plate and off it, the ground 1 cm under it, a speculative contact, counted as
+#   one of its two supports, halving its friction's load (the slip while the load settles
+#   on the plate: 2.04 - 2.30 measured).
+SLIDING_STACKS = {
+    "plate under 100 times its mass": ([1, 100], [0.1, 0.5], 1.5, 0.6, 0.04),
+    "cube on a thin plate": ([2, 100], [0.02, 1.0], 3.0, 0.2, 0.3),
+}
 
 
+@pytest.mark.parametrize("case", SLIDING_STACKS, ids=list(SLIDING_STACKS))
 @pytest.mark.parametrize("dimension", [2, 3])
-def test_a_plate_sliding_under_a_heavy_load_stops_where_coulomb_says(dimension: int):
-    """A 1 kg plate carrying 100 kg, both sliding at 1.5 m/s (μ = 0.6), stop together
-    after v²/(2 μ g) = 0.191 m (the plate slid 0.55 m and its load 1.26 m in 2D; 0.51 and
-    0.55 m in 3D: the ground's friction on the plate did not see the load)."""
-    tr = rbsim.run(sliding_stack(dimension, [1, 100], [0.1, 0.5], 1.5, 0.6))
-    coulomb = 1.5**2 / (2 * 0.6 * 9.81)  # m
-    slid = tr.position[-1, 1:, 0] - tr.position[0, 1:, 0]
-    # m: the soft contacts' slip and the substeps' discretisation (0.167 - 0.189 measured)
-    assert np.all(np.abs(slid - coulomb) < 0.04), slid
+def test_a_stack_sliding_under_a_heavy_load_stops_where_coulomb_says(dimension: int, case: str):
+    """Each of SLIDING_STACKS stops together where Coulomb says, and is at rest at the end."""
+    masses, heights, speed, friction, tolerance = SLIDING_STACKS[case]
+    tr = rbsim.run(sliding_stack(dimension, masses, heights, speed, friction))
+    moved = slid(tr)
+    assert np.all(np.abs(moved - coulomb_stop(speed, friction)) < tolerance), moved
     assert np.abs(tr.velocity[-1, 1:]).max() < 0.01  # m/s: at rest at the end
 
 
@@ -202,8 +213,8 @@ def test_a_heavy_box_sliding_on_light_plates_is_never_thrown(dimension: int):
     tr = rbsim.run(sliding_stack(dimension, list(masses), [0.2, 0.2, 0.8], 2.0, 0.7))
     energy = 0.5 * (masses * (tr.velocity[:, 1:] ** 2).sum(axis=2)).sum(axis=1)  # J
     assert energy.max() <= energy[0] * (1 + 1e-9)  # (rounding of the start's sum)
-    slid = tr.position[-1, 3, 0] - tr.position[0, 3, 0]
-    assert 0.29 < slid < 2 * 0.29  # m: friction stops it, in the right distance's order
+    moved = slid(tr)[2]  # m: the box
+    assert 0.29 < moved < 2 * 0.29  # m: friction stops it, in the right distance's order
 
 
 LIFT_2D = """
@@ -236,11 +247,10 @@ def test_a_plate_under_a_thousand_times_its_mass_stops_with_its_load(dimension: 
     """1 kg under 1000 kg, sliding at 1.5 m/s (μ = 0.6): the load stops where Coulomb says,
     0.191 m (1.26 m while the shock pass had no friction), never faster than it started."""
     tr = rbsim.run(sliding_stack(dimension, [1, 1000], [0.1, 0.5], 1.5, 0.6))
-    coulomb = 1.5**2 / (2 * 0.6 * 9.81)  # m
-    slid = tr.position[-1, 1:, 0] - tr.position[0, 1:, 0]
-    assert abs(slid[1] - coulomb) < 0.04, slid  # m: the substeps' slip (0.19 - 0.22 measured)
+    coulomb, moved = coulomb_stop(1.5, 0.6), slid(tr)
+    assert abs(moved[1] - coulomb) < 0.04, moved  # m: the substeps' slip (0.19 - 0.22 measured)
     # m: the plate, a thousand times lighter, stops first, by its own slip (0.14 - 0.20)
-    assert abs(slid[0] - coulomb) < 0.06, slid
+    assert abs(moved[0] - coulomb) < 0.06, moved
     speed = np.linalg.norm(tr.velocity[:, 2], axis=1)
     assert speed.max() <= 1.5 * (1 + 1e-9)  # m/s: (rounding of the start's)
 
@@ -266,10 +276,9 @@ bodies:
      shape: {box: {size: [1, 1]}}}
 """
     tr = rbsim.run(plank)
-    slid = tr.position[-1, 1:, 0] - tr.position[0, 1:, 0]
-    coulomb = 3.0**2 / (2 * 9.81)  # m
+    coulomb, moved = coulomb_stop(3.0, 1.0), slid(tr)
     # m: the substeps' slip, and the plank's own stop (0.48 - 0.50 measured)
-    assert np.all(np.abs(slid - coulomb) < 0.08), slid
+    assert np.all(np.abs(moved - coulomb) < 0.08), moved
 
 
 @pytest.mark.parametrize("dimension", [2, 3])
@@ -278,27 +287,7 @@ def test_a_light_plate_between_two_heavy_boxes_passes_the_friction_on(dimension:
     together after v²/(2 μ g) = 1.15 m. The ground's friction counted the upper box's whole
     load, whose friction the shock pass takes into the ground, and the lower box stopped at
     0.57 m while the upper one slid on over the plate to 1.8 m."""
-    masses = [10000.0, 1.0, 10000.0]  # kg
-    if dimension == 2:
-        sizes = ["[1, 0.5]", "[1, 0.05]", "[0.5, 0.5]"]
-        ys, v = [0.25, 0.525, 0.8], "[3, 0]"
-        ground = "{segment: {a: [-30, 0], b: [30, 0]}}"
-    else:
-        sizes = ["[1, 0.5, 1]", "[1, 0.05, 1]", "[0.5, 0.5, 0.5]"]
-        ys, v = [0.25, 0.525, 0.8], "[3, 0, 0]"
-        ground = "{plane: {}}"
-    at = (lambda y: f"[0, {y}]") if dimension == 2 else (lambda y: f"[0, {y}, 0]")
-    bodies = "".join(
-        f"  - {{name: b{k}, material: m, position: {at(y)}, velocity: {v}, mass: {mass},"
-        f" shape: {{box: {{size: {size}}}}}}}\n"
-        for k, (mass, size, y) in enumerate(zip(masses, sizes, ys, strict=True))
-    )
-    dt = "1/60" if dimension == 2 else "1/240"
-    tr = rbsim.run(
-        f"version: 1\nworld: {{dimension: {dimension}, dt: {dt}, duration: 2.5}}\n"
-        "materials: {m: {density: 1, friction: 0.4, restitution: 0}}\n"
-        f"bodies:\n  - {{name: ground, type: static, material: m, shape: {ground}}}\n" + bodies
-    )
-    slid = tr.position[-1, 1:, 0] - tr.position[0, 1:, 0]
-    coulomb = 3.0**2 / (2 * 0.4 * 9.81)  # m
-    assert np.all(np.abs(slid - coulomb) < 0.1), slid  # m: the substeps' slip (≤ 0.05)
+    heights = [0.5, 0.05, 0.5]  # m: the boxes 1 m and 0.5 m wide, the plate 1 m
+    tr = rbsim.run(sliding_stack(dimension, [10000, 1, 10000], heights, 3.0, 0.4))
+    coulomb, moved = coulomb_stop(3.0, 0.4), slid(tr)
+    assert np.all(np.abs(moved - coulomb) < 0.1), moved  # m: the substeps' slip (≤ 0.05)
