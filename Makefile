@@ -51,8 +51,8 @@ cpp-test: $(BUILD_DEPS) $(ENGINE)
 # The interpreter is not built with ASan, so its runtime is preloaded; leaks are not checked
 # (CPython leaks at exit). Tests of stages still placeholders fail on a partial port.
 # RelWithDebInfo and no strip: nanobind strips Release modules, and reports need line numbers.
-SANITIZE_TESTS ?= tests/test_contacts.py tests/test_hard.py tests/test_solver_waves.py \
-	tests/test_solver_stages.py tests/test_shock_stage.py tests/test_narrowphase.py tests/test_broadphase.py \
+SANITIZE_TESTS ?= tests/test_contacts.py tests/test_contacts_output.py tests/test_hard.py \
+	tests/test_solver_waves.py tests/test_solver_stages.py tests/test_shock_stage.py tests/test_narrowphase.py tests/test_broadphase.py \
 	tests/test_trajectory3d.py tests/test_dynamics3d.py
 SANITIZE_DIR   := build/sanitize
 SANITIZE_ENV    = PYTHONPATH=$(SANITIZE_DIR)/site:$(VENV)/lib/python3.11/site-packages \

@@ -854,6 +854,7 @@ nb::class_<World<D>> bind_world(nb::module_& mod, const char* name, const char* 
             if (w.torn) throw std::runtime_error(torn_message(w));
             Block<D> b = make_block(w, block);
             if (row < 0 || row > b.rows) throw std::invalid_argument("row outside the block");
+            if (b.contact_start) w.contacts.record_impulses = true;  // (their mean forces)
             std::int64_t taken = 0, bad = -1, written = 0;
             Status status = Status::Ok;
             bool signalled = false, full = false;
@@ -949,6 +950,13 @@ nb::class_<World<D>> bind_world(nb::module_& mod, const char* name, const char* 
               "True after a long step was stopped inside by a signal: the state is partway "
               "through it, and advance and save_checkpoint raise RuntimeError.")
       .def_rw("profile", &W::profile, "Accumulate each stage's wall time (stage_times).")
+      .def_prop_rw(
+          "record_contact_impulses", [](const W& w) { return w.contacts.record_impulses; },
+          [](W& w, bool on) { w.contacts.record_impulses = on; },
+          "Keep each contact point's normal impulse over the whole step, so that recorded "
+          "contact points (record, advance_recording) carry their mean force over the step "
+          "(N); off, the last substep's. advance_recording turns it on for a block with "
+          "contact rows. Reading only: the steps are the same either way.")
       .def(
           "stage_times",
           [](W& w) {

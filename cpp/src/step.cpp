@@ -6,7 +6,8 @@
 //   -> [per substep: integrate_velocities -> warm_start -> solve (-> shock, while a heavy
 //       body rests on a light one) (-> deep_solve, while a deep overlap still closes)
 //       -> integrate_positions
-//       -> relax (-> extra relax passes near a deep overlap) -> restitution -> shock]
+//       -> relax (-> extra relax passes near a deep overlap) -> restitution -> shock
+//       (-> the points' step impulses, for a run that records its contact points)]
 //   -> limit_dynamic_overlap -> limit_static_overlap -> store_impulses
 //
 // A scene without contacts possible skips the contact stages; one without forces skips
@@ -414,6 +415,7 @@ bool World<D>::step() {
   const double g_norm = std::sqrt(dot(model.gravity, model.gravity));
   // the restitution stage's list names this step's manifolds
   start_restitution(c);
+  begin_step_impulses(c);
   const std::int64_t n_bodies = model.body_count();
   // 3D with contacts: each body's world inverse inertia kept with its rotation, for the
   // solver's passes (contacts.body_inv_inertia_world)
@@ -524,6 +526,8 @@ bool World<D>::step() {
       const double load = D == 3 && !c.heavy_on_light ? g_norm * h : 0.0;  // m/s
       const double slowest = std::max(load, C::SHOCK_MIN_APPROACH);
       timed(S::Shock, [&] { shock_pass(inv_h, threshold, slowest); });
+      // (a run that records its contact points: what each pushed in the substep)
+      if (c.record_impulses) add_step_impulses(c);
     }
     if (sub + 1 < cfg.substeps && stop_here()) {
       give_impulses(c);
@@ -540,6 +544,7 @@ bool World<D>::step() {
       limit_dynamic_overlap(model, state, c, C::DYNAMIC_OVERLAP_LIMIT, C::OVERLAP_LIMIT_PASSES);
       limit_static_overlap(model, state, c, C::STATIC_OVERLAP_LIMIT);
     });
+    if (c.record_impulses) hand_down_shock_impulses(model, c);
     timed(S::Store, [&] {
       give_impulses(c);  // (2D: the batches held them through the passes)
       // each part counts its touching points (an integer sum: the same in any order)

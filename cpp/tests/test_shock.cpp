@@ -70,6 +70,35 @@ TEST(shock_pass_removes_supported_approach_and_holds_supporter) {
   CHECK_NEAR(w.state.body_w[2], 0.0, 1e-12);    // flat faces: no spin
 }
 
+// A run that records its contact points: the pushes of the shock pass are in the step
+// impulses of the contacts where it pushed, and each supporter's reaction is handed down
+// to the ground's contact, so that every box's recorded forces add up.
+TEST(shock_pushes_are_recorded_and_handed_down_to_the_ground) {
+  SceneBuilder s;
+  World<2>& w = stack(s);
+  auto& c = w.contacts;
+  c.record_impulses = true;
+  begin_step_impulses(c);
+  const int m01 = manifold_of(w, 0, 1), m12 = manifold_of(w, 1, 2), m23 = manifold_of(w, 2, 3);
+  // the ground's contact pushed in the passes (a support that did not is handed nothing)
+  c.max_normal_impulse[m01] = {1e-3, 1e-3};
+  w.state.body_v[2] = {0.0, -2.0};
+  w.state.body_v[3] = {0.0, -2.0};
+  const double h = rbsim::test::substep(w);
+  propagate_shock(w.model, w.state, c, c.count.shock_count, 1.0 / h, 1.0);
+  hand_down_shock_impulses(w.model, c);
+  auto total = [&](int m) { return c.step_impulse[m][0] + c.step_impulse[m][1]; };  // N·s
+  // the pass stopped the 10 kg box (20 N·s) and the 1 kg box on it (2 N·s, once the
+  // 10 kg box was still), pushing at both points of each
+  CHECK_NEAR(c.shock_impulse[m12], 20.0, 1e-12);
+  CHECK_NEAR(c.shock_impulse[m23], 2.0, 1e-12);
+  CHECK(c.shock_points[m12] == 3 && c.shock_points[m23] == 3 && c.shock_points[m01] == 0);
+  CHECK_NEAR(total(m23), 2.0, 1e-12);
+  CHECK_NEAR(total(m12), 22.0, 1e-12);  // its own push and the top box's, handed on
+  CHECK_NEAR(total(m01), 22.0, 1e-12);  // the bottom box, held still, handed it all on
+  CHECK_NEAR(c.step_impulse[m01][0], 11.0, 1e-12);  // over its points evenly: none carried
+}
+
 // The pass never pulls: bodies moving apart, or closing a gap slower than it allows, keep
 // their velocities.
 TEST(shock_pass_never_pushes_apart) {

@@ -27,6 +27,8 @@ class RbsimEngine(Engine):
     def __init__(self, scene: Scene) -> None:
         super().__init__(scene)
         self.world = self._make_world(scene)
+        # a run that writes its contact points: each one's mean force over its step
+        self.world.engine.record_contact_impulses = scene.output.contacts == "points"
         model = self.world.model
         self.model = model
         self.mass = model.body_mass.copy()

@@ -32,7 +32,8 @@ frame after frame::
                                         /particles/bodies then /particles/static; -1 not stored
     /contacts/position                  (C,D) m, world frame, where the bodies meet
     /contacts/normal                    (C,D) unit, from the first body towards the second
-    /contacts/force                     (C,) N, the normal force (last substep's impulse / h)
+    /contacts/force                     (C,) N, the mean normal force over the step (the
+                                        point's normal impulse in the step / dt)
 
 A quaternion and its negative are one rotation: the writer makes the stored sign
 continuous from frame to frame (a frame's q is negated when its dot product with the
@@ -1296,8 +1297,9 @@ class ContactPoints:
         or len(bodies) + a row of its fixed (static, stored once) bodies; -1 for a body
         the file does not hold. position: (C,D) m, world frame, where the two bodies meet
         at the frame's time. normal: (C,D) unit, from the first body towards the second
-        (the direction the second is pushed). force: (C,) N, the normal force the point
-        carried in the step's last substep (its impulse over the substep).
+        (the direction the second is pushed). force: (C,) N, the point's mean normal
+        force over the step (every push it made in the step, the shock pass's and a
+        bounce's too, over dt).
     """
 
     start: np.ndarray

@@ -266,6 +266,17 @@ struct Contacts {
   std::vector<std::int8_t> bounce_kind;     // (M,)
   std::vector<std::int8_t> body_mark;       // (N,)
   std::vector<PerPoint<double>> solve_impulse;  // (M,) N·s when the positions moved
+  // each point's normal impulse over the whole step (M,), N·s: every substep's
+  // accumulated one, what the restitution stage drops after a bounce, the shock pass's
+  // pushes and what those hand down the support chain (hand_down_shock_impulses); kept
+  // only while record_impulses (a run that writes its contact points: each one's mean
+  // force over the step, tools/record.cpp). shock_impulse: each manifold's shock pushes
+  // in the step, N·s.
+  std::vector<PerPoint<double>> step_impulse;
+  std::vector<double> shock_impulse;
+  // (M,) bit k: the shock pass pushed at point k in this step (a point the soft contacts
+  // leave to it, as under a heavy load in 2D, pushes too: pushed_in_step)
+  std::vector<std::uint8_t> shock_points;
   // (M(P+1)+2,) manifolds that engaged fast: between two restitution stages each point
   // engages at most once (P per manifold), after at most M deferred ones carried over
   std::vector<std::int32_t> bounce_list;
@@ -282,6 +293,7 @@ struct Contacts {
   bool impulses_in_lanes = false;
   bool heavy_on_light = false;              // a body rests on one HEAVY_RATIO times lighter
   bool unit_scale = true;                   // every shape's scale is 1 (SCALE_LENGTH)
+  bool record_impulses = false;             // keep step_impulse (a run's setting)
   std::vector<std::int32_t> wave_order;    // (M,) the manifolds wave by wave
   std::vector<std::int32_t> manifold_wave;  // (M,) each manifold's wave (scratch)
   std::vector<std::int32_t> body_wave;      // (N,) the last wave that moved the body (scratch)
@@ -367,6 +379,7 @@ bool Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   reset(shock_order, m); reset(solve_order, m);
   reset(adj_start, n + 1); reset(adj, 2 * m); reset(queue, n + 2);
   reset(bounce_kind, m); reset(body_mark, n); reset(solve_impulse, m);
+  reset(step_impulse, m); reset(shock_impulse, m); reset(shock_points, m);
   reset(bounce_list, (P + 1) * m + 2); reset(relax_list, m); reset(body_reach, n);
   reset(overlap_list, m); reset(body_motion, n);
   wave_count = 0;
@@ -385,6 +398,15 @@ bool Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   const std::size_t segments = static_cast<std::size_t>(constants::SOLVER_REGIONS) * 2 + 2;
   reset(segment_order, segments); reset(segment_wave, segments); reset(segment_shock, segments);
   return !stopped;
+}
+
+// Whether point k of manifold m pushed in the step: by the impulse it carried into the
+// step (the warm start applies it), in the solver's passes or the restitution stage (an
+// impulse that raised its accumulated one: max_normal_impulse), or in the shock pass.
+template <int D>
+inline bool pushed_in_step(const Contacts<D>& c, std::int64_t m, int k) {
+  return c.start_impulse[m][k] > 0.0 || c.max_normal_impulse[m][k] > 0.0 ||
+         (c.shock_points[m] >> k & 1u) != 0;
 }
 
 template <int D>
@@ -423,6 +445,7 @@ bool Contacts<D>::grow(std::int64_t new_capacity, const std::function<bool()>* s
   shape_scale = std::move(old.shape_scale);
   body_scale = std::move(old.body_scale);
   unit_scale = old.unit_scale;
+  record_impulses = old.record_impulses;
   return true;
 }
 

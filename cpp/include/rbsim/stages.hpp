@@ -149,6 +149,15 @@ void finish_manifolds(Contacts<D>& contacts, std::int64_t manifolds, MergeFlags 
 // contact/store.cpp: this step's manifolds become last step's (for warm starting).
 template <int D>
 void store_impulses(Contacts<D>& contacts);
+// contact/store.cpp: at the step's start, no point pushed by the shock pass yet
+// (Contacts::shock_points) and, while contacts.record_impulses, each point's step
+// impulse (Contacts::step_impulse, shock_impulse) zero; add_step_impulses adds each
+// point's accumulated normal impulse at the end of each substep (the impulses in the
+// store: 2D gives them back from the batches first).
+template <int D>
+void begin_step_impulses(Contacts<D>& contacts);
+template <int D>
+void add_step_impulses(Contacts<D>& contacts);
 // The same for the manifolds of one range (the counts are left to the caller); returns
 // the range's contact points that pushed.
 template <int D>
@@ -173,6 +182,19 @@ std::int64_t support_order(const Model<D>& model, Contacts<D>& contacts);
 // support_order, whose shock order (n_order manifolds) and borne loads it reads.
 template <int D>
 void friction_loads(const Model<D>& model, Contacts<D>& contacts, std::int64_t n_order, double h);
+// solver/shock.cpp, after the step of a run that records its contact points
+// (contacts.record_impulses): the shock pass pushed each supported body off a supporter
+// held still, so the supporter's reaction went into no contact; it is handed down the
+// shock order, from the top, into the step impulses of the contacts that hold the
+// supporter up, to a static or kinematic body: what presses on a body goes to its
+// supports that it presses on (their normals against it), each taking its part along
+// its own normal split evenly among them, over its points by what each carried. Each
+// dynamic body's recorded normal forces then add up to its change of momentum less
+// gravity where the normals are parallel (a stack on a floor); elsewhere the part of a
+// load across a support's normal is not handed on (the friction that carries it is not
+// recorded).
+template <int D>
+void hand_down_shock_impulses(const Model<D>& model, Contacts<D>& contacts);
 
 // solver/waves.cpp: the waves of the solve order (manifolds that share no dynamic body,
 // solved at once with the result of solving them in solve order) into contacts.wave_order

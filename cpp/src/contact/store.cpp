@@ -1,5 +1,8 @@
 // This step's manifolds become last step's: the warm-start source of the next step's
-// matching, and the manifolds it may carry forward. Counts the touching points.
+// matching, and the manifolds it may carry forward. Counts the touching points. And,
+// for a run that records its contact points, each point's normal impulse over the step.
+#include <algorithm>
+
 #include "rbsim/stages.hpp"
 
 namespace rbsim {
@@ -14,14 +17,14 @@ void store_impulses(Contacts<D>& c) {
 
 template <int D>
 std::int64_t store_impulses(Contacts<D>& c, Span manifolds) {
-  std::int64_t touching = 0;  // points that pushed (max normal impulse > 0) this step
+  std::int64_t touching = 0;  // points that pushed this step (pushed_in_step)
   for (std::int64_t i = manifolds.first; i < manifolds.last; ++i) {
     c.prev_support[i] = c.support[i];
     if (c.carried[i]) {  // the slot's prev_* already hold all but the impulses
       for (int k = 0; k < c.points[i]; ++k) {
         c.prev_normal_impulse[i][k] = c.normal_impulse[i][k];
         c.prev_tangent_impulse[i][k] = c.tangent_impulse[i][k];
-        if (c.max_normal_impulse[i][k] > 0.0) ++touching;
+        if (pushed_in_step(c, i, k)) ++touching;
       }
       continue;
     }
@@ -37,15 +40,36 @@ std::int64_t store_impulses(Contacts<D>& c, Span manifolds) {
       c.prev_feature[i][k] = c.feature[i][k];
       c.prev_normal_impulse[i][k] = c.normal_impulse[i][k];
       c.prev_tangent_impulse[i][k] = c.tangent_impulse[i][k];
-      if (c.max_normal_impulse[i][k] > 0.0) ++touching;
+      if (pushed_in_step(c, i, k)) ++touching;
     }
   }
   return touching;
+}
+
+template <int D>
+void begin_step_impulses(Contacts<D>& c) {
+  const std::int64_t m = c.count.manifolds;
+  std::fill_n(c.shock_points.begin(), m, std::uint8_t{0});
+  if (!c.record_impulses) return;
+  using Impulses = typename Contacts<D>::template PerPoint<double>;
+  std::fill_n(c.step_impulse.begin(), m, Impulses{});
+  std::fill_n(c.shock_impulse.begin(), m, 0.0);
+}
+
+template <int D>
+void add_step_impulses(Contacts<D>& c) {
+  give_impulses(c);  // (2D: the next pass takes them into the batches again)
+  for (std::int64_t i = 0; i < c.count.manifolds; ++i)
+    for (int k = 0; k < c.points[i]; ++k) c.step_impulse[i][k] += c.normal_impulse[i][k];
 }
 
 template void store_impulses(Contacts<2>&);
 template void store_impulses(Contacts<3>&);
 template std::int64_t store_impulses(Contacts<2>&, Span);
 template std::int64_t store_impulses(Contacts<3>&, Span);
+template void begin_step_impulses(Contacts<2>&);
+template void begin_step_impulses(Contacts<3>&);
+template void add_step_impulses(Contacts<2>&);
+template void add_step_impulses(Contacts<3>&);
 
 }  // namespace rbsim

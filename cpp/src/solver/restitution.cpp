@@ -325,6 +325,8 @@ void impact_coulomb(const Model<D>& model, State<D>& st, Contacts<D>& c, std::in
 template <int D>
 inline void drop_bounce(Contacts<D>& c, std::int64_t m, int k) {
   const double jn = std::fmin(c.normal_impulse[m][k], c.start_impulse[m][k]);
+  // (the bounce was pushed in this substep: the step's impulse keeps it)
+  if (c.record_impulses) c.step_impulse[m][k] += c.normal_impulse[m][k] - jn;
   c.normal_impulse[m][k] = jn;
   const double limit = c.friction[m] * jn;
   if constexpr (D == 2) {

@@ -343,6 +343,12 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
       }
     }
     if (!pushed) continue;
+    for (int k = 0; k < npts; ++k)
+      if (lam[k] > 0.0) c.shock_points[m] |= static_cast<std::uint8_t>(1u << k);
+    if (c.record_impulses) {  // (pushes that no contact's accumulated impulse holds)
+      for (int k = 0; k < npts; ++k) c.step_impulse[m][k] += lam[k];
+      c.shock_impulse[m] += (lam[0] + lam[1]) + (lam[2] + lam[3]);
+    }
     st.body_v[u] = vu;
     add_momentum(st, u, a_moves ? row.inv_ia : row.inv_ib, dl);
     // shock friction: the slip of the supported body on its supporter taken out as well,
@@ -434,6 +440,68 @@ template <int D>
 void borne_loads(const Model<D>& model, Contacts<D>& c, std::int64_t n_order) {
   constexpr double all = std::numeric_limits<double>::infinity();
   hand_down_loads(model, c, n_order, c.body_load, c.queue, [](int, int) { return all; });
+}
+
+template <int D>
+void hand_down_shock_impulses(const Model<D>& model, Contacts<D>& c) {
+  using Vec = typename Dim<D>::Vec;
+  const std::int64_t n_order = c.count.shock_count;
+  const std::int64_t n_bodies = model.body_count();
+  // a support whose points pushed (those recorded: pushed_in_step)
+  auto pushed = [&](std::int32_t m) {
+    for (int k = 0; k < c.points[m]; ++k)
+      if (pushed_in_step(c, m, k)) return true;
+    return false;
+  };
+  // the direction (unit) in which manifold m pushes its supported body u
+  auto push_of = [&](std::int32_t m, int u) { return u == c.body_a[m] ? c.normal[m] : -c.normal[m]; };
+  // each body's supports that pushed, as compressed rows (first[u] .. first[u + 1])
+  std::vector<std::int64_t> first(n_bodies + 1, 0);
+  std::vector<std::int32_t> rows(n_order);
+  for (std::int64_t o = 0; o < n_order; ++o)
+    if (pushed(c.shock_order[o])) first[support_of(c, c.shock_order[o]).supported + 1] += 1;
+  for (std::int64_t i = 0; i < n_bodies; ++i) first[i + 1] += first[i];
+  std::vector<std::int64_t> fill(first.begin(), first.end() - 1);
+  for (std::int64_t o = 0; o < n_order; ++o)
+    if (pushed(c.shock_order[o]))
+      rows[fill[support_of(c, c.shock_order[o]).supported]++] = c.shock_order[o];
+  // what each body is pushed with from above (N·s) and not yet handed on, and over how
+  // many of its supports it goes (-1: not counted yet)
+  std::vector<Vec> handed(n_bodies, Vec{});
+  std::vector<int> sharing(n_bodies, -1);
+  for (std::int64_t o = n_order - 1; o >= 0; --o) {
+    const std::int32_t m = c.shock_order[o];
+    const auto [u, s] = support_of(c, m);
+    const Vec push = push_of(m, u);
+    double portion = 0.0;  // N·s: m's share of what u hands down, along m's normal
+    if (pushed(m)) {
+      if (sharing[u] < 0) {  // the supports that can take part of it: it presses on them
+        sharing[u] = 0;
+        for (std::int64_t r = first[u]; r < first[u + 1]; ++r)
+          sharing[u] += dot(handed[u], push_of(rows[r], u)) < 0.0 ? 1 : 0;
+      }
+      const double along = -dot(handed[u], push);  // N·s
+      if (along > 0.0) portion = along / static_cast<double>(sharing[u]);
+    }
+    if (portion > 0.0) {
+      // over the points that pushed, by what each carried (evenly where none did)
+      double total = 0.0;  // N·s
+      int count = 0;
+      for (int k = 0; k < c.points[m]; ++k) {
+        if (!pushed_in_step(c, m, k)) continue;
+        total += c.step_impulse[m][k];
+        ++count;
+      }
+      for (int k = 0; k < c.points[m]; ++k) {
+        if (!pushed_in_step(c, m, k)) continue;
+        const double part = total > 0.0 ? c.step_impulse[m][k] / total : 1.0 / count;
+        c.step_impulse[m][k] += portion * part;
+      }
+    }
+    // the supporter is pushed the other way: by the share handed on, and by the shock
+    // pass's own pushes here
+    if (model.is_dynamic(s)) handed[s] -= (portion + c.shock_impulse[m]) * push;
+  }
 }
 
 // Support level of every body, and the orders of the solver's and the shock pass.
@@ -819,6 +887,12 @@ void propagate_shock_range(const Model<D>& model, State<D>& st, Contacts<D>& c,
     }
     const double impulse = l0 + l1;
     if (impulse == 0.0) continue;
+    c.shock_points[m] |= static_cast<std::uint8_t>((l0 > 0.0 ? 1u : 0u) | (l1 > 0.0 ? 2u : 0u));
+    if (c.record_impulses) {
+      c.step_impulse[m][0] += l0;
+      if (npts == 2) c.step_impulse[m][1] += l1;
+      c.shock_impulse[m] += impulse;
+    }
     v[u] += (sgn * mu * impulse) * n;
     w[u] += sgn * iu * (l0 * r0 + l1 * r1);
     // shock friction (as in the 3D pass): the slip on the supporter, held still, taken out
@@ -865,6 +939,8 @@ template void propagate_shock_range(const Model<2>&, State<2>&, Contacts<2>&, st
 template void propagate_shock_range(const Model<3>&, State<3>&, Contacts<3>&, std::int64_t,
                                     std::int64_t, double, double, double);
 template std::int64_t support_order(const Model<3>&, Contacts<3>&);
+template void hand_down_shock_impulses(const Model<2>&, Contacts<2>&);
+template void hand_down_shock_impulses(const Model<3>&, Contacts<3>&);
 template void friction_loads(const Model<2>&, Contacts<2>&, std::int64_t, double);
 template void friction_loads(const Model<3>&, Contacts<3>&, std::int64_t, double);
 template std::int64_t deep_region(const Model<3>&, Contacts<3>&, int);

@@ -57,7 +57,9 @@ void visit(W& w, F&& f) {
   f(c.wave_idle);  // (3D: made anew in every step, as batches3 and faces3, but sized by the store)
   // (not c.batches3, c.faces3: 3D packs them anew in every step, before any pass reads them;
   // not c.impulses_in_lanes: false between steps, the store holding the impulses, and the
-  // batches' copies taken anew by the next step's passes)
+  // batches' copies taken anew by the next step's passes; not c.step_impulse,
+  // c.shock_impulse, c.shock_points and c.record_impulses: a step's own, set to zero at its
+  // start, and the run's setting)
 }
 
 constexpr std::size_t VEC = sizeof(std::vector<int>);
@@ -67,9 +69,9 @@ static_assert(sizeof(Grid<2>) == 8 + 16 * VEC + 3 * sizeof(Vec2) + sizeof(GridMe
               "Grid changed: update visit()");
 static_assert(sizeof(Grid<3>) == 8 + 16 * VEC + 3 * sizeof(Vec3) + sizeof(GridMeta<3>),
               "Grid changed: update visit()");
-static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 87 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 90 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
-static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 87 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 90 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
 
 template <class T>
@@ -209,6 +211,13 @@ void load_checkpoint(World<D>& world, const std::uint8_t* data, std::size_t size
   copy.config = world.config;
   visit<D>(copy, rd);
   if (rd.p != rd.end) throw std::invalid_argument("checkpoint: trailing bytes");
+  // the step's own arrays, not in the checkpoint: room as the store's, and the run's setting
+  auto& c = copy.contacts;
+  const std::size_t room = c.normal_impulse.size();
+  c.step_impulse.assign(room, {});
+  c.shock_impulse.assign(room, 0.0);
+  c.shock_points.assign(room, 0);
+  c.record_impulses = world.contacts.record_impulses;
   world = std::move(copy);
 }
 

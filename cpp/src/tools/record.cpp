@@ -77,9 +77,11 @@ std::int64_t record_contacts(const World<D>& world, const ContactRows<D>& rows) 
   std::int64_t count = 0;
   for (std::int64_t i = 0; i < m; ++i)
     for (int k = 0; k < c.points[i]; ++k)
-      if (c.max_normal_impulse[i][k] > 0.0) ++count;
+      if (pushed_in_step(c, i, k)) ++count;
   if (count > rows.capacity) return count;
-  const double inv_h = world.config.substeps / world.config.dt;  // 1/s: 1 / substep
+  // 1/s: the step's impulse over the step (its mean force), where the step kept it
+  // (Contacts::record_impulses), else the last substep's over the substep
+  const double inv_h = c.record_impulses ? 1.0 / world.config.dt : world.config.substeps / world.config.dt;
   std::int64_t r = 0;
   for (std::int64_t i = 0; i < m; ++i) {
     const int a = c.body_a[i], b = c.body_b[i];
@@ -89,7 +91,7 @@ std::int64_t record_contacts(const World<D>& world, const ContactRows<D>& rows) 
     const auto& db = c.body_delta[b];
     const Vec n = -c.normal[i];  // the store's normal points from b towards a
     for (int k = 0; k < c.points[i]; ++k) {
-      if (!(c.max_normal_impulse[i][k] > 0.0)) continue;
+      if (!pushed_in_step(c, i, k)) continue;
       const Vec pa = s.body_x[a] + rotate(da.dq, c.anchor_a[i][k]);
       const Vec pb = s.body_x[b] + rotate(db.dq, c.anchor_b[i][k]);
       if (rows.body) {
@@ -98,7 +100,8 @@ std::int64_t record_contacts(const World<D>& world, const ContactRows<D>& rows) 
       }
       if (rows.position) put(rows.position + D * r, 0.5 * (pa + pb));
       if (rows.normal) put(rows.normal + D * r, n);
-      if (rows.force) rows.force[r] = c.normal_impulse[i][k] * inv_h;
+      if (rows.force)
+        rows.force[r] = (c.record_impulses ? c.step_impulse[i][k] : c.normal_impulse[i][k]) * inv_h;
       ++r;
     }
   }
