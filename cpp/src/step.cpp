@@ -361,7 +361,7 @@ bool World<D>::collide() {
   if (stop_here()) return true;
   timed(S::SupportOrder, [&] {
     c.count.shock_count = support_order(model, c);
-    friction_loads(model, c, c.count.shock_count, cfg.dt / cfg.substeps);
+    friction_loads(model, state, c, c.count.shock_count, cfg.dt / cfg.substeps);
   });
   timed(S::Regions, [&] { partition_regions(model, state, c); });
   timed(S::Waves, [&] { find_waves(model, c); });

@@ -141,7 +141,7 @@ class Builder3 {
     world_inertia(w.model, w.state, w.contacts, Span{0, w.model.body_count()});
     prepare_contacts(w.model, w.state, w.contacts, w.config);
     w.contacts.count.shock_count = support_order(w.model, w.contacts);
-    friction_loads(w.model, w.contacts, w.contacts.count.shock_count,
+    friction_loads(w.model, w.state, w.contacts, w.contacts.count.shock_count,
                    w.config.dt / w.config.substeps);
     for (auto& d : w.contacts.body_delta) d = BodyDelta<3>{};
   }

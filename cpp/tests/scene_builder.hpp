@@ -141,7 +141,7 @@ inline std::int64_t collide(World<2>& w) {
                    cfg.restitution_rule, cfg.dt);
   prepare_contacts(w.model, w.state, w.contacts, cfg);
   w.contacts.count.shock_count = support_order(w.model, w.contacts);
-  friction_loads(w.model, w.contacts, w.contacts.count.shock_count, cfg.dt / cfg.substeps);
+  friction_loads(w.model, w.state, w.contacts, w.contacts.count.shock_count, cfg.dt / cfg.substeps);
   for (auto& d : w.contacts.body_delta) d = BodyDelta<2>{};
   return w.contacts.count.manifolds;
 }

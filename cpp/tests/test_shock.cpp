@@ -208,7 +208,7 @@ TEST(friction_loads_are_the_borne_weight_up_to_a_ratio) {
   for (int m = 0; m < c.count.manifolds; ++m) CHECK(c.solver_row[m].friction_load == 0.0);
   c.solver_row[0].friction_load = 1.0;  // as an earlier step left a carried row
   c.count.friction_loaded = 1;
-  friction_loads(w.model, c, c.count.shock_count, rbsim::test::substep(w));
+  friction_loads(w.model, w.state, c, c.count.shock_count, rbsim::test::substep(w));
   CHECK(c.solver_row[0].friction_load == 0.0 && c.count.friction_loaded == 0);
 }
 

@@ -256,6 +256,10 @@ struct Contacts {
   std::vector<std::int8_t> support;         // (M,) 1: a point within SUPPORT_GAP (manifold.cpp)
   std::vector<std::int8_t> prev_support;    // (M,) last step's, as prev_key
   std::vector<double> body_load;            // (N,) kg each body bears (while heavy_on_light)
+  // (N,) 1: a moving kinematic body, or a dynamic one that rests on a carried body
+  // (friction_loads, while heavy_on_light; the shock pass's friction may bring a body up
+  // to a carried supporter's speed)
+  std::vector<std::int8_t> body_carried;
   std::vector<std::int8_t> shock_side;      // (M,)
   std::vector<std::int32_t> shock_order;    // (M,)
   std::vector<std::int32_t> solve_order;    // (M,) the order of the solver's passes
@@ -375,6 +379,7 @@ bool Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   reset(vert_world, v); reset(norm_world, v); reset(shape_margin, s); reset(shape_turn, s);
   shape_size.assign(s, 1.0); shape_scale.assign(s, 1.0); body_scale.assign(n, 1.0);
   reset(body_level, n); reset(support, m); reset(prev_support, m); reset(body_load, n);
+  reset(body_carried, n);
   reset(shock_side, m);
   reset(shock_order, m); reset(solve_order, m);
   reset(adj_start, n + 1); reset(adj, 2 * m); reset(queue, n + 2);

@@ -181,7 +181,8 @@ std::int64_t support_order(const Model<D>& model, Contacts<D>& contacts);
 // a heavy body's support carries through the shock pass, per substep h (s); after
 // support_order, whose shock order (n_order manifolds) and borne loads it reads.
 template <int D>
-void friction_loads(const Model<D>& model, Contacts<D>& contacts, std::int64_t n_order, double h);
+void friction_loads(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
+                    std::int64_t n_order, double h);
 // solver/shock.cpp, after the step of a run that records its contact points
 // (contacts.record_impulses): the shock pass pushed each supported body off a supporter
 // held still, so the supporter's reaction went into no contact; it is handed down the

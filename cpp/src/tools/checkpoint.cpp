@@ -59,7 +59,8 @@ void visit(W& w, F&& f) {
   // not c.impulses_in_lanes: false between steps, the store holding the impulses, and the
   // batches' copies taken anew by the next step's passes; not c.step_impulse,
   // c.shock_impulse, c.shock_points and c.record_impulses: a step's own, set to zero at its
-  // start, and the run's setting)
+  // start, and the run's setting; not c.body_carried: made anew by each step's
+  // friction_loads before the shock pass reads it)
 }
 
 constexpr std::size_t VEC = sizeof(std::vector<int>);
@@ -69,9 +70,9 @@ static_assert(sizeof(Grid<2>) == 8 + 16 * VEC + 3 * sizeof(Vec2) + sizeof(GridMe
               "Grid changed: update visit()");
 static_assert(sizeof(Grid<3>) == 8 + 16 * VEC + 3 * sizeof(Vec3) + sizeof(GridMeta<3>),
               "Grid changed: update visit()");
-static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 90 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 91 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
-static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 90 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 91 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
 
 template <class T>
@@ -217,6 +218,7 @@ void load_checkpoint(World<D>& world, const std::uint8_t* data, std::size_t size
   c.step_impulse.assign(room, {});
   c.shock_impulse.assign(room, 0.0);
   c.shock_points.assign(room, 0);
+  c.body_carried.assign(c.body_load.size(), 0);
   c.record_impulses = world.contacts.record_impulses;
   world = std::move(copy);
 }
