@@ -256,10 +256,11 @@ struct Contacts {
   std::vector<std::int8_t> support;         // (M,) 1: a point within SUPPORT_GAP (manifold.cpp)
   std::vector<std::int8_t> prev_support;    // (M,) last step's, as prev_key
   std::vector<double> body_load;            // (N,) kg each body bears (while heavy_on_light)
-  // (N,) 1: a moving kinematic body, or a dynamic one that rests on a carried body
-  // (friction_loads, while heavy_on_light; the shock pass's friction may bring a body up
-  // to a carried supporter's speed)
-  std::vector<std::int8_t> body_carried;
+  // (N,) the moving kinematic body that carries each body: itself for a moving kinematic
+  // body, its supporter's carrier for a dynamic one resting on a carried body, else -1
+  // (friction_loads, while heavy_on_light; the shock pass's friction may bring a body on
+  // a carried supporter up to the carrier's speed)
+  std::vector<std::int32_t> body_carried;
   std::vector<std::int8_t> shock_side;      // (M,)
   std::vector<std::int32_t> shock_order;    // (M,)
   std::vector<std::int32_t> solve_order;    // (M,) the order of the solver's passes

@@ -240,6 +240,20 @@ inline double shock_friction_share(const Model<D>& model, const Contacts<D>& c, 
   return ratio > C::FRICTION_LOAD_RATIO ? 1.0 - C::FRICTION_LOAD_RATIO / ratio : 0.0;
 }
 
+// The largest speed (m/s) the shock pass's friction may give a supported body's point at
+// p (m) in the tangent plane of normal n: its own speed there (`own`, m/s, its velocity
+// along the plane), or, on a supporter that a moving kinematic body carries
+// (body_carried: -1 none), that body's speed at p along the plane, if larger.
+template <int D>
+inline double reach_speed(const State<D>& st, const Contacts<D>& c, int supporter,
+                          typename Dim<D>::Vec p, typename Dim<D>::Vec n, double own) {
+  const std::int32_t k = c.body_carried[supporter];
+  if (k < 0) return own;
+  const auto vk = st.body_v[k] + cross(st.body_w[k], p - st.body_x[k]);  // m/s
+  const auto across = vk - dot(vk, n) * n;
+  return std::max(own, std::sqrt(dot(across, across)));
+}
+
 // The 3D pass: the supported body's approach taken out at a face's up to four points at
 // once (shock_block), the supporter held still; the body's v, L and ω changed
 // (add_momentum). Where no set of points is found, the points are taken one after the other
@@ -389,14 +403,22 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
           const double bound = row.friction * total * share, len = std::hypot(p1, p2);
           if (len > bound) p1 *= bound / len, p2 *= bound / len;
           // never faster in the tangent plane than u goes there (as in 2D): the change
-          // sgn K p of u's point scaled down until |own + change| <= |own|; but up to the
-          // speed of a supporter a moving kinematic body carries (body_carried)
+          // sgn K p of u's point scaled down until |own + change| <= |own|, or up to the
+          // speed of the moving kinematic body that carries the supporter (reach_speed)
           const Vec3 own = st.body_v[u] + cross(st.body_w[u], arm);  // m/s
           const double o1 = dot(own, row.t1), o2 = dot(own, row.t2);
           const double c1 = sgn * (k11 * p1 + k12 * p2), c2 = sgn * (k12 * p1 + k22 * p2);
           const double along = o1 * c1 + o2 * c2, change2 = c1 * c1 + c2 * c2;  // m²/s²
-          if (change2 > 0.0 && !c.body_carried[a_moves ? b : a]) {
-            const double scale = std::clamp(-2.0 * along / change2, 0.0, 1.0);
+          if (change2 > 0.0) {
+            double scale = std::clamp(-2.0 * along / change2, 0.0, 1.0);
+            if (c.body_carried[a_moves ? b : a] >= 0) {
+              const double own2 = o1 * o1 + o2 * o2;  // m²/s²
+              const double reach = reach_speed(st, c, a_moves ? b : a, st.body_x[u] + arm, n,
+                                               std::sqrt(own2));
+              // the largest scale in [0, 1] with |own + scale change|² <= reach²
+              const double room = std::max(along * along - change2 * (own2 - reach * reach), 0.0);
+              scale = std::clamp((-along + std::sqrt(room)) / change2, 0.0, 1.0);
+            }
             p1 *= scale, p2 *= scale;
           }
           st.body_v[u] += (sgn * mu) * (p1 * row.t1 + p2 * row.t2);
@@ -662,13 +684,13 @@ void friction_loads(const Model<D>& model, const State<D>& st, Contacts<D>& c, s
   for (std::int64_t i = 0; i < n_bodies; ++i) {
     const bool moving = model.body_type[i] == BodyType::Kinematic &&
                         !(all_zero(st.body_v[i]) && all_zero(st.body_w[i]));
-    c.body_carried[i] = moving ? 1 : 0;
+    c.body_carried[i] = moving ? static_cast<std::int32_t>(i) : -1;
   }
   for (std::int64_t o = 0; o < n_order; ++o) {
     const std::int32_t m = c.shock_order[o];
     if (!c.support[m]) continue;
     const auto [u, s] = support_of(c, m);
-    if (c.body_carried[s]) c.body_carried[u] = 1;
+    if (c.body_carried[s] >= 0 && c.body_carried[u] < 0) c.body_carried[u] = c.body_carried[s];
   }
 }
 
@@ -929,13 +951,21 @@ void propagate_shock_range(const Model<D>& model, State<D>& st, Contacts<D>& c,
         double f = std::clamp(-vt / kt, -bound, bound);  // N·s along t
         // never faster along t than u goes there (a light supporter's slip is not handed
         // on: followed, a 100 kg box on a 0.01 kg one took up the light box's rounding,
-        // grown step by step to mm/s); but a supporter that a moving kinematic body
-        // carries (body_carried) brings u up to its speed: a 10 t box on a 1 kg plate on a
-        // belt at 1 m/s, μ 0.3, rode 0.07 m in 3 s where it rides 2.8
+        // grown step by step to mm/s), but up to the speed of the moving kinematic body
+        // that carries the supporter (reach_speed): a 10 t box on a 1 kg plate on a belt at
+        // 1 m/s, μ 0.3, rode 0.07 m in 3 s where it rides 2.8 (and, with no bound, on
+        // three 1 kg plates, it sped up past the belt to 3 m/s)
         const double own = dot(v[u], t) + w[u] * rtu;  // m/s: u's point along t
         const double change = sgn * f * kt;           // m/s: what f does to it
-        if (change != 0.0 && !c.body_carried[a_moves ? b : a])
-          f *= std::clamp(-2.0 * own / change, 0.0, 1.0);
+        if (change != 0.0) {
+          const auto& anchor = a_moves ? c.anchor_a[m] : c.anchor_b[m];
+          const Vec arm = (1.0 / impulse) * (l0 * anchor[0] + l1 * anchor[npts == 2 ? 1 : 0]);  // m
+          const double reach = reach_speed(st, c, a_moves ? b : a, st.body_x[u] + arm, n,
+                                           std::fabs(own));
+          // the largest scale in [0, 1] with |own + scale change| <= reach
+          const double limit = change > 0.0 ? reach - own : -reach - own;  // m/s
+          f *= std::clamp(limit / change, 0.0, 1.0);
+        }
         v[u] += (sgn * mu * f) * t;
         w[u] += sgn * iu * f * rtu;
       }

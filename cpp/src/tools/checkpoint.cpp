@@ -218,7 +218,7 @@ void load_checkpoint(World<D>& world, const std::uint8_t* data, std::size_t size
   c.step_impulse.assign(room, {});
   c.shock_impulse.assign(room, 0.0);
   c.shock_points.assign(room, 0);
-  c.body_carried.assign(c.body_load.size(), 0);
+  c.body_carried.assign(c.body_load.size(), -1);
   c.record_impulses = world.contacts.record_impulses;
   world = std::move(copy);
 }
