@@ -493,8 +493,21 @@ void hand_down_shock_impulses(const Model<D>& model, Contacts<D>& c) {
   // many of its supports it goes (-1: not counted yet)
   std::vector<Vec> handed(n_bodies, Vec{});
   std::vector<int> sharing(n_bodies, -1);
+  // the shock order by its supporters' levels (the regions regrouped it, region by
+  // region, after the step's start): taken from the top, every load on a body is handed
+  // to it before its own supports are met
+  std::int64_t top = 0;
+  for (std::int64_t o = 0; o < n_order; ++o)
+    top = std::max(top, c.body_level[support_of(c, c.shock_order[o]).supporter]);
+  std::vector<std::int64_t> at(top + 2, 0);
+  for (std::int64_t o = 0; o < n_order; ++o)
+    at[c.body_level[support_of(c, c.shock_order[o]).supporter] + 1] += 1;
+  for (std::int64_t k = 0; k <= top; ++k) at[k + 1] += at[k];
+  std::vector<std::int32_t> by_level(n_order);
+  for (std::int64_t o = 0; o < n_order; ++o)
+    by_level[at[c.body_level[support_of(c, c.shock_order[o]).supporter]]++] = c.shock_order[o];
   for (std::int64_t o = n_order - 1; o >= 0; --o) {
-    const std::int32_t m = c.shock_order[o];
+    const std::int32_t m = by_level[o];
     const auto [u, s] = support_of(c, m);
     const Vec push = push_of(m, u);
     double portion = 0.0;  // N·s: m's share of what u hands down, along m's normal
