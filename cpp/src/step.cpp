@@ -8,7 +8,9 @@
 //       -> integrate_positions
 //       -> relax (-> extra relax passes near a deep overlap) -> restitution -> shock
 //       (-> the points' step impulses, for a run that records its contact points)]
-//   -> limit_dynamic_overlap -> limit_static_overlap -> store_impulses
+//   -> limit_dynamic_overlap -> limit_static_overlap
+//   (-> hand_down_shock_impulses, for a run that records its contact points)
+//   -> store_impulses
 //
 // A scene without contacts possible skips the contact stages; one without forces skips
 // their evaluation (integrate.cpp).

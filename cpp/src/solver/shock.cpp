@@ -518,7 +518,8 @@ void hand_down_shock_impulses(const Model<D>& model, Contacts<D>& c) {
           sharing[u] += dot(handed[u], push_of(rows[r], u)) < 0.0 ? 1 : 0;
       }
       const double along = -dot(handed[u], push);  // N·s
-      if (along > 0.0) portion = along / static_cast<double>(sharing[u]);
+      // (m is among the supports counted whenever along > 0: the same product)
+      if (along > 0.0 && sharing[u] > 0) portion = along / static_cast<double>(sharing[u]);
     }
     if (portion > 0.0) {
       // over the points that pushed, by what each carried (evenly where none did)

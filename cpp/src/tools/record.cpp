@@ -81,7 +81,8 @@ std::int64_t record_contacts(const World<D>& world, const ContactRows<D>& rows) 
   if (count > rows.capacity) return count;
   // 1/s: the step's impulse over the step (its mean force), where the step kept it
   // (Contacts::record_impulses), else the last substep's over the substep
-  const double inv_h = c.record_impulses ? 1.0 / world.config.dt : world.config.substeps / world.config.dt;
+  const double per_time = c.record_impulses ? 1.0 / world.config.dt  // 1/s
+                                            : world.config.substeps / world.config.dt;
   std::int64_t r = 0;
   for (std::int64_t i = 0; i < m; ++i) {
     const int a = c.body_a[i], b = c.body_b[i];
@@ -101,7 +102,7 @@ std::int64_t record_contacts(const World<D>& world, const ContactRows<D>& rows) 
       if (rows.position) put(rows.position + D * r, 0.5 * (pa + pb));
       if (rows.normal) put(rows.normal + D * r, n);
       if (rows.force)
-        rows.force[r] = (c.record_impulses ? c.step_impulse[i][k] : c.normal_impulse[i][k]) * inv_h;
+        rows.force[r] = (c.record_impulses ? c.step_impulse[i][k] : c.normal_impulse[i][k]) * per_time;
       ++r;
     }
   }
