@@ -38,6 +38,12 @@ def scene_from(text: str, overrides: tuple[str, ...] = ()) -> Scene:
     return load_scene_text(textwrap.dedent(text), "inline.yaml", overrides)
 
 
+def vector(dimension: int, *xyz: float) -> str:
+    """A scene's vector of `dimension` components, the first of xyz, as YAML: one
+    builder writes a scene in 2D and 3D (x, y in 2D; x, y, z in 3D)."""
+    return "[" + ", ".join(str(v) for v in xyz[:dimension]) + "]"
+
+
 @pytest.fixture
 def run_text(tmp_path: Path):
     """Run an inline scene with rbsim and return its loaded trajectory."""

@@ -13,6 +13,8 @@ from rbsim.run import resume_run, run_scene
 from rbsim.scene import load_scene, load_scene_text
 from rbsim.scene.library import scenes_dir
 
+from .conftest import vector
+
 G = 9.81  # m/s², the default gravity's magnitude
 
 BOX_ON_PLANE = """
@@ -140,16 +142,13 @@ bodies:
 {bodies}"""
 
 
-def at(dimension: int, *xyz: float) -> str:
-    return "[" + ", ".join(str(v) for v in xyz[:dimension]) + "]"
-
-
 @pytest.mark.parametrize("dimension", [2, 3])
 def test_a_bounce_records_the_mean_force_of_its_step(dimension: int) -> None:
     # the restitution stage's impulse is the point's force in the step of the impact:
     # its step's recorded force times dt is the ball's change of momentum (with gravity's)
     shape = "{sphere: {radius: 0.1}}" if dimension == 3 else "{circle: {radius: 0.1}}"
-    ball = f"  - {{name: ball, position: {at(dimension, 0, 1, 0)}, material: m, shape: {shape}}}"
+    at = vector(dimension, 0, 1, 0)
+    ball = f"  - {{name: ball, position: {at}, material: m, shape: {shape}}}"
     tr = rbsim.run(frictionless(dimension, ball, e=0.5))
     i = tr.body("ball")
     vy = tr.velocity[:, i, 1]
@@ -168,13 +167,13 @@ def test_a_heavy_box_on_a_light_plate_records_every_push(dimension: int) -> None
     # the shock pass stops the 100 kg box on the 1 kg plate as if the plate were held
     # still: its pushes are the box's contact forces, and the plate's reaction goes on
     # into the ground's contacts, so every body's forces add up (round-off)
-    plate = at(dimension, 1, 0.1, 1)
-    box = at(dimension, 0.5, 0.5, 0.5)
+    plate = vector(dimension, 1, 0.1, 1)
+    box = vector(dimension, 0.5, 0.5, 0.5)
     bodies = (
-        f"  - {{name: plate, position: {at(dimension, 0, 0.05, 0)}, material: m, mass: 1,"
+        f"  - {{name: plate, position: {vector(dimension, 0, 0.05, 0)}, material: m, mass: 1,"
         f" shape: {{box: {{size: {plate}}}}}}}\n"
-        f"  - {{name: box, position: {at(dimension, 0, 0.6, 0)},"
-        f" velocity: {at(dimension, 0, -2, 0)}, material: m, mass: 100,"
+        f"  - {{name: box, position: {vector(dimension, 0, 0.6, 0)},"
+        f" velocity: {vector(dimension, 0, -2, 0)}, material: m, mass: 100,"
         f" shape: {{box: {{size: {box}}}}}}}\n"
     )
     for e in (0.0, 0.5):
@@ -189,8 +188,8 @@ def test_a_landing_stack_records_the_loads_that_hold_it(dimension: int) -> None:
     # 1e-3 of a weight: the landing's normals are a hair off vertical (8e-4 measured in
     # 2D, 5e-5 in 3D), which moves the boxes sideways by a push not recorded as normal
     stack = "".join(
-        f"  - {{name: b{i}, position: {at(dimension, 0, 0.25 + 0.51 * i, 0)}, material: m,"
-        f" shape: {{box: {{size: {at(dimension, 0.5, 0.5, 0.5)}}}}}}}\n"
+        f"  - {{name: b{i}, position: {vector(dimension, 0, 0.25 + 0.51 * i, 0)}, material: m,"
+        f" shape: {{box: {{size: {vector(dimension, 0.5, 0.5, 0.5)}}}}}}}\n"
         for i in range(5)
     )
     tr = rbsim.run(frictionless(dimension, stack, duration=2.0))
@@ -208,9 +207,9 @@ def test_a_landing_stack_records_the_loads_that_hold_it(dimension: int) -> None:
 def test_recording_a_heavy_landing_changes_nothing_in_the_run(dimension: int) -> None:
     # the step impulses are read from the solver (in 2D handed back from its batches
     # each substep): the frames are those of a run that records nothing
-    cube = at(dimension, 0.5, 0.5, 0.5)
+    cube = vector(dimension, 0.5, 0.5, 0.5)
     stack = "".join(
-        f"  - {{name: b{i}, position: {at(dimension, 0.03 * i, 0.25 + 0.51 * i, 0)},"
+        f"  - {{name: b{i}, position: {vector(dimension, 0.03 * i, 0.25 + 0.51 * i, 0)},"
         f" material: m, mass: {10 ** (i % 3)}, shape: {{box: {{size: {cube}}}}}}}\n"
         for i in range(5)
     )

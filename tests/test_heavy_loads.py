@@ -6,12 +6,15 @@ however it approaches)."""
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 import pytest
 
 import rbsim
+
+from .conftest import vector
 
 PLATE_2D = """
 version: 1
@@ -122,10 +125,8 @@ def sliding_stack(
     for k, (mass, height) in enumerate(zip(masses, heights, strict=True)):
         width = height if k == len(masses) - 1 else 1.0
         y += 0.5 * height
-        if dimension == 2:
-            pos, vel, size = f"[0, {y}]", f"[{speed}, 0]", f"[{width}, {height}]"
-        else:
-            pos, vel, size = f"[0, {y}, 0]", f"[{speed}, 0, 0]", f"[{width}, {height}, {width}]"
+        pos, vel = vector(dimension, 0, y, 0), vector(dimension, speed, 0, 0)
+        size = vector(dimension, width, height, width)
         lines.append(
             f"  - {{name: b{k}, material: m, position: {pos}, velocity: {vel}, mass: {mass},"
             f" shape: {{box: {{size: {size}}}}}}}"
@@ -295,24 +296,19 @@ def test_a_light_plate_between_two_heavy_boxes_passes_the_friction_on(dimension:
 
 def on_a_belt(dimension: int, box: float) -> str:
     """A `box` kg cube on a 1 kg plate on a kinematic belt at 1 m/s, μ 0.3, for 3 s."""
-    if dimension == 2:
-        belt, plate, cube = "[20, 0.2]", "[1, 0.04]", "[1, 1]"
-        x = lambda y: f"[0, {y}]"  # noqa: E731 - a position at height y
-        moving = "[1, 0]"
-    else:
-        belt, plate, cube = "[20, 0.2, 4]", "[1, 0.04, 1]", "[1, 1, 1]"
-        x = lambda y: f"[0, {y}, 0]"  # noqa: E731
-        moving = "[1, 0, 0]"
+    v = functools.partial(vector, dimension)
     return f"""
 version: 1
 world: {{dimension: {dimension}, dt: 1/60, duration: 3}}
 materials:
   m: {{density: 1000, friction: 0.3, restitution: 0.0}}
 bodies:
-  - {{name: belt, type: kinematic, material: m, position: {x(0.1)}, velocity: {moving},
-      shape: {{box: {{size: {belt}}}}}}}
-  - {{name: plate, material: m, position: {x(0.22)}, mass: 1, shape: {{box: {{size: {plate}}}}}}}
-  - {{name: box, material: m, position: {x(0.74)}, mass: {box}, shape: {{box: {{size: {cube}}}}}}}
+  - {{name: belt, type: kinematic, material: m, position: {v(0, 0.1, 0)}, velocity: {v(1, 0, 0)},
+      shape: {{box: {{size: {v(20, 0.2, 4)}}}}}}}
+  - {{name: plate, material: m, position: {v(0, 0.22, 0)}, mass: 1,
+      shape: {{box: {{size: {v(1, 0.04, 1)}}}}}}}
+  - {{name: box, material: m, position: {v(0, 0.74, 0)}, mass: {box},
+      shape: {{box: {{size: {v(1, 1, 1)}}}}}}}
 """
 
 
@@ -335,22 +331,20 @@ def test_a_heavy_box_on_a_light_plate_rides_a_belt(dimension: int, box: float):
 def on_three_plates(dimension: int) -> str:
     """A 10 t crate on three stacked 1 kg plates that grip one another (μ 1000, the pairs'
     least friction taken) on a belt at 1 m/s (μ 0.3), for 6 s."""
-    at = (lambda y: f"[0, {y}]") if dimension == 2 else (lambda y: f"[0, {y}, 0]")  # noqa: E731
-    size = (lambda x, y: f"[{x}, {y}]") if dimension == 2 else (lambda x, y: f"[{x}, {y}, {x}]")  # noqa: E731
+    v = functools.partial(vector, dimension)
     plates = "".join(
-        f"  - {{name: p{k}, friction: 1000, mass: 1, position: {at(0.025 + 0.05 * k)},"
-        f" shape: {{box: {{size: {size(1.0, 0.05)}}}}}}}\n"
+        f"  - {{name: p{k}, friction: 1000, mass: 1, position: {v(0, 0.025 + 0.05 * k, 0)},"
+        f" shape: {{box: {{size: {v(1.0, 0.05, 1.0)}}}}}}}\n"
         for k in range(3)
     )
-    moving = "[1, 0]" if dimension == 2 else "[1, 0, 0]"
     return f"""
 version: 1
 world: {{dimension: {dimension}, dt: 1/60, duration: 6, mixing: {{friction: min}}}}
 bodies:
-  - {{name: belt, type: kinematic, friction: 0.3, velocity: {moving}, position: {at(-0.1)},
-      shape: {{box: {{size: {size(200, 0.2)}}}}}}}
-{plates}  - {{name: crate, friction: 0.3, mass: 10000, position: {at(0.55)},
-      shape: {{box: {{size: {size(0.8, 0.8)}}}}}}}
+  - {{name: belt, type: kinematic, friction: 0.3, velocity: {v(1, 0, 0)}, position: {v(0, -0.1, 0)},
+      shape: {{box: {{size: {v(200, 0.2, 200)}}}}}}}
+{plates}  - {{name: crate, friction: 0.3, mass: 10000, position: {v(0, 0.55, 0)},
+      shape: {{box: {{size: {v(0.8, 0.8, 0.8)}}}}}}}
 """
 
 

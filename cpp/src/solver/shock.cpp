@@ -972,10 +972,12 @@ void propagate_shock_range(const Model<D>& model, State<D>& st, Contacts<D>& c,
         const double own = dot(v[u], t) + w[u] * rtu;  // m/s: u's point along t
         const double change = sgn * f * kt;           // m/s: what f does to it
         if (change != 0.0) {
-          const auto& anchor = a_moves ? c.anchor_a[m] : c.anchor_b[m];
-          const Vec arm = (1.0 / impulse) * (l0 * anchor[0] + l1 * anchor[npts == 2 ? 1 : 0]);  // m
-          const double reach = reach_speed(st, c, a_moves ? b : a, st.body_x[u] + arm, n,
-                                           std::fabs(own));
+          double reach = std::fabs(own);  // m/s
+          if (c.body_carried[a_moves ? b : a] >= 0) {  // (the points' centre, by their pushes)
+            const auto& anchor = a_moves ? c.anchor_a[m] : c.anchor_b[m];
+            const Vec arm = (1.0 / impulse) * (l0 * anchor[0] + l1 * anchor[npts == 2 ? 1 : 0]);
+            reach = reach_speed(st, c, a_moves ? b : a, st.body_x[u] + arm, n, reach);
+          }
           // the largest scale in [0, 1] with |own + scale change| <= reach
           const double limit = change > 0.0 ? reach - own : -reach - own;  // m/s
           f *= std::clamp(limit / change, 0.0, 1.0);
