@@ -411,8 +411,8 @@ OUTPUT = Key(
         "contacts": Key(
             "enum",
             "Contact points in every frame: none, or points (each point that pushed in "
-            "the step: its bodies, world position, normal and normal force; rbsim's "
-            "engine only).",
+            "the step: its bodies, world position, normal and mean normal force over the "
+            "step; rbsim's engine only).",
             "none",
             choices=("none", "points"),
         ),

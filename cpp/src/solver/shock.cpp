@@ -471,23 +471,22 @@ void hand_down_shock_impulses(const Model<D>& model, Contacts<D>& c) {
   using Vec = typename Dim<D>::Vec;
   const std::int64_t n_order = c.count.shock_count;
   const std::int64_t n_bodies = model.body_count();
-  // a support whose points pushed (those recorded: pushed_in_step)
-  auto pushed = [&](std::int32_t m) {
-    for (int k = 0; k < c.points[m]; ++k)
-      if (pushed_in_step(c, m, k)) return true;
-    return false;
-  };
+  // the supports whose points pushed (those recorded: pushed_in_step), by shock order
+  std::vector<std::uint8_t> pushed(n_order, 0);
+  for (std::int64_t o = 0; o < n_order; ++o)
+    for (int k = 0, m = c.shock_order[o]; k < c.points[m] && !pushed[o]; ++k)
+      pushed[o] = pushed_in_step(c, m, k) ? 1 : 0;
   // the direction (unit) in which manifold m pushes its supported body u
   auto push_of = [&](std::int32_t m, int u) { return u == c.body_a[m] ? c.normal[m] : -c.normal[m]; };
   // each body's supports that pushed, as compressed rows (first[u] .. first[u + 1])
   std::vector<std::int64_t> first(n_bodies + 1, 0);
   std::vector<std::int32_t> rows(n_order);
   for (std::int64_t o = 0; o < n_order; ++o)
-    if (pushed(c.shock_order[o])) first[support_of(c, c.shock_order[o]).supported + 1] += 1;
+    if (pushed[o]) first[support_of(c, c.shock_order[o]).supported + 1] += 1;
   for (std::int64_t i = 0; i < n_bodies; ++i) first[i + 1] += first[i];
   std::vector<std::int64_t> fill(first.begin(), first.end() - 1);
   for (std::int64_t o = 0; o < n_order; ++o)
-    if (pushed(c.shock_order[o]))
+    if (pushed[o])
       rows[fill[support_of(c, c.shock_order[o]).supported]++] = c.shock_order[o];
   // what each body is pushed with from above (N·s) and not yet handed on, and over how
   // many of its supports it goes (-1: not counted yet)
@@ -503,15 +502,16 @@ void hand_down_shock_impulses(const Model<D>& model, Contacts<D>& c) {
   for (std::int64_t o = 0; o < n_order; ++o)
     at[c.body_level[support_of(c, c.shock_order[o]).supporter] + 1] += 1;
   for (std::int64_t k = 0; k <= top; ++k) at[k + 1] += at[k];
-  std::vector<std::int32_t> by_level(n_order);
+  std::vector<std::int64_t> by_level(n_order);  // (places in the shock order)
   for (std::int64_t o = 0; o < n_order; ++o)
-    by_level[at[c.body_level[support_of(c, c.shock_order[o]).supporter]]++] = c.shock_order[o];
-  for (std::int64_t o = n_order - 1; o >= 0; --o) {
-    const std::int32_t m = by_level[o];
+    by_level[at[c.body_level[support_of(c, c.shock_order[o]).supporter]]++] = o;
+  for (std::int64_t j = n_order - 1; j >= 0; --j) {
+    const std::int64_t o = by_level[j];
+    const std::int32_t m = c.shock_order[o];
     const auto [u, s] = support_of(c, m);
     const Vec push = push_of(m, u);
     double portion = 0.0;  // N·s: m's share of what u hands down, along m's normal
-    if (pushed(m)) {
+    if (pushed[o]) {
       if (sharing[u] < 0) {  // the supports that can take part of it: it presses on them
         sharing[u] = 0;
         for (std::int64_t r = first[u]; r < first[u + 1]; ++r)
