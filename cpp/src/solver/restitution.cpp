@@ -189,12 +189,25 @@ double projected_gap(const Model<D>& model, const State<D>& st, const Contacts<D
 // door at 4 substeps of 1/60 s), and taken there its bounce turned it back in mid-air.
 // With explicit Euler the positions move before the next solve could push: impacts are
 // taken at once there too.
+//
+// where_met() is the part that asks where the bodies are, for a point approaching now
+// whether or not it engaged as an impact.
+template <int D>
+Impact where_met(const Model<D>& model, const State<D>& st, const Contacts<D>& c, std::int64_t m,
+               int k, int a, int b, typename Dim<D>::Vec n, double h, bool explicit_euler);
+
 template <int D>
 Impact impact_state(const Model<D>& model, const State<D>& st, const Contacts<D>& c,
                     std::int64_t m, int k, int a, int b, typename Dim<D>::Vec n,
                     double threshold, double h, bool explicit_euler) {
   if (c.approach_velocity[m][k] >= -threshold || c.max_normal_impulse[m][k] == 0.0)
     return Impact::None;
+  return where_met(model, st, c, m, k, a, b, n, h, explicit_euler);
+}
+
+template <int D>
+Impact where_met(const Model<D>& model, const State<D>& st, const Contacts<D>& c, std::int64_t m,
+               int k, int a, int b, typename Dim<D>::Vec n, double h, bool explicit_euler) {
   if (explicit_euler) return Impact::Due;
   const double s_now = point_separation(c, m, k, a, b, n);
   const double tol = c.scale[m] * C::IMPACT_GAP;  // m: how close counts as met
@@ -753,9 +766,12 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
         const double vn = normal_velocity(st, a, b, c.anchor_a[m][k], c.anchor_b[m][k], n);
         if (vn >= 0.0) continue;
         const bool first = c.approach_velocity[m][k] < -slow;
-        if (first &&
-            impact_state(model, st, c, m, k, a, b, n, slow, h, explicit_euler) == Impact::Waiting)
-          continue;  // not met yet
+        // not met yet: an impact that engaged at a gap, or a point the solve pushed only
+        // to close a gap (a capsule flying end first at a wall has a point at each end;
+        // bounced there, its far end's turned it back 1.4 m short of the wall)
+        if ((first || vn < -slow) &&
+            where_met(model, st, c, m, k, a, b, n, h, explicit_euler) == Impact::Waiting)
+          continue;
         double target = 0.0, alone = 0.0, work = 0.0;
         if (first || vn < -slow) {
           const double s_now = point_separation(c, m, k, a, b, n);
