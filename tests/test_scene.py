@@ -340,6 +340,36 @@ def test_duplicate_body_names():
     assert "(already used by bodies[0] at line 3)" in message
 
 
+def test_names_with_control_characters_are_invalid():
+    # a NUL in a body's name passed validate and failed the run in h5py, whose strings
+    # hold none (a traceback, exit 1)
+    text = """\
+    version: 1
+    bodies:
+      - {name: "a\\u0000b", shape: {circle: {radius: 1}}}
+    """
+    message = errors(text)
+    assert "test.yaml:3:12: bodies[0].name: 'a\\x00b' holds a control character" in message
+    assert "holds a control character" in errors(text.replace("a\\u0000b", "tab\\there"))
+
+
+@pytest.mark.parametrize("name", ["../../escaped", "/tmp/abs", "a\\\\b", "..", "."])
+def test_a_scene_name_that_is_no_file_name_is_invalid(name):
+    # the outputs are named after the scene: `run` wrote out/../../escaped.h5, and
+    # `compare` overwrote a file outside its folder
+    text = f"""\
+    version: 1
+    name: {json.dumps(name)}
+    bodies:
+      - {{name: a, shape: {{circle: {{radius: 1}}}}}}
+    """
+    assert "test.yaml:2:7: name: " in errors(text)
+    assert "is not a file name" in errors(text)
+    # a name with dots and spaces names files as it is
+    ok = load_scene_text(textwrap.dedent(text).replace(json.dumps(name), '"my run v1.2"'), "t.yaml")
+    assert ok.name == "my run v1.2"
+
+
 # --- generators ---------------------------------------------------------------------------
 
 

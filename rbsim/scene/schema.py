@@ -53,10 +53,11 @@ INVALID: Any = _Invalid()  # stands for a value that failed its check (already r
 class Key:
     """One key of the format.
 
-    kind: number | integer | string | enum | fraction (a number or "a/b") | vec2, vec3
-        (two, three numbers) | quat (four numbers w, x, y, z) | int2, int3 (two, three
-        integers) | points, points3 (a list of vec2, vec3) | object (fixed keys) |
-        map_of (names -> item) | list_of (items) | entry (a body or a one-key generator).
+    kind: number | integer | string | file_name (a string that names files) | enum |
+        fraction (a number or "a/b") | vec2, vec3 (two, three numbers) | quat (four
+        numbers w, x, y, z) | int2, int3 (two, three integers) | points, points3 (a list
+        of vec2, vec3) | object (fixed keys) | map_of (names -> item) | list_of (items) |
+        entry (a body or a one-key generator).
     gt, ge, le: bounds on numbers (for vectors and points: on every component); within:
         |x| <= within (the same, for a bound symmetric about 0).
     fields: an object's keys. exactly_one / at_most_one: groups of an object's keys.
@@ -496,7 +497,11 @@ SCENE = Key(
     "An rbsim scene, format version 1.",
     fields={
         "version": Key("integer", "Scene format version.", REQUIRED, choices=(SCENE_VERSION,)),
-        "name": Key("string", "Scene name; default: the file name without extension."),
+        "name": Key(
+            "file_name",
+            "Scene name, which names its output files (no / or \\); default: the file name "
+            "without extension.",
+        ),
         "world": WORLD,
         "solver": SOLVER,
         "output": OUTPUT,
@@ -1012,6 +1017,18 @@ class Checker:
             return self.error(mark, path, f"expected a string, got {describe(value)}")
         if not value.strip():
             return self.error(mark, path, "must not be empty")
+        # (names go into the trajectory's HDF5 strings, which hold no NUL, and to terminals)
+        if any(ord(ch) < 32 or ord(ch) == 127 for ch in value):
+            return self.error(mark, path, f"{value!r} holds a control character (such as NUL)")
+        return value
+
+    def _file_name(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
+        value = self._string(value, key, path, mark)
+        if value is INVALID:
+            return value
+        if "/" in value or "\\" in value or value.strip() in (".", ".."):
+            message = f"{value!r} is not a file name (the outputs are named after it): no / or \\"
+            return self.error(mark, path, message + ", and not . or ..")
         return value
 
     def _selection(self, value: Any, key: Key, path: Path, mark: Mark) -> Any:
@@ -1356,7 +1373,9 @@ def _json_body(key: Key, defs: dict[str, Any]) -> dict[str, Any]:
         if key.choices:
             out["enum"] = list(key.choices)
     elif kind == "string":
-        out |= {"type": "string", "minLength": 1}
+        out |= {"type": "string", "minLength": 1, "pattern": "^[^\\u0000-\\u001f\\u007f]+$"}
+    elif kind == "file_name":
+        out |= {"type": "string", "pattern": "^(?!\\.{1,2}$)[^/\\\\\\u0000-\\u001f\\u007f]+$"}
     elif kind == "enum":
         out |= {"type": "string", "enum": list(key.choices)}
     elif kind == "selection":
