@@ -34,6 +34,7 @@ from .io.trajectory import (
     TRAJECTORY_ID,
     BodyTable,
     FixedBodies,
+    LayoutStopped,
     Trajectory,
     TrajectoryError,
     TrajectoryWriter,
@@ -97,7 +98,13 @@ class WriteFailed(OSError):
         status = "status failed" if self.marked else "its status could not be updated"
         if self.frames == 0:
             return f"nothing was kept: the file holds no frame ({status})"
-        return f"the file keeps {_frames(self.frames)} ({status})"
+        # a checkpoint is made at the flushes, the first about a second into the run
+        then = (
+            "rbsim run --resume finishes it"
+            if os.path.exists(self.path + CHECKPOINT_SUFFIX)
+            else "no checkpoint was made yet: run it again"
+        )
+        return f"the file keeps {_frames(self.frames)} ({status}); once there is room, {then}"
 
     def __str__(self) -> str:
         return f"cannot write {self.path}: {self.strerror}; {self.kept()}"
@@ -564,7 +571,13 @@ def _loop(
                     status=status,
                     checkpoint=checkpoint,
                     keep_sidecar=keep_sidecar,
+                    # a complete run's compression (seconds for a large file) stops at a
+                    # signal, its frames kept uncompressed to resume (an interrupted
+                    # run's final layout holds its checkpoint: it is written whole)
+                    stop=interrupts.pending if status == "complete" else None,
                 )
+            except LayoutStopped:
+                raise RunInterrupted(str(out), writer.frames_written, last_step) from None
             except OSError as err:  # the last frames or the final layout
                 failed = f"failed: {system_reason(err)}"
                 marked = writer.abandon(failed)

@@ -13,6 +13,7 @@ import random
 import shutil
 import signal
 import subprocess
+import sys
 import textwrap
 import time
 from pathlib import Path
@@ -33,7 +34,7 @@ from rbsim.io.trajectory import (
     summarize,
     write_checkpoint,
 )
-from rbsim.run import frame_steps, resume_run, run_scene
+from rbsim.run import RunInterrupted, frame_steps, resume_run, run_scene
 
 from .conftest import PYTHON, rbsim, scene_from
 
@@ -339,6 +340,54 @@ def test_compressed_files_hold_the_same_frames(tmp_path, compression: str) -> No
     assert "complete" in summarize(path)
 
 
+def test_a_signal_during_the_final_compression_stops_it_and_the_run_resumes(
+    tmp_path, monkeypatch
+) -> None:
+    # Ctrl-C in the seconds a large gzip file takes to lay out at close was held until
+    # the layout ended: the run then said "complete" and exited 0. It now stops there,
+    # the frames kept as the run wrote them, and --resume finishes the file
+    gzip = ("output.compression=gzip",)
+    scene = scene_from(PILE, gzip)
+    ref = tmp_path / "ref.h5"
+    run_scene(scene, ref)
+    close = TrajectoryWriter.close
+
+    def signalled_close(self, **kwargs):
+        if kwargs.get("status") == "complete":  # the run's own handler counts it
+            os.kill(os.getpid(), signal.SIGINT)
+        return close(self, **kwargs)
+
+    monkeypatch.setattr(TrajectoryWriter, "close", signalled_close)
+    out = tmp_path / "stopped.h5"
+    with pytest.raises(RunInterrupted):
+        run_scene(scene, out, overrides=gzip, flush_seconds=0.0)  # (a checkpoint each flush)
+    monkeypatch.undo()
+    assert "interrupted" in summarize(out)
+    position = "particles/bodies/position/value"
+    with h5py.File(out, "r") as f:
+        assert f[position].compression is None  # as laid out during the run
+    assert same_frames(load_trajectory(ref), load_trajectory(out), len(load_trajectory(ref).step))
+    resume_run(out)
+    assert "complete" in summarize(out)
+    with h5py.File(out, "r") as f:
+        assert f[position].compression == "gzip"
+    a, b = load_trajectory(ref), load_trajectory(out)
+    assert len(b.step) == len(a.step) and same_frames(a, b, len(a.step))
+
+
+def test_a_dead_writers_layout_file_is_removed_by_the_next_run_at_its_path(tmp_path) -> None:
+    # kill -9 while a file is laid out anew (its compression at close) left OUT.h5.tmp-PID,
+    # tens of MB that nothing removed; a live process's is left alone
+    child = subprocess.Popen([sys.executable, "-c", "pass"])
+    child.wait()
+    out = tmp_path / "pile.h5"
+    dead, live = Path(f"{out}.tmp-{child.pid}"), Path(f"{out}.tmp-{os.getppid()}")
+    dead.write_bytes(b"x" * 100)
+    live.write_bytes(b"y")
+    run_scene(scene_from(PILE), out)
+    assert not dead.exists() and live.exists()
+
+
 def test_a_subset_of_bodies_keeps_their_rows_and_stores_the_rest_once(tmp_path) -> None:
     full, _ = run_pile(tmp_path, "all")
     some, path = run_pile(tmp_path, "some", "output.bodies=[ball, 'pyramid[0,*]']")
@@ -445,6 +494,11 @@ def test_a_write_error_mid_run_keeps_the_frames_flushed_and_exits_1(tmp_path, mo
         assert "particles/bodies/position/value" in f
     kept = load_trajectory(out)
     assert 0 < len(kept.step) < frame_steps(300, 1)
+    # what to do once there is room: resume where a checkpoint was made (the first comes
+    # about a second in), else run again (the message said resume where none existed)
+    resumable = Path(f"{out}{CHECKPOINT_SUFFIX}").exists()
+    assert ("rbsim run --resume finishes it" in err) == resumable
+    assert ("no checkpoint was made yet: run it again" in err) != resumable
 
 
 def test_an_unwritable_folder_is_a_clear_message(tmp_path) -> None:

@@ -84,6 +84,7 @@ __all__ = [
 
 H5MD_VERSION = (1, 1)
 STATUS_RUNNING = "running"
+STATUS_INTERRUPTED = "interrupted"
 
 # Per-body time series: name -> (components per body, unit). 0 components = (T,N).
 BODY_SERIES: dict[str, tuple[int, str | None]] = {
@@ -453,6 +454,9 @@ INITIAL_FRAMES = 64
 # Chunks of a compressed file: whole frames, about this many bytes.
 CHUNK_TARGET_BYTES = 1 << 20
 CHUNK_MAX_FRAMES = 64
+# Chunks copied at a time into the closed file's layout, a stop() asked between them:
+# about 8 MB, a tenth of a second or two of gzip
+COPY_CHUNKS = 8
 # Fixed byte lengths of the status and wall-time strings, rewritten in place at close.
 STATUS_BYTES = 256
 WALL_TIME_BYTES = 32
@@ -597,6 +601,43 @@ def read_checkpoint(path: str) -> tuple[int, int, bytes, str] | None:
     return frames, step, raw[end:], owner
 
 
+def remove_dead_layouts(path: str) -> None:
+    """Remove the files a writer of `path` was laying out (PATH.tmp-<pid>, its whole file
+    written anew) when its process died (kill -9 during a large file's compression left
+    tens of MB that no later run at that path would find). A live process's is kept."""
+    folder, name = os.path.split(os.path.abspath(path))
+    prefix = name + ".tmp-"
+    with contextlib.suppress(OSError):
+        for entry in os.listdir(folder):
+            pid = entry[len(prefix) :]
+            if not entry.startswith(prefix) or not pid.isdigit() or int(pid) == os.getpid():
+                continue
+            if _process_lives(int(pid)):
+                continue  # (or another user's: not ours to remove)
+            with contextlib.suppress(OSError):
+                os.unlink(os.path.join(folder, entry))
+
+
+def _process_lives(pid: int) -> bool:
+    """Whether process `pid` runs (a zombie, killed and not yet reaped, does not)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        return True  # another user's
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii", errors="replace") as f:
+            return f.read().rpartition(")")[2].split()[:1] != ["Z"]
+    except OSError:
+        return True
+
+
+class LayoutStopped(KeyboardInterrupt):
+    """A writer's final layout (the compression at close) stopped by a signal: the file
+    keeps every frame, uncompressed, with status "interrupted" (TrajectoryWriter.close)."""
+
+
 class TrajectoryWriter:
     """Writes an rbsim trajectory (H5MD 1.1), gathering frames in blocks.
 
@@ -685,6 +726,7 @@ class TrajectoryWriter:
             for stale in (self.checkpoint_path, f"{self.checkpoint_path}.tmp"):
                 with contextlib.suppress(FileNotFoundError):
                     os.unlink(stale)
+        remove_dead_layouts(self.path)
         self.bodies = bodies
         self.engine = engine
         self.parameters = params
@@ -779,11 +821,14 @@ class TrajectoryWriter:
         status: str = STATUS_RUNNING,
         wall_time: str = "",
         checkpoint: bytes | None = None,
+        stop: Callable[[], bool] | None = None,
     ) -> None:
         """Write the whole file anew under a temporary name and rename it over `path`:
         static data, parameters, and (with `series`) room for `capacity` frames, with the
         first frames_flushed frames copied from the file `keep_from`. `final`: the closed
-        file: exactly frames_flushed frames, chunked and compressed as asked (no room)."""
+        file: exactly frames_flushed frames, chunked and compressed as asked (no room).
+        A true stop(), asked while the frames are copied, raises LayoutStopped with the
+        file at `path` as it was."""
         if self._fd is not None:
             os.close(self._fd)
             self._fd = None
@@ -798,7 +843,7 @@ class TrajectoryWriter:
                 self._write_static(f, status, wall_time, checkpoint)
                 if series:
                     self._series = self._plan()
-                    self._write_series(f, capacity, old, keep, final)
+                    self._write_series(f, capacity, old, keep, final, stop)
         except BaseException:
             self._status_offset, self._wall_offset = offsets
             if old is not None:
@@ -851,7 +896,13 @@ class TrajectoryWriter:
             rb.create_dataset("checkpoint", data=np.frombuffer(checkpoint, np.uint8))
 
     def _write_series(
-        self, f: h5py.File, capacity: int, old: h5py.File | None, keep: int, final: bool
+        self,
+        f: h5py.File,
+        capacity: int,
+        old: h5py.File | None,
+        keep: int,
+        final: bool,
+        stop: Callable[[], bool] | None = None,
     ) -> None:
         bodies = f["particles/bodies"]
         step_ds = time_ds = None
@@ -879,7 +930,14 @@ class TrajectoryWriter:
                 s.offset = ds.id.get_offset() if math.prod(shape) else -1
             if keep and old is not None and math.prod(s.frame) >= 0:
                 kept = self.contact_rows_flushed if s.rows else keep
-                ds[:kept] = old[s.path][:kept]
+                source = old[s.path]
+                # in slices of whole chunks, a stop() asked between them (the final layout
+                # of a gzip file takes seconds: a Ctrl-C there stops it, see close)
+                rows = ds.chunks[0] * COPY_CHUNKS if ds.chunks else max(kept, 1)
+                for first in range(0, kept, rows):
+                    if stop is not None and stop():
+                        raise LayoutStopped
+                    ds[first : first + rows] = source[first : min(first + rows, kept)]
             if s.key == "step":
                 step_ds = ds
             elif s.key == "time":
@@ -1151,6 +1209,7 @@ class TrajectoryWriter:
         wall_time: float | None = None,
         checkpoint: bytes | None = None,
         keep_sidecar: bool = False,
+        stop: Callable[[], bool] | None = None,
     ) -> None:
         """Write the last frames, record `status` and `wall_time`, and close. Idempotent.
 
@@ -1164,7 +1223,10 @@ class TrajectoryWriter:
         keep_sidecar: leave the checkpoint file of the last flush beside the trajectory
             (a run stopped with no checkpoint of its last frame resumes from that one).
         A file with room for more frames than it holds, or asked to be compressed, is laid
-        out anew with exactly its frames.
+        out anew with exactly its frames; a true stop() during that (a Ctrl-C in the
+        seconds a large file takes to compress) leaves the file as it was, every frame
+        in it, with status "interrupted" and the checkpoint of the last flush beside it
+        (`rbsim run --resume` finishes it), and raises LayoutStopped.
         """
         if self._closed:
             return
@@ -1191,15 +1253,26 @@ class TrajectoryWriter:
                     wall = repr(self._wall_now())
                 self._write_wall(float(wall))
             else:
-                self._layout(
-                    self.frames_flushed,
-                    keep_from=self.path,
-                    series=True,
-                    final=True,
-                    status=status,
-                    wall_time=wall,
-                    checkpoint=checkpoint,
-                )
+                try:
+                    self._layout(
+                        self.frames_flushed,
+                        keep_from=self.path,
+                        series=True,
+                        final=True,
+                        status=status,
+                        wall_time=wall,
+                        checkpoint=checkpoint,
+                        stop=stop,
+                    )
+                except LayoutStopped:
+                    # the file at path keeps every frame, laid out as during the run:
+                    # marked interrupted, with the last flush's checkpoint beside it
+                    self._fd = os.open(self.path, os.O_WRONLY)
+                    stopped = np.frombuffer(_status_bytes(STATUS_INTERRUPTED), np.uint8)
+                    _pwrite_all(self._fd, stopped, self._status_offset, self.path)
+                    self._write_wall(self._wall_now())
+                    keep_sidecar = True
+                    raise
                 if measured:  # the final layout's time included (gzip: most of it)
                     wall = repr(self._wall_now())
                     self._fd = os.open(self.path, os.O_WRONLY)
