@@ -1,6 +1,6 @@
 """The `rbsim` command line: click commands only, no physics.
 
-Exit codes (DESIGN.md): 0 ok; 1 runtime failure; 2 usage error; 3 invalid scene;
+Exit codes (cli.md): 0 ok; 1 runtime failure; 2 usage error; 3 invalid scene;
 4 compare outside tolerance; 130 interrupted.
 """
 

@@ -550,6 +550,36 @@ def test_committed_schema_file_is_up_to_date() -> None:
     )
 
 
+def test_the_format_reference_lists_every_key_as_validate_knows_them() -> None:
+    from rbsim.tools import formatdoc
+
+    text = formatdoc.FORMAT_DOC.read_text(encoding="utf-8")
+    assert formatdoc.current(text) == text, (
+        "docs/format.md is stale: python -m rbsim.tools.formatdoc"
+    )
+    for key in (
+        "`world.dt`",
+        "`bodies[i].shapes[j].polygon.vertices`",
+        "`bodies[i].rotation.axis`",
+    ):
+        assert key in text
+    assert formatdoc.main(["--check"]) == 0
+
+
+def test_no_file_of_the_project_points_outside_it() -> None:
+    # the README and cli.md sent a user to the shared folder's design file for the scene
+    # format and the trajectory layout, a file no clone of the repository has:
+    # docs/format.md holds them now
+    outside = ("../" + "shared", "DESIGN" + ".md")  # (not written whole: this file is read)
+    tracked = subprocess.run(
+        ["git", "ls-files"], cwd=REPO, capture_output=True, text=True, check=True
+    ).stdout.split()
+    for name in tracked:
+        if name.endswith((".md", ".py", ".cpp", ".hpp", ".yaml", ".toml")) or name == "Makefile":
+            text = (REPO / name).read_text(encoding="utf-8", errors="replace")
+            assert not any(s in text for s in outside), name
+
+
 @pytest.mark.parametrize("scene", SCENES, ids=[p.stem for p in SCENES])
 def test_scene_files_name_the_schema_on_their_first_line(scene: Path) -> None:
     assert scene.read_text().splitlines()[0] == MODELINE

@@ -1,4 +1,4 @@
-"""`rbsim compare`: the same scene in rbsim and pymunk (DESIGN.md, exit code 4).
+"""`rbsim compare`: the same scene in rbsim and pymunk (cli.md, exit code 4).
 
 The matching scenes in scenes/compare/ carry tolerances derived from the two engines'
 update orders (see the comment in each file); these tests run them, check the derived

@@ -1,7 +1,7 @@
 """The HTML player's 3D view, in a real headless browser (Debian's chromium driven by
 playwright; without them these tests skip): it draws, the mouse orbits and zooms the
 camera, the slider moves time, and hovering a body names it. The trajectories are
-written directly in DESIGN.md's 3D layout (tests/test_render3d.py), so every body's
+written directly in the 3D layout of docs/format.md (tests/test_render3d.py), so every body's
 place is known."""
 
 from __future__ import annotations

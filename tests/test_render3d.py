@@ -1,7 +1,7 @@
 """rbsim render of 3D trajectories to GIF, and rbsim plot of their 3-component series.
 
-The trajectories are written directly in the 3D layout of DESIGN.md ("Trajectory in
-3D") with h5py (known poses, no solver), so that what each pixel must show is known.
+The trajectories are written directly in the 3D layout of docs/format.md ("Trajectories")
+with h5py (known poses, no solver), so that what each pixel must show is known.
 """
 
 from __future__ import annotations
@@ -64,7 +64,7 @@ def write_trajectory3d(
     observables: dict[str, np.ndarray] | None = None,
     engine: str = "rbsim",
 ) -> Path:
-    """A 3D trajectory in DESIGN.md's layout. shapes: dicts with body, kind, radius,
+    """A 3D trajectory in docs/format.md's layout. shapes: dicts with body, kind, radius,
     vertices (k,3) and faces (m,3) (local indices) and normal (3,) (planes);
     position (T,N,3) m, orientation (T,N,4) (w, x, y, z)."""
     t, n = position.shape[:2]

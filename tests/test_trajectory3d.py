@@ -1,4 +1,4 @@
-"""The 3D trajectory layout (DESIGN.md "Trajectory in 3D"): the writer, the reader,
+"""The 3D trajectory layout (docs/format.md, "Trajectories"): the writer, the reader,
 `rbsim info`, and the engine's recorded frames (World3.advance_recording) in it."""
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The same scene as a pymunk (Chipmunk2D) Space, and readback in rbsim's layout.
 
-rbsim -> pymunk mapping (see ../shared/DESIGN.md for rbsim's side):
+rbsim -> pymunk mapping (see docs/format.md for rbsim's side):
 
 - A body's pymunk origin is the scene body origin; its `center_of_gravity` is the centre
   of mass computed here from the shapes (pymunk's own area/moment formulas, parallel-axis

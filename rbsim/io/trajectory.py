@@ -1,6 +1,6 @@
 """Trajectory files: the HDF5 (H5MD 1.1) writer and reader.
 
-Layout (the "Trajectory file" contract of DESIGN.md)::
+Layout (docs/format.md, "Trajectories")::
 
     /h5md                               version [1, 1]; author/name; creator/name, version
     /particles/bodies/box               dimension 2, boundary ["none", "none"]
@@ -14,7 +14,7 @@ Layout (the "Trajectory file" contract of DESIGN.md)::
     /observables/<name>                 step, time, value (T,) or (T,k)
     /parameters/rbsim/<key>             scalar utf-8 strings (scene, solver, engine, status, ...)
 
-In 3D (DESIGN.md "Trajectory in 3D") the box has dimension 3; position and velocity are
+In 3D the box has dimension 3; position and velocity are
 (T,N,3), orientation (T,N,4) (w, x, y, z), angular_velocity (T,N,3) world frame, and
 angular_momentum (T,N,3) world frame about each centre of mass; there is no `angle`.
 moment_of_inertia is (N,3,3) (body frame, about the COM), center_of_mass (N,3), the shape

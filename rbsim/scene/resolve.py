@@ -1,6 +1,6 @@
 """Scene files: YAML text -> a validated, fully resolved :class:`Scene`.
 
-The format is version 1 of ../shared/DESIGN.md. Everything downstream (model,
+The format is version 1 of docs/format.md. Everything downstream (model,
 world, pymunk bridge) reads only the dataclasses below: no defaults are applied
 after this module, every generator (`pyramid`, `stack`, `grid`) is expanded into
 plain bodies, every material is resolved onto each shape, and every shape is

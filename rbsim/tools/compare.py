@@ -9,7 +9,7 @@ angle compared is the angle of the rotation between the two orientations,
 with rbsim's path through it (SOFT_IMPACTS). What follows is said of pymunk and holds
 for MuJoCo alike; 3D overlaps are measured with MuJoCo's collision functions.
 
-Both engines write a trajectory in the same H5MD layout (DESIGN.md), with frames at the
+Both engines write a trajectory in the same H5MD layout (docs/format.md), with frames at the
 same steps (0, every output.every-th, the last). pymunk takes steps of the same length as
 rbsim's substeps (PymunkSettings.substeps = solver.substeps), so that a difference comes
 from the methods, not from the step length. The differences are read back from the two

@@ -1,7 +1,7 @@
 """What `rbsim sweep` measures errors against: analytic solutions, a converged run, or the
 invariants of a scene at rest.
 
-A scene names its reference in a `reference:` block (DESIGN.md, `rbsim sweep`):
+A scene names its reference in a `reference:` block (docs/format.md; cli.md, `rbsim sweep`):
 
 - `projectile`, `free_spin`: one free body under gravity and constant loads,
   x(t) = x0 + v0 t + (g + F/m) t²/2 for the centre of mass, θ(t) = θ0 + ω0 t + (τ/I) t²/2.

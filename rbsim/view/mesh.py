@@ -3,7 +3,7 @@ rotation of a unit quaternion, flat shading from one light, the ground grid, and
 orbiting camera. The GIF (`rbsim.view.render3d`) and the HTML player (player3d.js)
 use the same camera and light, with the same numbers.
 
-Conventions (DESIGN.md, "Trajectory in 3D"): y is up; a body's shape vertices are in
+Conventions (docs/format.md, "Trajectories"): y is up; a body's shape vertices are in
 its frame relative to its ORIGIN; a world point is position + R(q) v with
 q = (w, x, y, z). Units: lengths m, angles rad, image sizes pixels.
 """
