@@ -473,6 +473,33 @@ def test_set_body_by_index_and_by_name():
     assert load(BALL, ("bodies.ball.velocity=[2, 3]",)).bodies[0].velocity == (2.0, 3.0)
 
 
+def test_set_a_body_whose_name_holds_dots_or_brackets_by_its_name_in_quotes():
+    # the shipped bounce.yaml names a ball ball_e1.0: `bodies.ball_e1.0.velocity` looked
+    # for 'ball_e1' and suggested a name that no key path could spell
+    text = """\
+    version: 1
+    bodies:
+      - {name: ball_e1.0, shape: {circle: {radius: 1}}}
+      - {name: "stick[0]", shape: {circle: {radius: 1}}}
+      - {name: "2", shape: {circle: {radius: 1}}}
+    """
+    scene = load(
+        text,
+        (
+            'bodies."ball_e1.0".velocity=[1,0]',
+            "bodies['stick[0]'].velocity=[2,0]",
+            'bodies["2"].angle=0.5',  # a quoted name, not an index
+            "bodies.2.angular_velocity=3",
+        ),
+    )
+    assert [b.velocity for b in scene.bodies] == [(1.0, 0.0), (2.0, 0.0), (0.0, 0.0)]
+    assert scene.bodies[2].angle == 0.5 and scene.bodies[2].angular_velocity == 3.0
+    message = errors(text, ("bodies.ball_e1.0.velocity=[1,0]",))
+    assert "no item named 'ball_e1'; did you mean \"ball_e1.0\"?" in message
+    for broken in ('bodies."ball.velocity=1', 'bodies."ball"x.velocity=1', "bodies[].angle=1"):
+        assert "expected key.path=value" in errors(text, (broken,))
+
+
 def test_set_creates_missing_blocks():
     scene = load(BALL, ("solver.substeps=8", "world.damping.linear=0.1"))
     assert scene.solver.substeps == 8

@@ -322,14 +322,66 @@ def load_scene_text(
 # ---------------------------------------------------------------------------------------
 
 
+class _Quoted(str):
+    """A part of a key path written in quotes: a name as it is, never an index."""
+
+
+_NAME_MARKS = frozenset(".[]\"'")  # what a name in a key path must be quoted for
+
+
 def _split_key(key: str) -> list[str]:
-    """'bodies[2].velocity' or 'bodies.2.velocity' -> ['bodies', '2', 'velocity']."""
-    return key.replace("[", ".").replace("]", "").split(".")
+    """'bodies[2].velocity' or 'bodies.2.velocity' -> ['bodies', '2', 'velocity']. A part
+    in double or single quotes is a name as written, dots and brackets and all:
+    'bodies."ball_e1.0".velocity' and "bodies['stick[0]'].velocity" (_Quoted). A quote
+    left open, or text after a closing quote, gives an empty part (malformed)."""
+    parts: list[str] = []
+    current, i, n = "", 0, len(key)
+    while i < n:
+        ch = key[i]
+        if ch in "\"'" and not current:
+            end = key.find(ch, i + 1)
+            after = key[end + 1 : end + 2] if end >= 0 else ""
+            if end < 0 or after not in ("", ".", "]", "["):
+                return [*parts, ""]
+            parts.append(_Quoted(key[i + 1 : end]))
+            i = end + 1
+            if after == "]":
+                i += 1
+            if key[i : i + 1] == ".":
+                i += 1
+            continue
+        if ch in ".[":
+            if current:
+                parts.append(current)
+            elif ch == "." or (i and key[i - 1] not in "]\"'"):
+                parts.append("")  # an empty part: 'a..b', '.a', 'a[]'
+            current = ""
+        elif ch == "]":
+            if current or key[i - 1] == "[":
+                parts.append(current)  # ('a[]': an empty part)
+            current = ""
+            if key[i + 1 : i + 2] == ".":
+                i += 1
+        else:
+            current += ch
+        i += 1
+    if current or not parts or key.endswith("."):
+        parts.append(current)
+    return parts
 
 
 def _override_path(key: str) -> tuple[str | int, ...]:
     """'bodies.2.velocity' -> ('bodies', 2, 'velocity')."""
-    return tuple(int(p) if p.isdigit() else p for p in _split_key(key))
+    return tuple(
+        int(p) if p.isdigit() and not isinstance(p, _Quoted) else str(p) for p in _split_key(key)
+    )
+
+
+def key_part(name: str) -> str:
+    """A name as a part of a key path: quoted where it holds a dot, a bracket or a quote."""
+    if not any(ch in _NAME_MARKS for ch in name):
+        return name
+    return f"'{name}'" if '"' in name else f'"{name}"'
 
 
 def override_lines(overrides: str | Sequence[str]) -> tuple[str, ...]:
@@ -409,7 +461,7 @@ def apply_overrides(root: YMap, overrides: str | Sequence[str]) -> list[Problem]
 
 def _list_index(items: YList, part: str) -> int | str:
     """The index that ``part`` names in ``items``, or a message saying why there is none."""
-    if part.lstrip("-").isdigit():
+    if part.lstrip("-").isdigit() and not isinstance(part, _Quoted):
         index = int(part)
         if 0 <= index < len(items):
             return index
@@ -419,8 +471,9 @@ def _list_index(items: YList, part: str) -> int | str:
         if isinstance(item, YMap) and item.get("name") == part:
             return index
     close = did_you_mean(part, [n for n in names if isinstance(n, str)])
-    hint = f"; did you mean {close}?" if close else ""
-    return f"no item named {part!r}{hint} (use a name or an index)"
+    hint = f"; did you mean {key_part(close)}?" if close else ""
+    quote = " in quotes where it holds . [ ]" if close and key_part(close) != close else ""
+    return f"no item named {part!r}{hint} (use a name{quote} or an index)"
 
 
 # ---------------------------------------------------------------------------------------
