@@ -39,6 +39,7 @@ import os
 import re
 import shutil
 import signal
+import socket
 import tempfile
 import threading
 import time
@@ -709,11 +710,20 @@ def _connect(scheduler: str) -> tuple[Cluster, Callable[[], None]]:
     from distributed.comm import get_address_host_port
 
     try:
-        get_address_host_port(scheduler)
+        host, port = get_address_host_port(scheduler)
     except (ValueError, TypeError) as err:
         raise BatchError(
             f"{scheduler!r} is not a scheduler address such as tcp://host:8786 ({err})"
         ) from None
+    if scheduler.startswith("tcp://"):
+        # a refused connection is no scheduler: said at once (Dask's client tries again
+        # for its whole timeout, 10 s); a host that does not answer is left to it
+        try:
+            socket.create_connection((host, port), timeout=2).close()
+        except ConnectionRefusedError as err:
+            raise BatchError(f"cannot reach the Dask scheduler at {scheduler}: {err}") from None
+        except OSError:
+            pass
     try:
         client = Client(scheduler, timeout=10, set_as_default=False)
     except (OSError, TimeoutError) as err:

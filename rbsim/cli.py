@@ -895,6 +895,7 @@ def batch(
             plan = plan_batch(scenes, overrides, parsed, samples, seed or 0)
         except (VaryError, BatchInvalid) as err:
             _fail(EXIT_SCENE, str(err))
+        made = not out.exists()  # (removed again, still empty, should no run start)
         try:
             out.mkdir(parents=True, exist_ok=True)
         except FileExistsError:
@@ -926,7 +927,10 @@ def batch(
             _fail(EXIT_INTERRUPTED, str(err), progress)
         except KeyboardInterrupt:  # before the batch could record anything
             _fail(EXIT_INTERRUPTED, "interrupted before any run finished", progress)
-        except BatchError as err:
+        except BatchError as err:  # nothing ran (no scheduler there, say)
+            if made:
+                with contextlib.suppress(OSError):
+                    out.rmdir()
             _fail(EXIT_RUNTIME, f"error: {err}", progress)
         except OSError as err:
             _fail(EXIT_RUNTIME, f"error: cannot write to {out}: {_reason(err)}", progress)

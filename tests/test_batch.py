@@ -212,6 +212,21 @@ def test_option_combinations_that_make_no_batch_are_usage_errors(
     assert code == 2, stderr
 
 
+def test_no_scheduler_at_the_address_is_said_at_once_and_leaves_no_folder(
+    tmp_path: Path,
+) -> None:
+    # port 1 refuses: Dask's client tried again for its whole 10 s timeout, and the batch
+    # left the empty folder it had made
+    out = tmp_path / "out"
+    started = time.monotonic()
+    code, _, stderr = rbsim(
+        "batch", BOUNCE, "-o", out, "--scheduler", "tcp://127.0.0.1:1", "--vary", "world.steps=[1]"
+    )
+    assert code == 1 and "cannot reach the Dask scheduler at tcp://127.0.0.1:1" in stderr
+    assert time.monotonic() - started < 8.0  # s: a refusal, not Dask's timeout (10 s)
+    assert not out.exists()
+
+
 def test_summary_round_trips_and_parquet_holds_numbers(tmp_path: Path) -> None:
     rows = [
         {"run_id": "a-1", "scene": "s.yaml", "world.dt": "0.01", **dict.fromkeys(FIGURE_COLUMNS)},
