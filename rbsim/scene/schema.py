@@ -360,7 +360,9 @@ SOLVER = Key(
         ),
         "rotation": Key(
             "enum",
-            "Orientation update: normalize(q + h ω×q), or the exact rotation by h ω.",
+            "Orientation update: normalize (2D q + h ω×q, 3D q + (h/2) ω q, normalised), "
+            "exact (the rotation by h ω), or in 3D split (the free rigid body's own flow, "
+            "split about its principal axes: keeps the energy).",
             "normalize",
             choices=T.ROTATIONS,
         ),
