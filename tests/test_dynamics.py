@@ -132,6 +132,37 @@ def test_linear_damping_follows_one_over_one_plus_hc(run_text):
     np.testing.assert_allclose(tr.angular_velocity[:, 0], (1 / 1.2) ** k, rtol=1e-12)
 
 
+@pytest.mark.parametrize("rotation", ["normalize", "exact"])
+@pytest.mark.parametrize("dimension", [2, 3])
+def test_a_kinematic_body_turns_at_its_angular_velocity_under_any_rotation_update(
+    run_text, rotation: str, dimension: int
+):
+    # a kinematic bar at 20 rad/s, dt 1/30, one substep: `normalize` turned it by
+    # atan(h ω) a step, 52.9 rad in 3 s instead of 60 (its motion is given, not solved)
+    spin = "20" if dimension == 2 else "[0, 0, 20]"
+    shape = "{box: {size: [2, 0.2]}}" if dimension == 2 else "{box: {size: [2, 0.2, 0.2]}}"
+    tr = run_text(
+        f"""
+        version: 1
+        world: {{dimension: {dimension}, steps: 90, dt: 1/30, gravity: {[0] * dimension}}}
+        solver: {{rotation: {rotation}, substeps: 1}}
+        bodies:
+          - {{name: bar, type: kinematic, angular_velocity: {spin}, shape: {shape}}}
+        """.replace("\n        ", "\n")
+    )
+    turned = 60.0  # rad: 20 rad/s for 3 s
+    if dimension == 2:
+        # rad: 90 additions of h ω = 2/3 rad in floating point
+        assert tr.angle[-1, 0] == pytest.approx(turned, abs=1e-12)
+        q = tr.orientation[-1, 0]
+        assert q == pytest.approx([math.cos(turned), math.sin(turned)], abs=1e-12)
+    else:
+        w, _x, _y, z = tr.orientation[-1, 0]
+        # (a quaternion's angle is twice its half angle; its sign is free)
+        along = w * math.cos(turned / 2) + z * math.sin(turned / 2)  # cos of the difference
+        assert abs(along) == pytest.approx(1.0, abs=1e-12)
+
+
 def test_static_body_does_not_move_and_kinematic_moves_at_its_velocity(run_text):
     tr = run_text(
         """

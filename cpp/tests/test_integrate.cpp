@@ -290,14 +290,21 @@ TEST(bodies_moved_in_lanes_get_the_same_bits_however_split) {
       CHECK(same(whole.d[i].dq, r->d[i].dq));
     }
   }
-  // the one-body update (turn() for `normalize`), written out here: to rounding
+  // the one-body update (turn() for `normalize`; a kinematic body turns by exactly h ω),
+  // written out here: to rounding
   for (int i = 1; i < n; ++i) {
     Vec3 x = start.body_x[i], w = start.body_w[i];
     Quat q = start.body_q[i], dq{};
     for (int sub = 0; sub < 4; ++sub) {
       x += h * start.body_v[i];
-      const Quat d = mul(Quat{0.0, w.x, w.y, w.z}, q);
-      const Quat nq{q.w + 0.5 * h * d.w, q.x + 0.5 * h * d.x, q.y + 0.5 * h * d.y, q.z + 0.5 * h * d.z};
+      Quat nq;
+      if (m.is_dynamic(i)) {
+        const Quat d = mul(Quat{0.0, w.x, w.y, w.z}, q);
+        nq = {q.w + 0.5 * h * d.w, q.x + 0.5 * h * d.x, q.y + 0.5 * h * d.y, q.z + 0.5 * h * d.z};
+      } else {
+        const double half = 0.5 * h * length(w), k = std::sin(half) / length(w);
+        nq = mul(Quat{std::cos(half), k * w.x, k * w.y, k * w.z}, q);
+      }
       const Quat r = mul(normalize(nq), Quat{q.w, -q.x, -q.y, -q.z});
       q = normalize(nq);
       dq = mul(r, dq);
