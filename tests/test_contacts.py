@@ -889,6 +889,43 @@ def test_fast_small_ball_never_passes_a_thin_wall(e):
     assert tr["v"][-1, 1, 0] == pytest.approx(-300 * e, abs=1e-6 * 300)  # stopped or back
 
 
+@pytest.mark.parametrize(
+    "dt, drop, gravity",
+    [("1/10", 0.03, -9.81), ("0.5", 0.9, -9.81), ("1/60", 0.9, -1e4)],
+    ids=["pellet-dt-0.1", "ball-dt-0.5", "ball-g-1e4"],
+)
+@pytest.mark.parametrize("dimension", [2, 3])
+def test_a_body_let_go_at_rest_never_falls_through_the_floor_in_a_long_step(
+    dimension, dt, drop, gravity
+):
+    # A new user's scenes: at rest above the floor a body has no speed to reach it by,
+    # but gravity gives it one within the step (10 cm at dt 1/10; 2.5 m at dt 0.5): no
+    # contact was made, and it fell through in one step (every value within the bounds)
+    from rbsim.engines import make_engine
+
+    v = lambda *xyz: vector(dimension, *xyz)  # noqa: E731
+    floor = (
+        "{segment: {a: [-5, 0], b: [5, 0]}}"
+        if dimension == 2
+        else "{box: {size: [10, 0.001, 10], offset: [0, -0.0005, 0]}}"
+    )
+    ball = "circle" if dimension == 2 else "sphere"
+    radius = 0.005 if drop < 0.1 else 0.1
+    text = f"""
+    version: 1
+    world: {{dimension: {dimension}, dt: {dt}, steps: 20, gravity: {v(0, gravity, 0)}}}
+    solver: {{substeps: 1}}
+    bodies:
+      - {{name: ground, type: static, shape: {floor}}}
+      - {{name: b, position: {v(0, drop + radius, 0)}, shape: {{{ball}: {{radius: {radius}}}}}}}
+    """
+    engine = make_engine("rbsim", scene_from(text))
+    for _ in range(20):
+        engine.advance(1)
+        y = float(np.asarray(engine.world.engine.body_x)[1, 1])
+        assert y > 0.0  # m: the centre stays above the floor's top (y = 0)
+
+
 @pytest.mark.parametrize("spin", [0.0, 30.0])
 def test_fast_box_never_passes_a_segment_wall(spin):
     # 200 m/s is 3.3 m per step, 17 box lengths; spinning, it turns 0.5 rad per step
