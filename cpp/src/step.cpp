@@ -57,6 +57,7 @@ void World<D>::allocate() {
       reach2 = std::max(reach2, length_squared(model.vertex_local[k]));
     model.shape_reach[s] = std::sqrt(reach2);  // (as the largest length: sqrt is monotone)
   }
+  if constexpr (D == 2) find_segment_neighbours(model, state);
   grid.allocate(size, dynamic, capacity);
   contacts.allocate(model.body_count(), n_shapes, model.vertex_count(), capacity);
   size_pair_buffers();

@@ -196,3 +196,25 @@ TEST(body_in_space_is_still_only_near_its_reference_pose) {
 }
 
 RBSIM_TEST_MAIN
+
+// Static segments laid end to end know the segment that continues each end (its far
+// end, world frame); an end where three meet (a fork) and a free end know none.
+TEST(segments_laid_end_to_end_know_their_neighbours) {
+  SceneBuilder s;
+  s.segment({0.0, 0.0}, {1.0, 0.0});   // shape 0
+  s.segment({1.0, 0.0}, {2.0, 0.0});   // shape 1: continues 0
+  s.segment({2.0, 0.0}, {3.0, 1.0});   // shape 2: a fork at (2, 0) with 1 and 3
+  s.segment({2.0, 0.0}, {3.0, -1.0});  // shape 3
+  s.box({0.5, 1.0}, 0.2, 0.2, 1.0);    // something that moves
+  World<2>& w = s.finish();
+  const auto& g = w.model.segment_ghost;
+  CHECK(g.size() == 5);
+  auto none = [](Vec2 p) { return std::isnan(p.x) && std::isnan(p.y); };
+  CHECK(none(g[0][0]));
+  CHECK_NEAR(g[0][1].x, 2.0, EPS);  // 0's end (1, 0) goes on to 1's far end
+  CHECK_NEAR(g[0][1].y, 0.0, EPS);
+  CHECK_NEAR(g[1][0].x, 0.0, EPS);
+  CHECK_NEAR(g[1][0].y, 0.0, EPS);
+  CHECK(none(g[1][1]) && none(g[2][0]) && none(g[3][0]));  // the fork
+  CHECK(none(g[2][1]) && none(g[3][1]) && none(g[4][0]) && none(g[4][1]));
+}

@@ -60,6 +60,11 @@ struct Model {
   std::vector<Hull3> shape_hull;           // (S,)
   std::vector<std::int32_t> shape_hface;   // (S,)
   int hull_face_count = 0;
+  // 2D: for a static segment whose end another static segment continues (the two share
+  // that end point, and no third does), that neighbour's far end, per end of the segment
+  // (world frame, m; NaN where none): a floor or a wall of pieces (World::allocate,
+  // find_segment_neighbours). Empty when there are none, and in 3D.
+  std::vector<std::array<Vec, 2>> segment_ghost;  // (S,) or empty
   Vec gravity{};                          // m/s²
   double linear_damping = 0.0;            // 1/s
   double angular_damping = 0.0;           // 1/s

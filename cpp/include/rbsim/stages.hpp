@@ -101,6 +101,10 @@ void take_still_poses(const State<D>& state, Contacts<D>& contacts, Span bodies)
 // surface (the shape's vertex and triangle ranges must already be checked).
 bool build_shape_hulls(Model<3>& model, std::string* error);
 
+// collide/transform.cpp: model.segment_ghost from the static segments' world ends (once,
+// when a 2D world is built: static bodies do not move).
+void find_segment_neighbours(Model<2>& model, const State<2>& state);
+
 // collide/broadphase.cpp: update contacts.pairs (sorted by (a, b), a < b) from the
 // shapes' boxes; returns the pair count, which exceeds the capacity when the store must
 // grow (the list is then invalid).

@@ -13,7 +13,9 @@
 // may be carried from the last step; one that left it re-takes the reference pose here,
 // and its contacts are recomputed.
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -214,6 +216,55 @@ void world_inertia(const Model<3>& model, const State<3>& state, Contacts<3>& co
     contacts.body_inv_inertia_world[i] = world_tensor(q, model.body_inv_inertia[i]);
     made = q;
   }
+}
+
+void find_segment_neighbours(Model<2>& model, const State<2>& state) {
+  // every end of every static segment, world frame, sorted along x (then y)
+  struct End {
+    Vec2 p;
+    int shape, k;
+  };
+  std::vector<End> ends;
+  const int n = model.shape_count();
+  for (int s = 0; s < n; ++s) {
+    const int i = model.shape_body[s];
+    if (model.shape_kind[s] != ShapeKind::Segment || model.body_type[i] != BodyType::Static) continue;
+    for (int k = 0; k < 2; ++k) {
+      const Vec2 local = model.vertex_local[model.shape_vstart[s] + k];
+      ends.push_back({state.body_x[i] + rotate(state.body_q[i], local), s, k});
+    }
+  }
+  model.segment_ghost.clear();
+  if (ends.size() < 4) return;
+  std::sort(ends.begin(), ends.end(), [](const End& u, const End& v) {
+    return u.p.x < v.p.x || (u.p.x == v.p.x && (u.p.y < v.p.y || (u.p.y == v.p.y && u.shape < v.shape)));
+  });
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  std::vector<std::array<Vec2, 2>> ghost(n, {Vec2{nan, nan}, Vec2{nan, nan}});
+  bool any = false;
+  // two ends meet within 1e-9 of their coordinates' size (a floor laid end to end from
+  // the same numbers meets exactly); an end that two or more others meet is a fork: none
+  auto close = [](Vec2 u, Vec2 v) {
+    const double tol = 1e-9 * (1.0 + std::fabs(u.x) + std::fabs(u.y));
+    return std::fabs(u.x - v.x) <= tol && std::fabs(u.y - v.y) <= tol;
+  };
+  for (std::size_t e = 0; e < ends.size(); ++e) {
+    int found = -1, count = 0;
+    const double reach = 1e-9 * (1.0 + std::fabs(ends[e].p.x) + std::fabs(ends[e].p.y));
+    for (std::size_t f = e; f-- > 0 && ends[e].p.x - ends[f].p.x <= 2.0 * reach;)
+      if (ends[f].shape != ends[e].shape && close(ends[e].p, ends[f].p)) found = static_cast<int>(f), ++count;
+    for (std::size_t f = e + 1; f < ends.size() && ends[f].p.x - ends[e].p.x <= 2.0 * reach; ++f)
+      if (ends[f].shape != ends[e].shape && close(ends[e].p, ends[f].p)) found = static_cast<int>(f), ++count;
+    if (count != 1) continue;
+    const End& other = ends[found];
+    const int s = other.shape;
+    const Vec2 far = state.body_x[model.shape_body[s]] +
+                     rotate(state.body_q[model.shape_body[s]],
+                            model.vertex_local[model.shape_vstart[s] + (1 - other.k)]);
+    ghost[ends[e].shape][ends[e].k] = far;
+    any = true;
+  }
+  if (any) model.segment_ghost = std::move(ghost);
 }
 
 bool build_shape_hulls(Model<3>& model, std::string* error) {
