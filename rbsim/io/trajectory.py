@@ -1243,12 +1243,7 @@ class TrajectoryWriter:
             exact = exact and self.contact_rows_flushed == self._contact_capacity
             if exact and self.compression == "none" and checkpoint is None:
                 assert self._fd is not None
-                _pwrite_all(
-                    self._fd,
-                    np.frombuffer(_status_bytes(status), np.uint8),
-                    self._status_offset,
-                    self.path,
-                )
+                self._write_status(status)
                 if measured:
                     wall = repr(self._wall_now())
                 self._write_wall(float(wall))
@@ -1266,12 +1261,11 @@ class TrajectoryWriter:
                     )
                 except LayoutStopped:
                     # the file at path keeps every frame, laid out as during the run:
-                    # marked interrupted, with the last flush's checkpoint beside it
+                    # marked interrupted; the last flush's checkpoint stays beside it
+                    # (the raise passes its removal below)
                     self._fd = os.open(self.path, os.O_WRONLY)
-                    stopped = np.frombuffer(_status_bytes(STATUS_INTERRUPTED), np.uint8)
-                    _pwrite_all(self._fd, stopped, self._status_offset, self.path)
+                    self._write_status(STATUS_INTERRUPTED)
                     self._write_wall(self._wall_now())
-                    keep_sidecar = True
                     raise
                 if measured:  # the final layout's time included (gzip: most of it)
                     wall = repr(self._wall_now())
@@ -1291,6 +1285,12 @@ class TrajectoryWriter:
         """The run's wall time so far, s: earlier segments and this one."""
         return self.wall_before + (_time.perf_counter() - self._started)
 
+    def _write_status(self, status: str) -> None:
+        """Write `status` over the file's status, in place (its fixed bytes), through the
+        open descriptor."""
+        data = np.frombuffer(_status_bytes(status), np.uint8)
+        _pwrite_all(self._fd, data, self._status_offset, self.path)
+
     def _write_wall(self, seconds: float) -> None:
         """Write `seconds` over the file's wall_time, in place (its fixed bytes)."""
         if self._fd is None or self._wall_offset < 0:
@@ -1308,11 +1308,10 @@ class TrajectoryWriter:
         marked = False
         if status is not None and self._status_offset >= 0:  # a file laid out at `path`
             with contextlib.suppress(OSError):
-                fd = self._fd if self._fd is not None else os.open(self.path, os.O_WRONLY)
-                self._fd = fd
-                data = np.frombuffer(_status_bytes(status), np.uint8)
-                _pwrite_all(fd, data, self._status_offset, self.path)
-                os.fsync(fd)
+                if self._fd is None:
+                    self._fd = os.open(self.path, os.O_WRONLY)
+                self._write_status(status)
+                os.fsync(self._fd)
                 marked = True
         if self._fd is not None:
             with contextlib.suppress(OSError):
