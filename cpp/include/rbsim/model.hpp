@@ -75,6 +75,13 @@ struct Model {
   int shape_count() const { return static_cast<int>(shape_body.size()); }
   int vertex_count() const { return static_cast<int>(vertex_local.size()); }
   bool is_dynamic(int i) const { return body_type[i] == BodyType::Dynamic; }
+  // m/s²: body i's acceleration from gravity and its constant force (zero for a static
+  // or kinematic body), as the integrator gives it
+  Vec acceleration(int i) const {
+    if (!is_dynamic(i)) return Vec{};
+    if (!has_forces) return gravity;
+    return gravity + body_inv_mass[i] * body_force[i];
+  }
 };
 
 }  // namespace rbsim

@@ -83,8 +83,7 @@ inline bool near_reference(Dim<3>::RefPose& ref, const State<3>& state, std::siz
 template <int D>
 inline double acceleration(const Model<D>& model, int i, double g_norm) {
   if (!model.is_dynamic(i)) return 0.0;
-  if (!model.has_forces) return g_norm;
-  return length(model.gravity + model.body_inv_mass[i] * model.body_force[i]);
+  return model.has_forces ? length(model.acceleration(i)) : g_norm;
 }
 
 }  // namespace
@@ -224,15 +223,16 @@ void find_segment_neighbours(Model<2>& model, const State<2>& state) {
     Vec2 p;
     int shape, k;
   };
+  auto end_of = [&](int s, int k) {  // m: end k of segment s in the world
+    const int i = model.shape_body[s];
+    return state.body_x[i] + rotate(state.body_q[i], model.vertex_local[model.shape_vstart[s] + k]);
+  };
   std::vector<End> ends;
   const int n = model.shape_count();
   for (int s = 0; s < n; ++s) {
-    const int i = model.shape_body[s];
-    if (model.shape_kind[s] != ShapeKind::Segment || model.body_type[i] != BodyType::Static) continue;
-    for (int k = 0; k < 2; ++k) {
-      const Vec2 local = model.vertex_local[model.shape_vstart[s] + k];
-      ends.push_back({state.body_x[i] + rotate(state.body_q[i], local), s, k});
-    }
+    if (model.shape_kind[s] != ShapeKind::Segment) continue;
+    if (model.body_type[model.shape_body[s]] != BodyType::Static) continue;
+    for (int k = 0; k < 2; ++k) ends.push_back({end_of(s, k), s, k});
   }
   model.segment_ghost.clear();
   if (ends.size() < 4) return;
@@ -243,25 +243,19 @@ void find_segment_neighbours(Model<2>& model, const State<2>& state) {
   std::vector<std::array<Vec2, 2>> ghost(n, {Vec2{nan, nan}, Vec2{nan, nan}});
   bool any = false;
   // two ends meet within 1e-9 of their coordinates' size (a floor laid end to end from
-  // the same numbers meets exactly); an end that two or more others meet is a fork: none
-  auto close = [](Vec2 u, Vec2 v) {
-    const double tol = 1e-9 * (1.0 + std::fabs(u.x) + std::fabs(u.y));
-    return std::fabs(u.x - v.x) <= tol && std::fabs(u.y - v.y) <= tol;
-  };
+  // the same numbers meets exactly); an end that two or more others meet is a fork: none.
+  // The ends within that of end e along x are a run about it in the sorted list.
   for (std::size_t e = 0; e < ends.size(); ++e) {
+    const Vec2 p = ends[e].p;
+    const double tol = 1e-9 * (1.0 + std::fabs(p.x) + std::fabs(p.y));  // m
+    std::size_t f = e;
+    while (f > 0 && p.x - ends[f - 1].p.x <= tol) --f;
     int found = -1, count = 0;
-    const double reach = 1e-9 * (1.0 + std::fabs(ends[e].p.x) + std::fabs(ends[e].p.y));
-    for (std::size_t f = e; f-- > 0 && ends[e].p.x - ends[f].p.x <= 2.0 * reach;)
-      if (ends[f].shape != ends[e].shape && close(ends[e].p, ends[f].p)) found = static_cast<int>(f), ++count;
-    for (std::size_t f = e + 1; f < ends.size() && ends[f].p.x - ends[e].p.x <= 2.0 * reach; ++f)
-      if (ends[f].shape != ends[e].shape && close(ends[e].p, ends[f].p)) found = static_cast<int>(f), ++count;
+    for (; f < ends.size() && ends[f].p.x - p.x <= tol; ++f)
+      if (ends[f].shape != ends[e].shape && std::fabs(ends[f].p.y - p.y) <= tol)
+        found = static_cast<int>(f), ++count;
     if (count != 1) continue;
-    const End& other = ends[found];
-    const int s = other.shape;
-    const Vec2 far = state.body_x[model.shape_body[s]] +
-                     rotate(state.body_q[model.shape_body[s]],
-                            model.vertex_local[model.shape_vstart[s] + (1 - other.k)]);
-    ghost[ends[e].shape][ends[e].k] = far;
+    ghost[ends[e].shape][ends[e].k] = end_of(ends[found].shape, 1 - ends[found].k);
     any = true;
   }
   if (any) model.segment_ghost = std::move(ghost);

@@ -80,6 +80,8 @@ ShapeRef3 world_shape(const Model<3>& model, const Contacts<3>& c, int s, double
 inline bool pushes_across_joint(const Model<2>& model, const Contacts<2>& c, int s, Vec2 n_out) {
   if (model.segment_ghost.empty() || model.shape_kind[s] != ShapeKind::Segment) return false;
   const auto& ghost = model.segment_ghost[s];
+  auto none = [](Vec2 g) { return !(g.x == g.x); };  // no neighbour at that end (NaN)
+  if (none(ghost[0]) && none(ghost[1])) return false;
   const Vec2 p[2] = {c.vert_world[model.shape_vstart[s]], c.vert_world[model.shape_vstart[s] + 1]};
   const Vec2 along = p[1] - p[0];
   const double len = length(along);
@@ -92,7 +94,7 @@ inline bool pushes_across_joint(const Model<2>& model, const Contacts<2>& c, int
   constexpr double TILT_TOL = 1e-9, CONCAVE_SIN = 1e-6;
   for (int k = 0; k < 2; ++k) {
     const Vec2 g = ghost[k];
-    if (!(g.x == g.x)) continue;  // no neighbour there (NaN)
+    if (none(g)) continue;
     const Vec2 out = (k == 0 ? -1.0 : 1.0) / len * along;  // along the segment past end k
     const double tilt = dot(n_out, out);
     if (tilt <= TILT_TOL) continue;
@@ -133,15 +135,6 @@ inline int narrow_pair(const Model<D>& model, const Contacts<D>& c, int a, int b
   }
 }
 
-// A body's acceleration (m/s²) from gravity and its constant force, zero for a static or
-// kinematic one.
-template <int D>
-inline typename Dim<D>::Vec acceleration(const Model<D>& model, int i) {
-  if (!model.is_dynamic(i)) return typename Dim<D>::Vec{};
-  if (!model.has_forces) return model.gravity;
-  return model.gravity + model.body_inv_mass[i] * model.body_force[i];
-}
-
 // The speculative distance of pair a, b (m) at scale `scale`: how far their surfaces can
 // come closer in a step of dt, by their bodies' relative move and each one's turning,
 // and by what their relative acceleration adds over the step, dt² |a_a − a_b|, beyond
@@ -154,8 +147,11 @@ inline double speculative(const Model<D>& model, const State<D>& st, const Conta
   const int ba = model.shape_body[a], bb = model.shape_body[b];
   const auto apart = dt * st.body_v[ba] - dt * st.body_v[bb];
   const double buffer = scale * C::SPECULATIVE_DISTANCE;  // m
-  const double fall = dt * dt * length(acceleration(model, ba) - acceleration(model, bb));
-  return buffer + length(apart) + c.shape_turn[a] + c.shape_turn[b] + std::max(fall - buffer, 0.0);
+  const double spec = buffer + length(apart) + c.shape_turn[a] + c.shape_turn[b];
+  // (squared: the root is taken only past the buffer, not for every pair of every step)
+  const double dt2 = dt * dt;  // s²
+  const double fall2 = dt2 * dt2 * length_squared(model.acceleration(ba) - model.acceleration(bb));
+  return fall2 > buffer * buffer ? spec + (std::sqrt(fall2) - buffer) : spec;
 }
 
 // 3D: the impulses of last step's manifold j that no feature id carried over go to the
