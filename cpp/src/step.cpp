@@ -58,6 +58,7 @@ void World<D>::allocate() {
     model.shape_reach[s] = std::sqrt(reach2);  // (as the largest length: sqrt is monotone)
   }
   if constexpr (D == 2) find_segment_neighbours(model, state);
+  find_covered_faces(model, state);
   grid.allocate(size, dynamic, capacity);
   contacts.allocate(model.body_count(), n_shapes, model.vertex_count(), capacity);
   size_pair_buffers();

@@ -218,3 +218,43 @@ TEST(segments_laid_end_to_end_know_their_neighbours) {
   CHECK(none(g[1][1]) && none(g[2][0]) && none(g[3][0]));  // the fork
   CHECK(none(g[2][1]) && none(g[3][1]) && none(g[4][0]) && none(g[4][1]));
 }
+
+// A face of a static box that lies flush against another static shape's face, which
+// covers all of it, is covered (find_covered_faces: 2D edge k from corner k to k + 1,
+// corners counter-clockwise from (-w, -h)); a face a taller neighbour or a gap leaves
+// partly open is not, and a dynamic body's faces never are.
+TEST(flush_faces_of_static_boxes_side_by_side_are_covered) {
+  SceneBuilder s;
+  s.box({0.25, -0.1}, 0.25, 0.1, 0.0);           // 0: a tile, its top at y = 0
+  s.box({0.75, -0.1}, 0.25, 0.1, 0.0);           // 1: the next, flush against 0
+  s.box({1.25, -0.05}, 0.25, 0.15, 0.0);         // 2: taller (to y = 0.1), flush against 1
+  s.box({1.75 + 1e-3, -0.05}, 0.25, 0.15, 0.0);  // 3: 1 mm from 2
+  s.box({0.5, 1.0}, 0.2, 0.2, 1.0);              // 4: dynamic
+  World<2>& w = s.finish();
+  const auto& covered = w.model.shape_covered;
+  CHECK(covered.size() == 5);
+  CHECK(covered[0] == 1u << 1);                // its right side
+  CHECK(covered[1] == ((1u << 1) | (1u << 3)));  // both sides (the right one by 2's taller one)
+  CHECK(covered[2] == 0u);  // its left side is open above tile 1, its right one by the gap
+  CHECK(covered[3] == 0u);
+  CHECK(covered[4] == 0u);
+}
+
+// In 3D a face may be covered by several (bricks laid in bond: the upper brick's bottom
+// rests on two); a box's faces go -x, +x, -y, +y, -z, +z (box_hull()'s order).
+TEST(a_brick_face_resting_on_two_bricks_is_covered) {
+  SceneBuilder3 s;
+  s.box({0.5, 0.25, 0.1}, {0.5, 0.25, 0.1}, 0.0);   // 0: [0, 1] x [0, 0.5]
+  s.box({1.5, 0.25, 0.1}, {0.5, 0.25, 0.1}, 0.0);   // 1: [1, 2], flush against 0
+  s.box({1.0, 0.75, 0.1}, {0.5, 0.25, 0.1}, 0.0);   // 2: on both, [0.5, 1.5] x [0.5, 1]
+  s.box({3.0, 0.25, 0.1}, {0.5, 0.25, 0.1}, 0.0);   // 3: 0.5 m from 1
+  s.box({5.0, 0.25, 0.1}, {0.5, 0.25, 0.1}, 1.0);   // 4: dynamic
+  World<3>& w = s.finish();
+  const auto& covered = w.model.shape_covered;
+  CHECK(covered.size() == 5);
+  CHECK(covered[0] == 1u << 1);  // +x; its top is half open
+  CHECK(covered[1] == 1u << 0);  // -x
+  CHECK(covered[2] == 1u << 2);  // -y: on the two below
+  CHECK(covered[3] == 0u);
+  CHECK(covered[4] == 0u);
+}

@@ -65,6 +65,13 @@ struct Model {
   // (world frame, m; NaN where none): a floor or a wall of pieces (World::allocate,
   // find_segment_neighbours). Empty when there are none, and in 3D.
   std::vector<std::array<Vec, 2>> segment_ghost;  // (S,) or empty
+  // Faces of static polytopes (2D: polygons without a radius; 3D: boxes and convex hulls)
+  // that lie flush against a face of another static shape that covers them wholly (tiles
+  // side by side, bricks in a wall): inside the solid the two make. Bit f of a shape's
+  // mask is its face f (2D: edge f, vertex f to f + 1; 3D: hull face f, a box's in
+  // box_hull()'s order; faces past the 64th are never marked). World::allocate,
+  // find_covered_faces; empty when no face is covered.
+  std::vector<std::uint64_t> shape_covered;  // (S,) or empty
   Vec gravity{};                          // m/s²
   double linear_damping = 0.0;            // 1/s
   double angular_damping = 0.0;           // 1/s

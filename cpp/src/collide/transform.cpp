@@ -15,10 +15,14 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include "collide/narrow3d.hpp"
+#include "collide/toi.hpp"
 #include "rbsim/constants.hpp"
 #include "rbsim/stages.hpp"
 #include "rbsim/wide.hpp"
@@ -261,6 +265,189 @@ void find_segment_neighbours(Model<2>& model, const State<2>& state) {
   if (any) model.segment_ghost = std::move(ghost);
 }
 
+namespace {
+
+// A face of a static polytope in the world: its shape, its index in the shape (2D: edge
+// f, vertex f to f + 1; 3D: the hull's face f, a box's in box_hull()'s order), its unit
+// outward normal, its corners (first .. first + count in a list of points; 2D: the
+// edge's two ends, 3D: the face's loop, counter-clockwise seen from outside) and their
+// bounding box (m).
+template <int D>
+struct WorldFace {
+  using Vec = typename Dim<D>::Vec;
+  int shape, index;
+  Vec normal;
+  int first, count;
+  Vec lo, hi;
+};
+
+// Every face of the static polytopes (2D: polygons without a radius; 3D: boxes and
+// convex hulls) into faces, their corners into points.
+void static_faces(const Model<2>& model, const State<2>& state, std::vector<WorldFace<2>>& faces,
+                  std::vector<Vec2>& points) {
+  for (int s = 0; s < model.shape_count(); ++s) {
+    const int i = model.shape_body[s];
+    if (model.body_type[i] != BodyType::Static || model.shape_kind[s] != ShapeKind::Polygon ||
+        model.shape_radius[s] != 0.0)
+      continue;
+    const int v0 = model.shape_vstart[s], n = model.shape_vcount[s];
+    const int first = static_cast<int>(points.size());
+    for (int k = 0; k < n; ++k)
+      points.push_back(state.body_x[i] + rotate(state.body_q[i], model.vertex_local[v0 + k]));
+    for (int k = 0; k < n; ++k) {
+      // (the edge's two ends copied next to each other: a face is a run of points)
+      const int at = static_cast<int>(points.size());
+      points.push_back(points[first + k]);
+      points.push_back(points[first + (k + 1) % n]);
+      faces.push_back({s, k, rotate(state.body_q[i], model.normal_local[v0 + k]), at, 2, {}, {}});
+    }
+  }
+}
+
+void static_faces(const Model<3>& model, const State<3>& state, std::vector<WorldFace<3>>& faces,
+                  std::vector<Vec3>& points) {
+  std::vector<Vec3> verts, normals;
+  for (int s = 0; s < model.shape_count(); ++s) {
+    const ShapeKind kind = model.shape_kind[s];
+    if (model.body_type[model.shape_body[s]] != BodyType::Static ||
+        (kind != ShapeKind::Box && kind != ShapeKind::Convex))
+      continue;
+    verts.resize(model.shape_vcount[s]);
+    normals.resize(std::max(6, model.shape_hull[s].face_count()));
+    const ShapeRef3 ref = place_shape(model, state, s, 0.0, 1.0, verts.data(), normals.data());
+    HullView hull = model.shape_hull[s].view();
+    if (kind == ShapeKind::Box) {
+      verts.resize(8);
+      box_geometry(ref, verts.data(), normals.data());
+      hull = box_hull();
+    }
+    for (int f = 0; f < hull.face_count; ++f) {
+      const int at = static_cast<int>(points.size());
+      for (int k = hull.face_start[f]; k < hull.face_start[f + 1]; ++k)
+        points.push_back(verts[hull.face_vertex[k]]);
+      faces.push_back({s, f, normals[f], at, static_cast<int>(points.size()) - at, {}, {}});
+    }
+  }
+}
+
+// Component-wise bounds, and the largest |component| (m).
+inline Vec2 lower(Vec2 a, Vec2 b) { return {std::min(a.x, b.x), std::min(a.y, b.y)}; }
+inline Vec2 upper(Vec2 a, Vec2 b) { return {std::max(a.x, b.x), std::max(a.y, b.y)}; }
+inline Vec3 lower(Vec3 a, Vec3 b) { return {std::min(a.x, b.x), std::min(a.y, b.y), std::min(a.z, b.z)}; }
+inline Vec3 upper(Vec3 a, Vec3 b) { return {std::max(a.x, b.x), std::max(a.y, b.y), std::max(a.z, b.z)}; }
+inline bool boxes_meet(Vec2 lo, Vec2 hi, Vec2 lo2, Vec2 hi2, double tol) {
+  return lo.x <= hi2.x + tol && lo2.x <= hi.x + tol && lo.y <= hi2.y + tol && lo2.y <= hi.y + tol;
+}
+inline bool boxes_meet(Vec3 lo, Vec3 hi, Vec3 lo2, Vec3 hi2, double tol) {
+  return boxes_meet(Vec2{lo.x, lo.y}, Vec2{hi.x, hi.y}, Vec2{lo2.x, lo2.y}, Vec2{hi2.x, hi2.y}, tol) &&
+         lo.z <= hi2.z + tol && lo2.z <= hi.z + tol;
+}
+inline double largest(Vec2 x) { return std::max(std::fabs(x.x), std::fabs(x.y)); }
+inline double largest(Vec3 x) { return std::max({std::fabs(x.x), std::fabs(x.y), std::fabs(x.z)}); }
+
+// How much of face f (its corners in p) face g covers, both in one plane up to tol (m):
+// 2D, the length of f's edge within g's (m); 3D, the area of f's polygon within g's (m²,
+// f clipped by g's sides, Sutherland–Hodgman); 0 when g leaves f's plane.
+double overlap(const WorldFace<2>& f, const WorldFace<2>& g, const Vec2* p, double tol) {
+  const Vec2 a = p[f.first], along = p[f.first + 1] - a;
+  const double len = length(along);
+  if (!(len > 0.0)) return 0.0;
+  for (int k = 0; k < 2; ++k)
+    if (std::fabs(dot(g.normal, p[f.first + k] - p[g.first])) > tol) return 0.0;
+  const double t0 = dot(p[g.first] - a, along) / len, t1 = dot(p[g.first + 1] - a, along) / len;
+  return std::max(0.0, std::min({len, std::max(t0, t1)}) - std::max(0.0, std::min(t0, t1)));
+}
+double overlap(const WorldFace<3>& f, const WorldFace<3>& g, const Vec3* p, double tol) {
+  for (int k = 0; k < f.count; ++k)
+    if (std::fabs(dot(g.normal, p[f.first + k] - p[g.first])) > tol) return 0.0;
+  std::vector<Vec3> poly(p + f.first, p + f.first + f.count), next;
+  for (int k = 0; k < g.count && !poly.empty(); ++k) {
+    const Vec3 a = p[g.first + k], b = p[g.first + (k + 1) % g.count];
+    const Vec3 side = cross(b - a, g.normal);  // out of g across its edge a -> b
+    next.clear();
+    for (std::size_t i = 0; i < poly.size(); ++i) {
+      const Vec3 u = poly[i], v = poly[(i + 1) % poly.size()];
+      const double du = dot(side, u - a), dv = dot(side, v - a);
+      if (du <= 0.0) next.push_back(u);
+      if ((du < 0.0 && dv > 0.0) || (du > 0.0 && dv < 0.0)) next.push_back(u + (du / (du - dv)) * (v - u));
+    }
+    poly.swap(next);
+  }
+  Vec3 twice{};  // m²: twice the clipped polygon's vector area
+  for (std::size_t i = 0; i + 2 < poly.size(); ++i) twice += cross(poly[i + 1] - poly[0], poly[i + 2] - poly[0]);
+  return 0.5 * std::fabs(dot(twice, f.normal));
+}
+
+// What of face f may go uncovered where faces meet it to within tol (m): f's own length
+// (2D, m) or area (3D, m²) less a band of tol along its boundary.
+double must_cover(const WorldFace<2>& f, const Vec2* p, double tol) {
+  return length(p[f.first + 1] - p[f.first]) - 2.0 * tol;
+}
+double must_cover(const WorldFace<3>& f, const Vec3* p, double tol) {
+  Vec3 twice{};
+  double perimeter = 0.0;  // m
+  for (int i = 0; i < f.count; ++i) {
+    perimeter += length(p[f.first + (i + 1) % f.count] - p[f.first + i]);
+    if (i + 2 < f.count) twice += cross(p[f.first + i + 1] - p[f.first], p[f.first + i + 2] - p[f.first]);
+  }
+  return 0.5 * std::fabs(dot(twice, f.normal)) - tol * perimeter;
+}
+
+}  // namespace
+
+template <int D>
+void find_covered_faces(Model<D>& model, const State<D>& state) {
+  using Vec = typename Dim<D>::Vec;
+  std::vector<WorldFace<D>> faces;
+  std::vector<Vec> points;
+  static_faces(model, state, faces, points);
+  model.shape_covered.clear();
+  if (faces.size() < 2) return;
+  // two faces meet within 1e-9 of the largest coordinate's size (tiles laid from the same
+  // numbers meet to round-off, and the bound is far below any gap a scene means)
+  double size = 0.0;  // m
+  for (const Vec& x : points) size = std::max(size, largest(x));
+  const double tol = 1e-9 * (1.0 + size);  // m
+  for (auto& f : faces) {
+    f.lo = f.hi = points[f.first];
+    for (int k = 1; k < f.count; ++k) {
+      f.lo = lower(f.lo, points[f.first + k]);
+      f.hi = upper(f.hi, points[f.first + k]);
+    }
+  }
+  std::sort(faces.begin(), faces.end(), [](const WorldFace<D>& u, const WorldFace<D>& v) {
+    return u.lo.x < v.lo.x || (u.lo.x == v.lo.x && (u.shape < v.shape ||
+                                                     (u.shape == v.shape && u.index < v.index)));
+  });
+  // how much of each face the opposite faces in its plane cover: the faces of static
+  // shapes side by side do not overlap, so a face is covered when they cover all of it
+  // (but a band of tol along its edges), by one face (tiles of a size) or several (bricks
+  // laid in bond, planks of a floor); a gap between two tiles leaves both sides open
+  std::vector<double> cover(faces.size(), 0.0);  // m (2D) or m² (3D)
+  // the faces whose boxes meet face u's along x follow it in the sorted list
+  for (std::size_t u = 0; u < faces.size(); ++u) {
+    for (std::size_t v = u + 1; v < faces.size() && faces[v].lo.x <= faces[u].hi.x + tol; ++v) {
+      const WorldFace<D>&fu = faces[u], &fv = faces[v];
+      if (fu.shape == fv.shape || dot(fu.normal, fv.normal) > -1.0 + 1e-9 ||
+          !boxes_meet(fu.lo, fu.hi, fv.lo, fv.hi, tol))
+        continue;
+      cover[u] += overlap(fu, fv, points.data(), tol);
+      cover[v] += overlap(fv, fu, points.data(), tol);
+    }
+  }
+  std::vector<std::uint64_t> covered(model.shape_count(), 0);
+  bool any = false;
+  for (std::size_t u = 0; u < faces.size(); ++u) {
+    const WorldFace<D>& f = faces[u];
+    if (f.index >= 64 || !(cover[u] > 0.0)) continue;
+    if (cover[u] >= must_cover(f, points.data(), tol)) {
+      covered[f.shape] |= std::uint64_t{1} << f.index;
+      any = true;
+    }
+  }
+  if (any) model.shape_covered = std::move(covered);
+}
+
 bool build_shape_hulls(Model<3>& model, std::string* error) {
   const int n = model.shape_count();
   model.shape_hull.assign(n, Hull3{});
@@ -286,6 +473,8 @@ bool build_shape_hulls(Model<3>& model, std::string* error) {
   return true;
 }
 
+template void find_covered_faces(Model<2>&, const State<2>&);
+template void find_covered_faces(Model<3>&, const State<3>&);
 template void transform_shapes(const Model<2>&, const State<2>&, Contacts<2>&, double);
 template void transform_shapes(const Model<3>&, const State<3>&, Contacts<3>&, double);
 template Vec2 frame_move(const Model<2>&, const Contacts<2>&);
