@@ -238,6 +238,13 @@ TEST(flush_faces_of_static_boxes_side_by_side_are_covered) {
   CHECK(covered[2] == 0u);  // its left side is open above tile 1, its right one by the gap
   CHECK(covered[3] == 0u);
   CHECK(covered[4] == 0u);
+  // and who covers them: 0's right side tile 1, 1's left side tile 0 and its right tile 2
+  const auto& start = w.model.cover_start;
+  const auto& by = w.model.cover;
+  CHECK(start.size() == 6 && start[0] == 0 && start[1] == 1 && start[2] == 3 && start[5] == 3);
+  CHECK(by[0].shape == 1 && by[0].faces == 1u << 1);
+  CHECK(by[1].shape == 0 && by[1].faces == 1u << 3);
+  CHECK(by[2].shape == 2 && by[2].faces == 1u << 1);
 }
 
 // In 3D a face may be covered by several (bricks laid in bond: the upper brick's bottom
@@ -257,4 +264,9 @@ TEST(a_brick_face_resting_on_two_bricks_is_covered) {
   CHECK(covered[2] == 1u << 2);  // -y: on the two below
   CHECK(covered[3] == 0u);
   CHECK(covered[4] == 0u);
+  const auto& start = w.model.cover_start;
+  const auto& by = w.model.cover;
+  CHECK(start.size() == 6 && start[1] == 1 && start[2] == 2 && start[3] == 4 && start[5] == 4);
+  CHECK(by[0].shape == 1 && by[1].shape == 0);
+  CHECK(by[2].shape == 0 && by[3].shape == 1 && by[2].faces == 1u << 2 && by[3].faces == 1u << 2);
 }

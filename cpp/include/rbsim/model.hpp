@@ -72,6 +72,15 @@ struct Model {
   // box_hull()'s order; faces past the 64th are never marked). World::allocate,
   // find_covered_faces; empty when no face is covered.
   std::vector<std::uint64_t> shape_covered;  // (S,) or empty
+  // Who covers them: shape s's neighbours cover[cover_start[s] .. cover_start[s + 1]),
+  // each a static shape and the mask of s's covered faces it lies against (empty with
+  // shape_covered)
+  struct Cover {
+    std::int32_t shape;
+    std::uint64_t faces;
+  };
+  std::vector<std::int32_t> cover_start;  // (S + 1,) or empty
+  std::vector<Cover> cover;
   Vec gravity{};                          // m/s²
   double linear_damping = 0.0;            // 1/s
   double angular_damping = 0.0;           // 1/s

@@ -18,6 +18,7 @@
 #include <cstdint>
 #include <limits>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -424,6 +425,7 @@ void find_covered_faces(Model<D>& model, const State<D>& state) {
   // (but a band of tol along its edges), by one face (tiles of a size) or several (bricks
   // laid in bond, planks of a floor); a gap between two tiles leaves both sides open
   std::vector<double> cover(faces.size(), 0.0);  // m (2D) or m² (3D)
+  std::vector<std::pair<std::size_t, std::int32_t>> touch;  // (face, the shape lying on it)
   // the faces whose boxes meet face u's along x follow it in the sorted list
   for (std::size_t u = 0; u < faces.size(); ++u) {
     for (std::size_t v = u + 1; v < faces.size() && faces[v].lo.x <= faces[u].hi.x + tol; ++v) {
@@ -431,8 +433,12 @@ void find_covered_faces(Model<D>& model, const State<D>& state) {
       if (fu.shape == fv.shape || dot(fu.normal, fv.normal) > -1.0 + 1e-9 ||
           !boxes_meet(fu.lo, fu.hi, fv.lo, fv.hi, tol))
         continue;
-      cover[u] += overlap(fu, fv, points.data(), tol);
-      cover[v] += overlap(fv, fu, points.data(), tol);
+      for (const auto& [f, g, k] : {std::tuple{&fu, &fv, u}, std::tuple{&fv, &fu, v}}) {
+        const double part = overlap(*f, *g, points.data(), tol);
+        if (!(part > 0.0)) continue;
+        cover[k] += part;
+        touch.emplace_back(k, g->shape);
+      }
     }
   }
   std::vector<std::uint64_t> covered(model.shape_count(), 0);
@@ -445,7 +451,29 @@ void find_covered_faces(Model<D>& model, const State<D>& state) {
       any = true;
     }
   }
-  if (any) model.shape_covered = std::move(covered);
+  model.cover_start.clear();
+  model.cover.clear();
+  if (!any) return;
+  model.shape_covered = std::move(covered);
+  // each covered face's neighbours, shape by shape in order (and by neighbour within)
+  std::vector<std::tuple<std::int32_t, std::int32_t, std::uint64_t>> by_shape;
+  for (const auto& [k, other] : touch) {
+    const WorldFace<D>& f = faces[k];
+    if (f.index >= 64) continue;
+    const std::uint64_t bit = std::uint64_t{1} << f.index;
+    if (model.shape_covered[f.shape] & bit) by_shape.emplace_back(f.shape, other, bit);
+  }
+  std::sort(by_shape.begin(), by_shape.end());
+  model.cover_start.assign(model.shape_count() + 1, 0);
+  for (std::size_t i = 0; i < by_shape.size();) {
+    const std::int32_t s = std::get<0>(by_shape[i]), other = std::get<1>(by_shape[i]);
+    std::uint64_t mask = 0;
+    for (; i < by_shape.size() && std::get<0>(by_shape[i]) == s && std::get<1>(by_shape[i]) == other; ++i)
+      mask |= std::get<2>(by_shape[i]);
+    model.cover.push_back({other, mask});
+    ++model.cover_start[s + 1];
+  }
+  for (int s = 0; s < model.shape_count(); ++s) model.cover_start[s + 1] += model.cover_start[s];
 }
 
 bool build_shape_hulls(Model<3>& model, std::string* error) {

@@ -123,63 +123,86 @@ inline bool catches_at_joint(const Model<2>& model, const Contacts<2>& c, int a,
   return pushes_across_joint(model, c, b, n) || pushes_across_joint(model, c, a, -n);
 }
 
-// Whether static polytope s would push along n_out (unit, out of s towards the other
-// shape) from where one of its covered faces is (model.shape_covered): its support along
-// n_out (the corners farthest out along it) lies on a covered face. That is the covered
-// face itself, or a corner or edge of it, pushing towards the neighbour whose face covers
-// it, where the neighbour's own face holds the other shape (the support of a push along
-// an open face's normal is that whole face, which no other face holds). Crossing a floor
-// of static tiles 0.5 m wide, a frictionless box at 4 m/s met the next tile's covered
-// side at every joint, and stopped within 2.3 m (0.16 m/s left); a ball rolled on at 2.1.
+// A static polytope's world corners (2D: a polygon's; 3D: a box's in box_hull()'s order,
+// or a hull's) and, in 3D, its faces' loops over them.
 template <int D>
-bool pushes_from_covered(const Model<D>& model, const Contacts<D>& c, int s,
-                         typename Dim<D>::Vec n_out) {
+struct Corners {
   using Vec = typename Dim<D>::Vec;
-  if (model.shape_covered.empty() || model.shape_covered[s] == 0) return false;
-  const std::uint64_t covered = model.shape_covered[s];
-  const Vec* v = c.vert_world.data() + model.shape_vstart[s];
-  int n = model.shape_vcount[s];
-  [[maybe_unused]] std::array<Vec, 8> corners;
-  [[maybe_unused]] HullView hull;
+  const Vec* v = nullptr;
+  int n = 0;
+  HullView hull{};              // (3D)
+  std::array<Vec, 8> box{};     // (3D: a box's, made here)
+};
+template <int D>
+void corners_of(const Model<D>& model, const Contacts<D>& c, int s, Corners<D>& out) {
+  out.v = c.vert_world.data() + model.shape_vstart[s];
+  out.n = model.shape_vcount[s];
   if constexpr (D == 3) {
     if (model.shape_kind[s] == ShapeKind::Box) {
       std::array<Vec3, 6> normals;
-      box_geometry(world_shape(model, c, s, 1.0), corners.data(), normals.data());
-      v = corners.data(), n = 8, hull = box_hull();
+      box_geometry(world_shape(model, c, s, 1.0), out.box.data(), normals.data());
+      out.v = out.box.data(), out.n = 8, out.hull = box_hull();
     } else {
-      hull = model.shape_hull[s].view();
+      out.hull = model.shape_hull[s].view();
     }
   }
+}
+
+// Whether static polytope s would push along n_out (unit, out of s towards the other
+// shape) into a neighbour that covers one of its faces (model.shape_covered): its support
+// along n_out (the corners farthest out along it) lies on a covered face, and the plane
+// through the support across n_out cuts into a shape that lies against that face. The
+// body is then where the neighbour's own face holds it: the covered face itself pushes
+// into the neighbour, and so does a corner or an edge of it whose push leans towards the
+// neighbour farther than the neighbour's face there (flush tiles: any lean at all). A push
+// no farther over than the neighbour's face, at a joint where the floor bends down, is the
+// corner's own, and stays (dropped, a box sliding over such a joint fell through it).
+// Crossing a floor of static tiles 0.5 m wide, a frictionless box at 4 m/s met the next
+// tile's covered side at every joint, and stopped within 2.3 m (0.16 m/s left).
+template <int D>
+bool pushes_from_covered(const Model<D>& model, const Contacts<D>& c, int s,
+                         typename Dim<D>::Vec n_out) {
+  if (model.shape_covered.empty() || model.shape_covered[s] == 0) return false;
+  Corners<D> own;
+  corners_of(model, c, s, own);
   // the support: the corners within round-off (1e-9 of their size, find_covered_faces) of
   // the farthest out along n_out
   double most = -std::numeric_limits<double>::infinity(), size = 0.0;  // m
-  for (int k = 0; k < n; ++k) {
-    most = std::max(most, dot(n_out, v[k]));
-    size = std::max(size, length(v[k]));
+  for (int k = 0; k < own.n; ++k) {
+    most = std::max(most, dot(n_out, own.v[k]));
+    size = std::max(size, length(own.v[k]));
   }
-  const double tol = 1e-9 * (1.0 + size);
+  const double tol = 1e-9 * (1.0 + size);  // m
   std::array<int, HULL_MAX_FACE_VERTICES> support;
   int count = 0;
-  for (int k = 0; k < n; ++k) {
-    if (dot(n_out, v[k]) < most - tol) continue;
+  for (int k = 0; k < own.n; ++k) {
+    if (dot(n_out, own.v[k]) < most - tol) continue;
     if (count == HULL_MAX_FACE_VERTICES) return false;
     support[count++] = k;
   }
-  for (std::uint64_t bits = covered; bits; bits &= bits - 1) {
+  for (std::uint64_t bits = model.shape_covered[s]; bits; bits &= bits - 1) {
     const int f = std::countr_zero(bits);
     // whether face f holds every corner of the support
     bool holds = true;
     for (int i = 0; i < count && holds; ++i) {
       const int k = support[i];
       if constexpr (D == 2) {
-        holds = k == f || k == (f + 1) % n;
+        holds = k == f || k == (f + 1) % own.n;
       } else {
         holds = false;
-        for (int j = hull.face_start[f]; j < hull.face_start[f + 1]; ++j)
-          holds = holds || hull.face_vertex[j] == k;
+        for (int j = own.hull.face_start[f]; j < own.hull.face_start[f + 1]; ++j)
+          holds = holds || own.hull.face_vertex[j] == k;
       }
     }
-    if (holds) return true;
+    if (!holds) continue;
+    // whether a neighbour against face f reaches past the plane through the support
+    for (int e = model.cover_start[s]; e < model.cover_start[s + 1]; ++e) {
+      if (!(model.cover[e].faces >> f & 1u)) continue;
+      Corners<D> other;
+      corners_of(model, c, model.cover[e].shape, other);
+      for (int k = 0; k < other.n; ++k)
+        if (dot(n_out, other.v[k]) > most + tol) return true;
+    }
   }
   return false;
 }
