@@ -804,42 +804,54 @@ def test_a_box_sliding_over_a_chain_that_bends_down_is_not_stopped():
         engine.advance(1)
         spin = max(spin, abs(float(np.asarray(engine.world.engine.body_w)[-1])))
     v = np.asarray(engine.world.engine.body_v)[-1]
-    assert (
-        np.hypot(v[0], v[1]) > 5.3
-    )  # m/s: as over the bend in free flight (5.44), less its landing
+    # m/s: as over the bend in free flight (5.44), less its landing
+    assert np.hypot(v[0], v[1]) > 5.3
     assert spin < 1.0  # rad/s (pymunk 0.63: the landing on the slope)
+
+
+def arc_ends(n: int, radius: float = 2.0) -> list[tuple[float, float]]:
+    """The n + 1 ends (m) of n pieces along a circular arc of `radius` (m) from -1.2 to 1.2
+    rad about its lowest point, at the origin: a bowl."""
+    return [
+        (radius * math.sin(a), radius - radius * math.cos(a))
+        for a in (-1.2 + 2.4 * k / n for k in range(n + 1))
+    ]
+
+
+def bowl_scene(floor: str) -> str:
+    """A bowl's pieces (YAML lines) and a frictionless ball of 0.1 m set at (-1, 0.3) m,
+    7 cm into a bowl of radius 2 m, for 600 steps of 1/60 s."""
+    return (
+        "version: 1\nworld: {dt: 1/60, steps: 600}\nbodies:\n" + floor + "  - {name: b, "
+        "position: [-1.0, 0.3], friction: 0, shape: {circle: {radius: 0.1}}}\n"
+    )
+
+
+def assert_energy_never_rises(engine, after: int, steps: int) -> None:  # noqa: ANN001
+    """Advance `after` steps, then `steps` more, each with a total energy no more than
+    after the first `after` (J; to 1e-3 of it: the soft contacts' give)."""
+    engine.advance(after)
+    first = engine.observables()
+    start = first["kinetic_energy"] + first["potential_energy"]
+    for _ in range(steps):
+        engine.advance(1)
+        o = engine.observables()
+        assert o["kinetic_energy"] + o["potential_energy"] <= start + 1e-3 * abs(start) + 1e-9
 
 
 def test_a_ball_in_a_bowl_of_many_pieces_never_gains_energy():
     # a valley's joints stay corners: there the corner's push is what stops the ball at
     # the next piece, which rises (without it a ball rolling in a bowl of 200 pieces
     # gained 4% of its energy in 10 s)
-    import math
-
     from rbsim.engines import make_engine
 
-    n, radius = 200, 2.0
-    ends = [
-        (radius * math.sin(a), radius - radius * math.cos(a))
-        for a in (-1.2 + 2.4 * k / n for k in range(n + 1))
-    ]
+    ends = arc_ends(200)
     floor = "".join(
         f"  - {{name: f{k}, type: static, shape: {{segment: {{a: [{ends[k][0]!r}, {ends[k][1]!r}], "
         f"b: [{ends[k + 1][0]!r}, {ends[k + 1][1]!r}]}}}}}}\n"
-        for k in range(n)
+        for k in range(200)
     )
-    text = (
-        "version: 1\nworld: {dt: 1/60, steps: 600}\nbodies:\n" + floor + "  - {name: b, "
-        "position: [-1.0, 0.3], friction: 0, shape: {circle: {radius: 0.1}}}\n"
-    )
-    engine = make_engine("rbsim", scene_from(text))
-    engine.advance(1)
-    first = engine.observables()
-    start = first["kinetic_energy"] + first["potential_energy"]
-    for _ in range(599):
-        engine.advance(1)
-        o = engine.observables()
-        assert o["kinetic_energy"] + o["potential_energy"] <= start + 1e-3 * abs(start) + 1e-9
+    assert_energy_never_rises(make_engine("rbsim", scene_from(bowl_scene(floor))), 1, 599)
 
 
 def tile_floor(dimension: int, body: str, tiles: int = 16, mu: float = 0.0) -> str:
@@ -920,20 +932,16 @@ def one_floor(dimension: int, body: str, mu: float = 0.0) -> str:
     return text.replace("bodies:\n", "bodies:\n" + floor, 1)
 
 
-@pytest.mark.parametrize("mover", list(TILE_MOVERS))
-def test_a_body_crossing_a_floor_of_tiles_moves_as_on_one_floor(mover):
-    # A floor of static boxes side by side: at every joint the next tile's side, which
-    # the tile before covers, or its corner pushed the body back. A frictionless box at
-    # 4 m/s stopped within 2.3 m, a ball left at 2.1 m/s; in 3D across a grid of tiles a
-    # box was left at 0.27 m/s of 3. Where a neighbour's face covers a face, the neighbour
-    # holds the body
+def assert_moves_as_on_one_floor(text: str, one: str) -> None:
+    """Run scene `text` and scene `one` (the same on one floor) for 90 steps: the last
+    body ends with the same velocity (to 1e-4 m/s: the points change piece at each joint,
+    and a box settles up to 0.1 mm otherwise than on one floor; catching, it stopped),
+    and never moves up or down faster than 1 mm/s."""
     from rbsim.engines import make_engine
 
-    dimension, body = TILE_MOVERS[mover]
-    mu = 0.6 if "rolling" in mover else 0.0
     runs = []
-    for text in (tile_floor(dimension, body, mu=mu), one_floor(dimension, body, mu=mu)):
-        engine = make_engine("rbsim", scene_from(text))
+    for scene in (text, one):
+        engine = make_engine("rbsim", scene_from(scene))
         top = 0.0  # m/s: the fastest up or down
         for _ in range(90):
             engine.advance(1)
@@ -941,10 +949,68 @@ def test_a_body_crossing_a_floor_of_tiles_moves_as_on_one_floor(mover):
             top = max(top, abs(float(v[1])))
         runs.append((v, top))
     (v, top), (v_one, _) = runs
-    # (the points change tile at each joint: a box settles up to 0.1 mm otherwise than on
-    # one floor, at under 0.2 mm/s up or down; catching, it stopped)
     assert np.allclose(v, v_one, rtol=0, atol=1e-4)  # m/s
     assert top < 1e-3  # m/s: never thrown up
+
+
+@pytest.mark.parametrize("mover", list(TILE_MOVERS))
+def test_a_body_crossing_a_floor_of_tiles_moves_as_on_one_floor(mover):
+    # A floor of static boxes side by side: at every joint the next tile's side, which
+    # the tile before covers, or its corner pushed the body back. A frictionless box at
+    # 4 m/s stopped within 2.3 m, a ball left at 2.1 m/s; in 3D across a grid of tiles a
+    # box was left at 0.27 m/s of 3. Where a neighbour's face covers a face, the neighbour
+    # holds the body
+    dimension, body = TILE_MOVERS[mover]
+    mu = 0.6 if "rolling" in mover else 0.0
+    assert_moves_as_on_one_floor(
+        tile_floor(dimension, body, mu=mu), one_floor(dimension, body, mu=mu)
+    )
+
+
+@pytest.mark.parametrize(
+    "dimension, body",
+    [
+        (
+            2,
+            "{name: b, position: [0.5, 0.25], velocity: [4, 0], friction: 0,"
+            " shape: {box: {size: [0.5, 0.5]}}}",
+        ),
+        (
+            2,
+            "{name: b, position: [0.5, 0.2], velocity: [4, 0], friction: 0,"
+            " shape: {circle: {radius: 0.2}}}",
+        ),
+        (
+            3,
+            "{name: b, position: [0.5, 0.25, 0.5], velocity: [3, 0, 3], friction: 0,"
+            " shape: {box: {size: [0.5, 0.5, 0.5]}}}",
+        ),
+    ],
+    ids=["box-2d", "ball-2d", "box-3d"],
+)
+def test_a_body_crossing_flush_tiles_of_unequal_depths_moves_as_on_one_floor(dimension, body):
+    # tiles whose tops lie flush and whose bottoms do not (depths 0.2 and 0.6 m in turn;
+    # in 3D a chequerboard of them): a deeper tile's side is covered only near its top,
+    # by the shallower one's, and its corner and that side pushed back a box at 4 m/s
+    # until 1.5 m/s were left (3D: 0.14 of 3)
+
+    deep = lambda i, j=0: 0.6 if (i + j) % 2 else 0.2  # noqa: E731 - m
+    if dimension == 2:
+        floor = "".join(
+            f"  - {{name: t{i}, type: static, friction: 0, position: [{0.25 + 0.5 * i},"
+            f" {-deep(i) / 2}], shape: {{box: {{size: [0.5, {deep(i)}]}}}}}}\n"
+            for i in range(16)
+        )
+    else:
+        floor = "".join(
+            f"  - {{name: t{i}_{j}, type: static, friction: 0, position: [{0.25 + 0.5 * i},"
+            f" {-deep(i, j) / 2}, {0.25 + 0.5 * j}], shape: {{box: {{size: [0.5, {deep(i, j)},"
+            " 0.5]}}}\n"
+            for i in range(16)
+            for j in range(16)
+        )
+    text = tile_floor(dimension, body, tiles=0).replace("bodies:\n", "bodies:\n" + floor, 1)
+    assert_moves_as_on_one_floor(text, one_floor(dimension, body))
 
 
 def test_a_box_crossing_planks_laid_in_bond_keeps_its_speed():
@@ -1036,6 +1102,25 @@ def test_a_box_sliding_over_a_bend_between_flush_pieces_stays_on_them(dimension)
         lowest = min(lowest, float(x[1]) - surface)
     assert x[0] > 0.5  # m: over the bend and on down the slope
     assert lowest > 0.09  # m: its half height 0.1, but the soft contacts' slop
+
+
+def test_a_ball_in_a_bowl_of_flush_polygons_never_gains_energy():
+    # 60 static quadrilaterals side by side under an arc, each one's sides covered by its
+    # neighbours': every joint a valley, where the corner's push is the speculative contact
+    # that stops the ball at the rising neighbour, and stays, as for segments. Dropped
+    # with the covered sides' pushes, the ball rolling in the bowl gained 3.4% of its
+    # energy between 1 and 10 s. (Set into the bowl, it is pushed out and lands in the
+    # first second, which the test leaves out)
+    from rbsim.engines import make_engine
+
+    ends = arc_ends(60)
+    floor = "".join(
+        f"  - {{name: f{k}, type: static, shape: {{polygon: {{vertices: [[{ends[k][0]!r}, -1.0],"
+        f" [{ends[k + 1][0]!r}, -1.0], [{ends[k + 1][0]!r}, {ends[k + 1][1]!r}],"
+        f" [{ends[k][0]!r}, {ends[k][1]!r}]]}}}}}}\n"
+        for k in range(60)
+    )
+    assert_energy_never_rises(make_engine("rbsim", scene_from(bowl_scene(floor))), 60, 540)
 
 
 def end_first_scene(dimension: int, substeps: int) -> str:

@@ -1,6 +1,8 @@
 // collide/transform.cpp: world geometry of every shape, its speculative reach, and which
 // bodies are still near their reference pose.
+#include <bit>
 #include <cmath>
+#include <cstdint>
 
 #include "check.hpp"
 #include "rbsim/constants.hpp"
@@ -238,13 +240,22 @@ TEST(flush_faces_of_static_boxes_side_by_side_are_covered) {
   CHECK(covered[2] == 0u);  // its left side is open above tile 1, its right one by the gap
   CHECK(covered[3] == 0u);
   CHECK(covered[4] == 0u);
-  // and who covers them: 0's right side tile 1, 1's left side tile 0 and its right tile 2
+  // tile 2's left side is covered near its lower corner (its loop's second: the side runs
+  // from corner 3, top left, to corner 0), and every corner of a wholly covered face
+  const auto& corner = w.model.corner_covered;
+  const auto& rows = w.model.corner_start;
+  CHECK(rows.size() == 6 && rows[1] == 4 && rows[2] == 8 && rows[3] == 12 && rows[5] == 12);
+  CHECK(corner[rows[2] + 3] == 2u && corner[rows[2] + 1] == 0u);
+  CHECK(corner[rows[0] + 1] == 3u && corner[rows[1] + 3] == 3u && corner[rows[0] + 3] == 0u);
+  // and who lies against them: 0's right side tile 1, 1's sides tiles 0 and 2, 2's tile 1
   const auto& start = w.model.cover_start;
   const auto& by = w.model.cover;
-  CHECK(start.size() == 6 && start[0] == 0 && start[1] == 1 && start[2] == 3 && start[5] == 3);
+  CHECK(start.size() == 6 && start[0] == 0 && start[1] == 1 && start[2] == 3 && start[3] == 4 &&
+        start[5] == 4);
   CHECK(by[0].shape == 1 && by[0].faces == 1u << 1);
   CHECK(by[1].shape == 0 && by[1].faces == 1u << 3);
   CHECK(by[2].shape == 2 && by[2].faces == 1u << 1);
+  CHECK(by[3].shape == 1 && by[3].faces == 1u << 3);
 }
 
 // In 3D a face may be covered by several (bricks laid in bond: the upper brick's bottom
@@ -264,9 +275,16 @@ TEST(a_brick_face_resting_on_two_bricks_is_covered) {
   CHECK(covered[2] == 1u << 2);  // -y: on the two below
   CHECK(covered[3] == 0u);
   CHECK(covered[4] == 0u);
+  // who lies against them: 0's +x brick 1 and its top (half covered) brick 2; 1's -x
+  // brick 0 and its top brick 2; 2's bottom bricks 0 and 1
   const auto& start = w.model.cover_start;
   const auto& by = w.model.cover;
-  CHECK(start.size() == 6 && start[1] == 1 && start[2] == 2 && start[3] == 4 && start[5] == 4);
-  CHECK(by[0].shape == 1 && by[1].shape == 0);
-  CHECK(by[2].shape == 0 && by[3].shape == 1 && by[2].faces == 1u << 2 && by[3].faces == 1u << 2);
+  CHECK(start.size() == 6 && start[1] == 2 && start[2] == 4 && start[3] == 6 && start[5] == 6);
+  CHECK(by[0].shape == 1 && by[0].faces == 1u << 1 && by[1].shape == 2 && by[1].faces == 1u << 3);
+  CHECK(by[2].shape == 0 && by[2].faces == 1u << 0 && by[3].shape == 2 && by[3].faces == 1u << 3);
+  CHECK(by[4].shape == 0 && by[5].shape == 1 && by[4].faces == 1u << 2 && by[5].faces == 1u << 2);
+  // brick 0's top is covered near the two corners over x = 1, not the two over x = 0
+  const auto& corner = w.model.corner_covered;
+  const std::uint64_t top = corner[w.model.corner_start[0] + 3];
+  CHECK(std::popcount(top) == 2);
 }

@@ -72,9 +72,17 @@ struct Model {
   // box_hull()'s order; faces past the 64th are never marked). World::allocate,
   // find_covered_faces; empty when no face is covered.
   std::vector<std::uint64_t> shape_covered;  // (S,) or empty
+  // And near which corners: where static faces lie flush against a face near one of its
+  // corners (a tile beside a deeper one: the deeper one's side, near its top), face f of
+  // shape s has bit i of corner_covered[corner_start[s] + f] for the i-th corner of its
+  // loop (2D: 0 its edge's first end, 1 its second); a wholly covered face, every one.
+  // Shapes with none have no rows (corner_start[s] == corner_start[s + 1]); empty when
+  // no face of any shape is covered anywhere.
+  std::vector<std::int32_t> corner_start;  // (S + 1,) or empty
+  std::vector<std::uint64_t> corner_covered;
   // Who covers them: shape s's neighbours cover[cover_start[s] .. cover_start[s + 1]),
-  // each a static shape and the mask of s's covered faces it lies against (empty with
-  // shape_covered)
+  // each a static shape and the mask of s's faces it lies against (empty with
+  // corner_covered)
   struct Cover {
     std::int32_t shape;
     std::uint64_t faces;

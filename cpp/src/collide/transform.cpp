@@ -346,6 +346,22 @@ inline bool boxes_meet(Vec3 lo, Vec3 hi, Vec3 lo2, Vec3 hi2, double tol) {
 inline double largest(Vec2 x) { return std::max(std::fabs(x.x), std::fabs(x.y)); }
 inline double largest(Vec3 x) { return std::max({std::fabs(x.x), std::fabs(x.y), std::fabs(x.z)}); }
 
+// Whether the point x lies within face g (its corners p[g.first ..]) up to tol (m): on
+// its plane and inside its polygon (2D: between the edge's ends).
+inline bool within_face(const WorldFace<2>& g, const Vec2* p, Vec2 x, double tol) {
+  const Vec2 a = p[g.first], along = p[g.first + 1] - a;
+  const double len = length(along), t = dot(x - a, along);
+  return std::fabs(dot(g.normal, x - a)) <= tol && t >= -tol * len && t <= len * (len + tol);
+}
+inline bool within_face(const WorldFace<3>& g, const Vec3* p, Vec3 x, double tol) {
+  if (std::fabs(dot(g.normal, x - p[g.first])) > tol) return false;
+  for (int k = 0; k < g.count; ++k) {
+    const Vec3 a = p[g.first + k], b = p[g.first + (k + 1) % g.count];
+    if (dot(cross(b - a, g.normal), x - a) > tol * length(b - a)) return false;
+  }
+  return true;
+}
+
 // How much of face f (its corners in p) face g covers, both in one plane up to tol (m):
 // 2D, the length of f's edge within g's (m); 3D, the area of f's polygon within g's (m²,
 // f clipped by g's sides, Sutherland–Hodgman); 0 when g leaves f's plane.
@@ -394,6 +410,24 @@ double must_cover(const WorldFace<3>& f, const Vec3* p, double tol) {
   return 0.5 * std::fabs(dot(twice, f.normal)) - tol * perimeter;
 }
 
+// Bit i set for each corner i of face f (its corners in p) near which face g, in f's plane
+// up to tol (m), covers f: g holds the point a thousandth of the way from the corner to
+// f's centre.
+template <int D>
+std::uint64_t corners_covered(const WorldFace<D>& f, const WorldFace<D>& g, const typename Dim<D>::Vec* p,
+                              double tol) {
+  using Vec = typename Dim<D>::Vec;
+  Vec centre{};
+  for (int k = 0; k < f.count; ++k) centre = centre + p[f.first + k];
+  centre = (1.0 / f.count) * centre;
+  std::uint64_t bits = 0;
+  for (int k = 0; k < f.count && k < 64; ++k) {
+    const Vec x = p[f.first + k] + 1e-3 * (centre - p[f.first + k]);
+    if (within_face(g, p, x, tol)) bits |= std::uint64_t{1} << k;
+  }
+  return bits;
+}
+
 }  // namespace
 
 template <int D>
@@ -403,6 +437,10 @@ void find_covered_faces(Model<D>& model, const State<D>& state) {
   std::vector<Vec> points;
   static_faces(model, state, faces, points);
   model.shape_covered.clear();
+  model.corner_start.clear();
+  model.corner_covered.clear();
+  model.cover_start.clear();
+  model.cover.clear();
   if (faces.size() < 2) return;
   // two faces meet within 1e-9 of the largest coordinate's size (tiles laid from the same
   // numbers meet to round-off, and the bound is far below any gap a scene means)
@@ -425,6 +463,7 @@ void find_covered_faces(Model<D>& model, const State<D>& state) {
   // (but a band of tol along its edges), by one face (tiles of a size) or several (bricks
   // laid in bond, planks of a floor); a gap between two tiles leaves both sides open
   std::vector<double> cover(faces.size(), 0.0);  // m (2D) or m² (3D)
+  std::vector<std::uint64_t> corners(faces.size(), 0);  // corners_covered, over all neighbours
   std::vector<std::pair<std::size_t, std::int32_t>> touch;  // (face, the shape lying on it)
   // the faces whose boxes meet face u's along x follow it in the sorted list
   for (std::size_t u = 0; u < faces.size(); ++u) {
@@ -437,6 +476,7 @@ void find_covered_faces(Model<D>& model, const State<D>& state) {
         const double part = overlap(*f, *g, points.data(), tol);
         if (!(part > 0.0)) continue;
         cover[k] += part;
+        corners[k] |= corners_covered(*f, *g, points.data(), tol);
         touch.emplace_back(k, g->shape);
       }
     }
@@ -448,23 +488,37 @@ void find_covered_faces(Model<D>& model, const State<D>& state) {
     if (f.index >= 64 || !(cover[u] > 0.0)) continue;
     if (cover[u] >= must_cover(f, points.data(), tol)) {
       covered[f.shape] |= std::uint64_t{1} << f.index;
-      any = true;
+      corners[u] = f.count >= 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << f.count) - 1;
     }
+    any = any || corners[u] != 0;
   }
+  model.corner_start.clear();
+  model.corner_covered.clear();
   model.cover_start.clear();
   model.cover.clear();
   if (!any) return;
   model.shape_covered = std::move(covered);
-  // each covered face's neighbours, shape by shape in order (and by neighbour within)
+  // each shape's rows of corner masks, face by face (shapes with none, no rows)
+  const int n_shapes = model.shape_count();
+  std::vector<int> face_count(n_shapes, 0);
+  std::vector<char> has(n_shapes, 0);
+  for (std::size_t u = 0; u < faces.size(); ++u) {
+    face_count[faces[u].shape] = std::max(face_count[faces[u].shape], faces[u].index + 1);
+    if (corners[u] != 0) has[faces[u].shape] = 1;
+  }
+  model.corner_start.assign(n_shapes + 1, 0);
+  for (int s = 0; s < n_shapes; ++s) model.corner_start[s + 1] = model.corner_start[s] + (has[s] ? face_count[s] : 0);
+  model.corner_covered.assign(model.corner_start[n_shapes], 0);
+  for (std::size_t u = 0; u < faces.size(); ++u)
+    if (has[faces[u].shape]) model.corner_covered[model.corner_start[faces[u].shape] + faces[u].index] = corners[u];
+  // each such face's neighbours, shape by shape in order (and by neighbour within)
   std::vector<std::tuple<std::int32_t, std::int32_t, std::uint64_t>> by_shape;
   for (const auto& [k, other] : touch) {
     const WorldFace<D>& f = faces[k];
-    if (f.index >= 64) continue;
-    const std::uint64_t bit = std::uint64_t{1} << f.index;
-    if (model.shape_covered[f.shape] & bit) by_shape.emplace_back(f.shape, other, bit);
+    if (f.index < 64 && corners[k] != 0) by_shape.emplace_back(f.shape, other, std::uint64_t{1} << f.index);
   }
   std::sort(by_shape.begin(), by_shape.end());
-  model.cover_start.assign(model.shape_count() + 1, 0);
+  model.cover_start.assign(n_shapes + 1, 0);
   for (std::size_t i = 0; i < by_shape.size();) {
     const std::int32_t s = std::get<0>(by_shape[i]), other = std::get<1>(by_shape[i]);
     std::uint64_t mask = 0;
@@ -473,7 +527,7 @@ void find_covered_faces(Model<D>& model, const State<D>& state) {
     model.cover.push_back({other, mask});
     ++model.cover_start[s + 1];
   }
-  for (int s = 0; s < model.shape_count(); ++s) model.cover_start[s + 1] += model.cover_start[s];
+  for (int s = 0; s < n_shapes; ++s) model.cover_start[s + 1] += model.cover_start[s];
 }
 
 bool build_shape_hulls(Model<3>& model, std::string* error) {
