@@ -58,7 +58,11 @@ void World<D>::allocate() {
     model.shape_reach[s] = std::sqrt(reach2);  // (as the largest length: sqrt is monotone)
   }
   if constexpr (D == 2) find_segment_neighbours(model, state);
-  find_covered_faces(model, state);
+  {
+    std::vector<double> scale(size.size());  // each shape's contact scale (SCALE_LENGTH)
+    for (std::size_t s = 0; s < size.size(); ++s) scale[s] = std::min(1.0, size[s] / C::SCALE_LENGTH);
+    find_covered_faces(model, state, scale);
+  }
   grid.allocate(size, dynamic, capacity);
   contacts.allocate(model.body_count(), n_shapes, model.vertex_count(), capacity);
   size_pair_buffers();

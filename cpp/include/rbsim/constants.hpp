@@ -38,6 +38,14 @@ inline constexpr double SPECULATIVE_DISTANCE = 0.02;
 // overlap out; they allow none.
 inline constexpr double LINEAR_SLOP = 0.005;
 
+// How far apart two faces of static shapes may lie and still be flush, m (times the
+// smaller shape's scale, SCALE_LENGTH): a floor or wall of static pieces whose faces
+// meet within it is one surface, and what crosses its joints is not caught there
+// (find_covered_faces, pushes_from_covered). Normally 0.5 mm, a tenth of LINEAR_SLOP:
+// pieces placed by hand to three decimals, or turned by angles, meet within it. Larger
+// takes real steps and gaps for joints; smaller, misfits for steps.
+inline constexpr double FLUSH_DISTANCE = 0.0005;
+
 // How far a shape's fat box reaches beyond its tight box, m (times a small shape's scale,
 // SCALE_LENGTH). A shape is queried in the
 // broadphase again only once it has moved this far; larger keeps more candidate pairs

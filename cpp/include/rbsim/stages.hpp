@@ -105,10 +105,11 @@ bool build_shape_hulls(Model<3>& model, std::string* error);
 // when a 2D world is built: static bodies do not move).
 void find_segment_neighbours(Model<2>& model, const State<2>& state);
 
-// collide/transform.cpp: model.shape_covered from the static polytopes' world faces
-// (once, when a world is built: static bodies do not move).
+// collide/transform.cpp: model.shape_covered, corner_covered and cover from the static
+// polytopes' world faces (once, when a world is built: static bodies do not move);
+// scale: each shape's contact scale (constants.hpp, SCALE_LENGTH), for FLUSH_DISTANCE.
 template <int D>
-void find_covered_faces(Model<D>& model, const State<D>& state);
+void find_covered_faces(Model<D>& model, const State<D>& state, const std::vector<double>& scale);
 
 // collide/broadphase.cpp: update contacts.pairs (sorted by (a, b), a < b) from the
 // shapes' boxes; returns the pair count, which exceeds the capacity when the store must

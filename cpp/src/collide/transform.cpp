@@ -431,7 +431,7 @@ std::uint64_t corners_covered(const WorldFace<D>& f, const WorldFace<D>& g, cons
 }  // namespace
 
 template <int D>
-void find_covered_faces(Model<D>& model, const State<D>& state) {
+void find_covered_faces(Model<D>& model, const State<D>& state, const std::vector<double>& scale) {
   using Vec = typename Dim<D>::Vec;
   std::vector<WorldFace<D>> faces;
   std::vector<Vec> points;
@@ -442,11 +442,16 @@ void find_covered_faces(Model<D>& model, const State<D>& state) {
   model.cover_start.clear();
   model.cover.clear();
   if (faces.size() < 2) return;
-  // two faces meet within 1e-9 of the largest coordinate's size (tiles laid from the same
-  // numbers meet to round-off, and the bound is far below any gap a scene means)
+  // two faces meet within FLUSH_DISTANCE at the smaller shape's scale (and never closer
+  // than 1e-9 of the largest coordinate's size: round-off)
   double size = 0.0;  // m
   for (const Vec& x : points) size = std::max(size, largest(x));
-  const double tol = 1e-9 * (1.0 + size);  // m
+  const double round_off = 1e-9 * (1.0 + size);  // m
+  auto flush = [&](const WorldFace<D>& f, const WorldFace<D>& g) {  // m
+    return std::max(round_off, C::FLUSH_DISTANCE * std::min(scale[f.shape], scale[g.shape]));
+  };
+  double widest = round_off;  // m: the sweep's reach along x
+  for (const auto& f : faces) widest = std::max(widest, C::FLUSH_DISTANCE * scale[f.shape]);
   for (auto& f : faces) {
     f.lo = f.hi = points[f.first];
     for (int k = 1; k < f.count; ++k) {
@@ -467,8 +472,9 @@ void find_covered_faces(Model<D>& model, const State<D>& state) {
   std::vector<std::pair<std::size_t, std::int32_t>> touch;  // (face, the shape lying on it)
   // the faces whose boxes meet face u's along x follow it in the sorted list
   for (std::size_t u = 0; u < faces.size(); ++u) {
-    for (std::size_t v = u + 1; v < faces.size() && faces[v].lo.x <= faces[u].hi.x + tol; ++v) {
+    for (std::size_t v = u + 1; v < faces.size() && faces[v].lo.x <= faces[u].hi.x + widest; ++v) {
       const WorldFace<D>&fu = faces[u], &fv = faces[v];
+      const double tol = flush(fu, fv);  // m
       if (fu.shape == fv.shape || dot(fu.normal, fv.normal) > -1.0 + 1e-9 ||
           !boxes_meet(fu.lo, fu.hi, fv.lo, fv.hi, tol))
         continue;
@@ -486,7 +492,7 @@ void find_covered_faces(Model<D>& model, const State<D>& state) {
   for (std::size_t u = 0; u < faces.size(); ++u) {
     const WorldFace<D>& f = faces[u];
     if (f.index >= 64 || !(cover[u] > 0.0)) continue;
-    if (cover[u] >= must_cover(f, points.data(), tol)) {
+    if (cover[u] >= must_cover(f, points.data(), std::max(round_off, C::FLUSH_DISTANCE * scale[f.shape]))) {
       covered[f.shape] |= std::uint64_t{1} << f.index;
       corners[u] = f.count >= 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << f.count) - 1;
     }
@@ -555,8 +561,8 @@ bool build_shape_hulls(Model<3>& model, std::string* error) {
   return true;
 }
 
-template void find_covered_faces(Model<2>&, const State<2>&);
-template void find_covered_faces(Model<3>&, const State<3>&);
+template void find_covered_faces(Model<2>&, const State<2>&, const std::vector<double>&);
+template void find_covered_faces(Model<3>&, const State<3>&, const std::vector<double>&);
 template void transform_shapes(const Model<2>&, const State<2>&, Contacts<2>&, double);
 template void transform_shapes(const Model<3>&, const State<3>&, Contacts<3>&, double);
 template Vec2 frame_move(const Model<2>&, const Contacts<2>&);
