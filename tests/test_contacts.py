@@ -1077,6 +1077,45 @@ def test_a_turned_box_crossing_where_four_tilted_tiles_meet_moves_as_on_one_piec
     assert np.allclose(w, w_one, rtol=0, atol=1e-2)  # rad/s
 
 
+@pytest.mark.parametrize("dimension", [2, 3])
+def test_a_box_dropped_hard_onto_narrow_tiles_does_not_fall_through(dimension):
+    # a box driven 6 cm into a floor of tiles 0.2 m wide overlaps each tile less through
+    # its side than through its top: with every covered side's push dropped, it fell
+    # through the floor (helper-26). Deep manifolds keep their push
+    from rbsim.engines import make_engine
+
+    if dimension == 2:
+        floor = "".join(
+            f"  - {{name: t{k}, type: static, position: [{-0.9 + 0.2 * k!r}, -0.15],"
+            " shape: {box: {size: [0.2, 0.3]}}}\n"
+            for k in range(10)
+        )
+        body = (
+            "  - {name: b, position: [0.05, 0.4], angle: 0.3, velocity: [0, -6],"
+            " shape: {box: {size: [0.32, 0.135]}}}\n"
+        )
+        world = "{dt: 1/60, steps: 30}"
+    else:
+        floor = "".join(
+            f"  - {{name: t{i}_{j}, type: static, position: [{-0.4 + 0.2 * i!r}, -0.15,"
+            f" {-0.4 + 0.2 * j!r}], shape: {{box: {{size: [0.2, 0.3, 0.2]}}}}}}\n"
+            for i in range(5)
+            for j in range(5)
+        )
+        body = (
+            "  - {name: b, position: [0, 0.4, 0], rotation: {axis: [0.3, 0.2, 1], angle: 0.785},"
+            " velocity: [-2, -8, 1], density: 500, friction: 0.3, restitution: 0.3,"
+            " shape: {box: {size: [0.32, 0.135, 0.2]}}}\n"
+        )
+        world = "{dimension: 3, dt: 1/60, steps: 30}"
+    engine = make_engine("rbsim", scene_from(f"version: 1\nworld: {world}\nbodies:\n{floor}{body}"))
+    lowest = np.inf  # m: the box's centre
+    for _ in range(30):
+        engine.advance(1)
+        lowest = min(lowest, float(np.asarray(engine.world.engine.body_x)[-1][1]))
+    assert lowest > 0.0  # m: its centre never below the tiles' tops (half its height 0.0675)
+
+
 def test_a_box_crossing_planks_laid_in_bond_keeps_its_speed():
     # planks 2 m long, row by row across the way, each row half a plank along from the
     # last: each plank's long side is covered by two of the next row's
