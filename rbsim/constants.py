@@ -17,6 +17,7 @@ SPECULATIVE_DISTANCE: float = _ENGINE["SPECULATIVE_DISTANCE"]  # m
 LINEAR_SLOP: float = _ENGINE["LINEAR_SLOP"]  # m, the collision tolerance
 AABB_MARGIN: float = _ENGINE["AABB_MARGIN"]  # m
 FLUSH_DISTANCE: float = _ENGINE["FLUSH_DISTANCE"]  # m: static faces this near are one surface
+COVERED_MIN_SCALE: float = _ENGINE["COVERED_MIN_SCALE"]  # and only for pairs this large
 CONTACT_HERTZ: float = _ENGINE["CONTACT_HERTZ"]  # Hz, soft contact stiffness
 CONTACT_DAMPING_RATIO: float = _ENGINE["CONTACT_DAMPING_RATIO"]
 CONTACT_PUSH_MAX_VELOCITY: float = _ENGINE["CONTACT_PUSH_MAX_VELOCITY"]  # m/s

@@ -45,6 +45,12 @@ inline constexpr double LINEAR_SLOP = 0.005;
 // pieces placed by hand to three decimals, or turned by angles, meet within it. Larger
 // takes real steps and gaps for joints; smaller, misfits for steps.
 inline constexpr double FLUSH_DISTANCE = 0.0005;
+// The smallest contact scale (SCALE_LENGTH: a pair's smaller shape's half diagonal over
+// 10 cm) at which flush pieces' joints are one surface; dimensionless. Smaller pairs
+// rest deeper than their slop at the usual step (69 µm under gravity at 1/240 s), and
+// their joints catch as if the pieces were apart. Smaller takes joints for one surface
+// among millimetre parts, where bodies then sped up and fell through 1 mm tiles.
+inline constexpr double COVERED_MIN_SCALE = 0.05;
 
 // How far a shape's fat box reaches beyond its tight box, m (times a small shape's scale,
 // SCALE_LENGTH). A shape is queried in the
