@@ -160,33 +160,6 @@ void corners_of(const Model<D>& model, const Contacts<D>& c, int s, Corners<D>& 
   }
 }
 
-// Whether face f of polytope P holds corner k.
-template <int D>
-inline bool face_holds(const Corners<D>& P, int f, int k) {
-  if constexpr (D == 2) {
-    return k == f || k == (f + 1) % P.n;
-  } else {
-    for (int j = P.hull.face_start[f]; j < P.hull.face_start[f + 1]; ++j)
-      if (P.hull.face_vertex[j] == k) return true;
-    return false;
-  }
-}
-
-// Whether static polytope s would push along n_out (unit, out of s towards the other
-// shape) into a neighbour that covers one of its faces (model.shape_covered): its support
-// along n_out (the corners farthest out along it) lies on a covered face, and the plane
-// through the support across n_out cuts into a shape that lies against that face. The
-// body is then where the neighbour's own face holds it: the covered face itself pushes
-// into the neighbour, and so does a corner or an edge of it whose push leans towards the
-// neighbour farther than the neighbour's face there (flush tiles: any lean at all). A push
-// no farther over than the neighbour's face, at a joint where the floor bends down, is the
-// corner's own, and stays (dropped, a box sliding over such a joint fell through it). So
-// does a valley's: where the neighbour rises above the open faces that meet the covered
-// one at the support, the corner's push is the speculative contact that stops the body
-// at the rising neighbour (dropped, a ball rolling in a bowl of 60 flush polygons gained
-// 3.4% of its energy in 9 s; as for segments, pushes_across_joint).
-// Crossing a floor of static tiles 0.5 m wide, a frictionless box at 4 m/s met the next
-// tile's covered side at every joint, and stopped within 2.3 m (0.16 m/s left).
 // Whether dir (unit) is the outward normal of one of shape o's faces (to 1e-12 in its
 // cosine): a polygon's or segment's edge, a box's or hull's face, a plane.
 template <int D>
@@ -229,7 +202,22 @@ bool over_face(const Corners<D>& P, int f, typename Dim<D>::Vec x, double tol) {
   }
 }
 
-// pushes_from_covered: `points` (m, npts of them) the manifold's points.
+// Whether static polytope s would push along n_out (unit, out of s towards the other
+// shape) into a neighbour that covers one of its faces (model.shape_covered): its support
+// along n_out (the corners farthest out along it) lies on a covered face, and the plane
+// through the support across n_out cuts into a shape that lies against that face. The
+// body is then where the neighbour's own face holds it: the covered face itself pushes
+// into the neighbour, and so does a corner or an edge of it whose push leans towards the
+// neighbour farther than the neighbour's face there (flush tiles: any lean at all). A push
+// no farther over than the neighbour's face, at a joint where the floor bends down, is the
+// corner's own, and stays (dropped, a box sliding over such a joint fell through it). So
+// does a valley's: where the neighbour rises above the open faces that meet the covered
+// one at the support, the corner's push is the speculative contact that stops the body
+// at the rising neighbour (dropped, a ball rolling in a bowl of 60 flush polygons gained
+// 3.4% of its energy in 9 s; as for segments, pushes_across_joint).
+// Crossing a floor of static tiles 0.5 m wide, a frictionless box at 4 m/s met the next
+// tile's covered side at every joint, and stopped within 2.3 m (0.16 m/s left).
+// `points` (m, npts of them): the manifold's points.
 template <int D>
 bool pushes_from_covered(const Model<D>& model, const Contacts<D>& c, int s, int o,
                          typename Dim<D>::Vec n_out, const typename Dim<D>::Vec* points,
