@@ -58,11 +58,6 @@ void World<D>::allocate() {
     model.shape_reach[s] = std::sqrt(reach2);  // (as the largest length: sqrt is monotone)
   }
   if constexpr (D == 2) find_segment_neighbours(model, state);
-  {
-    std::vector<double> scale(size.size());  // each shape's contact scale (SCALE_LENGTH)
-    for (std::size_t s = 0; s < size.size(); ++s) scale[s] = std::min(1.0, size[s] / C::SCALE_LENGTH);
-    find_covered_faces(model, state, scale);
-  }
   grid.allocate(size, dynamic, capacity);
   contacts.allocate(model.body_count(), n_shapes, model.vertex_count(), capacity);
   size_pair_buffers();
@@ -80,6 +75,7 @@ void World<D>::allocate() {
     body = std::min(body, contacts.shape_scale[s]);
     contacts.unit_scale = contacts.unit_scale && contacts.shape_scale[s] == 1.0;
   }
+  find_covered_faces(model, state, contacts.shape_scale);
 }
 
 template <int D>

@@ -498,10 +498,6 @@ void find_covered_faces(Model<D>& model, const State<D>& state, const std::vecto
     }
     any = any || corners[u] != 0;
   }
-  model.corner_start.clear();
-  model.corner_covered.clear();
-  model.cover_start.clear();
-  model.cover.clear();
   if (!any) return;
   model.shape_covered = std::move(covered);
   // each shape's rows of corner masks, face by face (shapes with none, no rows)

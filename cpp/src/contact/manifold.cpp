@@ -217,11 +217,11 @@ bool over_face(const Corners<D>& P, int f, typename Dim<D>::Vec x, double tol) {
 // 3.4% of its energy in 9 s; as for segments, pushes_across_joint).
 // Crossing a floor of static tiles 0.5 m wide, a frictionless box at 4 m/s met the next
 // tile's covered side at every joint, and stopped within 2.3 m (0.16 m/s left).
-// `points` (m, npts of them): the manifold's points.
+// `points` (m, npts of them): the manifold's points; slop (m): the pair's LINEAR_SLOP.
 template <int D>
 bool pushes_from_covered(const Model<D>& model, const Contacts<D>& c, int s, int o,
                          typename Dim<D>::Vec n_out, const typename Dim<D>::Vec* points,
-                         int npts) {
+                         int npts, double slop) {
   if (model.corner_start.empty() || model.corner_start[s] == model.corner_start[s + 1])
     return false;
   Corners<D> own;
@@ -278,7 +278,6 @@ bool pushes_from_covered(const Model<D>& model, const Contacts<D>& c, int s, int
   // against it (the part of f they cover), to the pair's slop: a point midway to a face
   // from a corner that rests on the floor lies at the floor's height, where the face
   // ends, up or down by the soft contact's give
-  const double slop = std::min(c.shape_scale[s], c.shape_scale[o]) * C::LINEAR_SLOP;  // m
   auto points_covered = [&](int f) {
     for (int k = 0; k < npts; ++k) {
       bool over = false;
@@ -348,8 +347,8 @@ inline bool held_by_neighbour(const Model<D>& model, const State<D>& st, const C
   const double slop = scale * C::LINEAR_SLOP;  // m
   for (int k = 0; k < npts; ++k)
     if (out.separation[k] < -slop) return false;
-  return pushes_from_covered(model, c, b, a, out.normal, out.point.data(), npts) ||
-         pushes_from_covered(model, c, a, b, -out.normal, out.point.data(), npts);
+  return pushes_from_covered(model, c, b, a, out.normal, out.point.data(), npts, slop) ||
+         pushes_from_covered(model, c, a, b, -out.normal, out.point.data(), npts, slop);
 }
 
 // Pair a, b's narrowphase at the pair's tolerance scale and speculative distance.
