@@ -854,25 +854,41 @@ def test_a_ball_in_a_bowl_of_many_pieces_never_gains_energy():
     assert_energy_never_rises(make_engine("rbsim", scene_from(bowl_scene(floor))), 1, 599)
 
 
+def static_box(
+    name: str, position: tuple, size: tuple, friction: float | None = None, keys: str = ""
+) -> str:
+    """One static box as a scene's YAML line: its centre and full size (m, 2 or 3
+    components each), its friction (None: the default material's) and further `keys`."""
+    nums = lambda xs: "[" + ", ".join(repr(x) for x in xs) + "]"  # noqa: E731
+    mu = "" if friction is None else f" friction: {friction},"
+    return (
+        f"  - {{name: {name}, type: static,{mu} position: {nums(position)},{keys}"
+        f" shape: {{box: {{size: {nums(size)}}}}}}}\n"
+    )
+
+
+def scene_head(dimension: int, steps: int) -> str:
+    """A scene's lines up to its bodies: dt 1/60 s, `steps` steps, in 2D or 3D."""
+    world = f"{{dt: 1/60, steps: {steps}}}"
+    if dimension == 3:
+        world = f"{{dimension: 3, dt: 1/60, steps: {steps}}}"
+    return f"version: 1\nworld: {world}\nbodies:\n"
+
+
 def tile_floor(dimension: int, body: str, tiles: int = 16, mu: float = 0.0) -> str:
     """A floor of static boxes 0.5 m wide side by side, their tops at y = 0 (2D: a row of
     `tiles`; 3D: tiles × tiles of them), and `body` (a YAML flow mapping) on it."""
     if dimension == 2:
         floor = "".join(
-            f"  - {{name: t{i}, type: static, friction: {mu}, position: [{0.25 + 0.5 * i}, -0.1],"
-            " shape: {box: {size: [0.5, 0.2]}}}\n"
-            for i in range(tiles)
+            static_box(f"t{i}", (0.25 + 0.5 * i, -0.1), (0.5, 0.2), mu) for i in range(tiles)
         )
     else:
         floor = "".join(
-            f"  - {{name: t{i}_{j}, type: static, friction: {mu},"
-            f" position: [{0.25 + 0.5 * i}, -0.1, {0.25 + 0.5 * j}],"
-            " shape: {box: {size: [0.5, 0.2, 0.5]}}}\n"
+            static_box(f"t{i}_{j}", (0.25 + 0.5 * i, -0.1, 0.25 + 0.5 * j), (0.5, 0.2, 0.5), mu)
             for i in range(tiles)
             for j in range(tiles)
         )
-    world = "{dt: 1/60, steps: 90}" if dimension == 2 else "{dimension: 3, dt: 1/60, steps: 90}"
-    return f"version: 1\nworld: {world}\nbodies:\n{floor}  - {body}\n"
+    return f"{scene_head(dimension, 90)}{floor}  - {body}\n"
 
 
 TILE_MOVERS = {
@@ -929,11 +945,8 @@ TILE_MOVERS = {
 
 def one_floor(dimension: int, body: str, mu: float = 0.0) -> str:
     """tile_floor's scene with its floor one static box."""
-    at, size = ("[4, -0.1]", "[8, 0.2]") if dimension == 2 else ("[4, -0.1, 4]", "[8, 0.2, 8]")
-    floor = (
-        f"  - {{name: floor, type: static, friction: {mu}, position: {at},"
-        f" shape: {{box: {{size: {size}}}}}}}\n"
-    )
+    at, size = ((4, -0.1), (8, 0.2)) if dimension == 2 else ((4, -0.1, 4), (8, 0.2, 8))
+    floor = static_box("floor", at, size, mu)
     text = tile_floor(dimension, body, tiles=0, mu=mu)
     return text.replace("bodies:\n", "bodies:\n" + floor, 1)
 
@@ -1003,15 +1016,17 @@ def test_a_body_crossing_flush_tiles_of_unequal_depths_moves_as_on_one_floor(dim
     deep = lambda i, j=0: 0.6 if (i + j) % 2 else 0.2  # noqa: E731 - m
     if dimension == 2:
         floor = "".join(
-            f"  - {{name: t{i}, type: static, friction: 0, position: [{0.25 + 0.5 * i},"
-            f" {-deep(i) / 2}], shape: {{box: {{size: [0.5, {deep(i)}]}}}}}}\n"
+            static_box(f"t{i}", (0.25 + 0.5 * i, -deep(i) / 2), (0.5, deep(i)), 0)
             for i in range(16)
         )
     else:
         floor = "".join(
-            f"  - {{name: t{i}_{j}, type: static, friction: 0, position: [{0.25 + 0.5 * i},"
-            f" {-deep(i, j) / 2}, {0.25 + 0.5 * j}], shape: {{box: {{size: [0.5, {deep(i, j)},"
-            " 0.5]}}}\n"
+            static_box(
+                f"t{i}_{j}",
+                (0.25 + 0.5 * i, -deep(i, j) / 2, 0.25 + 0.5 * j),
+                (0.5, deep(i, j), 0.5),
+                0,
+            )
             for i in range(16)
             for j in range(16)
         )
@@ -1027,10 +1042,10 @@ def test_tiles_a_little_apart_or_overlapping_are_flush(misfit):
         "{name: b, position: [0.5, 0.25], velocity: [4, 0], friction: 0,"
         " shape: {box: {size: [0.5, 0.5]}}}"
     )
-    text = tile_floor(2, body).replace("position: [", "position: [@", 16)
-    for i in range(16):
-        text = text.replace(f"[@{0.25 + 0.5 * i},", f"[{0.25 + (0.5 + misfit) * i!r},", 1)
-    assert_moves_as_on_one_floor(text, one_floor(2, body))
+    floor = "".join(
+        static_box(f"t{i}", (0.25 + (0.5 + misfit) * i, -0.1), (0.5, 0.2), 0.0) for i in range(16)
+    )
+    assert_moves_as_on_one_floor(f"{scene_head(2, 90)}{floor}  - {body}\n", one_floor(2, body))
 
 
 def test_a_turned_box_crossing_where_four_tilted_tiles_meet_moves_as_on_one_piece():
@@ -1041,30 +1056,22 @@ def test_a_turned_box_crossing_where_four_tilted_tiles_meet_moves_as_on_one_piec
     from rbsim.engines import make_engine
 
     tiles = (
-        ("t00", "[0.44037, -0.34435, 0.5]", "[3, 0.5, 3]"),
-        ("t01", "[0.44037, -0.34435, 4.0]", "[3, 0.5, 4]"),
-        ("t10", "[3.8706, -1.03969, 0.5]", "[4, 0.5, 3]"),
-        ("t11", "[3.8706, -1.03969, 4.0]", "[4, 0.5, 4]"),
+        ("t00", (0.44037, -0.34435, 0.5), (3, 0.5, 3)),
+        ("t01", (0.44037, -0.34435, 4.0), (3, 0.5, 4)),
+        ("t10", (3.8706, -1.03969, 0.5), (4, 0.5, 3)),
+        ("t11", (3.8706, -1.03969, 4.0), (4, 0.5, 4)),
     )
     box = (
         "  - {name: box, friction: 0, position: [0.31389, 0.03841, 0.47], orientation:"
         " [0.950564, 0.029503, 0.294044, -0.095375], velocity: [0.49003, -0.09933, 1.5],"
         " shape: {box: {size: [0.2, 0.2, 0.2]}}}\n"
     )
-    turn = "rotation: {axis: [0, 0, 1], angle: -0.2}"
-    head = "version: 1\nworld: {dimension: 3, dt: 1/60, steps: 72}\nbodies:\n"
-    pieces = "".join(
-        f"  - {{name: {n}, type: static, friction: 0, position: {x}, {turn}, shape: {{box:"
-        f" {{size: {size}}}}}}}\n"
-        for n, x, size in tiles
-    )
-    one = (
-        "  - {name: one, type: static, friction: 0, position: [2.4005, -0.74169, 2.5], "
-        f"{turn}, shape: {{box: {{size: [7, 0.5, 7]}}}}}}\n"
-    )
+    turn = " rotation: {axis: [0, 0, 1], angle: -0.2},"
+    pieces = "".join(static_box(n, x, size, 0, turn) for n, x, size in tiles)
+    one = static_box("one", (2.4005, -0.74169, 2.5), (7, 0.5, 7), 0, turn)
     ends = []
     for floor in (pieces, one):
-        engine = make_engine("rbsim", scene_from(head + floor + box))
+        engine = make_engine("rbsim", scene_from(scene_head(3, 72) + floor + box))
         engine.advance(72)
         ends.append(
             (
@@ -1085,20 +1092,14 @@ def test_a_box_dropped_hard_onto_narrow_tiles_does_not_fall_through(dimension):
     from rbsim.engines import make_engine
 
     if dimension == 2:
-        floor = "".join(
-            f"  - {{name: t{k}, type: static, position: [{-0.9 + 0.2 * k!r}, -0.15],"
-            " shape: {box: {size: [0.2, 0.3]}}}\n"
-            for k in range(10)
-        )
+        floor = "".join(static_box(f"t{k}", (-0.9 + 0.2 * k, -0.15), (0.2, 0.3)) for k in range(10))
         body = (
             "  - {name: b, position: [0.05, 0.4], angle: 0.3, velocity: [0, -6],"
             " shape: {box: {size: [0.32, 0.135]}}}\n"
         )
-        world = "{dt: 1/60, steps: 30}"
     else:
         floor = "".join(
-            f"  - {{name: t{i}_{j}, type: static, position: [{-0.4 + 0.2 * i!r}, -0.15,"
-            f" {-0.4 + 0.2 * j!r}], shape: {{box: {{size: [0.2, 0.3, 0.2]}}}}}}\n"
+            static_box(f"t{i}_{j}", (-0.4 + 0.2 * i, -0.15, -0.4 + 0.2 * j), (0.2, 0.3, 0.2))
             for i in range(5)
             for j in range(5)
         )
@@ -1107,8 +1108,7 @@ def test_a_box_dropped_hard_onto_narrow_tiles_does_not_fall_through(dimension):
             " velocity: [-2, -8, 1], density: 500, friction: 0.3, restitution: 0.3,"
             " shape: {box: {size: [0.32, 0.135, 0.2]}}}\n"
         )
-        world = "{dimension: 3, dt: 1/60, steps: 30}"
-    engine = make_engine("rbsim", scene_from(f"version: 1\nworld: {world}\nbodies:\n{floor}{body}"))
+    engine = make_engine("rbsim", scene_from(scene_head(dimension, 30) + floor + body))
     lowest = np.inf  # m: the box's centre
     for _ in range(30):
         engine.advance(1)
@@ -1122,14 +1122,11 @@ def test_millimetre_tiles_never_let_a_box_through_or_speed_it_up(size):
     # joints are left to catch (COVERED_MIN_SCALE), as before. Dropped, a 1 mm box
     # sliding over 1 mm tiles fell through them, a 2 mm one was sped up by 65%
     floor = "".join(
-        f"  - {{name: t{k}, type: static, friction: 0, position: [{(k + 0.5) * size!r},"
-        f" {-size / 2!r}], shape: {{box: {{size: [{size!r}, {size!r}]}}}}}}\n"
-        for k in range(20)
+        static_box(f"t{k}", ((k + 0.5) * size, -size / 2), (size, size), 0) for k in range(20)
     )
     text = (
-        f"version: 1\nworld: {{dt: 1/60, steps: 60}}\nbodies:\n{floor}  - {{name: b, position:"
-        f" [{size!r}, {size / 2!r}], velocity: [{8 * size!r}, 0], friction: 0, shape: {{box:"
-        f" {{size: [{size!r}, {size!r}]}}}}}}\n"
+        f"{scene_head(2, 60)}{floor}  - {{name: b, position: [{size!r}, {size / 2!r}], velocity:"
+        f" [{8 * size!r}, 0], friction: 0, shape: {{box: {{size: [{size!r}, {size!r}]}}}}}}\n"
     )
     from rbsim.engines import make_engine
 
@@ -1148,9 +1145,7 @@ def test_a_box_crossing_planks_laid_in_bond_keeps_its_speed():
     from rbsim.engines import make_engine
 
     planks = "".join(
-        f"  - {{name: p{j}_{i}, type: static, friction: 0,"
-        f" position: [{-3.0 + (j % 2) + 2 * i}, -0.1, {0.125 + 0.25 * j}],"
-        " shape: {box: {size: [2, 0.2, 0.25]}}}\n"
+        static_box(f"p{j}_{i}", (-3.0 + (j % 2) + 2 * i, -0.1, 0.125 + 0.25 * j), (2, 0.2, 0.25), 0)
         for j in range(24)
         for i in range(4)
     )
@@ -1175,8 +1170,7 @@ def test_a_taller_tile_still_stops_a_box(dimension):
     v = lambda *xyz: vector(dimension, *xyz)  # noqa: E731
     pieces = [(0.25 + 0.5 * i, -0.1, 0.2) for i in range(12)] + [(6.25, 0.4, 1.2)]
     floor = "".join(
-        f"  - {{name: t{i}, type: static, friction: 0, position: {v(x, y, 0.25)},"
-        f" shape: {{box: {{size: {v(0.5, h, 0.5)}}}}}}}\n"
+        static_box(f"t{i}", (x, y, 0.25)[:dimension], (0.5, h, 0.5)[:dimension], 0)
         for i, (x, y, h) in enumerate(pieces)
     )
     world = "{dt: 1/60, steps: 90}" if dimension == 2 else "{dimension: 3, dt: 1/60, steps: 90}"
