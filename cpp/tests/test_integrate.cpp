@@ -180,8 +180,9 @@ double flip_interval(Vec3 i, double energy, double l2) {
 }  // namespace
 
 // `split`: world L unchanged to the bit, |q| = 1, and the energy error bounded: over 10⁶
-// steps of 1 ms its largest value is at most twice its largest over the first 10³ (the
-// notes' `normalize` update gains energy every step instead).
+// steps of 1 ms its largest value is at most twice its largest over the first 10⁴ (three
+// flips of the intermediate axis, 2.94 s apart; the notes' `normalize` update gains energy
+// every step instead).
 TEST(split_rotation_keeps_l_exactly_and_its_energy_error_bounded) {
   Tumbler t(5.0, 0.2);
   const Vec3 l0 = t.s.body_l[0];
@@ -191,13 +192,13 @@ TEST(split_rotation_keeps_l_exactly_and_its_energy_error_bounded) {
   for (int k = 1; k <= 1000000; ++k) {
     integrate_positions(t.m, t.s, delta, 1e-3, Rotation::Split);
     const double err = std::fabs(t.energy() - e0);
-    (k <= 1000 ? early : late) = std::max(k <= 1000 ? early : late, err);
+    (k <= 10000 ? early : late) = std::max(k <= 10000 ? early : late, err);
   }
   CHECK(t.s.body_l[0].x == l0.x && t.s.body_l[0].y == l0.y && t.s.body_l[0].z == l0.z);
   const Quat q = t.s.body_q[0];
   CHECK_NEAR(q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z, 1.0, 1e-12);
   CHECK(early > 0.0);
-  std::printf("     energy error: first 10^3 steps %.3g J, all 10^6 %.3g J\n", early, std::max(early, late));
+  std::printf("     energy error: first 10^4 steps %.3g J, all 10^6 %.3g J\n", early, std::max(early, late));
   CHECK(late <= 2.0 * early);
   // and `normalize` on the same body drifts: after 2×10⁴ steps its error is far above
   Tumbler n(5.0, 0.2);

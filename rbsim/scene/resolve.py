@@ -141,7 +141,7 @@ class Solver:
     substeps: int = 4
     iterations: int = 1
     integrator: str = "symplectic_euler"  # or explicit_euler
-    rotation: str = "normalize"  # or exact
+    rotation: str = "normalize"  # or exact, split (a 3D scene's default: schema.SOLVER_3D)
     restitution_threshold: float = 1.0  # m/s
     threads: int | None = None  # None: the machine's cores (rbsim.config.default_threads)
 

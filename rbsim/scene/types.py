@@ -52,7 +52,8 @@ BODY_STATIC = 1
 BODY_KINEMATIC = 2
 BODY_TYPE_CODE = {"dynamic": BODY_DYNAMIC, "static": BODY_STATIC, "kinematic": BODY_KINEMATIC}
 
-# solver.integrator and solver.rotation; the first of each is the default.
+# solver.integrator and solver.rotation; the first of each is the default (a 3D scene's
+# rotation: split, schema.SOLVER_3D).
 INTEGRATORS = ("symplectic_euler", "explicit_euler")
 # normalize: the notes' q <- normalize(q + h ω×q) (2D), normalize(q + (h/2) ω q) (3D);
 # exact: q <- exp(h ω) q with ω held over the substep; split: the torque-free body split

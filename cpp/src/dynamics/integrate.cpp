@@ -86,31 +86,160 @@ inline Quat turn(Quat& q, double&, Vec3 w, double h, bool exact) {
   return r;
 }
 
-// Turn a body by the free rigid body's flow over h, split into exact rotations about
-// its principal axes: with m = Pᵀ Rᵀ L the body's angular momentum in principal axes,
-// the flow of H_k = m_k² / (2 I_k) turns the body about principal axis k by h m_k / I_k
-// and leaves L (world) and m_k unchanged. The symmetric sequence 1(h/2) 2(h/2) 3(h)
-// 2(h/2) 1(h/2) is second order, symplectic and time-reversible; L is not touched, so
-// a torque-free body keeps it to the bit. Returns the rotation applied.
-inline Quat turn_split(Quat& q, const Quat& axes, Vec3 moments, Vec3 l, double h) {
-  Quat p = mul(q, axes);  // principal frame to world
-  const Quat before = q;
+// sin x and cos x (x in rad) for |x| <= SINCOS_SERIES_MAX from their Taylor series, to
+// x^15 and x^16 (the next terms are below 1e-19 there, under the last bit), else the
+// library's: a few multiply-adds for the turns of the split update below, five a body
+// and substep, whose angles are small (at most MAX_ROTATION at the ω cap). The same
+// operations for a double and for a body in each lane of a Lanes, so that a body gets
+// the same bits on either path.
+inline constexpr double SINCOS_SERIES_MAX = 0.5;
+// the series' coefficients from the highest power down: sin x = x + x³ (−1/3! + x² (1/5!
+// − ...)), cos x = 1 + x² (−1/2! + x² (1/4! − ...))
+constexpr double SIN_SERIES[] = {-1.0 / 1307674368000.0, 1.0 / 6227020800.0, -1.0 / 39916800.0,
+                                 1.0 / 362880.0, -1.0 / 5040.0, 1.0 / 120.0, -1.0 / 6.0};
+constexpr double COS_SERIES[] = {1.0 / 20922789888000.0, -1.0 / 87178291200.0, 1.0 / 479001600.0,
+                                 -1.0 / 3628800.0, 1.0 / 40320.0, -1.0 / 720.0, 1.0 / 24.0,
+                                 -1.0 / 2.0};
+// Σ c_k y^k by Horner's rule, c from the highest power down
+template <class T, std::size_t K>
+inline T horner(T y, const double (&c)[K]) {
+  T p = T{} + c[0];
+  for (std::size_t k = 1; k < K; ++k) p = c[k] + y * p;
+  return p;
+}
+template <class T>
+inline void sincos_series(T x, T& s, T& c) {
+  const T x2 = x * x;
+  s = x + (x * x2) * horner(x2, SIN_SERIES);
+  c = 1.0 + x2 * horner(x2, COS_SERIES);
+}
+inline void sincos_small(double x, double& s, double& c) {
+  if (std::fabs(x) <= SINCOS_SERIES_MAX) {
+    sincos_series(x, s, c);
+  } else {
+    s = std::sin(x);
+    c = std::cos(x);
+  }
+}
+inline void sincos_small(Lanes x, Lanes& s, Lanes& c) {
+  sincos_series(x, s, c);
+  const LaneMask big = (x > splat(SINCOS_SERIES_MAX)) | (x < splat(-SINCOS_SERIES_MAX));
+  for (int l = 0; any(big) && l < LANES; ++l) {
+    if (big[l]) {
+      s[l] = std::sin(x[l]);
+      c[l] = std::cos(x[l]);
+    }
+  }
+}
+
+// √x, correctly rounded on either type.
+inline double root(double x) { return std::sqrt(x); }
+inline Lanes root(Lanes x) { return vsqrt(x); }
+
+// Quaternion products a b and a b⁻¹ (b a unit quaternion) component by component, w x y z,
+// for a double or Lanes.
+template <class T>
+inline void quat_mul(const T (&a)[4], const T (&b)[4], T (&out)[4]) {
+  out[0] = a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3];
+  out[1] = a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2];
+  out[2] = a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1];
+  out[3] = a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0];
+}
+template <class T>
+inline void quat_mul_conj(const T (&a)[4], const T (&b)[4], T (&out)[4]) {
+  const T bc[4] = {b[0], -b[1], -b[2], -b[3]};
+  quat_mul(a, bc, out);
+}
+
+// a where `where` holds, else b (a double's or each lane's)
+inline double pick(bool where, double a, double b) { return where ? a : b; }
+inline Lanes pick(LaneMask where, Lanes a, Lanes b) { return select(where, a, b); }
+
+// The free rigid body's flow over h, split into exact rotations. With m = Pᵀ L the body's
+// angular momentum in its principal frame P (world from principal; moments I_x, I_y,
+// I_z, the middle one on y as compile.py orders them), the energy is
+//   H = |m|² / (2 I_y) + m_x² (1/I_x − 1/I_y) / 2 + m_z² (1/I_z − 1/I_y) / 2.
+// The flow of each term is a rotation: of the last two, about principal axis x or z at
+// the rate m_k (1/I_k − 1/I_y), which leaves m_k as it is; of the first (|m|² does not
+// change under any of them), about L itself at |L| / I_y, which leaves m as it is and so
+// commutes with the others. The symmetric sequence x(h/2) z(h) x(h/2), then about L by
+// h |L| / I_y, is second order, symplectic and time-reversible, and exact for a body
+// symmetric about an axis (a stick's or a disc's two equal moments: one of the axis terms
+// is zero, and the other commutes with the rest); L is not touched, so a torque-free body
+// keeps it to the bit. (The split into the three axes' own terms, m_k² / (2 I_k), is not
+// exact there: a stick 25 times longer than thick, tumbling at 150 rad/s, gained 37 J of
+// spin about its axis in one step from the order of its turns.) p (the frame P as a
+// quaternion, w x y z) is turned in place, and m (kg·m²/s) with it; moment: I_k (kg·m²);
+// l: L (world, kg·m²/s). T is double or Lanes (one body per lane). A turn by θ about axis
+// k takes p to p (cos θ/2, sin θ/2 e_k) and m to R_k(−θ) m: its other two components
+// turned, by cos θ = c² − s², sin θ = 2 s c.
+template <class T>
+inline void split_flow(T (&p)[4], T (&m)[3], const T (&moment)[3], const T (&l)[3], double h) {
+  const T inv_mid = 1.0 / moment[1];  // 1/(kg·m²)
   auto about = [&](int k, double tau) {
-    const Vec3 m = inv_rotate(p, l);
-    const double mk = k == 0 ? m.x : (k == 1 ? m.y : m.z);
-    const double ik = k == 0 ? moments.x : (k == 1 ? moments.y : moments.z);
-    const double half = 0.5 * tau * mk / ik;
-    const double c = std::cos(half), s = std::sin(half);
-    const Quat r{c, k == 0 ? s : 0.0, k == 1 ? s : 0.0, k == 2 ? s : 0.0};
-    p = mul(p, r);  // about the body's own axis: multiplied on the right
+    const T half = ((0.5 * tau) * m[k]) * (1.0 / moment[k] - inv_mid);  // rad
+    T s, c;
+    sincos_small(half, s, c);
+    const T pw = p[0], px = p[1], py = p[2], pz = p[3];
+    if (k == 0) {
+      p[0] = pw * c - px * s, p[1] = pw * s + px * c, p[2] = py * c + pz * s, p[3] = pz * c - py * s;
+    } else {
+      p[0] = pw * c - pz * s, p[1] = px * c + py * s, p[2] = py * c - px * s, p[3] = pw * s + pz * c;
+    }
+    const T cos_t = c * c - s * s, sin_t = (2.0 * s) * c;
+    const int i = (k + 1) % 3, j = (k + 2) % 3;
+    const T mi = m[i], mj = m[j];
+    m[i] = cos_t * mi + sin_t * mj;
+    m[j] = cos_t * mj - sin_t * mi;
   };
   about(0, 0.5 * h);
-  about(1, 0.5 * h);
   about(2, h);
-  about(1, 0.5 * h);
   about(0, 0.5 * h);
-  q = normalize(mul(p, Quat{axes.w, -axes.x, -axes.y, -axes.z}));
-  return mul(q, Quat{before.w, -before.x, -before.y, -before.z});
+  // about L (world) by h |L| / I_y: p <- (cos θ/2, sin θ/2 L/|L|) p, the quaternion
+  // (sin θ/2) / |L| taken as its limit h / (2 I_y) where L is zero
+  const T size = root(l[0] * l[0] + l[1] * l[1] + l[2] * l[2]);  // kg·m²/s
+  const T half = (0.5 * h) * size * inv_mid;                       // rad
+  T s, c;
+  sincos_small(half, s, c);
+  const T k = pick(size > 0.0, s / size, (0.5 * h) * inv_mid);
+  const T r[4] = {c, k * l[0], k * l[1], k * l[2]};
+  const T turned[4] = {p[0], p[1], p[2], p[3]};
+  quat_mul(r, turned, p);
+}
+
+// The split update of a body at rotation q (world from body) with principal axes `axes`
+// (body from principal), principal moments `moment` (kg·m²) and angular momentum l (world,
+// kg·m²/s) over h: q is turned in place (and normalised), and the rotation applied,
+// q_new q_old⁻¹, is returned in r.
+template <class T>
+inline void turn_split(T (&q)[4], const T (&axes)[4], const T (&moment)[3], const T (&l)[3],
+                       double h, T (&r)[4]) {
+  T p[4];
+  quat_mul(q, axes, p);
+  // m = Pᵀ l: l turned by p's conjugate, l − w t + u × t with t = 2 u × l (u: p's vector)
+  const T tx = 2.0 * (p[2] * l[2] - p[3] * l[1]);
+  const T ty = 2.0 * (p[3] * l[0] - p[1] * l[2]);
+  const T tz = 2.0 * (p[1] * l[1] - p[2] * l[0]);
+  T m[3] = {(l[0] - p[0] * tx) + (p[2] * tz - p[3] * ty),
+            (l[1] - p[0] * ty) + (p[3] * tx - p[1] * tz),
+            (l[2] - p[0] * tz) + (p[1] * ty - p[2] * tx)};
+  split_flow(p, m, moment, l, h);
+  T n[4];
+  quat_mul_conj(p, axes, n);
+  const T inv = 1.0 / root(n[0] * n[0] + n[1] * n[1] + n[2] * n[2] + n[3] * n[3]);
+  const T turned[4] = {n[0] * inv, n[1] * inv, n[2] * inv, n[3] * inv};
+  quat_mul_conj(turned, q, r);
+  for (int k = 0; k < 4; ++k) q[k] = turned[k];
+}
+
+// One body through turn_split (a double per component). Returns the rotation applied.
+inline Quat turn_split(Quat& q, const Quat& axes, Vec3 moments, Vec3 l, double h) {
+  double qq[4] = {q.w, q.x, q.y, q.z}, r[4];
+  const double a[4] = {axes.w, axes.x, axes.y, axes.z};
+  const double mo[3] = {moments.x, moments.y, moments.z}, ll[3] = {l.x, l.y, l.z};
+  turn_split(qq, a, mo, ll, h, r);
+  q = {qq[0], qq[1], qq[2], qq[3]};
+  return {r[0], r[1], r[2], r[3]};
 }
 
 // ω from the angular state after the body turned (3D: from L; 2D: ω is the state).
@@ -262,8 +391,21 @@ struct Move3 {
   LanesXYZ dx;            // m: the step's motion so far
   Lanes ew, ex, ey, ez;   // its rotation so far
   Lanes txx, tyy, tzz, txy, txz, tyz;  // out: the world tensor
+  Lanes aw, ax, ay, az;   // Rotation::Split: the principal axes (body from principal)
+  LanesXYZ moment;        // and the principal moments, kg·m²
 };
 
+// The principal axes and moments of the bodies at[l] into b's lanes (Split only).
+inline void load_principal(const Model<3>& model, const int (&at)[LANES], Move3& b) {
+  for (int l = 0; l < LANES; ++l) {
+    const Quat& a = model.body_axes[at[l]];
+    const Vec3& m = model.body_moments[at[l]];
+    b.aw[l] = a.w, b.ax[l] = a.x, b.ay[l] = a.y, b.az[l] = a.z;
+    b.moment.x[l] = m.x, b.moment.y[l] = m.y, b.moment.z[l] = m.z;
+  }
+}
+
+template <bool SPLIT>
 [[gnu::always_inline]] inline void move_3d(Move3& b, double h) {
   const Lanes hv = splat(h);
   // x += h v
@@ -271,20 +413,32 @@ struct Move3 {
   b.x.x += step.x;
   b.x.y += step.y;
   b.x.z += step.z;
-  // the turn: q <- normalize(q + (h/2) ω q), mul({0, ω}, q) written out
-  const Lanes zero = splat(0.0);
-  const LanesXYZ w = b.w;
-  const Lanes dw = zero * b.qw - w.x * b.qx - w.y * b.qy - w.z * b.qz;
-  const Lanes dqx = zero * b.qx + w.x * b.qw + w.y * b.qz - w.z * b.qy;
-  const Lanes dqy = zero * b.qy - w.x * b.qz + w.y * b.qw + w.z * b.qx;
-  const Lanes dqz = zero * b.qz + w.x * b.qy - w.y * b.qx + w.z * b.qw;
-  const Lanes s = splat(0.5 * h);
-  const Lanes nw = b.qw + s * dw, nx = b.qx + s * dqx, ny = b.qy + s * dqy, nz = b.qz + s * dqz;
-  const Lanes inv = splat(1.0) / vsqrt(nw * nw + nx * nx + ny * ny + nz * nz);
-  const Lanes qw = nw * inv, qx = nx * inv, qy = ny * inv, qz = nz * inv;
-  b.qw = qw, b.qx = qx, b.qy = qy, b.qz = qz;
-  const Lanes k = s * inv;
-  const Lanes rw = inv, rx = k * w.x, ry = k * w.y, rz = k * w.z;  // the rotation applied
+  Lanes rw, rx, ry, rz;  // the rotation applied
+  if constexpr (SPLIT) {
+    // the free body's flow, split about its principal axes (turn_split)
+    Lanes q[4] = {b.qw, b.qx, b.qy, b.qz}, r[4];
+    const Lanes axes[4] = {b.aw, b.ax, b.ay, b.az};
+    const Lanes moment[3] = {b.moment.x, b.moment.y, b.moment.z};
+    const Lanes l[3] = {b.l.x, b.l.y, b.l.z};
+    turn_split(q, axes, moment, l, h, r);
+    b.qw = q[0], b.qx = q[1], b.qy = q[2], b.qz = q[3];
+    rw = r[0], rx = r[1], ry = r[2], rz = r[3];
+  } else {
+    // the turn: q <- normalize(q + (h/2) ω q), mul({0, ω}, q) written out
+    const Lanes zero = splat(0.0);
+    const LanesXYZ w = b.w;
+    const Lanes dw = zero * b.qw - w.x * b.qx - w.y * b.qy - w.z * b.qz;
+    const Lanes dqx = zero * b.qx + w.x * b.qw + w.y * b.qz - w.z * b.qy;
+    const Lanes dqy = zero * b.qy - w.x * b.qz + w.y * b.qw + w.z * b.qx;
+    const Lanes dqz = zero * b.qz + w.x * b.qy - w.y * b.qx + w.z * b.qw;
+    const Lanes s = splat(0.5 * h);
+    const Lanes nw = b.qw + s * dw, nx = b.qx + s * dqx, ny = b.qy + s * dqy, nz = b.qz + s * dqz;
+    const Lanes inv = splat(1.0) / vsqrt(nw * nw + nx * nx + ny * ny + nz * nz);
+    b.qw = nw * inv, b.qx = nx * inv, b.qy = ny * inv, b.qz = nz * inv;
+    const Lanes k = s * inv;
+    rw = inv, rx = k * w.x, ry = k * w.y, rz = k * w.z;
+  }
+  const Lanes qw = b.qw, qx = b.qx, qy = b.qy, qz = b.qz;
   // the world tensor R M Rᵀ at the new rotation
   const Lanes xx = qx * qx, yy = qy * qy, zz = qz * qz;
   const Lanes xy = qx * qy, xz = qx * qz, yz = qy * qz;
@@ -325,7 +479,7 @@ inline void store_lane_3d(const Move3& b, int l, int i, std::vector<BodyDelta<3>
 
 // Bodies i..i+LANES-1 through move_3d, their records loaded and stored as whole vectors.
 void move_run_3d(const Model<3>& model, State<3>& st, std::vector<BodyDelta<3>>& delta, int i,
-                 double h, Sym3* inv_inertia_world) {
+                 double h, bool split, Sym3* inv_inertia_world) {
   Move3 b;
   b.x = load_xyz(&st.body_x[i]);
   b.v = load_xyz(&st.body_v[i]);
@@ -341,7 +495,12 @@ void move_run_3d(const Model<3>& model, State<3>& st, std::vector<BodyDelta<3>>&
           Lanes{d[0].dx.y, d[1].dx.y, d[2].dx.y, d[3].dx.y},
           Lanes{d[0].dx.z, d[1].dx.z, d[2].dx.z, d[3].dx.z}};
   gather_quads(&d[0].dq.w, &d[1].dq.w, &d[2].dq.w, &d[3].dq.w, b.ew, b.ex, b.ey, b.ez);
-  move_3d(b, h);
+  if (split) {
+    load_principal(model, {i, i + 1, i + 2, i + 3}, b);
+    move_3d<true>(b, h);
+  } else {
+    move_3d<false>(b, h);
+  }
   store_xyz(&st.body_x[i], b.x);
   store_xyz(&st.body_w[i], b.w);
   store_quads(&st.body_q[i].w, &st.body_q[i + 1].w, &st.body_q[i + 2].w, &st.body_q[i + 3].w, b.qw,
@@ -361,7 +520,7 @@ void move_run_3d(const Model<3>& model, State<3>& st, std::vector<BodyDelta<3>>&
 // The bodies idx[0..count-1] (count <= LANES) through move_3d, picked out one by one (a
 // lane past count repeats the last body and is not written back).
 void move_picked_3d(const Model<3>& model, State<3>& st, std::vector<BodyDelta<3>>& delta,
-                    const int* idx, int count, double h, Sym3* inv_inertia_world) {
+                    const int* idx, int count, double h, bool split, Sym3* inv_inertia_world) {
   int at[LANES];
   for (int l = 0; l < LANES; ++l) at[l] = idx[l < count ? l : count - 1];
   Move3 b;
@@ -381,7 +540,12 @@ void move_picked_3d(const Model<3>& model, State<3>& st, std::vector<BodyDelta<3
     b.dx.x[l] = d.dx.x, b.dx.y[l] = d.dx.y, b.dx.z[l] = d.dx.z;
     b.ew[l] = d.dq.w, b.ex[l] = d.dq.x, b.ey[l] = d.dq.y, b.ez[l] = d.dq.z;
   }
-  move_3d(b, h);
+  if (split) {
+    load_principal(model, at, b);
+    move_3d<true>(b, h);
+  } else {
+    move_3d<false>(b, h);
+  }
   for (int l = 0; l < count; ++l) {
     const int i = at[l];
     st.body_x[i] = {b.x.x[l], b.x.y[l], b.x.z[l]};
@@ -409,8 +573,10 @@ void integrate_positions(const Model<D>& model, State<D>& st, std::vector<BodyDe
   double unused_angle = 0.0;
   const bool exact = rotation != Rotation::Normalize;
   const int n = static_cast<int>(bodies.last);
-  // 3D: the bodies that move in lanes, not in a whole run, gathered LANES at a time
-  const bool picking = D == 3 && !exact && inv_inertia_world != nullptr;
+  // 3D: the bodies that move in lanes (normalize and split), not in a whole run,
+  // gathered LANES at a time
+  const bool split = rotation == Rotation::Split;
+  const bool picking = D == 3 && (!exact || split) && inv_inertia_world != nullptr;
   int picked[LANES];
   int n_picked = 0;
   for (int i = static_cast<int>(bodies.first); i < n; ++i) {
@@ -431,12 +597,12 @@ void integrate_positions(const Model<D>& model, State<D>& st, std::vector<BodyDe
         const bool run = i % LANES == 0 && i + LANES <= n && moves_in_lanes(model, i + 1) &&
                          moves_in_lanes(model, i + 2) && moves_in_lanes(model, i + 3);
         if (run) {
-          move_run_3d(model, st, delta, i, h, inv_inertia_world);
+          move_run_3d(model, st, delta, i, h, split, inv_inertia_world);
           i += LANES - 1;
         } else {
           picked[n_picked++] = i;
           if (n_picked == LANES) {
-            move_picked_3d(model, st, delta, picked, n_picked, h, inv_inertia_world);
+            move_picked_3d(model, st, delta, picked, n_picked, h, split, inv_inertia_world);
             n_picked = 0;
           }
         }
@@ -474,7 +640,7 @@ void integrate_positions(const Model<D>& model, State<D>& st, std::vector<BodyDe
     delta[i].dq = mul(r, delta[i].dq);
   }
   if constexpr (D == 3) {
-    if (n_picked > 0) move_picked_3d(model, st, delta, picked, n_picked, h, inv_inertia_world);
+    if (n_picked > 0) move_picked_3d(model, st, delta, picked, n_picked, h, split, inv_inertia_world);
   }
 }
 
