@@ -368,8 +368,8 @@ using PointFlags = std::array<bool, Dim<D>::max_points>;
 // Raise the normal velocity of manifold m's points to their targets t[k] (m/s) where
 // need[k], by impulses added to normal_impulse (kept >= 0). In 2D both points at once are
 // one 2x2 block (a box landing flat gets mirror-image impulses; one after the other would
-// tip it); in 3D a face whose every point needs it, with no work owed, likewise (the
-// row's factor). When the block would pull, and otherwise in 3D, one point at a time;
+// tip it); in 3D the points of a face that need it, two or more, likewise (the row's
+// factor, or their rows of K). When the block would pull, one point at a time;
 // with `single`, only the point furthest below its target (the caller comes back for the
 // others with targets from their velocities then: the first point's impulse changes
 // them). Returns the impulses applied.
@@ -445,46 +445,59 @@ PointImpulses<D> push_targets(const Model<D>& model, State<D>& st, Contacts<D>& 
   const auto targets = t;  // (a block's; one point alone takes its own u[k])
   t = owed.u;
   if constexpr (D == 3) {
-    // a face whose every point needs a push: one block, as the solve's (the row's factor,
-    // K at the step's start), if no point would pull; with work owed, raised as 2D's
-    // block is, by c K⁻¹ 1 (one point at a time instead, the first corner of a box landing
-    // flat took the bounce and tipped it: from 4.4 m/s, e = 0.8, it left at 1.2 m/s,
-    // spinning)
+    // the face's points that need a push, two or more: one block, as the solve's (K at the
+    // step's start: every point, the row's factor; fewer, their rows and columns of K), if
+    // no point would pull; with work owed, raised as 2D's block is, by c K⁻¹ 1 (one point at
+    // a time instead, the first corner of a box landing flat took the bounce and tipped it:
+    // from 4.4 m/s, e = 0.8, it left at 1.2 m/s, spinning; and a cube struck edge first
+    // into a wall at 30 m/s, e = 0.5, its two leading corners' impact taken one after the
+    // other, left at 3 m/s, not 15, sliding at 4 m/s and turning at 50 rad/s)
     const int np = c.points[m];
-    const BlockFactor& f = c.solver_row[m].rigid;
-    bool all = np > 1 && f.ok != 0.0;
-    for (int k = 0; k < np; ++k) all = all && need[k];
-    if (all) {
+    int idx[4], ns = 0;  // the points that need a push
+    for (int k = 0; k < np; ++k)
+      if (need[k]) idx[ns++] = k;
+    BlockFactor own;
+    const BlockFactor* f = &c.solver_row[m].rigid;
+    if (ns > 1 && ns < np) {
+      double A[4][4];
+      for (int i = 0; i < ns; ++i)
+        for (int j = 0; j < ns; ++j) A[i][j] = c.solver_row[m].k[PACKED_K[idx[i]][idx[j]]];
+      own.ok = ldlt_factor(A, ns, 1e-12, own) ? 1.0 : 0.0;
+      f = &own;
+    }
+    if (ns > 1 && f->ok != 0.0) {
       double r[4] = {0.0, 0.0, 0.0, 0.0}, d[4] = {0.0, 0.0, 0.0, 0.0}, vn[4] = {};
-      for (int k = 0; k < np; ++k) {
-        vn[k] = normal_velocity(st, a, b, c.anchor_a[m][k], c.anchor_b[m][k], n);
-        r[k] = targets[k] - vn[k];
+      for (int i = 0; i < ns; ++i) {
+        const int k = idx[i];
+        vn[i] = normal_velocity(st, a, b, c.anchor_a[m][k], c.anchor_b[m][k], n);
+        r[i] = targets[k] - vn[i];
       }
-      ldlt_apply(f, np, r, d);
+      ldlt_apply(*f, ns, r, d);
       if (owed.work != 0.0) {
         // impulses d + c q (q = K⁻¹ 1) do ΔE(c) = ΔE(0) + L c + B c² / 2 (as in 2D)
         double ones[4] = {1.0, 1.0, 1.0, 1.0}, q[4] = {0.0, 0.0, 0.0, 0.0};
-        ldlt_apply(f, np, ones, q);
+        ldlt_apply(*f, ns, ones, q);
         double big_b = 0.0, big_l = 0.0;
-        for (int k = 0; k < np; ++k) {
-          big_b += q[k];
-          big_l += q[k] * (vn[k] + targets[k]) + d[k];
+        for (int i = 0; i < ns; ++i) {
+          big_b += q[i];
+          big_l += q[i] * (vn[i] + targets[idx[i]]) + d[i];
         }
         big_l = 0.5 * (big_l + owed.hsa * big_b);
         const double disc = big_l * big_l + 2.0 * big_b * owed.e2 * owed.work;
         if (big_l > 0.0 && disc >= 0.0) {
           const double cc = 2.0 * owed.e2 * owed.work / (big_l + std::sqrt(disc));
-          for (int k = 0; k < np; ++k) d[k] += cc * q[k];
+          for (int i = 0; i < ns; ++i) d[i] += cc * q[i];
         }
       }
       auto& lam = c.normal_impulse[m];
       bool pulls = false;
-      for (int k = 0; k < np; ++k) pulls = pulls || lam[k] + d[k] < 0.0;
+      for (int i = 0; i < ns; ++i) pulls = pulls || lam[idx[i]] + d[i] < 0.0;
       if (!pulls) {
-        for (int k = 0; k < np; ++k) {
-          lam[k] += d[k];
-          push_point(model, st, a, b, c.anchor_a[m][k], c.anchor_b[m][k], n, d[k]);
-          out[k] = d[k];
+        for (int i = 0; i < ns; ++i) {
+          const int k = idx[i];
+          lam[k] += d[i];
+          push_point(model, st, a, b, c.anchor_a[m][k], c.anchor_b[m][k], n, d[i]);
+          out[k] = d[i];
         }
         return out;
       }

@@ -235,6 +235,9 @@ inline SoftTarget soft_target(double s, bool use_bias, double inv_h, double bias
 // right-hand side lies in K's range (as the rigid bodies' own normal velocities do).
 constexpr double BLOCK_EPS = 1e-9;
 
+// PACKED_K[i][j]: where K_ij is in SolverRow<3>::k's upper triangle by rows.
+constexpr int PACKED_K[4][4] = {{0, 1, 2, 3}, {1, 4, 5, 6}, {2, 5, 7, 8}, {3, 6, 8, 9}};
+
 // L D Lᵀ of the first N (<= 4) rows and columns of the symmetric A into f; false when a
 // pivot is not above min_pivot of its diagonal (dependent rows). L_ij (i > j) is f.l[i (i
 // − 1) / 2 + j].

@@ -119,14 +119,12 @@ inline double angular_along(double w, double r) { return w * r; }
 // Solve A x = r for the n <= 4 points of `idx` (A: K's rows and columns idx, K packed as
 // SolverRow<3>::k, 1/kg) by LDLᵀ, unregularised; false when a pivot is below 1e-9 of its
 // diagonal (the points' rows are dependent: four corners of a face, for one rigid body).
-// PACKED[i][j]: where K_ij is in SolverRow<3>::k's upper triangle by rows.
-constexpr int PACKED[4][4] = {{0, 1, 2, 3}, {1, 4, 5, 6}, {2, 5, 7, 8}, {3, 6, 8, 9}};
 
 bool solve_exact(const std::array<double, 10>& k, const int* idx, const double* r, int n,
                  double* x) {
   double A[4][4];  // (only its first n rows and columns are read)
   for (int i = 0; i < n; ++i)
-    for (int j = 0; j < n; ++j) A[i][j] = k[PACKED[idx[i]][idx[j]]];
+    for (int j = 0; j < n; ++j) A[i][j] = k[PACKED_K[idx[i]][idx[j]]];
   return ldlt_solve(A, n, r, x, 1e-9);
 }
 
@@ -172,7 +170,7 @@ bool shock_block(const std::array<double, 10>& k, const double* need, int n, dou
     lam[i] = 0.0;
   }
   if (short_set == 0) return true;  // no point short at all: nothing to do
-  auto at = [&](int i, int j) { return k[PACKED[i][j]]; };
+  auto at = [&](int i, int j) { return k[PACKED_K[i][j]]; };
   const SubsetOrder& order = SUBSET_ORDER[n];
   for (int pass = 0; pass < 2; ++pass) {  // subsets of the short points, then the rest
     for (int t = 0; t < order.count; ++t) {
