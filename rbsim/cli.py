@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import signal
 import sys
@@ -27,6 +28,21 @@ EXIT_RUNTIME = 1
 EXIT_SCENE = 3
 EXIT_COMPARE = 4
 EXIT_INTERRUPTED = 130
+
+
+class _FiniteFloat(click.FloatRange):
+    """click's FloatRange that also refuses nan and inf (which pass its comparisons, or
+    lie within an open range): a usage error naming the option. -0 reads as 0."""
+
+    def convert(self, value, param, ctx):  # noqa: ANN001, ANN201 - click's signature
+        number = super().convert(value, param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"{value!r} is not a finite number", param, ctx)
+        return number + 0.0
+
+
+_POSITIVE = _FiniteFloat(min=0, min_open=True)  # a length of time, s
+_FINITE = _FiniteFloat()  # a time or a coordinate
 
 
 def _load(path: str, overrides: tuple[str, ...] = ()):
@@ -523,7 +539,7 @@ def compare(
 )
 @click.option(
     "--fps",
-    type=click.FloatRange(min=0, min_open=True),
+    type=_POSITIVE,
     default=30.0,
     show_default=True,
     help="Frames per second of simulated time (GIF: at most 50).",
@@ -531,7 +547,7 @@ def compare(
 @click.option(
     "--view",
     nargs=4,
-    type=float,
+    type=_FINITE,
     metavar="X0 Y0 X1 Y1",
     help="2D only: world rectangle to show, m [default: fitted to the moving bodies].",
 )
@@ -549,8 +565,8 @@ def compare(
     type=click.Path(exists=True, dir_okay=False),
     help="A second trajectory drawn over the first in its own colour.",
 )
-@click.option("--start", type=float, metavar="SECONDS", help="Show from this time on, s.")
-@click.option("--end", type=float, metavar="SECONDS", help="Show up to this time, s.")
+@click.option("--start", type=_FINITE, metavar="SECONDS", help="Show from this time on, s.")
+@click.option("--end", type=_FINITE, metavar="SECONDS", help="Show up to this time, s.")
 @click.option(
     "--contacts/--no-contacts",
     default=True,
@@ -573,6 +589,7 @@ def render(
 ) -> None:
     """Draw TRAJECTORY into an animated GIF or a self-contained HTML player."""
     from .scene.schema import counted
+    from .view.player import HTML_MAX_FPS
     from .view.render import GIF_MAX_FPS, RenderError, View, overlay_mismatch, render_gif
 
     out = Path(output) if output else Path(trajectory).with_suffix(".gif")
@@ -585,6 +602,11 @@ def render(
         raise click.BadParameter(
             f"{fps:g}: a GIF plays at most {GIF_MAX_FPS:g} frames per second "
             "(viewers slow shorter delays down)",
+            param_hint="'--fps'",
+        )
+    if kind != ".gif" and fps > HTML_MAX_FPS:
+        raise click.BadParameter(
+            f"{fps:g}: a page plays at most {HTML_MAX_FPS:g} frames per second",
             param_hint="'--fps'",
         )
     if view and not (view[0] < view[2] and view[1] < view[3]):
@@ -688,7 +710,7 @@ def plot(trajectories: tuple[str, ...], output: str | None) -> None:
 )
 @click.option("--pymunk-iterations", metavar="LIST", help="pymunk iterations [default: 5,10,30].")
 @click.option("--no-pymunk", is_flag=True, help="Sweep rbsim only.")
-@click.option("--duration", type=click.FloatRange(min=0, min_open=True), help="Simulated s.")
+@click.option("--duration", type=_POSITIVE, help="Simulated s.")
 @click.option(
     "--repeats",
     type=click.IntRange(min=1),
@@ -730,6 +752,8 @@ def sweep(
         Grid,
         PlotUnavailable,
         SweepError,
+        SweepLimit,
+        check_limits,
         parse_list,
         run_rotation_sweep,
         run_sweep,
@@ -753,6 +777,11 @@ def sweep(
     if no_pymunk:
         grid_args["pymunk_iterations"] = ()
     sc = _load(scene, overrides)
+    given = [option for option, (text, _, _) in lists.items() if text is not None]
+    try:  # each run is a scene: held to the format's bounds on steps, dt and work
+        check_limits(sc, Grid(**grid_args), duration, given)
+    except SweepLimit as err:
+        raise click.BadParameter(str(err), param_hint=err.option) from None
     progress = _Progress(True, unit="runs")
 
     def step(k: int, total: int, setting) -> None:
@@ -784,6 +813,8 @@ def sweep(
         _fail(EXIT_INTERRUPTED, "interrupted", progress)
     except BatchError as err:
         _fail(EXIT_RUNTIME, f"error: {err}", progress)
+    except MemoryError:  # the sampled poses of a long run at short steps
+        _fail(EXIT_RUNTIME, f"error: {scene}: out of memory (a shorter --duration?)", progress)
     progress.finish()
     click.echo(result.table())
     try:
