@@ -23,6 +23,7 @@ from . import __version__
 
 if TYPE_CHECKING:
     from .run import RunSummary
+    from .scene import Scene
 
 EXIT_RUNTIME = 1
 EXIT_SCENE = 3
@@ -42,6 +43,7 @@ class _FiniteFloat(click.FloatRange):
 
 
 _POSITIVE = _FiniteFloat(min=0, min_open=True)  # a length of time, s
+_NON_NEGATIVE = _FiniteFloat(min=0)  # a tolerance
 _FINITE = _FiniteFloat()  # a time or a coordinate
 
 
@@ -55,6 +57,40 @@ def _load(path: str, overrides: tuple[str, ...] = ()):
         _fail(EXIT_SCENE, str(err))
     for note in scene.notes:
         click.echo(str(note), err=True)
+    return scene
+
+
+def _load_reference(
+    path: str, overrides: tuple[str, ...], extra: dict[str, tuple[str, ...]], base: Scene
+) -> Scene:
+    """Load the reference engine's scene: `overrides` (--set), then each option's lines of
+    `extra` ({"--pymunk-set": lines, ...}); exit 3 with the validator's messages, a
+    problem of one of those lines naming its option, not --set (the lines go through
+    load_scene as --set lines). Only the notes that `base` (the scene of `overrides`
+    alone, whose notes _load printed) does not have are printed."""
+    from .scene import SceneError, load_scene
+
+    option_of = {}  # the key of a line, as a SceneIssue names it -> its option (the last)
+    for option, lines in extra.items():
+        for line in lines:
+            key = line.partition("=")[0].strip()
+            option_of[key or line] = option
+
+    def relabel(issue) -> str:  # noqa: ANN001 - a SceneIssue
+        text = str(issue)
+        option = option_of.get(issue.override) if issue.override is not None else None
+        if option is None:
+            return text
+        return text.replace(f"{issue.file}: --set ", f"{issue.file}: {option} ", 1)
+
+    try:
+        scene = load_scene(path, overrides + tuple(line for v in extra.values() for line in v))
+    except SceneError as err:
+        _fail(EXIT_SCENE, "\n".join(relabel(issue) for issue in err.errors))
+    seen = {str(note) for note in base.notes}
+    for note in scene.notes:
+        if str(note) not in seen:
+            click.echo(relabel(note), err=True)
     return scene
 
 
@@ -449,9 +485,9 @@ def info(trajectory: str) -> None:
 )
 @click.option("--set", "overrides", multiple=True, metavar="KEY.PATH=VALUE", help="As for run.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON dict instead of the table.")
-@click.option("--position", type=click.FloatRange(min=0), help="Position tolerance, m.")
-@click.option("--angle", type=click.FloatRange(min=0), help="Angle tolerance, rad.")
-@click.option("--velocity", type=click.FloatRange(min=0), help="Velocity tolerance, m/s.")
+@click.option("--position", type=_NON_NEGATIVE, help="Position tolerance, m.")
+@click.option("--angle", type=_NON_NEGATIVE, help="Angle tolerance, rad.")
+@click.option("--velocity", type=_NON_NEGATIVE, help="Velocity tolerance, m/s.")
 @click.option(
     "--iterations",
     type=click.IntRange(min=1),
@@ -465,12 +501,18 @@ def info(trajectory: str) -> None:
 )
 @click.option(
     "--pymunk-set",
-    "--reference-set",
     "pymunk_overrides",
     multiple=True,
     metavar="KEY.PATH=VALUE",
     help="Override a scene value for the reference engine only (pymunk in 2D, MuJoCo in "
     "3D), after --set.",
+)
+@click.option(
+    "--reference-set",
+    "reference_overrides",
+    multiple=True,
+    metavar="KEY.PATH=VALUE",
+    help="The same as --pymunk-set (applied after it).",
 )
 def compare(
     scene: str,
@@ -483,6 +525,7 @@ def compare(
     iterations: int | None,
     with_statistics: bool,
     pymunk_overrides: tuple[str, ...],
+    reference_overrides: tuple[str, ...],
 ) -> None:
     """Run SCENE in rbsim and in a reference engine (pymunk in 2D, MuJoCo in 3D) and
     report their differences (exit 4 when a difference exceeds its tolerance)."""
@@ -492,7 +535,8 @@ def compare(
     from .tools.compare import compare_scene, reference_engine
 
     sc = _load(scene, overrides)
-    pm_sc = _load(scene, overrides + pymunk_overrides) if pymunk_overrides else None
+    extra = {"--pymunk-set": pymunk_overrides, "--reference-set": reference_overrides}
+    pm_sc = _load_reference(scene, overrides, extra, sc) if any(extra.values()) else None
     out = Path(out_dir)
     try:
         result = compare_scene(
