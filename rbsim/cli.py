@@ -47,14 +47,29 @@ _NON_NEGATIVE = _FiniteFloat(min=0)  # a tolerance
 _FINITE = _FiniteFloat()  # a time or a coordinate
 
 
+# Problems listed at most, then "... and N more problems" (a 20,000-body scene made 3D
+# by --set has 60,000): the cap of rbsim batch's list (batch.MAX_LISTED).
+MAX_LISTED = 20
+
+
+def _listed(lines: list[str]) -> str:
+    """The first MAX_LISTED of `lines` (one problem each) and, when there are more, a
+    last line saying how many."""
+    shown = lines[:MAX_LISTED]
+    if len(lines) > MAX_LISTED:
+        more = len(lines) - MAX_LISTED
+        shown.append(f"... and {more:,} more problem{'s' if more > 1 else ''}")
+    return "\n".join(shown)
+
+
 def _load(path: str, overrides: tuple[str, ...] = ()):
-    """Load a scene or exit 3 with the validator's messages."""
+    """Load a scene or exit 3 with the validator's messages (the first MAX_LISTED)."""
     from .scene import SceneError, load_scene
 
     try:
         scene = load_scene(path, overrides)
     except SceneError as err:
-        _fail(EXIT_SCENE, str(err))
+        _fail(EXIT_SCENE, _listed([str(issue) for issue in err.errors]))
     for note in scene.notes:
         click.echo(str(note), err=True)
     return scene
@@ -86,7 +101,7 @@ def _load_reference(
     try:
         scene = load_scene(path, overrides + tuple(line for v in extra.values() for line in v))
     except SceneError as err:
-        _fail(EXIT_SCENE, "\n".join(relabel(issue) for issue in err.errors))
+        _fail(EXIT_SCENE, _listed([relabel(issue) for issue in err.errors]))
     seen = {str(note) for note in base.notes}
     for note in scene.notes:
         if str(note) not in seen:
@@ -422,7 +437,8 @@ def _resume(path: str, progress: _Progress, started: float | None) -> RunSummary
     except ResumeError as err:
         _fail(EXIT_RUNTIME, f"error: cannot resume: {err}", progress)
     except SceneError as err:
-        _fail(EXIT_SCENE, f"{path}: the scene it records is no longer valid:\n{err}", progress)
+        problems = _listed([str(issue) for issue in err.errors])
+        _fail(EXIT_SCENE, f"{path}: the scene it records is no longer valid:\n{problems}", progress)
     except RunFailed as err:
         _fail(EXIT_RUNTIME, f"error: {err}", progress)
     except WriteFailed as err:

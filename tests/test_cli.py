@@ -615,3 +615,25 @@ def test_progress_bar_only_on_a_terminal_and_after_one_second(monkeypatch) -> No
     quiet.t0 -= 5.0
     quiet(10, 100)
     assert sys.stderr.getvalue().count("\r") == 1
+
+
+@pytest.mark.parametrize("command", ["validate", "run"])
+def test_a_scene_with_many_errors_lists_the_first_20_and_counts_the_rest(tmp_path, command):
+    """A 20,000-body scene made 3D by --set printed its 60,000 problems; validate and run
+    list at most cli.MAX_LISTED (batch's cap) and say how many more there are."""
+    from rbsim.batch import MAX_LISTED
+
+    bodies = "".join(
+        f"  - {{name: b{i}, position: [{i}, 1], shape: {{box: {{size: [0.5, 0.5]}}}}}}\n"
+        for i in range(30)
+    )
+    path = tmp_path / "many.yaml"
+    path.write_text(f"version: 1\nworld: {{steps: 1}}\nbodies:\n{bodies}")
+    out = ("-o", tmp_path / "x.h5") if command == "run" else ()
+    code, _, err = rbsim(command, path, "--set", "world.dimension=3", *out)
+    lines = err.splitlines()
+    assert code == 3 and cli.MAX_LISTED == MAX_LISTED == 20
+    assert len(lines) == 21 and lines[-1] == "... and 40 more problems"  # 2 a body
+    assert all(line.startswith(f"{path}:") for line in lines[:20])
+    code, _, err = rbsim(command, path, "--set", "bodies.0.velocity=[0,1,0]", *out)
+    assert code == 3 and "more problem" not in err  # only one
