@@ -99,12 +99,11 @@ class WriteFailed(OSError):
         if self.frames == 0:
             return f"nothing was kept: the file holds no frame ({status})"
         # a checkpoint is made at the flushes, the first about a second into the run
-        then = (
-            "rbsim run --resume finishes it"
-            if os.path.exists(self.path + CHECKPOINT_SUFFIX)
-            else "no checkpoint was made yet: run it again"
-        )
-        return f"the file keeps {_frames(self.frames)} ({status}); once there is room, {then}"
+        if os.path.exists(self.path + CHECKPOINT_SUFFIX):
+            then = "once there is room, rbsim run --resume finishes it"
+        else:
+            then = "no checkpoint was made yet: once there is room, run it again"
+        return f"the file keeps {_frames(self.frames)} ({status}); {then}"
 
     def __str__(self) -> str:
         return f"cannot write {self.path}: {self.strerror}; {self.kept()}"
