@@ -46,6 +46,18 @@ _POSITIVE = _FiniteFloat(min=0, min_open=True)  # a length of time, s
 _NON_NEGATIVE = _FiniteFloat(min=0)  # a tolerance
 _FINITE = _FiniteFloat()  # a time or a coordinate
 
+# A scene file: one that cannot be read (or is missing) is load_scene's to report, as an
+# invalid scene at its line 1 (exit 3), not click's "is not readable" (exit 2).
+_SCENE = click.Path(dir_okay=False, readable=False)
+
+
+def _not_empty(ctx: click.Context, param: click.Parameter, value: str | None) -> str | None:
+    """A path option's value, refused when empty (-o ""): Path("") is the current folder,
+    which a run would report as "cannot write .: not a regular file" (exit 1)."""
+    if value == "":
+        raise click.BadParameter("the path is empty", ctx=ctx, param=param)
+    return value
+
 
 # Problems listed at most, then "... and N more problems" (a 20,000-body scene made 3D
 # by --set has 60,000): the cap of rbsim batch's list (batch.MAX_LISTED).
@@ -276,18 +288,20 @@ def main() -> None:
 
 
 @main.command()
-@click.argument("scene", type=click.Path(dir_okay=False), required=False)
+@click.argument("scene", type=_SCENE, required=False)
 @click.option(
     "-o",
     "--output",
     "output",
     type=click.Path(dir_okay=False),
+    callback=_not_empty,
     help="Trajectory file to write [default: out/<scene name>.h5].",
 )
 @click.option(
     "--resume",
     "resume",
     type=click.Path(dir_okay=False),
+    callback=_not_empty,
     metavar="OUT.h5",
     help="Continue the interrupted or killed run of this trajectory (no SCENE).",
 )
@@ -454,7 +468,7 @@ def _process_start() -> float | None:
 
 
 @main.command()
-@click.argument("scene", type=click.Path(dir_okay=False))
+@click.argument("scene", type=_SCENE)
 @click.option("--resolved", is_flag=True, help="Print the fully resolved scene (YAML).")
 @click.option("--set", "overrides", multiple=True, metavar="KEY.PATH=VALUE", help="As for run.")
 def validate(scene: str, resolved: bool, overrides: tuple[str, ...]) -> None:
@@ -489,12 +503,13 @@ def info(trajectory: str) -> None:
 
 
 @main.command()
-@click.argument("scene", type=click.Path(dir_okay=False))
+@click.argument("scene", type=_SCENE)
 @click.option(
     "-o",
     "--output",
     "out_dir",
     type=click.Path(file_okay=False),
+    callback=_not_empty,
     default="out/compare",
     show_default=True,
     help="Folder for <name>.rbsim.h5 and <name>.pymunk.h5 (<name>.mujoco.h5 in 3D).",
@@ -595,6 +610,7 @@ def compare(
     "--output",
     "output",
     type=click.Path(dir_okay=False),
+    callback=_not_empty,
     help="movie.gif or page.html [default: TRAJECTORY with .gif].",
 )
 @click.option(
@@ -720,6 +736,7 @@ def render(
     "--output",
     "output",
     type=click.Path(dir_okay=False),
+    callback=_not_empty,
     help="Image to write, .png, .pdf or .svg [default: the first TRAJECTORY with .energy.png].",
 )
 def plot(trajectories: tuple[str, ...], output: str | None) -> None:
@@ -748,12 +765,13 @@ def plot(trajectories: tuple[str, ...], output: str | None) -> None:
 
 
 @main.command()
-@click.argument("scene", type=click.Path(dir_okay=False))
+@click.argument("scene", type=_SCENE)
 @click.option(
     "-o",
     "--output",
     "out_dir",
     type=click.Path(file_okay=False),
+    callback=_not_empty,
     default="out/sweep",
     show_default=True,
     help="Folder for <name>.csv, <name>.json and <name>.png.",
@@ -890,12 +908,13 @@ def sweep(
 
 
 @main.command()
-@click.argument("scenes", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.argument("scenes", nargs=-1, required=True, type=_SCENE)
 @click.option(
     "-o",
     "--output",
     "out_dir",
     type=click.Path(file_okay=False),
+    callback=_not_empty,
     default="out/batch",
     show_default=True,
     help="Folder for <run-id>.h5 and summary.csv.",

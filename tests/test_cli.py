@@ -637,3 +637,65 @@ def test_a_scene_with_many_errors_lists_the_first_20_and_counts_the_rest(tmp_pat
     assert all(line.startswith(f"{path}:") for line in lines[:20])
     code, _, err = rbsim(command, path, "--set", "bodies.0.velocity=[0,1,0]", *out)
     assert code == 3 and "more problem" not in err  # only one
+
+
+def _as_reader_without_permission(args: list[str], path: Path) -> tuple[int, str]:
+    """Run `rbsim ARGS` where `path` (chmod 000) cannot be read: (exit code, stderr). Root
+    reads any file, so as root the command runs as nobody (setpriv); skipped without it."""
+    import shutil
+
+    from .conftest import PYTHON
+
+    path.chmod(0o000)
+    if os.geteuid() != 0:
+        code, _, err = rbsim(*args)
+        return code, err
+    if shutil.which("setpriv") is None:
+        pytest.skip("root reads any file, and setpriv is not there to run as nobody")
+    nobody = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"]
+    done = subprocess.run(
+        [*nobody, *PYTHON, "-m", "rbsim", *args], capture_output=True, text=True, timeout=120
+    )
+    return done.returncode, done.stderr
+
+
+@pytest.mark.parametrize("command", ["validate", "run", "sweep", "compare", "batch"])
+def test_an_unreadable_scene_is_reported_at_its_line_1_like_a_missing_one(command):
+    """click's Path said 'File ... is not readable.' (exit 2) where a missing scene is
+    'missing.yaml:1:1: file not found' (exit 3): both are now the validator's."""
+    import tempfile
+
+    folder = Path(tempfile.mkdtemp(prefix="rbsim-unreadable-"))  # not under root's 0700 tmp
+    try:
+        folder.chmod(0o755)
+        scene = folder / "scene.yaml"
+        scene.write_text(BALL)
+        code, err = _as_reader_without_permission([command, str(scene)], scene)
+        assert code == 3 and err.strip() == f"{scene}:1:1: permission denied", err
+        code, _, err = rbsim(command, folder / "missing.yaml")
+        assert code == 3 and err.strip() == f"{folder / 'missing.yaml'}:1:1: file not found"
+    finally:
+        scene.unlink(missing_ok=True)
+        folder.rmdir()
+
+
+@pytest.mark.parametrize(
+    ("args", "option"),
+    [
+        (["run", "SCENE", "-o", ""], "'-o' / '--output'"),
+        (["run", "--resume", ""], "'--resume'"),
+        (["compare", "SCENE", "-o", ""], "'-o' / '--output'"),
+        (["sweep", "SCENE", "-o", ""], "'-o' / '--output'"),
+        (["batch", "SCENE", "-o", ""], "'-o' / '--output'"),
+        (["render", "OUT", "-o", ""], "'-o' / '--output'"),
+    ],
+)
+def test_an_empty_output_path_is_a_usage_error(tmp_path, args, option):
+    """-o "" was the current folder: 'cannot write .: not a regular file', exit 1."""
+    scene = tmp_path / "ball.yaml"
+    scene.write_text(BALL)
+    out = tmp_path / "out.h5"
+    out.write_bytes(b"")
+    args = [str(scene) if a == "SCENE" else str(out) if a == "OUT" else a for a in args]
+    code, _, err = rbsim(*args)
+    assert code == 2 and f"Invalid value for {option}: the path is empty" in err
