@@ -408,11 +408,11 @@ def _run(
     started: float | None = None,
 ) -> RunSummary:
     """Load and run SCENE; every expected failure becomes a message and an exit code."""
-    from .run import RunFailed, WriteFailed, run_scene
+    from .run import RunFailed, WriteFailed, file_stem, run_scene
     from .scene.compile import ModelError
 
     sc = _load(scene, overrides)
-    out = Path(output) if output else Path("out") / f"{sc.name}.h5"
+    out = Path(output) if output else Path("out") / f"{file_stem(sc.name)}.h5"
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         return run_scene(
@@ -899,7 +899,9 @@ def sweep(
         paths = result.write(out_dir, plot=not no_plot)
     except PlotUnavailable as err:
         click.echo(f"plot skipped: {err}", err=True)
-        paths = {k: Path(out_dir) / f"{result.scene}.{k}" for k in ("csv", "json")}
+        from .run import file_stem
+
+        paths = {k: Path(out_dir) / f"{file_stem(result.scene)}.{k}" for k in ("csv", "json")}
     except FileExistsError:
         _fail(EXIT_RUNTIME, f"error: cannot write to {out_dir}: it is not a folder")
     except OSError as err:

@@ -699,3 +699,25 @@ def test_an_empty_output_path_is_a_usage_error(tmp_path, args, option):
     args = [str(scene) if a == "SCENE" else str(out) if a == "OUT" else a for a in args]
     code, _, err = rbsim(*args)
     assert code == 2 and f"Invalid value for {option}: the path is empty" in err
+
+
+def test_a_scene_name_too_long_for_a_file_name_is_shortened_for_the_default_output(
+    tmp_path, monkeypatch
+):
+    """A 300-character `name:` validated, and the run failed with exit 1, 'File name too
+    long' (out/<name>.h5): the default file takes the name's first bytes and 12 hex
+    digits of its SHA-256, within NAME_BYTES_MAX bytes (room for the sidecars' suffixes)."""
+    from rbsim.run import NAME_BYTES_MAX, file_stem
+
+    name = "n" * 150 + "é" * 75  # 300 bytes of UTF-8, cut inside no character
+    path = tmp_path / "long.yaml"
+    path.write_text(BALL.replace("name: ball\n", f"name: {name}\n", 1), encoding="utf-8")
+    monkeypatch.chdir(tmp_path)
+    code, out, err = rbsim("run", path)
+    assert code == 0, err
+    (written,) = (tmp_path / "out").iterdir()
+    stem = written.name.removesuffix(".h5")
+    assert stem == file_stem(name) and len(stem.encode()) <= NAME_BYTES_MAX
+    assert stem.startswith("n" * 150 + "é") and re.fullmatch(r".*-[0-9a-f]{12}", stem)
+    assert str(written.relative_to(tmp_path)) in out
+    assert file_stem(name[:-1]) != stem and file_stem("ball") == "ball"

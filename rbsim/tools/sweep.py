@@ -31,6 +31,7 @@ import numpy as np
 
 from ..engines import Engine, NonFiniteState, Snapshot, TooManyPairs, make_engine
 from ..engines.pymunk import PymunkSettings
+from ..run import file_stem
 from ..scene import Scene
 from ..scene import types as T
 from ..scene.resolve import MAX_STEPS
@@ -455,7 +456,8 @@ def _write_files(
     <scene>.png into out_dir; the paths written."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    paths = {"csv": out / f"{result.scene}.csv", "json": out / f"{result.scene}.json"}
+    stem = file_stem(result.scene)
+    paths = {"csv": out / f"{stem}.csv", "json": out / f"{stem}.json"}
     rows = [p.row() for p in result.points]
     with open(paths["csv"], "w", newline="", encoding="utf-8") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]) if rows else ["engine"])
@@ -463,7 +465,7 @@ def _write_files(
         writer.writerows(rows)
     paths["json"].write_text(json.dumps(_jsonable(result.to_dict()), indent=2) + "\n")
     if plot is not None:
-        paths["png"] = out / f"{result.scene}.png"
+        paths["png"] = out / f"{stem}.png"
         plot(result, paths["png"])
     return paths
 
