@@ -690,8 +690,10 @@ def test_an_unreadable_scene_is_reported_at_its_line_1_like_a_missing_one(comman
         (["render", "OUT", "-o", ""], "'-o' / '--output'"),
     ],
 )
-def test_an_empty_output_path_is_a_usage_error(tmp_path, args, option):
-    """-o "" was the current folder: 'cannot write .: not a regular file', exit 1."""
+def test_an_empty_output_path_is_a_usage_error(tmp_path, args, option, monkeypatch):
+    """-o "" was the current folder: 'cannot write .: not a regular file', exit 1 (and
+    compare, sweep and batch wrote into it: the test runs in tmp_path)."""
+    monkeypatch.chdir(tmp_path)
     scene = tmp_path / "ball.yaml"
     scene.write_text(BALL)
     out = tmp_path / "out.h5"
