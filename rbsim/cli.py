@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import signal
 import sys
@@ -22,6 +23,7 @@ from . import __version__
 
 if TYPE_CHECKING:
     from .run import RunSummary
+    from .scene import Scene
 
 EXIT_RUNTIME = 1
 EXIT_SCENE = 3
@@ -29,16 +31,93 @@ EXIT_COMPARE = 4
 EXIT_INTERRUPTED = 130
 
 
+class _FiniteFloat(click.FloatRange):
+    """click's FloatRange that also refuses nan and inf (which pass its comparisons, or
+    lie within an open range): a usage error naming the option. -0 reads as 0."""
+
+    def convert(self, value, param, ctx):  # noqa: ANN001, ANN201 - click's signature
+        number = super().convert(value, param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"{value!r} is not a finite number", param, ctx)
+        return number + 0.0
+
+
+_POSITIVE = _FiniteFloat(min=0, min_open=True)  # a length of time, s
+_NON_NEGATIVE = _FiniteFloat(min=0)  # a tolerance
+_FINITE = _FiniteFloat()  # a time or a coordinate
+
+# A scene file: one that cannot be read (or is missing) is load_scene's to report, as an
+# invalid scene at its line 1 (exit 3), not click's "is not readable" (exit 2).
+_SCENE = click.Path(dir_okay=False, readable=False)
+
+
+def _not_empty(ctx: click.Context, param: click.Parameter, value: str | None) -> str | None:
+    """A path option's value, refused when empty (-o ""): Path("") is the current folder,
+    which a run would report as "cannot write .: not a regular file" (exit 1)."""
+    if value == "":
+        raise click.BadParameter("the path is empty", ctx=ctx, param=param)
+    return value
+
+
+# Problems listed at most, then "... and N more problems" (a 20,000-body scene made 3D
+# by --set has 60,000): the cap of rbsim batch's list (batch.MAX_LISTED).
+MAX_LISTED = 20
+
+
+def _listed(lines: list[str]) -> str:
+    """The first MAX_LISTED of `lines` (one problem each) and, when there are more, a
+    last line saying how many."""
+    shown = lines[:MAX_LISTED]
+    if len(lines) > MAX_LISTED:
+        more = len(lines) - MAX_LISTED
+        shown.append(f"... and {more:,} more problem{'s' if more > 1 else ''}")
+    return "\n".join(shown)
+
+
 def _load(path: str, overrides: tuple[str, ...] = ()):
-    """Load a scene or exit 3 with the validator's messages."""
+    """Load a scene or exit 3 with the validator's messages (the first MAX_LISTED)."""
     from .scene import SceneError, load_scene
 
     try:
         scene = load_scene(path, overrides)
     except SceneError as err:
-        _fail(EXIT_SCENE, str(err))
+        _fail(EXIT_SCENE, _listed([str(issue) for issue in err.errors]))
     for note in scene.notes:
         click.echo(str(note), err=True)
+    return scene
+
+
+def _load_reference(
+    path: str, overrides: tuple[str, ...], extra: dict[str, tuple[str, ...]], base: Scene
+) -> Scene:
+    """Load the reference engine's scene: `overrides` (--set), then each option's lines of
+    `extra` ({"--pymunk-set": lines, ...}); exit 3 with the validator's messages, a
+    problem of one of those lines naming its option, not --set (the lines go through
+    load_scene as --set lines). Only the notes that `base` (the scene of `overrides`
+    alone, whose notes _load printed) does not have are printed."""
+    from .scene import SceneError, load_scene
+
+    option_of = {}  # the key of a line, as a SceneIssue names it -> its option (the last)
+    for option, lines in extra.items():
+        for line in lines:
+            key = line.partition("=")[0].strip()
+            option_of[key or line] = option
+
+    def relabel(issue) -> str:  # noqa: ANN001 - a SceneIssue
+        text = str(issue)
+        option = option_of.get(issue.override) if issue.override is not None else None
+        if option is None:
+            return text
+        return text.replace(f"{issue.file}: --set ", f"{issue.file}: {option} ", 1)
+
+    try:
+        scene = load_scene(path, overrides + tuple(line for v in extra.values() for line in v))
+    except SceneError as err:
+        _fail(EXIT_SCENE, _listed([relabel(issue) for issue in err.errors]))
+    seen = {str(note) for note in base.notes}
+    for note in scene.notes:
+        if str(note) not in seen:
+            click.echo(relabel(note), err=True)
     return scene
 
 
@@ -209,18 +288,20 @@ def main() -> None:
 
 
 @main.command()
-@click.argument("scene", type=click.Path(dir_okay=False), required=False)
+@click.argument("scene", type=_SCENE, required=False)
 @click.option(
     "-o",
     "--output",
     "output",
     type=click.Path(dir_okay=False),
+    callback=_not_empty,
     help="Trajectory file to write [default: out/<scene name>.h5].",
 )
 @click.option(
     "--resume",
     "resume",
     type=click.Path(dir_okay=False),
+    callback=_not_empty,
     metavar="OUT.h5",
     help="Continue the interrupted or killed run of this trajectory (no SCENE).",
 )
@@ -327,11 +408,11 @@ def _run(
     started: float | None = None,
 ) -> RunSummary:
     """Load and run SCENE; every expected failure becomes a message and an exit code."""
-    from .run import RunFailed, WriteFailed, run_scene
+    from .run import RunFailed, WriteFailed, file_stem, run_scene
     from .scene.compile import ModelError
 
     sc = _load(scene, overrides)
-    out = Path(output) if output else Path("out") / f"{sc.name}.h5"
+    out = Path(output) if output else Path("out") / f"{file_stem(sc.name)}.h5"
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         return run_scene(
@@ -370,7 +451,8 @@ def _resume(path: str, progress: _Progress, started: float | None) -> RunSummary
     except ResumeError as err:
         _fail(EXIT_RUNTIME, f"error: cannot resume: {err}", progress)
     except SceneError as err:
-        _fail(EXIT_SCENE, f"{path}: the scene it records is no longer valid:\n{err}", progress)
+        problems = _listed([str(issue) for issue in err.errors])
+        _fail(EXIT_SCENE, f"{path}: the scene it records is no longer valid:\n{problems}", progress)
     except RunFailed as err:
         _fail(EXIT_RUNTIME, f"error: {err}", progress)
     except WriteFailed as err:
@@ -386,7 +468,7 @@ def _process_start() -> float | None:
 
 
 @main.command()
-@click.argument("scene", type=click.Path(dir_okay=False))
+@click.argument("scene", type=_SCENE)
 @click.option("--resolved", is_flag=True, help="Print the fully resolved scene (YAML).")
 @click.option("--set", "overrides", multiple=True, metavar="KEY.PATH=VALUE", help="As for run.")
 def validate(scene: str, resolved: bool, overrides: tuple[str, ...]) -> None:
@@ -421,21 +503,22 @@ def info(trajectory: str) -> None:
 
 
 @main.command()
-@click.argument("scene", type=click.Path(dir_okay=False))
+@click.argument("scene", type=_SCENE)
 @click.option(
     "-o",
     "--output",
     "out_dir",
     type=click.Path(file_okay=False),
+    callback=_not_empty,
     default="out/compare",
     show_default=True,
     help="Folder for <name>.rbsim.h5 and <name>.pymunk.h5 (<name>.mujoco.h5 in 3D).",
 )
 @click.option("--set", "overrides", multiple=True, metavar="KEY.PATH=VALUE", help="As for run.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON dict instead of the table.")
-@click.option("--position", type=click.FloatRange(min=0), help="Position tolerance, m.")
-@click.option("--angle", type=click.FloatRange(min=0), help="Angle tolerance, rad.")
-@click.option("--velocity", type=click.FloatRange(min=0), help="Velocity tolerance, m/s.")
+@click.option("--position", type=_NON_NEGATIVE, help="Position tolerance, m.")
+@click.option("--angle", type=_NON_NEGATIVE, help="Angle tolerance, rad.")
+@click.option("--velocity", type=_NON_NEGATIVE, help="Velocity tolerance, m/s.")
 @click.option(
     "--iterations",
     type=click.IntRange(min=1),
@@ -449,12 +532,18 @@ def info(trajectory: str) -> None:
 )
 @click.option(
     "--pymunk-set",
-    "--reference-set",
     "pymunk_overrides",
     multiple=True,
     metavar="KEY.PATH=VALUE",
     help="Override a scene value for the reference engine only (pymunk in 2D, MuJoCo in "
     "3D), after --set.",
+)
+@click.option(
+    "--reference-set",
+    "reference_overrides",
+    multiple=True,
+    metavar="KEY.PATH=VALUE",
+    help="The same as --pymunk-set (applied after it).",
 )
 def compare(
     scene: str,
@@ -467,6 +556,7 @@ def compare(
     iterations: int | None,
     with_statistics: bool,
     pymunk_overrides: tuple[str, ...],
+    reference_overrides: tuple[str, ...],
 ) -> None:
     """Run SCENE in rbsim and in a reference engine (pymunk in 2D, MuJoCo in 3D) and
     report their differences (exit 4 when a difference exceeds its tolerance)."""
@@ -476,7 +566,8 @@ def compare(
     from .tools.compare import compare_scene, reference_engine
 
     sc = _load(scene, overrides)
-    pm_sc = _load(scene, overrides + pymunk_overrides) if pymunk_overrides else None
+    extra = {"--pymunk-set": pymunk_overrides, "--reference-set": reference_overrides}
+    pm_sc = _load_reference(scene, overrides, extra, sc) if any(extra.values()) else None
     out = Path(out_dir)
     try:
         result = compare_scene(
@@ -519,11 +610,12 @@ def compare(
     "--output",
     "output",
     type=click.Path(dir_okay=False),
+    callback=_not_empty,
     help="movie.gif or page.html [default: TRAJECTORY with .gif].",
 )
 @click.option(
     "--fps",
-    type=click.FloatRange(min=0, min_open=True),
+    type=_POSITIVE,
     default=30.0,
     show_default=True,
     help="Frames per second of simulated time (GIF: at most 50).",
@@ -531,7 +623,7 @@ def compare(
 @click.option(
     "--view",
     nargs=4,
-    type=float,
+    type=_FINITE,
     metavar="X0 Y0 X1 Y1",
     help="2D only: world rectangle to show, m [default: fitted to the moving bodies].",
 )
@@ -549,8 +641,8 @@ def compare(
     type=click.Path(exists=True, dir_okay=False),
     help="A second trajectory drawn over the first in its own colour.",
 )
-@click.option("--start", type=float, metavar="SECONDS", help="Show from this time on, s.")
-@click.option("--end", type=float, metavar="SECONDS", help="Show up to this time, s.")
+@click.option("--start", type=_FINITE, metavar="SECONDS", help="Show from this time on, s.")
+@click.option("--end", type=_FINITE, metavar="SECONDS", help="Show up to this time, s.")
 @click.option(
     "--contacts/--no-contacts",
     default=True,
@@ -573,6 +665,7 @@ def render(
 ) -> None:
     """Draw TRAJECTORY into an animated GIF or a self-contained HTML player."""
     from .scene.schema import counted
+    from .view.player import HTML_MAX_FPS
     from .view.render import GIF_MAX_FPS, RenderError, View, overlay_mismatch, render_gif
 
     out = Path(output) if output else Path(trajectory).with_suffix(".gif")
@@ -585,6 +678,11 @@ def render(
         raise click.BadParameter(
             f"{fps:g}: a GIF plays at most {GIF_MAX_FPS:g} frames per second "
             "(viewers slow shorter delays down)",
+            param_hint="'--fps'",
+        )
+    if kind != ".gif" and fps > HTML_MAX_FPS:
+        raise click.BadParameter(
+            f"{fps:g}: a page plays at most {HTML_MAX_FPS:g} frames per second",
             param_hint="'--fps'",
         )
     if view and not (view[0] < view[2] and view[1] < view[3]):
@@ -638,6 +736,7 @@ def render(
     "--output",
     "output",
     type=click.Path(dir_okay=False),
+    callback=_not_empty,
     help="Image to write, .png, .pdf or .svg [default: the first TRAJECTORY with .energy.png].",
 )
 def plot(trajectories: tuple[str, ...], output: str | None) -> None:
@@ -666,12 +765,13 @@ def plot(trajectories: tuple[str, ...], output: str | None) -> None:
 
 
 @main.command()
-@click.argument("scene", type=click.Path(dir_okay=False))
+@click.argument("scene", type=_SCENE)
 @click.option(
     "-o",
     "--output",
     "out_dir",
     type=click.Path(file_okay=False),
+    callback=_not_empty,
     default="out/sweep",
     show_default=True,
     help="Folder for <name>.csv, <name>.json and <name>.png.",
@@ -688,7 +788,7 @@ def plot(trajectories: tuple[str, ...], output: str | None) -> None:
 )
 @click.option("--pymunk-iterations", metavar="LIST", help="pymunk iterations [default: 5,10,30].")
 @click.option("--no-pymunk", is_flag=True, help="Sweep rbsim only.")
-@click.option("--duration", type=click.FloatRange(min=0, min_open=True), help="Simulated s.")
+@click.option("--duration", type=_POSITIVE, help="Simulated s.")
 @click.option(
     "--repeats",
     type=click.IntRange(min=1),
@@ -730,6 +830,8 @@ def sweep(
         Grid,
         PlotUnavailable,
         SweepError,
+        SweepLimit,
+        check_limits,
         parse_list,
         run_rotation_sweep,
         run_sweep,
@@ -753,6 +855,11 @@ def sweep(
     if no_pymunk:
         grid_args["pymunk_iterations"] = ()
     sc = _load(scene, overrides)
+    given = [option for option, (text, _, _) in lists.items() if text is not None]
+    try:  # each run is a scene: held to the format's bounds on steps, dt and work
+        check_limits(sc, Grid(**grid_args), duration, given)
+    except SweepLimit as err:
+        raise click.BadParameter(str(err), param_hint=err.option) from None
     progress = _Progress(True, unit="runs")
 
     def step(k: int, total: int, setting) -> None:
@@ -784,13 +891,17 @@ def sweep(
         _fail(EXIT_INTERRUPTED, "interrupted", progress)
     except BatchError as err:
         _fail(EXIT_RUNTIME, f"error: {err}", progress)
+    except MemoryError:  # the sampled poses of a long run at short steps
+        _fail(EXIT_RUNTIME, f"error: {scene}: out of memory (a shorter --duration?)", progress)
     progress.finish()
     click.echo(result.table())
     try:
         paths = result.write(out_dir, plot=not no_plot)
     except PlotUnavailable as err:
         click.echo(f"plot skipped: {err}", err=True)
-        paths = {k: Path(out_dir) / f"{result.scene}.{k}" for k in ("csv", "json")}
+        from .run import file_stem
+
+        paths = {k: Path(out_dir) / f"{file_stem(result.scene)}.{k}" for k in ("csv", "json")}
     except FileExistsError:
         _fail(EXIT_RUNTIME, f"error: cannot write to {out_dir}: it is not a folder")
     except OSError as err:
@@ -799,12 +910,13 @@ def sweep(
 
 
 @main.command()
-@click.argument("scenes", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.argument("scenes", nargs=-1, required=True, type=_SCENE)
 @click.option(
     "-o",
     "--output",
     "out_dir",
     type=click.Path(file_okay=False),
+    callback=_not_empty,
     default="out/batch",
     show_default=True,
     help="Folder for <run-id>.h5 and summary.csv.",

@@ -69,6 +69,28 @@ CHECKPOINT_STOP_BYTES = 50e6
 CHECKPOINT_BYTES_PER_SECOND = 2.5e8
 
 
+# The most bytes of a file name made from a scene name (`name:` may be any length): the
+# file systems' 255 (NAME_MAX) less the longest suffix rbsim adds to it, with room to
+# spare (".mujoco.h5.tmp-<pid>", ".rbsim.h5.resume.tmp": about 22). A 300-character name
+# failed the run with "File name too long".
+NAME_BYTES_MAX = 200
+NAME_DIGEST_DIGITS = 12  # hex digits of the name's SHA-256 that keep shortened names apart
+
+
+def file_stem(name: str) -> str:
+    """The scene name as the stem of the files named after it (out/<stem>.h5, compare's
+    and sweep's): the name itself, or, longer than NAME_BYTES_MAX bytes of UTF-8, its
+    first bytes (whole characters) and the start of its SHA-256, "<head>-<12 hex>"."""
+    raw = name.encode("utf-8")
+    if len(raw) <= NAME_BYTES_MAX:
+        return name
+    import hashlib
+
+    digest = hashlib.sha256(raw).hexdigest()[:NAME_DIGEST_DIGITS]
+    head = raw[: NAME_BYTES_MAX - NAME_DIGEST_DIGITS - 1].decode("utf-8", "ignore")
+    return f"{head}-{digest}"
+
+
 def _frames(n: int) -> str:
     return counted(n, "frame")
 
@@ -99,12 +121,11 @@ class WriteFailed(OSError):
         if self.frames == 0:
             return f"nothing was kept: the file holds no frame ({status})"
         # a checkpoint is made at the flushes, the first about a second into the run
-        then = (
-            "rbsim run --resume finishes it"
-            if os.path.exists(self.path + CHECKPOINT_SUFFIX)
-            else "no checkpoint was made yet: run it again"
-        )
-        return f"the file keeps {_frames(self.frames)} ({status}); once there is room, {then}"
+        if os.path.exists(self.path + CHECKPOINT_SUFFIX):
+            then = "once there is room, rbsim run --resume finishes it"
+        else:
+            then = "no checkpoint was made yet: once there is room, run it again"
+        return f"the file keeps {_frames(self.frames)} ({status}); {then}"
 
     def __str__(self) -> str:
         return f"cannot write {self.path}: {self.strerror}; {self.kept()}"

@@ -615,3 +615,111 @@ def test_progress_bar_only_on_a_terminal_and_after_one_second(monkeypatch) -> No
     quiet.t0 -= 5.0
     quiet(10, 100)
     assert sys.stderr.getvalue().count("\r") == 1
+
+
+@pytest.mark.parametrize("command", ["validate", "run"])
+def test_a_scene_with_many_errors_lists_the_first_20_and_counts_the_rest(tmp_path, command):
+    """A 20,000-body scene made 3D by --set printed its 60,000 problems; validate and run
+    list at most cli.MAX_LISTED (batch's cap) and say how many more there are."""
+    from rbsim.batch import MAX_LISTED
+
+    bodies = "".join(
+        f"  - {{name: b{i}, position: [{i}, 1], shape: {{box: {{size: [0.5, 0.5]}}}}}}\n"
+        for i in range(30)
+    )
+    path = tmp_path / "many.yaml"
+    path.write_text(f"version: 1\nworld: {{steps: 1}}\nbodies:\n{bodies}")
+    out = ("-o", tmp_path / "x.h5") if command == "run" else ()
+    code, _, err = rbsim(command, path, "--set", "world.dimension=3", *out)
+    lines = err.splitlines()
+    assert code == 3 and cli.MAX_LISTED == MAX_LISTED == 20
+    assert len(lines) == 21 and lines[-1] == "... and 40 more problems"  # 2 a body
+    assert all(line.startswith(f"{path}:") for line in lines[:20])
+    code, _, err = rbsim(command, path, "--set", "bodies.0.velocity=[0,1,0]", *out)
+    assert code == 3 and "more problem" not in err  # only one
+
+
+def _as_reader_without_permission(args: list[str], path: Path) -> tuple[int, str]:
+    """Run `rbsim ARGS` where `path` (chmod 000) cannot be read: (exit code, stderr). Root
+    reads any file, so as root the command runs as nobody (setpriv); skipped without it."""
+    import shutil
+
+    from .conftest import PYTHON
+
+    path.chmod(0o000)
+    if os.geteuid() != 0:
+        code, _, err = rbsim(*args)
+        return code, err
+    if shutil.which("setpriv") is None:
+        pytest.skip("root reads any file, and setpriv is not there to run as nobody")
+    nobody = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"]
+    done = subprocess.run(
+        [*nobody, *PYTHON, "-m", "rbsim", *args], capture_output=True, text=True, timeout=120
+    )
+    return done.returncode, done.stderr
+
+
+@pytest.mark.parametrize("command", ["validate", "run", "sweep", "compare", "batch"])
+def test_an_unreadable_scene_is_reported_at_its_line_1_like_a_missing_one(command):
+    """click's Path said 'File ... is not readable.' (exit 2) where a missing scene is
+    'missing.yaml:1:1: file not found' (exit 3): both are now the validator's."""
+    import tempfile
+
+    folder = Path(tempfile.mkdtemp(prefix="rbsim-unreadable-"))  # not under root's 0700 tmp
+    try:
+        folder.chmod(0o755)
+        scene = folder / "scene.yaml"
+        scene.write_text(BALL)
+        code, err = _as_reader_without_permission([command, str(scene)], scene)
+        assert code == 3 and err.strip() == f"{scene}:1:1: permission denied", err
+        code, _, err = rbsim(command, folder / "missing.yaml")
+        assert code == 3 and err.strip() == f"{folder / 'missing.yaml'}:1:1: file not found"
+    finally:
+        scene.unlink(missing_ok=True)
+        folder.rmdir()
+
+
+@pytest.mark.parametrize(
+    ("args", "option"),
+    [
+        (["run", "SCENE", "-o", ""], "'-o' / '--output'"),
+        (["run", "--resume", ""], "'--resume'"),
+        (["compare", "SCENE", "-o", ""], "'-o' / '--output'"),
+        (["sweep", "SCENE", "-o", ""], "'-o' / '--output'"),
+        (["batch", "SCENE", "-o", ""], "'-o' / '--output'"),
+        (["render", "OUT", "-o", ""], "'-o' / '--output'"),
+    ],
+)
+def test_an_empty_output_path_is_a_usage_error(tmp_path, args, option, monkeypatch):
+    """-o "" was the current folder: 'cannot write .: not a regular file', exit 1 (and
+    compare, sweep and batch wrote into it: the test runs in tmp_path)."""
+    monkeypatch.chdir(tmp_path)
+    scene = tmp_path / "ball.yaml"
+    scene.write_text(BALL)
+    out = tmp_path / "out.h5"
+    out.write_bytes(b"")
+    args = [str(scene) if a == "SCENE" else str(out) if a == "OUT" else a for a in args]
+    code, _, err = rbsim(*args)
+    assert code == 2 and f"Invalid value for {option}: the path is empty" in err
+
+
+def test_a_scene_name_too_long_for_a_file_name_is_shortened_for_the_default_output(
+    tmp_path, monkeypatch
+):
+    """A 300-character `name:` validated, and the run failed with exit 1, 'File name too
+    long' (out/<name>.h5): the default file takes the name's first bytes and 12 hex
+    digits of its SHA-256, within NAME_BYTES_MAX bytes (room for the sidecars' suffixes)."""
+    from rbsim.run import NAME_BYTES_MAX, file_stem
+
+    name = "n" * 150 + "é" * 75  # 300 bytes of UTF-8, cut inside no character
+    path = tmp_path / "long.yaml"
+    path.write_text(BALL.replace("name: ball\n", f"name: {name}\n", 1), encoding="utf-8")
+    monkeypatch.chdir(tmp_path)
+    code, out, err = rbsim("run", path)
+    assert code == 0, err
+    (written,) = (tmp_path / "out").iterdir()
+    stem = written.name.removesuffix(".h5")
+    assert stem == file_stem(name) and len(stem.encode()) <= NAME_BYTES_MAX
+    assert stem.startswith("n" * 150 + "é") and re.fullmatch(r".*-[0-9a-f]{12}", stem)
+    assert str(written.relative_to(tmp_path)) in out
+    assert file_stem(name[:-1]) != stem and file_stem("ball") == "ball"

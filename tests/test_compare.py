@@ -343,3 +343,34 @@ def test_bad_statistics_key_in_a_file_names_line_and_key(tmp_path: Path):
     code, _out, err = rbsim("compare", scene, "-o", tmp_path)
     assert code == 3
     assert f"{scene}:5:" in err and "compare.statistics.mean_height" in err
+
+
+@pytest.mark.parametrize("option", ["--position", "--velocity", "--angle"])
+@pytest.mark.parametrize("value", ["nan", "inf", "-1"])
+def test_a_non_finite_or_negative_tolerance_is_a_usage_error(tmp_path: Path, option, value):
+    """A nan tolerance passed every check (nan > x is false), so that nothing was
+    compared; inf likewise: a usage error naming the option, before either engine runs."""
+    code, _out, err = rbsim(
+        "compare", COMPARE / "projectile.yaml", "-o", tmp_path, f"{option}={value}"
+    )
+    assert code == 2 and f"'{option}'" in err and "Traceback" not in err
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("option", ["--pymunk-set", "--reference-set"])
+def test_a_bad_reference_override_names_its_own_option(tmp_path: Path, option: str):
+    """The reference engine's overrides go through the validator as --set lines; their
+    messages name the option given, not --set."""
+    scene = COMPARE / "projectile.yaml"
+    code, _out, err = rbsim("compare", scene, "-o", tmp_path, option, "bogus")
+    assert code == 3
+    assert err.strip() == (
+        f"{scene}: {option} bogus: expected key.path=value (such as world.dt=0.01), got 'bogus'"
+    )
+    code, _out, err = rbsim("compare", scene, "-o", tmp_path, option, "world.dt=fast")
+    assert code == 3 and f"{scene}: {option} world.dt: expected a number" in err
+    # a --set problem is still a --set's
+    code, _out, err = rbsim(
+        "compare", scene, "-o", tmp_path, "--set", "world.dt=fast", option, "world.steps=3"
+    )
+    assert code == 3 and f"{scene}: --set world.dt: expected a number" in err

@@ -498,7 +498,46 @@ def test_a_write_error_mid_run_keeps_the_frames_flushed_and_exits_1(tmp_path, mo
     # about a second in), else run again (the message said resume where none existed)
     resumable = Path(f"{out}{CHECKPOINT_SUFFIX}").exists()
     assert ("rbsim run --resume finishes it" in err) == resumable
-    assert ("no checkpoint was made yet: run it again" in err) != resumable
+    assert ("no checkpoint was made yet: once there is room, run it again" in err) != resumable
+    assert not Path(f"{out}{CHECKPOINT_SUFFIX}.tmp").exists()
+
+
+@pytest.mark.parametrize("checkpoint", [True, False])
+def test_a_full_disk_message_reads_with_and_without_a_checkpoint(tmp_path, checkpoint) -> None:
+    """It read '...; once there is room, no checkpoint was made yet: run it again'
+    before the first checkpoint."""
+    from rbsim.run import WriteFailed
+
+    out = tmp_path / "full.h5"
+    out.write_bytes(b"")
+    if checkpoint:
+        Path(f"{out}{CHECKPOINT_SUFFIX}").write_bytes(b"")
+    err = WriteFailed(OSError(28, "No space left on device"), str(out), 583, True)
+    then = (
+        "once there is room, rbsim run --resume finishes it"
+        if checkpoint
+        else "no checkpoint was made yet: once there is room, run it again"
+    )
+    assert str(err) == (
+        f"cannot write {out}: No space left on device; the file keeps 583 frames "
+        f"(status failed); {then}"
+    )
+
+
+def test_a_checkpoint_that_fails_midway_leaves_no_temporary_file(tmp_path) -> None:
+    """A full disk while the checkpoint was written left OUT.h5.resume.tmp (holding the
+    disk's last room); the last whole checkpoint stays."""
+    path = str(tmp_path / "full.h5.resume")
+    write_checkpoint(path, 3, 3, b"old" * 10, owner="x")
+    before = Path(path).read_bytes()
+
+    def full() -> bool:  # asked between chunks: the disk fills up midway
+        raise OSError(28, "No space left on device")
+
+    with pytest.raises(OSError, match="No space"):
+        write_checkpoint(path, 5, 5, bytes(3 * (1 << 20)), stop=full, owner="x")
+    assert not Path(f"{path}.tmp").exists()
+    assert Path(path).read_bytes() == before
 
 
 def test_an_unwritable_folder_is_a_clear_message(tmp_path) -> None:

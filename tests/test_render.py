@@ -277,6 +277,26 @@ def test_render_cli_errors_name_the_file_and_exit_with_the_right_code(tmp_path):
     assert code == 1 and "other.h5: not an rbsim trajectory" in err
 
 
+@pytest.mark.parametrize(
+    ("args", "option"),
+    [
+        (("--fps", "nan"), "--fps"),
+        (("--fps", "inf"), "--fps"),
+        (("--fps", "1e300"), "--fps"),  # above the page's 240
+        (("--start", "nan"), "--start"),
+        (("--end", "inf"), "--end"),
+        (("--view", "0", "0", "inf", "1"), "--view"),
+    ],
+)
+def test_render_refuses_non_finite_numbers_as_usage_errors(tmp_path, args, option):
+    """nan and inf pass click's float ranges (or stop a page's player with a ValueError
+    traceback, or a JSON encoder's): a usage error naming the option instead."""
+    good = write_trajectory(tmp_path / "t.h5", frames=3)
+    code, _, err = rbsim("render", good, "-o", tmp_path / "x.html", *args)
+    assert code == 2 and f"'{option}'" in err and "Traceback" not in err
+    assert not (tmp_path / "x.html").exists()
+
+
 def test_render_without_matplotlib_says_how_to_install_it(tmp_path, monkeypatch):
     good = write_trajectory(tmp_path / "t.h5", frames=3)
     monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib now fails

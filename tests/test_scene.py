@@ -498,6 +498,10 @@ def test_set_a_body_whose_name_holds_dots_or_brackets_by_its_name_in_quotes():
     assert "no item named 'ball_e1'; did you mean \"ball_e1.0\"?" in message
     for broken in ('bodies."ball.velocity=1', 'bodies."ball"x.velocity=1', "bodies[].angle=1"):
         assert "expected key.path=value" in errors(text, (broken,))
+    # brackets still pick list items, by index or by name, quoted or not
+    scene = load(text, ("bodies[0].shape.circle.radius=2", "bodies['2'].velocity=[0,4]"))
+    assert scene.bodies[0].shapes[0].radius == 2.0 and scene.bodies[2].velocity == (0.0, 4.0)
+    assert load(BALL, ("bodies[ball].angle=0.5",)).bodies[0].angle == 0.5
 
 
 def test_set_creates_missing_blocks():
@@ -532,6 +536,14 @@ def test_set_invalid_value_is_reported_as_from_the_command_line():
         ("bodies.bal.angle=1", "did you mean ball?"),
         ("world.gravity=[0, 0", "YAML syntax error"),
         ("solver.substep=8", "did you mean substeps?"),
+        # brackets: left open, stray, text after, or on a mapping (all accepted before)
+        ("bodies[0.velocity=[1,0]", "expected key.path=value"),
+        ("bodies[0", "expected key.path=value"),
+        ("bodies[0[1]].angle=1", "expected key.path=value"),
+        ("bodies]0.angle=1", "expected key.path=value"),
+        ("bodies[0]angle=1", "expected key.path=value"),
+        ("world[dt]=1/30", "[dt] picks a list item, and world is a mapping: write world.dt"),
+        ("bodies[0][1]=1", "[1] picks a list item, and bodies[0] is a mapping"),
     ],
 )
 def test_malformed_overrides(override: str, expected: str):

@@ -468,3 +468,34 @@ def test_a_force_off_the_centre_is_bounded_by_its_torque():
     assert "bodies[0].force_point: the torque accelerates the body's points by 2.45e6" in line
     assert "least radius of gyration 0.408 m" in line
     load(scene_with(text.replace("[10, 0, 0]", "[0.1, 0, 0]")))  # 1e4 N·m: 2.4e4 m/s², fine
+
+
+def _bounds_row(what: str) -> str:
+    """The row of cli.md's Bounds table that starts with `what`."""
+    text = (Path(__file__).resolve().parents[1] / "cli.md").read_text()
+    return next(line for line in text.splitlines() if line.startswith(f"| {what}"))
+
+
+@pytest.mark.parametrize(
+    ("dimension", "shape", "valid"),
+    [
+        (2, "{segment: {a: [0, 0], b: [1, 0], radius: 0}}", True),
+        (2, "{segment: {a: [0, 0], b: [1, 0], radius: 5.0e-7}}", False),
+        (2, "{segment: {a: [0, 0], b: [1, 0], radius: 1.0e-6}}", True),
+        (3, "{capsule: {a: [0, 0, 0], b: [1, 0, 0], radius: 0}}", False),
+        (3, "{capsule: {a: [0, 0, 0], b: [1, 0, 0], radius: 1.0e-6}}", True),
+    ],
+)
+def test_bounds_table_states_the_radius_rule_the_validator_applies(dimension, shape, valid):
+    """cli.md's sizes row said a capsule's radius may be 0; the 3D validator (and
+    format.md) require 1e-6 m. Only a 2D segment's radius may be 0 (a thin segment)."""
+    row = _bounds_row("sizes:")
+    assert "a 2D segment's `radius` (which may also be 0" in row
+    assert "a 3D capsule's `radius` (never 0)" in row
+    ground = "{name: g, type: static, " + f"shape: {shape}" + "}"
+    text = f"version: 1\nworld: {{dimension: {dimension}, steps: 1}}\nbodies:\n  - {ground}\n"
+    if valid:
+        load_scene_text(text)
+    else:
+        with pytest.raises(SceneError, match="radius"):
+            load_scene_text(text)

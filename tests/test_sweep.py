@@ -293,3 +293,42 @@ def test_3d_sweep_too_short_for_a_period_still_plots_and_says_why(tmp_path: Path
     assert all(p["period_error_rel"] is None for p in data["points"])  # NaN: JSON null
     assert any("shorter than one period" in n and "NaN" in n for n in data["notes"])
     assert (tmp_path / "sw" / "brick.png").stat().st_size > 0
+
+
+@pytest.mark.parametrize(
+    ("args", "option", "words"),
+    [
+        (("--duration", "nan"), "--duration", "not a finite number"),
+        (("--duration", "inf"), "--duration", "not a finite number"),
+        (("--duration", "1e9", "--dt", "1/30"), "--duration", "more than the 1,000,000,000"),
+        (("--dt", "1/1000000000000"), "--dt", "within 1e-09 s to 1 s"),
+        (("--dt", "2"), "--dt", "within 1e-09 s to 1 s"),
+        (("--dt", "1e-9", "--duration", "2"), "--duration", "more than the 1,000,000,000"),
+        (("--dt", "1e-7"), "--dt", "body-samples the sweep may hold in memory"),
+        (("--duration", "1e7", "--dt", "1"), "--duration", "body-samples"),
+        (("--substeps", "2000000"), "--substeps", "at most 1,000,000"),
+        (("--substeps", "1000", "--iterations", "1001"), "--iterations", "shape-iterations"),
+    ],
+)
+def test_sweep_options_outside_the_scene_formats_bounds_are_usage_errors(
+    tmp_path: Path, args: tuple[str, ...], option: str, words: str
+):
+    """Each run of a sweep is a scene: its dt, steps and work per step are held to the
+    bounds of world.dt (1e-9..1 s), world.steps (1e9) and the work of a step (cli.md,
+    "Bounds"), before any run, as a usage error naming the option (not a traceback, a
+    numpy allocation of the whole run, or a run no scene could ask for)."""
+    path = tmp_path / "throw.yaml"
+    path.write_text(PROJECTILE)
+    code, _, err = rbsim("sweep", path, *args, "--no-pymunk", "-o", tmp_path)
+    assert code == 2, err
+    assert f"Invalid value for '{option}'" in err or f"Invalid value for {option}" in err
+    assert words in err and "Traceback" not in err
+
+
+def test_converged_reference_below_the_dt_bound_is_a_usage_error(tmp_path: Path):
+    """Without a reference: block the sweep's reference runs at a quarter of the smallest
+    dt, which may not go below world.dt's 1e-9 s either."""
+    path = tmp_path / "free.yaml"
+    path.write_text(PROJECTILE.replace("reference: {kind: projectile}\n", ""))
+    code, _, err = rbsim("sweep", path, "--dt", "2e-9", "--duration", "1e-6", "--no-pymunk")
+    assert code == 2 and "Invalid value for --dt" in err and "converged reference" in err

@@ -567,19 +567,26 @@ def write_checkpoint(
     tmp = f"{path}.tmp"
     view = memoryview(data)
     dropped = False
-    with open(tmp, "wb") as f:
-        tag = owner.encode("ascii").ljust(TRAJECTORY_ID_BYTES, b"\0")[:TRAJECTORY_ID_BYTES]
-        f.write(_CHECKPOINT_MAGIC + struct.pack("<qq", frames, step) + tag)
-        for start in range(0, len(view), CHECKPOINT_CHUNK):
-            dropped = stop is not None and stop()
-            if dropped:
-                break
-            f.write(view[start : start + CHECKPOINT_CHUNK])
-    if dropped:
-        os.unlink(tmp)
-        return False
-    os.replace(tmp, path)
-    return True
+    try:
+        with open(tmp, "wb") as f:
+            tag = owner.encode("ascii").ljust(TRAJECTORY_ID_BYTES, b"\0")[:TRAJECTORY_ID_BYTES]
+            f.write(_CHECKPOINT_MAGIC + struct.pack("<qq", frames, step) + tag)
+            for start in range(0, len(view), CHECKPOINT_CHUNK):
+                dropped = stop is not None and stop()
+                if dropped:
+                    break
+                f.write(view[start : start + CHECKPOINT_CHUNK])
+        if not dropped:
+            os.replace(tmp, path)
+            return True
+    except BaseException:
+        # a full disk (or a signal) midway: the half-written file is no checkpoint, and
+        # would hold the disk's last room (the last whole one at `path` stays)
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    os.unlink(tmp)
+    return False
 
 
 def read_checkpoint(path: str) -> tuple[int, int, bytes, str] | None:

@@ -326,6 +326,10 @@ class _Quoted(str):
     """A part of a key path written in quotes: a name as it is, never an index."""
 
 
+class _Bracketed(str):
+    """A part of a key path written in brackets, unquoted: a list item (``bodies[0]``)."""
+
+
 _NAME_MARKS = frozenset(".[]\"'")  # what a name in a key path must be quoted for
 
 
@@ -333,9 +337,12 @@ def _split_key(key: str) -> list[str]:
     """'bodies[2].velocity' or 'bodies.2.velocity' -> ['bodies', '2', 'velocity']. A part
     in double or single quotes is a name as written, dots and brackets and all:
     'bodies."ball_e1.0".velocity' and "bodies['stick[0]'].velocity" (_Quoted). A quote
-    left open, or text after a closing quote, gives an empty part (malformed)."""
+    left open, or text after a closing quote, gives an empty part (malformed), and so
+    does a bracket left open or one inside another ('bodies[1.velocity'); an unquoted
+    part in brackets is _Bracketed."""
     parts: list[str] = []
     current, i, n = "", 0, len(key)
+    bracket = False  # inside an unquoted [...]
     while i < n:
         ch = key[i]
         if ch in "\"'" and not current:
@@ -346,25 +353,31 @@ def _split_key(key: str) -> list[str]:
             parts.append(_Quoted(key[i + 1 : end]))
             i = end + 1
             if after == "]":
-                i += 1
+                i, bracket = i + 1, False
             if key[i : i + 1] == ".":
                 i += 1
             continue
         if ch in ".[":
+            if bracket:  # 'a[1.b', 'a[1[2]': the bracket was not closed
+                return [*parts, ""]
             if current:
                 parts.append(current)
             elif ch == "." or (i and key[i - 1] not in "]\"'"):
                 parts.append("")  # an empty part: 'a..b', '.a', 'a[]'
-            current = ""
+            current, bracket = "", ch == "["
         elif ch == "]":
+            if not bracket or key[i + 1 : i + 2] not in ("", ".", "["):  # 'a]b', 'a[0]b'
+                return [*parts, ""]
             if current or key[i - 1] == "[":
-                parts.append(current)  # ('a[]': an empty part)
-            current = ""
+                parts.append(_Bracketed(current))  # ('a[]': an empty part)
+            current, bracket = "", False
             if key[i + 1 : i + 2] == ".":
                 i += 1
         else:
             current += ch
         i += 1
+    if bracket:  # 'bodies[1'
+        return [*parts, ""]
     if current or not parts or key.endswith("."):
         parts.append(current)
     return parts
@@ -428,6 +441,12 @@ def apply_overrides(root: YMap, overrides: str | Sequence[str]) -> list[Problem]
         path: tuple[str | int, ...] = ()
         for depth, part in enumerate(parts):
             last = depth == len(parts) - 1
+            if isinstance(node, YMap) and isinstance(part, _Bracketed):  # 'world[dt]'
+                dotted = format_path((*path, str(part)))
+                where = format_path(path) or "the scene"
+                message = f"[{part}] picks a list item, and {where} is a mapping: write {dotted}"
+                problems.append(Problem(here, (), message))
+                break
             if isinstance(node, YMap):
                 if last or node.get(part) is None:  # set, or create a missing mapping
                     for group in schema.EXCLUSIVE_GROUPS:

@@ -41,7 +41,7 @@ import numpy as np
 from ..engines import Engine, UnsupportedScene, make_engine
 from ..engines.pymunk import PymunkSettings, PymunkWorld
 from ..io.trajectory import Trajectory, load_trajectory
-from ..run import run_scene
+from ..run import file_stem, run_scene
 from ..scene import Scene
 from ..scene.geometry3d import quat_matrix
 
@@ -744,8 +744,8 @@ def compare_scene(
     _floor_check(probe, tol)
     out_dir.mkdir(parents=True, exist_ok=True)
     files = {
-        "rbsim": str(out_dir / f"{scene.name}.rbsim.h5"),
-        reference: str(out_dir / f"{scene.name}.{reference}.h5"),
+        "rbsim": str(out_dir / f"{file_stem(scene.name)}.rbsim.h5"),
+        reference: str(out_dir / f"{file_stem(scene.name)}.{reference}.h5"),
     }
     _warm_up(scene, engine)
     summary = run_scene(scene, files["rbsim"], engine=engine)

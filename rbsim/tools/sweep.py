@@ -31,8 +31,11 @@ import numpy as np
 
 from ..engines import Engine, NonFiniteState, Snapshot, TooManyPairs, make_engine
 from ..engines.pymunk import PymunkSettings
+from ..run import file_stem
 from ..scene import Scene
 from ..scene import types as T
+from ..scene.resolve import MAX_STEPS
+from ..scene.schema import DT_MAX, DT_MIN, WORK_MAX, WORK_MAX_3D
 from .measure import block_times, penetration, touching_pairs
 from .reference import Poses, Reference, make_reference, pose_error
 
@@ -47,7 +50,9 @@ __all__ = [
     "SerialPool",
     "Setting",
     "SweepError",
+    "SweepLimit",
     "SweepResult",
+    "check_limits",
     "free_body_period",
     "pareto_front",
     "run_rotation_sweep",
@@ -68,6 +73,13 @@ DOMINANCE_TIME_RATIO = 0.5
 MIN_TIMED = 0.2
 MAX_REPEATS = 100
 
+# The sweep keeps what it samples in memory: in 2D every run's poses at every sample
+# (about 56 B a body: t, x, θ, v, ω), all runs at once; in 3D one run's frames at every
+# step (about 80 B a body). At most this many body-samples (2D, over every run) or
+# body-steps (3D, one run): about 1 GB either way.
+MAX_SAMPLED = 20_000_000  # 2D: samples x dynamic bodies x runs
+MAX_RECORDED_3D = 10_000_000  # 3D: steps x bodies of one run
+
 # Converged reference: by default dt is the grid's smallest over this factor.
 CONVERGED_DT_FACTOR = 4
 CONVERGED_SUBSTEPS = 4
@@ -79,6 +91,15 @@ PAIR_MARGIN = 0.05
 
 class SweepError(ValueError):
     """A sweep that cannot run as asked (grid, reference); the message says why."""
+
+
+class SweepLimit(SweepError):
+    """An option value outside the scene format's bounds (cli.md, "Bounds"): `option` is
+    the option to name ("--dt", "--duration", ...), the message says which bound."""
+
+    def __init__(self, option: str, message: str) -> None:
+        super().__init__(message)
+        self.option = option
 
 
 class PlotUnavailable(RuntimeError):
@@ -125,16 +146,97 @@ def parse_list(text: str, kind: str) -> tuple:
                 raise SweepError(f"{item!r} is not a time step (such as 1/60 or 0.01)") from None
             if not (value > 0 and math.isfinite(value)):
                 raise SweepError(f"a time step must be a positive number of seconds, got {item!r}")
+            # the scene format's world.dt bounds: each run is a scene with this dt
+            if not DT_MIN <= value <= DT_MAX:
+                raise SweepError(
+                    f"a time step must be within {DT_MIN:g} s to {DT_MAX:g} s (as world.dt), "
+                    f"got {item!r}"
+                )
         elif kind == "int":
             if not item.isdigit() or int(item) < 1:
                 raise SweepError(f"expected a positive integer, got {item!r}")
             value = int(item)
+            # as solver.substeps and solver.iterations (and compare.iterations)
+            if value > WORK_MAX:
+                raise SweepError(f"expected at most {WORK_MAX:,}, got {item!r}")
         else:
             if item not in kind:
                 raise SweepError(f"expected one of {', '.join(kind)}, got {item!r}")
             value = item
         out.append(value)
     return tuple(dict.fromkeys(out))  # without repeats, in order
+
+
+def check_limits(
+    scene: Scene, grid: Grid, duration: float | None, given: Sequence[str] = ()
+) -> None:
+    """Hold the sweep's runs to the scene format's bounds (cli.md, "Bounds"), as if each
+    were a scene file: at most MAX_STEPS steps (the run's duration, s, over the grid's
+    smallest dt, and over the converged reference's quarter of it), and at most the work
+    of one step (shapes x substeps x iterations). `duration` (s): --duration, None for
+    the scene's; `given`: the options on the command line, which the message names
+    first. Raises SweepLimit naming the option to change."""
+    dts = grid.dts or DEFAULT_DTS
+    total = scene.world.steps * scene.world.dt if duration is None else float(duration)
+    smallest = min(dts)
+    option = "--duration" if duration is not None or "--dt" not in given else "--dt"
+    where = f"{total:g} s" if duration is not None else f"the scene's {total:g} s"
+    steps = total / smallest
+    if steps > MAX_STEPS:
+        raise SweepLimit(
+            option,
+            f"{where} at dt {dt_text(smallest)} s is {steps:.3g} steps, more than the "
+            f"{MAX_STEPS:,} a scene may run (world.steps)",
+        )
+    dynamic = max(1, sum(b.type == "dynamic" for b in scene.bodies))
+    if scene.world.dimension == 3:
+        held = steps * len(scene.bodies)
+        if held > MAX_RECORDED_3D:
+            raise SweepLimit(
+                option,
+                f"{where} at dt {dt_text(smallest)} s records {steps:.3g} steps of "
+                f"{len(scene.bodies):,} bodies in memory, more than the {MAX_RECORDED_3D:,} "
+                "body-steps a run of the sweep may hold: a larger dt or a shorter --duration",
+            )
+    else:
+        samples = max(1.0, total / max(dts))  # every largest dt
+        runs = len(grid.settings()) + 2  # (and a converged reference's two)
+        if samples * dynamic * runs > MAX_SAMPLED:
+            raise SweepLimit(
+                option,
+                f"{where} sampled every {dt_text(max(dts))} s (the largest dt) is "
+                f"{samples:.3g} samples of {dynamic:,} bodies in each of {runs} runs, more "
+                f"than the {MAX_SAMPLED:,} body-samples the sweep may hold in memory: a "
+                "shorter --duration, a larger largest --dt, or fewer settings",
+            )
+    spec = dict(getattr(scene, "reference", None) or {})
+    converged = spec.get("kind", "converged") == "converged" and "dt" not in spec
+    if converged and scene.world.dimension == 2:  # run_sweep's reference steps finer still
+        fine = smallest / CONVERGED_DT_FACTOR
+        if fine < DT_MIN:
+            why = f"less than the {DT_MIN:g} s a world.dt may be"
+        elif total / fine > MAX_STEPS:
+            why = f"{total / fine:.3g} steps over {where}, more than {MAX_STEPS:,}"
+        else:
+            why = ""
+        if why:
+            raise SweepLimit(
+                "--dt" if "--dt" in given else option,
+                f"the converged reference steps at a quarter of the smallest dt, "
+                f"{fine:.3g} s: {why} (the scene has no reference: with reference.dt "
+                "it steps at that)",
+            )
+    shapes = sum(len(b.shapes) for b in scene.bodies)
+    work_max = WORK_MAX_3D if scene.world.dimension == 3 else WORK_MAX
+    substeps = max(grid.substeps, default=1)
+    iterations = max(grid.iterations, default=1) if scene.world.dimension == 2 else 1
+    if shapes * substeps * iterations > work_max:
+        option = "--iterations" if "--iterations" in given else "--substeps"
+        raise SweepLimit(
+            option,
+            f"a step would cost {shapes:,} shapes x {substeps:,} substeps x {iterations:,} "
+            f"iterations, more than the {work_max:,} shape-iterations a scene may ask",
+        )
 
 
 def dt_text(dt: float) -> str:
@@ -354,7 +456,8 @@ def _write_files(
     <scene>.png into out_dir; the paths written."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    paths = {"csv": out / f"{result.scene}.csv", "json": out / f"{result.scene}.json"}
+    stem = file_stem(result.scene)
+    paths = {"csv": out / f"{stem}.csv", "json": out / f"{stem}.json"}
     rows = [p.row() for p in result.points]
     with open(paths["csv"], "w", newline="", encoding="utf-8") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]) if rows else ["engine"])
@@ -362,7 +465,7 @@ def _write_files(
         writer.writerows(rows)
     paths["json"].write_text(json.dumps(_jsonable(result.to_dict()), indent=2) + "\n")
     if plot is not None:
-        paths["png"] = out / f"{result.scene}.png"
+        paths["png"] = out / f"{stem}.png"
         plot(result, paths["png"])
     return paths
 
