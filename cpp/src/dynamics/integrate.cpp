@@ -86,12 +86,15 @@ inline Quat turn(Quat& q, double&, Vec3 w, double h, bool exact) {
   return r;
 }
 
-// sin x and cos x (x in rad) for |x| <= SINCOS_SERIES_MAX from their Taylor series, to
-// x^15 and x^16 (the next terms are below 1e-19 there, under the last bit), else the
-// library's: a few multiply-adds for the turns of the split update below, five a body
-// and substep, whose angles are small (at most MAX_ROTATION at the ω cap). The same
-// operations for a double and for a body in each lane of a Lanes, so that a body gets
-// the same bits on either path.
+// sin x and cos x (x in rad) from their Taylor series: to x⁹ and x¹⁰ for |x| <=
+// SINCOS_SHORT_MAX, to x¹⁵ and x¹⁶ for |x| <= SINCOS_SERIES_MAX (the next terms are
+// below 1e-18 of the value there, under its last bit), else the library's: a few
+// multiply-adds for the turns of the split update below, up to four a body and substep,
+// whose angles are small (a body at 10 rad/s turns 0.005 rad a substep at dt 1/240; at
+// most MAX_ROTATION at the ω cap). Which series a body takes is its own angle's alone
+// (each lane its own, in a Lanes), so that a body gets the same bits beside any others
+// and on the one-body path.
+inline constexpr double SINCOS_SHORT_MAX = 0.1;
 inline constexpr double SINCOS_SERIES_MAX = 0.5;
 // the series' coefficients from the highest power down: sin x = x + x³ (−1/3! + x² (1/5!
 // − ...)), cos x = 1 + x² (−1/2! + x² (1/4! − ...))
@@ -100,6 +103,9 @@ constexpr double SIN_SERIES[] = {-1.0 / 1307674368000.0, 1.0 / 6227020800.0, -1.
 constexpr double COS_SERIES[] = {1.0 / 20922789888000.0, -1.0 / 87178291200.0, 1.0 / 479001600.0,
                                  -1.0 / 3628800.0, 1.0 / 40320.0, -1.0 / 720.0, 1.0 / 24.0,
                                  -1.0 / 2.0};
+constexpr double SIN_SHORT[] = {1.0 / 362880.0, -1.0 / 5040.0, 1.0 / 120.0, -1.0 / 6.0};
+constexpr double COS_SHORT[] = {-1.0 / 3628800.0, 1.0 / 40320.0, -1.0 / 720.0, 1.0 / 24.0,
+                                -1.0 / 2.0};
 // Σ c_k y^k by Horner's rule, c from the highest power down
 template <class T, std::size_t K>
 inline T horner(T y, const double (&c)[K]) {
@@ -107,23 +113,33 @@ inline T horner(T y, const double (&c)[K]) {
   for (std::size_t k = 1; k < K; ++k) p = c[k] + y * p;
   return p;
 }
-template <class T>
-inline void sincos_series(T x, T& s, T& c) {
+template <class T, std::size_t KS, std::size_t KC>
+inline void sincos_series(T x, T& s, T& c, const double (&sin_c)[KS], const double (&cos_c)[KC]) {
   const T x2 = x * x;
-  s = x + (x * x2) * horner(x2, SIN_SERIES);
-  c = 1.0 + x2 * horner(x2, COS_SERIES);
+  s = x + (x * x2) * horner(x2, sin_c);
+  c = 1.0 + x2 * horner(x2, cos_c);
 }
 inline void sincos_small(double x, double& s, double& c) {
-  if (std::fabs(x) <= SINCOS_SERIES_MAX) {
-    sincos_series(x, s, c);
+  const double size = std::fabs(x);
+  if (size <= SINCOS_SHORT_MAX) {
+    sincos_series(x, s, c, SIN_SHORT, COS_SHORT);
+  } else if (size <= SINCOS_SERIES_MAX) {
+    sincos_series(x, s, c, SIN_SERIES, COS_SERIES);
   } else {
     s = std::sin(x);
     c = std::cos(x);
   }
 }
 inline void sincos_small(Lanes x, Lanes& s, Lanes& c) {
-  sincos_series(x, s, c);
-  const LaneMask big = (x > splat(SINCOS_SERIES_MAX)) | (x < splat(-SINCOS_SERIES_MAX));
+  sincos_series(x, s, c, SIN_SHORT, COS_SHORT);
+  const Lanes size = vmax(x, -x);
+  const LaneMask longer = size > splat(SINCOS_SHORT_MAX);
+  if (!any(longer)) return;
+  Lanes sl, cl;
+  sincos_series(x, sl, cl, SIN_SERIES, COS_SERIES);
+  s = select(longer, sl, s);
+  c = select(longer, cl, c);
+  const LaneMask big = size > splat(SINCOS_SERIES_MAX);
   for (int l = 0; any(big) && l < LANES; ++l) {
     if (big[l]) {
       s[l] = std::sin(x[l]);
@@ -169,15 +185,29 @@ inline Lanes pick(LaneMask where, Lanes a, Lanes b) { return select(where, a, b)
 // keeps it to the bit. (The split into the three axes' own terms, m_k² / (2 I_k), is not
 // exact there: a stick 25 times longer than thick, tumbling at 150 rad/s, gained 37 J of
 // spin about its axis in one step from the order of its turns.) p (the frame P as a
-// quaternion, w x y z) is turned in place, and m (kg·m²/s) with it; moment: I_k (kg·m²);
+// quaternion, w x y z) is turned in place; moment: I_k (kg·m²);
 // l: L (world, kg·m²/s). T is double or Lanes (one body per lane). A turn by θ about axis
 // k takes p to p (cos θ/2, sin θ/2 e_k) and m to R_k(−θ) m: its other two components
 // turned, by cos θ = c² − s², sin θ = 2 s c.
+//
+// An axis whose moment equals the middle one to rounding (1e-12) has no term: a cube's or
+// a sphere's three, a stick's or a disc's one. Where no body of the lanes has an axis's
+// term its turns are left out (they would turn by exactly zero): a heap of cubes falling
+// free costs a turn about L a substep, as `normalize` does.
+inline bool any_set(bool m) { return m; }
+inline bool any_set(LaneMask m) { return any(m); }
+
 template <class T>
-inline void split_flow(T (&p)[4], T (&m)[3], const T (&moment)[3], const T (&l)[3], double h) {
+inline void split_flow(T (&p)[4], const T (&moment)[3], const T (&l)[3], double h) {
   const T inv_mid = 1.0 / moment[1];  // 1/(kg·m²)
+  T rate[3];                          // 1/(kg·m²): 1/I_k − 1/I_y, zero within rounding
+  T m[3];                             // kg·m²/s: Pᵀ L, made where an axis turns
+  for (int k = 0; k < 3; k += 2) {
+    const T r = 1.0 / moment[k] - inv_mid;
+    rate[k] = pick(r * r > (1e-24 * inv_mid) * inv_mid, r, T{});
+  }
   auto about = [&](int k, double tau) {
-    const T half = ((0.5 * tau) * m[k]) * (1.0 / moment[k] - inv_mid);  // rad
+    const T half = ((0.5 * tau) * m[k]) * rate[k];  // rad
     T s, c;
     sincos_small(half, s, c);
     const T pw = p[0], px = p[1], py = p[2], pz = p[3];
@@ -192,9 +222,19 @@ inline void split_flow(T (&p)[4], T (&m)[3], const T (&moment)[3], const T (&l)[
     m[i] = cos_t * mi + sin_t * mj;
     m[j] = cos_t * mj - sin_t * mi;
   };
-  about(0, 0.5 * h);
-  about(2, h);
-  about(0, 0.5 * h);
+  const bool turns_x = any_set(rate[0] != 0.0), turns_z = any_set(rate[2] != 0.0);
+  if (turns_x || turns_z) {
+    // m = Pᵀ l: l turned by p's conjugate, l − w t + u × t with t = 2 u × l (u: p's vector)
+    const T tx = 2.0 * (p[2] * l[2] - p[3] * l[1]);
+    const T ty = 2.0 * (p[3] * l[0] - p[1] * l[2]);
+    const T tz = 2.0 * (p[1] * l[1] - p[2] * l[0]);
+    m[0] = (l[0] - p[0] * tx) + (p[2] * tz - p[3] * ty);
+    m[1] = (l[1] - p[0] * ty) + (p[3] * tx - p[1] * tz);
+    m[2] = (l[2] - p[0] * tz) + (p[1] * ty - p[2] * tx);
+  }
+  if (turns_x) about(0, 0.5 * h);
+  if (turns_z) about(2, h);
+  if (turns_x) about(0, 0.5 * h);
   // about L (world) by h |L| / I_y: p <- (cos θ/2, sin θ/2 L/|L|) p, the quaternion
   // (sin θ/2) / |L| taken as its limit h / (2 I_y) where L is zero
   const T size = root(l[0] * l[0] + l[1] * l[1] + l[2] * l[2]);  // kg·m²/s
@@ -216,14 +256,7 @@ inline void turn_split(T (&q)[4], const T (&axes)[4], const T (&moment)[3], cons
                        double h, T (&r)[4]) {
   T p[4];
   quat_mul(q, axes, p);
-  // m = Pᵀ l: l turned by p's conjugate, l − w t + u × t with t = 2 u × l (u: p's vector)
-  const T tx = 2.0 * (p[2] * l[2] - p[3] * l[1]);
-  const T ty = 2.0 * (p[3] * l[0] - p[1] * l[2]);
-  const T tz = 2.0 * (p[1] * l[1] - p[2] * l[0]);
-  T m[3] = {(l[0] - p[0] * tx) + (p[2] * tz - p[3] * ty),
-            (l[1] - p[0] * ty) + (p[3] * tx - p[1] * tz),
-            (l[2] - p[0] * tz) + (p[1] * ty - p[2] * tx)};
-  split_flow(p, m, moment, l, h);
+  split_flow(p, moment, l, h);
   T n[4];
   quat_mul_conj(p, axes, n);
   const T inv = 1.0 / root(n[0] * n[0] + n[1] * n[1] + n[2] * n[2] + n[3] * n[3]);
