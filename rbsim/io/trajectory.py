@@ -45,11 +45,13 @@ time series group (H5MD allows shared step and time datasets).
 Durability: the HDF5 library never holds the file open for writing while frames are
 written. The writer lays the whole file out at once (under a temporary name, renamed
 over the path): static data, parameters, and each time series as a contiguous dataset
-with room for every frame the run will write. Frames are then written in place with
-os.pwrite, `step` last, so that at every moment the file is a valid HDF5 file (plain
+with room for the frames the run will write (at most ROOM_FRAMES and ROOM_BYTES of them
+at first; laid out anew with twice the room as it fills). Frames are then written in
+place with os.pwrite, `step` last, so that at every moment the file is a valid HDF5 file (plain
 h5py, h5dump) whose frames are those with step >= 0. A closed file holds exactly its
-frames. `OUT.h5.resume` beside a running file is the engine checkpoint of the last
-flush (docs/design.md, "Output").
+frames, but for a stopped run's with more than STOP_COPY_BYTES of them, closed in place
+with its room (the checkpoint beside it). `OUT.h5.resume` beside a running file is the
+engine checkpoint of the last flush (docs/design.md, "Output").
 """
 
 from __future__ import annotations
@@ -669,8 +671,9 @@ class TrajectoryWriter:
     engine: "rbsim" or "pymunk", the engine that computed the frames.
     flush_seconds: the longest wall time, s, between writes to disk (`flush_due`); a
         killed writer loses at most the frames of the last `flush_seconds`.
-    frames: how many frames the run will write (room is made for them at once; without
-        it the room doubles as needed).
+    frames: how many frames the run will write (room is made for them, at most
+        ROOM_FRAMES and ROOM_BYTES at first, doubled by `make_room` or a block's write as
+        it fills; without it the room starts at INITIAL_FRAMES and doubles alike).
     precision: "float64" or "float32" for the per-body series (step, time and the
         observables stay as they are).
     compression: "none", "lzf" or "gzip"; applied when the file is closed (until then
