@@ -475,6 +475,7 @@ def _loop(
     out = writer.path
     status = "failed"  # made precise below
     checkpoint: bytes | None = None
+    checkpoint_step = -1  # the step of `checkpoint`
     keep_sidecar = False  # the checkpoint file beside the trajectory stays
     checkpoint_cost = -1.0  # s the last checkpoint took (taking it and writing it)
     checkpoint_made = -math.inf  # time.perf_counter() when it was made
@@ -501,7 +502,12 @@ def _loop(
                 writer.commit(1, write_when_full=False)
         while world.step_index < total:
             cur = world.step_index
-            k = max(1, min(writer.rows_free, frames_per_call))
+            if writer.room == 0:
+                # the file's room is full: laid out anew with twice as much (a copy of the
+                # frames, seconds for a large file, that a signal stops, the file as it was)
+                with interrupts.held():
+                    writer.make_room(interrupts.pending)
+            k = max(1, min(writer.rows_free, writer.room, frames_per_call))
             target = min((cur // every + k) * every, total)
             interrupts.check()
             call = time.perf_counter()
@@ -575,7 +581,7 @@ def _loop(
             # the last flush's checkpoint stays beside the file, to resume from
             keep_sidecar = True
         elif world.step_index == committed_step:  # every frame up to this state is kept
-            checkpoint = world.checkpoint()
+            checkpoint, checkpoint_step = world.checkpoint(), world.step_index
         raise RunInterrupted(str(out), writer.frames_written, last_step) from None
     except OSError as err:  # writing the file: a full disk, a vanished folder
         status = f"failed: {system_reason(err)}"
@@ -586,16 +592,23 @@ def _loop(
             status = f"failed: {type(err).__name__}: {err}"
         raise
     finally:
+        # the final layout (a copy of the frames: a complete run's compression, seconds for
+        # a large file; a stopped run's, at most STOP_COPY_BYTES) stops at a signal, and a
+        # stopped run's at a second one, the file closed in place with every frame as
+        # the run wrote them, to resume; a failed run's is copied whole
+        stop_layout: Callable[[], bool] | None = None
+        if status == "complete":
+            stop_layout = interrupts.pending
+        elif status == "interrupted":
+            stop_layout = lambda: interrupts.received > 1  # noqa: E731
         with interrupts.held():
             try:
                 writer.close(  # the wall time since t0, the file's last write included
                     status=status,
                     checkpoint=checkpoint,
+                    checkpoint_step=checkpoint_step,
                     keep_sidecar=keep_sidecar,
-                    # a complete run's compression (seconds for a large file) stops at a
-                    # signal, its frames kept uncompressed to resume (an interrupted
-                    # run's final layout holds its checkpoint: it is written whole)
-                    stop=interrupts.pending if status == "complete" else None,
+                    stop=stop_layout,
                 )
             except LayoutStopped:
                 raise RunInterrupted(str(out), writer.frames_written, last_step) from None

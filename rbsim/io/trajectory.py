@@ -45,11 +45,13 @@ time series group (H5MD allows shared step and time datasets).
 Durability: the HDF5 library never holds the file open for writing while frames are
 written. The writer lays the whole file out at once (under a temporary name, renamed
 over the path): static data, parameters, and each time series as a contiguous dataset
-with room for every frame the run will write. Frames are then written in place with
-os.pwrite, `step` last, so that at every moment the file is a valid HDF5 file (plain
+with room for the frames the run will write (at most ROOM_FRAMES and ROOM_BYTES of them
+at first; laid out anew with twice the room as it fills). Frames are then written in
+place with os.pwrite, `step` last, so that at every moment the file is a valid HDF5 file (plain
 h5py, h5dump) whose frames are those with step >= 0. A closed file holds exactly its
-frames. `OUT.h5.resume` beside a running file is the engine checkpoint of the last
-flush (docs/design.md, "Output").
+frames, but for a stopped run's with more than STOP_COPY_BYTES of them, closed in place
+with its room (the checkpoint beside it). `OUT.h5.resume` beside a running file is the
+engine checkpoint of the last flush (docs/design.md, "Output").
 """
 
 from __future__ import annotations
@@ -451,6 +453,19 @@ CONTACT_FILE_ROWS = 8
 # Frames a writer that was not told how many to expect makes room for at first; the
 # room doubles (the file is laid out anew) when it runs out.
 INITIAL_FRAMES = 64
+# The most room a writer makes at first, however many frames it was told to expect:
+# ROOM_FRAMES frames (their step and time are written when the room is made, -1 and NaN:
+# 16 bytes a frame, 4 MiB here) and ROOM_BYTES bytes of frames in all (the rest is left
+# unwritten, sparse on disk). Room for a run's every frame at once made a scene of one
+# ball with 1e9 steps write 16 GB of step and time before its first step (450 MB/s, and
+# a Ctrl-C waited for it); a longer run's room doubles as it fills (`make_room`).
+ROOM_FRAMES = 1 << 18
+ROOM_BYTES = 8 << 30
+# The most bytes of frames that closing a stopped run copies into a file of exactly its
+# frames (its checkpoint inside); a larger one keeps its room and the checkpoint beside
+# it, closed in place: the copy of 1 GB of frames made Ctrl-C on a pile of 20,000 boxes
+# wait 3 s (about 0.35 GB/s on a shared disk; 64 MB: a fifth of a second).
+STOP_COPY_BYTES = 64 << 20
 # Chunks of a compressed file: whole frames, about this many bytes.
 CHUNK_TARGET_BYTES = 1 << 20
 CHUNK_MAX_FRAMES = 64
@@ -656,8 +671,9 @@ class TrajectoryWriter:
     engine: "rbsim" or "pymunk", the engine that computed the frames.
     flush_seconds: the longest wall time, s, between writes to disk (`flush_due`); a
         killed writer loses at most the frames of the last `flush_seconds`.
-    frames: how many frames the run will write (room is made for them at once; without
-        it the room doubles as needed).
+    frames: how many frames the run will write (room is made for them, at most
+        ROOM_FRAMES and ROOM_BYTES at first, doubled by `make_room` or a block's write as
+        it fills; without it the room starts at INITIAL_FRAMES and doubles alike).
     precision: "float64" or "float32" for the per-body series (step, time and the
         observables stay as they are).
     compression: "none", "lzf" or "gzip"; applied when the file is closed (until then
@@ -751,8 +767,11 @@ class TrajectoryWriter:
         self._select = None if select is None else np.asarray(select, np.intp)
         if self._select is None and self._block_n != self._n:
             raise ValueError("block_bodies differs from len(bodies) but no select is given")
-        self._capacity = max(1, int(frames)) if frames is not None else INITIAL_FRAMES
-        self._grows = frames is None
+        # the frames the run will write (None: not told), and the room made for them so
+        # far: all of them, up to ROOM_FRAMES and ROOM_BYTES at first (see make_room)
+        self._frames_total = max(1, int(frames)) if frames is not None else None
+        self._spec = dict(observables) if observables is not None else None
+        self._capacity = self._first_room(int(keep))
         self.frames_written = 0  # frames appended (on file or in the block)
         self.frames_flushed = 0  # frames on file
         self._rows = 0  # frames in the block
@@ -763,7 +782,6 @@ class TrajectoryWriter:
         self.wall_time = math.nan  # s recorded at close: every segment of the run
         self._last_flush = _time.monotonic()
         self._fd: int | None = None
-        self._spec = dict(observables) if observables is not None else None
         self._series: list[_Series] = []
         self._block: dict[str, np.ndarray] | None = None
         self._status_offset = self._wall_offset = -1
@@ -774,7 +792,6 @@ class TrajectoryWriter:
         self._contact_capacity = CONTACT_FILE_ROWS * self._capacity if contacts else 0
         if keep:
             self.frames_written = self.frames_flushed = int(keep)
-            self._capacity = max(self._capacity, self.frames_written)
             if self.contacts:
                 with open_for_reading(self.path) as f:
                     last = keep - 1
@@ -792,6 +809,53 @@ class TrajectoryWriter:
             self._last_q = np.asarray(q, np.float64)
 
     # -- layout ---------------------------------------------------------------------------
+
+    def _frame_bytes(self) -> int:
+        """Bytes a frame takes on file (before compression): its per-body series, step,
+        time, and the observables (16 values when they are not known yet)."""
+        width = 4 if self.precision == "float32" else 8
+        per_body = sum(max(1, c) for c, _unit in self._body_series.values())
+        spec = self._spec if self._spec is not None else {"?": ((16,), "f8")}
+        observed = sum(8 * math.prod(shape) for shape, _dtype in spec.values())
+        return width * self._n * per_body + 16 + observed
+
+    def _first_room(self, keep: int) -> int:
+        """Frames of room to make at first, the first `keep` (resume) included: every
+        frame the run will write, but at most ROOM_FRAMES and ROOM_BYTES more than `keep`
+        (at least INITIAL_FRAMES); INITIAL_FRAMES more when the writer was not told."""
+        if self._frames_total is None:
+            return keep + INITIAL_FRAMES
+        room = min(ROOM_FRAMES, ROOM_BYTES // max(1, self._frame_bytes()))
+        return max(keep, min(self._frames_total, keep + max(INITIAL_FRAMES, room)))
+
+    @property
+    def room(self) -> int:
+        """Frames the file has room for beyond those on it and in the block; when 0,
+        `make_room` makes more."""
+        return self._capacity - self.frames_flushed - self._rows
+
+    def make_room(self, stop: Callable[[], bool] | None = None) -> None:
+        """Write the block's frames, and lay the file out anew with twice the room (up
+        to the frames the run will write), when the block's frames fill it. stop() is
+        asked while the frames on file are copied (1 GB: seconds); true, it raises
+        LayoutStopped with the file at `path` as it was, holding every frame."""
+        if self._closed or self.room > 0:
+            return
+        self._write_block()
+        self._grow(self.frames_flushed, stop)
+
+    def _grow(self, frames: int, stop: Callable[[], bool] | None = None) -> None:
+        """Lay the file out anew with room for at least `frames` frames: twice the room
+        it has, capped at the frames the run will write (a writer told how many)."""
+        capacity = max(2 * self._capacity, frames)
+        if self._frames_total is not None:
+            if frames > self._frames_total:
+                raise ValueError(
+                    f"{self.path}: more frames than the {self._frames_total} the writer was told"
+                )
+            capacity = min(capacity, self._frames_total)
+        if capacity > self._capacity:
+            self._layout(capacity, keep_from=self.path, series=True, stop=stop)
 
     def _plan(self) -> list[_Series]:
         """Every time-dependent dataset, in write order (`step` last)."""
@@ -836,6 +900,7 @@ class TrajectoryWriter:
         file: exactly frames_flushed frames, chunked and compressed as asked (no room).
         A true stop(), asked while the frames are copied, raises LayoutStopped with the
         file at `path` as it was."""
+        reopen = self._fd is not None  # (stopped or failed, the file at `path` is written on)
         if self._fd is not None:
             os.close(self._fd)
             self._fd = None
@@ -844,7 +909,9 @@ class TrajectoryWriter:
         if final:
             self._contact_capacity = self.contact_rows_flushed
         old = open_for_reading(keep_from) if keep_from is not None and keep else None
-        offsets = self._status_offset, self._wall_offset  # the file at `path`'s, until replaced
+        # the file at `path`'s, until replaced
+        offsets = self._status_offset, self._wall_offset
+        series_before, contact_before = self._series, self._contact_capacity
         try:
             with h5py.File(tmp, "w", libver="earliest") as f:
                 self._write_static(f, status, wall_time, checkpoint)
@@ -853,10 +920,14 @@ class TrajectoryWriter:
                     self._write_series(f, capacity, old, keep, final, stop)
         except BaseException:
             self._status_offset, self._wall_offset = offsets
+            self._series, self._contact_capacity = series_before, contact_before
             if old is not None:
                 old.close()
             with contextlib.suppress(OSError):
                 os.unlink(tmp)
+            if reopen:
+                with contextlib.suppress(OSError):
+                    self._fd = os.open(self.path, os.O_WRONLY)
             raise
         if old is not None:
             old.close()
@@ -1121,12 +1192,16 @@ class TrajectoryWriter:
         if self.contacts:
             used = int(block["contact_start"][rows - 1] + block["contact_points"][rows - 1])
         grow_frames = t0 + rows > self._capacity
-        if grow_frames and not self._grows:
+        if grow_frames and self._frames_total is not None and t0 + rows > self._frames_total:
             raise ValueError(
-                f"{self.path}: more frames than the {self._capacity} the writer was told"
+                f"{self.path}: more frames than the {self._frames_total} the writer was told"
             )
         if grow_frames or c0 + used > self._contact_capacity:
-            capacity = max(2 * self._capacity, t0 + rows) if grow_frames else self._capacity
+            capacity = self._capacity
+            if grow_frames:  # (a run asks make_room before it steps: this is append's)
+                capacity = max(2 * self._capacity, t0 + rows)
+                if self._frames_total is not None:
+                    capacity = min(capacity, self._frames_total)
             if c0 + used > self._contact_capacity:
                 # room for the rest of the run at the rate so far, and at least twice as much
                 rate = (c0 + used) / (t0 + rows)
@@ -1215,6 +1290,7 @@ class TrajectoryWriter:
         status: str = "complete",
         wall_time: float | None = None,
         checkpoint: bytes | None = None,
+        checkpoint_step: int | None = None,
         keep_sidecar: bool = False,
         stop: Callable[[], bool] | None = None,
     ) -> None:
@@ -1225,15 +1301,19 @@ class TrajectoryWriter:
         wall_time: s of this segment; by default the time since `started`, read once
             the file is written (a compressed file's final layout included). The file
             records wall_before + wall_time, also left in self.wall_time.
-        checkpoint: the engine's state at the last frame; stored in the file (a run that
-            did not complete can then be resumed from it).
+        checkpoint: the engine's state at step `checkpoint_step` (default the last
+            frame's), every frame up to it written; stored in the file, or beside it
+            (below), so that a run that did not complete can be resumed from it.
         keep_sidecar: leave the checkpoint file of the last flush beside the trajectory
             (a run stopped with no checkpoint of its last frame resumes from that one).
         A file with room for more frames than it holds, or asked to be compressed, is laid
         out anew with exactly its frames; a true stop() during that (a Ctrl-C in the
         seconds a large file takes to compress) leaves the file as it was, every frame
-        in it, with status "interrupted" and the checkpoint of the last flush beside it
-        (`rbsim run --resume` finishes it), and raises LayoutStopped.
+        in it, with status "interrupted" and the checkpoint beside it (`checkpoint`, else
+        the last flush's: `rbsim run --resume` finishes it), and raises LayoutStopped.
+        A run that did not complete, with more than STOP_COPY_BYTES of frames on file, is
+        closed in place as that (its room and its frames as they are, `checkpoint` beside
+        it), without a copy: a stopped run ends within a second however large its file.
         """
         if self._closed:
             return
@@ -1248,9 +1328,11 @@ class TrajectoryWriter:
             wall = repr(self.wall_before + float(wall_time))
             exact = self.frames_flushed == self._capacity
             exact = exact and self.contact_rows_flushed == self._contact_capacity
-            if exact and self.compression == "none" and checkpoint is None:
-                assert self._fd is not None
-                self._write_status(status)
+            in_place = exact and self.compression == "none" and checkpoint is None
+            large = self._frames_bytes() > STOP_COPY_BYTES
+            if in_place or (status != "complete" and large):
+                self._close_in_place(status, checkpoint, checkpoint_step)
+                keep_sidecar = keep_sidecar or checkpoint is not None
                 if measured:
                     wall = repr(self._wall_now())
                 self._write_wall(float(wall))
@@ -1268,10 +1350,9 @@ class TrajectoryWriter:
                     )
                 except LayoutStopped:
                     # the file at path keeps every frame, laid out as during the run:
-                    # marked interrupted; the last flush's checkpoint stays beside it
-                    # (the raise passes its removal below)
-                    self._fd = os.open(self.path, os.O_WRONLY)
-                    self._write_status(STATUS_INTERRUPTED)
+                    # marked interrupted, the checkpoint beside it (this one, else the
+                    # last flush's: the raise passes its removal below)
+                    self._close_in_place(STATUS_INTERRUPTED, checkpoint, checkpoint_step)
                     self._write_wall(self._wall_now())
                     raise
                 if measured:  # the final layout's time included (gzip: most of it)
@@ -1287,6 +1368,27 @@ class TrajectoryWriter:
         if not keep_sidecar:
             with contextlib.suppress(OSError):
                 os.unlink(self.checkpoint_path)
+
+    def _frames_bytes(self) -> int:
+        """Bytes of the frames (and contact rows) on file: what a final layout copies."""
+        if not self._series:
+            return 0
+        rows = sum(s.frame_bytes for s in self._series if s.rows)
+        frames = sum(s.frame_bytes for s in self._series if not s.rows)
+        return self.frames_flushed * frames + self.contact_rows_flushed * rows
+
+    def _close_in_place(
+        self, status: str, checkpoint: bytes | None, checkpoint_step: int | None
+    ) -> None:
+        """Close the file as it is laid out (its room kept: unwritten rows read step -1):
+        `checkpoint` (if any) written beside it for --resume, then `status` in place."""
+        if checkpoint is not None and self.frames_flushed:
+            at = self._last_step if checkpoint_step is None else int(checkpoint_step)
+            owner = self.parameters.get(TRAJECTORY_ID, "")
+            write_checkpoint(self.checkpoint_path, self.frames_flushed, at, checkpoint, None, owner)
+        if self._fd is None:
+            self._fd = os.open(self.path, os.O_WRONLY)
+        self._write_status(status)
 
     def _wall_now(self) -> float:
         """The run's wall time so far, s: earlier segments and this one."""
