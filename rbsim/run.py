@@ -8,6 +8,7 @@ between two frames, never inside one; a non-finite state closes it with status
 
 from __future__ import annotations
 
+import fcntl
 import json
 import math
 import os
@@ -18,6 +19,7 @@ import time
 import types
 from collections.abc import Callable, Collection, Iterator, Sequence
 from contextlib import contextmanager
+from contextlib import suppress as contextlib_suppress
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from types import FrameType
@@ -134,6 +136,49 @@ class WriteFailed(OSError):
 class RunFailed(RuntimeError):
     """The state turned non-finite (or a body flew off, or an observable overflowed);
     the message names the body or the observable, and the step."""
+
+
+class OutputBusy(RunFailed):
+    """Another live process is writing the trajectory (a run or a resume of it)."""
+
+
+class OutputLock:
+    """The lock of a trajectory `path` while a run or a resume writes it: an exclusive
+    flock on PATH.lock beside it, which the kernel drops with the process (a killed run
+    leaves none held; its file, left behind, is taken again). Two runs into one file
+    wrote it both (the later one's layout replaced the earlier run's without a word), and
+    a file still being written could be resumed. Raises OutputBusy when another process
+    holds it, OSError when the lock file cannot be made (a read-only folder)."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = f"{path}.lock"
+        while True:
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                os.close(fd)
+                raise OutputBusy(
+                    f"another rbsim process is writing {path} (a run or a resume of it): "
+                    f"wait for it to end, or write elsewhere with -o"
+                ) from None
+            # the holder removes the lock file as it ends: ours must be the one there now
+            try:
+                here = os.stat(self.path).st_ino == os.fstat(fd).st_ino
+            except FileNotFoundError:
+                here = False
+            if here:
+                self.fd = fd
+                return
+            os.close(fd)
+
+    def __enter__(self) -> OutputLock:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        with contextlib_suppress(OSError):
+            os.unlink(self.path)
+        os.close(self.fd)
 
 
 class ObservableOverflow(RuntimeError):
@@ -397,7 +442,11 @@ def run_scene(
     """
     t0 = time.perf_counter() if started is None else started
     interrupts = _Interrupts(signals)
-    with interrupts.installed():
+    try:
+        lock = OutputLock(out)
+    except OSError as err:  # nothing written: the file is as it was, or absent
+        raise WriteFailed(err, str(out), None, False) from err
+    with lock, interrupts.installed():
         world = make_engine(engine, scene, **(options or {}))
         params = parameters(scene, engine, world.settings or None)
         params["overrides"] = json.dumps(list(overrides))
@@ -670,6 +719,18 @@ def resume_run(
     ResumeError when the file cannot be resumed; otherwise as run_scene."""
     t0 = time.perf_counter() if started is None else started
     path = str(path)
+    with OutputLock(path):
+        return _resume_locked(path, progress, signals, t0, flush_seconds)
+
+
+def _resume_locked(
+    path: str,
+    progress: Callable[[int, int], None] | None,
+    signals: Collection[signal.Signals],
+    t0: float,
+    flush_seconds: float,
+) -> RunSummary:
+    """resume_run with its trajectory's lock held."""
     try:
         with open_for_reading(path) as f:
             params = read_parameters(f)

@@ -676,3 +676,39 @@ def test_a_stopped_run_writes_its_last_state_only_when_it_is_small(tmp_path, mon
     assert load_trajectory(out).status == "interrupted"
     with h5py.File(out, "r") as f:
         assert ("parameters/rbsim/checkpoint" in f) == (limit > 0)
+
+
+def test_a_file_another_process_writes_is_neither_run_into_nor_resumed(tmp_path) -> None:
+    # two runs into one file both wrote it (the later one's layout replaced the earlier
+    # run's frames without a word), and a file still being written could be resumed
+    scene = big_scene(tmp_path, 3)
+    out = tmp_path / "shared.h5"
+    code, _o, err = rbsim("run", scene, "-o", out, "-q")
+    assert code == 0, err
+    assert not Path(f"{out}.lock").exists()  # a run that ended leaves no lock file
+    holder = subprocess.Popen(
+        [*PYTHON, "-c", HOLD_LOCK, str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
+    try:
+        assert holder.stdout.readline().strip() == b"held"
+        before = out.read_bytes()
+        code, _o, err = rbsim("run", scene, "-o", out, "-q")
+        assert code == 1 and "another rbsim process is writing" in err, err
+        code, _o, err = rbsim("run", "--resume", out, "-q")
+        assert code == 1 and "another rbsim process is writing" in err, err
+        assert out.read_bytes() == before  # untouched
+    finally:
+        holder.kill()  # killed: the kernel drops its lock
+        holder.wait()
+    code, _o, err = rbsim("run", scene, "-o", out, "-q")
+    assert code == 0, err
+
+
+# a process that holds a trajectory's lock (as a run writing it does) until killed
+HOLD_LOCK = """\
+import sys, time
+from rbsim.run import OutputLock
+lock = OutputLock(sys.argv[1])
+print("held", flush=True)
+time.sleep(600)
+"""

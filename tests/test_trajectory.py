@@ -157,9 +157,17 @@ def test_file_follows_h5md_layout_with_shared_step_and_time(tmp_path: Path) -> N
             "angle": "rad",
             "angular_velocity": "rad s-1",
         }
+        # H5MD's units module: its group, the SI system, each unit a fixed-length ASCII string
+        module = f["h5md/modules/units"]
+        assert list(module.attrs["version"]) == [1, 0]
+        assert module.attrs["system"] == b"SI"
         for name, unit in units.items():
-            assert f[f"particles/bodies/{name}/value"].attrs["unit"] == unit
-        assert f["observables/kinetic_energy/value"].attrs["unit"] == "J"
+            attr = f[f"particles/bodies/{name}/value"].attrs.get_id("unit")
+            assert attr.get_type().get_cset() == h5py.h5t.CSET_ASCII, name
+            assert not attr.get_type().is_variable_str(), name
+            assert f[f"particles/bodies/{name}/value"].attrs["unit"] == unit.encode()
+        assert f["observables/kinetic_energy/value"].attrs["unit"] == b"J"
+        assert f["particles/bodies/position/time"].attrs["unit"] == b"s"
 
         value = f["particles/bodies/position/value"]
         assert value.shape == (N_FRAMES, 3, 2)

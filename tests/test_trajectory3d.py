@@ -171,7 +171,7 @@ def test_3d_layout_round_trips_with_continuous_quaternion_sign(tmp_path) -> None
         assert g["orientation/value"].shape == (20, 2, 4)
         assert g["angular_velocity/value"].shape == (20, 2, 3)
         assert g["angular_momentum/value"].shape == (20, 2, 3)
-        assert g["angular_momentum/value"].attrs["unit"] == "kg m2 s-1"
+        assert g["angular_momentum/value"].attrs["unit"] == b"kg m2 s-1"
         assert g["moment_of_inertia"].shape == (2, 3, 3)
         assert g["shapes/faces"].dtype == np.int32 and g["shapes/faces"].shape == (12, 3)
         assert list(g["shapes/face_start"]) == [0, 12]

@@ -85,6 +85,10 @@ __all__ = [
 ]
 
 H5MD_VERSION = (1, 1)
+# H5MD's units module (h5md/modules/units): its version, and the unit system every unit
+# string is of
+UNITS_MODULE_VERSION = (1, 0)
+UNIT_SYSTEM = "SI"
 STATUS_RUNNING = "running"
 STATUS_INTERRUPTED = "interrupted"
 
@@ -345,19 +349,37 @@ class BodyTable:
                 )
 
 
+def ascii_attr(text: str) -> np.bytes_:
+    """An attribute value that h5py writes as a fixed-length ASCII string (as H5MD's units
+    module has a `unit` and its `system`; a str is written variable-length UTF-8)."""
+    return np.bytes_(text.encode("ascii"))
+
+
+def set_unit(ds: h5py.Dataset, unit: str) -> None:
+    """Give dataset `ds` its H5MD `unit` attribute (a unit string of the SI system, as
+    "kg m2 s-1")."""
+    ds.attrs["unit"] = ascii_attr(unit)
+
+
+def attr_text(value: object) -> str:
+    """An attribute's text, whether written fixed-length (bytes) or variable-length
+    (str, as files of rbsim before 2026-12-06 have their units)."""
+    return value.decode("ascii") if isinstance(value, bytes) else str(value)
+
+
 def _write_body_table(group: h5py.Group, bodies: BodyTable) -> None:
     group.create_dataset("name", data=np.array(bodies.name, dtype=object), dtype=_STR)
     group.create_dataset("type", data=np.array(bodies.type, dtype=object), dtype=_STR)
-    group.create_dataset("mass", data=bodies.mass).attrs["unit"] = "kg"
-    group.create_dataset("moment_of_inertia", data=bodies.moment_of_inertia).attrs["unit"] = "kg m2"
-    group.create_dataset("center_of_mass", data=bodies.center_of_mass).attrs["unit"] = "m"
+    set_unit(group.create_dataset("mass", data=bodies.mass), "kg")
+    set_unit(group.create_dataset("moment_of_inertia", data=bodies.moment_of_inertia), "kg m2")
+    set_unit(group.create_dataset("center_of_mass", data=bodies.center_of_mass), "m")
     shapes = group.create_group("shapes")
     shapes.create_dataset("body", data=bodies.shape_body)
     shapes.create_dataset("kind", data=np.array(bodies.shape_kind, dtype=object), dtype=_STR)
-    shapes.create_dataset("radius", data=bodies.shape_radius).attrs["unit"] = "m"
+    set_unit(shapes.create_dataset("radius", data=bodies.shape_radius), "m")
     shapes.create_dataset("vertex_start", data=bodies.shape_vertex_start)
     shapes.create_dataset("vertex_count", data=bodies.shape_vertex_count)
-    shapes.create_dataset("vertices", data=bodies.shape_vertices).attrs["unit"] = "m"
+    set_unit(shapes.create_dataset("vertices", data=bodies.shape_vertices), "m")
     if bodies.dimension == 3:
         shapes.create_dataset("face_start", data=bodies.shape_face_start)
         shapes.create_dataset("face_count", data=bodies.shape_face_count)
@@ -945,6 +967,9 @@ class TrajectoryWriter:
         creator = h5md.create_group("creator")
         creator.attrs["name"] = "rbsim"
         creator.attrs["version"] = _package_version()
+        units = h5md.create_group("modules/units")
+        units.attrs["version"] = np.array(UNITS_MODULE_VERSION, dtype=np.int32)
+        units.attrs["system"] = ascii_attr(UNIT_SYSTEM)
         group = f.create_group("particles/bodies")
         _write_box(group, self.dimension)
         _write_body_table(group, self.bodies)
@@ -952,10 +977,10 @@ class TrajectoryWriter:
             fixed = f.create_group("particles/static")
             _write_box(fixed, self.dimension)
             _write_body_table(fixed, self.fixed.bodies)
-            fixed.create_dataset("position", data=self.fixed.position).attrs["unit"] = "m"
+            set_unit(fixed.create_dataset("position", data=self.fixed.position), "m")
             fixed.create_dataset("orientation", data=self.fixed.orientation)
             if self.fixed.angle is not None:
-                fixed.create_dataset("angle", data=self.fixed.angle).attrs["unit"] = "rad"
+                set_unit(fixed.create_dataset("angle", data=self.fixed.angle), "rad")
         f.create_group("observables")
         rb = f.create_group("parameters/rbsim")
         for key, value in self.parameters.items():
@@ -1021,11 +1046,11 @@ class TrajectoryWriter:
             elif s.key == "time":
                 time_ds = ds
             elif s.key in units and units[s.key] is not None:
-                ds.attrs["unit"] = units[s.key]
+                set_unit(ds, units[s.key])
             elif s.path.startswith("observables/") and s.key in OBSERVABLE_UNITS:
-                ds.attrs["unit"] = OBSERVABLE_UNITS[s.key]
+                set_unit(ds, OBSERVABLE_UNITS[s.key])
         assert step_ds is not None and time_ds is not None
-        time_ds.attrs["unit"] = "s"
+        set_unit(time_ds, "s")
         for name in self._body_series:
             group = bodies[name]
             if name != "position":
@@ -1870,7 +1895,7 @@ def summarize(path: str | os.PathLike) -> str:
         for group in _series_groups(f)[1] if t else []:
             ds = f[group]["value"]
             unit = ds.attrs.get("unit", "")
-            first_last[group.split("/", 1)[1]] = (ds[0], ds[t - 1], str(unit))
+            first_last[group.split("/", 1)[1]] = (ds[0], ds[t - 1], attr_text(unit))
         creator_version = str(f["h5md/creator"].attrs.get("version", "?"))
         contact_line = None
         if "contacts/start" in f:
