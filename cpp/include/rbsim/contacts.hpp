@@ -201,9 +201,6 @@ struct Contacts {
   std::vector<PerPoint<double>> base_separation;    // m: separation minus the anchors' part
   std::vector<PerPoint<double>> ref_separation;     // m: at both bodies' reference poses
   std::vector<double> start_separation;             // m: its deepest point's at the step's start
-  // s: when in the step its points were found, a time of impact (collide/toi.cpp); 0 for
-  // most manifolds (3D prepare takes the bodies' inertia tensors there, with the anchors)
-  std::vector<double> impact_time;
   std::vector<PerPoint<std::int64_t>> feature;      // feature ids
   std::vector<PerPoint<double>> normal_impulse;     // N·s, per substep
   std::vector<PerPoint<double>> start_impulse;      // N·s carried into this step
@@ -362,7 +359,7 @@ bool Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   reset(key, m); reset(normal, m); reset(points, m); reset(friction, m); reset(restitution, m);
   reset(scale, m);
   reset(anchor_a, m); reset(anchor_b, m); reset(base_separation, m); reset(ref_separation, m);
-  reset(start_separation, m); reset(impact_time, m);
+  reset(start_separation, m);
   reset(sep_anchor_a, m); reset(sep_anchor_b, m);
   reset(feature, m); reset(normal_impulse, m); reset(start_impulse, m);
   reset(tangent_impulse, m); reset(normal_mass, m); reset(solver_row, m);

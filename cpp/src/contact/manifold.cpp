@@ -588,7 +588,6 @@ MergeFlags merge_manifolds(const Model<D>& model, const State<D>& st, Contacts<D
       flags.touch_changed = flags.touch_changed || touched != touching;
       c.support[m] = touching;
       c.start_separation[m] = deepest;
-      c.impact_time[m] = 0.0;
       c.carried[m] = 1;
       ++m;
       continue;
@@ -697,7 +696,6 @@ MergeFlags merge_manifolds(const Model<D>& model, const State<D>& st, Contacts<D
     flags.touch_changed = flags.touch_changed || touched != touching;
     c.support[m] = touching;
     c.start_separation[m] = deepest;
-    c.impact_time[m] = still ? 0.0 : found[p].t;
     c.carried[m] = 0;
     c.shape_a[m] = a;
     c.shape_b[m] = b;

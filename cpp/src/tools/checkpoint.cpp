@@ -36,7 +36,7 @@ void visit(W& w, F&& f) {
   f(c.count), f(c.carried), f(c.pairs), f(c.shape_a), f(c.shape_b), f(c.body_a), f(c.body_b);
   f(c.key), f(c.normal), f(c.points), f(c.friction), f(c.restitution), f(c.anchor_a);
   f(c.anchor_b), f(c.base_separation), f(c.ref_separation), f(c.feature), f(c.normal_impulse);
-  f(c.start_separation), f(c.impact_time), f(c.overlap_list), f(c.body_motion);
+  f(c.start_separation), f(c.overlap_list), f(c.body_motion);
   f(c.start_impulse), f(c.tangent_impulse), f(c.normal_mass), f(c.solver_row);
   f(c.approach_velocity), f(c.approach_separation), f(c.max_normal_impulse), f(c.prev_key);
   f(c.prev_points), f(c.prev_feature), f(c.prev_normal_impulse), f(c.prev_tangent_impulse);
@@ -70,9 +70,9 @@ static_assert(sizeof(Grid<2>) == 8 + 16 * VEC + 3 * sizeof(Vec2) + sizeof(GridMe
               "Grid changed: update visit()");
 static_assert(sizeof(Grid<3>) == 8 + 16 * VEC + 3 * sizeof(Vec3) + sizeof(GridMeta<3>),
               "Grid changed: update visit()");
-static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 92 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 91 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
-static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 92 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 91 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
 
 template <class T>
