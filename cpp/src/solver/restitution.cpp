@@ -460,8 +460,7 @@ PointImpulses<D> push_targets(const Model<D>& model, State<D>& st, Contacts<D>& 
     const BlockFactor* f = &c.solver_row[m].rigid;
     if (ns > 1 && ns < np) {
       double A[4][4];
-      for (int i = 0; i < ns; ++i)
-        for (int j = 0; j < ns; ++j) A[i][j] = c.solver_row[m].k[PACKED_K[idx[i]][idx[j]]];
+      block_of(c.solver_row[m].k, idx, ns, A);
       own.ok = ldlt_factor(A, ns, 1e-12, own) ? 1.0 : 0.0;
       f = &own;
     }

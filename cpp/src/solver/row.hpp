@@ -237,6 +237,16 @@ constexpr double BLOCK_EPS = 1e-9;
 
 // PACKED_K[i][j]: where K_ij is in SolverRow<3>::k's upper triangle by rows.
 constexpr int PACKED_K[4][4] = {{0, 1, 2, 3}, {1, 4, 5, 6}, {2, 5, 7, 8}, {3, 6, 8, 9}};
+// a face's points in order: block_of over all of them
+constexpr int FACE_POINTS[4] = {0, 1, 2, 3};
+
+// K's rows and columns idx[0 .. n) (n <= 4) as the leading n × n block of A, K packed as
+// SolverRow<3>::k (1/kg), or a batch's lanes of it (WideFace3::k).
+template <class T, class Packed>
+inline void block_of(const Packed& k, const int* idx, int n, T (&A)[4][4]) {
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) A[i][j] = k[PACKED_K[idx[i]][idx[j]]];
+}
 
 // L D Lᵀ of the first N (<= 4) rows and columns of the symmetric A into f; false when a
 // pivot is not above min_pivot of its diagonal (dependent rows). L_ij (i > j) is f.l[i (i
@@ -309,9 +319,7 @@ inline bool ldlt_solve(const double (&A)[4][4], int n, const double* r, double* 
 inline void factor_block(const std::array<double, 10>& k, const double* g, int n,
                          BlockFactor& f) {
   double A[4][4];
-  int e = 0;
-  for (int i = 0; i < 4; ++i)
-    for (int j = i; j < 4; ++j, ++e) A[i][j] = A[j][i] = k[e];
+  block_of(k, FACE_POINTS, 4, A);
   for (int i = 0; i < n; ++i) A[i][i] += g[i] + BLOCK_EPS * A[i][i];
   f.ok = ldlt_factor(A, n, 1e-12, f) ? 1.0 : 0.0;
 }

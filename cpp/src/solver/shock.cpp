@@ -123,8 +123,7 @@ inline double angular_along(double w, double r) { return w * r; }
 bool solve_exact(const std::array<double, 10>& k, const int* idx, const double* r, int n,
                  double* x) {
   double A[4][4];  // (only its first n rows and columns are read)
-  for (int i = 0; i < n; ++i)
-    for (int j = 0; j < n; ++j) A[i][j] = k[PACKED_K[idx[i]][idx[j]]];
+  block_of(k, idx, n, A);
   return ldlt_solve(A, n, r, x, 1e-9);
 }
 

@@ -366,10 +366,11 @@ inline void solve_manifold_3d(const Model<3>& model, State<3>& st, Contacts<3>& 
     if (!block && impact) {
       // where the block would pull at an impact: its exact answer, as the lanes' pass
       // finds it (active_set_block, this manifold in lane 0)
+      double K[4][4];
+      block_of(row.k, FACE_POINTS, 4, K);
       Lanes A[4][4];
-      int e = 0;
       for (int i = 0; i < 4; ++i)
-        for (int j = i; j < 4; ++j, ++e) A[i][j] = A[j][i] = splat(row.k[e]);
+        for (int j = 0; j < 4; ++j) A[i][j] = splat(K[i][j]);
       LaneMask start[N];
       Lanes rl[N], laml[N], exact[N];
       for (int k = 0; k < N; ++k) {
@@ -1226,9 +1227,7 @@ void solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double inv_
   const LaneMask mixed = L.live & ~none_pushed & ~all_pushed;
   if (any(mixed)) {
     Lanes A[4][4];
-    int e = 0;
-    for (int i = 0; i < 4; ++i)
-      for (int j = i; j < 4; ++j, ++e) A[i][j] = A[j][i] = B.k[e];
+    block_of(B.k, FACE_POINTS, 4, A);
     for (int i = 0; i < N; ++i) A[i][i] += gam[i] + splat(BLOCK_EPS) * A[i][i];
     Lanes l[6] = {}, d[4] = {}, inv_d[4] = {};
     LaneMask ok = ~LaneMask{};
@@ -1272,9 +1271,7 @@ void solve_face_3d(State<3>& st, Contacts<3>& c, const WideFace3& B, double inv_
   for (int k = 0; k < N; ++k) impact |= vn[k] < splat(-threshold);
   if (any(one_by_one & impact)) {
     Lanes A[4][4];
-    int e = 0;
-    for (int i = 0; i < 4; ++i)
-      for (int j = i; j < 4; ++j, ++e) A[i][j] = A[j][i] = B.k[e];
+    block_of(B.k, FACE_POINTS, 4, A);
     for (int i = 0; i < N; ++i) A[i][i] += gam[i];
     LaneMask start[N];
     Lanes lam[N], exact[N];
