@@ -515,7 +515,7 @@ bool World<D>::step() {
       // ball struck down onto the floor as a load and stop it dead
       timed(S::Restitution, [&] {
         // it reads and writes the store's impulses: of the manifolds listed, or of all
-        const int reach = restitution_reach(c);
+        const int reach = restitution_reach(model, c);
         if (reach == 2) give_impulses(c);
         const std::int64_t n_listed = reach == 1 ? c.count.bounce_count : 0;
         listed.assign(c.bounce_list.begin(), c.bounce_list.begin() + n_listed);

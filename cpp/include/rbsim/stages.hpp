@@ -383,12 +383,13 @@ void apply_restitution(const Model<D>& model, State<D>& state, Contacts<D>& cont
 // solver/restitution.cpp: a step's start for the stage (nothing listed, no manifold's kind
 // left from the last step's calls); and what its next call reads and writes of the
 // manifolds' impulses: 0 nothing (nothing listed since the last), 1 the listed manifolds'
-// alone (contacts.bounce_list[0..count.bounce_count)), 2 any manifold's (an elastic one
-// is listed this step: clusters are found over the whole contact graph).
+// alone (contacts.bounce_list[0..count.bounce_count)), 2 any manifold's (an elastic one,
+// or an inelastic impact of a body on two static or kinematic ones, is listed this step:
+// clusters are found over the whole contact graph).
 template <int D>
 void start_restitution(Contacts<D>& contacts);
 template <int D>
-int restitution_reach(const Contacts<D>& contacts);
+int restitution_reach(const Model<D>& model, const Contacts<D>& contacts);
 
 // solver/overlap_limit.cpp: a body deeper than max_overlap (m; times the contact's scale,
 // SCALE_LENGTH) in a static or kinematic body is moved out directly.
