@@ -1113,8 +1113,8 @@ def test_a_box_landing_flat_across_the_joints_of_a_floor_bounces_as_on_one_floor
     # piece's manifold has points to one side of the box's centre, and bounced (or
     # stopped) one manifold after the other they tipped it. Across two segments in 2D, e =
     # 0.5, it left at 1.75 m/s, not 3.1, turning at 5.4 rad/s; e = 0 threw it up at 0.29
-    # m/s; on the corner of four tiles (3D, e = 0) at 0.44 m/s; at 25 m/s, e = 1, it
-    # turned at 32 - 60 rad/s. The pieces' points are now one block (restitution.cpp,
+    # m/s; on the corner of four tiles (3D, e = 0.5) it left at 3.87 m/s, not 3.11; at 25
+    # m/s, e = 1, it turned at 32 - 60 rad/s. The pieces' points are now one block (restitution.cpp,
     # push_group): for 40 steps, through the bounce and, for e = 0.5, the next landing,
     # the box moves as on one floor.
     from rbsim.engines import make_engine

@@ -34,8 +34,8 @@ struct ContactCounts {
   std::int64_t deep_count = 0;      // entries in relax_list: points deeper than DEEP_OVERLAP
   std::int64_t graph_unchanged = 0; // 1: the manifolds are last step's pairs in the same slots
   std::int64_t bounce_carried = 0;  // entries of bounce_list carried from the last restitution
-  // 1 once an elastic manifold, or an inelastic group's (restitution.cpp), was listed this
-  // step: the restitution stage looks at every manifold
+  // 1 once an elastic manifold, or an inelastic impact of a group (restitution.cpp,
+  // push_group), was listed this step: the restitution stage looks at every manifold
   std::int64_t elastic_listed = 0;
   std::int64_t support_changed = 0; // 1: a pair touches where it did not last step, or no longer
   std::int64_t friction_loaded = 0; // 1: rows hold a friction_load (shock.cpp, friction_loads)

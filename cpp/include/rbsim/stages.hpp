@@ -384,8 +384,8 @@ void apply_restitution(const Model<D>& model, State<D>& state, Contacts<D>& cont
 // left from the last step's calls); and what its next call reads and writes of the
 // manifolds' impulses: 0 nothing (nothing listed since the last), 1 the listed manifolds'
 // alone (contacts.bounce_list[0..count.bounce_count)), 2 any manifold's (an elastic one,
-// or an inelastic impact of a body on two static or kinematic ones, is listed this step:
-// clusters are found over the whole contact graph).
+// or an inelastic impact of a body on two pieces of one static or kinematic surface, is
+// listed this step: clusters are found over the whole contact graph).
 template <int D>
 void start_restitution(Contacts<D>& contacts);
 template <int D>
