@@ -1096,6 +1096,20 @@ def segment_floor(dimension: int, body: str) -> str:
     return f"{scene_head(2, 90)}{floor}  - {body}\n"
 
 
+def last_body_motion(text: str, steps: int) -> tuple[np.ndarray, np.ndarray]:
+    """The scene `text` run for `steps` steps: its last body's velocity (m/s, steps × D)
+    and angular velocity (rad/s, steps × 1 or 3) after each step."""
+    from rbsim.engines import make_engine
+
+    engine = make_engine("rbsim", scene_from(text))
+    v, w = [], []
+    for _ in range(steps):
+        engine.advance(1)
+        v.append(np.asarray(engine.world.engine.body_v)[-1].copy())
+        w.append(np.atleast_1d(np.asarray(engine.world.engine.body_w)[-1]).copy())
+    return np.array(v), np.array(w)
+
+
 FLAT_LANDINGS = {
     # a box over one joint of the floor (2D: between two tiles or two segments; 3D: two
     # tiles), and over the corner where four tiles meet (3D)
@@ -1114,28 +1128,20 @@ def test_a_box_landing_flat_across_the_joints_of_a_floor_bounces_as_on_one_floor
     # stopped) one manifold after the other they tipped it. Across two segments in 2D, e =
     # 0.5, it left at 1.75 m/s, not 3.1, turning at 5.4 rad/s; e = 0 threw it up at 0.29
     # m/s; on the corner of four tiles (3D, e = 0.5) it left at 3.87 m/s, not 3.11; at 25
-    # m/s, e = 1, it turned at 32 - 60 rad/s. The pieces' points are now one block (restitution.cpp,
-    # push_group): for 40 steps, through the bounce and, for e = 0.5, the next landing,
-    # the box moves as on one floor.
-    from rbsim.engines import make_engine
-
+    # m/s, e = 1, it turned at 32 - 60 rad/s. The pieces' points are now one block
+    # (restitution.cpp, push_group): for 40 steps, through the bounce and, for e = 0.5,
+    # the next landing, the box moves as on one floor.
     floor, dimension, position, size = FLAT_LANDINGS[landing]
     velocity = f"[0, {-speed}]" if dimension == 2 else f"[0, {-speed}, 0]"
     body = (
         f"{{name: b, position: {position}, velocity: {velocity}, friction: 0.5,"
         f" restitution: {e}, shape: {{box: {{size: {size}}}}}}}"
     )
-    runs = []
-    for text in (floor(dimension, body), one_floor(dimension, body)):
-        text = text.replace("type: static,", f"type: static, restitution: {e},")
-        engine = make_engine("rbsim", scene_from(text))
-        v, w = [], []
-        for _ in range(40):
-            engine.advance(1)
-            v.append(np.asarray(engine.world.engine.body_v)[-1].copy())
-            w.append(np.atleast_1d(np.asarray(engine.world.engine.body_w)[-1]).copy())
-        runs.append((np.array(v), np.array(w)))
-    (v, w), (v_one, _) = runs
+    texts = [
+        t.replace("type: static,", f"type: static, restitution: {e},")
+        for t in (floor(dimension, body), one_floor(dimension, body))
+    ]
+    (v, w), (v_one, _) = (last_body_motion(text, 40) for text in texts)
     # m/s and rad/s: in the impact's substep the positions move with the solve's tilted
     # push before the stage redoes it (e = 0: 0.035 m/s, 0.12 rad/s at most; else 0.01)
     slack = 2.0 if e == 0.0 else 0.5
@@ -1150,8 +1156,6 @@ def test_a_box_landing_on_a_lift_of_two_slabs_bounces_as_on_one(dimension, e):
     # 1 m/s, a box dropped flat across their joint at 6.25 m/s. It bounces off them as
     # off one slab, relative to the lift (each slab's manifold on its own, in 2D, e = 0.5
     # left at 2.85 m/s, not 4.61, turning; e = 1 at 4.19 m/s, not 8.28).
-    from rbsim.engines import make_engine
-
     def scene(pieces: int) -> str:
         z = ", 0" if dimension == 3 else ""
         deep = ", 2" if dimension == 3 else ""
@@ -1171,16 +1175,7 @@ def test_a_box_landing_on_a_lift_of_two_slabs_bounces_as_on_one(dimension, e):
             f" shape: {{box: {{size: {size}}}}}, material: m}}\n"
         )
 
-    runs = []
-    for pieces in (2, 1):
-        engine = make_engine("rbsim", scene_from(scene(pieces)))
-        v, w = [], []
-        for _ in range(20):
-            engine.advance(1)
-            v.append(np.asarray(engine.world.engine.body_v)[-1].copy())
-            w.append(np.atleast_1d(np.asarray(engine.world.engine.body_w)[-1]).copy())
-        runs.append((np.array(v), np.array(w)))
-    (v, w), (v_one, _) = runs
+    (v, w), (v_one, _) = (last_body_motion(scene(pieces), 20) for pieces in (2, 1))
     assert v_one[0, 1] > 1.0 + 0.9 * e * 7.25  # m/s: it bounced off the rising lift
     # m/s and rad/s: as on the floor of tiles above (4.5e-3 m/s, 7.2e-3 rad/s measured)
     assert np.abs(v - v_one).max() < 0.0125

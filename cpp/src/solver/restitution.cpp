@@ -947,22 +947,28 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
       }
     }
   }
+  // The lone bodies' manifolds with static and kinematic bodies, by body and in solve
+  // order within each, and their surfaces: the groups of the passes below (push_group).
+  // A lone body's other contacts with pieces of the same surface, quiet in the substep,
+  // are its group's too: the solve's push at one of them may have stopped the body, which
+  // it no longer does once taken back. A box landing flat on the corner of four tiles was
+  // stopped by the first tile's manifold in the solve, the others never engaged; bounced
+  // by that one alone, it tipped, and the next substep's impacts at the others sent it up
+  // at 3.9 m/s, not 3.1 (e = 0.5). (A lone manifold's dynamic body is never pushed by
+  // anything else: such a cluster was joined above.)
+  std::vector<std::pair<int, std::int32_t>> fixed;  // (the dynamic body, the manifold)
+  std::vector<std::int32_t> surface;
   if (n_alone > 0) {
-    // A lone body's other contacts with pieces of the same static or kinematic surface,
-    // quiet in the substep, are its group's too (push_group): the solve's push at one of
-    // them may have stopped the body, which it no longer does once taken back. A box
-    // landing flat on the corner of four tiles was stopped by the first tile's manifold in
-    // the solve, the others never engaged; bounced by that one alone, it tipped, and the
-    // next substep's impacts at the others sent it up at 3.9 m/s, not 3.1 (e = 0.5)
-    std::vector<std::pair<int, std::int32_t>> fixed;  // (the dynamic body, the manifold)
-    for (std::int64_t m = 0; m < n_man; ++m) {
+    for (std::int64_t o = 0; o < n_man; ++o) {
+      const std::int32_t m = c.solve_order[o];
       const int a = c.body_a[m], b = c.body_b[m];
       const int u = model.is_dynamic(a) == model.is_dynamic(b) ? -1 : model.is_dynamic(a) ? a : b;
       if (u < 0 || (mark[u] & kPushed)) continue;
-      if (kind[m] == kAlone || (kind[m] == kQuiet && c.points[m] > 0))
-        fixed.push_back({u, static_cast<std::int32_t>(m)});
+      if (kind[m] == kAlone || (kind[m] == kQuiet && c.points[m] > 0)) fixed.push_back({u, m});
     }
-    const std::vector<std::int32_t> surface = surfaces(c, fixed);
+    std::stable_sort(fixed.begin(), fixed.end(),
+                     [](const auto& x, const auto& y) { return x.first < y.first; });
+    surface = surfaces(c, fixed);
     std::vector<std::uint8_t> lone(fixed.size(), 0);  // a surface with a lone manifold
     for (std::size_t i = 0; i < fixed.size(); ++i)
       if (kind[fixed[i].second] == kAlone) lone[surface[i]] = 1;
@@ -1168,27 +1174,18 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
       push_targets(model, st, c, m, a, b, pushed, back, false, none);
     });
   };
-  // Groups (push_group): the lone manifolds between a dynamic body and static or
-  // kinematic ones, two or more of one surface, each group in solve order; group[m] is
-  // manifold m's (-1: none).
-  std::vector<std::pair<int, std::int32_t>> fixed;  // (the dynamic body, the manifold)
-  for (std::int64_t o = 0; o < n_man; ++o) {
-    const std::int32_t m = c.solve_order[o];
-    const int a = c.body_a[m], b = c.body_b[m];
-    if (kind[m] == kAlone && model.is_dynamic(a) != model.is_dynamic(b))
-      fixed.push_back({model.is_dynamic(a) ? a : b, m});
-  }
-  std::stable_sort(fixed.begin(), fixed.end(),
-                   [](const auto& x, const auto& y) { return x.first < y.first; });
+  // Groups (push_group): the lone manifolds of a surface of a body (`fixed` above: a
+  // surface's manifolds are all lone or none), two or more, each group in solve order;
+  // group[m] is manifold m's (-1: none).
   std::vector<std::int32_t> group(fixed.empty() ? 0 : n_man, -1);
   std::vector<std::vector<std::int32_t>> groups;  // each one's manifolds, in solve order
   {
-    const std::vector<std::int32_t> surface = surfaces(c, fixed);
     std::vector<std::int32_t> members(fixed.size(), 0), index(fixed.size(), -1);
-    for (const std::int32_t j : surface) ++members[j];
+    for (std::size_t i = 0; i < fixed.size(); ++i)
+      members[surface[i]] += kind[fixed[i].second] == kAlone ? 1 : 0;
     for (std::size_t i = 0; i < fixed.size(); ++i) {
       const std::int32_t j = surface[i];
-      if (members[j] < 2) continue;
+      if (members[j] < 2 || kind[fixed[i].second] != kAlone) continue;
       if (index[j] < 0) {
         index[j] = static_cast<std::int32_t>(groups.size());
         groups.emplace_back();
