@@ -365,11 +365,32 @@ using PointImpulses = std::array<double, Dim<D>::max_points>;  // N·s at each p
 template <int D>
 using PointFlags = std::array<bool, Dim<D>::max_points>;
 
+// 3D: manifold m's normal block K (1/kg, packed as SolverRow<3>::k) over its np points,
+// through the bodies' inverse inertia tensors at their rotations now.
+inline void k_now_of(const Model<3>& model, const State<3>& st, const Contacts<3>& c,
+                     std::int64_t m, int a, int b, int np, std::array<double, 10>& k) {
+  const Vec3 n = c.normal[m];
+  Vec3 ca[4], cb[4], ia[4], ib[4];  // r × n at each point, and I⁻¹ of it (zero: not dynamic)
+  for (int i = 0; i < np; ++i) {
+    ca[i] = cross(c.anchor_a[m][i], n);
+    cb[i] = cross(c.anchor_b[m][i], n);
+    ia[i] = model.body_inv_mass[a] != 0.0
+                ? Dim<3>::apply_inv_inertia(model.body_inv_inertia[a], st.body_q[a], ca[i])
+                : Vec3{};
+    ib[i] = model.body_inv_mass[b] != 0.0
+                ? Dim<3>::apply_inv_inertia(model.body_inv_inertia[b], st.body_q[b], cb[i])
+                : Vec3{};
+  }
+  const double im = model.body_inv_mass[a] + model.body_inv_mass[b];
+  for (int i = 0; i < np; ++i)
+    for (int j = i; j < np; ++j) k[PACKED_K[i][j]] = im + dot(ca[i], ia[j]) + dot(cb[i], ib[j]);
+}
+
 // Raise the normal velocity of manifold m's points to their targets t[k] (m/s) where
 // need[k], by impulses added to normal_impulse (kept >= 0). In 2D both points at once are
 // one 2x2 block (a box landing flat gets mirror-image impulses; one after the other would
-// tip it); in 3D the points of a face that need it, two or more, likewise (the row's
-// factor, or their rows of K). When the block would pull, one point at a time;
+// tip it); in 3D the points of a face that need it, two or more, likewise (their rows of
+// K at the rotations now). When the block would pull, one point at a time;
 // with `single`, only the point furthest below its target (the caller comes back for the
 // others with targets from their velocities then: the first point's impulse changes
 // them). Returns the impulses applied.
@@ -445,9 +466,9 @@ PointImpulses<D> push_targets(const Model<D>& model, State<D>& st, Contacts<D>& 
   const auto targets = t;  // (a block's; one point alone takes its own u[k])
   t = owed.u;
   if constexpr (D == 3) {
-    // the face's points that need a push, two or more: one block, as the solve's (K at the
-    // step's start: every point, the row's factor; fewer, their rows and columns of K), if
-    // no point would pull; with work owed, raised as 2D's block is, by c K⁻¹ 1 (one point at
+    // the face's points that need a push, two or more: one block, as the solve's (every
+    // point: K + BLOCK_EPS diag(K), as the row's rigid factor; fewer, their rows and
+    // columns of K), if no point would pull; with work owed, raised as 2D's block is, by c K⁻¹ 1 (one point at
     // a time instead, the first corner of a box landing flat took the bounce and tipped it:
     // from 4.4 m/s, e = 0.8, it left at 1.2 m/s, spinning; and a cube struck edge first
     // into a wall at 30 m/s, e = 0.5, its two leading corners' impact taken one after the
@@ -457,25 +478,35 @@ PointImpulses<D> push_targets(const Model<D>& model, State<D>& st, Contacts<D>& 
     for (int k = 0; k < np; ++k)
       if (need[k]) idx[ns++] = k;
     BlockFactor own;
-    const BlockFactor* f = &c.solver_row[m].rigid;
-    if (ns > 1 && ns < np) {
-      double A[4][4];
-      block_of(c.solver_row[m].k, idx, ns, A);
-      own.ok = ldlt_factor(A, ns, 1e-12, own) ? 1.0 : 0.0;
-      f = &own;
+    if (ns > 1) {
+      // K through the tensors at the rotations now, those push_point pushes through (as
+      // point_mass_now for one point): with the step's start's, a thin plate spinning at
+      // 110 rad/s at dt 1/60 (0.46 rad a substep) had each pair of its face's points
+      // bounced by a block that overshot, which the other pair's next bounce answered,
+      // 27 times larger each pass: thrown to 1e19 m/s in one call
+      std::array<double, 10> k_now{};
+      k_now_of(model, st, c, m, a, b, np, k_now);
+      if (ns == np) {
+        const double none[4] = {0.0, 0.0, 0.0, 0.0};
+        factor_block(k_now, none, np, own);
+      } else {
+        double A[4][4];
+        block_of(k_now, idx, ns, A);
+        own.ok = ldlt_factor(A, ns, 1e-12, own) ? 1.0 : 0.0;
+      }
     }
-    if (ns > 1 && f->ok != 0.0) {
+    if (ns > 1 && own.ok != 0.0) {
       double r[4] = {0.0, 0.0, 0.0, 0.0}, d[4] = {0.0, 0.0, 0.0, 0.0}, vn[4] = {};
       for (int i = 0; i < ns; ++i) {
         const int k = idx[i];
         vn[i] = normal_velocity(st, a, b, c.anchor_a[m][k], c.anchor_b[m][k], n);
         r[i] = targets[k] - vn[i];
       }
-      ldlt_apply(*f, ns, r, d);
+      ldlt_apply(own, ns, r, d);
       if (owed.work != 0.0) {
         // impulses d + c q (q = K⁻¹ 1) do ΔE(c) = ΔE(0) + L c + B c² / 2 (as in 2D)
         double ones[4] = {1.0, 1.0, 1.0, 1.0}, q[4] = {0.0, 0.0, 0.0, 0.0};
-        ldlt_apply(*f, ns, ones, q);
+        ldlt_apply(own, ns, ones, q);
         double big_b = 0.0, big_l = 0.0;
         for (int i = 0; i < ns; ++i) {
           big_b += q[i];
