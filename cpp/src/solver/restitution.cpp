@@ -309,7 +309,6 @@ template <int D>
 void friction_step(const Model<D>& model, State<D>& st, Contacts<D>& c, std::int64_t m, int k,
                    int a, int b, typename Dim<D>::Tangent held, double limit) {
   const auto& row = c.solver_row[m];
-  const auto& pt = row.point[k];
   if constexpr (D == 3) {
     const Vec3 ra = c.anchor_a[m][k], rb = c.anchor_b[m][k];
     const Vec3 u = (st.body_v[a] + cross(st.body_w[a], ra)) - (st.body_v[b] + cross(st.body_w[b], rb));
@@ -322,6 +321,7 @@ void friction_step(const Model<D>& model, State<D>& st, Contacts<D>& c, std::int
     push_impulse(model, st, a, b, ra, rb, p);
     c.tangent_impulse[m][k] += p;
   } else {
+    const auto& pt = row.point[k];
     const Vec2 t = cross(row.normal, 1.0);  // (n_y, −n_x), as the solve's
     const double vt =
         dot(st.body_v[a] - st.body_v[b], t) + (st.body_w[a] * pt.rta - st.body_w[b] * pt.rtb);
@@ -501,11 +501,12 @@ PointImpulses<D> push_targets(const Model<D>& model, State<D>& st, Contacts<D>& 
   if constexpr (D == 3) {
     // the face's points that need a push, two or more: one block, as the solve's (every
     // point: K + BLOCK_EPS diag(K), as the row's rigid factor; fewer, their rows and
-    // columns of K), if no point would pull; with work owed, raised as 2D's block is, by c K⁻¹ 1 (one point at
-    // a time instead, the first corner of a box landing flat took the bounce and tipped it:
-    // from 4.4 m/s, e = 0.8, it left at 1.2 m/s, spinning; and a cube struck edge first
-    // into a wall at 30 m/s, e = 0.5, its two leading corners' impact taken one after the
-    // other, left at 3 m/s, not 15, sliding at 4 m/s and turning at 50 rad/s)
+    // columns of K), if no point would pull; with work owed, raised as 2D's block is, by
+    // c K⁻¹ 1 (one point at a time instead, the first corner of a box landing flat took
+    // the bounce and tipped it: from 4.4 m/s, e = 0.8, it left at 1.2 m/s, spinning; and a
+    // cube struck edge first into a wall at 30 m/s, e = 0.5, its two leading corners'
+    // impact taken one after the other, left at 3 m/s, not 15, sliding at 4 m/s and
+    // turning at 50 rad/s)
     const int np = c.points[m];
     int idx[4], ns = 0;  // the points that need a push
     for (int k = 0; k < np; ++k)
