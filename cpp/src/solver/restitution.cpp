@@ -279,12 +279,8 @@ inline TangentMasses tangent_masses_now(const Model<3>& model, const State<3>& s
                                         Vec3 ra, Vec3 rb, Vec3 t1, Vec3 t2) {
   const double mass = model.body_inv_mass[a] + model.body_inv_mass[b];  // 1/kg
   const Vec3 a1 = cross(ra, t1), a2 = cross(ra, t2), b1 = cross(rb, t1), b2 = cross(rb, t2);
-  auto turn = [&](int i, Vec3 x) {
-    return model.body_inv_mass[i] != 0.0
-               ? Dim<3>::apply_inv_inertia(model.body_inv_inertia[i], st.body_q[i], x)
-               : Vec3{};
-  };
-  const Vec3 ia1 = turn(a, a1), ia2 = turn(a, a2), ib1 = turn(b, b1), ib2 = turn(b, b2);
+  const Vec3 ia1 = inv_inertia_now(model, st, a, a1), ia2 = inv_inertia_now(model, st, a, a2);
+  const Vec3 ib1 = inv_inertia_now(model, st, b, b1), ib2 = inv_inertia_now(model, st, b, b2);
   const double k11 = (mass + dot(a1, ia1)) + dot(b1, ib1);
   const double k22 = (mass + dot(a2, ia2)) + dot(b2, ib2);
   const double k12 = dot(a1, ia2) + dot(b1, ib2);
@@ -407,12 +403,8 @@ inline void k_now_of(const Model<3>& model, const State<3>& st, const Contacts<3
   for (int i = 0; i < np; ++i) {
     ca[i] = cross(c.anchor_a[m][i], n);
     cb[i] = cross(c.anchor_b[m][i], n);
-    ia[i] = model.body_inv_mass[a] != 0.0
-                ? Dim<3>::apply_inv_inertia(model.body_inv_inertia[a], st.body_q[a], ca[i])
-                : Vec3{};
-    ib[i] = model.body_inv_mass[b] != 0.0
-                ? Dim<3>::apply_inv_inertia(model.body_inv_inertia[b], st.body_q[b], cb[i])
-                : Vec3{};
+    ia[i] = inv_inertia_now(model, st, a, ca[i]);
+    ib[i] = inv_inertia_now(model, st, b, cb[i]);
   }
   const double im = model.body_inv_mass[a] + model.body_inv_mass[b];
   for (int i = 0; i < np; ++i)
@@ -610,7 +602,6 @@ PointImpulses<D> push_targets(const Model<D>& model, State<D>& st, Contacts<D>& 
 constexpr int GROUP_MAX_POINTS = 16;
 
 // A group's points (manifold m, point k): the block's rows and what they ask.
-template <int D>
 struct GroupPoints {
   int n = 0;
   std::int32_t m[GROUP_MAX_POINTS];
@@ -633,7 +624,7 @@ struct GroupPoints {
 // the bodies) and returns them in d; false where no answer was found (nothing applied).
 template <int D>
 bool push_group(const Model<D>& model, State<D>& st, Contacts<D>& c, int u,
-                const GroupPoints<D>& g, const Owed<D>* owed, double* d) {
+                const GroupPoints& g, const Owed<D>* owed, double* d) {
   using Vec = typename Dim<D>::Vec;
   using Ang = typename Dim<D>::Ang;
   const int n = g.n;
@@ -1263,7 +1254,7 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
   // have such points: 1 when any was pushed, 0 when none, -1 when the group is left to
   // its manifolds one by one (one manifold needs a push, too many points, no answer)
   auto bounce_group = [&](const std::vector<std::int32_t>& members) {
-    GroupPoints<D> g;
+    GroupPoints g;
     double us[GROUP_MAX_POINTS];
     int needing = 0;
     double work = 0.0, e2 = 0.0, hsa = 0.0;
@@ -1309,7 +1300,7 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
     const Owed<D> owed{same ? work : 0.0, e2, hsa, {}};
     if (!push_group(model, st, c, u, g, &owed, j)) return -1;
     const bool struck = after_pushes(g.n, g.m, g.k, j, us, [&](const double* reached) {
-      GroupPoints<D> back;
+      GroupPoints back;
       for (int i = 0; i < g.n; ++i) {
         if (j[i] == 0.0) continue;
         back.m[back.n] = g.m[i];

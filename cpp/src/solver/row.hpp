@@ -80,6 +80,13 @@ inline void push_impulse(const Model<D>& model, State<D>& st, int a, int b,
   add_angular(model, st, b, -cross(rb, p));
 }
 
+// 3D: I⁻¹ x (world axes) for body i at its rotation now, the tensor add_angular pushes
+// through; zero for a static or kinematic body.
+inline Vec3 inv_inertia_now(const Model<3>& model, const State<3>& st, int i, Vec3 x) {
+  if (model.body_inv_mass[i] == 0.0) return Vec3{};
+  return Dim<3>::apply_inv_inertia(model.body_inv_inertia[i], st.body_q[i], x);
+}
+
 // 3D: the effective mass (kg) along n of a point with arms ra, rb (m) at the bodies'
 // rotations now, the tensors add_angular pushes through (a row's normal_mass is the
 // step's start's: a pass that pushes through the tensors now and steps by the start's
@@ -88,10 +95,8 @@ inline double point_mass_now(const Model<3>& model, const State<3>& st, int a, i
                              Vec3 rb, Vec3 n) {
   double k = model.body_inv_mass[a] + model.body_inv_mass[b];  // 1/kg
   const Vec3 ca = cross(ra, n), cb = cross(rb, n);
-  if (model.body_inv_mass[a] != 0.0)
-    k += dot(ca, Dim<3>::apply_inv_inertia(model.body_inv_inertia[a], st.body_q[a], ca));
-  if (model.body_inv_mass[b] != 0.0)
-    k += dot(cb, Dim<3>::apply_inv_inertia(model.body_inv_inertia[b], st.body_q[b], cb));
+  if (model.body_inv_mass[a] != 0.0) k += dot(ca, inv_inertia_now(model, st, a, ca));
+  if (model.body_inv_mass[b] != 0.0) k += dot(cb, inv_inertia_now(model, st, b, cb));
   return k > 0.0 ? 1.0 / k : 0.0;
 }
 
