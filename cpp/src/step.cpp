@@ -5,7 +5,7 @@
 //   -> waves
 //   -> [per substep: integrate_velocities -> warm_start -> solve (-> shock, while a heavy
 //       body rests on a light one) (-> deep_solve, while a deep overlap still closes)
-//       -> integrate_positions
+//       -> integrate_positions (-> 3D: refresh_turned_rows, for a body turned far)
 //       -> relax (-> extra relax passes near a deep overlap) -> restitution -> shock
 //       (-> the points' step impulses, for a run that records its contact points)]
 //   -> limit_dynamic_overlap -> limit_static_overlap
@@ -65,6 +65,7 @@ void World<D>::allocate() {
     contacts.face_world.assign(model.hull_face_count, Vec3{});
     contacts.face_offset.assign(model.hull_face_count, 0.0);
     contacts.shape_spread.assign(n_shapes, HullSpread{});
+    contacts.turn_watch = turn_watch(model);
   }
   // the contact tolerances' scale of every shape and body (constants.hpp, SCALE_LENGTH)
   contacts.unit_scale = true;
@@ -442,10 +443,25 @@ bool World<D>::step() {
       parallel(n_bodies, part_of_bodies);
     }
   };
+  if constexpr (D == 3) {
+    // (the rows' tensors: the step's start's)
+    if (contacts_on)
+      for (const TurnWatch& watch : c.turn_watch)
+        c.body_row_q[watch.body] = state.body_q[watch.body];
+  }
   auto move = [&] {
     over_bodies([&](Span part) {
       integrate_positions(model, state, c.body_delta, h, cfg.rotation, part, inertia_world);
     });
+    if constexpr (D == 3) {
+      // a body that has turned far within the step: its contacts' rows made again at its
+      // rotation now (refresh_turned_rows)
+      if (contacts_on && c.count.manifolds > 0 && mark_turned_bodies(state, c)) {
+        parallel(c.count.manifolds,
+                 [&](Span part) { refresh_turned_rows(model, state, c, cfg, part); });
+        repack_turned_rows(model, c);
+      }
+    }
   };
   auto accelerate = [&] {
     over_bodies([&](Span part) { integrate_velocities(model, state, h, part); });

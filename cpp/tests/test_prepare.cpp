@@ -1,11 +1,14 @@
 // solver/prepare.cpp: each point's effective masses, lever arms, approach and softness,
-// against the formulas written out by hand.
+// against the formulas written out by hand; in 3D, the rows of a body turned far within
+// the step made again at its rotation now.
 #include <cmath>
 
 #include "check.hpp"
+#include "contacts3d_builder.hpp"
 #include "scene_builder.hpp"
 
 using namespace rbsim;
+using rbsim::test::Builder3;
 using rbsim::test::SceneBuilder;
 
 // A small box resting off-centre on a big dynamic one, moving and turning: every row field
@@ -99,6 +102,84 @@ TEST(small_shapes_are_stiffer_where_the_step_allows) {
       if (dt > 1e-3 || half == 0.5) CHECK(row.bias_rate == w.config.soft.bias_rate);
       if (dt < 1e-3 && half == 0.001) CHECK(row.bias_rate > 10.0 * w.config.soft.bias_rate);
     }
+  }
+}
+
+// 3D: a needle (axial moment 1/1000 of the others) and a ball, each on the ground at one
+// point, both turned within the step. The needle, turned 0.5 rad about an axis across it,
+// is past ROW_TURN_MAX: its row is made again with its world tensor at its rotation now
+// (K = 1/m + (r × n)·I⁻¹(r × n) there, the tangent block's trace likewise) and packed again
+// into its lane, its arm, normal and approach velocity those of the step's start; turned
+// 0.1 rad (a weighted turn of 0.1) it is not. The ball, round, is never watched and keeps
+// its row whatever its turn.
+TEST(rows_of_a_body_turned_far_are_made_again_at_its_rotation_now) {
+  for (const double angle : {0.5, 0.1}) {  // rad
+    Builder3 s;
+    const Sym3 needle_inertia{0.001, 1.0, 1.0, 0.0, 0.0, 0.0};  // kg·m²
+    const Sym3 ball_inertia{0.4, 0.4, 0.4, 0.0, 0.0, 0.0};
+    const Quat tilt = rbsim::test::about({0.0, 0.0, 1.0}, 0.7);
+    const int needle =
+        s.body({0.0, 1.0, 0.0}, 2.0, needle_inertia, tilt, {0.0, -1.0, 0.0}, {3.0, 1.0, 0.0});
+    const int ball = s.body({3.0, 0.5, 0.0}, 1.0, ball_inertia, {}, {0.0, -1.0, 0.0});
+    const int ground = s.fixed({0.0, 0.0, 0.0});
+    World<3>& w = s.finish();
+    w.model.body_moments[needle] = {0.001, 1.0, 1.0};
+    w.model.body_moments[ball] = {0.4, 0.4, 0.4};
+    auto& c = w.contacts;
+    c.turn_watch = turn_watch(w.model);
+    CHECK(c.turn_watch.size() == 1 && c.turn_watch[0].body == needle);
+    const std::int64_t m_needle =
+        s.manifold(needle, ground, {0, 1, 0}, {{0.3, 0.0, 0.1}}, 0.5, 0.0);
+    const std::int64_t m_ball = s.manifold(ball, ground, {0, 1, 0}, {{3.0, 0.0, 0.0}}, 0.5, 0.0);
+    s.prepare();
+    find_waves(w.model, c);
+    for (const TurnWatch& watch : c.turn_watch)
+      c.body_row_q[watch.body] = w.state.body_q[watch.body];
+    const auto before_needle = c.solver_row[m_needle];
+    const auto before_ball = c.solver_row[m_ball];
+    const double approach = c.approach_velocity[m_needle][0];
+    // both turned about z, as the position update leaves them (rotation, world tensor)
+    const Quat turn = rbsim::test::about({0.0, 0.0, 1.0}, angle);
+    for (const int i : {needle, ball}) {
+      w.state.body_q[i] = mul(turn, w.state.body_q[i]);
+      c.body_inv_inertia_world[i] = world_tensor(w.state.body_q[i], w.model.body_inv_inertia[i]);
+    }
+    const bool far = angle > constants::ROW_TURN_MAX;
+    CHECK(mark_turned_bodies(w.state, c) == far);
+    CHECK(c.body_row_remade[needle] == far && c.body_row_remade[ball] == 0);
+    refresh_turned_rows(w.model, w.state, c, w.config, Span{0, c.count.manifolds});
+    repack_turned_rows(w.model, c);
+    const auto& row = c.solver_row[m_needle];
+    const Vec3 ra = c.anchor_a[m_needle][0], n{0.0, 1.0, 0.0};
+    const Quat q_rows = far ? w.state.body_q[needle] : tilt;  // the rotation its row is of
+    const Vec3 rn = cross(ra, n), t1 = row.t1, t2 = row.t2;
+    // 1/m + (r × u)·I⁻¹(r × u) at the rotation q_rows (1/kg)
+    auto k_along = [&](Vec3 ru) {
+      return 0.5 + dot(ru, rbsim::test::world_apply(q_rows, w.model.body_inv_inertia[needle], ru));
+    };
+    const double kn = k_along(rn), k11 = k_along(cross(ra, t1)), k22 = k_along(cross(ra, t2));
+    CHECK_NEAR(row.point.kn[0], kn, 1e-12 * kn);
+    CHECK_NEAR(c.normal_mass[m_needle][0], 1.0 / kn, 1e-12 / kn);
+    CHECK_NEAR(row.point.tangent_mass[0], 2.0 / (k11 + k22), 1e-12 / (k11 + k22));
+    CHECK((row.point.kn[0] != before_needle.point.kn[0]) == far);
+    // the point, the normal and the approach are the step's start's
+    const Vec3 arm = row.point.arm_a[0];
+    CHECK(arm.x == ra.x && arm.y == ra.y && arm.z == ra.z);
+    CHECK(row.normal.y == 1.0 && c.approach_velocity[m_needle][0] == approach);
+    // the lane holds the row
+    bool packed = false;
+    for (std::int64_t i = 0; i < c.wave_batch[c.wave_count]; ++i)
+      for (int l = 0; l < LANES; ++l)
+        if (c.batches3[i].lanes.m[l] == m_needle) {
+          packed = true;
+          CHECK(c.batches3[i].p.kn[l] == row.point.kn[0]);
+          const Vec3 wna = row.point.wna[0];
+          CHECK(c.batches3[i].wnax[l] == wna.x && c.batches3[i].wnay[l] == wna.y);
+        }
+    CHECK(packed);
+    // the ball's row is as it was
+    CHECK(c.solver_row[m_ball].point.kn[0] == before_ball.point.kn[0]);
+    CHECK(c.solver_row[m_ball].inv_ia.xx == before_ball.inv_ia.xx);
   }
 }
 

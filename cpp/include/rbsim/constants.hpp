@@ -335,6 +335,19 @@ inline constexpr int TASK_ITEMS = 128;
 // lets faster spins through unresolved; smaller clips spins a step could resolve (a top
 // at 150 rad/s turns 0.16 rad a substep at dt 1/240).
 inline constexpr double MAX_ROTATION = 0.7853981633974483;
+// 3D: how far a body may turn within a step before the rows of its contacts are made
+// again at its rotation now (refresh_turned_rows), as the turn weighted by how far its
+// inertia is from round: (1 - I_min / I_max) times the angle (rad) since its rows' tensors
+// were made. The rows' effective masses, and the passes' response to their impulses, take
+// the tensors of the step's start, while the position update makes ω from L through the
+// tensor at the rotation now; for a needle turned half a radian the two disagree by orders
+// of magnitude along its axis (a 1.6 cm needle thrown spinning onto the floor at dt 1/60
+// gained 390 times its energy, a 26 cm stick 49 times). A round body (a sphere, a cube)
+// never needs it, nor a body within ROW_TURN_MAX / 2 of round. Typically 0.2: the needles
+// above kept their energy at up to 0.8, and at 1.6 a capsule needle gained 96 times again;
+// smaller remakes the rows of tumbling bodies more often (at 0.05 the bench's heaps of
+// capsules and pebbles had some remade, 2% of the capsules' substeps, for no gain seen).
+inline constexpr double ROW_TURN_MAX = 0.2;
 
 // µs a worker spins for the next parallel stage before it sleeps, typically 1000: the
 // serial stages between two parallel ones take up to some hundred µs in a pile of a

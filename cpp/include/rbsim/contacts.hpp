@@ -177,6 +177,12 @@ struct SolverRow<3> {
   Points point{};
 };
 
+// 3D: a body watched for its turn within a step (Contacts::turn_watch).
+struct TurnWatch {
+  std::int32_t body;
+  double limit;  // sin²(φ/2) of the turn φ after which its rows are made again
+};
+
 template <int D>
 struct Contacts {
   static constexpr int P = Dim<D>::max_points;
@@ -235,6 +241,15 @@ struct Contacts {
   // 3D (2D: empty): the rotation each body's world tensor was made at (NaN: not made),
   // so that the step's start makes it again only where the rotation was set from outside
   std::vector<typename Dim<D>::Rot> body_inertia_q;
+  // 3D (2D: empty), within a step: the rotation each body's contact rows were made at (the
+  // step's start, or where refresh_turned_rows made them again), and whether they were
+  // just made again (1)
+  std::vector<typename Dim<D>::Rot> body_row_q;
+  std::vector<std::uint8_t> body_row_remade;
+  // 3D (2D: empty): the dynamic bodies whose inertia is far enough from round that a turn
+  // within a step can call for their rows to be made again (ROW_TURN_MAX), each with the
+  // sin²(φ/2) of the turn φ that does (World::allocate, from the model)
+  std::vector<TurnWatch> turn_watch;
   // per vertex / shape
   std::vector<Vec> vert_world, norm_world;  // (V,) shape geometry in the world this step
   std::vector<Vec> face_world;  // 3D: (Model::hull_face_count,) convex hulls' face normals
@@ -377,6 +392,7 @@ bool Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   body_ref.assign(n, unset);
   reset(body_still, n); reset(body_delta, n); reset(body_inv_inertia_world, D == 3 ? n : 0);
   reset(body_inertia_q, D == 3 ? n : 0);
+  reset(body_row_q, D == 3 ? n : 0); reset(body_row_remade, D == 3 ? n : 0);
   for (auto& q : body_inertia_q)  // (not made yet: NaN, which equals no rotation)
     std::fill_n(reinterpret_cast<double*>(&q), sizeof q / sizeof(double), nan);
   reset(vert_world, v); reset(norm_world, v); reset(shape_margin, s); reset(shape_turn, s);
@@ -447,6 +463,7 @@ bool Contacts<D>::grow(std::int64_t new_capacity, const std::function<bool()>* s
   face_world = std::move(old.face_world);
   face_offset = std::move(old.face_offset);
   shape_spread = std::move(old.shape_spread);
+  turn_watch = std::move(old.turn_watch);
   body_ref = std::move(old.body_ref);
   body_still = std::move(old.body_still);
   shape_size = std::move(old.shape_size);

@@ -184,6 +184,21 @@ template <int D>
 void prepare_contacts(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
                       const Config& config, Span manifolds);
 
+// solver/prepare.cpp, 3D, within a step: the rows of the contacts of a body that has
+// turned far since they were made (ROW_TURN_MAX, weighted by how far its inertia is from
+// round) made again with its world tensor at its rotation now, so that the passes'
+// response to an impulse stays the one the position update finds from L. The contact
+// points (arms), normals and approach velocities stay the step's start's.
+// mark_turned_bodies marks those bodies (contacts.body_row_remade) and returns whether
+// any is; refresh_turned_rows remakes the rows of the manifolds in range that touch one.
+// turn_watch lists the bodies that may need it (contacts.turn_watch, made at allocate).
+std::vector<TurnWatch> turn_watch(const Model<3>& model);
+bool mark_turned_bodies(const State<3>& state, Contacts<3>& contacts);
+void refresh_turned_rows(const Model<3>& model, const State<3>& state, Contacts<3>& contacts,
+                         const Config& config, Span manifolds);
+// solver/waves.cpp, 3D: the rows refresh_turned_rows remade into their batches' lanes.
+void repack_turned_rows(const Model<3>& model, Contacts<3>& contacts);
+
 // solver/shock.cpp: support levels and the solve order; returns the shock pass's count.
 template <int D>
 std::int64_t support_order(const Model<D>& model, Contacts<D>& contacts);

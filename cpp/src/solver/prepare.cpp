@@ -92,9 +92,11 @@ inline typename Dim<D>::Rot kinematic_lever(const Model<D>& model, const State<D
 // ia, ib (1/(kg·m²)) at the step's start. The points' own fields are made in lanes, one
 // point in each (a lane past the count stays zero, as the passes expect); the couplings
 // between points and the normal block from them.
+// (approach: the points' approach velocities and separations too, at the step's start;
+// not when the rows are made again within the step)
 void prepare_points_3d(const State<3>& st, Contacts<3>& c, std::int64_t m, int a, int b,
                        double ma, double mb, const Sym3& ia, const Sym3& ib,
-                       const Quat& turn_a, const Quat& turn_b) {
+                       const Quat& turn_a, const Quat& turn_b, bool approach) {
   auto& row = c.solver_row[m];
   const Vec3 n = row.normal;
   tangent_basis(n, row.t1, row.t2);
@@ -154,7 +156,7 @@ void prepare_points_3d(const State<3>& st, Contacts<3>& c, std::int64_t m, int a
   store_points(P.rb, sb);
   for (int k = 0; k < npts; ++k) {
     c.normal_mass[m][k] = normal_mass[k];
-    approach_point(st, c, m, k, a, b, P.arm_a[k], P.arm_b[k], P.ra[k], P.rb[k], n);
+    if (approach) approach_point(st, c, m, k, a, b, P.arm_a[k], P.arm_b[k], P.ra[k], P.rb[k], n);
   }
   // I_a⁻¹(r_a × t1), I_a⁻¹(r_a × t2), I_b⁻¹ alike (1/(kg·m)), for the couplings
   alignas(32) double inv_rt[4][3][4];  // [which][axis][point]
@@ -285,7 +287,7 @@ void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c,
       prepare_points_3d(st, c, m, a, b, ma, mb, c.body_inv_inertia_world[a],
                         c.body_inv_inertia_world[b],
                         kinematic_lever(model, st, a, config.dt),
-                        kinematic_lever(model, st, b, config.dt));
+                        kinematic_lever(model, st, b, config.dt), true);
     } else {
     const double ia = ii[a], ib = ii[b];
     const Vec t = cross(n, 1.0);  // (n_y, −n_x)
@@ -326,6 +328,50 @@ void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c,
       row.bias_rate = s.bias_rate;
     }
     if constexpr (D == 3) prepare_blocks_3d(row, npts);
+  }
+}
+
+bool mark_turned_bodies(const State<3>& st, Contacts<3>& c) {
+  bool any = false;
+  for (const TurnWatch& watch : c.turn_watch) {
+    const int i = watch.body;
+    // sin²(φ/2) = 1 - (q·q_rows)² for the turn φ since the rows were made
+    const Quat q = st.body_q[i], r = c.body_row_q[i];
+    const double d = q.w * r.w + q.x * r.x + q.y * r.y + q.z * r.z;
+    const bool far = 1.0 - d * d > watch.limit;
+    c.body_row_remade[i] = far;
+    if (far) c.body_row_q[i] = q;
+    any = any || far;
+  }
+  return any;
+}
+
+std::vector<TurnWatch> turn_watch(const Model<3>& model) {
+  std::vector<TurnWatch> watch;
+  for (int i = 0; i < model.body_count(); ++i) {
+    if (!model.is_dynamic(i)) continue;
+    // the weighted turn (1 - I_min / I_max) φ passes ROW_TURN_MAX where sin²(φ/2) passes
+    // (ROW_TURN_MAX / (2 (1 - I_min / I_max)))², taking φ as 2 sin(φ/2) (a little early
+    // for a large turn); never for a round body, or one within 1 - ROW_TURN_MAX / 2 of it
+    const Vec3 I = model.body_moments[i];  // kg·m²
+    const double spread = 1.0 - std::min({I.x, I.y, I.z}) / std::max({I.x, I.y, I.z});
+    const double half = constants::ROW_TURN_MAX / (2.0 * spread);
+    if (spread > 0.0 && half < 1.0) watch.push_back({i, half * half});
+  }
+  return watch;
+}
+
+void refresh_turned_rows(const Model<3>& model, const State<3>& st, Contacts<3>& c,
+                         const Config& config, Span manifolds) {
+  const auto& im = model.body_inv_mass;
+  for (std::int64_t m = manifolds.first; m < manifolds.last; ++m) {
+    const int a = c.body_a[m], b = c.body_b[m];
+    if (!(c.body_row_remade[a] || c.body_row_remade[b])) continue;
+    // the same arms (the contact points stay where the step's start found them) and normal
+    prepare_points_3d(st, c, m, a, b, im[a], im[b], c.body_inv_inertia_world[a],
+                      c.body_inv_inertia_world[b], kinematic_lever(model, st, a, config.dt),
+                      kinematic_lever(model, st, b, config.dt), false);
+    prepare_blocks_3d(c.solver_row[m], c.points[m]);
   }
 }
 

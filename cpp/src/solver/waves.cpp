@@ -530,6 +530,25 @@ template void take_impulses(Contacts<3>&, const std::int32_t*, std::int64_t);
 template void give_impulses(Contacts<2>&, const std::int32_t*, std::int64_t);
 template void give_impulses(Contacts<3>&, const std::int32_t*, std::int64_t);
 
+void repack_turned_rows(const Model<3>& model, Contacts<3>& c) {
+  const std::int64_t n_batches = c.wave_count > 0 ? c.wave_batch[c.wave_count] : 0;
+  const std::int64_t n_faces = c.wave_count > 0 ? c.wave_single_batch[c.wave_count] : 0;
+  auto remade = [&c](std::int32_t m) {
+    return m >= 0 && (c.body_row_remade[c.body_a[m]] || c.body_row_remade[c.body_b[m]]);
+  };
+  for (std::int64_t i = 0; i < n_batches; ++i) {
+    WideBatch3& w = c.batches3[i];
+    for (int l = 0; l < LANES; ++l)
+      if (remade(w.lanes.m[l])) pack_lane3(model, c, w, l, w.lanes.m[l]);
+  }
+  for (std::int64_t i = 0; i < n_faces; ++i) {
+    WideFace3& w = c.faces3[i];
+    if (w.count == 0) continue;  // (solved one at a time, from the rows)
+    for (int l = 0; l < LANES; ++l)
+      if (remade(w.lanes.m[l])) pack_face3(model, c, w, l, w.lanes.m[l]);
+  }
+}
+
 template <int D>
 std::int64_t find_waves(const Model<D>& model, Contacts<D>& c) {
   give_impulses(c);  // (the batches are packed again: the store holds the impulses)
