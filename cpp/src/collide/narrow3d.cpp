@@ -813,13 +813,15 @@ inline Polytope hull_polytope(const ShapeRef3& s) {
 // thinner than the speculative distance (1 cm against 2 cm) had its upper face's corners
 // too, which the reduction, keeping the corners that reach furthest out, chose over the
 // lower ones they stand over: tilted by 1e-3 rad, a 1 m steel plate rested on two
-// corners and two points 1 cm above the ground, sank 3 mm into it and rocked for ever.
-// Where more than four are within reach and three or more of them rest on the plane
-// (within the face tolerance, REFERENCE_FACE_TOLERANCE at the pair's scale, of the
-// deepest), the four are chosen among the resting ones: a hull's corners just off its
-// resting face reach further out and won the reduction (a brick with 2 cm bevels rested
-// on one corner and three gaps and rocked at 0.35 rad/s; a 64-sided prism lying on a
-// side, its face 3 cm wide, the next corners 1.4 mm up, rocked at 0.06 rad/s).
+// corners and two points 1 cm above the ground, sank 3 mm into it and rocked for ever;
+// and a hull's corners just off its resting face, on the bevels or the next sides, won
+// the reduction (a brick with 2 cm bevels rested on one corner and three gaps, a 64-sided
+// prism lying on a side rocked at 0.06 rad/s). Every corner of the incident face within
+// reach is a candidate, however high: where only those within the face tolerance of the
+// deepest were kept (they were, for the bevels, before the incident face was), a coin (a
+// 16-sided hull 2 mm thick) landing tilted by a few hundredths of a radian was held at its
+// low side alone, while its high side, left out, went through the plane within the step,
+// and it sank below the ground step after step.
 int polytope_plane(const Polytope& P, const ShapeRef3& plane, double speculative, Manifold3& out) {
   const Vec3 n = plane.normal;
   std::array<int, HULL_MAX_FACE_VERTICES + 1> corner;  // the candidates' vertex indices
@@ -834,26 +836,11 @@ int polytope_plane(const Polytope& P, const ShapeRef3& plane, double speculative
   // the incident face's (any box thicker than the reach), the same points in the same order
   std::sort(corner.begin(), corner.begin() + count);
   auto separation = [&](int i) { return dot(n, P.v[corner[i]]) - plane.offset; };  // m
-  double deepest = INF;
-  int within = 0;
-  for (int i = 0; i < count; ++i) {
-    const double s = separation(i);
-    if (s > speculative) continue;
-    deepest = std::min(deepest, s);
-    ++within;
-  }
-  double reach = speculative;  // m: the candidates' largest separation
-  if (within > 4) {
-    const double resting = deepest + plane.scale * REFERENCE_FACE_TOLERANCE;
-    int on = 0;
-    for (int i = 0; i < count; ++i) on += separation(i) <= resting ? 1 : 0;
-    if (on >= 3) reach = std::min(resting, speculative);
-  }
   const auto get = [&](int i, Vec3& p, double& s, std::int64_t& id) {
     s = separation(i);
     p = P.v[corner[i]] - (0.5 * s) * n;
     id = feature_id(FK::Vertex, 0, 0, corner[i], 0);
-    return s <= reach;
+    return s <= speculative;
   };
   return reduce_to_four(count, get, n, out);
 }
