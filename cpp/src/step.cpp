@@ -444,10 +444,7 @@ bool World<D>::step() {
     }
   };
   if constexpr (D == 3) {
-    // (the rows' tensors: the step's start's)
-    if (contacts_on)
-      for (const TurnWatch& watch : c.turn_watch)
-        c.body_row_q[watch.body] = state.body_q[watch.body];
+    if (contacts_on) begin_turn_watch(state, c);  // (the rows' tensors: the step's start's)
   }
   auto move = [&] {
     over_bodies([&](Span part) {

@@ -133,8 +133,7 @@ TEST(rows_of_a_body_turned_far_are_made_again_at_its_rotation_now) {
     const std::int64_t m_ball = s.manifold(ball, ground, {0, 1, 0}, {{3.0, 0.0, 0.0}}, 0.5, 0.0);
     s.prepare();
     find_waves(w.model, c);
-    for (const TurnWatch& watch : c.turn_watch)
-      c.body_row_q[watch.body] = w.state.body_q[watch.body];
+    begin_turn_watch(w.state, c);
     const auto before_needle = c.solver_row[m_needle];
     const auto before_ball = c.solver_row[m_ball];
     const double approach = c.approach_velocity[m_needle][0];

@@ -181,6 +181,8 @@ struct SolverRow<3> {
 struct TurnWatch {
   std::int32_t body;
   double limit;  // sin²(φ/2) of the turn φ after which its rows are made again
+  Quat rows{};   // the rotation its rows were made at, within a step (the step's start's,
+                 // or where refresh_turned_rows made them again)
 };
 
 template <int D>
@@ -241,14 +243,13 @@ struct Contacts {
   // 3D (2D: empty): the rotation each body's world tensor was made at (NaN: not made),
   // so that the step's start makes it again only where the rotation was set from outside
   std::vector<typename Dim<D>::Rot> body_inertia_q;
-  // 3D (2D: empty), within a step: the rotation each body's contact rows were made at (the
-  // step's start, or where refresh_turned_rows made them again), and whether they were
-  // just made again (1)
-  std::vector<typename Dim<D>::Rot> body_row_q;
+  // 3D (2D: empty), within a step: whether each body's contact rows were just made again
+  // at its rotation now (1; refresh_turned_rows)
   std::vector<std::uint8_t> body_row_remade;
   // 3D (2D: empty): the dynamic bodies whose inertia is far enough from round that a turn
   // within a step can call for their rows to be made again (ROW_TURN_MAX), each with the
-  // sin²(φ/2) of the turn φ that does (World::allocate, from the model)
+  // sin²(φ/2) of the turn φ that does (World::allocate, from the model) and the rotation
+  // its rows were made at
   std::vector<TurnWatch> turn_watch;
   // per vertex / shape
   std::vector<Vec> vert_world, norm_world;  // (V,) shape geometry in the world this step
@@ -392,7 +393,7 @@ bool Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   body_ref.assign(n, unset);
   reset(body_still, n); reset(body_delta, n); reset(body_inv_inertia_world, D == 3 ? n : 0);
   reset(body_inertia_q, D == 3 ? n : 0);
-  reset(body_row_q, D == 3 ? n : 0); reset(body_row_remade, D == 3 ? n : 0);
+  reset(body_row_remade, D == 3 ? n : 0);
   for (auto& q : body_inertia_q)  // (not made yet: NaN, which equals no rotation)
     std::fill_n(reinterpret_cast<double*>(&q), sizeof q / sizeof(double), nan);
   reset(vert_world, v); reset(norm_world, v); reset(shape_margin, s); reset(shape_turn, s);

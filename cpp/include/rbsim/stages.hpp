@@ -191,8 +191,10 @@ void prepare_contacts(const Model<D>& model, const State<D>& state, Contacts<D>&
 // points (arms), normals and approach velocities stay the step's start's.
 // mark_turned_bodies marks those bodies (contacts.body_row_remade) and returns whether
 // any is; refresh_turned_rows remakes the rows of the manifolds in range that touch one.
-// turn_watch lists the bodies that may need it (contacts.turn_watch, made at allocate).
+// turn_watch lists the bodies that may need it (contacts.turn_watch, made at allocate);
+// begin_turn_watch takes their rotations at the step's start, where the rows are made.
 std::vector<TurnWatch> turn_watch(const Model<3>& model);
+void begin_turn_watch(const State<3>& state, Contacts<3>& contacts);
 bool mark_turned_bodies(const State<3>& state, Contacts<3>& contacts);
 void refresh_turned_rows(const Model<3>& model, const State<3>& state, Contacts<3>& contacts,
                          const Config& config, Span manifolds);

@@ -331,16 +331,20 @@ void prepare_contacts(const Model<D>& model, const State<D>& st, Contacts<D>& c,
   }
 }
 
+void begin_turn_watch(const State<3>& st, Contacts<3>& c) {
+  for (TurnWatch& watch : c.turn_watch) watch.rows = st.body_q[watch.body];
+}
+
 bool mark_turned_bodies(const State<3>& st, Contacts<3>& c) {
   bool any = false;
-  for (const TurnWatch& watch : c.turn_watch) {
+  for (TurnWatch& watch : c.turn_watch) {
     const int i = watch.body;
     // sin²(φ/2) = 1 - (q·q_rows)² for the turn φ since the rows were made
-    const Quat q = st.body_q[i], r = c.body_row_q[i];
+    const Quat q = st.body_q[i], r = watch.rows;
     const double d = q.w * r.w + q.x * r.x + q.y * r.y + q.z * r.z;
     const bool far = 1.0 - d * d > watch.limit;
     c.body_row_remade[i] = far;
-    if (far) c.body_row_q[i] = q;
+    if (far) watch.rows = q;
     any = any || far;
   }
   return any;
