@@ -9,6 +9,8 @@
 //       -> relax (-> extra relax passes near a deep overlap) -> restitution -> shock
 //       (-> the points' step impulses, for a run that records its contact points)]
 //   -> limit_dynamic_overlap -> limit_static_overlap
+//   -> continuous (a body that went further than its contacts reached, swept against the
+//      static shapes)
 //   (-> hand_down_shock_impulses, for a run that records its contact points)
 //   -> store_impulses
 //
@@ -58,6 +60,7 @@ void World<D>::allocate() {
     model.shape_reach[s] = std::sqrt(reach2);  // (as the largest length: sqrt is monotone)
   }
   if constexpr (D == 2) find_segment_neighbours(model, state);
+  continuous_index = find_continuous_index(model);
   grid.allocate(size, dynamic, capacity);
   contacts.allocate(model.body_count(), n_shapes, model.vertex_count(), capacity);
   size_pair_buffers();
@@ -411,6 +414,12 @@ bool World<D>::step() {
   auto& c = contacts;
   using S = StageId;
   for (auto& d : c.body_delta) d = BodyDelta<D>{};
+  // the velocities the contacts were found at, for the sweep at the step's end
+  const bool sweeping = contacts_on && !continuous_index.static_shapes.empty();
+  if (sweeping) {
+    continuous_v = state.body_v;
+    continuous_w = state.body_w;
+  }
   const double h = cfg.dt / cfg.substeps;
   const double inv_h = 1.0 / h;
   const double shift = cfg.explicit_euler ? 0.0 : h;
@@ -561,6 +570,16 @@ bool World<D>::step() {
       limit_dynamic_overlap(model, state, c, C::DYNAMIC_OVERLAP_LIMIT, C::OVERLAP_LIMIT_PASSES);
       limit_static_overlap(model, state, c, C::STATIC_OVERLAP_LIMIT);
     });
+    if (sweeping) {
+      // a body that went further than its contacts reached: swept against the static
+      // shapes, and put back before one it went into (collide/continuous.cpp). After the
+      // overlap limits: bodies put back beside one another may overlap, and moved apart
+      // here they were pushed into the wall they were stopped at
+      timed(S::Continuous, [&] {
+        sweep_fast_bodies(model, state, c, grid, continuous_index, continuous_v, continuous_w,
+                          cfg.dt);
+      });
+    }
     if (c.record_impulses) hand_down_shock_impulses(model, c);
     timed(S::Store, [&] {
       give_impulses(c);  // (2D: the batches held them through the passes)

@@ -149,6 +149,16 @@ inline constexpr int DEEP_SOLVE_PASSES = 16;
 // under pressure outruns the bounded push-out speed.
 inline constexpr double STATIC_OVERLAP_LIMIT = 0.02;
 
+// The continuous sweep (collide/continuous.cpp): a body whose motion in the step went
+// further than its contacts reached at the step's start by more than this fraction of its
+// inner size (the least distance from its shapes' centres to their surfaces) is swept
+// against the static shapes, and put back where it first met one it then went on into by
+// more than the same fraction. Within it push-out still returns a body to the side it
+// came from.
+// Dimensionless; 0.5 is Box2D v3's choice for its fast bodies. Larger sweeps fewer bodies
+// and lets them deeper; smaller sweeps more, for nothing until it nears a slop.
+inline constexpr double CONTINUOUS_FRACTION = 0.5;
+
 // Deepest overlap between two dynamic bodies left at a step's end, m (2 * LINEAR_SLOP,
 // scaled as it); beyond it both are moved apart along the contact normal, each by its
 // share of the inverse mass, their velocities untouched (limit_dynamic_overlap), in up to

@@ -422,4 +422,29 @@ template <int D>
 std::int64_t limit_dynamic_overlap(const Model<D>& model, State<D>& state,
                                    Contacts<D>& contacts, double max_overlap, int passes);
 
+
+// collide/continuous.cpp: the continuous sweep of a body whose motion in the step went past
+// its contacts' reach, against the static shapes. What it needs of the model, found once
+// (find_continuous_index): the static shapes, each body's shapes, and each body's inner size
+// and reach (m).
+struct ContinuousIndex {
+  std::vector<std::int32_t> static_shapes;  // the shapes of static bodies, in order
+  std::vector<std::int32_t> shape_start;    // (N + 1,) where body i's shapes start in shapes
+  std::vector<std::int32_t> shapes;
+  std::vector<double> inner;  // (N,) m: the least distance from a shape's centre to its surface
+  std::vector<double> reach;  // (N,) m: the farthest point of its shapes from its centre of mass
+};
+template <int D>
+ContinuousIndex find_continuous_index(const Model<D>& model);
+// Each dynamic body that moved further in the step than its contacts reached at its
+// start (v0, w0: the velocities then) is swept from its pose then (state now less
+// contacts.body_delta) to its pose now against the static shapes whose boxes
+// (grid.shape_aabb) meet its path, and put back at the first impact it then went on past
+// (constants.hpp, CONTINUOUS_FRACTION); body_delta follows. Returns how many were put back.
+template <int D>
+std::int64_t sweep_fast_bodies(const Model<D>& model, State<D>& state, Contacts<D>& contacts,
+                               const Grid<D>& grid, const ContinuousIndex& index,
+                               const std::vector<typename Dim<D>::Vec>& v0,
+                               const std::vector<typename Dim<D>::Ang>& w0, double dt);
+
 }  // namespace rbsim

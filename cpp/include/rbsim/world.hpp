@@ -33,13 +33,13 @@ inline constexpr int THREADS_MAX = 64;
 enum class StageId : int {
   Transform, FindPairs, UpdateManifolds, Prepare, SupportOrder, Waves, IntegrateVelocities,
   WarmStart, Solve, IntegratePositions, Relax, ExtraRelax, Restitution, Shock, OverlapLimit,
-  Store, Regions, DeepSolve, Count
+  Store, Regions, DeepSolve, Continuous, Count
 };
 inline constexpr const char* STAGE_NAMES[] = {
     "transform", "find_pairs", "update_manifolds", "prepare", "support_order", "waves",
     "integrate_velocities", "warm_start", "solve", "integrate_positions", "relax",
     "extra_relax", "restitution", "shock", "limit_static_overlap", "store_impulses",
-    "regions", "deep_solve"};
+    "regions", "deep_solve", "continuous"};
 
 // What one segment of a threaded pass lists (a PassLog's own storage; step.cpp appends it
 // to the contact store's lists in segment order).
@@ -92,6 +92,11 @@ struct World {
   std::vector<PairManifold<D>> found;
   std::vector<std::int8_t> found_points;
   std::vector<std::int64_t> found_slot;
+  // the continuous sweep's (collide/continuous.cpp): what it needs of the model (made by
+  // allocate), and the bodies' velocities at the step's start (when a static shape exists)
+  ContinuousIndex continuous_index;
+  std::vector<typename Dim<D>::Vec> continuous_v;
+  std::vector<typename Dim<D>::Ang> continuous_w;
   // the manifolds the restitution stage is to look at (its list, which it rewrites), whose
   // impulses the batches give it and take back (step.cpp)
   std::vector<std::int32_t> listed;

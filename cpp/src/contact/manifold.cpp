@@ -28,6 +28,7 @@
 #include "collide/narrow2d.hpp"
 #include "collide/narrow3d.hpp"
 #include "collide/toi.hpp"
+#include "contact/pair.hpp"
 #include "rbsim/constants.hpp"
 #include "rbsim/stages.hpp"
 
@@ -527,6 +528,18 @@ void narrow_pairs(const Model<D>& model, const State<D>& st, const Contacts<D>& 
   }
 }
 
+template <int D>
+int collide_pair(const Model<D>& model, const Contacts<D>& c, int a, int b, double scale,
+                 double spec, PairOut<D>& out) {
+  return narrow_pair(model, c, a, b, scale, spec, out);
+}
+
+template <int D>
+bool held_by_neighbour_at(const Model<D>& model, const State<D>& st, const Contacts<D>& c, int a,
+                          int b, const PairOut<D>& out, int npts) {
+  return held_by_neighbour(model, st, c, a, b, out, npts);
+}
+
 void manifold_slots(Span pairs, const std::int8_t* found_points, std::int64_t* slot) {
   std::int64_t m = 0;
   for (std::int64_t p = pairs.first; p < pairs.last; ++p) {
@@ -751,5 +764,14 @@ template MergeFlags merge_manifolds(const Model<3>&, const State<3>&, Contacts<3
                                     const std::int64_t*);
 template void finish_manifolds(Contacts<2>&, std::int64_t, MergeFlags);
 template void finish_manifolds(Contacts<3>&, std::int64_t, MergeFlags);
+
+template int collide_pair(const Model<2>&, const Contacts<2>&, int, int, double, double,
+                          Manifold2&);
+template int collide_pair(const Model<3>&, const Contacts<3>&, int, int, double, double,
+                          Manifold3&);
+template bool held_by_neighbour_at(const Model<2>&, const State<2>&, const Contacts<2>&, int, int,
+                                   const Manifold2&, int);
+template bool held_by_neighbour_at(const Model<3>&, const State<3>&, const Contacts<3>&, int, int,
+                                   const Manifold3&, int);
 
 }  // namespace rbsim

@@ -1,0 +1,276 @@
+// Continuous sweep: a body that moved within the step further than its contacts reached
+// is swept from its pose at the step's start to its pose now against the static shapes,
+// and put back where it first met one that it then went on into deeply.
+//
+// Speculative contacts (contact/manifold.cpp) hold a body back from every shape within
+// its reach at the step's start: how far it could go at the velocity it had then. A body
+// struck within the step (by a fast body, by a kinematic paddle) can go much further, and
+// a static shape beyond that reach has no contact to stop it: a ball at rest 25 cm from a
+// 10 cm wall, struck by a heavy ball at 60 m/s, went through the wall in one step, and a
+// capsule flung by a paddle into the corner of a box ended inside the wall and under the
+// floor, held there by the two. Box2D v3 sweeps its fast bodies against the static shapes
+// after its solve (b2SolveContinuous); this is the same idea, for the bodies whose
+// motion their contacts did not cover.
+//
+// Which bodies: a dynamic body whose motion in the step (|Δx| plus its turn times its
+// reach) exceeds what its contacts covered at the step's start (dt |v₀| + dt |ω₀| reach +
+// dt² |a| + the speculative buffer) by more than CONTINUOUS_FRACTION of its inner size
+// (the least distance from one of its shapes' centres to that shape's surface). A falling or
+// flying body's motion is what it was expected to be, and a resting one's is small: in
+// most steps of most scenes no body is swept, and nothing here changes their bits.
+//
+// The sweep: every static shape whose box meets the body's swept box, against each of
+// the body's shapes that had no contact with it this step (one that had was held by the
+// solver, and what it was pushed into is the overlap stages' to take out), collided at
+// the step's start and advanced along the straight path from the pose then to the pose
+// now (velocity Δx / dt, turn by the rotation vector of Δq over dt) to the time of impact
+// (collide/toi.cpp). An impact counts when the body went on past it into the static
+// shape by more than CONTINUOUS_FRACTION of its inner size along the impact's normal (a
+// body stopped there went on into nothing) and no neighbour holds it there
+// (held_by_neighbour_at: the joints of a floor of pieces). The body is put back at the
+// earliest such impact on its path, its velocity kept, so that the next step's
+// speculative contact with the shape stops it or bounces it. The stage runs after the
+// overlap limits: bodies put back beside one another can overlap, and moved apart there
+// they were pushed into the wall they had been stopped at. Only static shapes are swept
+// against: a struck body may still pass through a dynamic or kinematic one.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+#include "collide/toi.hpp"
+#include "contact/pair.hpp"
+#include "rbsim/constants.hpp"
+#include "rbsim/stages.hpp"
+
+namespace rbsim {
+
+namespace C = constants;
+
+namespace {
+
+constexpr double INF = std::numeric_limits<double>::infinity();
+
+// The least distance (m) from shape s's centre (its vertices' mean) to its surface: its
+// radius, plus for a polygon, box or hull the least distance to one of its faces (a
+// box's least half extent; a hull's faces from its triangles).
+template <int D>
+double shape_inner(const Model<D>& model, int s) {
+  using Vec = typename Dim<D>::Vec;
+  const int v0 = model.shape_vstart[s], n = model.shape_vcount[s];
+  if (n == 0) return model.shape_radius[s];
+  Vec mean{};
+  for (int k = 0; k < n; ++k) mean = mean + model.vertex_local[v0 + k];
+  mean = (1.0 / n) * mean;
+  double least = INF;  // m
+  if constexpr (D == 2) {
+    // (a polygon's edge k runs from vertex k, with outward normal normal_local[k])
+    if (model.shape_kind[s] == ShapeKind::Polygon && n >= 3)
+      for (int k = 0; k < n; ++k)
+        least = std::min(least, dot(model.normal_local[v0 + k], model.vertex_local[v0 + k] - mean));
+  } else if (model.shape_kind[s] == ShapeKind::Box && n == 8) {
+    // its corners in BOX_SIGNS order: corner 1, 2, 4 differ from corner 0 along one axis
+    for (const int k : {1, 2, 4})
+      least = std::min(least, 0.5 * length(model.vertex_local[v0 + k] - model.vertex_local[v0]));
+  } else {
+    for (int f = model.shape_fstart[s]; f < model.shape_fstart[s] + model.shape_fcount[s]; ++f) {
+      const auto& t = model.face_local[f];
+      const Vec3 a = model.vertex_local[v0 + t[0]];
+      const Vec3 normal =
+          cross(model.vertex_local[v0 + t[1]] - a, model.vertex_local[v0 + t[2]] - a);
+      const double area = length(normal);
+      if (area > 0.0) least = std::min(least, dot(normal, a - mean) / area);
+    }
+  }
+  return model.shape_radius[s] + (least == INF ? 0.0 : std::max(least, 0.0));
+}
+
+// The step's turn Δq as a signed angle (2D) or rotation vector (3D, the shorter way), rad.
+inline double turn_of(Rot2 q) { return std::atan2(q.s, q.c); }
+inline Vec3 turn_of(Quat q) {
+  if (q.w < 0.0) q = {-q.w, -q.x, -q.y, -q.z};
+  const Vec3 u{q.x, q.y, q.z};
+  const double s = length(u);
+  if (s == 0.0) return {};
+  return (2.0 * std::atan2(s, q.w) / s) * u;
+}
+// Bounds on them without roots or arcs: |v| at most its components' absolute sum, and
+// the angle θ at most π/2 times the chord |R − I| = 2 |sin(θ/2)| in the plane (at most
+// the sum over (c − 1, s)), π |sin(θ/2)| in space (the vector part's length, at most its
+// components' absolute sum).
+inline double norm1(Vec2 v) { return std::fabs(v.x) + std::fabs(v.y); }
+inline double norm1(Vec3 v) { return std::fabs(v.x) + std::fabs(v.y) + std::fabs(v.z); }
+inline double turn_bound(Rot2 q) {
+  return 0.5 * std::numbers::pi * (std::fabs(q.c - 1.0) + std::fabs(q.s));
+}
+inline double turn_bound(Quat q) {
+  return std::numbers::pi * (std::fabs(q.x) + std::fabs(q.y) + std::fabs(q.z));
+}
+inline double magnitude(double a) { return std::fabs(a); }
+inline double magnitude(Vec3 a) { return length(a); }
+inline Rot2 inverse(Rot2 q) { return {q.c, -q.s}; }
+inline Quat inverse(Quat q) { return {q.w, -q.x, -q.y, -q.z}; }
+
+// Whether shapes a and b have a manifold this step (contacts.key: a · S + b for a < b,
+// in ascending order).
+template <int D>
+bool has_manifold(const Contacts<D>& c, int a, int b, std::int64_t n_shapes) {
+  const std::int64_t key = std::min(a, b) * n_shapes + std::max(a, b);
+  const std::int64_t* first = c.key.data();
+  const std::int64_t* last = first + c.count.manifolds;
+  return std::binary_search(first, last, key);
+}
+
+template <int D>
+bool boxes_meet(const typename Dim<D>::Vec& lo, const typename Dim<D>::Vec& hi,
+                const typename Dim<D>::Vec& other_lo, const typename Dim<D>::Vec& other_hi) {
+  const double* a0 = &lo.x;
+  const double* a1 = &hi.x;
+  const double* b0 = &other_lo.x;
+  const double* b1 = &other_hi.x;
+  for (int d = 0; d < D; ++d)
+    if (a0[d] > b1[d] || b0[d] > a1[d]) return false;
+  return true;
+}
+
+}  // namespace
+
+template <int D>
+ContinuousIndex find_continuous_index(const Model<D>& model) {
+  ContinuousIndex ix;
+  const int n = model.body_count(), n_shapes = model.shape_count();
+  ix.shape_start.assign(n + 1, 0);
+  ix.inner.assign(n, INF);
+  ix.reach.assign(n, 0.0);
+  for (int s = 0; s < n_shapes; ++s) {
+    const int i = model.shape_body[s];
+    if (model.body_type[i] == BodyType::Static) ix.static_shapes.push_back(s);
+    ++ix.shape_start[i + 1];
+    double far = 0.0;  // m
+    for (int k = model.shape_vstart[s]; k < model.shape_vstart[s] + model.shape_vcount[s]; ++k)
+      far = std::max(far, length(model.vertex_local[k]));
+    ix.reach[i] = std::max(ix.reach[i], far + model.shape_radius[s]);
+    ix.inner[i] = std::min(ix.inner[i], shape_inner(model, s));
+  }
+  for (int i = 0; i < n; ++i) {
+    ix.shape_start[i + 1] += ix.shape_start[i];
+    if (ix.inner[i] == INF) ix.inner[i] = 0.0;
+  }
+  ix.shapes.resize(n_shapes);
+  std::vector<std::int32_t> next(ix.shape_start.begin(), ix.shape_start.end() - 1);
+  for (int s = 0; s < n_shapes; ++s) ix.shapes[next[model.shape_body[s]]++] = s;
+  return ix;
+}
+
+template <int D>
+std::int64_t sweep_fast_bodies(const Model<D>& model, State<D>& st, Contacts<D>& c,
+                               const Grid<D>& grid, const ContinuousIndex& index,
+                               const std::vector<typename Dim<D>::Vec>& v0,
+                               const std::vector<typename Dim<D>::Ang>& w0, double dt) {
+  using Vec = typename Dim<D>::Vec;
+  if (index.static_shapes.empty()) return 0;
+  std::int64_t moved = 0;
+  ToiRoom<D> room;  // the time of impact's, made when first asked
+  const int n = model.body_count();
+  const std::int64_t n_shapes = model.shape_count();
+  for (int i = 0; i < n; ++i) {
+    if (!model.is_dynamic(i)) continue;
+    BodyDelta<D>& d = c.body_delta[i];
+    const double reach = index.reach[i];                       // m
+    const double deep = C::CONTINUOUS_FRACTION * index.inner[i];  // m
+    // most bodies moved less than that, or as their velocity at the step's start took
+    // them (|Δx| at most dt |v₀| + |Δx − dt v₀|): bounds without roots or arcs first
+    const double turned = turn_bound(d.dq) * reach;                   // m
+    if (norm1(d.dx) + turned <= deep) continue;
+    const double buffer = c.body_scale[i] * C::SPECULATIVE_DISTANCE;  // m
+    if (norm1(d.dx - dt * v0[i]) + turned <= deep + buffer) continue;
+    const auto theta = turn_of(d.dq);                                // rad
+    const double motion = length(d.dx) + magnitude(theta) * reach;  // m: a bound on any point's
+    // what its contacts covered at the step's start (speculative in manifold.cpp)
+    const double covered = dt * length(v0[i]) + dt * magnitude(w0[i]) * reach +
+                           dt * dt * length(model.acceleration(i)) + buffer;
+    if (motion - covered <= deep) continue;
+    // the path: from the pose at the step's start to the pose now
+    const Vec x_end = st.body_x[i], v_end = st.body_v[i];
+    const auto q_end = st.body_q[i];
+    const auto w_end = st.body_w[i];
+    const Vec x_start = x_end - d.dx;
+    const auto q_start = normalize(mul(inverse(d.dq), q_end));
+    Vec lo = x_start, hi = x_start;
+    {
+      double* l = &lo.x;
+      double* h = &hi.x;
+      const double* e = &x_end.x;
+      for (int k = 0; k < D; ++k) {
+        l[k] = std::min(l[k], e[k]) - (reach + buffer);
+        h[k] = std::max(h[k], e[k]) + (reach + buffer);
+      }
+    }
+    // the body at the start of its path, moving along it (toi.cpp moves it by v t, ω t)
+    st.body_x[i] = x_start;
+    st.body_q[i] = q_start;
+    st.body_v[i] = (1.0 / dt) * d.dx;
+    st.body_w[i] = (1.0 / dt) * theta;
+    double first = 1.0;  // the earliest impact that counts, as a fraction of the path
+    for (const std::int32_t s : index.static_shapes) {
+      const auto& box = grid.shape_aabb[s];  // (in the broadphase's moving frame)
+      if (!boxes_meet<D>(lo, hi, box.lo + grid.frame_offset, box.hi + grid.frame_offset)) continue;
+      for (std::int32_t k = index.shape_start[i]; k < index.shape_start[i + 1]; ++k) {
+        const int a = index.shapes[k];
+        if (has_manifold(c, a, s, n_shapes)) continue;  // the solver's contact held it
+        const double scale = std::min(c.shape_scale[a], c.shape_scale[s]);
+        const double spec = motion + scale * C::SPECULATIVE_DISTANCE;  // m
+        PairOut<D> out;
+        const int npts = collide_pair(model, c, a, s, scale, spec, out);
+        if (npts == 0) continue;
+        if (room.verts.empty()) room.fit(model.vertex_count());
+        const Impact hit = time_of_impact(model, st, a, s, npts, dt, spec, scale,
+                                          room.verts.data(), room.norms.data(), out);
+        if (hit.points == 0 || hit.t >= first * dt) continue;
+        // met within the step: the search closed the gap (else the impact lies beyond)
+        if (out.separation[nearest_point(out, hit.points)] > scale * C::LINEAR_SLOP) continue;
+        if (held_by_neighbour_at(model, st, c, a, s, out, hit.points)) continue;
+        // how far the body went on into s past the impact (the normal from s to the body)
+        const double f = hit.t / dt;
+        const double on = -(1.0 - f) * dot(out.normal, d.dx);  // m
+        if (on > deep) first = f;
+      }
+    }
+    st.body_v[i] = v_end;
+    if (first < 1.0) {
+      const auto turn = turn_by(first * theta);
+      st.body_x[i] = x_start + first * d.dx;
+      st.body_q[i] = normalize(mul(turn, q_start));
+      if constexpr (D == 2) {
+        st.body_w[i] = w_end;
+        st.body_angle[i] -= (1.0 - first) * theta;
+      } else {
+        // ω from L through the world tensor at the rotation it is put back at, kept with
+        // that rotation for the next step's start (as integrate_positions keeps them)
+        auto& tensor = c.body_inv_inertia_world[i];
+        tensor = world_tensor(st.body_q[i], model.body_inv_inertia[i]);
+        c.body_inertia_q[i] = st.body_q[i];
+        st.body_w[i] = tensor * st.body_l[i];
+      }
+      d.dx = first * d.dx;
+      d.dq = turn;
+      ++moved;
+    } else {
+      st.body_x[i] = x_end;
+      st.body_q[i] = q_end;
+      st.body_w[i] = w_end;
+    }
+  }
+  return moved;
+}
+
+template ContinuousIndex find_continuous_index(const Model<2>&);
+template ContinuousIndex find_continuous_index(const Model<3>&);
+template std::int64_t sweep_fast_bodies(const Model<2>&, State<2>&, Contacts<2>&, const Grid<2>&,
+                                        const ContinuousIndex&, const std::vector<Vec2>&,
+                                        const std::vector<double>&, double);
+template std::int64_t sweep_fast_bodies(const Model<3>&, State<3>&, Contacts<3>&, const Grid<3>&,
+                                        const ContinuousIndex&, const std::vector<Vec3>&,
+                                        const std::vector<Vec3>&, double);
+
+}  // namespace rbsim

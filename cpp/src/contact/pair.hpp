@@ -1,0 +1,32 @@
+// One pair's narrowphase as the manifold stage runs it (manifold.cpp), for a stage that
+// collides a pair of its own (collide/continuous.cpp).
+#pragma once
+
+#include <type_traits>
+
+#include "collide/narrow2d.hpp"
+#include "collide/narrow3d.hpp"
+#include "rbsim/contacts.hpp"
+#include "rbsim/model.hpp"
+#include "rbsim/state.hpp"
+
+namespace rbsim {
+
+template <int D>
+using PairOut = std::conditional_t<D == 2, Manifold2, Manifold3>;
+
+// Shapes a and b at the step's start (the transform stage's world shapes), at the
+// tolerance scale `scale` and speculative distance `spec` (m): the manifold's point count
+// (0: apart beyond spec), its normal from b towards a.
+template <int D>
+int collide_pair(const Model<D>& model, const Contacts<D>& c, int a, int b, double scale,
+                 double spec, PairOut<D>& out);
+
+// Whether the manifold `out` (npts points) of shapes a and b is one the manifold stage
+// drops because a neighbour holds the body there: a static segment's joint with the one
+// that continues it (2D), or a face of a static polytope that others cover.
+template <int D>
+bool held_by_neighbour_at(const Model<D>& model, const State<D>& st, const Contacts<D>& c, int a,
+                          int b, const PairOut<D>& out, int npts);
+
+}  // namespace rbsim
