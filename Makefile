@@ -53,7 +53,7 @@ cpp-test: $(BUILD_DEPS) $(ENGINE)
 # RelWithDebInfo and no strip: nanobind strips Release modules, and reports need line numbers.
 SANITIZE_TESTS ?= tests/test_contacts.py tests/test_contacts_output.py tests/test_hard.py \
 	tests/test_solver_waves.py tests/test_solver_stages.py tests/test_shock_stage.py tests/test_narrowphase.py tests/test_broadphase.py \
-	tests/test_trajectory3d.py tests/test_dynamics3d.py
+	tests/test_trajectory3d.py tests/test_dynamics3d.py tests/test_continuous.py
 SANITIZE_DIR   := build/sanitize
 SANITIZE_ENV    = PYTHONPATH=$(SANITIZE_DIR)/site:$(VENV)/lib/python3.11/site-packages \
 	LD_PRELOAD=$$(g++ -print-file-name=libasan.so):$$(g++ -print-file-name=libubsan.so) \
