@@ -6,9 +6,11 @@
 
 #include "check.hpp"
 #include "scene_builder.hpp"
+#include "scene_builder3d.hpp"
 
 using namespace rbsim;
 using rbsim::test::SceneBuilder;
+using rbsim::test::SceneBuilder3;
 
 namespace {
 
@@ -233,6 +235,55 @@ TEST(a_light_supporter_hands_on_its_travel_not_its_turn) {
     CHECK(w.state.body_v[2].y - 0.5 * w.state.body_w[2] >= -1e-12);
     if (turn == 0.0) CHECK_NEAR(w.state.body_w[2], 0.0, 1e-12);
   }
+}
+
+namespace {
+
+// In space: `n` unit boxes of 1 kg stacked on the ground plane, their contacts found and
+// made rows, the support order found (levels 1 .. n).
+World<3>& stack3(SceneBuilder3& s, int n) {
+  s.plane({0.0, 1.0, 0.0}, 0.0);
+  for (int k = 0; k < n; ++k) s.box({0.0, 0.5 + k, 0.0}, {0.5, 0.5, 0.5}, 1.0);
+  World<3>& w = s.finish();
+  rbsim::test::collide3(w);
+  auto& c = w.contacts;
+  prepare_contacts(w.model, w.state, c, w.config);
+  c.count.shock_count = support_order(w.model, c);
+  for (auto& d : c.body_delta) d = BodyDelta<3>{};
+  return w;
+}
+
+}  // namespace
+
+// A dynamic supporter's rise is not handed on in space: the box on one rising at 1 m/s
+// (pushed from below, as by the solve) is left to the ordinary solve, not lifted with it.
+TEST(a_rising_dynamic_supporter_is_not_handed_on_in_space) {
+  SceneBuilder3 s;
+  World<3>& w = stack3(s, 2);
+  w.state.body_v[1] = {0.0, 1.0, 0.0};
+  const double h = w.config.dt / w.config.substeps;
+  propagate_shock(w.model, w.state, w.contacts, w.contacts.count.shock_count, 1.0 / h, 1.0);
+  CHECK(w.state.body_v[1].y == 1.0);
+  CHECK(w.state.body_v[2].y == 0.0);
+  CHECK(w.state.body_w[2].x == 0.0 && w.state.body_w[2].z == 0.0);
+}
+
+// In a tall stack (support level SHOCK_TALL_LEVEL and up) every approach is taken out; below
+// it one slower than min_approach is left to the soft contacts.
+TEST(in_a_tall_stack_even_a_slow_approach_is_taken_out) {
+  SceneBuilder3 s;
+  const int n = constants::SHOCK_TALL_LEVEL + 1;
+  World<3>& w = stack3(s, n);
+  const double h = w.config.dt / w.config.substeps;
+  const double slow = 0.5 * 9.81 * h;  // m/s: below min_approach, one substep of gravity
+  const int low = 2, high = n;  // bodies at levels 2 and n (body k at level k)
+  CHECK(w.contacts.body_level[low] == 2 && w.contacts.body_level[high] == n);
+  w.state.body_v[low] = {0.0, -slow, 0.0};
+  w.state.body_v[high] = {0.0, -slow, 0.0};
+  propagate_shock(w.model, w.state, w.contacts, w.contacts.count.shock_count, 1.0 / h, 1.0,
+                  9.81 * h);
+  CHECK(w.state.body_v[low].y == -slow);
+  CHECK_NEAR(w.state.body_v[high].y, 0.0, 1e-12);
 }
 
 // deep_approaching: whether a deep overlap the solve pass listed (relax_list[:deep_count])

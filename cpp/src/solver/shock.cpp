@@ -30,6 +30,15 @@
 // weighs the plate as it is. Its travel is handed on (a plate carried up by a kinematic
 // lift lifts what rests on it), and so is all of a static or kinematic supporter's move.
 //
+// Rising supporters (3D): a dynamic supporter's motion towards the body it supports is
+// not handed on, whatever the loads: the pass keeps the supported body from approaching
+// its supporter as if that stood still, and leaves the lifting to the ordinary solve. A
+// body on several supporters is kept off each in turn, and handed every one's rise it
+// rose with the fastest point of any: up a Jenga tower (three blocks a layer, each on
+// three below) a few millimetres a second of rise at its foot, from the solve's blocks,
+// came out at the top as 0.2 m/s in the first step, and the tower fell. A static or
+// kinematic supporter's move is handed on (a lift).
+//
 // The same file finds the solve order of the solver's passes (support level first) and
 // the region around a deep overlap that the relax stage gives extra passes.
 #include <algorithm>
@@ -267,12 +276,25 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
     const Vec3 va = st.body_v[a], vb = st.body_v[b], wa = st.body_w[a], wb = st.body_w[b];
     const SolverRow<3>::Points& P = row.point;
     // each point's normal velocity (m/s), the points in lanes: (ω × r) · n = ω · (r × n)
-    const Lanes vel_l = dot(n, va - vb) + (dot_lanes(wa, P.rna) - dot_lanes(wb, P.rnb));
-    // most supported points are not approaching: skip them before any other work. A load
-    // that would crush its supporter is taken out however slowly it approaches: the soft
+    Lanes vel_l = dot(n, va - vb) + (dot_lanes(wa, P.rna) - dot_lanes(wb, P.rnb));
+    // the supported body moves; the sign turns its push along +n (a) or -n (b)
+    const bool a_moves = c.shock_side[m] == 2;
+    if (model.is_dynamic(a_moves ? b : a)) {
+      // a dynamic supporter's motion towards u at each point is not handed on (rising
+      // supporters, the file's head): u is only kept from approaching it as if it stood
+      const Lanes toward = a_moves ? splat(dot(n, vb)) + dot_lanes(wb, P.rnb)
+                                   : splat(0.0) - (splat(dot(n, va)) + dot_lanes(wa, P.rna));
+      vel_l = vel_l + vmax(toward, splat(0.0));
+    }
+    // most supported points are not approaching: skip them before any other work, at
+    // min_approach, or at any speed in a tall structure (SHOCK_TALL_LEVEL). A load that
+    // would crush its supporter is taken out however slowly it approaches: the soft
     // contacts do not carry it (CRUSH_RATIO)
     const LaneMask live = first_lanes(npts);
-    if (!any((vel_l < -min_approach) & live) &&
+    const double least = c.body_level[a_moves ? a : b] >= C::SHOCK_TALL_LEVEL
+                             ? C::SHOCK_MIN_APPROACH
+                             : min_approach;  // m/s
+    if (!any((vel_l < -least) & live) &&
         !(min_approach > C::SHOCK_MIN_APPROACH && any((vel_l < -C::SHOCK_MIN_APPROACH) & live) &&
           crushing(model, c, m)))
       continue;
@@ -289,8 +311,6 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
     const double moved = dot(n, da.dx - db.dx);  // m
     const Vec3 na = inv_rotate(da.dq, n);
     const Vec3 nb = inv_rotate(db.dq, n);
-    // the supported body moves; the sign turns its push along +n (a) or -n (b)
-    const bool a_moves = c.shock_side[m] == 2;
     const int u = a_moves ? a : b;
     const double sgn = a_moves ? 1.0 : -1.0;
     const double mu = model.body_inv_mass[u];
