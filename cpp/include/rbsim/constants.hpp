@@ -228,14 +228,14 @@ inline constexpr double LINEAR_EPSILON = 1.0e-9;
 // (HEAVY_RATIO), so are those below one substep of gravity, |g| h (step.cpp).
 inline constexpr double SHOCK_COS = 0.7071;
 inline constexpr double SHOCK_MIN_APPROACH = 1.0e-4;
-// In 3D a supported body this many contacts above the ground (its support level) or higher
-// has every approach taken out, however slow: what the relax pass leaves of the solve's
-// push-outs adds up in a tall structure, and left to the soft contacts it drove a
-// slender tower's rocking (a Jenga tower of 10 layers or more at dt 1/60 swayed ever
-// wider and fell, with more energy than it started with). Dimensionless; 4 holds towers
-// of 10 – 30 layers within millimetres; higher costs less in deep heaps (the mixed heap
-// of make bench takes 13% longer a step at 4) and holds fewer (at 6 a tower of 10 layers
-// sways 13 mm; at 8, 32 mm).
+// In 3D a body held by two supporters or more, this many contacts above the ground (its
+// support level) or higher, has every approach taken out in the shock pass, however slow:
+// what the relax pass leaves of the solve's push-outs adds up in a tall structure, and
+// left to the soft contacts it drove a slender tower's rocking (a Jenga tower of 10 layers
+// or more at dt 1/60 swayed ever wider and fell, with more energy than it started with).
+// A column of single bodies does not rock so (a stack of 10 boxes stands still without
+// it). Dimensionless; 4 holds towers of 10 – 30 layers within millimetres; higher costs
+// less in deep heaps and holds fewer (at 6 a tower of 10 layers sways 13 mm; at 8, 32 mm).
 inline constexpr int SHOCK_TALL_LEVEL = 4;
 
 // A contact holds its bodies up (counts for the support levels, shock.cpp) while a point

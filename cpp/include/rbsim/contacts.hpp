@@ -271,6 +271,8 @@ struct Contacts {
   std::vector<double> body_scale;           // (N,) its smallest shape's (1 without shapes)
   // the shock pass and the solve order (shock.cpp)
   std::vector<std::int64_t> body_level;     // (N,)
+  std::vector<std::int32_t> body_supporters;  // (N,) 3D: the manifolds that support each body
+                                              // (support_order sizes it)
   std::vector<std::int8_t> support;         // (M,) 1: a point within SUPPORT_GAP (manifold.cpp)
   std::vector<std::int8_t> prev_support;    // (M,) last step's, as prev_key
   std::vector<double> body_load;            // (N,) kg each body bears (while heavy_on_light)

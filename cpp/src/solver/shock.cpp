@@ -287,13 +287,13 @@ void propagate_shock_3d(const Model<3>& model, State<3>& st, Contacts<3>& c,
       vel_l = vel_l + vmax(toward, splat(0.0));
     }
     // most supported points are not approaching: skip them before any other work, at
-    // min_approach, or at any speed in a tall structure (SHOCK_TALL_LEVEL). A load that
-    // would crush its supporter is taken out however slowly it approaches: the soft
-    // contacts do not carry it (CRUSH_RATIO)
+    // min_approach, or at any speed for a body held by several supporters high in a tall
+    // structure (SHOCK_TALL_LEVEL). A load that would crush its supporter is taken out
+    // however slowly it approaches: the soft contacts do not carry it (CRUSH_RATIO)
     const LaneMask live = first_lanes(npts);
-    const double least = c.body_level[a_moves ? a : b] >= C::SHOCK_TALL_LEVEL
-                             ? C::SHOCK_MIN_APPROACH
-                             : min_approach;  // m/s
+    const int held = a_moves ? a : b;
+    const bool tall = c.body_level[held] >= C::SHOCK_TALL_LEVEL && c.body_supporters[held] >= 2;
+    const double least = tall ? C::SHOCK_MIN_APPROACH : min_approach;  // m/s
     if (!any((vel_l < -least) & live) &&
         !(min_approach > C::SHOCK_MIN_APPROACH && any((vel_l < -C::SHOCK_MIN_APPROACH) & live) &&
           crushing(model, c, m)))
@@ -625,6 +625,13 @@ std::int64_t support_order(const Model<D>& model, Contacts<D>& c) {
     }
   }
   c.heavy_on_light = heavy;
+  if constexpr (D == 3) {
+    // how many manifolds support each body (the shock pass's rule for tall structures)
+    auto& held = c.body_supporters;  // (sized here: a checkpoint does not keep it)
+    held.assign(static_cast<std::size_t>(n_bodies), 0);
+    for (std::int64_t m = 0; m < n_man; ++m)
+      if (side[m] != 0) ++held[side[m] == 2 ? c.body_a[m] : c.body_b[m]];
+  }
   // every manifold, ordered by the lower of its two bodies' levels (ground first, bodies
   // not connected to the ground last): the order of the solver's passes, in which a pass
   // carries a push or a correction up a stack within one sweep

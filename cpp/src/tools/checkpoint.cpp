@@ -60,7 +60,8 @@ void visit(W& w, F&& f) {
   // batches' copies taken anew by the next step's passes; not c.step_impulse,
   // c.shock_impulse, c.shock_points and c.record_impulses: a step's own, set to zero at its
   // start, and the run's setting; not c.body_carried: made anew by each step's
-  // friction_loads before the shock pass reads it; not c.body_row_remade: used
+  // friction_loads before the shock pass reads it; not c.body_supporters: made anew by
+  // each step's support_order; not c.body_row_remade: used
   // within a step; not c.turn_watch: made from the model at allocate, its rotations at each
   // step's start)
 }
@@ -72,9 +73,9 @@ static_assert(sizeof(Grid<2>) == 8 + 16 * VEC + 3 * sizeof(Vec2) + sizeof(GridMe
               "Grid changed: update visit()");
 static_assert(sizeof(Grid<3>) == 8 + 16 * VEC + 3 * sizeof(Vec3) + sizeof(GridMeta<3>),
               "Grid changed: update visit()");
-static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 93 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 94 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
-static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 93 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 94 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
 
 template <class T>
