@@ -239,18 +239,22 @@ TEST(a_light_supporter_hands_on_its_travel_not_its_turn) {
 
 namespace {
 
-// In space: `n` unit boxes of 1 kg stacked on the ground plane, their contacts found and
-// made rows, the support order found (levels 1 .. n).
-World<3>& stack3(SceneBuilder3& s, int n) {
-  s.plane({0.0, 1.0, 0.0}, 0.0);
-  for (int k = 0; k < n; ++k) s.box({0.0, 0.5 + k, 0.0}, {0.5, 0.5, 0.5}, 1.0);
-  World<3>& w = s.finish();
+// The world's contacts found and made rows, the support order found: ready for the shock
+// pass (3D).
+World<3>& ready_for_shock(World<3>& w) {
   rbsim::test::collide3(w);
   auto& c = w.contacts;
   prepare_contacts(w.model, w.state, c, w.config);
   c.count.shock_count = support_order(w.model, c);
   for (auto& d : c.body_delta) d = BodyDelta<3>{};
   return w;
+}
+
+// In space: `n` unit boxes of 1 kg stacked on the ground plane (levels 1 .. n).
+World<3>& stack3(SceneBuilder3& s, int n) {
+  s.plane({0.0, 1.0, 0.0}, 0.0);
+  for (int k = 0; k < n; ++k) s.box({0.0, 0.5 + k, 0.0}, {0.5, 0.5, 0.5}, 1.0);
+  return ready_for_shock(s.finish());
 }
 
 }  // namespace
@@ -279,12 +283,8 @@ TEST(high_on_several_supporters_even_a_slow_approach_is_taken_out) {
   for (const double x : {-0.6, 0.6})
     for (int k = 0; k < n; ++k) s.box({x, 0.5 + k, 0.0}, {0.5, 0.5, 0.5}, 1.0);
   const int plank = s.box({0.0, n + 0.25, 0.0}, {1.5, 0.25, 0.5}, 1.0);
-  World<3>& w = s.finish();
-  rbsim::test::collide3(w);
+  World<3>& w = ready_for_shock(s.finish());
   auto& c = w.contacts;
-  prepare_contacts(w.model, w.state, c, w.config);
-  c.count.shock_count = support_order(w.model, c);
-  for (auto& d : c.body_delta) d = BodyDelta<3>{};
   const int low = 2, top = n;  // the first column's second box and its top box
   CHECK(c.body_level[low] == 2 && c.body_level[top] == n && c.body_level[plank] == n + 1);
   CHECK(c.body_supporters[top] == 1 && c.body_supporters[plank] == 2);
