@@ -30,14 +30,17 @@
 // weighs the plate as it is. Its travel is handed on (a plate carried up by a kinematic
 // lift lifts what rests on it), and so is all of a static or kinematic supporter's move.
 //
-// Rising supporters (3D): a dynamic supporter's motion towards the body it supports is
-// not handed on, whatever the loads: the pass keeps the supported body from approaching
-// its supporter as if that stood still, and leaves the lifting to the ordinary solve. A
-// body on several supporters is kept off each in turn, and handed every one's rise it
-// rose with the fastest point of any: up a Jenga tower (three blocks a layer, each on
-// three below) a few millimetres a second of rise at its foot, from the solve's blocks,
-// came out at the top as 0.2 m/s in the first step, and the tower fell. A static or
-// kinematic supporter's move is handed on (a lift).
+// Rising supporters (3D): no motion of a dynamic supporter towards the body it supports,
+// travel or turn, is handed on, whatever the loads: the pass keeps the supported body
+// from approaching its supporter as if that stood still, and leaves the lifting to the
+// ordinary solve (while a heavy body rests on a light one, the supporter's turn towards
+// it is taken off what is asked as well, as above: a 100 kg crate riding light plates on
+// a belt then never outruns the belt). A body on several supporters
+// is kept off each in turn, and handed every one's rise it rose with the fastest point of
+// any: up a Jenga tower (three blocks a layer, each on three below) a few millimetres a
+// second of rise at its foot, from the solve's blocks, came out at the top as 0.2 m/s in
+// the first step, and the tower fell. A static or kinematic supporter's move is handed on
+// (a lift).
 //
 // The same file finds the solve order of the solver's passes (support level first) and
 // the region around a deep overlap that the relax stage gives extra passes.
