@@ -16,6 +16,17 @@ struct Aabb {
   typename Dim<D>::Vec lo, hi;  // m
 };
 
+// The boxes are apart along some axis (touching boxes overlap).
+template <int D>
+inline bool disjoint(const Aabb<D>& a, const Aabb<D>& b) {
+  if constexpr (D == 2) {
+    return b.lo.x > a.hi.x || a.lo.x > b.hi.x || b.lo.y > a.hi.y || a.lo.y > b.hi.y;
+  } else {
+    return b.lo.x > a.hi.x || a.lo.x > b.hi.x || b.lo.y > a.hi.y || a.lo.y > b.hi.y ||
+           b.lo.z > a.hi.z || a.lo.z > b.hi.z;
+  }
+}
+
 template <int D>
 using Cell = std::array<std::int64_t, D>;
 

@@ -142,6 +142,15 @@ inline Sym3 world_tensor(Quat q, const Sym3& m) {
   return {at(0, 0), at(1, 1), at(2, 2), at(0, 1), at(0, 2), at(1, 2)};
 }
 
+// Bounds without square roots: |v| at most its components' absolute sum (m, m/s, ...);
+// |R - I| of a rotation (the most it moves a point at unit distance from its centre,
+// 2 sin(θ/2)) at most the sum over the unit complex number's (c - 1, s) or twice the
+// quaternion's vector part's.
+inline double norm1(Vec2 v) { return std::fabs(v.x) + std::fabs(v.y); }
+inline double norm1(Vec3 v) { return std::fabs(v.x) + std::fabs(v.y) + std::fabs(v.z); }
+inline double chord(Rot2 q) { return std::fabs(q.c - 1.0) + std::fabs(q.s); }
+inline double chord(Quat q) { return 2.0 * (std::fabs(q.x) + std::fabs(q.y) + std::fabs(q.z)); }
+
 template <int D>
 struct Dim;
 

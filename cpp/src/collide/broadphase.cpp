@@ -55,17 +55,6 @@ inline bool any_less(Vec3 a, Vec3 b) { return a.x < b.x || a.y < b.y || a.z < b.
 inline Vec2 splat(Vec2, double r) { return {r, r}; }
 inline Vec3 splat(Vec3, double r) { return {r, r, r}; }
 
-// The boxes are apart along some axis (touching boxes overlap).
-template <int D>
-inline bool separated(const Aabb<D>& a, const Aabb<D>& b) {
-  if constexpr (D == 2) {
-    return b.lo.x > a.hi.x || a.lo.x > b.hi.x || b.lo.y > a.hi.y || a.lo.y > b.hi.y;
-  } else {
-    return b.lo.x > a.hi.x || a.lo.x > b.hi.x || b.lo.y > a.hi.y || a.lo.y > b.hi.y ||
-           b.lo.z > a.hi.z || a.lo.z > b.hi.z;
-  }
-}
-
 // floor(x) as an integer, for |x| < 2^63: truncate, then step down below a negative
 // non-integer. The same value as the library's floor, without its call (the build
 // targets baseline x86-64, which has no rounding instruction).
@@ -321,7 +310,7 @@ inline std::int64_t pair_with_big(const Model<D>& model, const Grid<D>& grid, st
   for (std::int64_t g = 0; g < n_cand; ++g) {
     const std::int32_t b = a_big ? static_cast<std::int32_t>(g) : grid.big_list[g];
     if (b == a || (moved[b] && b < a)) continue;
-    if (separated<D>(box, grid.shape_fat[b])) continue;
+    if (disjoint<D>(box, grid.shape_fat[b])) continue;
     const std::int32_t body_b = model.shape_body[b];
     if (body_b == body_a || !(dyn_a || model.body_type[body_b] == BodyType::Dynamic)) continue;
     if (count < capacity) keys[count] = pair_key(a, b, n);
@@ -478,7 +467,7 @@ std::int64_t query_moved(const Model<3>& model, Grid<3>& grid) {
             if (!dense && (entry_cell[k][0] != ix || entry_cell[k][1] != iy ||
                            entry_cell[k][2] != iz))
               continue;
-            if (separated<D>(box, entry_fat[k])) continue;
+            if (disjoint<D>(box, entry_fat[k])) continue;
             // the same body, or neither body dynamic (both tags below zero)
             if (entry_tag[k] == tag_a || (tag_a & entry_tag[k]) < 0) continue;
             const std::int32_t b = entry_shape[k];

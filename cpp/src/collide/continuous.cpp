@@ -94,17 +94,11 @@ inline Vec3 turn_of(Quat q) {
   if (s == 0.0) return {};
   return (2.0 * std::atan2(s, q.w) / s) * u;
 }
-// Bounds on them without roots or arcs: |v| at most its components' absolute sum, and
-// the angle θ at most π/2 times the chord |R − I| = 2 |sin(θ/2)| in the plane (at most
-// the sum over (c − 1, s)), π |sin(θ/2)| in space (the vector part's length, at most its
-// components' absolute sum).
-inline double norm1(Vec2 v) { return std::fabs(v.x) + std::fabs(v.y); }
-inline double norm1(Vec3 v) { return std::fabs(v.x) + std::fabs(v.y) + std::fabs(v.z); }
-inline double turn_bound(Rot2 q) {
-  return 0.5 * std::numbers::pi * (std::fabs(q.c - 1.0) + std::fabs(q.s));
-}
-inline double turn_bound(Quat q) {
-  return std::numbers::pi * (std::fabs(q.x) + std::fabs(q.y) + std::fabs(q.z));
+// A bound on the step's turn θ without an arc (rad): π/2 times the chord |R − I| =
+// 2 |sin(θ/2)|, itself at most chord() (math.hpp, with norm1 the bounds without roots).
+template <class Rot>
+inline double turn_bound(Rot q) {
+  return 0.5 * std::numbers::pi * chord(q);
 }
 inline double magnitude(double a) { return std::fabs(a); }
 inline double magnitude(Vec3 a) { return length(a); }
@@ -146,10 +140,7 @@ ContinuousIndex find_continuous_index(const Model<D>& model) {
     const int i = model.shape_body[s];
     if (model.body_type[i] == BodyType::Static) ix.static_shapes.push_back(s);
     ++ix.shape_start[i + 1];
-    double far = 0.0;  // m
-    for (int k = model.shape_vstart[s]; k < model.shape_vstart[s] + model.shape_vcount[s]; ++k)
-      far = std::max(far, length(model.vertex_local[k]));
-    ix.reach[i] = std::max(ix.reach[i], far + model.shape_radius[s]);
+    ix.reach[i] = std::max(ix.reach[i], core_reach(model, s) + model.shape_radius[s]);
     ix.inner[i] = std::min(ix.inner[i], shape_inner(model, s));
   }
   for (int i = 0; i < n; ++i) {

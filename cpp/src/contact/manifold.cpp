@@ -48,15 +48,6 @@ inline double mix(double a, double b, MixRule rule) {
   }
 }
 
-inline bool any_greater(Vec2 a, Vec2 b) { return a.x > b.x || a.y > b.y; }
-inline bool any_greater(Vec3 a, Vec3 b) { return a.x > b.x || a.y > b.y || a.z > b.z; }
-
-// The two tight boxes are apart.
-template <int D>
-inline bool disjoint(const Aabb<D>& a, const Aabb<D>& b) {
-  return any_greater(a.lo, b.hi) || any_greater(b.lo, a.hi);
-}
-
 // A 3D shape as the narrowphase reads it: its world geometry this step (transform.cpp),
 // at the pair's tolerance scale.
 ShapeRef3 world_shape(const Model<3>& model, const Contacts<3>& c, int s, double scale) {

@@ -31,14 +31,8 @@ namespace C = constants;
 
 namespace {
 
-// Bounds without square roots, for a test made on every manifold: |v| at most its
-// components' absolute sum; |R - I| of a rotation (the most it moves a point at unit
-// distance from its centre, 2 sin(θ/2)) at most the sum over the unit complex number's
-// (c - 1, s) or twice the quaternion's vector part's.
-inline double norm1(Vec2 v) { return std::fabs(v.x) + std::fabs(v.y); }
-inline double norm1(Vec3 v) { return std::fabs(v.x) + std::fabs(v.y) + std::fabs(v.z); }
-inline double chord(Rot2 q) { return std::fabs(q.c - 1.0) + std::fabs(q.s); }
-inline double chord(Quat q) { return 2.0 * (std::fabs(q.x) + std::fabs(q.y) + std::fabs(q.z)); }
+// (norm1 and chord, math.hpp: bounds without square roots, for a test made on every
+// manifold)
 
 // How far manifold m's deepest point lies beyond max_overlap (m, times the contact's
 // scale) now, its bodies moved as far as contacts.body_delta says; <= 0 within it.
