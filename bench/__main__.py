@@ -186,13 +186,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "scenes",
         nargs="*",
-        default=SCENES + list(bench3d.SCENES),
-        help=f"bench/scenes/<name>.yaml, or a 3D scene: {', '.join(bench3d.SCENES)}",
+        default=SCENES + list(bench3d.SCENES) + bench3d.EXAMPLES,
+        help=f"bench/scenes/<name>.yaml, or a 3D scene: "
+        f"{', '.join(list(bench3d.SCENES) + bench3d.EXAMPLES)}",
     )
     parser.add_argument("--iterations", type=int, default=10, help="pymunk iterations")
     args = parser.parse_args(argv)
-    scenes2d = [name for name in args.scenes if name not in bench3d.SCENES]
+    three_d = list(bench3d.SCENES) + bench3d.EXAMPLES
+    scenes2d = [name for name in args.scenes if name not in three_d]
     scenes3d = [name for name in args.scenes if name in bench3d.SCENES]
+    examples = [name for name in args.scenes if name in bench3d.EXAMPLES]
     if scenes2d:
         with config.threads_default(1):  # rbsim on one thread, as pymunk
             table2d(scenes2d, args.iterations)
@@ -208,9 +211,10 @@ def main(argv: list[str] | None = None) -> int:
         )
         with config.threads_default(1):
             bench3d.table(scenes3d)
-            if rest := [name for name in bench3d.FROM_REST if name in scenes3d]:
-                print()
-                bench3d.rest_table(rest)
+    if rest := [name for name in bench3d.FROM_REST if name in scenes3d] + examples:
+        print()
+        with config.threads_default(1):
+            bench3d.rest_table(rest)
     return 0
 
 

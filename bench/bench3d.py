@@ -10,7 +10,8 @@ of radius 0.1 m poured into a 4 m box, a 10 × 10 grid of stacks of 3 boxes of 0
 boxes, 50 spheres and 50 capsules of several sizes (every pair kind), and a heap of 120
 convex pebbles (hull against hull: MuJoCo's meshes, PyBullet's convex meshes). FROM_REST of
 them are also timed block by block from step 0 against MuJoCo (rest_table): the
-landing, the impact, what the settled window leaves out.
+landing, the impact, what the settled window leaves out; and so are the project's own 3D
+example scenes (EXAMPLES), each at its own dt.
 
 Each engine steps the scene from rest: WARMUP steps (untimed), then REPEATS timed blocks
 of STEPS steps, the engines' blocks taken in turn (rbsim's, MuJoCo's, PyBullet's, and
@@ -51,10 +52,11 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from rbsim.engines import make_engine
-from rbsim.scene import Scene, load_scene_text
+from rbsim.scene import Scene, load_scene, load_scene_text
 from rbsim.scene import types as T
 from rbsim.scene.compile import Model, State, build
 from rbsim.scene.geometry3d import quat_matrix
+from rbsim.scene.library import scenes_dir
 from rbsim.tools.measure import interleaved_block_times, median_ratio
 
 from . import the_round
@@ -279,6 +281,12 @@ SCENES: dict[str, Callable[[], str]] = {
 # scenes also timed from rest, block by block (rest_table): what the settled window after
 # WARMUP leaves out (the landing of a heap, a wall standing and then struck)
 FROM_REST = ["tumble100", "capsules200", "wall96", "stack10", "mixed150", "pebbles120"]
+# The project's own 3D example scenes (scenes/3d/), timed from rest the same way at their
+# own dt: what a user meets first, beside the bench's heaps at 1/240 s. The collapsing
+# pile (39 bodies, dt 1/120) read 0.38 - 1.15 of MuJoCo's time block by block on
+# 2026-12-06, where the bench's scenes read 0.11 - 0.73: a small scene's contacts chain
+# one on another (a face solved on its own costs about twice its share of a lane's)
+EXAMPLES = ["collapsing_pile"]
 REST_BLOCKS = 8  # blocks of STEPS steps from step 0: the first 2 s
 # runs from rest of each scene, each in fresh engines, run k on the scene with gravity
 # changed by k parts in 10⁹ (bench.the_round: a landing heap is chaotic, and one
@@ -295,7 +303,10 @@ STANDING = {"stack10", "pyramid55", "stacks3x100"}
 
 
 def load(name: str, overrides: list[str] | None = None) -> Scene:
-    """The bench scene `name` (a key of SCENES), resolved."""
+    """The bench scene `name` (a key of SCENES, or of EXAMPLES: scenes/3d/<name>.yaml),
+    resolved."""
+    if name in EXAMPLES:
+        return load_scene(scenes_dir("3d", f"{name}.yaml"), overrides or ())
     return load_scene_text(SCENES[name](), f"bench3d/{name}.yaml", overrides or ())
 
 
@@ -638,7 +649,7 @@ def rest_table(names: list[str] | None = None) -> list[str]:
         f"median",
     ]
     print(lines[0], flush=True)
-    for name in names or FROM_REST:
+    for name in names or FROM_REST + EXAMPLES:
         scene = load(name)
         runs = []
         for k in range(REST_RUNS):
@@ -646,8 +657,10 @@ def rest_table(names: list[str] | None = None) -> list[str]:
             samples = interleaved_block_times(engines, 0, STEPS, REST_BLOCKS, time.thread_time)
             runs.append([a / b for a, b in zip(*samples, strict=True)])
         ratios = [statistics.median(block) for block in zip(*runs, strict=True)]
-        line = f"{name:<13}" + " ".join(f"{r:5.2f}" for r in ratios)
+        line = f"{name:<16}" + " ".join(f"{r:5.2f}" for r in ratios)
         line += f"   median {statistics.median(ratios):.2f}, worst {max(ratios):.2f}"
+        if name in EXAMPLES:
+            line += f"   (scenes/3d/{name}.yaml at its dt, {scene.world.dt:.4g} s)"
         print(line, flush=True)
         lines.append(line)
     return lines

@@ -413,6 +413,9 @@ bool World<D>::step() {
   if (torn || stop_here()) return false;
   auto& c = contacts;
   using S = StageId;
+  // whether the passes have anything to solve: a step without a manifold (bodies in
+  // flight) only moves them, through the same integrator calls
+  const bool touching = contacts_on && c.count.manifolds > 0;
   for (auto& d : c.body_delta) d = BodyDelta<D>{};
   // the velocities the contacts were found at, for the sweep at the step's end
   const bool sweeping = contacts_on && !continuous_index.static_shapes.empty();
@@ -475,14 +478,14 @@ bool World<D>::step() {
   for (int sub = 0; sub < cfg.substeps; ++sub) {
     if (cfg.explicit_euler) timed(S::IntegratePositions, move);
     timed(S::IntegrateVelocities, accelerate);
-    if (contacts_on) {
+    if (touching) {
       timed(S::WarmStart, [&] { warm_start_pass(); });
       c.count.deep_count = 0;
       timed(S::Solve, [&] {
         for (int it = 0; it < cfg.iterations; ++it) solve_pass(inv_h, true, 0.0, threshold);
       });
     }
-    if (contacts_on && c.heavy_on_light) {
+    if (touching && c.heavy_on_light) {
       // a heavy body on a light one: its approach is taken out before the positions move.
       // In 3D only an impact's: an approach no faster than a step of gravity gives is a
       // resting load, which the soft contacts carry (taken out here too, its impulse, kept
@@ -490,7 +493,7 @@ bool World<D>::step() {
       const double impact = D == 3 ? g_norm * cfg.dt : C::SHOCK_MIN_APPROACH;  // m/s
       timed(S::Shock, [&] { shock_pass(inv_h, threshold, impact); });
     }
-    if (contacts_on && c.count.deep_count > 0 &&
+    if (touching && c.count.deep_count > 0 &&
         deep_approaching(state, c, C::SHOCK_MIN_APPROACH)) {
       // a deep overlap (DEEP_OVERLAP) comes out of the solve pass still closing: the pass
       // solves ground first, and a deep contact's push-out above drives the bodies below it
@@ -510,13 +513,13 @@ bool World<D>::step() {
       timed(S::DeepSolve, [&] { deep_solve(inv_h, threshold); });
     }
     if (!cfg.explicit_euler) {
-      if (contacts_on && cfg.elastic) {
+      if (touching && cfg.elastic) {
         give_impulses(c);
         keep_solve_impulses(c);
       }
       timed(S::IntegratePositions, move);
     }
-    if (contacts_on) {
+    if (touching) {
       timed(S::Relax, [&] {
         for (int it = 0; it < cfg.iterations; ++it) solve_pass(inv_h, false, shift, threshold);
       });
@@ -566,10 +569,12 @@ bool World<D>::step() {
     if (contacts_on) c.body_inertia_q = state.body_q;
   }
   if (contacts_on) {
-    timed(S::OverlapLimit, [&] {
-      limit_dynamic_overlap(model, state, c, C::DYNAMIC_OVERLAP_LIMIT, C::OVERLAP_LIMIT_PASSES);
-      limit_static_overlap(model, state, c, C::STATIC_OVERLAP_LIMIT);
-    });
+    if (touching) {
+      timed(S::OverlapLimit, [&] {
+        limit_dynamic_overlap(model, state, c, C::DYNAMIC_OVERLAP_LIMIT, C::OVERLAP_LIMIT_PASSES);
+        limit_static_overlap(model, state, c, C::STATIC_OVERLAP_LIMIT);
+      });
+    }
     if (sweeping) {
       // a body that went further than its contacts reached: swept against the static
       // shapes, and put back before one it went into (collide/continuous.cpp). After the
