@@ -64,8 +64,6 @@ RBSIM_FLAT_LAYOUT(Sym3, double, 6)
 RBSIM_FLAT_LAYOUT(SolverRow<2>, double, 32)
 RBSIM_FLAT_LAYOUT(Aabb<2>, double, 4)
 RBSIM_FLAT_LAYOUT(Aabb<3>, double, 6)
-RBSIM_FLAT_LAYOUT(Dim<2>::RefPose, double, 3)
-RBSIM_FLAT_LAYOUT(Dim<3>::RefPose, double, 7)
 RBSIM_FLAT_LAYOUT(BodyDelta<2>, double, 4)
 RBSIM_FLAT_LAYOUT(BodyDelta<3>, double, 7)
 RBSIM_FLAT_LAYOUT(ContactCounts, std::int64_t, 12)
@@ -77,10 +75,8 @@ struct Layout<BodyType> : Layout<std::int8_t> {};
 template <>
 struct Layout<ShapeKind> : Layout<std::int32_t> {};
 
-static_assert(sizeof(Dim<2>::RefPose) == 3 * sizeof(double));
 static_assert(sizeof(BodyDelta<2>) == 4 * sizeof(double));
 static_assert(sizeof(GridMeta<2>) == 7 * sizeof(std::int64_t));
-static_assert(sizeof(Dim<3>::RefPose) == 7 * sizeof(double));
 static_assert(sizeof(BodyDelta<3>) == 7 * sizeof(double));
 static_assert(sizeof(GridMeta<3>) == 9 * sizeof(std::int64_t));
 static_assert(sizeof(ContactCounts) == 12 * sizeof(std::int64_t));
@@ -160,7 +156,8 @@ nb::dict storage(World<D>& w, nb::handle owner) {
   RBSIM_VIEW(approach_separation) RBSIM_VIEW(max_normal_impulse) RBSIM_VIEW(prev_key)
   RBSIM_VIEW(prev_points) RBSIM_VIEW(prev_feature) RBSIM_VIEW(prev_normal_impulse)
   RBSIM_VIEW(prev_tangent_impulse) RBSIM_VIEW(prev_normal) RBSIM_VIEW(prev_anchor_a)
-  RBSIM_VIEW(prev_anchor_b) RBSIM_VIEW(prev_ref_separation) RBSIM_VIEW(body_ref)
+  RBSIM_VIEW(prev_anchor_b) RBSIM_VIEW(prev_ref_separation) RBSIM_VIEW(ref_offset)
+  RBSIM_VIEW(prev_ref_offset) RBSIM_VIEW(body_ref_turn)
   RBSIM_VIEW(body_delta) RBSIM_VIEW(vert_world)
   RBSIM_VIEW(norm_world) RBSIM_VIEW(shape_margin) RBSIM_VIEW(body_level) RBSIM_VIEW(support)
   RBSIM_VIEW(body_load) RBSIM_VIEW(shock_side)

@@ -54,8 +54,9 @@ TEST(warm_start_matches_points_by_feature_id) {
   CHECK(c.normal_impulse[0][1] == 0.0 && c.tangent_impulse[0][1] == 0.0);
 }
 
-// Bodies within STILL_DISTANCE of their reference poses keep last step's manifold: the
-// same points and impulses, marked carried, the separation moved by the bodies' motion.
+// A pair of bodies that has moved less than STILL_DISTANCE one against the other since its
+// manifold was found, neither turned, keeps last step's manifold: the same points and
+// impulses, marked carried, the separation moved by their relative motion.
 TEST(still_bodies_carry_their_manifold_with_separation_moved) {
   SceneBuilder s;
   s.ground();
@@ -86,9 +87,62 @@ TEST(still_bodies_carry_their_manifold_with_separation_moved) {
   store_impulses(c);
   w.state.body_x[box].y += 2.0 * constants::STILL_DISTANCE;
   rbsim::test::collide(w);
-  CHECK(!c.body_still[box]);
+  CHECK(c.body_still[box]);  // (it has not turned: the pair's offset is what moved)
   CHECK(c.carried[0] == 0);
   CHECK(c.normal_impulse[0][0] == 1.0);  // still warm-started, by id
+  // a turn past STILL_ANGLE runs it again too, however little the box moved
+  store_impulses(c);
+  rbsim::test::collide(w);
+  CHECK(c.carried[0] == 1);
+  store_impulses(c);
+  w.state.body_angle[box] += 2.0 * constants::STILL_ANGLE;
+  w.state.body_q[box] = {std::cos(w.state.body_angle[box]), std::sin(w.state.body_angle[box])};
+  rbsim::test::collide(w);
+  CHECK(!c.body_still[box]);
+  CHECK(c.carried[0] == 0);
+}
+
+// Two boxes that move together, one resting on the other (a stack riding a belt, or
+// swaying as one), keep their manifold however far they go, its separations unchanged;
+// once they move one against the other by more than STILL_DISTANCE it is found again.
+TEST(a_pair_moving_as_one_carries_its_manifold) {
+  SceneBuilder s;
+  const int low = s.box({0.0, 0.5}, 0.5, 0.5, 1.0);
+  const int top = s.box({0.0, 1.5}, 0.5, 0.5, 1.0);
+  World<2>& w = s.finish();
+  auto& c = w.contacts;
+  rbsim::test::collide(w);
+  CHECK(c.count.manifolds == 1 && c.points[0] == 2);
+  c.normal_impulse[0] = {1.0, 2.0};
+  store_impulses(c);
+  auto separation = [&](int k) {
+    return c.base_separation[0][k] + dot(c.normal[0], c.anchor_a[0][k] - c.anchor_b[0][k]);
+  };
+  const double sep0 = separation(0), sep1 = separation(1);
+  for (int step = 0; step < 3; ++step) {
+    // 0.01 m a step, a hundred times STILL_DISTANCE, both boxes alike
+    for (const int b : {low, top}) w.state.body_x[b] = w.state.body_x[b] + Vec2{0.01, -0.004};
+    rbsim::test::collide(w);
+    CHECK(c.carried[0] == 1);
+    CHECK(c.normal_impulse[0][0] == 1.0 && c.normal_impulse[0][1] == 2.0);
+    CHECK_NEAR(separation(0), sep0, 1e-15);  // (the offset's rounding)
+    CHECK_NEAR(separation(1), sep1, 1e-15);
+    store_impulses(c);
+  }
+  // the top box lifted by half STILL_DISTANCE against the other: still carried, the
+  // separations opened by that much
+  w.state.body_x[top].y += 0.5 * constants::STILL_DISTANCE;
+  rbsim::test::collide(w);
+  CHECK(c.carried[0] == 1);
+  CHECK_NEAR(separation(0), sep0 + 0.5 * constants::STILL_DISTANCE, 1e-15);
+  store_impulses(c);
+  // and by as much again: found anew (the two together have moved a full STILL_DISTANCE
+  // apart since it was found)
+  w.state.body_x[top].y += 0.5 * constants::STILL_DISTANCE;
+  rbsim::test::collide(w);
+  CHECK(c.carried[0] == 0);
+  CHECK_NEAR(separation(0), sep0 + constants::STILL_DISTANCE, 1e-12);
+  CHECK(c.normal_impulse[0][0] == 1.0);  // warm-started by id
 }
 
 // The contact's friction and restitution mix the two shapes' by the scene's rule.

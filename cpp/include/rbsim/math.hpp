@@ -165,11 +165,9 @@ struct Dim<2> {
   using Inertia = double;
   // a contact point's friction impulse: along the manifold's one tangent (N·s)
   using Tangent = double;
-  // the pose a body is compared with to tell whether it moved: position and unwrapped angle
-  struct RefPose {
-    Vec2 x;
-    double angle = 0.0;
-  };
+  // the rotation a body is compared with to tell whether it turned: its unwrapped angle
+  // (rad). Whether it moved is told pair by pair (Contacts::ref_offset)
+  using RefTurn = double;
   static constexpr Ang angular_zero() { return 0.0; }
   // world-frame inverse inertia times an angular quantity: in the plane, a scalar product
   static constexpr Ang apply_inv_inertia(double inv_i, Rot2, Ang a) { return inv_i * a; }
@@ -186,10 +184,7 @@ struct Dim<3> {
   // a contact point's friction impulse: a world-frame vector in the tangent plane (N·s),
   // so that warm starting needs no tangent basis carried from step to step
   using Tangent = Vec3;
-  struct RefPose {
-    Vec3 x;
-    Quat q;
-  };
+  using RefTurn = Quat;  // (q and −q alike)
   static constexpr Ang angular_zero() { return {}; }
   // ω = R I_b⁻¹ Rᵀ a: the body-frame inverse tensor applied in the world frame
   static Ang apply_inv_inertia(const Sym3& inv_i, Quat q, Ang a) {

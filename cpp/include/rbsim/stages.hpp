@@ -88,10 +88,11 @@ void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>&
 // a heap at rest; bodies at rest beside a few moving ones keep theirs.
 template <int D>
 typename Dim<D>::Vec frame_move(const Model<D>& model, const Contacts<D>& contacts);
-// collide/transform.cpp: which bodies of the range are still near their reference pose
-// (contacts.body_still); a body that is not takes its pose as the new reference. The step
-// does this once its pairs are found, so that a step the contact store grew for and began
-// again compares the bodies with the same reference poses as a step without the growth.
+// collide/transform.cpp: which bodies of the range are still near their reference
+// rotation (contacts.body_still); a body that is not takes its rotation as the new
+// reference. The step does this once its pairs are found, so that a step the contact
+// store grew for and began again compares the bodies with the same references as a step
+// without the growth.
 template <int D>
 void take_still_poses(const State<D>& state, Contacts<D>& contacts, Span bodies);
 

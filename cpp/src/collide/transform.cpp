@@ -8,10 +8,10 @@
 // frame's move (frame_move: the dynamic bodies' median move), a static shape's by
 // |frame|, and a dynamic shape's box by dt² |a| more (its acceleration over the step):
 // the boxes of two shapes still meet wherever their surfaces can, and those of a heap
-// falling as one are as tight as at rest. A body
-// within STILL_DISTANCE and STILL_ANGLE of its reference pose is "still": its contacts
-// may be carried from the last step; one that left it re-takes the reference pose here,
-// and its contacts are recomputed.
+// falling as one are as tight as at rest. A body within STILL_ANGLE of its reference
+// rotation is "still": its contacts may be carried from the last step (those whose two
+// bodies have not moved one against the other either: narrow_pairs); one that turned
+// further re-takes its rotation as the reference here, and its contacts are recomputed.
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -53,32 +53,25 @@ inline LanesXYZ world_points(Vec3 x, const Mat3& m, const LanesXYZ& l) {
 inline double magnitude(double w) { return std::fabs(w); }
 inline double magnitude(Vec3 w) { return length(w); }
 
-// Whether body i is within STILL_DISTANCE (m, times the body's scale) and STILL_ANGLE
-// (rad) of its reference pose; if not, the pose becomes its reference. In 2D the angle is
-// compared as the unwrapped angle; in 3D as the angle of the rotation q ref⁻¹ between
-// the two poses, 2 asin |vector part of q ref*| (q and −q alike).
-inline bool near_reference(Dim<2>::RefPose& ref, const State<2>& state, std::size_t i,
-                           double scale) {
-  const Vec2 d = state.body_x[i] - ref.x;
-  const double still = scale * C::STILL_DISTANCE;  // m
-  const bool near = d.x * d.x + d.y * d.y < still * still &&
-                    std::fabs(state.body_angle[i] - ref.angle) < C::STILL_ANGLE;
-  if (!near) ref = {state.body_x[i], state.body_angle[i]};
+// Whether body i is within STILL_ANGLE (rad) of its reference rotation; if not, its
+// rotation becomes the reference. In 2D the angle is compared as the unwrapped angle; in
+// 3D as the angle of the rotation q ref⁻¹ between the two, 2 asin |vector part of q ref*|
+// (q and −q alike).
+inline bool near_reference(Dim<2>::RefTurn& ref, const State<2>& state, std::size_t i) {
+  const bool near = std::fabs(state.body_angle[i] - ref) < C::STILL_ANGLE;
+  if (!near) ref = state.body_angle[i];
   return near;
 }
-inline bool near_reference(Dim<3>::RefPose& ref, const State<3>& state, std::size_t i,
-                           double scale) {
-  const Vec3 d = state.body_x[i] - ref.x;
-  const double still = scale * C::STILL_DISTANCE;  // m
+inline bool near_reference(Dim<3>::RefTurn& ref, const State<3>& state, std::size_t i) {
   const Quat q = state.body_q[i];
-  const Quat turn = mul(q, Quat{ref.q.w, -ref.q.x, -ref.q.y, -ref.q.z});
+  const Quat turn = mul(q, Quat{ref.w, -ref.x, -ref.y, -ref.z});
   // sin²(θ/2) of the turn θ since the reference pose, against that of STILL_ANGLE (its
   // series to s⁵: the next term is below 1e-30 of it)
   constexpr double s = 0.5 * C::STILL_ANGLE;
   constexpr double sin_s = s - s * s * s / 6.0 + s * s * s * s * s / 120.0;
   const double turned = turn.x * turn.x + turn.y * turn.y + turn.z * turn.z;
-  const bool near = dot(d, d) < still * still && turned < sin_s * sin_s;
-  if (!near) ref = {state.body_x[i], q};
+  const bool near = turned < sin_s * sin_s;
+  if (!near) ref = q;
   return near;
 }
 
@@ -97,7 +90,7 @@ template <int D>
 void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
                       double dt) {
   transform_shapes(model, state, contacts, dt, frame_move(model, contacts),
-                   Span{0, static_cast<std::int64_t>(contacts.body_ref.size())},
+                   Span{0, static_cast<std::int64_t>(contacts.body_ref_turn.size())},
                    Span{0, model.shape_count()});
 }
 
@@ -139,10 +132,10 @@ typename Dim<D>::Vec frame_move(const Model<D>& model, const Contacts<D>& contac
 
 template <int D>
 void take_still_poses(const State<D>& state, Contacts<D>& contacts, Span bodies) {
-  auto& ref = contacts.body_ref;
+  auto& ref = contacts.body_ref_turn;
   auto& still = contacts.body_still;
   for (auto i = static_cast<std::size_t>(bodies.first); i < static_cast<std::size_t>(bodies.last); ++i)
-    still[i] = near_reference(ref[i], state, i, contacts.body_scale[i]);
+    still[i] = near_reference(ref[i], state, i);
 }
 
 template <int D>

@@ -31,6 +31,7 @@ std::int64_t store_impulses(Contacts<D>& c, Span manifolds) {
     c.prev_key[i] = c.key[i];
     c.prev_points[i] = c.points[i];
     c.prev_normal[i] = c.normal[i];
+    c.prev_ref_offset[i] = c.ref_offset[i];
     for (int k = 0; k < c.points[i]; ++k) {
       c.prev_anchor_a[i][k] = c.anchor_a[i][k];
       c.prev_anchor_b[i][k] = c.anchor_b[i][k];
