@@ -172,11 +172,13 @@ inline constexpr double CONTINUOUS_FRACTION = 0.5;
 inline constexpr double DYNAMIC_OVERLAP_LIMIT = 0.01;
 inline constexpr int OVERLAP_LIMIT_PASSES = 4;
 
-// A body that has moved less than this since its contacts were computed keeps them: the
-// narrowphase is skipped for pairs of such bodies and their manifolds are carried
-// forward (separations updated from the motion). m (times the body's smallest shape's
-// scale, SCALE_LENGTH) and rad; the geometry error this allows (1e-4 m in a lever arm,
-// 1e-4 rad in a normal) is far below LINEAR_SLOP. Zero turns the reuse off.
+// A pair of bodies that has moved less than STILL_DISTANCE one against the other since
+// its contact was computed, neither turning more than STILL_ANGLE, keeps it: the
+// narrowphase is skipped and the manifold carried forward (separations updated from the
+// relative move; a move of the two together changes nothing in it). m (times the smaller
+// body's smallest shape's scale, SCALE_LENGTH) and rad; the geometry error this allows
+// (1e-4 m in a lever arm, 1e-4 rad in a normal) is far below LINEAR_SLOP. Zero turns the
+// reuse off.
 inline constexpr double STILL_DISTANCE = 1.0e-4;
 inline constexpr double STILL_ANGLE = 1.0e-4;
 
