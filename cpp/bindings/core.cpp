@@ -157,7 +157,8 @@ nb::dict storage(World<D>& w, nb::handle owner) {
   RBSIM_VIEW(prev_points) RBSIM_VIEW(prev_feature) RBSIM_VIEW(prev_normal_impulse)
   RBSIM_VIEW(prev_tangent_impulse) RBSIM_VIEW(prev_normal) RBSIM_VIEW(prev_anchor_a)
   RBSIM_VIEW(prev_anchor_b) RBSIM_VIEW(prev_ref_separation) RBSIM_VIEW(ref_offset)
-  RBSIM_VIEW(prev_ref_offset) RBSIM_VIEW(body_ref_turn)
+  RBSIM_VIEW(prev_ref_offset)
+  RBSIM_VIEW(ref_turn_a) RBSIM_VIEW(ref_turn_b)
   RBSIM_VIEW(body_delta) RBSIM_VIEW(vert_world)
   RBSIM_VIEW(norm_world) RBSIM_VIEW(shape_margin) RBSIM_VIEW(body_level) RBSIM_VIEW(support)
   RBSIM_VIEW(body_load) RBSIM_VIEW(shock_side)
@@ -194,7 +195,6 @@ nb::dict storage(World<D>& w, nb::handle owner) {
   d["segment_order"] = view(c.segment_order, owner);
   d["segment_wave"] = view(c.segment_wave, owner);
   d["segment_shock"] = view(c.segment_shock, owner);
-  d["body_still"] = view(c.body_still, owner, true);
   auto& g = w.grid;
   nb::dict gd;
   gd["inv_cell"] = view(&g.inv_cell, 1, owner, false);

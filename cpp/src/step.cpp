@@ -329,18 +329,13 @@ bool World<D>::collide() {
       auto scaled = [n](std::int64_t k, std::int64_t total) { return k * total / n; };
       transform_shapes(model, state, c, cfg.dt, frame,
                        Span{scaled(part.first, n_bodies), scaled(part.last, n_bodies)},
-                       Span{scaled(part.first, n_shapes), scaled(part.last, n_shapes)}, false);
+                       Span{scaled(part.first, n_shapes), scaled(part.last, n_shapes)});
     });
   });
   std::int64_t n_pairs = 0;
   timed(S::FindPairs, [&] { n_pairs = find_pairs(model, grid, c); });
   c.count.pairs = n_pairs;
   if (n_pairs > c.capacity() || n_pairs > pair_limit()) return false;
-  // the reference poses only now: a step begun again once the store has grown must not
-  // find them already moved on (its bodies would then be still, their contacts carried)
-  timed(S::Transform, [&] {
-    parallel(model.body_count(), [&](Span part) { take_still_poses(state, c, part); });
-  });
   if (stop_here()) return true;  // torn: advance ends the call
   timed(S::UpdateManifolds, [&] {
     // the narrowphase pair by pair on the threads, each manifold's slot (a prefix count in

@@ -74,7 +74,6 @@ TEST(still_bodies_carry_their_manifold_with_separation_moved) {
   const double dy = -0.5 * constants::STILL_DISTANCE;  // m: sinks a little
   w.state.body_x[box].y += dy;
   rbsim::test::collide(w);
-  CHECK(c.body_still[box]);
   CHECK(c.carried[0] == 1);
   CHECK(c.normal[0].x == n0.x && c.normal[0].y == n0.y);
   CHECK(c.normal_impulse[0][0] == 1.0 && c.start_impulse[0][1] == 2.0);
@@ -87,19 +86,66 @@ TEST(still_bodies_carry_their_manifold_with_separation_moved) {
   store_impulses(c);
   w.state.body_x[box].y += 2.0 * constants::STILL_DISTANCE;
   rbsim::test::collide(w);
-  CHECK(c.body_still[box]);  // (it has not turned: the pair's offset is what moved)
   CHECK(c.carried[0] == 0);
   CHECK(c.normal_impulse[0][0] == 1.0);  // still warm-started, by id
-  // a turn past STILL_ANGLE runs it again too, however little the box moved
+  // a turn past STILL_ANGLE since the manifold was found runs it again too, however
+  // little the box moved, in two turns of 0.6 STILL_ANGLE as in one
+  auto turn_box = [&](double by) {
+    w.state.body_angle[box] += by;
+    w.state.body_q[box] = {std::cos(w.state.body_angle[box]), std::sin(w.state.body_angle[box])};
+  };
   store_impulses(c);
   rbsim::test::collide(w);
   CHECK(c.carried[0] == 1);
   store_impulses(c);
-  w.state.body_angle[box] += 2.0 * constants::STILL_ANGLE;
-  w.state.body_q[box] = {std::cos(w.state.body_angle[box]), std::sin(w.state.body_angle[box])};
+  turn_box(0.6 * constants::STILL_ANGLE);
   rbsim::test::collide(w);
-  CHECK(!c.body_still[box]);
+  CHECK(c.carried[0] == 1);
+  CHECK(c.ref_turn_a[0] + c.ref_turn_b[0] == 0.0);  // (the box's and the ground's when found)
+  store_impulses(c);
+  turn_box(0.6 * constants::STILL_ANGLE);
+  rbsim::test::collide(w);
   CHECK(c.carried[0] == 0);
+  const double now = w.state.body_angle[box];
+  CHECK((c.body_a[0] == box ? c.ref_turn_a[0] : c.ref_turn_b[0]) == now);  // taken anew
+  store_impulses(c);
+  turn_box(0.6 * constants::STILL_ANGLE);
+  rbsim::test::collide(w);
+  CHECK(c.carried[0] == 1);
+}
+
+// In space as in the plane: a box resting on the ground keeps its manifold through a turn
+// of 0.6 STILL_ANGLE (about any axis) and finds it again once it has turned 1.2 since it
+// was found; q and −q are one rotation.
+TEST(a_manifold_in_space_is_found_again_after_a_turn_past_still_angle) {
+  SceneBuilder3 s;
+  s.plane({0.0, 1.0, 0.0}, 0.0);
+  const int box = s.box({0, 0.5, 0}, {0.5, 0.5, 0.5}, 1.0);
+  World<3>& w = s.finish();
+  auto& c = w.contacts;
+  auto step = [&] {
+    rbsim::test::collide3(w);
+    store_impulses(c);
+  };
+  // the rotation by `angle` (rad) about the unit axis (1, 2, 0.5) / |.|
+  auto turned = [](double angle) {
+    const double k = 1.0 / std::sqrt(1.0 + 4.0 + 0.25), h = 0.5 * angle;
+    return Quat{std::cos(h), std::sin(h) * k, std::sin(h) * 2.0 * k, std::sin(h) * 0.5 * k};
+  };
+  step();
+  CHECK(c.count.manifolds == 1 && c.carried[0] == 0);
+  step();
+  CHECK(c.carried[0] == 1);
+  w.state.body_q[box] = turned(0.6 * constants::STILL_ANGLE);
+  step();
+  CHECK(c.carried[0] == 1);
+  w.state.body_q[box] = turned(1.2 * constants::STILL_ANGLE);
+  step();
+  CHECK(c.carried[0] == 0);
+  const Quat q = w.state.body_q[box];
+  w.state.body_q[box] = Quat{-q.w, -q.x, -q.y, -q.z};  // the same rotation
+  step();
+  CHECK(c.carried[0] == 1);
 }
 
 // Two boxes that move together, one resting on the other (a stack riding a belt, or

@@ -70,34 +70,6 @@ TEST(speculative_reach_is_dt_times_surface_speed) {
   CHECK_NEAR(c.shape_margin[box], length(step_box - frame) + fall + 0.05, EPS);
 }
 
-// A body is still while within STILL_ANGLE of the rotation it had when it last turned;
-// one that turns further takes its new rotation as the reference. Its moves do not count
-// here (they are told pair by pair: narrow_pairs, ref_offset).
-TEST(body_is_still_only_near_its_reference_rotation) {
-  SceneBuilder s;
-  s.ground();
-  const int b = s.box({0, 0.5}, 0.5, 0.5, 1.0);
-  World<2>& w = s.finish();
-  auto& c = w.contacts;
-  transform_shapes(w.model, w.state, c, w.config.dt);
-  CHECK(!c.body_still[b]);  // no reference pose yet (NaN)
-  transform_shapes(w.model, w.state, c, w.config.dt);
-  CHECK(c.body_still[b]);
-  w.state.body_angle[b] += 0.5 * constants::STILL_ANGLE;
-  transform_shapes(w.model, w.state, c, w.config.dt);
-  CHECK(c.body_still[b]);
-  CHECK(c.body_ref_turn[b] == 0.0);  // the reference did not follow
-  w.state.body_x[b].x += 10.0 * constants::STILL_DISTANCE;  // a move alone: still
-  transform_shapes(w.model, w.state, c, w.config.dt);
-  CHECK(c.body_still[b]);
-  w.state.body_angle[b] += constants::STILL_ANGLE;  // 1.5 STILL_ANGLE from it
-  transform_shapes(w.model, w.state, c, w.config.dt);
-  CHECK(!c.body_still[b]);
-  CHECK(c.body_ref_turn[b] == w.state.body_angle[b]);  // re-taken
-  transform_shapes(w.model, w.state, c, w.config.dt);
-  CHECK(c.body_still[b]);
-}
-
 // ---- 3D ------------------------------------------------------------------------------
 
 namespace {
@@ -168,34 +140,6 @@ TEST(speculative_reach_in_space_is_dt_times_surface_speed) {
   CHECK_NEAR(c.shape_margin[ball], length(step - frame) + fall, EPS);
   const Vec3 step_box{0.0, 0.01, 0.0};
   CHECK_NEAR(c.shape_margin[box], length(step_box - frame) + fall + 0.05, EPS);
-}
-
-// Still in space: within a turn of STILL_ANGLE (about any axis; q and −q are one
-// rotation) of the reference rotation, however far it moved.
-TEST(body_in_space_is_still_only_near_its_reference_rotation) {
-  SceneBuilder3 s;
-  s.plane({0.0, 1.0, 0.0}, 0.0);
-  const int b = s.box({0, 0.5, 0}, {0.5, 0.5, 0.5}, 1.0);
-  World<3>& w = s.finish();
-  auto& c = w.contacts;
-  transform_shapes(w.model, w.state, c, w.config.dt);
-  CHECK(!c.body_still[b]);  // no reference pose yet (NaN)
-  transform_shapes(w.model, w.state, c, w.config.dt);
-  CHECK(c.body_still[b]);
-  w.state.body_x[b].z += 10.0 * constants::STILL_DISTANCE;  // a move alone: still
-  w.state.body_q[b] = turn(normalize_axis({0.0, 1.0, 1.0}), 0.5 * constants::STILL_ANGLE);
-  transform_shapes(w.model, w.state, c, w.config.dt);
-  CHECK(c.body_still[b]);
-  const Quat neg{-w.state.body_q[b].w, -w.state.body_q[b].x, -w.state.body_q[b].y, -w.state.body_q[b].z};
-  w.state.body_q[b] = neg;  // the same pose
-  transform_shapes(w.model, w.state, c, w.config.dt);
-  CHECK(c.body_still[b]);
-  w.state.body_q[b] = turn(normalize_axis({1.0, 0.0, 0.0}), 1.5 * constants::STILL_ANGLE);
-  transform_shapes(w.model, w.state, c, w.config.dt);
-  CHECK(!c.body_still[b]);
-  CHECK(c.body_ref_turn[b].x == w.state.body_q[b].x);  // re-taken
-  transform_shapes(w.model, w.state, c, w.config.dt);
-  CHECK(c.body_still[b]);
 }
 
 RBSIM_TEST_MAIN

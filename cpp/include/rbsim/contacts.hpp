@@ -210,10 +210,12 @@ struct Contacts {
   std::vector<PerPoint<Vec>> sep_anchor_a, sep_anchor_b;
   std::vector<PerPoint<double>> base_separation;    // m: separation minus the anchors' part
   std::vector<PerPoint<double>> ref_separation;     // m: with the bodies at ref_offset
-  // m: x_a − x_b (the two bodies' COMs) when the manifold's geometry was found: a pair of
-  // bodies that has not moved one against the other since, nor turned, carries it
-  // forward (narrow_pairs), its separation changed by their relative move
+  // m: x_a − x_b (the two bodies' COMs) when the manifold's geometry was found, and each
+  // body's rotation then: a pair of bodies that has not moved one against the other since
+  // (STILL_DISTANCE), nor turned (STILL_ANGLE), carries it forward (narrow_pairs), its
+  // separation changed by their relative move
   std::vector<Vec> ref_offset;
+  std::vector<typename Dim<D>::RefTurn> ref_turn_a, ref_turn_b;
   std::vector<double> start_separation;             // m: its deepest point's at the step's start
   std::vector<PerPoint<std::int64_t>> feature;      // feature ids
   std::vector<PerPoint<double>> normal_impulse;     // N·s, per substep
@@ -237,9 +239,8 @@ struct Contacts {
   std::vector<PerPoint<Vec>> prev_sep_anchor_a, prev_sep_anchor_b;
   std::vector<PerPoint<double>> prev_ref_separation;
   std::vector<Vec> prev_ref_offset;
+  std::vector<typename Dim<D>::RefTurn> prev_ref_turn_a, prev_ref_turn_b;
   // per body (N,)
-  std::vector<typename Dim<D>::RefTurn> body_ref_turn;  // reference rotation; NaN until first taken
-  std::vector<std::uint8_t> body_still;  // within STILL_ANGLE of its reference rotation
   std::vector<BodyDelta<D>> body_delta;  // motion since the step's start
   // 3D (2D: empty): 1/(kg·m²), each body's inverse inertia tensor in world axes at its
   // rotation now, R I_b⁻¹ Rᵀ (world_inertia at the step's start, integrate_positions when
@@ -384,7 +385,7 @@ bool Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   reset(key, m); reset(normal, m); reset(points, m); reset(friction, m); reset(restitution, m);
   reset(scale, m);
   reset(anchor_a, m); reset(anchor_b, m); reset(base_separation, m); reset(ref_separation, m);
-  reset(ref_offset, m);
+  reset(ref_offset, m); reset(ref_turn_a, m); reset(ref_turn_b, m);
   reset(start_separation, m);
   reset(sep_anchor_a, m); reset(sep_anchor_b, m);
   reset(feature, m); reset(normal_impulse, m); reset(start_impulse, m);
@@ -393,14 +394,10 @@ bool Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   reset(prev_key, m); reset(prev_points, m); reset(prev_feature, m);
   reset(prev_normal_impulse, m); reset(prev_tangent_impulse, m); reset(prev_normal, m);
   reset(prev_anchor_a, m); reset(prev_anchor_b, m); reset(prev_ref_separation, m);
-  reset(prev_ref_offset, m);
+  reset(prev_ref_offset, m); reset(prev_ref_turn_a, m); reset(prev_ref_turn_b, m);
   reset(prev_sep_anchor_a, m); reset(prev_sep_anchor_b, m);
   constexpr double nan = std::numeric_limits<double>::quiet_NaN();
-  typename Dim<D>::RefTurn unset{};
-  if constexpr (D == 2) unset = nan;
-  else unset = {nan, nan, nan, nan};
-  body_ref_turn.assign(n, unset);
-  reset(body_still, n); reset(body_delta, n); reset(body_inv_inertia_world, D == 3 ? n : 0);
+  reset(body_delta, n); reset(body_inv_inertia_world, D == 3 ? n : 0);
   reset(body_inertia_q, D == 3 ? n : 0);
   reset(body_row_remade, D == 3 ? n : 0);
   for (auto& q : body_inertia_q)  // (not made yet: NaN, which equals no rotation)
@@ -467,6 +464,8 @@ bool Contacts<D>::grow(std::int64_t new_capacity, const std::function<bool()>* s
     prev_anchor_b[i] = old.prev_anchor_b[i];
     prev_ref_separation[i] = old.prev_ref_separation[i];
     prev_ref_offset[i] = old.prev_ref_offset[i];
+    prev_ref_turn_a[i] = old.prev_ref_turn_a[i];
+    prev_ref_turn_b[i] = old.prev_ref_turn_b[i];
     prev_sep_anchor_a[i] = old.prev_sep_anchor_a[i];
     prev_sep_anchor_b[i] = old.prev_sep_anchor_b[i];
     prev_support[i] = old.prev_support[i];
@@ -475,8 +474,6 @@ bool Contacts<D>::grow(std::int64_t new_capacity, const std::function<bool()>* s
   face_offset = std::move(old.face_offset);
   shape_spread = std::move(old.shape_spread);
   turn_watch = std::move(old.turn_watch);
-  body_ref_turn = std::move(old.body_ref_turn);
-  body_still = std::move(old.body_still);
   shape_size = std::move(old.shape_size);
   shape_scale = std::move(old.shape_scale);
   body_scale = std::move(old.body_scale);

@@ -165,8 +165,8 @@ struct Dim<2> {
   using Inertia = double;
   // a contact point's friction impulse: along the manifold's one tangent (N·s)
   using Tangent = double;
-  // the rotation a body is compared with to tell whether it turned: its unwrapped angle
-  // (rad). Whether it moved is told pair by pair (Contacts::ref_offset)
+  // a body's rotation as a manifold keeps it, to tell whether the body has turned since
+  // the manifold was found: its unwrapped angle (rad) (Contacts::ref_turn_a)
   using RefTurn = double;
   static constexpr Ang angular_zero() { return 0.0; }
   // world-frame inverse inertia times an angular quantity: in the plane, a scalar product
@@ -184,7 +184,7 @@ struct Dim<3> {
   // a contact point's friction impulse: a world-frame vector in the tangent plane (N·s),
   // so that warm starting needs no tangent basis carried from step to step
   using Tangent = Vec3;
-  using RefTurn = Quat;  // (q and −q alike)
+  using RefTurn = Quat;  // (Contacts::ref_turn_a; q and −q alike)
   static constexpr Ang angular_zero() { return {}; }
   // ω = R I_b⁻¹ Rᵀ a: the body-frame inverse tensor applied in the world frame
   static Ang apply_inv_inertia(const Sym3& inv_i, Quat q, Ang a) {

@@ -69,17 +69,15 @@ void set_contact_softness(Config& config);
 
 // collide/transform.cpp: world vertices and normals of every shape, how far each can move
 // in the step (contacts.shape_margin, shape_turn: |dt v - frame| + dt² |a| + dt |ω| r and
-// dt |ω| r), and which bodies are still near their reference pose.
+// dt |ω| r), and in 3D each body's world inverse inertia tensor.
 template <int D>
 void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
                       double dt);
 // The same for the bodies and the shapes of two ranges (one thread's part), the boxes'
-// reach about the frame's move `frame` (m, frame_move's); with still_poses false, without
-// finding which bodies are still (take_still_poses does that).
+// reach about the frame's move `frame` (m, frame_move's).
 template <int D>
 void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
-                      double dt, const typename Dim<D>::Vec& frame, Span bodies, Span shapes,
-                      bool still_poses = true);
+                      double dt, const typename Dim<D>::Vec& frame, Span bodies, Span shapes);
 // collide/transform.cpp: the median move (m) of the dynamic bodies in the last step
 // (contacts.body_delta, before the step resets it) along each axis (the lower middle one
 // of an even count; zero without dynamic bodies): how far the frame of the shapes' boxes
@@ -88,13 +86,6 @@ void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>&
 // a heap at rest; bodies at rest beside a few moving ones keep theirs.
 template <int D>
 typename Dim<D>::Vec frame_move(const Model<D>& model, const Contacts<D>& contacts);
-// collide/transform.cpp: which bodies of the range are still near their reference
-// rotation (contacts.body_still); a body that is not takes its rotation as the new
-// reference. The step does this once its pairs are found, so that a step the contact
-// store grew for and began again compares the bodies with the same references as a step
-// without the growth.
-template <int D>
-void take_still_poses(const State<D>& state, Contacts<D>& contacts, Span bodies);
 
 // collide/transform.cpp: each convex shape's hull topology from model.face_local (once,
 // when a 3D world is built), and the rows of Contacts::face_world they need. Returns

@@ -1,5 +1,5 @@
 // The shapes in the world for this step: world vertices and normals of every shape, each
-// shape's speculative reach, and which bodies are still near their reference pose.
+// shape's speculative reach (3D: and each body's world inverse inertia tensor).
 //
 // The reach (m) is how far the shape's surface can move in one step, dt (|v| + |ω| r)
 // with r the farthest core vertex from the centre of mass, so that contacts are created
@@ -8,10 +8,7 @@
 // frame's move (frame_move: the dynamic bodies' median move), a static shape's by
 // |frame|, and a dynamic shape's box by dt² |a| more (its acceleration over the step):
 // the boxes of two shapes still meet wherever their surfaces can, and those of a heap
-// falling as one are as tight as at rest. A body within STILL_ANGLE of its reference
-// rotation is "still": its contacts may be carried from the last step (those whose two
-// bodies have not moved one against the other either: narrow_pairs); one that turned
-// further re-takes its rotation as the reference here, and its contacts are recomputed.
+// falling as one are as tight as at rest.
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -53,28 +50,6 @@ inline LanesXYZ world_points(Vec3 x, const Mat3& m, const LanesXYZ& l) {
 inline double magnitude(double w) { return std::fabs(w); }
 inline double magnitude(Vec3 w) { return length(w); }
 
-// Whether body i is within STILL_ANGLE (rad) of its reference rotation; if not, its
-// rotation becomes the reference. In 2D the angle is compared as the unwrapped angle; in
-// 3D as the angle of the rotation q ref⁻¹ between the two, 2 asin |vector part of q ref*|
-// (q and −q alike).
-inline bool near_reference(Dim<2>::RefTurn& ref, const State<2>& state, std::size_t i) {
-  const bool near = std::fabs(state.body_angle[i] - ref) < C::STILL_ANGLE;
-  if (!near) ref = state.body_angle[i];
-  return near;
-}
-inline bool near_reference(Dim<3>::RefTurn& ref, const State<3>& state, std::size_t i) {
-  const Quat q = state.body_q[i];
-  const Quat turn = mul(q, Quat{ref.w, -ref.x, -ref.y, -ref.z});
-  // sin²(θ/2) of the turn θ since the reference pose, against that of STILL_ANGLE (its
-  // series to s⁵: the next term is below 1e-30 of it)
-  constexpr double s = 0.5 * C::STILL_ANGLE;
-  constexpr double sin_s = s - s * s * s / 6.0 + s * s * s * s * s / 120.0;
-  const double turned = turn.x * turn.x + turn.y * turn.y + turn.z * turn.z;
-  const bool near = turned < sin_s * sin_s;
-  if (!near) ref = q;
-  return near;
-}
-
 // |a| (m/s²) of body i: gravity (|g| given) and its constant force over its mass for a
 // dynamic body, zero for the others. A body let go at rest above a floor has no speed
 // yet, and may fall far in the step under a strong gravity: its box reaches that far too.
@@ -90,7 +65,7 @@ template <int D>
 void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
                       double dt) {
   transform_shapes(model, state, contacts, dt, frame_move(model, contacts),
-                   Span{0, static_cast<std::int64_t>(contacts.body_ref_turn.size())},
+                   Span{0, static_cast<std::int64_t>(model.body_count())},
                    Span{0, model.shape_count()});
 }
 
@@ -131,20 +106,10 @@ typename Dim<D>::Vec frame_move(const Model<D>& model, const Contacts<D>& contac
 }
 
 template <int D>
-void take_still_poses(const State<D>& state, Contacts<D>& contacts, Span bodies) {
-  auto& ref = contacts.body_ref_turn;
-  auto& still = contacts.body_still;
-  for (auto i = static_cast<std::size_t>(bodies.first); i < static_cast<std::size_t>(bodies.last); ++i)
-    still[i] = near_reference(ref[i], state, i);
-}
-
-template <int D>
 void transform_shapes(const Model<D>& model, const State<D>& state, Contacts<D>& contacts,
-                      double dt, const typename Dim<D>::Vec& frame, Span bodies, Span shapes,
-                      bool still_poses) {
+                      double dt, const typename Dim<D>::Vec& frame, Span bodies, Span shapes) {
   // (frame: m, the frame's move this step)
   using Vec = typename Dim<D>::Vec;
-  if (still_poses) take_still_poses(state, contacts, bodies);
   if constexpr (D == 3) world_inertia(model, state, contacts, bodies);
   const double frame_reach = length(frame);  // m: a static shape's
   const double g_norm = length(model.gravity);  // m/s²
@@ -557,12 +522,8 @@ template void transform_shapes(const Model<3>&, const State<3>&, Contacts<3>&, d
 template Vec2 frame_move(const Model<2>&, const Contacts<2>&);
 template Vec3 frame_move(const Model<3>&, const Contacts<3>&);
 template void transform_shapes(const Model<2>&, const State<2>&, Contacts<2>&, double,
-                               const Vec2&, Span, Span,
-                               bool);
+                               const Vec2&, Span, Span);
 template void transform_shapes(const Model<3>&, const State<3>&, Contacts<3>&, double,
-                               const Vec3&, Span, Span,
-                               bool);
-template void take_still_poses(const State<2>&, Contacts<2>&, Span);
-template void take_still_poses(const State<3>&, Contacts<3>&, Span);
+                               const Vec3&, Span, Span);
 
 }  // namespace rbsim

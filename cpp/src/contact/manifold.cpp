@@ -10,11 +10,15 @@
 // slot (merge_manifolds); every part writes only its own pairs' rows. A pair of bodies
 // that have not moved one against the other since its manifold was found (their offset
 // within STILL_DISTANCE of the manifold's, ref_offset) nor turned (each within
-// STILL_ANGLE of its reference rotation: body_still) carries last step's manifold
-// forward instead: only its separation changes, by their relative move. A stack or a
-// pyramid swaying as one (a base-40 pyramid's top rows sway by tens of micrometres a step
-// for seconds while it settles, its rows together) keeps its manifolds so (56 - 69% of
-// them were carried with each body held to its own place, 94 - 100% by pairs). A
+// STILL_ANGLE of its rotation then, ref_turn_a and ref_turn_b) carries last step's
+// manifold forward instead: only its separation changes, by their relative move. A stack
+// or a pyramid swaying as one (a base-40 pyramid's top rows sway by tens of micrometres a
+// step for seconds while it settles, its rows together) keeps its manifolds so (56 - 69%
+// of them were carried with each body held to its own place, 99 - 100% by pairs). A
+// normal is never more than STILL_ANGLE stale: held to a reference rotation of each body
+// (taken again only once the body had turned past it), a carried normal could be twice
+// that, and the resting pyramids' contacts still approached after the relax pass, which
+// doubled the shock pass's work on pyramid-20.
 // speculative pair that meets within the step is moved to its time of impact first
 // (collide/toi.cpp).
 //
@@ -450,6 +454,24 @@ inline bool near_offset(const State<D>& st, const Contacts<D>& c, int ba, int bb
   return length_squared(d) < still * still;
 }
 
+// Whether a body at rotation q (2D: its unwrapped angle, rad) is within STILL_ANGLE of
+// ref, its rotation when a manifold was found. In 3D by the angle of the turn q ref⁻¹,
+// 2 asin |vector part of q ref*| (q and −q alike).
+inline bool near_turn(double angle, double ref) { return std::fabs(angle - ref) < C::STILL_ANGLE; }
+inline bool near_turn(const Quat& q, const Quat& ref) {
+  const Quat turn = mul(q, Quat{ref.w, -ref.x, -ref.y, -ref.z});
+  // sin²(θ/2) of the turn θ, against that of STILL_ANGLE (its series to s⁵: the next term
+  // is below 1e-30 of it)
+  constexpr double s = 0.5 * C::STILL_ANGLE;
+  constexpr double sin_s = s - s * s * s / 6.0 + s * s * s * s * s / 120.0;
+  return turn.x * turn.x + turn.y * turn.y + turn.z * turn.z < sin_s * sin_s;
+}
+
+// A body's rotation as a manifold keeps it (ref_turn_a, ref_turn_b): 2D its unwrapped
+// angle, 3D its quaternion.
+inline double turn_of(const State<2>& st, int i) { return st.body_angle[i]; }
+inline Quat turn_of(const State<3>& st, int i) { return st.body_q[i]; }
+
 // The store's key of the pair of shapes a < b, of n_shapes: a · S + b, in the order of the
 // pair list (the order of last step's manifolds too, prev_key).
 inline std::int64_t pair_key(std::int64_t n_shapes, int a, int b) { return a * n_shapes + b; }
@@ -484,11 +506,13 @@ void narrow_pairs(const Model<D>& model, const State<D>& st, const Contacts<D>& 
     const int a = c.pairs[p][0], b = c.pairs[p][1];
     if (disjoint<D>(box[a], box[b])) continue;  // near in the fat boxes only: out of reach
     const int ba = model.shape_body[a], bb = model.shape_body[b];
-    if (c.body_still[ba] && c.body_still[bb]) {
+    {
       // last step's manifold of a still pair is carried: no narrowphase
       const std::int64_t key = pair_key(n_shapes, a, b);
       while (j < n_prev && prev[j] < key) ++j;
-      if (j < n_prev && prev[j] == key && near_offset(st, c, ba, bb, c.prev_ref_offset[j])) {
+      if (j < n_prev && prev[j] == key && near_turn(turn_of(st, ba), c.prev_ref_turn_a[j]) &&
+          near_turn(turn_of(st, bb), c.prev_ref_turn_b[j]) &&
+          near_offset(st, c, ba, bb, c.prev_ref_offset[j])) {
         found_points[p] = FOUND_CARRIED;
         continue;
       }
@@ -620,6 +644,8 @@ MergeFlags merge_manifolds(const Model<D>& model, const State<D>& st, Contacts<D
       n = c.prev_normal[j];
       npts = c.prev_points[j];
       c.ref_offset[m] = c.prev_ref_offset[j];
+      c.ref_turn_a[m] = c.prev_ref_turn_a[j];
+      c.ref_turn_b[m] = c.prev_ref_turn_b[j];
       const Vec dd = offset - c.prev_ref_offset[j];  // m: their relative move since found
       for (int k = 0; k < npts; ++k) {
         c.anchor_a[m][k] = c.prev_anchor_a[j][k];
@@ -644,6 +670,8 @@ MergeFlags merge_manifolds(const Model<D>& model, const State<D>& st, Contacts<D
       if (npts == 0) continue;
       const PairManifold<D>& f = found[p];
       c.ref_offset[m] = offset;  // (its separations' reference: ref_separation = start)
+      c.ref_turn_a[m] = turn_of(st, ba);
+      c.ref_turn_b[m] = turn_of(st, bb);
       const double radius_a = model.shape_radius[a], radius_b = model.shape_radius[b];  // m
       const double t = f.t;  // s: the impact's time (narrow_pairs), 0 for most pairs
       n = f.normal;

@@ -32,6 +32,8 @@ std::int64_t store_impulses(Contacts<D>& c, Span manifolds) {
     c.prev_points[i] = c.points[i];
     c.prev_normal[i] = c.normal[i];
     c.prev_ref_offset[i] = c.ref_offset[i];
+    c.prev_ref_turn_a[i] = c.ref_turn_a[i];
+    c.prev_ref_turn_b[i] = c.ref_turn_b[i];
     for (int k = 0; k < c.points[i]; ++k) {
       c.prev_anchor_a[i][k] = c.anchor_a[i][k];
       c.prev_anchor_b[i][k] = c.anchor_b[i][k];

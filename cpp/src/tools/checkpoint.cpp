@@ -8,18 +8,18 @@
 namespace rbsim {
 namespace {
 
-// The last byte is the format: C since each manifold keeps the bodies' offset it was
-// found at and each body only its reference rotation (B: a solver row, and a batch's
-// lanes, keep the row's friction load and the counts whether any row holds one; A: the
-// contact store keeps each manifold's deepest separation at the step's start and the
-// dynamic overlap limit's list; 9: a 2D batch holds its manifolds' impulses while the
-// passes run, WideBatch::n0 ...; 8: the contact store keeps each hull's plane offsets and
-// vertex spread and no longer the time of impact's room; 7: a solver row, and a 2D
-// batch's lanes, keeps the distance within which its points touch and have friction; 6:
-// the contact store keeps which manifolds touch and the load each body bears; 5 and
-// before: without them; a checkpoint of another format is refused with a message saying
-// so).
-constexpr char MAGIC[8] = {'R', 'B', 'S', 'I', 'M', 'C', 'K', 'C'};
+// The last byte is the format: D since each manifold keeps the bodies' offset and
+// rotations it was found at, and no body a reference pose (C: the offset only, each body
+// a reference rotation; B: a solver row, and a batch's lanes, keep the row's friction
+// load and the counts whether any row holds one; A: the contact store keeps each
+// manifold's deepest separation at the step's start and the dynamic overlap limit's list;
+// 9: a 2D batch holds its manifolds' impulses while the passes run, WideBatch::n0 ...; 8:
+// the contact store keeps each hull's plane offsets and vertex spread and no longer the
+// time of impact's room; 7: a solver row, and a 2D batch's lanes, keeps the distance
+// within which its points touch and have friction; 6: the contact store keeps which
+// manifolds touch and the load each body bears; 5 and before: without them; a checkpoint
+// of another format is refused with a message saying so).
+constexpr char MAGIC[8] = {'R', 'B', 'S', 'I', 'M', 'C', 'K', 'D'};
 
 // Every member of the world that changes while it runs, in one fixed order. A member
 // added to State, Grid or Contacts must be added here too: the static_asserts on their
@@ -43,10 +43,11 @@ void visit(W& w, F&& f) {
   f(c.approach_velocity), f(c.approach_separation), f(c.max_normal_impulse), f(c.prev_key);
   f(c.prev_points), f(c.prev_feature), f(c.prev_normal_impulse), f(c.prev_tangent_impulse);
   f(c.prev_normal), f(c.prev_anchor_a), f(c.prev_anchor_b), f(c.prev_ref_separation);
-  f(c.ref_offset), f(c.prev_ref_offset);
+  f(c.ref_offset), f(c.prev_ref_offset), f(c.ref_turn_a), f(c.ref_turn_b);
+  f(c.prev_ref_turn_a), f(c.prev_ref_turn_b);
   f(c.sep_anchor_a), f(c.sep_anchor_b), f(c.prev_sep_anchor_a), f(c.prev_sep_anchor_b);
   f(c.scale), f(c.shape_size), f(c.shape_scale), f(c.body_scale);
-  f(c.body_ref_turn), f(c.body_still), f(c.body_delta), f(c.body_inv_inertia_world);
+  f(c.body_delta), f(c.body_inv_inertia_world);
   f(c.body_inertia_q);
   f(c.vert_world), f(c.norm_world), f(c.face_world), f(c.face_offset), f(c.shape_spread);
   f(c.shape_margin), f(c.shape_turn);
@@ -76,9 +77,9 @@ static_assert(sizeof(Grid<2>) == 8 + 16 * VEC + 3 * sizeof(Vec2) + sizeof(GridMe
               "Grid changed: update visit()");
 static_assert(sizeof(Grid<3>) == 8 + 16 * VEC + 3 * sizeof(Vec3) + sizeof(GridMeta<3>),
               "Grid changed: update visit()");
-static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 96 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<2>) == sizeof(ContactCounts) + 98 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
-static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 96 * VEC + 8 + 8 + 8,
+static_assert(sizeof(Contacts<3>) == sizeof(ContactCounts) + 98 * VEC + 8 + 8 + 8,
               "Contacts changed: update visit()");
 
 template <class T>
