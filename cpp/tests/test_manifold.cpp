@@ -18,6 +18,13 @@ using namespace rbsim;
 using rbsim::test::SceneBuilder;
 using rbsim::test::SceneBuilder3;
 
+// A unit box of 1 kg resting on the ground plane y = 0 (3D): the world, its body in `box`.
+inline World<3>& box_on_plane(SceneBuilder3& s, int& box) {
+  s.plane({0.0, 1.0, 0.0}, 0.0);
+  box = s.box({0.0, 0.5, 0.0}, {0.5, 0.5, 0.5}, 1.0);
+  return s.finish();
+}
+
 // A box on the ground, its last step's points listed in the other order and one id
 // unknown: each point takes the impulses of last step's point with its feature id, and
 // a point whose id was not there starts from zero.
@@ -119,9 +126,8 @@ TEST(still_bodies_carry_their_manifold_with_separation_moved) {
 // was found; q and −q are one rotation.
 TEST(a_manifold_in_space_is_found_again_after_a_turn_past_still_angle) {
   SceneBuilder3 s;
-  s.plane({0.0, 1.0, 0.0}, 0.0);
-  const int box = s.box({0, 0.5, 0}, {0.5, 0.5, 0.5}, 1.0);
-  World<3>& w = s.finish();
+  int box = 0;
+  World<3>& w = box_on_plane(s, box);
   auto& c = w.contacts;
   auto step = [&] {
     rbsim::test::collide3(w);
@@ -274,9 +280,8 @@ bool same_tangent(const T& a, const T& b) { return std::memcmp(&a, &b, sizeof(T)
 // impulses of last step's point with its id (listed in another order).
 TEST(box_on_plane_has_four_points_with_stable_ids_and_carried_impulses) {
   SceneBuilder3 s;
-  s.plane({0.0, 1.0, 0.0}, 0.0);
-  const int box = s.box({0.0, 0.5, 0.0}, {0.5, 0.5, 0.5}, 1.0);
-  World<3>& w = s.finish();
+  int box = 0;
+  World<3>& w = box_on_plane(s, box);
   auto& c = w.contacts;
   CHECK(test::collide3(w) == 1);
   CHECK(c.points[0] == 4 && c.shape_a[0] == 0 && c.shape_b[0] == 1);
