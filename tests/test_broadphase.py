@@ -130,8 +130,8 @@ def test_a_falling_shape_is_queried_again_every_few_steps_not_every_step() -> No
 
 def test_a_step_begun_again_after_the_store_grew_gives_the_same_bits() -> None:
     # a step that finds the contact store too small grows it and begins again; that
-    # step must compare its bodies with the same reference poses (whether a body is
-    # still, and its contacts carried) as in a world whose store was large from the start
+    # step must carry the same contacts (its manifolds compared with the offsets and
+    # rotations they were found at) as in a world whose store was large from the start
     scene = load_scene(ROOT / "bench/scenes/rain800.yaml")  # its store first grows at step 89
     small, large = World.from_scene(scene), World.from_scene(scene)
     large.engine.grow(1 << 16)

@@ -70,7 +70,7 @@ TEST(still_bodies_carry_their_manifold_with_separation_moved) {
   const int box = s.box({0.0, 0.5}, 0.5, 0.5, 1.0);
   World<2>& w = s.finish();
   auto& c = w.contacts;
-  rbsim::test::collide(w);  // takes the reference pose
+  rbsim::test::collide(w);  // finds the manifold: its offset and rotations
   c.normal_impulse[0] = {1.0, 2.0};
   store_impulses(c);
   auto separation = [&](int k) {
@@ -362,14 +362,13 @@ TEST(sphere_over_plane_has_one_point_at_its_gap) {
 }
 
 // Still bodies in space keep their manifold (carried), the separation moved by the
-// bodies' motion since their reference poses.
+// bodies' relative motion since it was found.
 TEST(still_bodies_in_space_carry_their_manifold) {
   SceneBuilder3 s;
-  s.plane({0.0, 1.0, 0.0}, 0.0);
-  const int box = s.box({0.0, 0.5, 0.0}, {0.5, 0.5, 0.5}, 1.0);
-  World<3>& w = s.finish();
+  int box = 0;
+  World<3>& w = box_on_plane(s, box);
   auto& c = w.contacts;
-  test::collide3(w);  // takes the reference pose
+  test::collide3(w);  // finds the manifold: its offset and rotations
   c.normal_impulse[0] = {1.0, 2.0, 3.0, 4.0};
   store_impulses(c);
   w.state.body_x[box].y -= 0.5 * constants::STILL_DISTANCE;

@@ -1,5 +1,4 @@
-// collide/transform.cpp: world geometry of every shape, its speculative reach, and which
-// bodies are still near their reference pose.
+// collide/transform.cpp: world geometry of every shape and its speculative reach.
 #include <bit>
 #include <cmath>
 #include <cstdint>

@@ -18,9 +18,8 @@
 // normal is never more than STILL_ANGLE stale: held to a reference rotation of each body
 // (taken again only once the body had turned past it), a carried normal could be twice
 // that, and the resting pyramids' contacts still approached after the relax pass, which
-// doubled the shock pass's work on pyramid-20.
-// speculative pair that meets within the step is moved to its time of impact first
-// (collide/toi.cpp).
+// doubled the shock pass's work on pyramid-20. A speculative pair that meets within the
+// step is moved to its time of impact first (collide/toi.cpp).
 //
 // In 3D the narrowphase is collide/narrow3d.cpp's, on each shape's world geometry from
 // the transform stage (ShapeRef3), with up to four points per manifold; a fast pair's
@@ -506,16 +505,14 @@ void narrow_pairs(const Model<D>& model, const State<D>& st, const Contacts<D>& 
     const int a = c.pairs[p][0], b = c.pairs[p][1];
     if (disjoint<D>(box[a], box[b])) continue;  // near in the fat boxes only: out of reach
     const int ba = model.shape_body[a], bb = model.shape_body[b];
-    {
-      // last step's manifold of a still pair is carried: no narrowphase
-      const std::int64_t key = pair_key(n_shapes, a, b);
-      while (j < n_prev && prev[j] < key) ++j;
-      if (j < n_prev && prev[j] == key && near_turn(turn_of(st, ba), c.prev_ref_turn_a[j]) &&
-          near_turn(turn_of(st, bb), c.prev_ref_turn_b[j]) &&
-          near_offset(st, c, ba, bb, c.prev_ref_offset[j])) {
-        found_points[p] = FOUND_CARRIED;
-        continue;
-      }
+    // last step's manifold of a still pair is carried: no narrowphase
+    const std::int64_t key = pair_key(n_shapes, a, b);
+    while (j < n_prev && prev[j] < key) ++j;
+    if (j < n_prev && prev[j] == key && near_turn(turn_of(st, ba), c.prev_ref_turn_a[j]) &&
+        near_turn(turn_of(st, bb), c.prev_ref_turn_b[j]) &&
+        near_offset(st, c, ba, bb, c.prev_ref_offset[j])) {
+      found_points[p] = FOUND_CARRIED;
+      continue;
     }
     // the contact tolerances' scale: the smaller shape's (constants.hpp, SCALE_LENGTH)
     const double scale = std::min(c.shape_scale[a], c.shape_scale[b]);

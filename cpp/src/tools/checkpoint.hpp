@@ -1,7 +1,8 @@
 // A world's whole changing state as bytes, and back: the checkpoint a resumed run starts
 // from. It holds the state, the step index, the broadphase and the contact store (warm
-// start impulses, the contact cache, reference poses, scratch), so that a world restored
-// from it takes the next steps bit-identically to the world it was saved from. The model
+// start impulses, the contact cache with the offsets and rotations it was found at,
+// scratch), so that a world restored from it takes the next steps bit-identically to the
+// world it was saved from. The model
 // and the settings are not in it: they come from the scene, and the checkpoint records
 // only the sizes they fix (bodies, shapes, vertices), which load_checkpoint checks.
 #pragma once
