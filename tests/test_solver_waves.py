@@ -36,9 +36,7 @@ STATE = ("body_x", "body_q", "body_angle", "body_v", "body_w")
 
 
 def _copy(src: CoreWorld, dst: CoreWorld) -> None:
-    capacity = src.contacts.key.shape[0]
-    if dst.contacts.key.shape[0] != capacity:
-        dst.engine.grow(capacity)
+    dst.engine.grow_store(src.contacts.key.shape[0], src.contacts.pairs.shape[0])
     s, d = src.engine.storage(), dst.engine.storage()
     for name, arr in s.items():
         if name != "grid":

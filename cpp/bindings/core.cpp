@@ -934,6 +934,10 @@ nb::class_<World<D>> bind_world(nb::module_& mod, const char* name, const char* 
       .def("step", &W::step, "One step; False when the contact store must grow first.")
       .def("grow", [](W& w, std::int64_t capacity) { w.grow(capacity); }, "capacity"_a,
            "Room for `capacity` manifolds and pairs.")
+      .def("grow_store", [](W& w, std::int64_t manifolds, std::int64_t pairs) {
+             w.grow_store(manifolds, pairs);
+           }, "manifolds"_a, "pairs"_a,
+           "Room for at least `manifolds` manifolds and `pairs` pairs (what lacks it grows).")
       .def_prop_ro("contact_count", &W::contact_count)
       .def_rw("step_index", &W::step_index)
       .def("pair_limit", &W::pair_limit,

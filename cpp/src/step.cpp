@@ -84,7 +84,7 @@ void World<D>::allocate() {
 
 template <int D>
 void World<D>::size_pair_buffers() {
-  const std::int64_t capacity = contacts.capacity();
+  const std::int64_t capacity = contacts.pair_capacity();
   found.resize(capacity);  // (a pair's narrowphase result each)
   found_points.resize(capacity);
   found_slot.resize(capacity + 1);
@@ -93,7 +93,19 @@ void World<D>::size_pair_buffers() {
 template <int D>
 bool World<D>::grow(std::int64_t capacity, bool stoppable) {
   if (!contacts.grow(capacity, stoppable && interrupt ? &interrupt : nullptr)) return false;
-  grid.grow(capacity);
+  contacts.grow_pairs(capacity);
+  grid.grow(contacts.pair_capacity());
+  size_pair_buffers();
+  return true;
+}
+
+template <int D>
+bool World<D>::grow_store(std::int64_t manifolds, std::int64_t pairs, bool stoppable) {
+  if (manifolds > contacts.capacity() &&
+      !contacts.grow(manifolds, stoppable && interrupt ? &interrupt : nullptr))
+    return false;
+  contacts.grow_pairs(pairs);  // (the pair list found anew: after a grow too)
+  grid.grow(contacts.pair_capacity());
   size_pair_buffers();
   return true;
 }
@@ -317,6 +329,7 @@ bool World<D>::collide() {
   const Config& cfg = config;
   auto& c = contacts;
   using S = StageId;
+  manifolds_wanted = 0;
   // the move of the frame (m) about which the boxes reach, and in which the broadphase
   // keeps them: the median move of the dynamic bodies in the last step
   const auto frame = frame_move(model, c);
@@ -335,7 +348,7 @@ bool World<D>::collide() {
   std::int64_t n_pairs = 0;
   timed(S::FindPairs, [&] { n_pairs = find_pairs(model, grid, c); });
   c.count.pairs = n_pairs;
-  if (n_pairs > c.capacity() || n_pairs > pair_limit()) return false;
+  if (n_pairs > c.pair_capacity() || n_pairs > pair_limit()) return false;
   if (stop_here()) return true;  // torn: advance ends the call
   timed(S::UpdateManifolds, [&] {
     // the narrowphase pair by pair on the threads, each manifold's slot (a prefix count in
@@ -348,6 +361,10 @@ bool World<D>::collide() {
       narrow_pairs(model, state, c, grid, cfg.dt, part, found.data(), found_points.data());
     });
     manifold_slots(Span{0, n_pairs}, found_points.data(), found_slot.data());
+    if (found_slot[n_pairs] > c.capacity()) {  // (no manifold written yet: grow, step again)
+      manifolds_wanted = found_slot[n_pairs];
+      return;
+    }
     std::atomic<bool> same{true}, touch_changed{false};
     parallel(n_pairs, [&](Span part) {
       const MergeFlags f = merge_manifolds(model, state, c, part, cfg.friction_rule,
@@ -358,6 +375,7 @@ bool World<D>::collide() {
     });
     finish_manifolds(c, found_slot[n_pairs], MergeFlags{same.load(), touch_changed.load()});
   });
+  if (manifolds_wanted > 0) return false;
   timed(S::Prepare, [&] {
     parallel(c.count.manifolds, [&](Span part) { prepare_contacts(model, state, c, cfg, part); });
   });
@@ -722,9 +740,13 @@ Status World<D>::advance(std::int64_t n_steps, std::int64_t* taken, std::int64_t
         *bad_body = -1;
         return Status::TooManyPairs;
       }
-      // growing a large store takes a while (its memory is new): a stop asked meanwhile
-      // ends the call, the world as it was
-      if (!grow(std::min(2 * pairs, limit), true)) {
+      // the room the step found too small: its pairs' or its manifolds' (a pair has one
+      // manifold at most). Growing a large store takes a while (its memory is new): a
+      // stop asked meanwhile ends the call, the world as it was
+      const std::int64_t pair_room = pairs > contacts.pair_capacity() ? std::min(2 * pairs, limit) : 0;
+      const std::int64_t manifold_room = std::min(2 * manifolds_wanted, limit);
+      manifolds_wanted = 0;
+      if (!grow_store(manifold_room, pair_room, true)) {
         *bad_body = -1;
         return Status::Interrupted;
       }

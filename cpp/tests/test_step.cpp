@@ -1,4 +1,5 @@
 // step.cpp: whole worlds built in C++ and stepped.
+#include <algorithm>
 #include <cmath>
 
 #include "check.hpp"
@@ -168,6 +169,44 @@ TEST(a_grow_stopped_midway_leaves_the_store_as_it_was) {
   a.interrupt = nullptr;
   CHECK(a.advance(20, &taken, &bad) == Status::Ok && b.advance(20, &taken, &bad) == Status::Ok);
   CHECK(same_bits(a.state, b.state));
+}
+
+// The store grows the room it lacks: a rain of balls finds many more broadphase pairs
+// than manifolds as it lands (a falling ball's box reaches ahead of it), and only the
+// pairs' room grows for them; a world whose manifold room is too small grows that for
+// the step that needs it. Either way the run is the same, bit for bit, as one that had
+// the room from the start.
+TEST(the_store_grows_the_room_a_step_lacks_and_steps_the_same) {
+  auto build = [] {
+    SceneBuilder s;
+    s.ground(-6.0, 6.0);
+    for (int i = 0; i < 400; ++i)  // rows of 20 from 1 m up, alternate rows shifted
+      s.circle({-5.5 + 0.55 * (i % 20) + 0.25 * ((i / 20) % 2), 1.0 + 2.0 * (i / 20)}, 0.2, 1.0);
+    return s;
+  };
+  SceneBuilder sa = build(), sb = build(), sc = build();
+  World<2>& a = sa.finish();  // as made
+  World<2>& b = sb.finish();  // room for everything from the start
+  World<2>& c = sc.finish();  // room for 8 manifolds at first
+  const std::int64_t room = a.contacts.capacity();
+  CHECK(b.grow(16 * room));
+  CHECK(c.contacts.grow(8));
+  std::int64_t taken = 0, bad = -1;
+  std::int64_t most_pairs = 0, most_manifolds = 0;
+  for (int k = 0; k < 40; ++k) {
+    CHECK(a.advance(5, &taken, &bad) == Status::Ok);
+    most_pairs = std::max(most_pairs, a.contacts.count.pairs);
+    most_manifolds = std::max(most_manifolds, a.contacts.count.manifolds);
+  }
+  CHECK(b.advance(200, &taken, &bad) == Status::Ok);
+  CHECK(c.advance(200, &taken, &bad) == Status::Ok);
+  // the pairs outgrew the room they had, the manifolds never did
+  CHECK(most_pairs > room && most_manifolds < room);
+  CHECK(a.contacts.pair_capacity() >= most_pairs && a.contacts.capacity() == room);
+  // the manifolds outgrew 8 and got their room
+  CHECK(c.contacts.capacity() >= most_manifolds && c.contacts.count.manifolds > 8);
+  CHECK(same_bits(a.state, b.state));
+  CHECK(same_bits(a.state, c.state));
 }
 
 RBSIM_TEST_MAIN

@@ -1,6 +1,8 @@
 // The contact store: manifolds (up to Dim<D>::max_points points each), their solver rows,
 // last step's manifolds for warm starting, and the scratch of the stages that walk the
-// contact graph. Capacity M manifolds; it grows between steps (World::grow), never in one.
+// contact graph. Room for M manifolds and for the broadphase's pairs (more than touch:
+// a falling body's boxes reach ahead of it), each grown between steps (World::grow_store),
+// never in one.
 //
 // A manifold joins shape a to shape b (a < b) with one normal pointing from b towards a.
 // Manifolds are kept sorted by key = a · S + b, so this step's are matched to last step's
@@ -353,16 +355,25 @@ struct Contacts {
   std::vector<std::int64_t> segment_wave;   // (SEGMENTS+1,)
   std::vector<std::int64_t> segment_shock;  // (SEGMENTS+1,)
 
+  // The manifolds the store has room for.
   std::int64_t capacity() const { return static_cast<std::int64_t>(key.size()); }
+  // The broadphase pairs the store has room for (pairs, and the step's buffers by pair).
+  std::int64_t pair_capacity() const { return static_cast<std::int64_t>(pairs.size()); }
+  // Room for `n` pairs (none kept: the pair list is found anew).
+  void grow_pairs(std::int64_t n) {
+    if (n > pair_capacity()) pairs.assign(static_cast<std::size_t>(n), {});
+    count.pairs = 0;
+  }
 
   // Storage for `capacity` manifolds, n_bodies bodies, n_shapes shapes, n_vertices.
   // stop, when given, is asked after each array: true leaves the rest unmade and returns
   // false (the store is then not usable: grow drops it).
   bool allocate(int n_bodies, int n_shapes, int n_vertices, std::int64_t capacity,
                 const std::function<bool()>* stop = nullptr);
-  // Room for `capacity` manifolds, keeping last step's manifolds (warm starting). A large
-  // store takes seconds to make (its memory is new): stop is asked meanwhile, and true
-  // leaves the store as it was and returns false.
+  // Room for `capacity` manifolds, keeping last step's manifolds (warm starting) and the
+  // room for pairs (the pair list is found anew). A large store takes seconds to make
+  // (its memory is new): stop is asked meanwhile, and true leaves the store as it was and
+  // returns false.
   bool grow(std::int64_t capacity, const std::function<bool()>* stop = nullptr);
 };
 
@@ -452,7 +463,8 @@ bool Contacts<D>::grow(std::int64_t new_capacity, const std::function<bool()>* s
   *this = std::move(made);
   const std::int64_t n = old.count.manifolds_prev;
   count = old.count;
-  count.pairs = 0;  // the pair list is found anew
+  count.pairs = 0;  // the pair list is found anew, in the room it had
+  if (old.pair_capacity() > pair_capacity()) pairs = std::move(old.pairs);
   for (std::int64_t i = 0; i < n; ++i) {
     prev_key[i] = old.prev_key[i];
     prev_points[i] = old.prev_points[i];
