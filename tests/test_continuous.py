@@ -1,5 +1,7 @@
 """The continuous sweep (cpp/src/collide/continuous.cpp), end to end in 2D and 3D: a body
-struck within a step far beyond its contacts' reach does not pass through a static wall."""
+struck within a step far beyond its contacts' reach does not pass through a static wall;
+and in 2D the time of impact of a body turning fast (collide/toi.cpp, by the bound on
+any point's approach) neither."""
 
 from __future__ import annotations
 
@@ -64,3 +66,56 @@ def test_a_ball_struck_into_a_wall_stays_in_front_of_it(dim: int) -> None:
     x = struck(dim, 0.0)
     assert x.max() < 0.35
     assert x[-1] < 0.25
+
+
+# A box spun at 33 rad/s and thrown at 25 m/s meets a bat (a long capsule, 28 times its
+# mass, at 27 m/s and 50 rad/s) in a closed box (2D, zero g); the bat flings it at 100 m/s
+# and 96 rad/s towards a static ceiling 5 cm thick (near face y = 8.775), 1.7 m away: its
+# path within the step crosses the ceiling while it turns half a turn. The sweep's time of
+# impact, by each point's own approach, passed the impact and found the box 28 cm into
+# the ceiling from the far side, and let it through (27 m beyond after 10 steps); by the
+# bound on any point's approach it stops at the ceiling.
+SPUN_BOX = """\
+version: 1
+world: {dt: 1/30, steps: 10, gravity: [0, 0]}
+solver: {substeps: 8}
+bodies:
+  - {name: ceiling, type: static, position: [0, 8.8], shape: {box: {size: [10, 0.05]}}}
+  - {name: bat, position: [-1.114, 6.459], angle: -1.01, velocity: [26.7, 1.0],
+     angular_velocity: -49.8, density: 13.4, restitution: 0.8, friction: 0.2,
+     shape: {segment: {a: [-0.84, 0], b: [0.84, 0], radius: 0.105}}}
+  - {name: box, position: [-1.329, 7.075], angle: 0.984, velocity: [-24.6, 0.16],
+     angular_velocity: -33.1, density: 1.2, friction: 1.2, shape: {box: {size: [0.68, 0.225]}}}
+"""
+
+# A capsule 15 cm long at 51 m/s, turning at 106 rad/s (1.8 rad a step at dt 1/60), 76 cm
+# from a static wall 5 cm thick (near face x = 3.716): its speculative contact's time of
+# impact, by the nearest point's own approach, passed the impact and found the capsule on
+# the far side of the wall, which then pushed it out there (20 m beyond after 20 steps).
+FAST_CAPSULE = """\
+version: 1
+world: {dt: 1/60, steps: 20, gravity: [0, 0]}
+solver: {substeps: 8, iterations: 2}
+bodies:
+  - {name: wall, type: static, position: [3.741, 3.7], shape: {box: {size: [0.05, 7.5]}}}
+  - {name: capsule, position: [2.954, 2.532], angle: 2.0, velocity: [50.6, -4.1],
+     angular_velocity: -105.8, density: 1.9, restitution: 0.8, friction: 0.1,
+     shape: {segment: {a: [-0.076, 0], b: [0.076, 0], radius: 0.03}}}
+"""
+
+
+@pytest.mark.parametrize(
+    ("text", "body", "axis", "face"),
+    [(SPUN_BOX, 2, 1, 8.775), (FAST_CAPSULE, 1, 0, 3.716)],
+    ids=["struck_box_to_ceiling", "turning_capsule_to_wall"],
+)
+def test_a_body_turning_fast_stops_at_a_thin_wall(text: str, body: int, axis: int, face: float):
+    world = CoreWorld.from_scene(scene_from(text))
+    along = []
+    for _ in range(world.scene.world.steps):
+        world.advance(1)
+        along.append(world.state.body_x[body, axis])
+    # its centre of mass never reaches the wall's near face (its half width is 11 cm for
+    # the box, 3 cm for the capsule's radius; 2 cm through would put it over the face)
+    assert max(along) < face
+    assert along[-1] < along[int(np.argmax(along))]  # and it comes back off it

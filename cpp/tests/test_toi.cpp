@@ -16,10 +16,10 @@ namespace {
 // time_of_impact with room of its own (ToiRoom)
 template <int D, class Manifold>
 Impact toi(const Model<D>& m, const State<D>& st, int a, int b, int npts, double dt,
-           double spec, double scale, Manifold& out) {
+           double spec, double scale, Manifold& out, bool bounded = D == 3) {
   ToiRoom<D> room(m.vertex_count());
   return time_of_impact(m, st, a, b, npts, dt, spec, scale, room.verts.data(),
-                        room.norms.data(), out);
+                        room.norms.data(), out, bounded);
 }
 
 struct Hit {
@@ -28,8 +28,9 @@ struct Hit {
   int start_points;
 };
 
-// The speculative manifold of shapes a < b at the step's start, moved to the impact.
-Hit search(World<2>& w, int a, int b) {
+// The speculative manifold of shapes a < b at the step's start, moved to the impact
+// (bounded: by the bound on any point's approach, as the engine's narrowphase and sweep).
+Hit search(World<2>& w, int a, int b, bool bounded = false) {
   auto& c = w.contacts;
   transform_shapes(w.model, w.state, c, w.config.dt);
   const auto& m = w.model;
@@ -38,7 +39,7 @@ Hit search(World<2>& w, int a, int b) {
   const ShapeRef2 sb{m.shape_kind[b], m.shape_vstart[b], m.shape_vcount[b], m.shape_radius[b]};
   Hit h{};
   h.start_points = collide2d(sa, sb, c.vert_world.data(), c.norm_world.data(), spec, h.m);
-  h.impact = toi(m, w.state, a, b, h.start_points, w.config.dt, spec, 1.0, h.m);
+  h.impact = toi(m, w.state, a, b, h.start_points, w.config.dt, spec, 1.0, h.m, bounded);
   return h;
 }
 
@@ -75,6 +76,31 @@ TEST(glancing_impact_takes_the_normal_at_impact) {
   CHECK_NEAR(h.impact.t, t, 1e-9);  // s: the search stops within 1e-9 m
   CHECK_NEAR(h.m.normal.x, -dx / 0.2, 1e-7);  // from b towards a
   CHECK_NEAR(h.m.normal.y, -0.15 / 0.2, 1e-7);
+}
+
+// A plank 60 cm long at 50 m/s, turning at 106 rad/s (1.8 rad in the step), 0.5 m from a
+// static wall 5 cm thick: by the bound on any point's approach (|ω| times the plank's
+// reach) the search stops where a corner touches the near face, from the plank's side.
+// By the nearest point's own approach it passed the impact, and a capsule so thrown was
+// found on the far side of the wall (tests/test_continuous.py).
+TEST(plank_turning_fast_meets_a_thin_wall_from_its_own_side) {
+  SceneBuilder s;
+  s.world.model.gravity = {0.0, 0.0};
+  s.box({0.8, 0.0}, 0.025, 2.0, 0.0);  // near face x = 0.775
+  s.box({0.0, 0.0}, 0.3, 0.02, 1.0, {}, 2.0, {50.0, 0.0}, -105.8);
+  World<2>& w = s.finish();
+  w.contacts.shape_margin[1] = 1.0;  // (the speculative reach of a fast body)
+  const Hit h = search(w, 0, 1, true);
+  CHECK(h.start_points > 0);
+  CHECK(h.impact.points > 0 && h.impact.t < w.config.dt);
+  CHECK(h.m.normal.x > 0.99);  // from the plank (b) towards the wall (a)
+  CHECK(std::fabs(h.m.separation[nearest_point(h.m, h.impact.points)]) < 1e-6);  // m
+  // the plank's corners at t, none past the near face
+  const double t = h.impact.t;
+  const double angle = 2.0 - 105.8 * t;
+  const double reach = std::fabs(0.3 * std::cos(angle)) + std::fabs(0.02 * std::sin(angle));
+  CHECK(50.0 * t + reach <= 0.775 + 1e-6);  // m
+  CHECK(50.0 * t + reach >= 0.775 - 1e-6);  // and one on it
 }
 
 // A separating pair, or one that will not meet within the step, stays at t = 0.

@@ -215,8 +215,9 @@ std::int64_t sweep_fast_bodies(const Model<D>& model, State<D>& st, Contacts<D>&
         const int npts = collide_pair(model, c, a, s, scale, spec, out);
         if (npts == 0) continue;
         if (room.verts.empty()) room.fit(model.vertex_count());
+        // (bounded: the body may turn fast along its path)
         const Impact hit = time_of_impact(model, st, a, s, npts, dt, spec, scale,
-                                          room.verts.data(), room.norms.data(), out);
+                                          room.verts.data(), room.norms.data(), out, true);
         if (hit.points == 0 || hit.t >= first * dt) continue;
         // met within the step: the search closed the gap (else the impact lies beyond)
         if (out.separation[nearest_point(out, hit.points)] > scale * C::LINEAR_SLOP) continue;

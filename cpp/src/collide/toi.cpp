@@ -21,10 +21,10 @@ namespace {
 // one narrowphase call). An impact that falls after the step is taken at the step's end only
 // when the search came within `finish` (m) of it.
 //
-// In space the approach speed is a bound (search_approach), and for a turning body it
-// can be twice the gap's true rate or more: each advancement closes only part of the gap,
-// and a pebble landing at 5 m/s took all 12 to close 2 cm to a few µm. There a faster
-// step is tried first: the root of the line through the last two samples (secant), or,
+// In space, and in the plane's continuous sweep (bounded: reaches given), the approach
+// speed is a bound (search_approach), and for a turning body it can be twice the gap's
+// true rate or more: each advancement closes only part of the gap, and a pebble landing
+// at 5 m/s took all 12 to close 2 cm to a few µm. There a faster step is tried first: the root of the line through the last two samples (secant), or,
 // once a sample has passed the impact, of the line to that one (regula falsi). It is kept
 // if it lands short of the impact or within `tolerance` past it, and otherwise bounds the
 // impact from above. No trial reaches further than the bound can close the gap plus
@@ -37,7 +37,8 @@ Impact advance_to_impact(const State<D>& st, int ba, int bb, int npts, double dt
                          double tolerance, double finish, double clear, double overlap,
                          double reach_a, double reach_b, Manifold& out, Collide&& collide_at) {
   double t = 0.0;
-  // 3D: the sample before t (s, and its gap, m), and the earliest one past the impact
+  // by the bound: the sample before t (s, and its gap, m), and the earliest one past the
+  // impact
   double t_before = 0.0, gap_before = -1.0;
   double t_past = dt, gap_past = 1.0;
   for (int it = 0; it < C::TOI_ITERATIONS; ++it) {
@@ -66,7 +67,7 @@ Impact advance_to_impact(const State<D>& st, int ba, int bb, int npts, double dt
       break;
     }
     double step = ap.sep / -ap.vn;  // s
-    if constexpr (D == 3) {
+    if (D == 3 || reach_a > 0.0 || reach_b > 0.0) {  // (by the bound: the faster step)
       double guess = 0.0;  // s: the faster step, if any
       if (gap_past < 0.0) {
         guess = ap.gap * (t_past - t) / (ap.gap - gap_past);
@@ -152,14 +153,18 @@ ShapeRef3 place_shape(const Model<3>& model, const State<3>& st, int s, double t
 
 Impact time_of_impact(const Model<2>& model, const State<2>& st, int a, int b, int npts,
                       double dt, double spec, double scale, Vec2* tv, Vec2* tn,
-                      Manifold2& out) {
+                      Manifold2& out, bool bounded) {
   const int na = model.shape_vcount[a], nb = model.shape_vcount[b];
   const ShapeRef2 sa{model.shape_kind[a], 0, na, model.shape_radius[a], scale};
   const ShapeRef2 sb{model.shape_kind[b], na, nb, model.shape_radius[b], scale};
   const double tolerance = scale * C::TOI_TOLERANCE, finish = scale * C::TOI_FINISH;  // m
   const double clear = scale * C::SPECULATIVE_DISTANCE;                                  // m
+  const double overlap = bounded ? scale * C::TOI_OVERLAP : 0.0;  // m
+  const double reach_a = bounded ? core_reach(model, a) : 0.0;       // m
+  const double reach_b = bounded ? core_reach(model, b) : 0.0;
   return advance_to_impact(st, model.shape_body[a], model.shape_body[b], npts, dt, tolerance,
-                           finish, clear, 0.0, 0.0, 0.0, out, [&](double t, Manifold2& m) {
+                           finish, clear, overlap, reach_a, reach_b, out,
+                           [&](double t, Manifold2& m) {
                              place_shape(model, st, a, t, 0, tv, tn);
                              place_shape(model, st, b, t, na, tv, tn);
                              return collide2d(sa, sb, tv, tn, spec, m);
@@ -170,7 +175,7 @@ Impact time_of_impact(const Model<2>& model, const State<2>& st, int a, int b, i
 // (or plane normal) rows, then b's, in tn.
 Impact time_of_impact(const Model<3>& model, const State<3>& st, int a, int b, int npts,
                       double dt, double spec, double scale, Vec3* tv, Vec3* tn,
-                      Manifold3& out) {
+                      Manifold3& out, bool) {
   const int na = model.shape_vcount[a], fa = toi_face_rows(model, a);
   const double tolerance = scale * C::TOI_TOLERANCE, finish = scale * C::TOI_FINISH;  // m
   const double clear = scale * C::SPECULATIVE_DISTANCE;                                  // m
