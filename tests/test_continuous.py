@@ -1,7 +1,7 @@
 """The continuous sweep (cpp/src/collide/continuous.cpp), end to end in 2D and 3D: a body
 struck within a step far beyond its contacts' reach does not pass through a static wall;
 and in 2D the time of impact of a body turning fast (collide/toi.cpp, by the bound on
-any point's approach) neither."""
+any point's approach: the sweep's, and the narrowphase's past TOI_FAST_TURN) neither."""
 
 from __future__ import annotations
 

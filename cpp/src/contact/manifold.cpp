@@ -522,22 +522,26 @@ void narrow_pairs(const Model<D>& model, const State<D>& st, const Contacts<D>& 
     // only a pair that is clearly apart can turn its normal before the impact, and only
     // if it meets within the step: most such pairs do not (two balls falling side by
     // side), and their test is made here, as the search's first, so that they skip the
-    // call (at a bound on the closing speed that takes in the bodies' turns, from each
-    // shape's reach, looked up only for a pair that is apart; in the plane by the nearest
-    // point's own speed until 2026-12-07, and the search passed the impact of a body
-    // turning fast: a capsule 15 cm long at 50 m/s and 106 rad/s was found on the far
-    // side of a wall 5 cm thick, and pushed out there)
+    // call (in 3D, and in 2D for a pair turning faster than TOI_FAST_TURN in the step, at
+    // a bound on the closing speed that takes in the bodies' turns, from each shape's
+    // reach, looked up only for a pair that is apart)
     const double slop = scale * C::LINEAR_SLOP;  // m
-    bool meets = false;
+    bool meets = false, bounded = D == 3;
     if (npts > 0 && out.separation[nearest_point(out, npts)] > slop) {
-      const double reach_a = core_reach(model, a), reach_b = core_reach(model, b);  // m
+      if constexpr (D == 2)
+        bounded = (std::fabs(st.body_w[ba]) + std::fabs(st.body_w[bb])) * dt > C::TOI_FAST_TURN;
+      double reach_a = 0.0, reach_b = 0.0;  // m
+      if (bounded) {
+        reach_a = core_reach(model, a);
+        reach_b = core_reach(model, b);
+      }
       meets = meets_within(out, npts, ba, bb, dt, slop, st, reach_a, reach_b);
     }
     double t = 0.0;  // s
     if (meets) {
       if (room.norms.empty()) room.fit(model.vertex_count());
       const Impact hit = time_of_impact(model, st, a, b, npts, dt, spec, scale, room.verts.data(),
-                                        room.norms.data(), out, true);
+                                        room.norms.data(), out, bounded);
       npts = hit.points;
       t = hit.t;
       if (npts > 0 && held_by_neighbour(model, st, c, a, b, out, npts)) npts = 0;
