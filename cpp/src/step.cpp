@@ -743,7 +743,8 @@ Status World<D>::advance(std::int64_t n_steps, std::int64_t* taken, std::int64_t
       // the room the step found too small: its pairs' or its manifolds' (a pair has one
       // manifold at most). Growing a large store takes a while (its memory is new): a
       // stop asked meanwhile ends the call, the world as it was
-      const std::int64_t pair_room = pairs > contacts.pair_capacity() ? std::min(2 * pairs, limit) : 0;
+      const std::int64_t pair_room =
+          pairs > contacts.pair_capacity() ? std::min(2 * pairs, limit) : 0;
       const std::int64_t manifold_room = std::min(2 * manifolds_wanted, limit);
       manifolds_wanted = 0;
       if (!grow_store(manifold_room, pair_room, true)) {

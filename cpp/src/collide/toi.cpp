@@ -21,11 +21,12 @@ namespace {
 // one narrowphase call). An impact that falls after the step is taken at the step's end only
 // when the search came within `finish` (m) of it.
 //
-// In space, and in the plane's continuous sweep (bounded: reaches given), the approach
-// speed is a bound (search_approach), and for a turning body it can be twice the gap's
-// true rate or more: each advancement closes only part of the gap, and a pebble landing
-// at 5 m/s took all 12 to close 2 cm to a few µm. There a faster step is tried first: the root of the line through the last two samples (secant), or,
-// once a sample has passed the impact, of the line to that one (regula falsi). It is kept
+// In space, and in the plane where bounded (reaches given: the continuous sweep, and a
+// pair turning fast), the approach speed is a bound (search_approach), and for a turning
+// body it can be twice the gap's true rate or more: each advancement closes only part of
+// the gap, and a pebble landing at 5 m/s took all 12 to close 2 cm to a few µm. There a
+// faster step is tried first: the root of the line through the last two samples (secant),
+// or, once a sample has passed the impact, of the line to that one (regula falsi). It is kept
 // if it lands short of the impact or within `tolerance` past it, and otherwise bounds the
 // impact from above. No trial reaches further than the bound can close the gap plus
 // `overlap` (m): along the normal the shapes then overlap by no more than that at any

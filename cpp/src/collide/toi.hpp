@@ -68,8 +68,8 @@ inline Approach point_approach(const Manifold& out, int k, int ba, int bb, doubl
 
 // How the search advances, with both bodies moved freely by t (s). In the plane: by the
 // manifold's nearest point, at its own normal velocity (sep, vn), unless reaches are
-// given (the continuous sweep's search: then by the bound below, |ω| ρ for a turn in the
-// plane). In space: by the
+// given (the continuous sweep's search, and a pair turning by more than TOI_FAST_TURN in
+// the step: then by the bound below, |ω| ρ for a turn in the plane). In space: by the
 // manifold's gap (its smallest separation) at a bound on how fast any point of the two
 // shapes can close it along the normal n, vn = (v_a − v_b)·n − |n × ω_a| ρ_a −
 // |n × ω_b| ρ_b (Mirtich's conservative advancement; reach_a, reach_b = ρ, m, the
@@ -194,7 +194,8 @@ struct Impact {
 // with the shapes' reaches), which never passes the impact, instead of by the nearest
 // point's own approach, which a body turning fast passes (the continuous sweep: a box
 // struck within the step and spun at 90 rad/s, swept 3 m to a ceiling 5 cm thick, was
-// found 28 cm into it from the far side, and went through). Space is always bounded.
+// found 28 cm into it from the far side, and went through; the narrowphase uses it past
+// TOI_FAST_TURN). Space is always bounded.
 Impact time_of_impact(const Model<2>& model, const State<2>& st, int a, int b, int npts,
                       double dt, double spec, double scale, Vec2* tv, Vec2* tn,
                       Manifold2& out, bool bounded = false);
