@@ -93,10 +93,7 @@ void World<D>::size_pair_buffers() {
 template <int D>
 bool World<D>::grow(std::int64_t capacity, bool stoppable) {
   if (!contacts.grow(capacity, stoppable && interrupt ? &interrupt : nullptr)) return false;
-  contacts.grow_pairs(capacity);
-  grid.grow(contacts.pair_capacity());
-  size_pair_buffers();
-  return true;
+  return grow_store(0, capacity);  // (the pairs' room, and the buffers by pair)
 }
 
 template <int D>
