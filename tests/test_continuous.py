@@ -1,7 +1,9 @@
 """The continuous sweep (cpp/src/collide/continuous.cpp), end to end in 2D and 3D: a body
 struck within a step far beyond its contacts' reach does not pass through a static wall;
-and in 2D the time of impact of a body turning fast (collide/toi.cpp, by the bound on
-any point's approach: the sweep's, and the narrowphase's past TOI_FAST_TURN) neither."""
+nor one turned off its free path by a wall into a floor its free path missed, nor one
+turning too fast for its manifold's points to follow; and in 2D the time of impact of a
+body turning fast (collide/toi.cpp, by the bound on any point's approach: the sweep's,
+and the narrowphase's past TOI_FAST_TURN) neither."""
 
 from __future__ import annotations
 
@@ -104,10 +106,27 @@ bodies:
 """
 
 
+# A quadrilateral 17 cm across at 25 m/s towards a static wall 5 cm thick (near face
+# x = 4.469), spinning at 277 rad/s (0.58 rad a substep): its manifold's two points turn
+# away from the wall as its other corners come round into it, and nothing stopped it
+# (4 m beyond after 20 steps). Swept for its turn (continuous.cpp), it stays in front of the wall.
+SPINNER = """\
+version: 1
+world: {dt: 1/120, steps: 20, gravity: [0, 0]}
+solver: {substeps: 4, iterations: 2}
+bodies:
+  - {name: wall, type: static, position: [4.494, 4.8], shape: {box: {size: [0.05, 9.6]}}}
+  - {name: spinner, position: [4.2942, 4.6019], angle: -14.6348, velocity: [25.44, 0],
+     angular_velocity: -277.1, density: 18.72,
+     shape: {polygon: {vertices: [[0.01552, 0.1746], [-0.0481, 0.1685], [-0.168, -0.04978],
+                                  [-0.1373, -0.1089]]}}}
+"""
+
+
 @pytest.mark.parametrize(
     ("text", "body", "axis", "face"),
-    [(SPUN_BOX, 2, 1, 8.775), (FAST_CAPSULE, 1, 0, 3.716)],
-    ids=["struck_box_to_ceiling", "turning_capsule_to_wall"],
+    [(SPUN_BOX, 2, 1, 8.775), (FAST_CAPSULE, 1, 0, 3.716), (SPINNER, 1, 0, 4.469)],
+    ids=["struck_box_to_ceiling", "turning_capsule_to_wall", "spinner_past_its_points"],
 )
 def test_a_body_turning_fast_stops_at_a_thin_wall(text: str, body: int, axis: int, face: float):
     world = CoreWorld.from_scene(scene_from(text))
@@ -119,3 +138,35 @@ def test_a_body_turning_fast_stops_at_a_thin_wall(text: str, body: int, axis: in
     # the box, 3 cm for the capsule's radius; 2 cm through would put it over the face)
     assert max(along) < face
     assert along[-1] < along[int(np.argmax(along))]  # and it comes back off it
+
+
+# A chip 5 cm across thrown at 490 m/s down into the corner of a floor and a wall, each
+# 5 cm thick: its free path meets the wall 15 cm above the floor and then passes beyond
+# the floor's end, so the floor's speculative contact found none; stopped at the wall, it
+# went on down through the floor within the step (its motion was what its velocity at the
+# step's start had it do, and it was not swept). Swept once its path left its free path,
+# it stops on the floor, spinning (1840 rad/s) or not.
+CORNER = """\
+version: 1
+world: {{dt: 1/60, steps: 20}}
+solver: {{substeps: 1, iterations: 2}}
+bodies:
+  - {{name: floor, type: static, position: [0, -0.025], shape: {{box: {{size: [9.6, 0.05]}}}}}}
+  - {{name: wall, type: static, position: [4.77, 4.3], shape: {{box: {{size: [0.05, 8.6]}}}}}}
+  - {{name: chip, position: [-2.2, 3.18], velocity: [448, -195], angular_velocity: {spin},
+     density: 27, shape: {{box: {{size: [0.05, 0.05]}}}}}}
+"""
+
+
+@pytest.mark.parametrize("spin", [0.0, -1840.0])
+def test_a_body_turned_off_its_path_by_a_wall_stops_on_the_floor(spin: float) -> None:
+    world = CoreWorld.from_scene(scene_from(CORNER.format(spin=spin)))
+    xs = []
+    for _ in range(world.scene.world.steps):
+        world.advance(1)
+        xs.append(world.state.body_x[2].copy())
+    xs = np.array(xs)
+    # its centre never below the floor's top (y = 0) nor past the wall's face (x = 4.745):
+    # half its width (2.5 cm) on the wrong side is most of the way in
+    assert xs[:, 1].min() > 0.0
+    assert xs[:, 0].max() < 4.745

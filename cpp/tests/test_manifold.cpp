@@ -121,6 +121,32 @@ TEST(still_bodies_carry_their_manifold_with_separation_moved) {
   CHECK(c.carried[0] == 1);
 }
 
+// A still pair whose bodies now move towards each other faster than LINEAR_SLOP in a step
+// (a velocity given at the end of the last step, by a bounce or the continuous sweep
+// putting a body back) runs the narrowphase again: its manifold, found while they were
+// slower, may lack a point they now reach. A plank resting tilted on one corner, its other
+// bottom corner 5 cm up, is found with one point; turning at 30 rad/s now (half a radian in
+// the step, that corner's way down), it is found again with both.
+TEST(a_still_pair_moving_fast_now_is_found_again) {
+  SceneBuilder s;
+  s.ground();
+  const double tilt = 0.06;  // rad: the right bottom corner 0.8 sin(tilt) = 4.8 cm up
+  const double y = 0.4 * std::sin(tilt) + 0.05 * std::cos(tilt);  // m: the left corner on y = 0
+  const int plank = s.box({0.0, y}, 0.4, 0.05, 1.0, {}, tilt);
+  World<2>& w = s.finish();
+  auto& c = w.contacts;
+  rbsim::test::collide(w);
+  CHECK(c.count.manifolds == 1 && c.points[0] == 1);
+  store_impulses(c);
+  rbsim::test::collide(w);  // still and slow: carried, the same one point
+  CHECK(c.carried[0] == 1 && c.points[0] == 1);
+  store_impulses(c);
+  w.state.body_w[plank] = -30.0;  // rad/s
+  rbsim::test::collide(w);
+  CHECK(c.carried[0] == 0);
+  CHECK(c.points[0] == 2);
+}
+
 // In space as in the plane: a box resting on the ground keeps its manifold through a turn
 // of 0.6 STILL_ANGLE (about any axis) and finds it again once it has turned 1.2 since it
 // was found; q and −q are one rotation.

@@ -237,6 +237,27 @@ TEST(a_light_supporter_hands_on_its_travel_not_its_turn) {
   }
 }
 
+
+// A dynamic supporter travelling towards the body it supports faster than an impact (the
+// restitution threshold, 1 m/s here) strikes it: none of its motion is handed on, the
+// supported body is only kept from approaching it as if it stood still. The 1 kg box
+// under the 10 kg one, flung up at 5 m/s (as by a bounce off the floor), leaves the box
+// above at rest, and one coming down at 0.5 m/s is stopped, not thrown up at 5: handed
+// on, a 50 g capsule bounced up at 88 m/s threw a 16 kg slab resting on it up at 80.
+TEST(a_supporter_striking_at_impact_speed_hands_on_nothing) {
+  for (const double above : {0.0, -0.5}) {  // m/s: the 10 kg box's own velocity
+    SceneBuilder s;
+    World<2>& w = stack(s);
+    w.state.body_v[1] = {0.0, 5.0};
+    w.state.body_v[2] = {0.0, above};
+    const double h = rbsim::test::substep(w);
+    propagate_shock(w.model, w.state, w.contacts, w.contacts.count.shock_count, 1.0 / h, 1.0);
+    CHECK(w.state.body_v[1].y == 5.0);  // the supporter, held
+    CHECK_NEAR(w.state.body_v[2].y, 0.0, 1e-12);
+    CHECK_NEAR(w.state.body_w[2], 0.0, 1e-12);
+  }
+}
+
 namespace {
 
 // The world's contacts found and made rows, the support order found: ready for the shock

@@ -1,4 +1,4 @@
-// Continuous sweep: a body that moved within the step further than its contacts reached
+// Continuous sweep: a body whose motion within the step its contacts may not have covered
 // is swept from its pose at the step's start to its pose now against the static shapes,
 // and put back where it first met one that it then went on into deeply.
 //
@@ -8,31 +8,42 @@
 // a static shape beyond that reach has no contact to stop it: a ball at rest 25 cm from a
 // 10 cm wall, struck by a heavy ball at 60 m/s, went through the wall in one step, and a
 // capsule flung by a paddle into the corner of a box ended inside the wall and under the
-// floor, held there by the two. Box2D v3 sweeps its fast bodies against the static shapes
-// after its solve (b2SolveContinuous); this is the same idea, for the bodies whose
-// motion their contacts did not cover.
+// floor, held there by the two. Within the reach, a contact's time of impact follows the
+// free path: a body turned off it by one contact meets shapes the free path missed (a
+// chip thrown at 490 m/s into a corner, its free path past the floor's end, stopped at
+// the wall and went on down through the floor), and a body turning fast leaves its
+// manifold's points behind (a polygon spinning at 277 rad/s, its two points turning away
+// from a wall while other corners came round into it). Box2D v3 sweeps its fast bodies
+// against the static shapes after its solve (b2SolveContinuous); this is the same idea,
+// for the bodies whose motion their contacts may not have covered.
 //
 // Which bodies: a dynamic body whose motion in the step (|Δx| plus its turn times its
-// reach) exceeds what its contacts covered at the step's start (dt |v₀| + dt |ω₀| reach +
-// dt² |a| + the speculative buffer) by more than CONTINUOUS_FRACTION of its inner size
-// (the least distance from one of its shapes' centres to that shape's surface). A falling or
-// flying body's motion is what it was expected to be, and a resting one's is small: in
-// most steps of most scenes no body is swept, and nothing here changes their bits.
+// reach) exceeds CONTINUOUS_FRACTION of its inner size (the least distance from one of its
+// shapes' centres to that shape's surface), and either exceeds what its contacts covered
+// at the step's start (dt |v₀| + dt |ω₀| reach + dt² |a| + the speculative buffer) by
+// that much, or left its free path by more than that and the buffer (|Δx − dt v₀|), or
+// turned by more than TOI_FAST_TURN. A falling or flying body's motion is what it was
+// expected to be, and a resting one's is small: in most steps of most scenes few bodies
+// are swept, and a sweep that finds no impact changes no bits.
 //
 // The sweep: every static shape whose box meets the body's swept box, against each of
-// the body's shapes that had no contact with it this step (one that had was held by the
-// solver, and what it was pushed into is the overlap stages' to take out), collided at
-// the step's start and advanced along the straight path from the pose then to the pose
-// now (velocity Δx / dt, turn by the rotation vector of Δq over dt) to the time of impact
-// (collide/toi.cpp). An impact counts when the body went on past it into the static
-// shape by more than CONTINUOUS_FRACTION of its inner size along the impact's normal (a
-// body stopped there went on into nothing) and no neighbour holds it there
+// the body's shapes, collided at the step's start and advanced along the straight path
+// from the pose then to the pose now (velocity Δx / dt, turn by the rotation vector of Δq
+// over dt) to the time of impact (collide/toi.cpp). A shape the body had a contact with
+// is swept against too: a body struck within the step after its contacts were solved
+// went through a wall it had a speculative contact with. An impact counts when the body's
+// shape went on past it into the static shape by more than CONTINUOUS_FRACTION of its
+// inner size (its lowest point along the impact's normal at the impact less that at the
+// step's end: lowest_along, so that a body turning about the point where it meets a wall
+// is not taken to have gone in by its centre's travel) and no neighbour holds it there
 // (held_by_neighbour_at: the joints of a floor of pieces). The body is put back at the
 // earliest such impact on its path, its velocity kept, so that the next step's
-// speculative contact with the shape stops it or bounces it. The stage runs after the
-// overlap limits: bodies put back beside one another can overlap, and moved apart there
-// they were pushed into the wall they had been stopped at. Only static shapes are swept
-// against: a struck body may still pass through a dynamic or kinematic one.
+// speculative contact with the shape stops it or bounces it (manifold.cpp finds that
+// contact anew, slow_pair: the pose is one its manifold was found at, more slowly). The
+// stage runs after the overlap limits: bodies put back beside one another can overlap,
+// and moved apart there they were pushed into the wall they had been stopped at. Only
+// static shapes are swept against: a struck body may still pass through a dynamic or
+// kinematic one.
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -105,14 +116,16 @@ inline double magnitude(Vec3 a) { return length(a); }
 inline Rot2 inverse(Rot2 q) { return {q.c, -q.s}; }
 inline Quat inverse(Quat q) { return {q.w, -q.x, -q.y, -q.z}; }
 
-// Whether shapes a and b have a manifold this step (contacts.key: a · S + b for a < b,
-// in ascending order).
+// The least of n · p (m) over shape s's surface with its body at x (m), rotation q: its
+// core's vertices less its radius.
 template <int D>
-bool has_manifold(const Contacts<D>& c, int a, int b, std::int64_t n_shapes) {
-  const std::int64_t key = std::min(a, b) * n_shapes + std::max(a, b);
-  const std::int64_t* first = c.key.data();
-  const std::int64_t* last = first + c.count.manifolds;
-  return std::binary_search(first, last, key);
+double lowest_along(const Model<D>& model, int s, const typename Dim<D>::Vec& x,
+                    const typename Dim<D>::Rot& q, const typename Dim<D>::Vec& n) {
+  const int v0 = model.shape_vstart[s], count = model.shape_vcount[s];
+  double least = count == 0 ? dot(n, x) : INF;  // (a ball's core: its centre)
+  for (int k = v0; k < v0 + count; ++k)
+    least = std::min(least, dot(n, x + rotate(q, model.vertex_local[k])));
+  return least - model.shape_radius[s];
 }
 
 template <int D>
@@ -163,7 +176,6 @@ std::int64_t sweep_fast_bodies(const Model<D>& model, State<D>& st, Contacts<D>&
   std::int64_t moved = 0;
   ToiRoom<D> room;  // the time of impact's, made when first asked
   const int n = model.body_count();
-  const std::int64_t n_shapes = model.shape_count();
   for (int i = 0; i < n; ++i) {
     if (!model.is_dynamic(i)) continue;
     BodyDelta<D>& d = c.body_delta[i];
@@ -174,13 +186,16 @@ std::int64_t sweep_fast_bodies(const Model<D>& model, State<D>& st, Contacts<D>&
     const double turned = turn_bound(d.dq) * reach;                   // m
     if (norm1(d.dx) + turned <= deep) continue;
     const double buffer = c.body_scale[i] * C::SPECULATIVE_DISTANCE;  // m
-    if (norm1(d.dx - dt * v0[i]) + turned <= deep + buffer) continue;
+    const double off_path = norm1(d.dx - dt * v0[i]);  // m: a bound on |Δx − dt v₀|
+    if (off_path + turned <= deep + buffer) continue;
     const auto theta = turn_of(d.dq);                                // rad
     const double motion = length(d.dx) + magnitude(theta) * reach;  // m: a bound on any point's
     // what its contacts covered at the step's start (speculative in manifold.cpp)
     const double covered = dt * length(v0[i]) + dt * magnitude(w0[i]) * reach +
                            dt * dt * length(model.acceleration(i)) + buffer;
-    if (motion - covered <= deep) continue;
+    if (motion - covered <= deep && off_path <= deep + buffer &&
+        magnitude(theta) <= C::TOI_FAST_TURN)
+      continue;
     // the path: from the pose at the step's start to the pose now
     const Vec x_end = st.body_x[i], v_end = st.body_v[i];
     const auto q_end = st.body_q[i];
@@ -208,7 +223,6 @@ std::int64_t sweep_fast_bodies(const Model<D>& model, State<D>& st, Contacts<D>&
       if (!boxes_meet<D>(lo, hi, box.lo + grid.frame_offset, box.hi + grid.frame_offset)) continue;
       for (std::int32_t k = index.shape_start[i]; k < index.shape_start[i + 1]; ++k) {
         const int a = index.shapes[k];
-        if (has_manifold(c, a, s, n_shapes)) continue;  // the solver's contact held it
         const double scale = std::min(c.shape_scale[a], c.shape_scale[s]);
         const double spec = motion + scale * C::SPECULATIVE_DISTANCE;  // m
         PairOut<D> out;
@@ -219,12 +233,22 @@ std::int64_t sweep_fast_bodies(const Model<D>& model, State<D>& st, Contacts<D>&
         const Impact hit = time_of_impact(model, st, a, s, npts, dt, spec, scale,
                                           room.verts.data(), room.norms.data(), out, true);
         if (hit.points == 0 || hit.t >= first * dt) continue;
-        // met within the step: the search closed the gap (else the impact lies beyond)
-        if (out.separation[nearest_point(out, hit.points)] > scale * C::LINEAR_SLOP) continue;
+        // met within the step: the search closed the gap (else the impact lies beyond), or
+        // ran out of advancements short of it, the gap still open (a body spinning at 268
+        // rad/s, its bound's advancements each a sliver: the pose there is a safe one)
+        if (out.separation[nearest_point(out, hit.points)] > scale * C::LINEAR_SLOP &&
+            !hit.short_of_it)
+          continue;
         if (held_by_neighbour_at(model, st, c, a, s, out, hit.points)) continue;
-        // how far the body went on into s past the impact (the normal from s to the body)
+        // how far the body's shape went on into s past the impact (the normal from s to the
+        // body): its lowest point along the normal at the impact less that at the step's
+        // end, turn and all (by the centre's travel alone, a capsule held at a wall by one
+        // end, turning about it as it slid on, was taken to have gone 18 cm in and put back
+        // each step, while gravity built up its speed)
         const double f = hit.t / dt;
-        const double on = -(1.0 - f) * dot(out.normal, d.dx);  // m
+        const auto q_impact = normalize(mul(turn_by(f * theta), q_start));
+        const double at_impact = lowest_along(model, a, x_start + f * d.dx, q_impact, out.normal);
+        const double on = at_impact - lowest_along(model, a, x_end, q_end, out.normal);  // m
         if (on > deep) first = f;
       }
     }

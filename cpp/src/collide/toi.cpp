@@ -18,8 +18,9 @@ namespace {
 // at t and returns the manifold's point count), repeat, until the gap is below
 // `tolerance` (m), the pair separates (passing each other further apart than `clear`, m,
 // it keeps its manifold of the start), or TOI_ITERATIONS advancements were made (each
-// one narrowphase call). An impact that falls after the step is taken at the step's end only
-// when the search came within `finish` (m) of it.
+// one narrowphase call; the result is then short_of_it, t before any impact). An impact
+// that falls after the step is taken at the step's end only when the search came within
+// `finish` (m) of it.
 //
 // In space, and in the plane where bounded (reaches given: the continuous sweep, and a
 // pair turning fast), the approach speed is a bound (search_approach), and for a turning
@@ -42,7 +43,8 @@ Impact advance_to_impact(const State<D>& st, int ba, int bb, int npts, double dt
   // impact
   double t_before = 0.0, gap_before = -1.0;
   double t_past = dt, gap_past = 1.0;
-  for (int it = 0; it < C::TOI_ITERATIONS; ++it) {
+  int it = 0;
+  for (; it < C::TOI_ITERATIONS; ++it) {
     const Approach ap = search_approach(out, npts, ba, bb, t, st, reach_a, reach_b);
     if (ap.gap <= tolerance) break;
     if (ap.vn >= 0.0) {
@@ -111,7 +113,7 @@ Impact advance_to_impact(const State<D>& st, int ba, int bb, int npts, double dt
     if (npts == 0) return {0, t};  // passed by after all
     if (last) break;
   }
-  return {npts, t};
+  return {npts, t, it == C::TOI_ITERATIONS};
 }
 
 // Body i's pose after t (s) of free motion: turned by ω t, moved by v t.

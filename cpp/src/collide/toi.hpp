@@ -179,6 +179,9 @@ struct ToiRoom {
 struct Impact {
   int points;  // the manifold's point count at the impact (0: the pair passed by)
   double t;    // s: 0 when the pair is separating or does not meet within dt
+  // the search made its TOI_ITERATIONS advancements before the step's end with the gap
+  // still open: t is short of the impact, which may still fall within the step
+  bool short_of_it = false;
 };
 
 // Move the speculative manifold `out` (npts points, of shapes a and b at the step's

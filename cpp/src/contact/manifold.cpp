@@ -453,6 +453,20 @@ inline bool near_offset(const State<D>& st, const Contacts<D>& c, int ba, int bb
   return length_squared(d) < still * still;
 }
 
+// Whether shapes a and b (scale m) reach no further towards each other within the step
+// (dt, s) than LINEAR_SLOP (scaled) at their velocities now: a still pair's manifold, found
+// when they were slower, may lack a point that they now reach (a capsule lying on the
+// floor on one end's point, its other end 3 cm up, struck at the end of a step into a
+// turn of 51 rad/s: carried, the manifold let that end through the floor).
+template <int D>
+inline bool slow_pair(const Model<D>& model, const State<D>& st, const Contacts<D>& c, double dt,
+                      int a, int b, double scale) {
+  const int ba = model.shape_body[a], bb = model.shape_body[b];
+  const double reach =
+      dt * length(st.body_v[ba] - st.body_v[bb]) + c.shape_turn[a] + c.shape_turn[b];  // m
+  return reach <= scale * C::LINEAR_SLOP;
+}
+
 // Whether a body at rotation q (2D: its unwrapped angle, rad) is within STILL_ANGLE of
 // ref, its rotation when a manifold was found. In 3D by the angle of the turn q ref⁻¹,
 // 2 asin |vector part of q ref*| (q and −q alike).
@@ -505,17 +519,18 @@ void narrow_pairs(const Model<D>& model, const State<D>& st, const Contacts<D>& 
     const int a = c.pairs[p][0], b = c.pairs[p][1];
     if (disjoint<D>(box[a], box[b])) continue;  // near in the fat boxes only: out of reach
     const int ba = model.shape_body[a], bb = model.shape_body[b];
+    // the contact tolerances' scale: the smaller shape's (constants.hpp, SCALE_LENGTH)
+    const double scale = std::min(c.shape_scale[a], c.shape_scale[b]);
     // last step's manifold of a still pair is carried: no narrowphase
     const std::int64_t key = pair_key(n_shapes, a, b);
     while (j < n_prev && prev[j] < key) ++j;
     if (j < n_prev && prev[j] == key && near_turn(turn_of(st, ba), c.prev_ref_turn_a[j]) &&
         near_turn(turn_of(st, bb), c.prev_ref_turn_b[j]) &&
-        near_offset(st, c, ba, bb, c.prev_ref_offset[j])) {
+        near_offset(st, c, ba, bb, c.prev_ref_offset[j]) &&
+        slow_pair(model, st, c, dt, a, b, scale)) {
       found_points[p] = FOUND_CARRIED;
       continue;
     }
-    // the contact tolerances' scale: the smaller shape's (constants.hpp, SCALE_LENGTH)
-    const double scale = std::min(c.shape_scale[a], c.shape_scale[b]);
     const double spec = speculative(model, st, c, dt, a, b, scale);
     int npts = narrow_pair(model, c, a, b, scale, spec, out);
     if (npts > 0 && held_by_neighbour(model, st, c, a, b, out, npts)) npts = 0;
