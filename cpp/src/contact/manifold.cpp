@@ -462,9 +462,9 @@ template <int D>
 inline bool slow_pair(const Model<D>& model, const State<D>& st, const Contacts<D>& c, double dt,
                       int a, int b, double scale) {
   const int ba = model.shape_body[a], bb = model.shape_body[b];
-  const double reach =
-      dt * length(st.body_v[ba] - st.body_v[bb]) + c.shape_turn[a] + c.shape_turn[b];  // m
-  return reach <= scale * C::LINEAR_SLOP;
+  // m: what the move may take of the slop once the turns have (squared: no root per pair)
+  const double room = scale * C::LINEAR_SLOP - (c.shape_turn[a] + c.shape_turn[b]);
+  return room >= 0.0 && dt * dt * length_squared(st.body_v[ba] - st.body_v[bb]) <= room * room;
 }
 
 // Whether a body at rotation q (2D: its unwrapped angle, rad) is within STILL_ANGLE of
