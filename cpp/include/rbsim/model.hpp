@@ -5,8 +5,10 @@
 // so the solver treats every body alike.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -105,6 +107,16 @@ struct Model {
     if (!is_dynamic(i)) return Vec{};
     if (!has_forces) return gravity;
     return gravity + body_inv_mass[i] * body_force[i];
+  }
+  // m: the least of n · p over shape s's surface with its body at x (m), rotation q: its
+  // core's vertices less its radius (the continuous sweep: how far a shape went past an
+  // impact; the restitution stage: how far apart two shapes are along a normal)
+  double lowest_along(int s, const Vec& x, const typename Dim<D>::Rot& q, const Vec& n) const {
+    const int v0 = shape_vstart[s], count = shape_vcount[s];
+    double least = count == 0 ? dot(n, x) : std::numeric_limits<double>::infinity();
+    for (int k = v0; k < v0 + count; ++k)
+      least = std::min(least, dot(n, x + rotate(q, vertex_local[k])));
+    return least - shape_radius[s];
   }
 };
 

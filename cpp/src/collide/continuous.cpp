@@ -116,18 +116,6 @@ inline double magnitude(Vec3 a) { return length(a); }
 inline Rot2 inverse(Rot2 q) { return {q.c, -q.s}; }
 inline Quat inverse(Quat q) { return {q.w, -q.x, -q.y, -q.z}; }
 
-// The least of n · p (m) over shape s's surface with its body at x (m), rotation q: its
-// core's vertices less its radius.
-template <int D>
-double lowest_along(const Model<D>& model, int s, const typename Dim<D>::Vec& x,
-                    const typename Dim<D>::Rot& q, const typename Dim<D>::Vec& n) {
-  const int v0 = model.shape_vstart[s], count = model.shape_vcount[s];
-  double least = count == 0 ? dot(n, x) : INF;  // (a ball's core: its centre)
-  for (int k = v0; k < v0 + count; ++k)
-    least = std::min(least, dot(n, x + rotate(q, model.vertex_local[k])));
-  return least - model.shape_radius[s];
-}
-
 template <int D>
 bool boxes_meet(const typename Dim<D>::Vec& lo, const typename Dim<D>::Vec& hi,
                 const typename Dim<D>::Vec& other_lo, const typename Dim<D>::Vec& other_hi) {
@@ -202,6 +190,8 @@ std::int64_t sweep_fast_bodies(const Model<D>& model, State<D>& st, Contacts<D>&
     const auto w_end = st.body_w[i];
     const Vec x_start = x_end - d.dx;
     const auto q_start = normalize(mul(inverse(d.dq), q_end));
+    // the rotation a fraction f of the way along the path
+    auto turned_by = [&](double f) { return normalize(mul(turn_by(f * theta), q_start)); };
     Vec lo = x_start, hi = x_start;
     {
       double* l = &lo.x;
@@ -246,17 +236,16 @@ std::int64_t sweep_fast_bodies(const Model<D>& model, State<D>& st, Contacts<D>&
         // end, turning about it as it slid on, was taken to have gone 18 cm in and put back
         // each step, while gravity built up its speed)
         const double f = hit.t / dt;
-        const auto q_impact = normalize(mul(turn_by(f * theta), q_start));
-        const double at_impact = lowest_along(model, a, x_start + f * d.dx, q_impact, out.normal);
-        const double on = at_impact - lowest_along(model, a, x_end, q_end, out.normal);  // m
+        const double at_impact =
+            model.lowest_along(a, x_start + f * d.dx, turned_by(f), out.normal);
+        const double on = at_impact - model.lowest_along(a, x_end, q_end, out.normal);  // m
         if (on > deep) first = f;
       }
     }
     st.body_v[i] = v_end;
     if (first < 1.0) {
-      const auto turn = turn_by(first * theta);
       st.body_x[i] = x_start + first * d.dx;
-      st.body_q[i] = normalize(mul(turn, q_start));
+      st.body_q[i] = turned_by(first);
       if constexpr (D == 2) {
         st.body_w[i] = w_end;
         st.body_angle[i] -= (1.0 - first) * theta;
@@ -269,7 +258,7 @@ std::int64_t sweep_fast_bodies(const Model<D>& model, State<D>& st, Contacts<D>&
         st.body_w[i] = tensor * st.body_l[i];
       }
       d.dx = first * d.dx;
-      d.dq = turn;
+      d.dq = turn_by(first * theta);
       ++moved;
     } else {
       st.body_x[i] = x_end;

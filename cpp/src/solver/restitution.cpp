@@ -145,17 +145,11 @@ inline double impact_speed(const Model<D>& model, int a, int b, typename Dim<D>:
 template <int D>
 double projected_gap(const Model<D>& model, const State<D>& st, const Contacts<D>& c,
                      std::int64_t m, typename Dim<D>::Vec n) {
-  const auto extent = [&](int s, double dir) {  // max over the core of dir n · p (m)
+  const auto along = [&](int s, typename Dim<D>::Vec dir) {  // m: the least of dir · p
     const int i = model.shape_body[s];
-    const int v0 = model.shape_vstart[s];
-    double most = -kInf;
-    for (int k = v0; k < v0 + model.shape_vcount[s]; ++k) {
-      const auto p = st.body_x[i] + rotate(st.body_q[i], model.vertex_local[k]);  // m
-      most = std::fmax(most, dir * dot(p, n));
-    }
-    return most + model.shape_radius[s];
+    return model.lowest_along(s, st.body_x[i], st.body_q[i], dir);
   };
-  return -extent(c.shape_a[m], -1.0) - extent(c.shape_b[m], 1.0);
+  return along(c.shape_a[m], n) + along(c.shape_b[m], -n);
 }
 
 // Where point k of manifold m (bodies a, b, normal n) stands. An impact against a static

@@ -912,14 +912,12 @@ void propagate_shock_range(const Model<D>& model, State<D>& st, Contacts<D>& c,
       const double travel = a_moves ? dot(n, v[b]) : -dot(n, v[a]);  // m/s, towards u
       struck = travel > threshold;
       if (struck) {
-        const double toward0 = travel + (a_moves ? angular_along(w[b], pt0.rnb)
-                                                 : -angular_along(w[a], pt0.rna));
-        double toward1 = 0.0;
-        if (npts == 2)
-          toward1 = travel + (a_moves ? angular_along(w[b], pt1.rnb)
-                                      : -angular_along(w[a], pt1.rna));
-        vel0 += std::max(toward0, 0.0);
-        vel1 += std::max(toward1, 0.0);
+        // m/s: the supporter's motion towards u at a point
+        auto toward = [&](const auto& pt) {
+          return travel + (a_moves ? angular_along(w[b], pt.rnb) : -angular_along(w[a], pt.rna));
+        };
+        vel0 += std::max(toward(pt0), 0.0);
+        if (npts == 2) vel1 += std::max(toward(pt1), 0.0);
       }
     }
     if (!(vel0 < -min_approach || (npts == 2 && vel1 < -min_approach))) continue;
