@@ -1286,6 +1286,36 @@ def test_a_taller_tile_still_stops_a_box(dimension):
 
 
 @pytest.mark.parametrize("dimension", [2, 3])
+@pytest.mark.parametrize("kind", ["box", "capsule"])
+def test_a_chip_wedged_under_the_foot_of_a_wall_comes_out_into_the_box(dimension, kind):
+    # a wall standing on the floor, its bottom face covered by the floor's top, and a chip
+    # 2 cm thick (16 cm long) wedged 6 cm under the wall's foot and 1.2 cm into the floor,
+    # as a pile squeezed small bodies there in bench/random_scenes.py (seeds 141, 1043,
+    # 1209): the wall's covered face pushed it down into the floor (or, shallow, not at
+    # all), and it stayed there for good, 7.6 mm deep and 1.6 cm under the wall, or slid
+    # on out of the box beneath it. The push of the solid the two make, from the wall's
+    # open side, brings it out to rest on the floor against the wall
+    from rbsim.engines import make_engine
+
+    v = lambda *xyz: vector(dimension, *xyz)  # noqa: E731
+    shape = {
+        "box": f"box: {{size: {v(0.16, 0.02, 0.1)}}}",
+        "capsule": f"{'segment' if dimension == 2 else 'capsule'}: {{a: {v(-0.07, 0, 0)},"
+        f" b: {v(0.07, 0, 0)}, radius: 0.01}}",
+    }[kind]
+    pieces = static_box("floor", (0, -0.1, 0)[:dimension], (6, 0.2, 6)[:dimension])
+    pieces += static_box("wall", (-2.1, 2, 0)[:dimension], (0.2, 4, 6)[:dimension])
+    chip = (
+        f"  - {{name: chip, position: {v(-1.98, -0.002, 0)}, density: 200, shape: {{{shape}}}}}\n"
+    )
+    engine = make_engine("rbsim", scene_from(scene_head(dimension, 120) + pieces + chip))
+    engine.advance(120)
+    x = np.asarray(engine.world.engine.body_x)[-1]
+    assert x[1] > 0.01 - 1e-3  # m: on the floor (half its thickness, less a soft contact's sink)
+    assert x[0] - 0.08 > -2.0 - 0.005  # m: its end out of the wall (face x = -2), to the slop
+
+
+@pytest.mark.parametrize("dimension", [2, 3])
 def test_a_box_sliding_over_a_bend_between_flush_pieces_stays_on_them(dimension):
     # two static pieces flush at x = 0, the second's top sloping down 0.05 rad from there:
     # the joint is a convex corner of the floor, whose push (leaning no farther than the

@@ -333,3 +333,46 @@ TEST(swapping_a_and_b_negates_the_normal) {
 }
 
 RBSIM_TEST_MAIN
+
+// A reference face given: a wall (0.2 × 4 m, its foot at y = 0) and a chip 16 × 2 cm
+// lying 6 cm under its foot and 1.2 cm down. The separating axes take the wall's bottom
+// face (the least overlap, 8 mm: a push down); from its right face (edge 1, normal +x)
+// the chip is pushed out sideways by its 6 cm under the wall, at its left end's corners
+// (the incident edge, clipped to the face's extent: the corner below the foot moves up
+// to it), the ids those of a clipped point; the mirrored call gives the negated normal
+// and the same points. A circle gets one point from its centre's foot on the face's line,
+// none beyond the speculative distance.
+TEST(a_reference_face_given_pushes_from_it) {
+  Shapes s;
+  const ShapeRef2 wall = s.box({-2.1, 2.0}, 0.1, 2.0);
+  const ShapeRef2 chip = s.box({-1.98, -0.002}, 0.08, 0.01);
+  const Result sat = collide(s, wall, chip);
+  CHECK(sat.n == 2);
+  CHECK_VEC(sat.m.normal, {0, 1}, EPS, "the axes' choice: the wall's bottom face");
+  Result r{};
+  r.n = collide_on_face(wall, chip, 0, 1, s.verts.data(), s.norms.data(), SPEC, r.m);
+  CHECK(r.n == 2);
+  CHECK_VEC(r.m.normal, {-1, 0}, EPS, "b -> a: the chip pushed along +x");
+  for (int k = 0; k < r.n; ++k) {
+    CHECK_NEAR(r.m.separation[k], -0.06, EPS);
+    constexpr std::int64_t S = std::int64_t{1} << 16;  // (narrow2d.hpp: the ids' S)
+    CHECK(r.m.id[k] / (S * S) == 1);                   // a's face is the reference
+    CHECK(r.m.id[k] / S % S == 1);                     // its edge 1
+  }
+  CHECK_VEC(r.m.point[0], {-2.03, 0.008}, EPS, "the upper corner");
+  CHECK_VEC(r.m.point[1], {-2.03, 0.0}, EPS, "the lower corner, clipped to the foot");
+  Result q{};
+  q.n = collide_on_face(chip, wall, 1, 1, s.verts.data(), s.norms.data(), SPEC, q.m);
+  CHECK(q.n == 2);
+  CHECK_VEC(q.m.normal, {1, 0}, EPS, "mirrored: negated");
+  CHECK_VEC(q.m.point[1], r.m.point[1], EPS, "mirrored: the same point");
+  const ShapeRef2 ball = s.circle({-1.96, 0.01}, 0.03);
+  Result c{};
+  c.n = collide_on_face(ball, wall, 1, 1, s.verts.data(), s.norms.data(), SPEC, c.m);
+  CHECK(c.n == 1);
+  CHECK_VEC(c.m.normal, {1, 0}, EPS, "the face's normal");
+  CHECK_NEAR(c.m.separation[0], 0.01, EPS);
+  CHECK_VEC(c.m.point[0], {-1.995, 0.01}, EPS, "midway in the gap");
+  const ShapeRef2 far = s.circle({-1.9, 0.01}, 0.03);
+  CHECK(collide_on_face(far, wall, 1, 1, s.verts.data(), s.norms.data(), SPEC, c.m) == 0);
+}

@@ -1198,3 +1198,51 @@ TEST(calls_per_second) {
 }
 
 RBSIM_TEST_MAIN
+
+// A reference face given (3D): a wall (0.2 × 4 × 6 m, its foot at y = 0) and a chip
+// 16 × 2 × 10 cm lying 6 cm under its foot and 1.2 cm down. The separating axes take the
+// wall's bottom face (the least overlap, 8 mm: a push down); from its +x face (box face
+// 1) the chip is pushed out sideways by its 6 cm under the wall, at the four corners of
+// its -x end (clipped to the face: the two below the foot move up to it, within the clip
+// skin). A sphere gets one point from its centre's foot on the face's plane; a capsule
+// its ends' points under the face, or the deeper end beside it.
+TEST(a_reference_face_given_pushes_from_it) {
+  const auto wall = box_ref({-2.1, 2, 0}, Quat{1, 0, 0, 0}, {0.1, 2, 3});
+  const auto chip = box_ref({-1.98, -0.002, 0}, Quat{1, 0, 0, 0}, {0.08, 0.01, 0.05});
+  const Result sat = collide(wall, chip);
+  CHECK(sat.n == 4);
+  CHECK_VEC(sat.m.normal, {0, 1, 0}, EPS, "the axes' choice: the wall's bottom face");
+  Result r;
+  r.n = collide_on_face(wall, chip, 0, 1, SPEC, r.m);
+  CHECK(r.n == 4);
+  CHECK_VEC(r.m.normal, {-1, 0, 0}, EPS, "b -> a: the chip pushed along +x");
+  for (int k = 0; k < r.n; ++k) {
+    CHECK_NEAR(r.m.separation[k], -0.06, EPS);
+    CHECK_NEAR(r.m.point[k].x, -2.03, EPS);
+    CHECK(r.m.point[k].y > -SKIN - EPS && r.m.point[k].y < 0.008 + EPS);
+  }
+  Result q;
+  q.n = collide_on_face(chip, wall, 1, 1, SPEC, q.m);
+  CHECK(q.n == 4);
+  CHECK_VEC(q.m.normal, {1, 0, 0}, EPS, "mirrored: negated");
+  Result s;
+  s.n = collide_on_face(sphere_ref({-1.96, 0.01, 0.5}, 0.03), wall, 1, 1, SPEC, s.m);
+  CHECK(s.n == 1);
+  CHECK_VEC(s.m.normal, {1, 0, 0}, EPS, "the face's normal");
+  CHECK_NEAR(s.m.separation[0], 0.01, EPS);
+  CHECK_VEC(s.m.point[0], {-1.995, 0.01, 0.5}, EPS, "midway in the gap");
+  CHECK(collide_on_face(sphere_ref({-1.9, 0.01, 0.5}, 0.03), wall, 1, 1, SPEC, s.m) == 0);
+  Result c;
+  c.n = collide_on_face(capsule_ref({-2.05, 0.005, -0.05}, {-2.05, 0.005, 0.05}, 0.01), wall,
+                        1, 1, SPEC, c.m);
+  CHECK(c.n == 2);
+  CHECK_VEC(c.m.normal, {1, 0, 0}, EPS, "the face's normal");
+  CHECK_NEAR(c.m.separation[0], -0.06, EPS);
+  CHECK_NEAR(c.m.separation[1], -0.06, EPS);
+  Result e;  // (its segment beside the face, below the foot: the deeper end)
+  e.n = collide_on_face(capsule_ref({-2.05, -0.02, 0}, {-1.95, -0.03, 0}, 0.01), wall, 1, 1,
+                        SPEC, e.m);
+  CHECK(e.n == 1);
+  CHECK_VEC(e.m.normal, {1, 0, 0}, EPS, "the face's normal");
+  CHECK_NEAR(e.m.separation[0], -0.06, EPS);
+}

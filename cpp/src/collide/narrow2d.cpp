@@ -268,6 +268,21 @@ inline int clip_incident_edge(int ref_is_b, int ref_start, int ref_count, int re
   return n_points;
 }
 
+// The incident edge of a core against reference normal n: the one whose normal is most
+// anti-parallel to it (local index).
+inline int incident_edge(const ShapeRef2& inc, Vec2 n, const Vec2* norms) {
+  int edge = 0;
+  double min_dot = INF;
+  for (int j = 0; j < inc.count; ++j) {
+    const double d = dot(n, norms[inc.start + j]);
+    if (d < min_dot) {
+      min_dot = d;
+      edge = j;
+    }
+  }
+  return edge;
+}
+
 // Two convex cores with 2 or more vertices each (polygons and segments), rounded.
 int collide_cores(const ShapeRef2& sa, const ShapeRef2& sb, const Vec2* verts,
                   const Vec2* norms, double speculative, Manifold2& out) {
@@ -286,16 +301,7 @@ int collide_cores(const ShapeRef2& sa, const ShapeRef2& sb, const Vec2* verts,
 
   // incident edge: the one whose normal is most anti-parallel to the reference normal
   const int i1 = ref.start + ref_edge;
-  const Vec2 n = norms[i1];
-  int inc_edge = 0;
-  double min_dot = INF;
-  for (int j = 0; j < inc.count; ++j) {
-    const double d = dot(n, norms[inc.start + j]);
-    if (d < min_dot) {
-      min_dot = d;
-      inc_edge = j;
-    }
-  }
+  const int inc_edge = incident_edge(inc, norms[i1], norms);
 
   // Corner to corner: when the cores are apart and the closest points of the two edges
   // are end points of both, the true distance exceeds the SAT separation (face normals
@@ -388,6 +394,22 @@ constexpr PairFn COLLIDE[SHAPE_KIND_COUNT][SHAPE_KIND_COUNT] = {
 };
 
 }  // namespace
+
+int collide_on_face(const ShapeRef2& a, const ShapeRef2& b, int ref_is_b, int face,
+                    const Vec2* verts, const Vec2* norms, double speculative, Manifold2& out) {
+  const ShapeRef2& ref = ref_is_b ? b : a;
+  const ShapeRef2& inc = ref_is_b ? a : b;
+  const Vec2 n = norms[ref.start + face];  // out of the reference shape
+  if (inc.count == 1) {  // a circle: its centre's foot on the face's line
+    const Vec2 c = verts[inc.start];
+    const Vec2 p = c - dot(n, c - verts[ref.start + face]) * n;
+    if (ref_is_b) return single_point(c, inc.radius, p, ref.radius, n, 0, speculative, out);
+    return single_point(p, ref.radius, c, inc.radius, -n, 0, speculative, out);
+  }
+  return clip_incident_edge(ref_is_b, ref.start, ref.count, face, ref.radius, inc.start,
+                            inc.count, incident_edge(inc, n, norms), inc.radius, verts, norms,
+                            speculative, out);
+}
 
 // Manifold between shape a and shape b; returns the point count 0, 1 or 2 (only the
 // first `count` rows of out are written). Unknown kinds give 0 points.

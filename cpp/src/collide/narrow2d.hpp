@@ -44,4 +44,12 @@ struct Manifold2 {
 int collide2d(const ShapeRef2& a, const ShapeRef2& b, const Vec2* verts, const Vec2* norms,
               double speculative, Manifold2& out);
 
+// Manifold between shapes a and b with a given reference face: edge `face` of a polygon
+// (b's if ref_is_b, else a's) against the other shape (any kind), whatever the separating
+// axes say; 0, 1 or 2 points as collide2d gives them, with its feature ids. For a contact
+// that must not take the axis the separating axes would (manifold.cpp: a static polygon's
+// face that another static shape covers).
+int collide_on_face(const ShapeRef2& a, const ShapeRef2& b, int ref_is_b, int face,
+                    const Vec2* verts, const Vec2* norms, double speculative, Manifold2& out);
+
 }  // namespace rbsim

@@ -1544,4 +1544,55 @@ int collide3d(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifo
   return COLLIDE[ka][kb](a, b, speculative, out);
 }
 
+int collide_on_face(const ShapeRef3& a, const ShapeRef3& b, int ref_is_b, int face,
+                    double speculative, Manifold3& out) {
+  const ShapeRef3& r = ref_is_b ? b : a;
+  const ShapeRef3& o = ref_is_b ? a : b;
+  Vec3 corners[8], normals[6];
+  const Polytope P = r.kind == ShapeKind::Box ? box_polytope(r, corners, normals) : hull_polytope(r);
+  const Vec3 n = P.fn[face];  // out of the reference shape
+  const int s = P.h->face_start[face], e = P.h->face_start[face + 1];
+  const Vec3 origin = P.v[P.h->face_vertex[s]];
+  if (o.kind == ShapeKind::Sphere) {  // its centre's foot on the face's plane
+    const Vec3 p = o.center - dot(n, o.center - origin) * n;
+    if (ref_is_b) return single_point(o.center, o.radius, p, 0.0, n, 0, speculative, out);
+    return single_point(p, 0.0, o.center, o.radius, -n, 0, speculative, out);
+  }
+  if (o.kind == ShapeKind::Capsule) {
+    int count = capsule_on_face(o, P, face, speculative, out);  // (normal n: to the capsule)
+    if (count < 0) {  // the segment passes beside the face: its end deepest along n
+      const int end = dot(n, o.p) <= dot(n, o.q) ? 0 : 1;
+      const Vec3 x = end == 0 ? o.p : o.q;
+      const double depth = dot(n, x - origin);  // m
+      count = 0;
+      if (depth - o.radius <= speculative) {
+        out.point[0] = x - (0.5 * (o.radius + depth)) * n;
+        out.separation[0] = depth - o.radius;
+        out.id[0] = feature_id(FK::Vertex, 1, face, end, 0);
+        out.normal = n;
+        count = 1;
+      }
+    }
+    if (!ref_is_b) out.normal = -out.normal;
+    return count;
+  }
+  Vec3 o_corners[8], o_normals[6];
+  const Polytope Q = o.kind == ShapeKind::Box ? box_polytope(o, o_corners, o_normals) : hull_polytope(o);
+  Unset<Vec3, HULL_MAX_FACE_VERTICES> loop;
+  for (int k = s; k < e; ++k) loop[k - s] = P.v[P.h->face_vertex[k]];
+  ClipPolygon<HULL_CLIP> poly;
+  incident_polygon(Q, incident_face(Q, n), poly);
+  const int count = face_contact(loop.data(), e - s, n, poly, ref_is_b, face, face_tolerance(a, b),
+                                 speculative, out);
+  if (count > 0) return count;
+  // clipped to nothing (collide_polytopes): the other's vertex deepest below the face
+  const Least deepest = least_along(n, origin, Q.v, Q.h->vertex_count);
+  out.normal = ref_is_b ? n : -n;
+  out.point[0] = Q.v[deepest.index] - (0.5 * deepest.value) * n;
+  out.separation[0] = deepest.value;
+  out.id[0] = feature_id(FK::Single, ref_is_b, face, 0, 0) |
+              feature_id(FK::Vertex, 0, 0, deepest.index, 0);
+  return deepest.value <= speculative ? 1 : 0;
+}
+
 }  // namespace rbsim

@@ -115,6 +115,15 @@ struct Manifold3 {
 // Allocates nothing.
 int collide3d(const ShapeRef3& a, const ShapeRef3& b, double speculative, Manifold3& out);
 
+// Manifold between shapes a and b with a given reference face: face `face` of a box or
+// convex hull (b's if ref_is_b, else a's; a box's faces in box_hull()'s order) against
+// the other shape (a sphere, capsule, box or hull), whatever the separating axes say; up
+// to four points, the normal from b towards a. For a contact that must not take the axis
+// the separating axes would (manifold.cpp: a static polytope's face that another static
+// shape covers).
+int collide_on_face(const ShapeRef3& a, const ShapeRef3& b, int ref_is_b, int face,
+                    double speculative, Manifold3& out);
+
 // The box's hull topology (8 corners: corner k has the sign of bit 0, 1, 2 of k on the
 // x, y, z axes; faces 2 axis + (normal positive); 12 edges), for boxes taken through
 // the convex code path (box–convex) and for tests.

@@ -351,6 +351,115 @@ inline bool held_by_neighbour(const Model<D>& model, const State<D>& st, const C
          pushes_from_covered(model, c, a, b, -out.normal, out.point.data(), npts, slop);
 }
 
+// Pair a, b's manifold where a static polytope s pushes the other shape o from a covered
+// face (pushes_from_covered), made again from s's open face that o reaches least far
+// past: the push of the solid that s and its neighbours make. held_by_neighbour drops
+// such a push while the manifold is shallow and o rests on the neighbour (a body crossing
+// the joint of flush tiles); here it is made again where o is not held so: a manifold
+// deeper than the pair's LINEAR_SLOP, or o that far inside a neighbour of s. A body
+// pressed by a pile under the foot of a wall that stands on the floor (the wall's bottom
+// face covered) was pushed by that face down into the floor, or not at all, and stayed
+// wedged there or was squeezed out of the box beneath the wall; from the wall's open side
+// it is pushed back into the box. Returns the point count: npts where s's push stays as
+// found, else the manifold's from the open face (0: o no nearer it than the speculative
+// distance spec, m); 0 where held_by_neighbour drops it.
+template <int D, class M>
+inline int against_neighbours(const Model<D>& model, const State<D>& st, const Contacts<D>& c,
+                              int a, int b, double scale, double spec, M& out, int npts) {
+  using Vec = typename Dim<D>::Vec;
+  // (held_by_neighbour's tests, in its order)
+  if constexpr (D == 2)
+    if (catches_at_joint(model, st, c, a, b, out.normal)) return 0;
+  if (model.corner_start.empty() || scale < C::COVERED_MIN_SCALE) return npts;
+  const double slop = scale * C::LINEAR_SLOP;  // m
+  auto collide = [&](int p, int q, double speculative, M& m) {
+    if constexpr (D == 2) {
+      auto ref = [&](int k) {
+        return ShapeRef2{model.shape_kind[k], model.shape_vstart[k], model.shape_vcount[k],
+                         model.shape_radius[k], scale};
+      };
+      return collide2d(ref(p), ref(q), c.vert_world.data(), c.norm_world.data(), speculative, m);
+    } else {
+      return collide3d(world_shape(model, c, p, scale), world_shape(model, c, q, scale),
+                       speculative, m);
+    }
+  };
+  // whether shape o lies deeper than the slop in a static neighbour of s (inside the
+  // solid they make)
+  auto inside_neighbour = [&](int s, int o) {
+    for (int e = model.cover_start[s]; e < model.cover_start[s + 1]; ++e) {
+      M in;
+      const int k = collide(o, model.cover[e].shape, 0.0, in);
+      for (int i = 0; i < k; ++i)
+        if (in.separation[i] < -slop) return true;
+    }
+    return false;
+  };
+  auto face_count = [](const Corners<D>& P) {
+    if constexpr (D == 2) return P.n; else return P.hull.face_count;
+  };
+  // whether s's push along n_out (out of s) leans towards a face of s that a neighbour
+  // covers: into the neighbour
+  auto leans_in = [&](int s, Vec n_out) {
+    const std::uint64_t covered = model.shape_covered[s];
+    if (covered == 0) return false;
+    Corners<D> own;
+    corners_of(model, c, s, own);
+    for (int f = 0; f < face_count(own) && f < 64; ++f)
+      if ((covered >> f & 1u) && dot(n_out, own.normal[f]) > 0.0) return true;
+    return false;
+  };
+  int s = -1;
+  if (pushes_from_covered(model, c, b, a, out.normal, out.point.data(), npts, slop))
+    s = b;
+  else if (pushes_from_covered(model, c, a, b, -out.normal, out.point.data(), npts, slop))
+    s = a;
+  if (s >= 0) {
+    // shallow, and the other shape not inside the neighbour: held by it, and dropped
+    bool deep = false;
+    for (int k = 0; k < npts; ++k) deep = deep || out.separation[k] < -slop;
+    if (!deep && !inside_neighbour(s, s == a ? b : a)) return 0;
+  } else {
+    // a push kept (the corner of a valley, pushes_from_covered) that leans into the
+    // neighbour, against a shape inside it, is made again too
+    if (leans_in(b, out.normal) && inside_neighbour(b, a))
+      s = b;
+    else if (leans_in(a, -out.normal) && inside_neighbour(a, b))
+      s = a;
+    if (s < 0) return npts;
+  }
+  // s's open face that the other shape's core reaches least far past
+  Corners<D> own, other;
+  corners_of(model, c, s, own);
+  corners_of(model, c, s == a ? b : a, other);
+  const std::uint64_t covered = model.shape_covered[s];
+  int face = -1;
+  double best = -std::numeric_limits<double>::infinity();  // m
+  for (int f = 0; f < face_count(own); ++f) {
+    if (f < 64 && (covered >> f & 1u)) continue;
+    Vec origin;  // a corner of face f
+    if constexpr (D == 2) origin = own.v[f]; else origin = own.v[own.hull.face_vertex[own.hull.face_start[f]]];
+    double least = std::numeric_limits<double>::infinity();  // m
+    for (int k = 0; k < other.n; ++k) least = std::min(least, dot(own.normal[f], other.v[k] - origin));
+    if (least > best) {
+      best = least;
+      face = f;
+    }
+  }
+  if (face < 0) return npts;  // (every face covered: s inside the solid)
+  if constexpr (D == 2) {
+    auto ref = [&](int k) {
+      return ShapeRef2{model.shape_kind[k], model.shape_vstart[k], model.shape_vcount[k],
+                       model.shape_radius[k], scale};
+    };
+    return collide_on_face(ref(a), ref(b), s == b ? 1 : 0, face, c.vert_world.data(),
+                           c.norm_world.data(), spec, out);
+  } else {
+    return collide_on_face(world_shape(model, c, a, scale), world_shape(model, c, b, scale),
+                           s == b ? 1 : 0, face, spec, out);
+  }
+}
+
 // Pair a, b's narrowphase at the pair's tolerance scale and speculative distance.
 template <int D>
 inline int narrow_pair(const Model<D>& model, const Contacts<D>& c, int a, int b, double scale,
@@ -533,7 +642,7 @@ void narrow_pairs(const Model<D>& model, const State<D>& st, const Contacts<D>& 
     }
     const double spec = speculative(model, st, c, dt, a, b, scale);
     int npts = narrow_pair(model, c, a, b, scale, spec, out);
-    if (npts > 0 && held_by_neighbour(model, st, c, a, b, out, npts)) npts = 0;
+    if (npts > 0) npts = against_neighbours(model, st, c, a, b, scale, spec, out, npts);
     // only a pair that is clearly apart can turn its normal before the impact, and only
     // if it meets within the step: most such pairs do not (two balls falling side by
     // side), and their test is made here, as the search's first, so that they skip the
