@@ -1285,16 +1285,17 @@ def test_a_taller_tile_still_stops_a_box(dimension):
     assert 5.74 < x[0] <= 5.75 + 1e-6  # m: against the wall's side at x = 6
 
 
-@pytest.mark.parametrize("dimension", [2, 3])
+@pytest.mark.parametrize(("dimension", "ground"), [(2, "box"), (3, "box"), (3, "plane")])
 @pytest.mark.parametrize("kind", ["box", "capsule"])
-def test_a_chip_wedged_under_the_foot_of_a_wall_comes_out_into_the_box(dimension, kind):
+def test_a_chip_wedged_under_the_foot_of_a_wall_comes_out_into_the_box(dimension, ground, kind):
     # a wall standing on the floor, its bottom face covered by the floor's top, and a chip
     # 2 cm thick (16 cm long) wedged 6 cm under the wall's foot and 1.2 cm into the floor,
     # as a pile squeezed small bodies there in bench/random_scenes.py (seeds 141, 1043,
     # 1209): the wall's covered face pushed it down into the floor (or, shallow, not at
     # all), and it stayed there for good, 7.6 mm deep and 1.6 cm under the wall, or slid
     # on out of the box beneath it. The push of the solid the two make, from the wall's
-    # open side, brings it out to rest on the floor against the wall
+    # open side, brings it out to rest on the floor against the wall (in 3D on a floor
+    # box, or on a ground plane: a face lying in the plane, turned down, is covered too)
     from rbsim.engines import make_engine
 
     v = lambda *xyz: vector(dimension, *xyz)  # noqa: E731
@@ -1304,6 +1305,8 @@ def test_a_chip_wedged_under_the_foot_of_a_wall_comes_out_into_the_box(dimension
         f" b: {v(0.07, 0, 0)}, radius: 0.01}}",
     }[kind]
     pieces = static_box("floor", (0, -0.1, 0)[:dimension], (6, 0.2, 6)[:dimension])
+    if ground == "plane":
+        pieces = "  - {name: floor, type: static, shape: {plane: {normal: [0, 1, 0], offset: 0}}}\n"
     pieces += static_box("wall", (-2.1, 2, 0)[:dimension], (0.2, 4, 6)[:dimension])
     chip = (
         f"  - {{name: chip, position: {v(-1.98, -0.002, 0)}, density: 200, shape: {{{shape}}}}}\n"

@@ -232,3 +232,23 @@ TEST(a_brick_face_resting_on_two_bricks_is_covered) {
   const std::uint64_t top = corner[w.model.corner_start[0] + 3];
   CHECK(std::popcount(top) == 2);
 }
+
+// A ground plane covers the faces lying in it, turned down into it: a wall standing on
+// the plane has its bottom face covered, with the plane as its neighbour; a box lifted
+// 1 cm off the plane, and a dynamic one standing on it, have none.
+TEST(a_face_standing_on_a_ground_plane_is_covered) {
+  SceneBuilder3 s;
+  s.plane({0, 1, 0}, 0.0);                         // 0
+  s.box({-2.1, 2.0, 0.0}, {0.1, 2.0, 3.0}, 0.0);   // 1: a wall on the plane
+  s.box({2.0, 0.26, 0.0}, {0.25, 0.25, 0.25}, 0.0);  // 2: 1 cm above it
+  s.box({4.0, 0.25, 0.0}, {0.25, 0.25, 0.25}, 1.0);  // 3: dynamic, on it
+  World<3>& w = s.finish();
+  const auto& covered = w.model.shape_covered;
+  CHECK(covered.size() == 4);
+  CHECK(covered[1] == 1u << 2);  // -y
+  CHECK(covered[2] == 0u);
+  CHECK(covered[3] == 0u);
+  const auto& start = w.model.cover_start;
+  CHECK(start[1] == 0 && start[2] == 1 && start[4] == 1);
+  CHECK(w.model.cover[0].shape == 0 && w.model.cover[0].faces == 1u << 2);
+}

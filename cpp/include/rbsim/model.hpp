@@ -69,7 +69,8 @@ struct Model {
   std::vector<std::array<Vec, 2>> segment_ghost;  // (S,) or empty
   // Faces of static polytopes (2D: polygons without a radius; 3D: boxes and convex hulls)
   // that lie flush against a face of another static shape that covers them wholly (tiles
-  // side by side, bricks in a wall): inside the solid the two make. Bit f of a shape's
+  // side by side, bricks in a wall), or in 3D lie in a static plane, turned down into it
+  // (a wall standing on the ground): inside the solid the two make. Bit f of a shape's
   // mask is its face f (2D: edge f, vertex f to f + 1; 3D: hull face f, a box's in
   // box_hull()'s order; faces past the 64th are never marked). World::allocate,
   // find_covered_faces; empty when no face is covered.
@@ -83,8 +84,8 @@ struct Model {
   std::vector<std::int32_t> corner_start;  // (S + 1,) or empty
   std::vector<std::uint64_t> corner_covered;
   // Who covers them: shape s's neighbours cover[cover_start[s] .. cover_start[s + 1]),
-  // each a static shape and the mask of s's faces it lies against (empty with
-  // corner_covered)
+  // each a static shape (a polytope or a plane) and the mask of s's faces it lies against
+  // (empty with corner_covered)
   struct Cover {
     std::int32_t shape;
     std::uint64_t faces;

@@ -445,6 +445,28 @@ void find_covered_faces(Model<D>& model, const State<D>& state, const std::vecto
       }
     }
   }
+  if constexpr (D == 3) {
+    // a ground plane covers the faces that lie in it, turned down into it (a wall
+    // standing on it): the half-space under it is solid everywhere
+    for (int g = 0; g < model.shape_count(); ++g) {
+      if (model.shape_kind[g] != ShapeKind::Plane ||
+          model.body_type[model.shape_body[g]] != BodyType::Static)
+        continue;
+      Vec3 point, n;
+      const ShapeRef3 plane = place_shape(model, state, g, 0.0, 1.0, &point, &n);
+      for (std::size_t u = 0; u < faces.size(); ++u) {
+        const WorldFace<D>& f = faces[u];
+        const double tol = std::max(round_off, C::FLUSH_DISTANCE * scale[f.shape]);  // m
+        if (dot(f.normal, plane.normal) > -1.0 + 1e-9) continue;
+        bool in_plane = true;
+        for (int k = 0; k < f.count && in_plane; ++k)
+          in_plane = std::fabs(dot(plane.normal, points[f.first + k]) - plane.offset) <= tol;
+        if (!in_plane) continue;
+        cover[u] = std::numeric_limits<double>::infinity();
+        touch.emplace_back(u, g);
+      }
+    }
+  }
   std::vector<std::uint64_t> covered(model.shape_count(), 0);
   bool any = false;
   for (std::size_t u = 0; u < faces.size(); ++u) {

@@ -222,6 +222,7 @@ template <int D>
 bool pushes_from_covered(const Model<D>& model, const Contacts<D>& c, int s, int o,
                          typename Dim<D>::Vec n_out, const typename Dim<D>::Vec* points,
                          int npts, double slop) {
+  using Vec = typename Dim<D>::Vec;
   if (model.corner_start.empty() || model.corner_start[s] == model.corner_start[s + 1])
     return false;
   Corners<D> own;
@@ -310,14 +311,26 @@ bool pushes_from_covered(const Model<D>& model, const Contacts<D>& c, int s, int
     // support (a valley: the push stays)
     for (int e = model.cover_start[s]; e < model.cover_start[s + 1]; ++e) {
       if (!(model.cover[e].faces >> f & 1u)) continue;
+      const int o_shape = model.cover[e].shape;
       Corners<D> other;
-      corners_of(model, c, model.cover[e].shape, other);
+      corners_of(model, c, o_shape, other);
+      // whether the neighbour reaches further along dir than bound (m) past x: a
+      // polytope by its corners, a plane (3D: the half-space under it) along any dir
+      // but its own normal
+      auto beyond = [&](Vec dir, Vec x, double bound) {
+        if (D == 3 && model.shape_kind[o_shape] == ShapeKind::Plane) {
+          const Vec n_plane = c.norm_world[model.shape_vstart[o_shape]];  // (its one row)
+          return dot(dir, n_plane) < 1.0 - 1e-12 || dot(n_plane, other.v[0] - x) > bound;
+        }
+        for (int k = 0; k < other.n; ++k)
+          if (dot(dir, other.v[k] - x) > bound) return true;
+        return false;
+      };
       for (int g = 0; g < n_faces; ++g) {
         if (g == f || wholly(g) || !holds_support(g)) continue;
-        for (int k = 0; k < other.n; ++k)
-          if (dot(own.normal[g], other.v[k] - p) > flush) return false;
+        if (beyond(own.normal[g], p, flush)) return false;
       }
-      for (int k = 0; k < other.n && !drop; ++k) drop = dot(n_out, other.v[k]) > most + tol;
+      drop = drop || beyond(n_out, Vec{}, most + tol);
     }
   }
   return drop;
