@@ -1285,7 +1285,34 @@ def test_a_taller_tile_still_stops_a_box(dimension):
     assert 5.74 < x[0] <= 5.75 + 1e-6  # m: against the wall's side at x = 6
 
 
-@pytest.mark.parametrize(("dimension", "ground"), [(2, "box"), (3, "box"), (3, "plane")])
+def test_a_wedge_falling_down_a_walls_face_lands_on_the_floor_the_wall_stands_on():
+    # a wall standing on a 5 cm floor box covers the floor's top under its foot; a wedge
+    # (its vertical side against the wall, its point down) falling down the wall's face
+    # meets the floor at 10 m/s with that point 1.6 cm into the wall, where the floor's
+    # push was dropped as a joint's (as in bench/random_scenes.py seed 4857, at 26 m/s):
+    # it went through the floor and stuck in the wall's foot.
+    # A point within the floor's face is the floor's own push: the wedge lands and tips
+    # over onto its side (its centre then 3.2 cm up)
+    from rbsim.engines import make_engine
+
+    pieces = static_box("floor", (0, -0.025), (4.434, 0.05))
+    pieces += static_box("wall", (2.192, 3.257), (0.05, 6.515))
+    wedge = (
+        "  - {name: wedge, position: [2.13337, 1.2], velocity: [0, -10], friction: 0.5,"
+        " shape: {polygon: {vertices: [[-0.05, 0.3], [0.05, -0.3], [0.05, 0.3]]}}}\n"
+    )
+    text = "version: 1\nworld: {dt: 1/30, steps: 30}\nbodies:\n" + pieces + wedge
+    engine = make_engine("rbsim", scene_from(text))
+    lowest = np.inf  # m: its centre's
+    for _ in range(30):
+        engine.advance(1)
+        lowest = min(lowest, float(np.asarray(engine.world.engine.body_x)[-1][1]))
+    assert lowest > 0.0  # m: never below the floor's top (lying on its side: 0.032)
+
+
+@pytest.mark.parametrize(
+    ("dimension", "ground"), [(2, "box"), (2, "short"), (3, "box"), (3, "short"), (3, "plane")]
+)
 @pytest.mark.parametrize("kind", ["box", "capsule"])
 def test_a_chip_wedged_under_the_foot_of_a_wall_comes_out_into_the_box(dimension, ground, kind):
     # a wall standing on the floor, its bottom face covered by the floor's top, and a chip
@@ -1295,7 +1322,10 @@ def test_a_chip_wedged_under_the_foot_of_a_wall_comes_out_into_the_box(dimension
     # all), and it stayed there for good, 7.6 mm deep and 1.6 cm under the wall, or slid
     # on out of the box beneath it. The push of the solid the two make, from the wall's
     # open side, brings it out to rest on the floor against the wall (in 3D on a floor
-    # box, or on a ground plane: a face lying in the plane, turned down, is covered too)
+    # box, or on a ground plane: a face lying in the plane, turned down, is covered too).
+    # A floor that ends 2 mm short of the wall's outer face covers the wall's foot only
+    # near its inner corner, whose push into the floor is made again the same way
+    # (bench/random_scenes.py seed 2795)
     from rbsim.engines import make_engine
 
     v = lambda *xyz: vector(dimension, *xyz)  # noqa: E731
@@ -1305,6 +1335,8 @@ def test_a_chip_wedged_under_the_foot_of_a_wall_comes_out_into_the_box(dimension
         f" b: {v(0.07, 0, 0)}, radius: 0.01}}",
     }[kind]
     pieces = static_box("floor", (0, -0.1, 0)[:dimension], (6, 0.2, 6)[:dimension])
+    if ground == "short":  # (from x = -2.198 to 3)
+        pieces = static_box("floor", (0.401, -0.1, 0)[:dimension], (5.198, 0.2, 6)[:dimension])
     if ground == "plane":
         pieces = "  - {name: floor, type: static, shape: {plane: {normal: [0, 1, 0], offset: 0}}}\n"
     pieces += static_box("wall", (-2.1, 2, 0)[:dimension], (0.2, 4, 6)[:dimension])

@@ -400,16 +400,18 @@ void find_covered_faces(Model<D>& model, const State<D>& state, const std::vecto
   model.cover_start.clear();
   model.cover.clear();
   if (faces.size() < 2) return;
-  // two faces meet within FLUSH_DISTANCE at the smaller shape's scale (and never closer
-  // than 1e-9 of the largest coordinate's size: round-off)
+  // two faces meet within FLUSH_DISTANCE at the smaller shape's scale, round-off (1e-9
+  // of the largest coordinate's size) aside: a wall placed to three decimals, its foot
+  // 0.5 mm over the floor (2.601 − 5.201 / 2), lay 0.5 mm and a few 1e-16 m off it, not
+  // flush, and its foot's corner pushed a body into the floor
   double size = 0.0;  // m
   for (const Vec& x : points) size = std::max(size, largest(x));
   const double round_off = 1e-9 * (1.0 + size);  // m
   auto flush = [&](const WorldFace<D>& f, const WorldFace<D>& g) {  // m
-    return std::max(round_off, C::FLUSH_DISTANCE * std::min(scale[f.shape], scale[g.shape]));
+    return C::FLUSH_DISTANCE * std::min(scale[f.shape], scale[g.shape]) + round_off;
   };
   double widest = round_off;  // m: the sweep's reach along x
-  for (const auto& f : faces) widest = std::max(widest, C::FLUSH_DISTANCE * scale[f.shape]);
+  for (const auto& f : faces) widest = std::max(widest, C::FLUSH_DISTANCE * scale[f.shape] + round_off);
   for (auto& f : faces) {
     f.lo = f.hi = points[f.first];
     for (int k = 1; k < f.count; ++k) {
@@ -456,7 +458,7 @@ void find_covered_faces(Model<D>& model, const State<D>& state, const std::vecto
       const ShapeRef3 plane = place_shape(model, state, g, 0.0, 1.0, &point, &n);
       for (std::size_t u = 0; u < faces.size(); ++u) {
         const WorldFace<D>& f = faces[u];
-        const double tol = std::max(round_off, C::FLUSH_DISTANCE * scale[f.shape]);  // m
+        const double tol = C::FLUSH_DISTANCE * scale[f.shape] + round_off;  // m
         if (dot(f.normal, plane.normal) > -1.0 + 1e-9) continue;
         bool in_plane = true;
         for (int k = 0; k < f.count && in_plane; ++k)

@@ -276,11 +276,17 @@ bool pushes_from_covered(const Model<D>& model, const Contacts<D>& c, int s, int
   const auto p = own.v[support[0]];  // m: a corner of the support
   bool drop = false;
   // whether the manifold's points all lie over the faces of f's neighbours that lie
-  // against it (the part of f they cover), to the pair's slop: a point midway to a face
-  // from a corner that rests on the floor lies at the floor's height, where the face
-  // ends, up or down by the soft contact's give
+  // against it (the part of f they cover), at f's rim (where a tile's side meets the
+  // next tile's top), to the pair's slop: a point midway to a face from a corner that
+  // rests on the floor lies at the floor's height, where the face ends, up or down by
+  // the soft contact's give. A point within f, further than the slop from its rim, is
+  // where a neighbour rises from f (a wall standing on a floor box covers the floor's
+  // top under its foot), and the push there is f's: a body falling down the wall's face,
+  // its lowest corner 1.6 cm into the wall, lost the floor's push at the foot and fell
+  // through the floor at 10 m/s
   auto points_covered = [&](int f) {
     for (int k = 0; k < npts; ++k) {
+      if (over_face(own, f, points[k], -slop)) return false;
       bool over = false;
       for (int e = model.cover_start[s]; e < model.cover_start[s + 1] && !over; ++e) {
         if (!(model.cover[e].faces >> f & 1u)) continue;
@@ -373,9 +379,12 @@ inline bool held_by_neighbour(const Model<D>& model, const State<D>& st, const C
 // pressed by a pile under the foot of a wall that stands on the floor (the wall's bottom
 // face covered) was pushed by that face down into the floor, or not at all, and stayed
 // wedged there or was squeezed out of the box beneath the wall; from the wall's open side
-// it is pushed back into the box. Returns the point count: npts where s's push stays as
-// found, else the manifold's from the open face (0: o no nearer it than the speculative
-// distance spec, m); 0 where held_by_neighbour drops it.
+// it is pushed back into the box. So is a push that pushes_from_covered keeps (a valley's
+// corner) but that leans into a face covered wholly or near that corner, against an o
+// that deep inside the neighbour (a wall a little wider than the floor's end under it).
+// Returns the point count: npts where s's push stays as found, else the manifold's from
+// the open face (0: o no nearer it than the speculative distance spec, m); 0 where
+// held_by_neighbour drops it.
 template <int D, class M>
 inline int against_neighbours(const Model<D>& model, const State<D>& st, const Contacts<D>& c,
                               int a, int b, double scale, double spec, M& out, int npts) {
@@ -411,45 +420,103 @@ inline int against_neighbours(const Model<D>& model, const State<D>& st, const C
   auto face_count = [](const Corners<D>& P) {
     if constexpr (D == 2) return P.n; else return P.hull.face_count;
   };
-  // whether s's push along n_out (out of s) leans towards a face of s that a neighbour
-  // covers: into the neighbour
-  auto leans_in = [&](int s, Vec n_out) {
-    const std::uint64_t covered = model.shape_covered[s];
-    if (covered == 0) return false;
+  // face f's corners (2D: its edge's two ends; 3D: its loop) and the i-th of them
+  auto corner_count = [](const Corners<D>& P, int f) {
+    if constexpr (D == 2) return 2; else return P.hull.face_start[f + 1] - P.hull.face_start[f];
+  };
+  auto corner = [](const Corners<D>& P, int f, int i) {
+    if constexpr (D == 2) return (f + i) % P.n; else return P.hull.face_vertex[P.hull.face_start[f] + i];
+  };
+  // whether corner k of P is in its support along n: the corners farthest out along n, to
+  // round-off (1e-9 of their size, as pushes_from_covered's)
+  auto in_support = [](const Corners<D>& P, Vec n) {
+    double most = -std::numeric_limits<double>::infinity(), size = 0.0;  // m
+    for (int k = 0; k < P.n; ++k) {
+      most = std::max(most, dot(n, P.v[k]));
+      size = std::max(size, length(P.v[k]));
+    }
+    const double tol = 1e-9 * (1.0 + size);  // m
+    return [&P, n, least = most - tol](int k) { return dot(n, P.v[k]) >= least; };
+  };
+  // the faces of s that a push along n_out (out of s) may not come from: those covered
+  // wholly, and for a push from a corner (or an edge, 3D) those it leans towards (n_out ·
+  // their normal > 0) that a neighbour covers near it: a push into the neighbour
+  auto blocked_faces = [&](int s, Vec n_out) {
+    std::uint64_t blocked = model.shape_covered[s];
+    if (model.corner_start[s] == model.corner_start[s + 1]) return blocked;
     Corners<D> own;
     corners_of(model, c, s, own);
-    for (int f = 0; f < face_count(own) && f < 64; ++f)
-      if ((covered >> f & 1u) && dot(n_out, own.normal[f]) > 0.0) return true;
-    return false;
+    const auto supports = in_support(own, n_out);
+    int support = 0;
+    for (int k = 0; k < own.n; ++k) support += supports(k);
+    if (support >= D) return blocked;  // (a face's push: its points decide, points_covered)
+    const int n_faces = model.corner_start[s + 1] - model.corner_start[s];
+    for (int f = 0; f < n_faces && f < 64; ++f) {
+      const std::uint64_t near = model.corner_covered[model.corner_start[s] + f];
+      if (near == 0 || !(dot(n_out, own.normal[f]) > 0.0)) continue;
+      for (int i = 0; i < corner_count(own, f) && i < 64; ++i)
+        if ((near >> i & 1u) && supports(corner(own, f, i))) blocked |= std::uint64_t{1} << f;
+    }
+    return blocked;
   };
   int s = -1;
   if (pushes_from_covered(model, c, b, a, out.normal, out.point.data(), npts, slop))
     s = b;
   else if (pushes_from_covered(model, c, a, b, -out.normal, out.point.data(), npts, slop))
     s = a;
+  // a manifold apart by more than the slop at every point is no push yet: as found, or
+  // dropped where held by a neighbour (a body 19 cm over a floor made again from the
+  // floor's bottom face, 59 cm past it, was thrown down through the floor)
+  bool apart = true;
+  for (int k = 0; k < npts; ++k) apart = apart && out.separation[k] > slop;
   if (s >= 0) {
     // shallow, and the other shape not inside the neighbour: held by it, and dropped
     bool deep = false;
     for (int k = 0; k < npts; ++k) deep = deep || out.separation[k] < -slop;
-    if (!deep && !inside_neighbour(s, s == a ? b : a)) return 0;
+    if (apart || (!deep && !inside_neighbour(s, s == a ? b : a))) return 0;
+  } else if (apart) {
+    return npts;
+  }
+  // the push out of each static shape of the pair, and its faces it may not come from
+  const Vec out_of_b = out.normal, out_of_a = -out.normal;
+  std::uint64_t blocked = 0;
+  if (s >= 0) {
+    blocked = blocked_faces(s, s == b ? out_of_b : out_of_a);
   } else {
     // a push kept (the corner of a valley, pushes_from_covered) that leans into the
     // neighbour, against a shape inside it, is made again too
-    if (leans_in(b, out.normal) && inside_neighbour(b, a))
-      s = b;
-    else if (leans_in(a, -out.normal) && inside_neighbour(a, b))
-      s = a;
+    for (const int t : {b, a}) {
+      if (model.corner_start[t] == model.corner_start[t + 1]) continue;  // (none covered)
+      const Vec n_out = t == b ? out_of_b : out_of_a;
+      const std::uint64_t mask = blocked_faces(t, n_out);
+      Corners<D> own;
+      corners_of(model, c, t, own);
+      bool leans = false;
+      for (int f = 0; f < face_count(own) && f < 64; ++f)
+        leans = leans || ((mask >> f & 1u) && dot(n_out, own.normal[f]) > 0.0);
+      if (leans && inside_neighbour(t, t == b ? a : b)) {
+        s = t;
+        blocked = mask;
+        break;
+      }
+    }
     if (s < 0) return npts;
   }
-  // s's open face that the other shape's core reaches least far past
+  // s's open face beside the push (holding a corner of its support) that the other
+  // shape's core reaches least far past
   Corners<D> own, other;
   corners_of(model, c, s, own);
   corners_of(model, c, s == a ? b : a, other);
-  const std::uint64_t covered = model.shape_covered[s];
+  const auto supports = in_support(own, s == b ? out_of_b : out_of_a);
+  auto beside = [&](int f) {
+    for (int i = 0; i < corner_count(own, f); ++i)
+      if (supports(corner(own, f, i))) return true;
+    return false;
+  };
   int face = -1;
   double best = -std::numeric_limits<double>::infinity();  // m
   for (int f = 0; f < face_count(own); ++f) {
-    if (f < 64 && (covered >> f & 1u)) continue;
+    if ((f < 64 && (blocked >> f & 1u)) || !beside(f)) continue;
     Vec origin;  // a corner of face f
     if constexpr (D == 2) origin = own.v[f]; else origin = own.v[own.hull.face_vertex[own.hull.face_start[f]]];
     double least = std::numeric_limits<double>::infinity();  // m
@@ -459,7 +526,7 @@ inline int against_neighbours(const Model<D>& model, const State<D>& st, const C
       face = f;
     }
   }
-  if (face < 0) return npts;  // (every face covered: s inside the solid)
+  if (face < 0) return npts;  // (every face beside it covered: s inside the solid)
   if constexpr (D == 2) {
     auto ref = [&](int k) {
       return ShapeRef2{model.shape_kind[k], model.shape_vstart[k], model.shape_vcount[k],
