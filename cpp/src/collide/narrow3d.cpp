@@ -684,6 +684,23 @@ inline std::uint64_t edges_in_reach(const Polytope& P, int first, int n, const s
 // hull or lies away from where the two touch (edge_marks) is left out of the pairs.
 constexpr int HULL_CLIP = 2 * HULL_MAX_FACE_VERTICES;
 constexpr int EDGE_GROUP = 16 * LANES;
+// The incident face clipped to nothing, though the axes found the two within reach: on
+// hulls of many small faces the one most anti-parallel to the reference normal need not
+// lie over the reference face (two rocks of 30 points, 12 cm into each other, had no
+// point, so no manifold, and went on through each other for 15 steps). One point then,
+// at inc's vertex deepest below the reference face (reference face rf, outward unit
+// normal n_ref, through origin), its separation the face's.
+int deepest_below(const Polytope& inc, Vec3 n_ref, Vec3 origin, int ref_is_b, int rf,
+                  double speculative, Manifold3& out) {
+  const Least deepest = least_along(n_ref, origin, inc.v, inc.h->vertex_count);
+  const Vec3 x = inc.v[deepest.index];
+  out.normal = ref_is_b ? n_ref : -n_ref;
+  out.point[0] = x - (0.5 * deepest.value) * n_ref;
+  out.separation[0] = deepest.value;
+  out.id[0] = feature_id(FK::Single, ref_is_b, rf, 0, 0) | feature_id(FK::Vertex, 0, 0, deepest.index, 0);
+  return deepest.value <= speculative ? 1 : 0;
+}
+
 int collide_polytopes(const Polytope& A, const Polytope& B, double tol, double speculative,
                       Manifold3& out) {
   const HullSpread spread_a = vertex_spread(A), spread_b = vertex_spread(B);
@@ -781,19 +798,7 @@ int collide_polytopes(const Polytope& A, const Polytope& B, double tol, double s
   }
   const int n = clip(out);
   if (n > 0) return n;
-  // The incident face clipped to nothing, though the axes found the two within reach:
-  // on hulls of many small faces the one most anti-parallel to the reference normal need
-  // not lie over the reference face (two rocks of 30 points, 12 cm into each other, had
-  // no point, so no manifold, and went on through each other for 15 steps). One point
-  // then, at the incident hull's vertex deepest below the reference face, its separation
-  // the face's.
-  const Least deepest = least_along(n_ref, loop[0], inc.v, inc.h->vertex_count);
-  const Vec3 x = inc.v[deepest.index];
-  out.normal = ref_is_b ? n_ref : -n_ref;
-  out.point[0] = x - (0.5 * deepest.value) * n_ref;
-  out.separation[0] = deepest.value;
-  out.id[0] = feature_id(FK::Single, ref_is_b, rf, 0, 0) | feature_id(FK::Vertex, 0, 0, deepest.index, 0);
-  return deepest.value <= speculative ? 1 : 0;
+  return deepest_below(inc, n_ref, loop[0], ref_is_b, rf, speculative, out);
 }
 
 // A box as a polytope: its corners and face normals in the caller's arrays.
@@ -1585,14 +1590,7 @@ int collide_on_face(const ShapeRef3& a, const ShapeRef3& b, int ref_is_b, int fa
   const int count = face_contact(loop.data(), e - s, n, poly, ref_is_b, face, face_tolerance(a, b),
                                  speculative, out);
   if (count > 0) return count;
-  // clipped to nothing (collide_polytopes): the other's vertex deepest below the face
-  const Least deepest = least_along(n, origin, Q.v, Q.h->vertex_count);
-  out.normal = ref_is_b ? n : -n;
-  out.point[0] = Q.v[deepest.index] - (0.5 * deepest.value) * n;
-  out.separation[0] = deepest.value;
-  out.id[0] = feature_id(FK::Single, ref_is_b, face, 0, 0) |
-              feature_id(FK::Vertex, 0, 0, deepest.index, 0);
-  return deepest.value <= speculative ? 1 : 0;
+  return deepest_below(Q, n, origin, ref_is_b, face, speculative, out);
 }
 
 }  // namespace rbsim

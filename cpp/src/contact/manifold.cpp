@@ -56,6 +56,13 @@ inline double mix(double a, double b, MixRule rule) {
   }
 }
 
+// A 2D shape as the narrowphase reads it: its rows of contacts.vert_world and norm_world
+// (transform.cpp), at the pair's tolerance scale.
+ShapeRef2 world_shape(const Model<2>& model, const Contacts<2>&, int s, double scale) {
+  return {model.shape_kind[s], model.shape_vstart[s], model.shape_vcount[s],
+          model.shape_radius[s], scale};
+}
+
 // A 3D shape as the narrowphase reads it: its world geometry this step (transform.cpp),
 // at the pair's tolerance scale.
 ShapeRef3 world_shape(const Model<3>& model, const Contacts<3>& c, int s, double scale) {
@@ -160,6 +167,39 @@ void corners_of(const Model<D>& model, const Contacts<D>& c, int s, Corners<D>& 
   }
 }
 
+// A polytope's faces, face f's corners (2D: its edge's two ends; 3D: its loop) and the
+// i-th of them (an index into P.v).
+template <int D>
+inline int face_count(const Corners<D>& P) {
+  if constexpr (D == 2) return P.n; else return P.hull.face_count;
+}
+template <int D>
+inline int corner_count(const Corners<D>& P, int f) {
+  if constexpr (D == 2) return 2; else return P.hull.face_start[f + 1] - P.hull.face_start[f];
+}
+template <int D>
+inline int corner(const Corners<D>& P, int f, int i) {
+  if constexpr (D == 2) return (f + i) % P.n; else return P.hull.face_vertex[P.hull.face_start[f] + i];
+}
+
+// P's support along n: its corners within round-off (1e-9 of their size, as
+// find_covered_faces's) of the farthest out along n (most, m; tol, m).
+template <int D>
+struct Support {
+  const Corners<D>& P;
+  typename Dim<D>::Vec n;
+  double most = -std::numeric_limits<double>::infinity(), tol = 0.0;
+  Support(const Corners<D>& corners, typename Dim<D>::Vec dir) : P(corners), n(dir) {
+    double size = 0.0;  // m
+    for (int k = 0; k < P.n; ++k) {
+      most = std::max(most, dot(n, P.v[k]));
+      size = std::max(size, length(P.v[k]));
+    }
+    tol = 1e-9 * (1.0 + size);
+  }
+  bool holds(int k) const { return dot(n, P.v[k]) >= most - tol; }
+};
+
 // Whether dir (unit) is the outward normal of one of shape o's faces (to 1e-12 in its
 // cosine): a polygon's or segment's edge, a box's or hull's face, a plane.
 template <int D>
@@ -227,20 +267,14 @@ bool pushes_from_covered(const Model<D>& model, const Contacts<D>& c, int s, int
     return false;
   Corners<D> own;
   corners_of(model, c, s, own);
-  // the support: the corners within round-off (1e-9 of their size, find_covered_faces) of
-  // the farthest out along n_out
-  double most = -std::numeric_limits<double>::infinity(), size = 0.0;  // m
-  for (int k = 0; k < own.n; ++k) {
-    most = std::max(most, dot(n_out, own.v[k]));
-    size = std::max(size, length(own.v[k]));
-  }
-  const double tol = 1e-9 * (1.0 + size);  // m
+  const Support<D> along(own, n_out);
+  const double most = along.most, tol = along.tol;  // m
   // m: how far the neighbours may lie off this shape's faces and still be flush with them
   const double flush = std::max(tol, C::FLUSH_DISTANCE * c.shape_scale[s]);
   std::array<int, HULL_MAX_FACE_VERTICES> support;
   int count = 0;
   for (int k = 0; k < own.n; ++k) {
-    if (dot(n_out, own.v[k]) < most - tol) continue;
+    if (!along.holds(k)) continue;
     if (count == HULL_MAX_FACE_VERTICES) return false;
     support[count++] = k;
   }
@@ -248,13 +282,9 @@ bool pushes_from_covered(const Model<D>& model, const Contacts<D>& c, int s, int
   const bool face_push = count >= D;
   // where corner k lies in face f's loop (-1: not on f)
   auto position = [&](int f, int k) {
-    if constexpr (D == 2) {
-      return k == f ? 0 : k == (f + 1) % own.n ? 1 : -1;
-    } else {
-      for (int j = own.hull.face_start[f]; j < own.hull.face_start[f + 1]; ++j)
-        if (own.hull.face_vertex[j] == k) return j - own.hull.face_start[f];
-      return -1;
-    }
+    for (int i = 0; i < corner_count(own, f); ++i)
+      if (corner(own, f, i) == k) return i;
+    return -1;
   };
   auto holds_support = [&](int f) {
     for (int i = 0; i < count; ++i)
@@ -292,8 +322,7 @@ bool pushes_from_covered(const Model<D>& model, const Contacts<D>& c, int s, int
         if (!(model.cover[e].faces >> f & 1u)) continue;
         Corners<D> other;
         corners_of(model, c, model.cover[e].shape, other);
-        const int n_other = D == 2 ? other.n : other.hull.face_count;
-        for (int g = 0; g < n_other && !over; ++g)
+        for (int g = 0; g < face_count(other) && !over; ++g)
           over = dot(other.normal[g], own.normal[f]) <= -1.0 + 1e-9 &&
                  over_face(other, g, points[k], slop);
       }
@@ -370,6 +399,18 @@ inline bool held_by_neighbour(const Model<D>& model, const State<D>& st, const C
          pushes_from_covered(model, c, a, b, -out.normal, out.point.data(), npts, slop);
 }
 
+// Pair a, b's narrowphase at the pair's tolerance scale and speculative distance.
+template <int D>
+inline int narrow_pair(const Model<D>& model, const Contacts<D>& c, int a, int b, double scale,
+                       double spec, std::conditional_t<D == 2, Manifold2, Manifold3>& out) {
+  if constexpr (D == 2) {
+    return collide2d(world_shape(model, c, a, scale), world_shape(model, c, b, scale),
+                     c.vert_world.data(), c.norm_world.data(), spec, out);
+  } else {
+    return collide3d(world_shape(model, c, a, scale), world_shape(model, c, b, scale), spec, out);
+  }
+}
+
 // Pair a, b's manifold where a static polytope s pushes the other shape o from a covered
 // face (pushes_from_covered), made again from s's open face that o reaches least far
 // past: the push of the solid that s and its neighbours make. held_by_neighbour drops
@@ -394,49 +435,16 @@ inline int against_neighbours(const Model<D>& model, const State<D>& st, const C
     if (catches_at_joint(model, st, c, a, b, out.normal)) return 0;
   if (model.corner_start.empty() || scale < C::COVERED_MIN_SCALE) return npts;
   const double slop = scale * C::LINEAR_SLOP;  // m
-  auto collide = [&](int p, int q, double speculative, M& m) {
-    if constexpr (D == 2) {
-      auto ref = [&](int k) {
-        return ShapeRef2{model.shape_kind[k], model.shape_vstart[k], model.shape_vcount[k],
-                         model.shape_radius[k], scale};
-      };
-      return collide2d(ref(p), ref(q), c.vert_world.data(), c.norm_world.data(), speculative, m);
-    } else {
-      return collide3d(world_shape(model, c, p, scale), world_shape(model, c, q, scale),
-                       speculative, m);
-    }
-  };
   // whether shape o lies deeper than the slop in a static neighbour of s (inside the
   // solid they make)
   auto inside_neighbour = [&](int s, int o) {
     for (int e = model.cover_start[s]; e < model.cover_start[s + 1]; ++e) {
       M in;
-      const int k = collide(o, model.cover[e].shape, 0.0, in);
+      const int k = narrow_pair(model, c, o, model.cover[e].shape, scale, 0.0, in);
       for (int i = 0; i < k; ++i)
         if (in.separation[i] < -slop) return true;
     }
     return false;
-  };
-  auto face_count = [](const Corners<D>& P) {
-    if constexpr (D == 2) return P.n; else return P.hull.face_count;
-  };
-  // face f's corners (2D: its edge's two ends; 3D: its loop) and the i-th of them
-  auto corner_count = [](const Corners<D>& P, int f) {
-    if constexpr (D == 2) return 2; else return P.hull.face_start[f + 1] - P.hull.face_start[f];
-  };
-  auto corner = [](const Corners<D>& P, int f, int i) {
-    if constexpr (D == 2) return (f + i) % P.n; else return P.hull.face_vertex[P.hull.face_start[f] + i];
-  };
-  // whether corner k of P is in its support along n: the corners farthest out along n, to
-  // round-off (1e-9 of their size, as pushes_from_covered's)
-  auto in_support = [](const Corners<D>& P, Vec n) {
-    double most = -std::numeric_limits<double>::infinity(), size = 0.0;  // m
-    for (int k = 0; k < P.n; ++k) {
-      most = std::max(most, dot(n, P.v[k]));
-      size = std::max(size, length(P.v[k]));
-    }
-    const double tol = 1e-9 * (1.0 + size);  // m
-    return [&P, n, least = most - tol](int k) { return dot(n, P.v[k]) >= least; };
   };
   // the faces of s that a push along n_out (out of s) may not come from: those covered
   // wholly, and for a push from a corner (or an edge, 3D) those it leans towards (n_out ·
@@ -446,16 +454,16 @@ inline int against_neighbours(const Model<D>& model, const State<D>& st, const C
     if (model.corner_start[s] == model.corner_start[s + 1]) return blocked;
     Corners<D> own;
     corners_of(model, c, s, own);
-    const auto supports = in_support(own, n_out);
+    const Support<D> along(own, n_out);
     int support = 0;
-    for (int k = 0; k < own.n; ++k) support += supports(k);
+    for (int k = 0; k < own.n; ++k) support += along.holds(k);
     if (support >= D) return blocked;  // (a face's push: its points decide, points_covered)
     const int n_faces = model.corner_start[s + 1] - model.corner_start[s];
     for (int f = 0; f < n_faces && f < 64; ++f) {
       const std::uint64_t near = model.corner_covered[model.corner_start[s] + f];
       if (near == 0 || !(dot(n_out, own.normal[f]) > 0.0)) continue;
       for (int i = 0; i < corner_count(own, f) && i < 64; ++i)
-        if ((near >> i & 1u) && supports(corner(own, f, i))) blocked |= std::uint64_t{1} << f;
+        if ((near >> i & 1u) && along.holds(corner(own, f, i))) blocked |= std::uint64_t{1} << f;
     }
     return blocked;
   };
@@ -507,18 +515,17 @@ inline int against_neighbours(const Model<D>& model, const State<D>& st, const C
   Corners<D> own, other;
   corners_of(model, c, s, own);
   corners_of(model, c, s == a ? b : a, other);
-  const auto supports = in_support(own, s == b ? out_of_b : out_of_a);
+  const Support<D> along(own, s == b ? out_of_b : out_of_a);
   auto beside = [&](int f) {
     for (int i = 0; i < corner_count(own, f); ++i)
-      if (supports(corner(own, f, i))) return true;
+      if (along.holds(corner(own, f, i))) return true;
     return false;
   };
   int face = -1;
   double best = -std::numeric_limits<double>::infinity();  // m
   for (int f = 0; f < face_count(own); ++f) {
     if ((f < 64 && (blocked >> f & 1u)) || !beside(f)) continue;
-    Vec origin;  // a corner of face f
-    if constexpr (D == 2) origin = own.v[f]; else origin = own.v[own.hull.face_vertex[own.hull.face_start[f]]];
+    const Vec origin = own.v[corner(own, f, 0)];  // m
     double least = std::numeric_limits<double>::infinity();  // m
     for (int k = 0; k < other.n; ++k) least = std::min(least, dot(own.normal[f], other.v[k] - origin));
     if (least > best) {
@@ -527,31 +534,13 @@ inline int against_neighbours(const Model<D>& model, const State<D>& st, const C
     }
   }
   if (face < 0) return npts;  // (every face beside it covered: s inside the solid)
+  const int ref_is_b = s == b ? 1 : 0;
   if constexpr (D == 2) {
-    auto ref = [&](int k) {
-      return ShapeRef2{model.shape_kind[k], model.shape_vstart[k], model.shape_vcount[k],
-                       model.shape_radius[k], scale};
-    };
-    return collide_on_face(ref(a), ref(b), s == b ? 1 : 0, face, c.vert_world.data(),
-                           c.norm_world.data(), spec, out);
+    return collide_on_face(world_shape(model, c, a, scale), world_shape(model, c, b, scale),
+                           ref_is_b, face, c.vert_world.data(), c.norm_world.data(), spec, out);
   } else {
     return collide_on_face(world_shape(model, c, a, scale), world_shape(model, c, b, scale),
-                           s == b ? 1 : 0, face, spec, out);
-  }
-}
-
-// Pair a, b's narrowphase at the pair's tolerance scale and speculative distance.
-template <int D>
-inline int narrow_pair(const Model<D>& model, const Contacts<D>& c, int a, int b, double scale,
-                       double spec, std::conditional_t<D == 2, Manifold2, Manifold3>& out) {
-  if constexpr (D == 2) {
-    const ShapeRef2 sa{model.shape_kind[a], model.shape_vstart[a], model.shape_vcount[a],
-                       model.shape_radius[a], scale};
-    const ShapeRef2 sb{model.shape_kind[b], model.shape_vstart[b], model.shape_vcount[b],
-                       model.shape_radius[b], scale};
-    return collide2d(sa, sb, c.vert_world.data(), c.norm_world.data(), spec, out);
-  } else {
-    return collide3d(world_shape(model, c, a, scale), world_shape(model, c, b, scale), spec, out);
+                           ref_is_b, face, spec, out);
   }
 }
 
