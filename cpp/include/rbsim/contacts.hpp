@@ -327,6 +327,14 @@ struct Contacts {
   bool heavy_on_light = false;              // a body rests on one HEAVY_RATIO times lighter
   bool unit_scale = true;                   // every shape's scale is 1 (SCALE_LENGTH)
   bool record_impulses = false;             // keep step_impulse (a run's setting)
+  // The store's hand-over to the next step (contact/store.cpp) when few of the step's
+  // pairs were still: the manifold arrays are swapped with their prev_* ones at the next
+  // step's start (take_prev) instead of copied at this step's end. prev_pending: this
+  // step's manifolds are still in the current arrays only (never between advance calls:
+  // settle_prev); prev_swapped: in the step under way the current arrays are not last
+  // step's manifolds (no slot's manifold is carried as it stands)
+  bool prev_pending = false;
+  bool prev_swapped = false;
   std::vector<std::int32_t> wave_order;    // (M,) the manifolds wave by wave
   std::vector<std::int32_t> manifold_wave;  // (M,) each manifold's wave (scratch)
   std::vector<std::int32_t> body_wave;      // (N,) the last wave that moved the body (scratch)

@@ -151,6 +151,21 @@ void finish_manifolds(Contacts<D>& contacts, std::int64_t manifolds, MergeFlags 
 // contact/store.cpp: this step's manifolds become last step's (for warm starting).
 template <int D>
 void store_impulses(Contacts<D>& contacts);
+// contact/store.cpp: the hand-over of a step whose pairs were mostly not still (few
+// manifolds carried: the step writes every manifold anew). store_touching does the
+// range's part of it that cannot wait, each manifold's support into prev_support, and
+// returns its points that pushed (as store_impulses); the caller then sets
+// contacts.prev_pending. take_prev, at the next step's start, swaps the manifold arrays
+// with the prev_* ones (the keys copied: the current ones stay last step's) and sets
+// contacts.prev_swapped; settle_prev copies them instead (the end of an advance: between
+// calls the prev_* arrays are last step's, as a checkpoint and the tests read them).
+// Either gives the next step the same prev_* as store_impulses (a swap costs no copy).
+template <int D>
+std::int64_t store_touching(Contacts<D>& contacts, Span manifolds);
+template <int D>
+void take_prev(Contacts<D>& contacts);
+template <int D>
+void settle_prev(Contacts<D>& contacts);
 // contact/store.cpp: at the step's start, no point pushed by the shock pass yet
 // (Contacts::shock_points) and, while contacts.record_impulses, each point's step
 // impulse (Contacts::step_impulse, shock_impulse) zero; add_step_impulses adds each

@@ -806,10 +806,11 @@ MergeFlags merge_manifolds(const Model<D>& model, const State<D>& st, Contacts<D
     const bool touched = matched && c.prev_support[j];
     const double gap = (touched ? 2.0 : 1.0) * scale * C::SUPPORT_GAP;  // m
     bool touching = false;
-    if (in_slot && still) {
+    if (in_slot && still && !c.prev_swapped) {
       // the pair has not moved, and last step's manifold is still in this slot
-      // (store_impulses copied it to prev_*, so the two agree): only its separation and
-      // this step's impulse records change
+      // (store_impulses copied it to prev_*, so the two agree; not after take_prev, which
+      // swapped last step's into prev_*): only its separation and this step's impulse
+      // records change
       const Vec n = c.normal[m];
       const Vec dd = offset - c.ref_offset[m];  // m: their relative move since it was found
       double deepest = std::numeric_limits<double>::infinity();  // m

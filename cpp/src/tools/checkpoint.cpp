@@ -65,7 +65,8 @@ void visit(W& w, F&& f) {
   // c.shock_impulse, c.shock_points and c.record_impulses: a step's own, set to zero at its
   // start, and the run's setting; not c.body_carried: made anew by each step's
   // friction_loads before the shock pass reads it; not c.body_supporters: made anew by
-  // each step's support_order; not c.body_row_remade: used
+  // each step's support_order; not c.prev_pending, c.prev_swapped: false between advance
+  // calls (settle_prev); not c.body_row_remade: used
   // within a step; not c.turn_watch: made from the model at allocate, its rotations at each
   // step's start)
 }
