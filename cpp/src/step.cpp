@@ -345,8 +345,12 @@ bool World<D>::collide() {
                        Span{scaled(part.first, n_shapes), scaled(part.last, n_shapes)});
     });
   });
+  // (the stages that split their own work: the broadphase, the waves' batches)
+  const InParts split = [this](std::int64_t n, const std::function<void(Span)>& f) {
+    parallel(n, f);
+  };
   std::int64_t n_pairs = 0;
-  timed(S::FindPairs, [&] { n_pairs = find_pairs(model, grid, c); });
+  timed(S::FindPairs, [&] { n_pairs = find_pairs(model, grid, c, &split); });
   c.count.pairs = n_pairs;
   if (n_pairs > c.pair_capacity() || n_pairs > pair_limit()) return false;
   if (stop_here()) return true;  // torn: advance ends the call
@@ -385,7 +389,7 @@ bool World<D>::collide() {
     friction_loads(model, state, c, c.count.shock_count, cfg.dt / cfg.substeps);
   });
   timed(S::Regions, [&] { partition_regions(model, state, c); });
-  timed(S::Waves, [&] { find_waves(model, c); });
+  timed(S::Waves, [&] { find_waves(model, c, &split); });
   return true;
   }
 }

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <functional>
 #include <string>
 
 #include "constants.hpp"
@@ -41,6 +42,17 @@ struct Span {
 // Part p of `parts` near-equal parts of n items.
 inline Span part_of(std::int64_t n, std::int64_t p, std::int64_t parts) {
   return {n * p / parts, n * (p + 1) / parts};
+}
+
+// A stage's items [0, n) in parts on the step's threads (World::parallel): f(part) for
+// each, back once all are done; a part writes only its own items' outputs. A stage given
+// none (one thread, the tests) makes the one call f({0, n}) itself (in_parts).
+using InParts = std::function<void(std::int64_t n, const std::function<void(Span)>& f)>;
+inline void in_parts(const InParts* parts, std::int64_t n, const std::function<void(Span)>& f) {
+  if (parts != nullptr)
+    (*parts)(n, f);
+  else
+    f(Span{0, n});
 }
 
 // Per-run numbers for the stages.
@@ -105,9 +117,11 @@ void find_covered_faces(Model<D>& model, const State<D>& state, const std::vecto
 
 // collide/broadphase.cpp: update contacts.pairs (sorted by (a, b), a < b) from the
 // shapes' boxes; returns the pair count, which exceeds the capacity when the store must
-// grow (the list is then invalid).
+// grow (the list is then invalid). The shapes' boxes and the moved shapes' queries in
+// parts when given (the same pairs whatever the parts).
 template <int D>
-std::int64_t find_pairs(const Model<D>& model, Grid<D>& grid, Contacts<D>& contacts);
+std::int64_t find_pairs(const Model<D>& model, Grid<D>& grid, Contacts<D>& contacts,
+                        const InParts* parts = nullptr);
 
 // contact/manifold.cpp: narrowphase (time of impact for fast speculative pairs) for the
 // first n_pairs pairs, warm-start matching against last step's manifolds, carried
@@ -234,8 +248,10 @@ void hand_down_shock_impulses(const Model<D>& model, Contacts<D>& contacts);
 // solver/waves.cpp: the waves of the solve order (manifolds that share no dynamic body,
 // solved at once with the result of solving them in solve order) into contacts.wave_order
 // and contacts.batches (3D: batches3 and faces3); returns the number of waves.
+// 2D: the batches packed in parts when given (each batch from its own manifolds' rows).
 template <int D>
-std::int64_t find_waves(const Model<D>& model, Contacts<D>& contacts);
+std::int64_t find_waves(const Model<D>& model, Contacts<D>& contacts,
+                        const InParts* parts = nullptr);
 
 // solver/waves.cpp (2D): the batches' lanes take their manifolds' impulses (normal,
 // tangent, largest normal, approach speed) for the passes, which then read and write them

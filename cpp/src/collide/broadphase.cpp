@@ -26,9 +26,13 @@
 // fastest in both). In 3D a plane (a half-space) is big: its box is unbounded but along
 // an axis its normal lies on, so it is tested against every other shape.
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <mutex>
+#include <utility>
+#include <vector>
 
 #include "rbsim/constants.hpp"
 #include "rbsim/stages.hpp"
@@ -122,7 +126,8 @@ inline void plane_box(Vec3 n, Vec3& lo, Vec3& hi) {
 // Tight boxes from world vertices, radius and speculative reach (m); fat boxes for the
 // shapes whose tight box left theirs. Returns how many shapes moved.
 template <int D>
-std::int64_t update_aabbs(const Model<D>& model, Grid<D>& grid, const Contacts<D>& contacts) {
+std::int64_t update_aabbs(const Model<D>& model, Grid<D>& grid, const Contacts<D>& contacts,
+                          Span shapes) {
   using Vec = typename Dim<D>::Vec;
   const Vec* vw = contacts.vert_world.data();
   // half a pair's speculative distance on each side, at each shape's own scale (a pair
@@ -133,7 +138,7 @@ std::int64_t update_aabbs(const Model<D>& model, Grid<D>& grid, const Contacts<D
   Aabb<D>* box = grid.shape_aabb.data();
   Aabb<D>* fat = grid.shape_fat.data();
   std::int64_t moved = 0;
-  for (int s = 0; s < model.shape_count(); ++s) {
+  for (int s = static_cast<int>(shapes.first); s < static_cast<int>(shapes.last); ++s) {
     const int start = model.shape_vstart[s], end = start + model.shape_vcount[s];
     Vec lo = vw[start], hi = lo;
     for (int k = start + 1; k < end; ++k) {
@@ -296,10 +301,9 @@ void fill_grid(const Model<D>& model, Grid<D>& grid) {
 }
 
 // The pairs of moved shape a with the big shapes (with every shape when a is big itself),
-// appended to keys[count..) as query_moved records them; returns the new count.
-template <int D>
-inline std::int64_t pair_with_big(const Model<D>& model, const Grid<D>& grid, std::int32_t a,
-                                  std::int64_t* keys, std::int64_t capacity, std::int64_t count) {
+// each emitted (emit(key)) as query_moved records them.
+template <int D, class Emit>
+inline void pair_with_big(const Model<D>& model, const Grid<D>& grid, std::int32_t a, Emit& emit) {
   const std::int32_t n = static_cast<std::int32_t>(grid.shape_fat.size());
   const std::uint8_t* moved = grid.shape_moved.data();
   const bool a_big = grid.shape_big[a] != 0;
@@ -313,20 +317,18 @@ inline std::int64_t pair_with_big(const Model<D>& model, const Grid<D>& grid, st
     if (disjoint<D>(box, grid.shape_fat[b])) continue;
     const std::int32_t body_b = model.shape_body[b];
     if (body_b == body_a || !(dyn_a || model.body_type[body_b] == BodyType::Dynamic)) continue;
-    if (count < capacity) keys[count] = pair_key(a, b, n);
-    ++count;
+    emit(pair_key(a, b, n));
   }
-  return count;
 }
 
-// Keys a·S + b of the pairs that involve a moved shape, unsorted; returns the count
-// (which may exceed the key storage: the caller then grows it).
+// emit(key) for the keys a·S + b of the pairs that involve a moved shape a of `shapes`,
+// in no particular order.
 //
 // A pair is recorded by a's query, except when b moved too and comes first (then b's
 // query records it). The tests are written out in the loops: this is the hottest loop
 // of a falling pile. 2D-specific: the walk over the cells is by rows iy of cells ix.
-template <int D>
-std::int64_t query_moved(const Model<D>& model, Grid<D>& grid) {
+template <int D, class Emit>
+void query_moved(const Model<D>& model, const Grid<D>& grid, Span shapes, Emit& emit) {
   static_assert(D == 2, "query_moved: the walk over the cells is written for the plane");
   const std::int32_t* shape_body = model.shape_body.data();
   const BodyType* body_type = model.body_type.data();
@@ -338,17 +340,15 @@ std::int64_t query_moved(const Model<D>& model, Grid<D>& grid) {
   const Aabb<D>* fat = grid.shape_fat.data();
   const std::uint8_t* moved = grid.shape_moved.data();
   const std::uint8_t* big = grid.shape_big.data();
-  std::int64_t* keys = grid.new_keys.data();
   const double wide = grid.span.x, tall = grid.span.y;  // m
   const bool dense = grid.meta.direct_buckets != 0;
   const std::int64_t gx0 = grid.meta.first_cell[0], gy0 = grid.meta.first_cell[1];
   const std::int64_t nx = grid.meta.extent[0], ny = grid.meta.extent[1];
   const std::int32_t n = static_cast<std::int32_t>(grid.shape_fat.size());
-  const std::int64_t capacity = static_cast<std::int64_t>(grid.new_keys.size());
   const std::int64_t mask = static_cast<std::int64_t>(grid.bucket_start.size()) - 2;
   const double inv = grid.inv_cell;
-  std::int64_t count = 0;
-  for (std::int32_t a = 0; a < n; ++a) {
+  for (auto a = static_cast<std::int32_t>(shapes.first); a < static_cast<std::int32_t>(shapes.last);
+       ++a) {
     if (!moved[a]) continue;
     const std::int32_t body_a = shape_body[a];
     const bool dyn_a = body_type[body_a] == BodyType::Dynamic;
@@ -394,19 +394,18 @@ std::int64_t query_moved(const Model<D>& model, Grid<D>& grid) {
           if (entry_tag[k] == tag_a || (tag_a & entry_tag[k]) < 0) continue;
           const std::int32_t b = entry_shape[k];
           if (b == a || (moved[b] && b < a)) continue;
-          if (count < capacity) keys[count] = pair_key(a, b, n);
-          ++count;
+          emit(pair_key(a, b, n));
         }
       }
     }
-    count = pair_with_big(model, grid, a, keys, capacity, count);
+    pair_with_big(model, grid, a, emit);
   }
-  return count;
 }
 
 // query_moved for shapes in space: the walk over the cells is by layers iz of rows iy of
 // cells ix (in the direct buckets x is fastest, so a row's cells are one run of entries).
-std::int64_t query_moved(const Model<3>& model, Grid<3>& grid) {
+template <class Emit>
+void query_moved(const Model<3>& model, const Grid<3>& grid, Span shapes, Emit& emit) {
   constexpr int D = 3;
   const std::int32_t* shape_body = model.shape_body.data();
   const BodyType* body_type = model.body_type.data();
@@ -418,16 +417,14 @@ std::int64_t query_moved(const Model<3>& model, Grid<3>& grid) {
   const Aabb<D>* fat = grid.shape_fat.data();
   const std::uint8_t* moved = grid.shape_moved.data();
   const std::uint8_t* big = grid.shape_big.data();
-  std::int64_t* keys = grid.new_keys.data();
   const Vec3 span = grid.span;  // m
   const bool dense = grid.meta.direct_buckets != 0;
   const Cell<D> g0 = grid.meta.first_cell, ext = grid.meta.extent;
   const std::int32_t n = static_cast<std::int32_t>(grid.shape_fat.size());
-  const std::int64_t capacity = static_cast<std::int64_t>(grid.new_keys.size());
   const std::int64_t mask = static_cast<std::int64_t>(grid.bucket_start.size()) - 2;
   const double inv = grid.inv_cell;
-  std::int64_t count = 0;
-  for (std::int32_t a = 0; a < n; ++a) {
+  for (auto a = static_cast<std::int32_t>(shapes.first); a < static_cast<std::int32_t>(shapes.last);
+       ++a) {
     if (!moved[a]) continue;
     const std::int32_t body_a = shape_body[a];
     const bool dyn_a = body_type[body_a] == BodyType::Dynamic;
@@ -472,15 +469,13 @@ std::int64_t query_moved(const Model<3>& model, Grid<3>& grid) {
             if (entry_tag[k] == tag_a || (tag_a & entry_tag[k]) < 0) continue;
             const std::int32_t b = entry_shape[k];
             if (b == a || (moved[b] && b < a)) continue;
-            if (count < capacity) keys[count] = pair_key(a, b, n);
-            ++count;
+            emit(pair_key(a, b, n));
           }
         }
       }
     }
-    count = pair_with_big(model, grid, a, keys, capacity, count);
+    pair_with_big(model, grid, a, emit);
   }
-  return count;
 }
 
 // Sort the non-negative keys[0..n) in place: a few keys by insertion; more by a
@@ -529,9 +524,15 @@ void sort_prefix(std::int64_t* keys, std::int64_t n, std::int64_t* scratch,
 // is the number needed and the list is invalid: the caller grows the storage and calls
 // again.
 template <int D>
-std::int64_t find_pairs(const Model<D>& model, Grid<D>& grid, Contacts<D>& contacts) {
+std::int64_t find_pairs(const Model<D>& model, Grid<D>& grid, Contacts<D>& contacts,
+                        const InParts* parts) {
   const std::int64_t n_pairs = contacts.count.pairs;
-  if (update_aabbs(model, grid, contacts) == 0) return n_pairs;
+  const std::int64_t n_shapes = model.shape_count();
+  std::atomic<std::int64_t> moved_shapes{0};  // (an integer sum: the same in any order)
+  in_parts(parts, n_shapes, [&](Span part) {
+    moved_shapes += update_aabbs(model, grid, contacts, part);
+  });
+  if (moved_shapes == 0) return n_pairs;
   const bool fresh = grid.meta.pairs_valid == 0;
   grid.meta.pairs_valid = 0;  // invalid until this update completes
   fill_grid(model, grid);
@@ -548,7 +549,37 @@ std::int64_t find_pairs(const Model<D>& model, Grid<D>& grid, Contacts<D>& conta
       if (!(moved[ab[0]] || moved[ab[1]])) kept_list[kept++] = ab;
     }
   }
-  const std::int64_t n_new = query_moved(model, grid);
+  // the moved shapes' pairs, unsorted, into new_keys (counted past its room, which the
+  // caller then grows); in parts, each part's into a list of its own, the lists then one
+  // after the other (sorted next, the keys' order does not matter)
+  std::int64_t n_new = 0;
+  std::int64_t* new_keys = grid.new_keys.data();
+  const auto room = static_cast<std::int64_t>(grid.new_keys.size());
+  auto emit = [&](std::int64_t key) {
+    if (n_new < room) new_keys[n_new] = key;
+    ++n_new;
+  };
+  if (parts == nullptr) {
+    query_moved(model, grid, Span{0, n}, emit);
+  } else {
+    std::mutex lists_lock;
+    std::vector<std::pair<std::int64_t, std::vector<std::int64_t>>> lists;  // (part's first shape, keys)
+    (*parts)(n, [&](Span part) {
+      if (part.first == 0 && part.last == n) {  // one part (one thread): no list
+        query_moved(model, grid, part, emit);
+        return;
+      }
+      std::vector<std::int64_t> mine;
+      auto add = [&mine](std::int64_t key) { mine.push_back(key); };
+      query_moved(model, grid, part, add);
+      const std::lock_guard<std::mutex> hold(lists_lock);
+      lists.emplace_back(part.first, std::move(mine));
+    });
+    std::sort(lists.begin(), lists.end(),
+              [](const auto& x, const auto& y) { return x.first < y.first; });
+    for (const auto& list : lists)
+      for (const std::int64_t key : list.second) emit(key);
+  }
   if (kept + n_new > capacity) return kept + n_new;
   const std::int64_t* keys = grid.new_keys.data();
   sort_prefix(grid.new_keys.data(), n_new, grid.sort_scratch.data(), grid.sort_count.data());
@@ -570,8 +601,8 @@ std::int64_t find_pairs(const Model<D>& model, Grid<D>& grid, Contacts<D>& conta
   return out;
 }
 
-template std::int64_t find_pairs(const Model<2>&, Grid<2>&, Contacts<2>&);
-template std::int64_t find_pairs(const Model<3>&, Grid<3>&, Contacts<3>&);
+template std::int64_t find_pairs(const Model<2>&, Grid<2>&, Contacts<2>&, const InParts*);
+template std::int64_t find_pairs(const Model<3>&, Grid<3>&, Contacts<3>&, const InParts*);
 
 // The cell size is CELL_SIZES times the median half-diagonal (m) of the dynamic shapes
 // plus twice the fat margin (at that median's scale, SCALE_LENGTH), so a typical fat box

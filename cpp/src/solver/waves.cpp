@@ -407,7 +407,8 @@ void pack_waves_3d(const Model<3>& model, Contacts<3>& c, std::int32_t n_waves, 
 }
 
 // 2D: the units (two-point manifolds, one-point) packed into batches, one per wave.
-std::int64_t pack_batches_2d(const Model<2>& model, Contacts<2>& c, int n_segments) {
+std::int64_t pack_batches_2d(const Model<2>& model, Contacts<2>& c, int n_segments,
+                             const InParts* parts) {
   const std::vector<Unit> units = schedule_units<2, 2>(
       model, c, n_segments, [&c](std::int32_t m) { return c.points[m] == 2 ? 0 : 1; });
   const auto n = static_cast<std::int64_t>(units.size());
@@ -415,17 +416,19 @@ std::int64_t pack_batches_2d(const Model<2>& model, Contacts<2>& c, int n_segmen
   // LANES manifolds, so up to M of them; most steps need about M / LANES plus a few, and
   // room for M, about 1 KB each, took seconds to make in a large pile)
   fit(c.batches, n);
-  for (std::int64_t k = 0; k < n; ++k) {
-    const Unit& unit = units[k];
-    WideBatch& w = c.batches[k];
-    w.idle = true;
-    for (int l = 0; l < LANES; ++l) {
-      pack_lane(model, c, w, l, unit.m[l]);
-      if (unit.m[l] >= 0) w.idle = w.idle && !holds_any(c, unit.m[l]);
+  in_parts(parts, n, [&](Span part) {
+    for (std::int64_t k = part.first; k < part.last; ++k) {
+      const Unit& unit = units[k];
+      WideBatch& w = c.batches[k];
+      w.idle = true;
+      for (int l = 0; l < LANES; ++l) {
+        pack_lane(model, c, w, l, unit.m[l]);
+        if (unit.m[l] >= 0) w.idle = w.idle && !holds_any(c, unit.m[l]);
+      }
+      c.wave_batch[k] = k;
+      c.wave_single_batch[k] = unit.type == 0 ? k + 1 : k;
     }
-    c.wave_batch[k] = k;
-    c.wave_single_batch[k] = unit.type == 0 ? k + 1 : k;
-  }
+  });
   c.wave_batch[n] = c.wave_single_batch[n] = n;
   finish_units(c, units, 1);
   return n;
@@ -550,7 +553,7 @@ void repack_turned_rows(const Model<3>& model, Contacts<3>& c) {
 }
 
 template <int D>
-std::int64_t find_waves(const Model<D>& model, Contacts<D>& c) {
+std::int64_t find_waves(const Model<D>& model, Contacts<D>& c, const InParts* parts) {
   give_impulses(c);  // (the batches are packed again: the store holds the impulses)
   const std::int64_t n_man = c.count.manifolds;
   if (D == 2 && c.count.graph_unchanged == 1 && c.waves_valid) {
@@ -627,11 +630,11 @@ std::int64_t find_waves(const Model<D>& model, Contacts<D>& c) {
   order_by_kind<2, 4>(c, n_waves, [&c](std::int64_t m) {
     return (c.points[m] == 2 ? 0 : 2) + (holds_any(c, m) ? 0 : 1);
   }, 2);
-  return pack_batches_2d(model, c, n_segments);
+  return pack_batches_2d(model, c, n_segments, parts);
   }
 }
 
-template std::int64_t find_waves(const Model<2>&, Contacts<2>&);
-template std::int64_t find_waves(const Model<3>&, Contacts<3>&);
+template std::int64_t find_waves(const Model<2>&, Contacts<2>&, const InParts*);
+template std::int64_t find_waves(const Model<3>&, Contacts<3>&, const InParts*);
 
 }  // namespace rbsim
