@@ -147,7 +147,8 @@ class CoreWorld:
 
     @property
     def storage(self) -> SimpleNamespace:
-        """The stages' storage arrays by name (views; valid until the store grows)."""
+        """The stages' storage arrays by name (views; valid until the next step, which may
+        swap the store's arrays, or until the store grows)."""
         d = self.engine.storage()
         grid = SimpleNamespace(**d.pop("grid"))
         return SimpleNamespace(grid=grid, **d)

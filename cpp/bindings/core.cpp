@@ -1021,7 +1021,8 @@ NB_MODULE(_core, mod) {
   bind_world<2>(mod, "World2", "A 2D scene ready to step: model, state and stage storage.")
       .def("stage", &run_stage, "name"_a, "args"_a = nb::dict(), "Run one stage (tests).")
       .def("storage", [](nb::handle self) { return storage(nb::cast<World2&>(self), self); },
-           "The stages' storage arrays by name, as views (valid until the store grows).");
+           "The stages' storage arrays by name, as views (valid until the next step, which "
+           "may swap the store's arrays, or until the store grows).");
   bind_world<3>(mod, "World3",
                 "A 3D scene ready to step: model, state and stage storage (the collision "
                 "stages also run one by one through `stage`, for tests).")
@@ -1029,7 +1030,8 @@ NB_MODULE(_core, mod) {
            "Run one collision stage (transform_shapes, find_pairs, update_manifolds, "
            "store_impulses) or grow the store (tests).")
       .def("storage", [](nb::handle self) { return storage(nb::cast<World<3>&>(self), self); },
-           "The stages' storage arrays by name, as views (valid until the store grows).");
+           "The stages' storage arrays by name, as views (valid until the next step, which "
+           "may swap the store's arrays, or until the store grows).");
   {
     // the tuning constants, from the one header that defines them (units there)
     namespace C = rbsim::constants;
