@@ -527,16 +527,15 @@ template <int D>
 std::int64_t find_pairs(const Model<D>& model, Grid<D>& grid, Contacts<D>& contacts,
                         const InParts* parts) {
   const std::int64_t n_pairs = contacts.count.pairs;
-  const std::int64_t n_shapes = model.shape_count();
+  const std::int64_t n = static_cast<std::int64_t>(grid.shape_fat.size());  // shapes
   std::atomic<std::int64_t> moved_shapes{0};  // (an integer sum: the same in any order)
-  in_parts(parts, n_shapes, [&](Span part) {
+  in_parts(parts, n, [&](Span part) {
     moved_shapes += update_aabbs(model, grid, contacts, part);
   });
   if (moved_shapes == 0) return n_pairs;
   const bool fresh = grid.meta.pairs_valid == 0;
   grid.meta.pairs_valid = 0;  // invalid until this update completes
   fill_grid(model, grid);
-  const std::int64_t n = static_cast<std::int64_t>(grid.shape_fat.size());
   auto* pairs = contacts.pairs.data();
   auto* kept_list = grid.kept.data();
   const std::uint8_t* moved = grid.shape_moved.data();

@@ -446,14 +446,13 @@ inline int against_neighbours(const Model<D>& model, const State<D>& st, const C
     }
     return false;
   };
-  // the faces of s that a push along n_out (out of s) may not come from: those covered
-  // wholly, and for a push from a corner (or an edge, 3D) those it leans towards (n_out ·
-  // their normal > 0) that a neighbour covers near it: a push into the neighbour
-  auto blocked_faces = [&](int s, Vec n_out) {
+  // the faces of s (corners own) that a push along n_out (out of s) may not come from:
+  // those covered wholly, and for a push from a corner (or an edge, 3D) those it leans
+  // towards (n_out · their normal > 0) that a neighbour covers near it: a push into the
+  // neighbour
+  auto blocked_faces = [&](int s, const Corners<D>& own, Vec n_out) {
     std::uint64_t blocked = model.shape_covered[s];
     if (model.corner_start[s] == model.corner_start[s + 1]) return blocked;
-    Corners<D> own;
-    corners_of(model, c, s, own);
     const Support<D> along(own, n_out);
     int support = 0;
     for (int k = 0; k < own.n; ++k) support += along.holds(k);
@@ -485,20 +484,22 @@ inline int against_neighbours(const Model<D>& model, const State<D>& st, const C
   } else if (apart) {
     return npts;
   }
-  // the push out of each static shape of the pair, and its faces it may not come from
+  // the push out of each static shape of the pair, and the faces of s (corners own) it
+  // may not come from
   const Vec out_of_b = out.normal, out_of_a = -out.normal;
+  Corners<D> own;
   std::uint64_t blocked = 0;
   if (s >= 0) {
-    blocked = blocked_faces(s, s == b ? out_of_b : out_of_a);
+    corners_of(model, c, s, own);
+    blocked = blocked_faces(s, own, s == b ? out_of_b : out_of_a);
   } else {
     // a push kept (the corner of a valley, pushes_from_covered) that leans into the
     // neighbour, against a shape inside it, is made again too
     for (const int t : {b, a}) {
       if (model.corner_start[t] == model.corner_start[t + 1]) continue;  // (none covered)
       const Vec n_out = t == b ? out_of_b : out_of_a;
-      const std::uint64_t mask = blocked_faces(t, n_out);
-      Corners<D> own;
       corners_of(model, c, t, own);
+      const std::uint64_t mask = blocked_faces(t, own, n_out);
       bool leans = false;
       for (int f = 0; f < face_count(own) && f < 64; ++f)
         leans = leans || ((mask >> f & 1u) && dot(n_out, own.normal[f]) > 0.0);
@@ -512,8 +513,7 @@ inline int against_neighbours(const Model<D>& model, const State<D>& st, const C
   }
   // s's open face beside the push (holding a corner of its support) that the other
   // shape's core reaches least far past
-  Corners<D> own, other;
-  corners_of(model, c, s, own);
+  Corners<D> other;
   corners_of(model, c, s == a ? b : a, other);
   const Support<D> along(own, s == b ? out_of_b : out_of_a);
   auto beside = [&](int f) {
