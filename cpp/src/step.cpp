@@ -599,7 +599,7 @@ bool World<D>::step() {
       // here they were pushed into the wall they were stopped at
       timed(S::Continuous, [&] {
         sweep_fast_bodies(model, state, c, grid, continuous_index, continuous_v, continuous_w,
-                          cfg.dt);
+                          cfg.dt, cfg.restitution_rule, threshold);
       });
     }
     if (c.record_impulses) hand_down_shock_impulses(model, c);

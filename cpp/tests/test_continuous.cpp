@@ -2,6 +2,7 @@
 // is put back where it met the static shape it went through; a body whose motion its
 // contacts covered, one stopped at the wall, and one sliding along the floor it stood on
 // are left.
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -28,6 +29,30 @@ void moved(World<2>& w, int i, Vec2 dx, double turn, Vec2 v) {
   w.contacts.body_delta[i] = {dx, r};
 }
 
+// The world's contacts found with every body at rest, then body i moved by dx (m) within
+// the step at v (m/s) now, and swept: how many were put back.
+std::int64_t sent(World<2>& w, int i, Vec2 dx, Vec2 v) {
+  rbsim::test::collide(w);
+  const std::vector<Vec2> v0 = w.state.body_v;
+  const std::vector<double> w0 = w.state.body_w;
+  moved(w, i, dx, 0.0, v);
+  return sweep_fast_bodies(w.model, w.state, w.contacts, w.grid, w.continuous_index, v0, w0, DT,
+                           MixRule::Max, 1.0);
+}
+
+// 3D: the world's contacts found with every body at rest, then body i moved by dx (m)
+// along x within the step at v (m/s) now, and swept: how many were put back.
+std::int64_t sent_along_x(World<3>& w, int i, double dx, double v) {
+  rbsim::test::collide3(w);
+  for (auto& d : w.contacts.body_delta) d = {};
+  const std::vector<Vec3> v0 = w.state.body_v, w0 = w.state.body_w;
+  w.state.body_x[i].x += dx;
+  w.state.body_v[i] = {v, 0.0, 0.0};
+  w.contacts.body_delta[i].dx = {dx, 0.0, 0.0};
+  return sweep_fast_bodies(w.model, w.state, w.contacts, w.grid, w.continuous_index, v0, w0, DT,
+                           MixRule::Max, 1.0);
+}
+
 // A ball of 5 cm, 0.3 m in front of a static wall 10 cm thick (x 0.3 .. 0.4), at rest when
 // its contacts were found: a world after collide, and the ball.
 struct Wall2 {
@@ -47,7 +72,7 @@ struct Wall2 {
   }
   std::int64_t sweep() {
     return sweep_fast_bodies(w->model, w->state, w->contacts, w->grid, w->continuous_index, v0, w0,
-                             DT);
+                             DT, MixRule::Max, 1.0);
   }
 };
 
@@ -66,6 +91,27 @@ TEST(a_ball_struck_through_a_wall_is_put_back_at_it) {
   CHECK_NEAR(t.w->state.body_q[t.ball].s, std::sin(0.4 * x), 1e-9);
   CHECK_NEAR(t.w->contacts.body_delta[t.ball].dx.x, x, 1e-15);
   CHECK(t.w->state.body_v[t.ball].x == 60.0 && t.w->state.body_w[t.ball] == 24.0);
+}
+
+// Touching the wall when its contacts were found, and sent through it within the step
+// (struck, or turned into it by the push that stopped its corner): put back where it
+// started, its approach there is taken as one collision, reversed by the pair's
+// restitution (it bounces off the wall at e = 1, stops at e = 0). Kept, the next step
+// began from the same pose with the same approach, and a box by a floor's corner was put
+// back step after step while gravity built up its speed.
+TEST(a_body_put_back_where_it_started_strikes_the_wall_there) {
+  for (const double e : {0.0, 1.0}) {
+    SceneBuilder s;
+    s.world.model.gravity = {0.0, 0.0};
+    s.box({0.35, 0.0}, 0.05, 0.5, 0.0, {0.6, e});
+    const int ball = s.circle({0.25, 0.0}, 0.05, 1.0, {0.6, e});
+    World<2>& w = s.finish();
+    CHECK(sent(w, ball, {0.5, 0.0}, {30.0, 0.0}) == 1);
+    CHECK_NEAR(w.state.body_x[ball].x, 0.25, 1e-6);
+    // (the ball's point meets the wall on the line of centres: no spin)
+    CHECK_NEAR(w.state.body_v[ball].x, -30.0 * e, 1e-9);
+    CHECK(std::fabs(w.state.body_w[ball]) < 1e-9);
+  }
 }
 
 // Moving at 60 m/s when the contacts were found, the wall was within its reach (the
@@ -99,12 +145,7 @@ TEST(a_body_sliding_along_the_floor_it_stood_on_is_left) {
   s.ground();
   const int box = s.box({0.0, 0.5}, 0.5, 0.5, 1.0);
   World<2>& w = s.finish();
-  rbsim::test::collide(w);
-  const std::vector<Vec2> v0 = w.state.body_v;
-  const std::vector<double> w0 = w.state.body_w;
-  moved(w, box, {1.0, 0.0}, 0.0, {60.0, 0.0});
-  CHECK(sweep_fast_bodies(w.model, w.state, w.contacts, w.grid, w.continuous_index, v0, w0,
-                          DT) == 0);
+  CHECK(sent(w, box, {1.0, 0.0}, {60.0, 0.0}) == 0);
   CHECK(w.state.body_x[box].x == 1.0);
 }
 
@@ -117,19 +158,37 @@ TEST(a_sphere_struck_through_a_box_wall_is_put_back_at_it) {
   const int ball = s.sphere({0.0, 0.0, 0.0}, 0.05, 1.0);
   const int brick = s.box({0.0, 2.0, 0.0}, {0.1, 0.2, 0.3}, 1.0);
   World<3>& w = s.finish();
-  rbsim::test::collide3(w);
-  for (auto& d : w.contacts.body_delta) d = {};
-  const std::vector<Vec3> v0 = w.state.body_v, w0 = w.state.body_w;
-  w.state.body_x[ball].x += 1.0;
-  w.state.body_v[ball] = {60.0, 0.0, 0.0};
-  w.contacts.body_delta[ball].dx = {1.0, 0.0, 0.0};
-  CHECK(sweep_fast_bodies(w.model, w.state, w.contacts, w.grid, w.continuous_index, v0, w0,
-                          DT) == 1);
+  CHECK(sent_along_x(w, ball, 1.0, 60.0) == 1);
   CHECK_NEAR(w.state.body_x[ball].x, 0.25, 1e-6);
   CHECK(w.state.body_v[ball].x == 60.0);
   CHECK_NEAR(w.continuous_index.inner[ball], 0.05, 1e-15);
   CHECK_NEAR(w.continuous_index.inner[brick], 0.1, 1e-15);
   CHECK(w.continuous_index.static_shapes.size() == 1 && w.continuous_index.static_shapes[0] == 0);
+}
+
+// In space as in the plane: a box touching a wall by a corner, sent through it, is put
+// back where it started and struck back there; the impulse at the corner, off the line
+// through its centre, also turns it, and at e = 1 its kinetic energy stays what it was.
+TEST(a_box_put_back_where_it_started_strikes_the_wall_there_in_space) {
+  SceneBuilder3 s;
+  s.world.model.gravity = {};
+  s.box({0.35, 0.0, 0.0}, {0.05, 0.5, 0.5}, 0.0, {0.6, 1.0});
+  const double h = 0.1;  // m: the box's half extent
+  const double half = 0.3;  // rad: half its turn about (0, 1, 1) / √2
+  const Quat q{std::cos(half), 0.0, std::sin(half) / std::sqrt(2.0), std::sin(half) / std::sqrt(2.0)};
+  double lead = 0.0;  // m: how far its leading corner lies ahead of its centre along x
+  for (const double sx : {-h, h})
+    for (const double sy : {-h, h})
+      for (const double sz : {-h, h}) lead = std::max(lead, rotate(q, Vec3{sx, sy, sz}).x);
+  const int box = s.box({0.3 - lead, 0.0, 0.0}, {h, h, h}, 2.0, {0.6, 1.0}, q);
+  World<3>& w = s.finish();
+  CHECK(sent_along_x(w, box, 0.5, 30.0) == 1);
+  CHECK_NEAR(w.state.body_x[box].x, 0.3 - lead, 1e-6);
+  const Vec3 v = w.state.body_v[box], L = w.state.body_l[box], om = w.state.body_w[box];
+  CHECK(v.x < 0.0);            // away from the wall
+  CHECK(length(om) > 1.0);     // turned by an impulse off its centre's line
+  const double kinetic = 0.5 * 2.0 * dot(v, v) + 0.5 * dot(om, L);  // J
+  CHECK_NEAR(kinetic, 0.5 * 2.0 * 30.0 * 30.0, 1e-9 * 900.0);  // (round-off of a few terms)
 }
 
 RBSIM_TEST_MAIN

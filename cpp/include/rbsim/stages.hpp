@@ -463,11 +463,15 @@ ContinuousIndex find_continuous_index(const Model<D>& model);
 // start (v0, w0: the velocities then) is swept from its pose then (state now less
 // contacts.body_delta) to its pose now against the static shapes whose boxes
 // (grid.shape_aabb) meet its path, and put back at the first impact it then went on past
-// (constants.hpp, CONTINUOUS_FRACTION); body_delta follows. Returns how many were put back.
+// (constants.hpp, CONTINUOUS_FRACTION); body_delta follows. A body put back where it
+// started the step (within the slop) has its approach there reversed by the pair's
+// restitution (restitution_rule; none where slower than threshold, m/s). Returns how many
+// were put back.
 template <int D>
 std::int64_t sweep_fast_bodies(const Model<D>& model, State<D>& state, Contacts<D>& contacts,
                                const Grid<D>& grid, const ContinuousIndex& index,
                                const std::vector<typename Dim<D>::Vec>& v0,
-                               const std::vector<typename Dim<D>::Ang>& w0, double dt);
+                               const std::vector<typename Dim<D>::Ang>& w0, double dt,
+                               MixRule restitution_rule, double threshold);
 
 }  // namespace rbsim

@@ -46,16 +46,6 @@ namespace C = constants;
 
 namespace {
 
-// Combine two shapes' coefficients by the scene's mixing rule.
-inline double mix(double a, double b, MixRule rule) {
-  switch (rule) {
-    case MixRule::Sqrt: return std::sqrt(a * b);
-    case MixRule::Multiply: return a * b;
-    case MixRule::Min: return std::min(a, b);
-    default: return std::max(a, b);
-  }
-}
-
 // A 2D shape as the narrowphase reads it: its rows of contacts.vert_world and norm_world
 // (transform.cpp), at the pair's tolerance scale.
 ShapeRef2 world_shape(const Model<2>& model, const Contacts<2>&, int s, double scale) {

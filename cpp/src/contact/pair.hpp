@@ -2,6 +2,8 @@
 // collides a pair of its own (collide/continuous.cpp).
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <type_traits>
 
 #include "collide/narrow2d.hpp"
@@ -14,6 +16,16 @@ namespace rbsim {
 
 template <int D>
 using PairOut = std::conditional_t<D == 2, Manifold2, Manifold3>;
+
+// Combine two shapes' coefficients by the scene's mixing rule.
+inline double mix(double a, double b, MixRule rule) {
+  switch (rule) {
+    case MixRule::Sqrt: return std::sqrt(a * b);
+    case MixRule::Multiply: return a * b;
+    case MixRule::Min: return std::min(a, b);
+    default: return std::max(a, b);
+  }
+}
 
 // Shapes a and b at the step's start (the transform stage's world shapes), at the
 // tolerance scale `scale` and speculative distance `spec` (m): the manifold's point count
