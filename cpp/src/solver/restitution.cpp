@@ -102,6 +102,14 @@ inline double bounce_target(double invariant, double s_now, double acc, double e
   return 0.5 * (-ah + std::sqrt(std::fmax(ah * ah + 8.0 * rhs, 0.0)));
 }
 
+// The discrete trajectory's invariant (m²/s²) where a point engaged, at normal velocity
+// vn0 (m/s, after the substep's velocity update) and separation s0 (m, before its position
+// update), relative normal acceleration acc (m/s²), substep h (s): what bounce_target's
+// target keeps.
+inline double engaged_invariant(double vn0, double s0, double acc, double h) {
+  return 0.5 * vn0 * vn0 - 0.5 * acc * h * vn0 - acc * s0;
+}
+
 // Body i's acceleration (m/s²) along n from gravity and its constant force.
 template <int D>
 inline double own_acceleration(const Model<D>& model, int i, typename Dim<D>::Vec n) {
@@ -268,7 +276,7 @@ void hold_approach(const Model<D>& model, State<D>& st, const Contacts<D>& c, st
                    double sign) {
   const double vn0 = c.approach_velocity[m][k], s0 = c.approach_separation[m][k];
   if (!(vn0 < 0.0)) return;  // (none recorded)
-  const double invariant = 0.5 * vn0 * vn0 - 0.5 * acc * h * vn0 - acc * s0;  // m²/s²
+  const double invariant = engaged_invariant(vn0, s0, acc, h);  // m²/s²
   const double ah = sign * acc * h;
   const double rhs = invariant + acc * point_separation(c, m, k, a, b, n);
   const double fastest = 0.5 * (-ah - std::sqrt(std::fmax(ah * ah + 8.0 * rhs, 0.0)));  // m/s
@@ -280,18 +288,9 @@ void hold_approach(const Model<D>& model, State<D>& st, const Contacts<D>& c, st
   // the cluster's bounces have turned the body since (its arms, the step's start's, no
   // longer say where the point is on a body that turns fast), and it is left as it is
   if (now < vn0 - 2.0 * std::fabs(acc) * h) return;
-  // kg: the point's effective mass through the arms its velocity was read at, so that
-  // the push brings it to `fastest` and no further (overshot, past the mirror of its
-  // approach, it would give energy)
-  double mass;
-  if constexpr (D == 2) {
-    const double rna = cross(ra, n), rnb = cross(rb, n);
-    const double k = model.body_inv_mass[a] + model.body_inv_mass[b] +
-                     model.body_inv_inertia[a] * rna * rna + model.body_inv_inertia[b] * rnb * rnb;
-    mass = k > 0.0 ? 1.0 / k : 0.0;
-  } else {
-    mass = point_mass_now(model, st, a, b, ra, rb, n);
-  }
+  // through the arms its velocity was read at, so that the push brings it to `fastest`
+  // and no further (overshot, past the mirror of its approach, it would give energy)
+  const double mass = point_mass_now(model, st, a, b, ra, rb, n);  // kg
   push_point(model, st, a, b, ra, rb, n, (fastest - now) * mass);
 }
 
@@ -1123,7 +1122,7 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
       const double s0 = c.approach_separation[m][k];
       end_impact(c, m, k);
       const double s_now = point_separation(c, m, k, a, b, n);
-      const double invariant = 0.5 * vn0 * vn0 - 0.5 * acc * h * vn0 - acc * s0;
+      const double invariant = engaged_invariant(vn0, s0, acc, h);
       bounce[k] = true;
       any_bounce = true;
       target[k] = bounce_target(invariant, s_now, acc, e, h, sign);

@@ -87,10 +87,18 @@ inline Vec3 inv_inertia_now(const Model<3>& model, const State<3>& st, int i, Ve
   return Dim<3>::apply_inv_inertia(model.body_inv_inertia[i], st.body_q[i], x);
 }
 
-// 3D: the effective mass (kg) along n of a point with arms ra, rb (m) at the bodies'
-// rotations now, the tensors add_angular pushes through (a row's normal_mass is the
-// step's start's: a pass that pushes through the tensors now and steps by the start's
-// overshot on a body that turned far within the step).
+// The effective mass (kg) along n of a point with arms ra, rb (m), as push_point pushes
+// it: 2D through the bodies' inverse inertias; 3D through the tensors at the bodies'
+// rotations now, which add_angular pushes through (a row's normal_mass is the step's
+// start's: a pass that pushes through the tensors now and steps by the start's overshot
+// on a body that turned far within the step).
+inline double point_mass_now(const Model<2>& model, const State<2>&, int a, int b, Vec2 ra,
+                             Vec2 rb, Vec2 n) {
+  const double rna = cross(ra, n), rnb = cross(rb, n);
+  const double k = model.body_inv_mass[a] + model.body_inv_mass[b] +
+                   model.body_inv_inertia[a] * rna * rna + model.body_inv_inertia[b] * rnb * rnb;
+  return k > 0.0 ? 1.0 / k : 0.0;
+}
 inline double point_mass_now(const Model<3>& model, const State<3>& st, int a, int b, Vec3 ra,
                              Vec3 rb, Vec3 n) {
   double k = model.body_inv_mass[a] + model.body_inv_mass[b];  // 1/kg
