@@ -53,6 +53,7 @@
 #include "contact/pair.hpp"
 #include "rbsim/constants.hpp"
 #include "rbsim/stages.hpp"
+#include "solver/row.hpp"
 
 namespace rbsim {
 
@@ -128,41 +129,20 @@ bool boxes_meet(const typename Dim<D>::Vec& lo, const typename Dim<D>::Vec& hi,
   return true;
 }
 
-// Body i's approach to a static shape at point p (m) along n (from the shape towards the
-// body), at its velocities now, reversed by the restitution e (e = 0 where slower than
-// threshold, m/s) in one impulse at p: j = −(1 + e) v_n / k, the notes' collision at one
-// point, through the effective mass k = 1/m + (r × n) · I⁻¹ (r × n) (1/kg, I⁻¹ the
-// world inverse inertia). Nothing where the point does not approach. A single impulse
-// with e <= 1 gives no energy.
-void strike_back(const Model<2>& model, State<2>& st, Contacts<2>&, int i, Vec2 p, Vec2 n,
-                 double e, double threshold) {
-  const Vec2 r = p - st.body_x[i];  // m
-  const double vn = dot(st.body_v[i] + cross(st.body_w[i], r), n);  // m/s
+// Body i's approach to static body o at point p (m) along n (from o towards i), at its
+// velocities now, reversed by the restitution e (e = 0 where slower than threshold, m/s)
+// in one impulse at p: j = −(1 + e) v_n m_eff, the notes' collision at one point through
+// the effective mass (row.hpp's point velocity, mass and push, o's inverse mass and
+// inertia zero). Nothing where the point does not approach. A single impulse with e <= 1
+// gives no energy.
+template <int D>
+void strike_back(const Model<D>& model, State<D>& st, int i, int o, typename Dim<D>::Vec p,
+                 typename Dim<D>::Vec n, double e, double threshold) {
+  const auto r = p - st.body_x[i], ro = p - st.body_x[o];  // m
+  const double vn = normal_velocity(st, i, o, r, ro, n);  // m/s
   if (vn >= 0.0) return;
   if (-vn <= threshold) e = 0.0;
-  const double m_inv = model.body_inv_mass[i], i_inv = model.body_inv_inertia[i];
-  const double rn = cross(r, n);  // m
-  const double k = m_inv + i_inv * rn * rn;  // 1/kg
-  if (k <= 0.0) return;
-  const double j = -(1.0 + e) * vn / k;  // N·s
-  st.body_v[i] = st.body_v[i] + (m_inv * j) * n;
-  st.body_w[i] += i_inv * rn * j;
-}
-void strike_back(const Model<3>& model, State<3>& st, Contacts<3>& c, int i, Vec3 p, Vec3 n,
-                 double e, double threshold) {
-  const Vec3 r = p - st.body_x[i];  // m
-  const double vn = dot(st.body_v[i] + cross(st.body_w[i], r), n);  // m/s
-  if (vn >= 0.0) return;
-  if (-vn <= threshold) e = 0.0;
-  const double m_inv = model.body_inv_mass[i];
-  const Sym3& tensor = c.body_inv_inertia_world[i];  // (made at the rotation it is put back at)
-  const Vec3 rn = cross(r, n);  // m
-  const double k = m_inv + dot(rn, tensor * rn);  // 1/kg
-  if (k <= 0.0) return;
-  const double j = -(1.0 + e) * vn / k;  // N·s
-  st.body_v[i] = st.body_v[i] + (m_inv * j) * n;
-  st.body_l[i] = st.body_l[i] + j * rn;
-  st.body_w[i] = tensor * st.body_l[i];
+  push_point(model, st, i, o, r, ro, n, -(1.0 + e) * vn * point_mass_now(model, st, i, o, r, ro, n));
 }
 
 }  // namespace
@@ -248,6 +228,7 @@ std::int64_t sweep_fast_bodies(const Model<D>& model, State<D>& st, Contacts<D>&
     double first = 1.0;  // the earliest impact that counts, as a fraction of the path
     Vec hit_point{}, hit_normal{};  // m, and from the static shape towards the body
     double hit_e = 0.0;             // the pair's restitution
+    int hit_body = 0;               // the static shape's body
     for (const std::int32_t s : index.static_shapes) {
       const auto& box = grid.shape_aabb[s];  // (in the broadphase's moving frame)
       if (!boxes_meet<D>(lo, hi, box.lo + grid.frame_offset, box.hi + grid.frame_offset)) continue;
@@ -294,6 +275,7 @@ std::int64_t sweep_fast_bodies(const Model<D>& model, State<D>& st, Contacts<D>&
           hit_point = (1.0 / at) * sum;
           hit_normal = out.normal;
           hit_e = mix(model.shape_restitution[a], model.shape_restitution[s], restitution_rule);
+          hit_body = model.shape_body[s];
         }
       }
     }
@@ -321,7 +303,7 @@ std::int64_t sweep_fast_bodies(const Model<D>& model, State<D>& st, Contacts<D>&
       // back, gravity building up its speed, 65 m/s in 200 steps). The impact is taken
       // here, at its point, as one collision (no friction)
       if (first * motion <= c.body_scale[i] * C::LINEAR_SLOP)
-        strike_back(model, st, c, i, hit_point, hit_normal, hit_e, threshold);
+        strike_back(model, st, i, hit_body, hit_point, hit_normal, hit_e, threshold);
       ++moved;
     } else {
       st.body_x[i] = x_end;
