@@ -366,8 +366,14 @@ def test_a_signal_during_the_final_compression_stops_it_and_the_run_resumes(
 
     monkeypatch.setattr(TrajectoryWriter, "close", signalled_close)
     out = tmp_path / "stopped.h5"
-    with pytest.raises(RunInterrupted):
-        run_scene(scene, out, overrides=gzip, flush_seconds=0.0)  # (a checkpoint each flush)
+    # (Python's own Ctrl-C handler for the run to find: a shell running the tests in the
+    # background may ignore SIGINT, and a run keeps ignoring what was ignored)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(RunInterrupted):
+            run_scene(scene, out, overrides=gzip, flush_seconds=0.0)  # (a checkpoint each flush)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     monkeypatch.undo()
     assert "interrupted" in summarize(out)
     position = "particles/bodies/position/value"
