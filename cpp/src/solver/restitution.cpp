@@ -1270,18 +1270,18 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
       state[k] = impact_state(model, st, c, m, k, a, b, n, slow, h, explicit_euler);
     for (int k = 0; k < c.points[m]; ++k) {
       const Impact at = state[k];
-      if (at == Impact::Waiting && e > 0.0 &&
-          point_separation(c, m, k, a, b, n) >= c.approach_separation[m][k]) {
-        // an elastic one no nearer than where it engaged: held there by its bodies' other
-        // contacts, the push given back at every call never moved the positions, and the
-        // impact would wait for ever while the approach it restores grows (a capsule
-        // pinned on the floor under a heavier body, a point 2 mm up and approaching by its
-        // turn, was so spun up to 1000 rad/s in place). It does not bounce: its push
-        // stays, the impact is over
-        end_impact(c, m, k);
-        continue;
-      }
       if (at == Impact::Waiting) {  // looked at again when the stage next runs
+        const double s_now = point_separation(c, m, k, a, b, n);  // m
+        if (e > 0.0 && s_now >= c.approach_separation[m][k]) {
+          // an elastic one no nearer than where it engaged: held there by its bodies'
+          // other contacts, the push given back at every call never moved the positions,
+          // and the impact would wait for ever while the approach it restores grows (a
+          // capsule pinned on the floor under a heavier body, a point 2 mm up and
+          // approaching by its turn, was so spun up to 1000 rad/s in place). It does not
+          // bounce: its push stays, the impact is over
+          end_impact(c, m, k);
+          continue;
+        }
         // it gives its speculative push back, as a lone cluster's do, elastic or not
         // where it is apart: the impact is then resolved, with its friction, in the
         // substep where the bodies meet. Kept, an elastic one would cost the bounce its
@@ -1292,8 +1292,7 @@ void apply_restitution(const Model<D>& model, State<D>& st, Contacts<D>& c, doub
         // inelastic push is kept: it had its friction, and in a pile pressed against its
         // walls pushes taken back there came back as impacts (625 confined circles, over
         // full: kinetic energy to 3.55 times the hard case's bound, 0.08 kept)
-        if (e > 0.0 || point_separation(c, m, k, a, b, n) > c.solver_row[m].touch)
-          take_back(model, st, c, m, k, a, b);
+        if (e > 0.0 || s_now > c.solver_row[m].touch) take_back(model, st, c, m, k, a, b);
         const bool both_dynamic = model.is_dynamic(a) && model.is_dynamic(b);
         if (both_dynamic) {
           // between two dynamic bodies the approach it engaged with goes stale before
