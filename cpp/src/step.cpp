@@ -59,6 +59,7 @@ void World<D>::allocate() {
       reach2 = std::max(reach2, length_squared(model.vertex_local[k]));
     model.shape_reach[s] = std::sqrt(reach2);  // (as the largest length: sqrt is monotone)
   }
+  model.shape_depth = shape_depth(model);
   if constexpr (D == 2) find_segment_neighbours(model, state);
   continuous_index = find_continuous_index(model);
   grid.allocate(size, dynamic, capacity);
@@ -843,6 +844,47 @@ std::vector<double> shape_extent(const Model<D>& model) {
   return ext;
 }
 
+template <int D>
+std::vector<double> shape_depth(const Model<D>& model) {
+  using Vec = typename Dim<D>::Vec;
+  std::vector<double> depth(model.shape_count());
+  for (int s = 0; s < model.shape_count(); ++s) {
+    const int start = model.shape_vstart[s], count = model.shape_vcount[s];
+    const ShapeKind kind = model.shape_kind[s];
+    double core = 0.0;  // m: the core's own depth (a point or a segment has none)
+    if (kind == ShapeKind::Plane) {
+      core = std::numeric_limits<double>::infinity();
+    } else if (kind == ShapeKind::Box) {
+      // (its corners: the nearest to the first lies along the shortest edge)
+      core = std::numeric_limits<double>::infinity();
+      for (int k = start + 1; k < start + count; ++k)
+        core = std::min(core, 0.5 * length(model.vertex_local[k] - model.vertex_local[start]));
+    } else if (kind == ShapeKind::Polygon || kind == ShapeKind::Convex) {
+      Vec mean{};  // m: inside the (convex) core
+      for (int k = start; k < start + count; ++k) mean += model.vertex_local[k];
+      mean = (1.0 / count) * mean;
+      core = std::numeric_limits<double>::infinity();
+      if constexpr (D == 2) {
+        for (int k = start; k < start + count; ++k)  // (edge k: vertex k to the next)
+          core = std::min(core, dot(model.normal_local[k], model.vertex_local[k] - mean));
+      } else {
+        for (int f = model.shape_fstart[s]; f < model.shape_fstart[s] + model.shape_fcount[s];
+             ++f) {
+          const auto& t = model.face_local[f];
+          const Vec a = model.vertex_local[start + t[0]];
+          const Vec n = cross(model.vertex_local[start + t[1]] - a,
+                              model.vertex_local[start + t[2]] - a);
+          const double len = length(n);
+          if (len > 0.0) core = std::min(core, dot(n, a - mean) / len);
+        }
+      }
+      core = std::max(core, 0.0);
+    }
+    depth[s] = core + model.shape_radius[s];
+  }
+  return depth;
+}
+
 Soft soft_parameters(double hertz, double zeta, double h) {
   if (hertz == 0.0) return {1.0, 0.0, 0.0};
   const double omega = 2.0 * M_PI * hertz;
@@ -864,5 +906,7 @@ template struct World<2>;
 template struct World<3>;
 template std::vector<double> shape_extent(const Model<2>&);
 template std::vector<double> shape_extent(const Model<3>&);
+template std::vector<double> shape_depth(const Model<2>&);
+template std::vector<double> shape_depth(const Model<3>&);
 
 }  // namespace rbsim

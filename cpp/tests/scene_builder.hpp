@@ -79,6 +79,14 @@ class SceneBuilder {
     return i;
   }
 
+  // A dynamic capsule along x about its COM x: core half length `half`, radius r (m), of
+  // mass (kg) and inertia (kg·m²).
+  int capsule(Vec2 x, double half, double r, double mass, double inertia, Material mat = {}) {
+    const int i = body(x, mass, inertia);
+    shape(i, ShapeKind::Segment, {{-half, 0.0}, {half, 0.0}}, r, mat);
+    return i;
+  }
+
   // Static ground: the segment y = 0 from x0 to x1 (m).
   int ground(double x0 = -10.0, double x1 = 10.0, Material mat = {}) {
     return segment({x0, 0.0}, {x1, 0.0}, mat);

@@ -4,9 +4,11 @@
 // limit are moved apart to it, each by its share of the inverse mass.
 #include "check.hpp"
 #include "scene_builder.hpp"
+#include "scene_builder3d.hpp"
 
 using namespace rbsim;
 using rbsim::test::SceneBuilder;
+using rbsim::test::SceneBuilder3;
 
 namespace {
 constexpr double LIMIT = 0.02;  // m
@@ -62,6 +64,87 @@ TEST(limit_follows_the_size_of_the_shapes) {
   const double scale = std::hypot(0.001, 0.001) / constants::SCALE_LENGTH;
   CHECK_NEAR(w.state.body_x[small].y, 0.001 - scale * LIMIT, 1e-12);
   CHECK(w.state.body_x[big].y == 0.5 - 0.0005);
+}
+
+// Move body i by d (m) as the step before the limit would have: its state and its
+// motion since the step's start.
+template <int D>
+void drive(World<D>& w, int i, typename Dim<D>::Vec d) {
+  w.state.body_x[i] += d;
+  w.contacts.body_delta[i].dx += d;
+}
+
+// A thin shape that the step drives in deeper than half its depth, where that is less
+// than the scaled limit, is moved back out to it, so that its core never reaches the
+// static surface: a capsule 3 cm thick and 15.5 cm long (scale 0.77: a limit of 1.5 cm,
+// its whole radius) driven 1.4 cm into the ground is moved out to 7.5 mm; a plank 2 cm
+// thick and 1 m long (scale 1: 2 cm) driven 9 mm in, to 5 mm. One placed as deep is left
+// where it is (the scaled limit's, and the soft contacts').
+TEST(thin_shapes_driven_in_are_held_to_half_their_depth) {
+  SceneBuilder s;
+  s.ground();
+  const double r = 0.015, half = 0.0624;  // m
+  const int capsule = s.capsule({-3.0, r}, half, r, 0.03, 1e-4);
+  const int plank = s.box({3.0, 0.01}, 0.5, 0.01, 1.0);
+  const int placed = s.box({6.0, 0.01 - 0.009}, 0.5, 0.01, 1.0);
+  World<2>& w = s.finish();
+  rbsim::test::collide(w);
+  CHECK_NEAR(w.model.shape_depth[capsule], r, 1e-15);
+  CHECK_NEAR(w.model.shape_depth[plank], 0.01, 1e-15);
+  const double scale = (half + r) / constants::SCALE_LENGTH;
+  CHECK(scale * LIMIT > 0.014);  // (the scaled limit alone leaves the capsule where it is)
+  drive(w, capsule, {0.0, -0.014});
+  drive(w, plank, {0.0, -0.009});
+  limit_static_overlap(w.model, w.state, w.contacts, LIMIT);
+  const double f = constants::OVERLAP_DEPTH_FRACTION;
+  CHECK_NEAR(w.state.body_x[capsule].y, r - f * r, 1e-12);
+  CHECK_NEAR(w.state.body_x[plank].y, 0.01 - f * 0.01, 1e-12);
+  CHECK(w.state.body_x[placed].y == 0.01 - 0.009);
+}
+
+// A thin shape already deeper than half its depth and driven further is moved back by
+// what the step drove it, no more: a plank 2 cm thick placed 8 mm in (its limit 5 mm)
+// and driven 2 mm further is back at 8 mm.
+TEST(a_thin_shape_is_moved_back_by_no_more_than_the_step_drove_it) {
+  SceneBuilder s;
+  s.ground();
+  const int plank = s.box({0.0, 0.01 - 0.008}, 0.5, 0.01, 1.0);
+  World<2>& w = s.finish();
+  rbsim::test::collide(w);
+  drive(w, plank, {0.0, -0.002});
+  limit_static_overlap(w.model, w.state, w.contacts, LIMIT);
+  CHECK_NEAR(w.state.body_x[plank].y, 0.01 - 0.008, 1e-12);
+}
+
+// In space: a plate 2 cm thick (scale 1) driven 9 mm into the ground plane is moved out
+// to 5 mm; a convex prism's depth is its cross-section's inradius, a box's its shortest
+// half edge.
+TEST(thin_shapes_in_space_are_held_to_half_their_depth) {
+  SceneBuilder3 s;
+  s.plane({0.0, 1.0, 0.0}, 0.0);
+  const int plate = s.box({0.0, 0.01, 0.0}, {0.5, 0.01, 0.3}, 1.0);
+  // a square prism along x, its cross-section's corners 3 cm from the axis (inradius
+  // 3 cm / sqrt 2), far from the ground
+  std::vector<Vec3> v;
+  for (const double x : {-0.5, 0.5})
+    for (int k = 0; k < 4; ++k)
+      v.push_back({x, 0.03 * std::cos(0.5 * M_PI * k), 0.03 * std::sin(0.5 * M_PI * k)});
+  std::vector<std::array<std::int32_t, 3>> tris;
+  for (int k = 0; k < 4; ++k) {
+    const int k1 = (k + 1) % 4;
+    tris.push_back({k, k1, 4 + k1});
+    tris.push_back({k, 4 + k1, 4 + k});
+  }
+  tris.push_back({0, 2, 1}), tris.push_back({0, 3, 2});
+  tris.push_back({4, 5, 6}), tris.push_back({4, 6, 7});
+  const int prism = s.convex({3.0, 2.0, 0.0}, v, tris, 1.0);
+  World<3>& w = s.finish();
+  CHECK_NEAR(w.model.shape_depth[plate], 0.01, 1e-15);
+  CHECK_NEAR(w.model.shape_depth[prism], 0.03 / std::sqrt(2.0), 1e-15);
+  rbsim::test::collide3(w);
+  drive(w, plate, {0.0, -0.009, 0.0});
+  limit_static_overlap(w.model, w.state, w.contacts, LIMIT);
+  CHECK_NEAR(w.state.body_x[plate].y, 0.01 - constants::OVERLAP_DEPTH_FRACTION * 0.01, 1e-12);
 }
 
 // Box b (three times as dense) 10 cm into box a: moved apart to the limit along the

@@ -148,6 +148,13 @@ inline constexpr int DEEP_SOLVE_PASSES = 16;
 // ground overlap it by well under a millimetre; 4 * LINEAR_SLOP acts only when a pile
 // under pressure outruns the bounded push-out speed.
 inline constexpr double STATIC_OVERLAP_LIMIT = 0.02;
+// And where the step drove a shape in, at most this fraction of its depth (its radius,
+// or a polygon's least distance from its middle to a face; never below LINEAR_SLOP,
+// scaled): a capsule 3 cm thick lying in a corner, pushed 1.5 cm into the floor by a
+// body landing on it (2 cm of overlap were allowed for its 16 cm length), had its core at
+// the floor's surface; the wall's bottom face then met it from above, and the two
+// squeezed it out under the wall at 14 m/s. Dimensionless.
+inline constexpr double OVERLAP_DEPTH_FRACTION = 0.5;
 
 // The continuous sweep (collide/continuous.cpp): a body whose motion in the step went
 // further than its contacts reached at the step's start by more than this fraction of its

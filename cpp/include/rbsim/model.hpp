@@ -48,6 +48,8 @@ struct Model {
   std::vector<Vec> vertex_local;          // (V,) m, body frame about the COM
   std::vector<double> shape_reach;        // (S,) m: its farthest vertex from the COM
                                           // (World::allocate, from vertex_local)
+  std::vector<double> shape_depth;        // (S,) m: how far in its surface lies from its
+                                          // middle, at its thinnest (shape_depth, step.cpp)
   std::vector<Vec> normal_local;          // (V,) outward edge normals (polygons, segments);
                                           // 3D: a plane's outward normal on its one row
   // 3D: box and convex shapes' triangles as the front gives them (indices local to the

@@ -198,4 +198,10 @@ struct World {
 template <int D>
 std::vector<double> shape_extent(const Model<D>& model);
 
+// How far in each shape's surface lies from its middle where the shape is thinnest, m:
+// its radius, and a polygon's or convex shape's least distance from its vertices' mean to
+// a face (a circle's, a capsule's: its radius; a plane's: infinite).
+template <int D>
+std::vector<double> shape_depth(const Model<D>& model);
+
 }  // namespace rbsim

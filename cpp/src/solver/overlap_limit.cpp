@@ -17,6 +17,11 @@
 // mass's (a heavy body moves little), as Box2D v2's position solver moves them; a few
 // passes over the deep pairs let a wedge of three settle. Velocities are not touched, so
 // no push-out speed is left to carry up a stack.
+//
+// The limits are scaled by the shapes' size, which says nothing of how thin a shape is:
+// the static limit also lets no step drive a shape deeper than OVERLAP_DEPTH_FRACTION of
+// its depth (Model::shape_depth), so that a thin body's core does not reach the static
+// surface.
 #include <algorithm>
 #include <cmath>
 
@@ -34,15 +39,15 @@ namespace {
 // (norm1 and chord, math.hpp: bounds without square roots, for a test made on every
 // manifold)
 
-// How far manifold m's deepest point lies beyond max_overlap (m, times the contact's
-// scale) now, its bodies moved as far as contacts.body_delta says; <= 0 within it.
+// How far manifold m's deepest point lies beyond `limit` (m) now, its bodies moved as far
+// as contacts.body_delta says; <= 0 within it.
 template <int D>
-double excess_overlap(const Contacts<D>& c, std::int64_t m, double max_overlap) {
+double excess_overlap(const Contacts<D>& c, std::int64_t m, double limit) {
   const int a = c.body_a[m], b = c.body_b[m];
   double deepest = 0.0;  // m
   for (int k = 0; k < c.points[m]; ++k)
     deepest = std::min(deepest, point_separation(c, m, k, a, b, c.normal[m]));
-  return -deepest - c.scale[m] * max_overlap;
+  return -deepest - limit;
 }
 
 // Move body i by d (m), its motion since the step's start with it.
@@ -64,14 +69,24 @@ void limit_static_overlap(const Model<D>& model, State<D>& st, Contacts<D>& c,
     const bool a_fixed = !model.is_dynamic(a);
     const bool b_fixed = !model.is_dynamic(b);
     if (a_fixed == b_fixed) continue;  // two dynamic bodies (limit_dynamic_overlap) or two fixed
-    const double push = excess_overlap(c, m, max_overlap);  // m
-    if (push <= 0.0) continue;
-    const Vec d = push * c.normal[m];
-    if (b_fixed) {  // the normal points from b to a: a moves along +n
-      shift(st, c, a, d);
-    } else {
-      shift(st, c, b, -d);
+    const int i = b_fixed ? a : b;                        // the moving body
+    const Vec out = b_fixed ? c.normal[m] : -c.normal[m];  // the way out for it
+    const double scaled = c.scale[m] * max_overlap;       // m
+    double push = excess_overlap(c, m, scaled);           // m
+    // and no deeper than a fraction of the moving shape's depth where the step itself
+    // drove it in (a thin shape let in deeper has its core at the surface, where the next
+    // face's normal takes over; one placed that deep, or squeezed there over many steps,
+    // is the soft contacts' and the scaled limit's: pushed out of the floor at once, a
+    // chip wedged under a wall's foot went up into the wall and was put back by the
+    // continuous stage, step after step)
+    const double depth = model.shape_depth[b_fixed ? c.shape_a[m] : c.shape_b[m]];
+    const double thin = std::max(C::OVERLAP_DEPTH_FRACTION * depth, c.scale[m] * C::LINEAR_SLOP);
+    if (thin < scaled) {
+      const double driven = -dot(out, c.body_delta[i].dx);  // m: its move in, this step
+      if (driven > 0.0) push = std::max(push, std::min(push + (scaled - thin), driven));
     }
+    if (push <= 0.0) continue;
+    shift(st, c, i, push * out);
   }
 }
 
@@ -111,7 +126,7 @@ std::int64_t limit_dynamic_overlap(const Model<D>& model, State<D>& st, Contacts
     for (std::int64_t o = 0; o < n_deep; ++o) {
       const std::int32_t m = c.overlap_list[o];
       // (a pair at the limit, to rounding, is left: another pass would move it by 1e-17 m)
-      const double push = excess_overlap(c, m, max_overlap);  // m
+      const double push = excess_overlap(c, m, c.scale[m] * max_overlap);  // m
       if (push <= c.scale[m] * C::LINEAR_EPSILON) continue;
       // the normal points from b to a: a moves along +n, b along -n
       const int a = c.body_a[m], b = c.body_b[m];
