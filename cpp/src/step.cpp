@@ -282,25 +282,40 @@ void World<D>::shock_pass(double inv_h, double threshold, double min_approach) {
 }
 
 template <int D>
+void World<D>::pass_near_deep(double inv_h, bool use_bias, double shift, double threshold,
+                              double min_approach, PassLog& log) {
+  auto& c = contacts;
+  if constexpr (D == 2) {
+    deep_lanes.resize(static_cast<std::size_t>(c.wave_count > 0 ? c.wave_batch[c.wave_count] : 0));
+    const std::int64_t n =
+        deep_region_lanes(model, state, c, C::DEEP_RELAX_REACH, min_approach, deep_lanes.data());
+    if (n == 0) return;
+    take_impulses(c);  // (the batches hold them through the passes)
+    solve_batch_lanes(state, c, inv_h, use_bias, shift, threshold, deep_lanes.data(), n, log);
+  } else {
+    std::int64_t n_near = deep_region(model, c, C::DEEP_RELAX_REACH);
+    if (min_approach > 0.0)
+      n_near = keep_closing(state, c, c.relax_list.data(), n_near, min_approach);
+    solve_contacts(model, state, c, inv_h, use_bias, shift, threshold, c.relax_list.data(), n_near,
+                   log);
+  }
+}
+
+template <int D>
 void World<D>::deep_solve(double inv_h, double threshold) {
   auto& c = contacts;
-  // (deep_region writes the region over the deep overlaps' list, which the relax stage's
-  // extra passes read again: kept, and put back before each region is found)
+  // (the region's walk moves the seeds that have moved to the list's head, and in 3D
+  // writes the region over it, which the relax stage's extra passes read again: kept, and
+  // put back before each region is found)
   const std::int64_t n_deep = c.count.deep_count;
   deep_seeds.assign(c.relax_list.begin(), c.relax_list.begin() + n_deep);
   auto seeds = [&] { std::copy(deep_seeds.begin(), deep_seeds.end(), c.relax_list.begin()); };
   std::int64_t bounces = 0, deeps = 0;
   PassLog quiet{c.bounce_list.data(), &bounces, c.relax_list.data(), &deeps, 0, 0};
-  // one pass, one manifold at a time, over the contacts within DEEP_RELAX_REACH of the
-  // overlaps in relax_list[:count.deep_count]
+  // one pass over the contacts within DEEP_RELAX_REACH of the overlaps in
+  // relax_list[:count.deep_count] (without the bias: only those still closing)
   auto pass_near = [&](bool use_bias) {
-    std::int64_t n_near = deep_region(model, c, C::DEEP_RELAX_REACH);
-    if (!use_bias)
-      n_near = keep_closing(state, c, c.relax_list.data(), n_near, C::SHOCK_MIN_APPROACH);
-    give_impulses(c, c.relax_list.data(), n_near);
-    solve_contacts(model, state, c, inv_h, use_bias, 0.0, threshold, c.relax_list.data(), n_near,
-                   quiet);
-    take_impulses(c, c.relax_list.data(), n_near);
+    pass_near_deep(inv_h, use_bias, 0.0, threshold, use_bias ? 0.0 : C::SHOCK_MIN_APPROACH, quiet);
   };
   // the overlaps still driven in (DEEP_CLOSING_SPEED): the approach of the closing
   // contacts around them taken out first, without the bias, which would push out more at
@@ -546,12 +561,23 @@ bool World<D>::step() {
         // passes, so that the push's velocity is taken back all the way up a stack
         // instead of adding up from row to row
         timed(S::ExtraRelax, [&] {
-          const std::int64_t n_near = deep_region(model, c, C::DEEP_RELAX_REACH);
-          // (passes of one manifold at a time, on the store's impulses)
-          give_impulses(c, c.relax_list.data(), n_near);
-          for (int it = 0; n_near && it < cfg.iterations * (C::DEEP_RELAX_FACTOR - 1); ++it)
-            solve_contacts(model, state, c, inv_h, false, shift, threshold, c.relax_list.data(), n_near);
-          take_impulses(c, c.relax_list.data(), n_near);
+          PassLog log = PassLog::direct(c);
+          if constexpr (D == 2) {
+            // (the region's lanes, found once: the passes do not move the bodies)
+            deep_lanes.resize(
+                static_cast<std::size_t>(c.wave_count > 0 ? c.wave_batch[c.wave_count] : 0));
+            const std::int64_t n =
+                deep_region_lanes(model, state, c, C::DEEP_RELAX_REACH, 0.0, deep_lanes.data());
+            if (n > 0) take_impulses(c);
+            for (int it = 0; n && it < cfg.iterations * (C::DEEP_RELAX_FACTOR - 1); ++it)
+              solve_batch_lanes(state, c, inv_h, false, shift, threshold, deep_lanes.data(), n,
+                                log);
+          } else {
+            const std::int64_t n_near = deep_region(model, c, C::DEEP_RELAX_REACH);
+            for (int it = 0; n_near && it < cfg.iterations * (C::DEEP_RELAX_FACTOR - 1); ++it)
+              solve_contacts(model, state, c, inv_h, false, shift, threshold, c.relax_list.data(),
+                             n_near, log);
+          }
         });
       }
       // bounces first: the shock pass then leaves them alone, and would otherwise take a

@@ -1,7 +1,9 @@
 // solver/solve.cpp: one sequential-impulse pass on contacts whose answer is known: an
 // isolated impact, a closing gap, a resting box's face, Coulomb's cone.
+#include <bit>
 #include <cmath>
 #include <limits>
+#include <vector>
 
 #include "check.hpp"
 #include "contacts3d_builder.hpp"
@@ -115,6 +117,90 @@ TEST(friction_impulse_is_clamped_to_coulomb_cone) {
       for (int it = 0; it < 30; ++it) solve_pass(w, false);
       CHECK_NEAR(w.state.body_v[box].x, 0.0, 1e-9);  // m/s: stuck
     }
+  }
+}
+
+// 2D: the passes around a deep overlap run in the waves' batches, only the lanes of the
+// region's manifolds solved (deep_region_lanes, solve_batch_lanes); they are the passes
+// over deep_region's list one manifold at a time (to the rounding of the multiply-adds the
+// compiler fuses in the lanes' code and in the one-at-a-time code alike or not,
+// -ffp-contract=fast), and leave every other manifold's bodies as they are. A column of
+// boxes whose second box is 3 cm into the first, falling onto it, and a second column
+// beside it, joined only through the ground (a push does not travel through it), and so
+// outside the region; without the bias only the contacts still closing.
+TEST(deep_region_in_the_batches_lanes_is_the_region_one_by_one) {
+  auto scene = [](SceneBuilder& s) -> World<2>& {
+    s.world.model.gravity = {0.0, -10.0};
+    s.ground();
+    s.box({-3.0, 0.5}, 0.5, 0.5, 1.0);
+    s.box({-3.0, 1.47}, 0.5, 0.5, 1.0, {}, 0.0, {0.0, -1.0});    // 3 cm into the first
+    s.box({-3.02, 2.47}, 0.5, 0.5, 2.0, {}, 0.0, {0.1, -1.2});
+    s.circle({-3.0, 3.21}, 0.25, 0.5, {}, {0.0, -0.8});
+    s.box({3.0, 0.5}, 0.5, 0.5, 1.0, {}, 0.0, {0.0, -0.5});      // the other column
+    s.box({3.0, 1.5}, 0.5, 0.5, 1.0, {}, 0.0, {0.2, -0.7});
+    s.circle({3.0, 2.245}, 0.25, 0.5, {}, {0.0, -0.9});
+    return s.finish();
+  };
+  constexpr int DEEP_A = 1, DEEP_B = 2;  // the deep overlap's bodies
+  constexpr int OTHER[] = {5, 6, 7};    // the other column's
+  for (const bool use_bias : {false, true}) {
+    SceneBuilder s0, s1;
+    World<2>& one = scene(s0);
+    World<2>& lanes = scene(s1);
+    std::int32_t deep = -1;
+    for (World<2>* w : {&one, &lanes}) {
+      rbsim::test::collide(*w);
+      auto& c = w->contacts;
+      for (std::int64_t m = 0; m < c.count.manifolds; ++m)
+        if (c.body_a[m] + c.body_b[m] == DEEP_A + DEEP_B && c.body_a[m] * c.body_b[m] == 2)
+          deep = static_cast<std::int32_t>(m);
+      CHECK(deep >= 0);
+      // the solve pass met it, and the box has moved this step (it seeds the region)
+      c.relax_list[0] = deep;
+      c.count.deep_count = 1;
+      c.body_delta[DEEP_B].dx = {0.0, -0.01};
+    }
+    const std::vector<Vec2> v_before = one.state.body_v;
+    const double inv_h = 1.0 / rbsim::test::substep(one);
+    // m/s: without the bias (deep_solve's first passes), only the contacts closing faster
+    const double min_approach = use_bias ? 0.0 : constants::SHOCK_MIN_APPROACH;
+    auto& c1 = one.contacts;
+    std::int64_t n = deep_region(one.model, c1, constants::DEEP_RELAX_REACH);
+    CHECK(n >= 3 && n < c1.count.manifolds);  // the first column's contacts, not the other's
+    if (min_approach > 0.0) n = keep_closing(one.state, c1, c1.relax_list.data(), n, min_approach);
+    CHECK(n >= 2);
+    solve_contacts(one.model, one.state, c1, inv_h, use_bias, 0.0, NO_BOUNCE, c1.relax_list.data(),
+                   n);
+    auto& c2 = lanes.contacts;
+    find_waves(lanes.model, c2);
+    std::vector<BatchLanes> region(static_cast<std::size_t>(c2.wave_batch[c2.wave_count]));
+    const std::int64_t n_batches = deep_region_lanes(lanes.model, lanes.state, c2,
+                                                     constants::DEEP_RELAX_REACH, min_approach,
+                                                     region.data());
+    int n_lanes = 0;
+    for (std::int64_t i = 0; i < n_batches; ++i)
+      n_lanes += std::popcount(unsigned{region[i].lanes});
+    CHECK(n_lanes == n);
+    take_impulses(c2);
+    PassLog log = PassLog::direct(c2);
+    solve_batch_lanes(lanes.state, c2, inv_h, use_bias, 0.0, NO_BOUNCE, region.data(), n_batches,
+                      log);
+    give_impulses(c2);
+    double changed = 0.0;  // m/s
+    for (int i = 0; i < one.model.body_count(); ++i) {
+      CHECK_NEAR(lanes.state.body_v[i].x, one.state.body_v[i].x, 1e-12);
+      CHECK_NEAR(lanes.state.body_v[i].y, one.state.body_v[i].y, 1e-12);
+      CHECK_NEAR(lanes.state.body_w[i], one.state.body_w[i], 1e-12);
+      changed = std::max(changed, length(lanes.state.body_v[i] - v_before[i]));
+    }
+    CHECK(changed > 0.1);
+    for (const int i : OTHER) {  // outside the region: untouched, to the bit
+      CHECK(lanes.state.body_v[i].x == v_before[i].x && lanes.state.body_v[i].y == v_before[i].y);
+      CHECK(lanes.state.body_w[i] == 0.0);
+    }
+    for (std::int64_t m = 0; m < c1.count.manifolds; ++m)
+      for (int k = 0; k < c1.points[m]; ++k)
+        CHECK_NEAR(c2.normal_impulse[m][k], c1.normal_impulse[m][k], 1e-12);
   }
 }
 

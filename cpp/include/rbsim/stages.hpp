@@ -275,6 +275,19 @@ void give_impulses(Contacts<D>& contacts, const std::int32_t* list, std::int64_t
 // bodies that have moved this step, written to contacts.relax_list; returns their count.
 template <int D>
 std::int64_t deep_region(const Model<D>& model, Contacts<D>& contacts, int reach);
+// Lanes of one of the waves' batches (2D): contacts.batches[batch], lane l where bit l of
+// `lanes` is set; `two`: a batch of two-point manifolds.
+struct BatchLanes {
+  std::int32_t batch;
+  std::uint8_t lanes;
+  bool two;
+};
+// solver/shock.cpp, 2D: the same manifolds as lanes of the waves' batches, in the batches'
+// order, only those closing faster than min_approach (m/s) when it is > 0 (keep_closing),
+// into `out` (room for every batch); returns how many batches.
+std::int64_t deep_region_lanes(const Model<2>& model, const State<2>& state,
+                               Contacts<2>& contacts, int reach, double min_approach,
+                               BatchLanes* out);
 
 // solver/shock.cpp: whether a deep overlap the solve pass met (contacts.relax_list[:
 // count.deep_count]) has a point closing faster than min_approach (m/s).
@@ -368,6 +381,13 @@ template <int D>
 void solve_contacts(const Model<D>& model, State<D>& state, Contacts<D>& contacts,
                     double inv_h, bool use_bias, double shift, double threshold,
                     const std::int32_t* order, std::int64_t n, PassLog& log);
+
+// solver/solve.cpp, 2D: a pass over the lanes of batches[0..n) (deep_region_lanes), in
+// that order: a pass over their manifolds in solve order, four at a time. The batches
+// hold the impulses (take_impulses).
+void solve_batch_lanes(State<2>& state, Contacts<2>& contacts, double inv_h, bool use_bias,
+                       double shift, double threshold, const BatchLanes* batches, std::int64_t n,
+                       PassLog& log);
 
 // solver/solve.cpp: the pass over waves [first, last) (contacts.batches; 3D: batches3, faces3), listing
 // into `log`: a region of the solve order (regions.cpp, contacts.segment_wave). In 2D the

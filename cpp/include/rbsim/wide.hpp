@@ -181,6 +181,12 @@ inline unsigned lane_bits(LaneMask m) {
          (m[3] != 0 ? 8u : 0u);
 #endif
 }
+// all bits set in lane l where bit l of `bits` is
+inline LaneMask lanes_of_bits(unsigned bits) {
+  static_assert(LANES == 4, "written for four lanes");
+  auto lane = [bits](int l) { return -static_cast<std::int64_t>(bits >> l & 1u); };
+  return LaneMask{lane(0), lane(1), lane(2), lane(3)};
+}
 // how many lanes are set
 inline int count_lanes(LaneMask m) { return __builtin_popcount(lane_bits(m)); }
 // all bits set in lanes 0..n-1

@@ -105,6 +105,8 @@ struct World {
   // the deep overlaps a solve pass met (contacts.relax_list's first count.deep_count),
   // kept while the regions around them are solved again (step.cpp, deep_solve)
   std::vector<std::int32_t> deep_seeds;
+  // 2D: the lanes of the waves' batches those regions hold (deep_region_lanes)
+  std::vector<BatchLanes> deep_lanes;
   // Asked by advance after it grew the contact store, and inside a step that may be long
   // (step_may_be_long: after its contacts are found and between its substeps): true ends
   // advance with Status::Interrupted. Set by the caller for the length of its advance
@@ -192,6 +194,12 @@ struct World {
   // first, while one still closes at DEEP_CLOSING_SPEED, the contacts around those without
   // the bias (at most DEEP_SOLVE_PASSES - 1 passes)
   void deep_solve(double inv_h, double threshold);
+  // one pass over the contacts within DEEP_RELAX_REACH of the deep overlaps in
+  // contacts.relax_list[:count.deep_count], in solve order (2D: in the waves' batches;
+  // 3D: one manifold at a time), only those closing faster than min_approach (m/s) when it
+  // is > 0; listing into `log`
+  void pass_near_deep(double inv_h, bool use_bias, double shift, double threshold,
+                      double min_approach, PassLog& log);
 };
 
 // Half the diagonal (m) of each shape's own bounding box, radius included.

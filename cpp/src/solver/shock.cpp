@@ -741,24 +741,21 @@ void friction_loads(const Model<D>& model, const State<D>& st, Contacts<D>& c, s
   }
 }
 
-// The manifolds near a deep overlap, for the relax stage's extra passes: those of the
-// dynamic bodies within `reach` contacts of a body in a manifold of
-// contacts.relax_list[:count.deep_count], written in solve order over that list; returns
-// their count. Every manifold when the list is full or the scene has no gravity (the
-// contact graph, contact_levels' adjacency, is built only for the shock pass). A deep
-// overlap between two bodies that have not moved in the step so far (contacts.body_delta:
-// each within STILL_DISTANCE, times its scale, and STILL_ANGLE of its pose at the step's
-// start) is not being pushed out, and seeds nothing: a circle wedged deep between two
-// others at the foot of a settled pile stays so for thousands of steps, and its extra
-// passes cost a pile of 800 circles a quarter of its step. None when no overlap seeds
-// any. Uses contacts.queue and body_reach as scratch.
+namespace {
+
+// What reach_deep found around the deep overlaps: nothing (none seeds), the dynamic
+// bodies within reach (contacts.body_reach >= 0), or every manifold.
+enum class Reach { None, Bodies, Everything };
+
+// The seeds and the walk of deep_region: the overlaps of
+// contacts.relax_list[:count.deep_count] whose bodies have moved (kept, in order, at the
+// list's head), and the dynamic bodies within `reach` contacts of theirs, breadth first
+// (contacts.body_reach: how many contacts away, -1 beyond; uses contacts.queue).
 template <int D>
-std::int64_t deep_region(const Model<D>& model, Contacts<D>& c, int reach) {
+Reach reach_deep(const Model<D>& model, Contacts<D>& c, int reach) {
   auto& queue = c.queue;
   auto& dist = c.body_reach;
   auto& relax_list = c.relax_list;
-  const auto& order = c.solve_order;
-  const std::int64_t n_man = c.count.manifolds;
   // whether body i has moved this step so far (body_delta) by STILL_DISTANCE (m, times its
   // scale) or turned by STILL_ANGLE (rad)
   auto moving = [&](int i) {
@@ -776,13 +773,9 @@ std::int64_t deep_region(const Model<D>& model, Contacts<D>& c, int reach) {
     const std::int32_t m = relax_list[k];
     if (moving(c.body_a[m]) || moving(c.body_b[m])) relax_list[n_seeds++] = m;
   }
-  if (n_seeds == 0) return 0;
-  const bool everything =
-      n_seeds >= static_cast<std::int64_t>(relax_list.size()) || all_zero(model.gravity);
-  if (everything) {
-    for (std::int64_t o = 0; o < n_man; ++o) relax_list[o] = order[o];
-    return n_man;
-  }
+  if (n_seeds == 0) return Reach::None;
+  if (n_seeds >= static_cast<std::int64_t>(relax_list.size()) || all_zero(model.gravity))
+    return Reach::Everything;
   for (auto& d : dist) d = -1;
   // breadth first from the deep manifolds' bodies; static and kinematic bodies are not
   // passed through (a push does not travel through the ground)
@@ -808,10 +801,37 @@ std::int64_t deep_region(const Model<D>& model, Contacts<D>& c, int reach) {
       }
     }
   }
+  return Reach::Bodies;
+}
+
+}  // namespace
+
+// The manifolds near a deep overlap, for the relax stage's extra passes: those of the
+// dynamic bodies within `reach` contacts of a body in a manifold of
+// contacts.relax_list[:count.deep_count], written in solve order over that list; returns
+// their count. Every manifold when the list is full or the scene has no gravity (the
+// contact graph, contact_levels' adjacency, is built only for the shock pass). A deep
+// overlap between two bodies that have not moved in the step so far (contacts.body_delta:
+// each within STILL_DISTANCE, times its scale, and STILL_ANGLE of its pose at the step's
+// start) is not being pushed out, and seeds nothing: a circle wedged deep between two
+// others at the foot of a settled pile stays so for thousands of steps, and its extra
+// passes cost a pile of 800 circles a quarter of its step. None when no overlap seeds
+// any. Uses contacts.queue and body_reach as scratch.
+template <int D>
+std::int64_t deep_region(const Model<D>& model, Contacts<D>& c, int reach) {
+  const Reach found = reach_deep(model, c, reach);
+  if (found == Reach::None) return 0;
+  const auto& order = c.solve_order;
+  const std::int64_t n_man = c.count.manifolds;
+  if (found == Reach::Everything) {
+    for (std::int64_t o = 0; o < n_man; ++o) c.relax_list[o] = order[o];
+    return n_man;
+  }
+  const auto& dist = c.body_reach;
   std::int64_t count = 0;
   for (std::int64_t o = 0; o < n_man; ++o) {
     const std::int32_t m = order[o];
-    if (dist[c.body_a[m]] >= 0 || dist[c.body_b[m]] >= 0) relax_list[count++] = m;
+    if (dist[c.body_a[m]] >= 0 || dist[c.body_b[m]] >= 0) c.relax_list[count++] = m;
   }
   return count;
 }
@@ -859,6 +879,34 @@ std::int64_t keep_closing(const State<D>& st, const Contacts<D>& c, std::int32_t
   for (std::int64_t k = 0; k < n; ++k)
     if (closing_speed(st, c, list[k]) > min_approach) list[kept++] = list[k];
   return kept;
+}
+
+// 2D: deep_region's manifolds as lanes of the waves' batches, in the batches' order (the
+// solve order, as the list: waves.cpp), with min_approach > 0 only those closing faster
+// than it (keep_closing). Uses contacts.queue and body_reach as scratch.
+std::int64_t deep_region_lanes(const Model<2>& model, const State<2>& st, Contacts<2>& c,
+                               int reach, double min_approach, BatchLanes* out) {
+  const Reach found = reach_deep(model, c, reach);
+  if (found == Reach::None) return 0;
+  const auto& dist = c.body_reach;
+  const bool all = found == Reach::Everything;
+  std::int64_t n = 0;
+  for (std::int64_t g = 0; g < c.wave_count; ++g) {
+    for (std::int64_t i = c.wave_batch[g]; i < c.wave_batch[g + 1]; ++i) {
+      const WideBatch& w = c.batches[i];
+      unsigned bits = 0;
+      for (int l = 0; l < LANES; ++l) {
+        const std::int32_t m = w.m[l];
+        if (m < 0 || !(all || dist[w.a[l]] >= 0 || dist[w.b[l]] >= 0)) continue;
+        if (min_approach > 0.0 && !(closing_speed(st, c, m) > min_approach)) continue;
+        bits |= 1u << l;
+      }
+      if (bits != 0)
+        out[n++] = {static_cast<std::int32_t>(i), static_cast<std::uint8_t>(bits),
+                    i < c.wave_single_batch[g]};
+    }
+  }
+  return n;
 }
 
 // One pass over the supported contacts, lowest first, that removes each supported body's

@@ -756,9 +756,10 @@ inline Lanes clamp_lanes(Contacts<D>& c, const std::int32_t (&ms)[LANES], int k,
 // One batch of LANES manifolds of one wave, all with TWO points or all with one:
 // solve_contacts' code for that count, lane by lane. The impulses are the batch's own
 // (take_impulses).
-template <bool TWO>
+// ONLY: solve only the lanes set in `only` (bit l: lane l), the others left as they are.
+template <bool TWO, bool ONLY = false>
 void solve_batch(State<2>& st, Contacts<2>& c, WideBatch& B, double inv_h, bool use_bias,
-                 double shift, double threshold, PassLog& log) {
+                 double shift, double threshold, PassLog& log, unsigned only = 0) {
   static_assert(LANES == 4, "the gathers below are written for four lanes");
   Vec2* v = st.body_v.data();
   double* w = st.body_w.data();
@@ -783,7 +784,12 @@ void solve_batch(State<2>& st, Contacts<2>& c, WideBatch& B, double inv_h, bool 
   Lanes tl0 = B.t0, mx0 = B.x0;
   const Lanes lam1 = TWO ? B.n1 : zero, ap1 = TWO ? B.ap1 : zero;
   Lanes tl1 = TWO ? B.t1 : zero, mx1 = TWO ? B.x1 : zero;
-  const LaneMask active = B.live;
+  LaneMask active = B.live;
+  std::uint32_t writes = B.writes;
+  if constexpr (ONLY) {
+    active &= lanes_of_bits(only);
+    writes &= only | only << LANES;
+  }
   const Lanes nx = B.nx, ny = B.ny;
   const Lanes tx = ny, ty = -nx;  // t = (n_y, −n_x)
   const Lanes ma = B.ma, mb = B.mb, ia = B.ia, ib = B.ib;
@@ -913,18 +919,18 @@ void solve_batch(State<2>& st, Contacts<2>& c, WideBatch& B, double inv_h, bool 
   vby -= mb * py;
   wb -= ib * tb;
   // a static or kinematic body's velocity is unchanged: not written back (B.writes)
-  if (B.writes == ALL_WRITES) {
+  if (writes == ALL_WRITES) {
     scatter_pairs(&v[a0].x, &v[a1].x, &v[a2].x, &v[a3].x, vax, vay);
     scatter_scalars(&w[a0], &w[a1], &w[a2], &w[a3], wa);
     scatter_pairs(&v[b0i].x, &v[b1i].x, &v[b2i].x, &v[b3i].x, vbx, vby);
     scatter_scalars(&w[b0i], &w[b1i], &w[b2i], &w[b3i], wb);
   } else {
     for (int l = 0; l < LANES; ++l) {
-      if (B.writes & (1u << l)) {
+      if (writes & (1u << l)) {
         v[B.a[l]] = {vax[l], vay[l]};
         w[B.a[l]] = wa[l];
       }
-      if (B.writes & (1u << (LANES + l))) {
+      if (writes & (1u << (LANES + l))) {
         v[B.b[l]] = {vbx[l], vby[l]};
         w[B.b[l]] = wb[l];
       }
@@ -1404,6 +1410,18 @@ void solve_waves(const Model<D>& model, State<D>& st, Contacts<D>& c, double inv
   take_impulses(c);
   solve_wave_range(model, st, c, inv_h, use_bias, shift, threshold, 0, c.wave_count, log);
   give_impulses(c);
+}
+
+void solve_batch_lanes(State<2>& st, Contacts<2>& c, double inv_h, bool use_bias, double shift,
+                       double threshold, const BatchLanes* batches, std::int64_t n, PassLog& log) {
+  for (std::int64_t k = 0; k < n; ++k) {
+    const BatchLanes& b = batches[k];
+    WideBatch& B = c.batches[b.batch];
+    if (b.two)
+      solve_batch<true, true>(st, c, B, inv_h, use_bias, shift, threshold, log, b.lanes);
+    else
+      solve_batch<false, true>(st, c, B, inv_h, use_bias, shift, threshold, log, b.lanes);
+  }
 }
 
 template <int D>
