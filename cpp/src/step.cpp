@@ -282,15 +282,25 @@ void World<D>::shock_pass(double inv_h, double threshold, double min_approach) {
 }
 
 template <int D>
+std::int64_t World<D>::near_deep_lanes(double min_approach) {
+  if constexpr (D == 2) {
+    auto& c = contacts;
+    deep_lanes.resize(static_cast<std::size_t>(c.wave_count > 0 ? c.wave_batch[c.wave_count] : 0));
+    const std::int64_t n =
+        deep_region_lanes(model, state, c, C::DEEP_RELAX_REACH, min_approach, deep_lanes.data());
+    if (n > 0) take_impulses(c);  // (the batches hold them through the passes)
+    return n;
+  } else {
+    return 0;  // (3D: one manifold at a time, pass_near_deep)
+  }
+}
+
+template <int D>
 void World<D>::pass_near_deep(double inv_h, bool use_bias, double shift, double threshold,
                               double min_approach, PassLog& log) {
   auto& c = contacts;
   if constexpr (D == 2) {
-    deep_lanes.resize(static_cast<std::size_t>(c.wave_count > 0 ? c.wave_batch[c.wave_count] : 0));
-    const std::int64_t n =
-        deep_region_lanes(model, state, c, C::DEEP_RELAX_REACH, min_approach, deep_lanes.data());
-    if (n == 0) return;
-    take_impulses(c);  // (the batches hold them through the passes)
+    const std::int64_t n = near_deep_lanes(min_approach);
     solve_batch_lanes(state, c, inv_h, use_bias, shift, threshold, deep_lanes.data(), n, log);
   } else {
     std::int64_t n_near = deep_region(model, c, C::DEEP_RELAX_REACH);
@@ -564,11 +574,7 @@ bool World<D>::step() {
           PassLog log = PassLog::direct(c);
           if constexpr (D == 2) {
             // (the region's lanes, found once: the passes do not move the bodies)
-            deep_lanes.resize(
-                static_cast<std::size_t>(c.wave_count > 0 ? c.wave_batch[c.wave_count] : 0));
-            const std::int64_t n =
-                deep_region_lanes(model, state, c, C::DEEP_RELAX_REACH, 0.0, deep_lanes.data());
-            if (n > 0) take_impulses(c);
+            const std::int64_t n = near_deep_lanes(0.0);
             for (int it = 0; n && it < cfg.iterations * (C::DEEP_RELAX_FACTOR - 1); ++it)
               solve_batch_lanes(state, c, inv_h, false, shift, threshold, deep_lanes.data(), n,
                                 log);

@@ -200,6 +200,9 @@ struct World {
   // is > 0; listing into `log`
   void pass_near_deep(double inv_h, bool use_bias, double shift, double threshold,
                       double min_approach, PassLog& log);
+  // 2D: that region's lanes into deep_lanes (deep_region_lanes), the impulses taken into
+  // the batches where there are any; returns how many batches
+  std::int64_t near_deep_lanes(double min_approach);
 };
 
 // Half the diagonal (m) of each shape's own bounding box, radius included.
