@@ -282,33 +282,28 @@ void World<D>::shock_pass(double inv_h, double threshold, double min_approach) {
 }
 
 template <int D>
-std::int64_t World<D>::near_deep_lanes(double min_approach) {
+std::int64_t World<D>::find_near_deep(double min_approach) {
+  auto& c = contacts;
   if constexpr (D == 2) {
-    auto& c = contacts;
     deep_lanes.resize(static_cast<std::size_t>(c.wave_count > 0 ? c.wave_batch[c.wave_count] : 0));
     const std::int64_t n =
         deep_region_lanes(model, state, c, C::DEEP_RELAX_REACH, min_approach, deep_lanes.data());
     if (n > 0) take_impulses(c);  // (the batches hold them through the passes)
     return n;
   } else {
-    return 0;  // (3D: one manifold at a time, pass_near_deep)
+    const std::int64_t n = deep_region(model, c, C::DEEP_RELAX_REACH);
+    return min_approach > 0.0 ? keep_closing(state, c, c.relax_list.data(), n, min_approach) : n;
   }
 }
 
 template <int D>
-void World<D>::pass_near_deep(double inv_h, bool use_bias, double shift, double threshold,
-                              double min_approach, PassLog& log) {
+void World<D>::pass_near_deep(std::int64_t n, double inv_h, bool use_bias, double shift,
+                              double threshold, PassLog& log) {
   auto& c = contacts;
-  if constexpr (D == 2) {
-    const std::int64_t n = near_deep_lanes(min_approach);
+  if constexpr (D == 2)
     solve_batch_lanes(state, c, inv_h, use_bias, shift, threshold, deep_lanes.data(), n, log);
-  } else {
-    std::int64_t n_near = deep_region(model, c, C::DEEP_RELAX_REACH);
-    if (min_approach > 0.0)
-      n_near = keep_closing(state, c, c.relax_list.data(), n_near, min_approach);
-    solve_contacts(model, state, c, inv_h, use_bias, shift, threshold, c.relax_list.data(), n_near,
-                   log);
-  }
+  else
+    solve_contacts(model, state, c, inv_h, use_bias, shift, threshold, c.relax_list.data(), n, log);
 }
 
 template <int D>
@@ -325,7 +320,8 @@ void World<D>::deep_solve(double inv_h, double threshold) {
   // one pass over the contacts within DEEP_RELAX_REACH of the overlaps in
   // relax_list[:count.deep_count] (without the bias: only those still closing)
   auto pass_near = [&](bool use_bias) {
-    pass_near_deep(inv_h, use_bias, 0.0, threshold, use_bias ? 0.0 : C::SHOCK_MIN_APPROACH, quiet);
+    const std::int64_t n = find_near_deep(use_bias ? 0.0 : C::SHOCK_MIN_APPROACH);
+    pass_near_deep(n, inv_h, use_bias, 0.0, threshold, quiet);
   };
   // the overlaps still driven in (DEEP_CLOSING_SPEED): the approach of the closing
   // contacts around them taken out first, without the bias, which would push out more at
@@ -572,18 +568,10 @@ bool World<D>::step() {
         // instead of adding up from row to row
         timed(S::ExtraRelax, [&] {
           PassLog log = PassLog::direct(c);
-          if constexpr (D == 2) {
-            // (the region's lanes, found once: the passes do not move the bodies)
-            const std::int64_t n = near_deep_lanes(0.0);
-            for (int it = 0; n && it < cfg.iterations * (C::DEEP_RELAX_FACTOR - 1); ++it)
-              solve_batch_lanes(state, c, inv_h, false, shift, threshold, deep_lanes.data(), n,
-                                log);
-          } else {
-            const std::int64_t n_near = deep_region(model, c, C::DEEP_RELAX_REACH);
-            for (int it = 0; n_near && it < cfg.iterations * (C::DEEP_RELAX_FACTOR - 1); ++it)
-              solve_contacts(model, state, c, inv_h, false, shift, threshold, c.relax_list.data(),
-                             n_near, log);
-          }
+          // (the region found once: the passes do not move the bodies)
+          const std::int64_t n = find_near_deep(0.0);
+          for (int it = 0; n && it < cfg.iterations * (C::DEEP_RELAX_FACTOR - 1); ++it)
+            pass_near_deep(n, inv_h, false, shift, threshold, log);
         });
       }
       // bounces first: the shock pass then leaves them alone, and would otherwise take a

@@ -194,15 +194,16 @@ struct World {
   // first, while one still closes at DEEP_CLOSING_SPEED, the contacts around those without
   // the bias (at most DEEP_SOLVE_PASSES - 1 passes)
   void deep_solve(double inv_h, double threshold);
-  // one pass over the contacts within DEEP_RELAX_REACH of the deep overlaps in
-  // contacts.relax_list[:count.deep_count], in solve order (2D: in the waves' batches;
-  // 3D: one manifold at a time), only those closing faster than min_approach (m/s) when it
-  // is > 0; listing into `log`
-  void pass_near_deep(double inv_h, bool use_bias, double shift, double threshold,
-                      double min_approach, PassLog& log);
-  // 2D: that region's lanes into deep_lanes (deep_region_lanes), the impulses taken into
-  // the batches where there are any; returns how many batches
-  std::int64_t near_deep_lanes(double min_approach);
+  // the contacts within DEEP_RELAX_REACH of the deep overlaps in
+  // contacts.relax_list[:count.deep_count], only those closing faster than min_approach
+  // (m/s) when it is > 0: 2D their lanes of the waves' batches into deep_lanes
+  // (deep_region_lanes; the impulses taken into the batches), returning how many batches;
+  // 3D the manifolds into contacts.relax_list in solve order, returning how many
+  std::int64_t find_near_deep(double min_approach);
+  // one pass over the n found (find_near_deep), in solve order (2D: four at a time in
+  // their batches; 3D: one manifold at a time), listing into `log`
+  void pass_near_deep(std::int64_t n, double inv_h, bool use_bias, double shift,
+                      double threshold, PassLog& log);
 };
 
 // Half the diagonal (m) of each shape's own bounding box, radius included.
