@@ -25,12 +25,12 @@
 // is the same, bit for bit, for every number of threads.
 #include <algorithm>
 #include <atomic>
-#include <bit>
 #include <chrono>
 #include <cmath>
 #include <limits>
 
 #include "rbsim/constants.hpp"
+#include "rbsim/wide.hpp"
 #include "rbsim/world.hpp"
 
 namespace rbsim {
@@ -696,20 +696,23 @@ bool within(const T& v, double limit) {
   return true;
 }
 
-// Whether some double of `values` has a magnitude above the double whose bits are
-// `above`: the bits of a double without its sign order as the magnitudes do, NaN and
-// ±inf above every finite one (integer operations, which the compiler runs in lanes).
-constexpr std::uint64_t SIGN_BIT = std::uint64_t{1} << 63;
-constexpr std::uint64_t FINITE_BITS = 0x7FEFFFFFFFFFFFFF;  // the largest finite double's
-
+// Whether some double of `values` is NaN or has a magnitude above `bound`: LANES at a
+// time, each lane's outcome kept in a mask (a scalar loop with its early exit, or an
+// integer compare of the bits, was not vectorised: 2% of a 1000-circle pile's step).
 template <class T>
-bool beyond(const std::vector<T>& values, std::uint64_t above) {
+bool beyond(const std::vector<T>& values, double bound) {
   const double* p = reinterpret_cast<const double*>(values.data());
   const std::size_t n = values.size() * (sizeof(T) / sizeof(double));
-  std::uint64_t hit = 0;
-  for (std::size_t k = 0; k < n; ++k)
-    hit |= (std::bit_cast<std::uint64_t>(p[k]) & ~SIGN_BIT) > above;
-  return hit != 0;
+  const Lanes hi = splat(bound), lo = splat(-bound);
+  LaneMask out{};
+  std::size_t k = 0;
+  for (; k + LANES <= n; k += LANES) {
+    const Lanes x = load_lanes(p + k);
+    out |= ~((x <= hi) & (x >= lo));  // (NaN: neither)
+  }
+  bool hit = any(out);
+  for (; k < n; ++k) hit = hit || !(std::abs(p[k]) <= bound);
+  return hit;
 }
 
 // The body to blame for a bad state: the first dynamic body whose state is not finite
@@ -718,9 +721,9 @@ bool beyond(const std::vector<T>& values, std::uint64_t above) {
 // dynamic body is bad. -1: none.
 template <int D>
 std::int64_t first_bad_body(const Model<D>& model, const State<D>& st) {
-  const std::uint64_t limit = std::bit_cast<std::uint64_t>(POSITION_LIMIT);
-  if (!beyond(st.body_v, FINITE_BITS) && !beyond(st.body_w, FINITE_BITS) &&
-      !beyond(st.body_q, FINITE_BITS) && !beyond(st.body_x, limit))
+  constexpr double largest = std::numeric_limits<double>::max();  // (above it: ±inf)
+  if (!beyond(st.body_v, largest) && !beyond(st.body_w, largest) &&
+      !beyond(st.body_q, largest) && !beyond(st.body_x, POSITION_LIMIT))
     return -1;  // (the search below only for a bad state)
   std::int64_t other = -1;
   for (std::size_t i = 0; i < st.body_x.size(); ++i) {

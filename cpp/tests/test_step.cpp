@@ -1,6 +1,7 @@
 // step.cpp: whole worlds built in C++ and stepped.
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "check.hpp"
 #include "scene_builder.hpp"
@@ -210,3 +211,39 @@ TEST(the_store_grows_the_room_a_step_lacks_and_steps_the_same) {
 }
 
 RBSIM_TEST_MAIN
+
+// A bad state is found wherever it lies: each component of each body's position,
+// velocity, spin and rotation in turn made NaN, infinite or (a position) past
+// POSITION_LIMIT, in worlds of 1 to 9 bodies (the check runs over the arrays LANES
+// doubles at a time, then the rest one by one: every place in both), is refused before
+// a step and names that body.
+TEST(a_bad_value_anywhere_in_the_state_names_its_body) {
+  constexpr double NAN_ = std::numeric_limits<double>::quiet_NaN();
+  constexpr double INF = std::numeric_limits<double>::infinity();
+  for (int n = 1; n <= 9; ++n) {
+    SceneBuilder s;
+    for (int i = 0; i < n; ++i) s.circle({3.0 * i, 10.0}, 0.5, 1.0);
+    World<2>& w = s.finish();
+    State<2>& st = w.state;
+    std::int64_t taken = 0, bad = -1;
+    CHECK(w.advance(1, &taken, &bad) == Status::Ok);
+    const State<2> good = st;
+    for (int i = 0; i < n; ++i) {
+      for (int k = 0; k < 7; ++k) {  // x.x, x.y, v.x, v.y, ω, q.c, q.s
+        for (const double value : {NAN_, INF, -INF, 2.0 * POSITION_LIMIT}) {
+          if (k >= 2 && std::isfinite(value)) continue;  // (only a position has a limit)
+          double* at = k < 2   ? &st.body_x[i].x + k
+                       : k < 4 ? &st.body_v[i].x + (k - 2)
+                       : k == 4 ? &st.body_w[i]
+                                : &st.body_q[i].c + (k - 5);
+          *at = value;
+          bad = -1;
+          CHECK(w.advance(1, &taken, &bad) == Status::NonFinite);
+          CHECK(taken == 0 && bad == i);
+          st = good;
+        }
+      }
+    }
+    CHECK(w.advance(1, &taken, &bad) == Status::Ok && taken == 1);
+  }
+}

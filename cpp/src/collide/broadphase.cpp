@@ -36,6 +36,7 @@
 
 #include "rbsim/constants.hpp"
 #include "rbsim/stages.hpp"
+#include "rbsim/wide.hpp"
 
 namespace rbsim {
 
@@ -327,9 +328,12 @@ inline void pair_with_big(const Model<D>& model, const Grid<D>& grid, std::int32
 // A pair is recorded by a's query, except when b moved too and comes first (then b's
 // query records it). The tests are written out in the loops: this is the hottest loop
 // of a falling pile. 2D-specific: the walk over the cells is by rows iy of cells ix.
+constexpr int FOUND_BUFFER = 32;
 template <int D, class Emit>
 void query_moved(const Model<D>& model, const Grid<D>& grid, Span shapes, Emit& emit) {
   static_assert(D == 2, "query_moved: the walk over the cells is written for the plane");
+  static_assert(sizeof(Aabb<D>) == 4 * sizeof(double), "lo.x, lo.y, hi.x, hi.y");
+  const Lanes sign = {1.0, 1.0, -1.0, -1.0};
   const std::int32_t* shape_body = model.shape_body.data();
   const BodyType* body_type = model.body_type.data();
   const std::int64_t* bucket_start = grid.bucket_start.data();
@@ -355,6 +359,10 @@ void query_moved(const Model<D>& model, const Grid<D>& grid, Span shapes, Emit& 
     const std::int32_t tag_a = dyn_a ? body_a : -1 - body_a;
     const Aabb<D> box = fat[a];
     const double ax0 = box.lo.x, ay0 = box.lo.y, ax1 = box.hi.x, ay1 = box.hi.y;
+    // a box (lo.x, lo.y, hi.x, hi.y) times sign is at most this where it overlaps a's
+    const Lanes reach = {ax1, ay1, -ax0, -ay0};
+    std::int64_t found[FOUND_BUFFER];  // keys found, not yet emitted
+    int count = 0;
     // candidates: every shape for a big shape; else the grid cells, then big shapes
     std::int64_t ix0 = 0, ix1 = -1, iy0 = 0, iy1 = -1;
     if (!big[a]) {
@@ -385,19 +393,27 @@ void query_moved(const Model<D>& model, const Grid<D>& grid, Span shapes, Emit& 
           k1 = bucket_start[bk + 1];
         }
         for (std::int64_t k = k0; k < k1; ++k) {
-          // a hashed bucket also holds other cells' entries
-          if (!dense && (entry_cell[k][0] != ix || entry_cell[k][1] != iy)) continue;
-          const Aabb<D>& e = entry_fat[k];
-          if (e.lo.x > ax1 || ax0 > e.hi.x) continue;
-          if (e.lo.y > ay1 || ay0 > e.hi.y) continue;
-          // the same body, or neither body dynamic (both tags below zero)
-          if (entry_tag[k] == tag_a || (tag_a & entry_tag[k]) < 0) continue;
-          const std::int32_t b = entry_shape[k];
-          if (b == a || (moved[b] && b < a)) continue;
-          emit(pair_key(a, b, n));
+          // every test made and the key written, the count advanced only for a pair (the
+          // tests' outcomes follow no pattern: as branches, many were mispredicted). A hashed
+          // bucket also holds other cells' entries
+          const bool here = dense || (entry_cell[k][0] == ix && entry_cell[k][1] == iy);
+          // the boxes overlap: lo <= a's hi and hi >= a's lo, both as <= (sign)
+          const bool near = all(load_lanes(&entry_fat[k].lo.x) * sign <= reach);
+          // not the same body, and one of the two dynamic (not both tags below zero)
+          const std::int32_t tag = entry_tag[k], b = entry_shape[k];
+          const bool other = (tag != tag_a) & ((tag_a & tag) >= 0);
+          // (a pair of two moved shapes is the lower one's)
+          const bool own = (b != a) & !(moved[b] & (b < a));
+          found[count] = pair_key(a, b, n);
+          count += here & near & other & own;
+          if (count == FOUND_BUFFER) {
+            for (int f = 0; f < count; ++f) emit(found[f]);
+            count = 0;
+          }
         }
       }
     }
+    for (int f = 0; f < count; ++f) emit(found[f]);
     pair_with_big(model, grid, a, emit);
   }
 }
@@ -543,9 +559,10 @@ std::int64_t find_pairs(const Model<D>& model, Grid<D>& grid, Contacts<D>& conta
   // keep the old pairs between shapes that did not move (already sorted)
   std::int64_t kept = 0;
   if (!fresh) {
-    for (std::int64_t p = 0; p < n_pairs; ++p) {
+    for (std::int64_t p = 0; p < n_pairs; ++p) {  // (written, then counted if kept: no branch)
       const auto ab = pairs[p];
-      if (!(moved[ab[0]] || moved[ab[1]])) kept_list[kept++] = ab;
+      kept_list[kept] = ab;
+      kept += (moved[ab[0]] | moved[ab[1]]) == 0;
     }
   }
   // the moved shapes' pairs, unsorted, into new_keys (counted past its room, which the
