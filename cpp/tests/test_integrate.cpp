@@ -370,3 +370,45 @@ TEST(split_bodies_in_lanes_get_the_same_bits_however_split_and_alone) {
 }
 
 RBSIM_TEST_MAIN
+
+// 2D without forces the velocities of four dynamic bodies next to one another are updated
+// in lanes, the others one by one: the same bits either way. Nine bodies, then the same
+// nine with a static body second (the lanes fall on other bodies), damped both ways.
+TEST(velocities_in_lanes_are_the_one_by_one_velocities_to_the_bit) {
+  auto make = [](bool static_second, Model<2>& m, State<2>& s) {
+    const int n = static_second ? 10 : 9;
+    m = Model<2>{};
+    s = State<2>{};
+    m.gravity = {0.3, -9.81};
+    m.linear_damping = 0.3;
+    m.angular_damping = 0.7;
+    for (int k = 0, i = 0; k < n; ++k) {
+      const bool fixed = static_second && k == 1;
+      m.body_type.push_back(fixed ? BodyType::Static : BodyType::Dynamic);
+      m.body_inv_mass.push_back(fixed ? 0.0 : 1.0 / (1.0 + i));
+      m.body_inv_inertia.push_back(fixed ? 0.0 : 2.0 / (1.0 + i));
+      s.body_v.push_back(fixed ? Vec2{} : Vec2{0.1 * i - 0.35, 1.0 / (3.0 + i)});
+      s.body_w.push_back(fixed ? 0.0 : 0.7 - 0.2 * i);
+      if (!fixed) ++i;
+    }
+    const std::size_t size = m.body_type.size();
+    m.body_mass.resize(size), m.body_inertia.resize(size), m.body_com.resize(size);
+    m.body_force.resize(size), m.body_force_arm.resize(size), m.body_torque.resize(size);
+    s.body_x.resize(size), s.body_q.resize(size), s.body_angle.resize(size);
+  };
+  Model<2> ma, mb;
+  State<2> sa, sb;
+  make(false, ma, sa);
+  make(true, mb, sb);
+  for (int step = 0; step < 3; ++step) {
+    integrate_velocities(ma, sa, 1.0 / 240.0);
+    integrate_velocities(mb, sb, 1.0 / 240.0);
+  }
+  for (int i = 0; i < 9; ++i) {
+    const int j = i == 0 ? 0 : i + 1;  // (body i of the first is body j of the second)
+    CHECK(std::memcmp(&sa.body_v[i], &sb.body_v[j], sizeof(Vec2)) == 0);
+    CHECK(std::memcmp(&sa.body_w[i], &sb.body_w[j], sizeof(double)) == 0);
+    CHECK(sa.body_v[i].x != 0.1 * i - 0.35);  // (they moved)
+  }
+  CHECK(sb.body_v[1].x == 0.0 && sb.body_v[1].y == 0.0 && sb.body_w[1] == 0.0);  // the static
+}

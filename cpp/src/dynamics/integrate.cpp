@@ -281,6 +281,23 @@ inline void refresh_angular(const Model<3>& model, State<3>& st, int i) {
   st.body_w[i] = Dim<3>::apply_inv_inertia(model.body_inv_inertia[i], st.body_q[i], st.body_l[i]);
 }
 
+
+// 2D without forces: bodies i..i+LANES-1 (all dynamic) accelerated by gravity g (m/s²)
+// over h (s) and damped (lin, ang), as integrate_velocities takes each: v = (v + h g) lin,
+// ω = (ω + h α) ang with α the inverse inertia times a zero torque.
+inline void accelerate_lanes_2d(State<2>& st, int i, double h, Vec2 g, double lin, double ang,
+                                const double* inv_inertia) {
+  static_assert(sizeof(Vec2) == 2 * sizeof(double));
+  const Lanes hv = splat(h), hg = hv * Lanes{g.x, g.y, g.x, g.y};
+  double* v = &st.body_v[i].x;
+  const Lanes v01 = (load_lanes(v) + hg) * splat(lin), v23 = (load_lanes(v + 4) + hg) * splat(lin);
+  std::memcpy(v, &v01, sizeof v01);
+  std::memcpy(v + 4, &v23, sizeof v23);
+  const Lanes alpha = load_lanes(inv_inertia) * splat(0.0);  // 1/s²
+  const Lanes w = (load_lanes(&st.body_w[i]) + hv * alpha) * splat(ang);
+  std::memcpy(&st.body_w[i], &w, sizeof w);
+}
+
 }  // namespace
 
 template <int D>
@@ -295,7 +312,22 @@ void integrate_velocities(const Model<D>& model, State<D>& st, double h, Span bo
   const Vec g = model.gravity;
   const double lin = 1.0 / (1.0 + h * model.linear_damping);
   const double ang = 1.0 / (1.0 + h * model.angular_damping);
+  // 2D without forces: LANES bodies at a time where all of them are dynamic, the same
+  // operations on each component (this file rounds every one), so the same bits as one
+  // by one
+  const bool in_lanes = D == 2 && !model.has_forces;
   for (int i = static_cast<int>(bodies.first); i < bodies.last; ++i) {
+    if constexpr (D == 2) {
+      if (in_lanes && i + LANES <= bodies.last) {
+        bool moving = true;
+        for (int l = 0; l < LANES; ++l) moving = moving && model.is_dynamic(i + l);
+        if (moving) {
+          accelerate_lanes_2d(st, i, h, g, lin, ang, &model.body_inv_inertia[i]);
+          i += LANES - 1;
+          continue;
+        }
+      }
+    }
     if (!model.is_dynamic(i)) continue;
     Vec a = g;
     Ang torque = Dim<D>::angular_zero();
