@@ -369,8 +369,6 @@ TEST(split_bodies_in_lanes_get_the_same_bits_however_split_and_alone) {
   }
 }
 
-RBSIM_TEST_MAIN
-
 // 2D without forces the velocities of four dynamic bodies next to one another are updated
 // in lanes, the others one by one: the same bits either way. Nine bodies, then the same
 // nine with a static body second (the lanes fall on other bodies), damped both ways.
@@ -412,3 +410,5 @@ TEST(velocities_in_lanes_are_the_one_by_one_velocities_to_the_bit) {
   }
   CHECK(sb.body_v[1].x == 0.0 && sb.body_v[1].y == 0.0 && sb.body_w[1] == 0.0);  // the static
 }
+
+RBSIM_TEST_MAIN

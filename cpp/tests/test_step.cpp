@@ -210,8 +210,6 @@ TEST(the_store_grows_the_room_a_step_lacks_and_steps_the_same) {
   CHECK(same_bits(a.state, c.state));
 }
 
-RBSIM_TEST_MAIN
-
 // A bad state is found wherever it lies: each component of each body's position,
 // velocity, spin and rotation in turn made NaN, infinite or (a position) past
 // POSITION_LIMIT, in worlds of 1 to 9 bodies (the check runs over the arrays LANES
@@ -247,3 +245,5 @@ TEST(a_bad_value_anywhere_in_the_state_names_its_body) {
     CHECK(w.advance(1, &taken, &bad) == Status::Ok && taken == 1);
   }
 }
+
+RBSIM_TEST_MAIN

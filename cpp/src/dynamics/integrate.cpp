@@ -281,7 +281,6 @@ inline void refresh_angular(const Model<3>& model, State<3>& st, int i) {
   st.body_w[i] = Dim<3>::apply_inv_inertia(model.body_inv_inertia[i], st.body_q[i], st.body_l[i]);
 }
 
-
 // 2D without forces: bodies i..i+LANES-1 (all dynamic) accelerated by gravity g (m/s²)
 // over h (s) and damped (lin, ang), as integrate_velocities takes each: v = (v + h g) lin,
 // ω = (ω + h α) ang with α the inverse inertia times a zero torque.
