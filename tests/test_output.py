@@ -663,7 +663,7 @@ def test_resume_from_another_versions_checkpoint_says_so(reference, tmp_path) ->
     write_checkpoint(f"{out}{CHECKPOINT_SUFFIX}", 31, 31, b"RBSIMCK6" + bytes(64), owner=owner)
     code, _o, err = rbsim("run", "--resume", out)
     assert code == 1, err
-    assert "another version of rbsim's engine (format 6, this one reads D)" in err, err
+    assert "another version of rbsim's engine (format 6, this one reads E)" in err, err
     assert "Traceback" not in err
 
 

@@ -178,13 +178,13 @@ void World<D>::over_segments(bool with_logs, F&& f) {
     if (regions > 1) {  // (the part that threads would share, for the profile)
       parallel_timed([&] {
         for (; g < regions; ++g)
-          clocked(profile, region_task_seconds[0], [&] { f(g, log, state); });
+          clocked(profile, region_task_seconds[0], [&] { f(g, log, state, CutLanes::All); });
         region_task_passes[0] += profile;
         if (regions / 2 > 1)
-          for (; g < regions + regions / 2; ++g) f(g, log, state);
+          for (; g < regions + regions / 2; ++g) f(g, log, state, CutLanes::All);
       });
     }
-    for (; g < n_segments; ++g) f(g, log, state);
+    for (; g < n_segments; ++g) f(g, log, state, CutLanes::All);
     return;
   }
   if (with_logs) {
@@ -197,15 +197,24 @@ void World<D>::over_segments(bool with_logs, F&& f) {
     }
   }
   PassLog none{};  // (a pass that lists nothing)
-  auto run_on = [&](std::int64_t g, State<D>& st) {
+  // segment g's part: `lanes` of the batches of segment `batches` (its own, or for a
+  // cut's lanes in its host region's batches, the host's), listing into g's log
+  auto run_on = [&](std::int64_t g, State<D>& st, std::int64_t batches, CutLanes lanes) {
     if (!with_logs) {
-      f(static_cast<int>(g), none, st);
+      f(static_cast<int>(batches), none, st, lanes);
       return;
     }
     PassLog log = logs[g].log();
-    f(static_cast<int>(g), log, st);
+    f(static_cast<int>(batches), log, st, lanes);
   };
-  auto run = [&](std::int64_t g) { run_on(g, state); };
+  // a cut (regions <= g < regions + regions / 2) between regions 2k and 2k + 1: its lanes
+  // in region 2k + 1's batches first
+  const bool cut_lanes = D == 2 && c.cut_lanes;
+  auto run = [&](std::int64_t g) {
+    if (cut_lanes && g >= regions && g < regions + regions / 2)
+      run_on(g, state, 2 * (g - regions) + 1, CutLanes::Only);
+    run_on(g, state, g, CutLanes::All);
+  };
   // 2D: a region's pass on its own copy of the velocities (region_state, begin_regions),
   // its bodies copied in and back: bodies numbered near one another fall in both regions
   // (a pyramid's rows cut in two), and one cache line of velocities written from both
@@ -215,10 +224,10 @@ void World<D>::over_segments(bool with_logs, F&& f) {
     if constexpr (D == 2) {
       State<D>& own = region_state[g];
       for (const Span run : region_runs[g]) copy_velocities(state, own, run);
-      run_on(g, own);
+      run_on(g, own, g, cut_lanes ? CutLanes::Without : CutLanes::All);
       for (const Span run : region_runs[g]) copy_velocities(own, state, run);
     } else {
-      run(g);
+      run_on(g, state, g, CutLanes::All);
     }
   };
   // (each task's clock its own, summed once they are done)
@@ -257,8 +266,8 @@ void World<D>::warm_start_pass() {
     return;
   }
   const auto& bounds = D == 2 ? c.segment_wave : c.segment_order;
-  over_segments(false, [&](int g, PassLog&, State<D>& st) {
-    warm_start_range(model, st, c, bounds[g], bounds[g + 1]);
+  over_segments(false, [&](int g, PassLog&, State<D>& st, CutLanes lanes) {
+    warm_start_range(model, st, c, bounds[g], bounds[g + 1], lanes);
   });
 }
 
@@ -266,16 +275,17 @@ template <int D>
 void World<D>::solve_pass(double inv_h, bool use_bias, double shift, double threshold) {
   auto& c = contacts;
   take_impulses(c);
-  over_segments(true, [&](int g, PassLog& log, State<D>& st) {
+  over_segments(true, [&](int g, PassLog& log, State<D>& st, CutLanes lanes) {
     solve_wave_range(model, st, c, inv_h, use_bias, shift, threshold, c.segment_wave[g],
-                     c.segment_wave[g + 1], log);
+                     c.segment_wave[g + 1], log, lanes);
   });
 }
 
 template <int D>
 void World<D>::shock_pass(double inv_h, double threshold, double min_approach) {
   auto& c = contacts;
-  over_segments(false, [&](int g, PassLog&, State<D>& st) {
+  over_segments(false, [&](int g, PassLog&, State<D>& st, CutLanes lanes) {
+    if (lanes == CutLanes::Only) return;  // (the shock order keeps a cut's in its segment)
     propagate_shock_range(model, st, c, c.segment_shock[g], c.segment_shock[g + 1], inv_h,
                           threshold, min_approach);
   });

@@ -1,7 +1,9 @@
 // solver/solve.cpp: one sequential-impulse pass on contacts whose answer is known: an
 // isolated impact, a closing gap, a resting box's face, Coulomb's cone.
+#include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <vector>
 
@@ -452,6 +454,123 @@ TEST(idle_manifold_3d_is_left_as_it_is) {
       }
     }
   }
+}
+
+// A pyramid of 528 boxes, two regions: the manifolds of the cut between them (the centre
+// column, each sharing a body with the next) go into spare lanes of the second region's
+// batches, after their bodies' manifolds there. No batch holds two manifolds of one
+// dynamic body; every body meets its region's manifolds before the cut's; and the passes
+// over every batch whole (one thread) equal the threads' order to the bit: the first
+// region, the second without the cut's lanes, then the cut's lanes and the cut's own
+// batches.
+TEST(a_cut_in_the_lanes_of_a_region_keeps_every_bodys_order) {
+  auto scene = [](SceneBuilder& s) -> World<2>& {
+    s.world.model.gravity = {0.0, -10.0};
+    s.ground(-40.0, 40.0);
+    constexpr int base = 32;  // 528 boxes: SOLVER_REGIONS regions of REGION_MIN_BODIES
+    for (int row = 0, k = 0; row < base; ++row)
+      for (int i = 0; i < base - row; ++i, ++k) {
+        const Vec2 v = {0.02 * std::sin(0.7 * k), -0.3 + 0.05 * std::cos(1.3 * k)};  // m/s
+        s.box({i - 0.5 * (base - row - 1), 0.5 + row}, 0.5, 0.5, 1.0, {}, 0.0, v);
+      }
+    return s.finish();
+  };
+  SceneBuilder s0, s1;
+  World<2>& one = scene(s0);
+  World<2>& threads = scene(s1);
+  for (World<2>* w : {&one, &threads}) {
+    rbsim::test::collide(*w);
+    partition_regions(w->model, w->state, w->contacts);
+    // impulses held from a step before, for the warm start (N·s)
+    auto& cw = w->contacts;
+    for (std::int64_t m = 0; m < cw.count.manifolds; ++m)
+      for (int k = 0; k < cw.points[m]; ++k) {
+        cw.normal_impulse[m][k] = 0.05 + 0.01 * static_cast<double>(m % 7);
+        cw.tangent_impulse[m][k] = 0.002 * static_cast<double>(m % 5 - 2);
+      }
+    find_waves(w->model, w->contacts);
+    take_impulses(w->contacts);
+  }
+  const auto& c = one.contacts;
+  CHECK(c.region_count == 2 && c.cut_lanes);
+  // where each manifold is among the batches, and the cut's lanes found
+  std::vector<std::int64_t> at(static_cast<std::size_t>(c.count.manifolds), -1);
+  int cut_lanes = 0;
+  for (std::int64_t i = 0; i < c.wave_batch[c.wave_count]; ++i) {
+    const WideBatch& B = c.batches[i];
+    for (int l = 0; l < LANES; ++l) {
+      if (B.m[l] < 0) continue;
+      at[B.m[l]] = i;
+      const int ra = c.body_region[B.a[l]], rb = c.body_region[B.b[l]];
+      const bool joins = ra >= 0 && rb >= 0 && ra != rb;
+      // a joining manifold is in a cut's lane of the second region's batches, or in the
+      // cut's own batches after them
+      const bool in_lane = (B.cut >> l & 1u) != 0;
+      CHECK(joins == (in_lane || i >= c.segment_wave[2]));
+      if (in_lane) CHECK(i >= c.segment_wave[1] && i < c.segment_wave[2]);
+      cut_lanes += in_lane;
+      for (int k = 0; k < l; ++k) {  // no dynamic body twice in a batch
+        if (B.m[k] < 0) continue;
+        for (const int x : {B.a[l], B.b[l]})
+          if (one.model.is_dynamic(x)) CHECK(x != B.a[k] && x != B.b[k]);
+      }
+    }
+  }
+  CHECK(cut_lanes >= 20);  // (of the centre column's 78)
+  // every body: its region's manifolds in earlier batches than any of its cut's
+  for (int i = 0; i < one.model.body_count(); ++i) {
+    if (!one.model.is_dynamic(i)) continue;
+    std::int64_t last_own = -1, first_cut = std::numeric_limits<std::int64_t>::max();
+    for (std::int64_t m = 0; m < c.count.manifolds; ++m) {
+      if (c.body_a[m] != i && c.body_b[m] != i) continue;
+      const int ra = c.body_region[c.body_a[m]], rb = c.body_region[c.body_b[m]];
+      if (ra >= 0 && rb >= 0 && ra != rb)
+        first_cut = std::min(first_cut, at[m]);
+      else
+        last_own = std::max(last_own, at[m]);
+    }
+    CHECK(last_own < first_cut);
+  }
+  // the passes: one thread's (every batch whole) against the threads' (segment by segment)
+  const double inv_h = 1.0 / rbsim::test::substep(one);
+  for (const bool use_bias : {true, false}) {
+    PassLog log1 = PassLog::direct(one.contacts), log2 = PassLog::direct(threads.contacts);
+    auto& c2 = threads.contacts;
+    if (use_bias) {
+      for (int g = 0; g < segment_count(2); ++g)
+        warm_start_range(one.model, one.state, one.contacts, c.segment_wave[g], c.segment_wave[g + 1]);
+      warm_start_range(threads.model, threads.state, c2, c2.segment_wave[0], c2.segment_wave[1]);
+      warm_start_range(threads.model, threads.state, c2, c2.segment_wave[1], c2.segment_wave[2],
+                       CutLanes::Without);
+      warm_start_range(threads.model, threads.state, c2, c2.segment_wave[1], c2.segment_wave[2],
+                       CutLanes::Only);
+      warm_start_range(threads.model, threads.state, c2, c2.segment_wave[2], c2.wave_count);
+    }
+    for (int g = 0; g < segment_count(2); ++g)
+      solve_wave_range(one.model, one.state, one.contacts, inv_h, use_bias, 0.0, NO_BOUNCE,
+                       c.segment_wave[g], c.segment_wave[g + 1], log1);
+    solve_wave_range(threads.model, threads.state, c2, inv_h, use_bias, 0.0, NO_BOUNCE,
+                     c2.segment_wave[0], c2.segment_wave[1], log2);
+    solve_wave_range(threads.model, threads.state, c2, inv_h, use_bias, 0.0, NO_BOUNCE,
+                     c2.segment_wave[1], c2.segment_wave[2], log2, CutLanes::Without);
+    solve_wave_range(threads.model, threads.state, c2, inv_h, use_bias, 0.0, NO_BOUNCE,
+                     c2.segment_wave[1], c2.segment_wave[2], log2, CutLanes::Only);
+    solve_wave_range(threads.model, threads.state, c2, inv_h, use_bias, 0.0, NO_BOUNCE,
+                     c2.segment_wave[2], c2.wave_count, log2);
+  }
+  give_impulses(one.contacts);
+  give_impulses(threads.contacts);
+  double moved = 0.0;  // m/s
+  for (int i = 0; i < one.model.body_count(); ++i) {
+    CHECK(std::memcmp(&one.state.body_v[i], &threads.state.body_v[i], sizeof(Vec2)) == 0);
+    CHECK(std::memcmp(&one.state.body_w[i], &threads.state.body_w[i], sizeof(double)) == 0);
+    moved = std::max(moved, std::fabs(one.state.body_v[i].y + 0.3));
+  }
+  CHECK(moved > 0.1);  // (the passes did work)
+  for (std::int64_t m = 0; m < c.count.manifolds; ++m)
+    for (int k = 0; k < c.points[m]; ++k)
+      CHECK(std::memcmp(&one.contacts.normal_impulse[m][k], &threads.contacts.normal_impulse[m][k],
+                        sizeof(double)) == 0);
 }
 
 RBSIM_TEST_MAIN

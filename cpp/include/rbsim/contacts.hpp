@@ -320,6 +320,9 @@ struct Contacts {
   // the waves of the solve order (waves.cpp): groups of independent manifolds
   std::int64_t wave_count = 0;             // waves
   bool waves_valid = false;                 // the waves are this contact graph's
+  // 2D: some batches of a region hold manifolds of a cut in lanes of their own
+  // (WideBatch::cut; waves.cpp, schedule_units)
+  bool cut_lanes = false;
   // 2D: the batches hold the impulses of their manifolds (normal_impulse,
   // tangent_impulse, max_normal_impulse and approach_velocity are behind them) while the
   // passes run: take_impulses, give_impulses (waves.cpp)
@@ -434,6 +437,7 @@ bool Contacts<D>::allocate(int n_bodies, int n_shapes, int n_vertices, std::int6
   reset(overlap_list, m); reset(body_motion, n);
   wave_count = 0;
   waves_valid = false;
+  cut_lanes = false;
   impulses_in_lanes = false;
   heavy_on_light = false;
   reset(wave_order, m); reset(manifold_wave, m); reset(body_wave, n);

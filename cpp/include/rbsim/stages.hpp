@@ -392,10 +392,22 @@ void solve_batch_lanes(State<2>& state, Contacts<2>& contacts, double inv_h, boo
 // solver/solve.cpp: the pass over waves [first, last) (contacts.batches; 3D: batches3, faces3), listing
 // into `log`: a region of the solve order (regions.cpp, contacts.segment_wave). In 2D the
 // batches hold the impulses: the caller takes them first (take_impulses).
+// 2D: which lanes of the range's batches (WideBatch::cut): all (one thread), all but a
+// cut's (a region's task on threads) or only a cut's (the cut's pass after the regions,
+// over the batches of its host region: waves.cpp, schedule_units).
+enum class CutLanes : std::uint8_t { All, Without, Only };
+// The lanes (bit l: lane l) a pass takes of a batch whose cut's lanes are `cut`: 0 for
+// none (the batch is passed over), 15 for every lane.
+inline unsigned cut_lanes_taken(CutLanes lanes, unsigned cut) {
+  constexpr unsigned every = 15u;  // (LANES = 4)
+  if (lanes == CutLanes::All) return every;
+  return lanes == CutLanes::Only ? cut : every & ~cut;
+}
 template <int D>
 void solve_wave_range(const Model<D>& model, State<D>& state, Contacts<D>& contacts,
                       double inv_h, bool use_bias, double shift, double threshold,
-                      std::int64_t first, std::int64_t last, PassLog& log);
+                      std::int64_t first, std::int64_t last, PassLog& log,
+                      CutLanes lanes = CutLanes::All);
 
 // solver/solve.cpp: the same pass over the whole solve order, wave by wave (find_waves'
 // batches, LANES manifolds at a time); the impulses in the store before and after.
@@ -408,7 +420,7 @@ void solve_waves(const Model<D>& model, State<D>& state, Contacts<D>& contacts, 
 // solve order (regions.cpp).
 template <int D>
 void warm_start_range(const Model<D>& model, State<D>& state, Contacts<D>& contacts,
-                      std::int64_t first, std::int64_t last);
+                      std::int64_t first, std::int64_t last, CutLanes lanes = CutLanes::All);
 
 // solver/shock.cpp: the shock pass over shock_order[first, last) (a region's part).
 template <int D>

@@ -224,6 +224,10 @@ struct WideBatch {
   // the passes (solve_batch leaves a batch whose lanes all are); find_waves packs the
   // waves again once too many such batches hold one
   bool idle;
+  // bit l: lane l holds a manifold that joins two regions (a cut's, placed in a region's
+  // batch after its bodies' manifolds there: waves.cpp, schedule_units); on threads the
+  // region's task leaves these lanes and the cut's pass takes them after the regions
+  std::uint8_t cut;
   // The lanes' impulses while the passes run (take_impulses, give_impulses): the
   // accumulated normal and tangent impulses (N·s), the largest normal impulse applied
   // this step (N·s) and the approach speed where the point engaged (m/s), of points 0 and

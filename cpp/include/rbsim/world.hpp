@@ -175,11 +175,15 @@ struct World {
   // only its own items)
   template <class F>
   void parallel(std::int64_t n, F&& f);
-  // f(segment, log, state) over the solve's segments (regions.cpp): the regions at once,
-  // then the cuts between regions 2k and 2k + 1 at once, then the rest; what the passes
-  // list is appended to the store's lists in segment order (with_logs). `state` is the
-  // world's, or in 2D, for a region on the threads, that region's copy of the velocities
-  // (region_state: only body_v and body_w, which the passes read and write)
+  // f(segment, log, state, lanes) over the solve's segments (regions.cpp): the regions at
+  // once, then the cuts between regions 2k and 2k + 1 at once, then the rest; what the
+  // passes list is appended to the store's lists in segment order (with_logs). `state` is
+  // the world's, or in 2D, for a region on the threads, that region's copy of the
+  // velocities (region_state: only body_v and body_w, which the passes read and write).
+  // lanes (2D, contacts.cut_lanes): on one thread every segment's batches whole
+  // (CutLanes::All); on the threads a region without the lanes of a cut that it hosts
+  // (Without), and each cut's part first as its host region's batches, those lanes only
+  // (f(host, log, state, Only)), then its own segment
   template <class F>
   void over_segments(bool with_logs, F&& f);
   void begin_regions();  // region_runs, shared_runs, region_state (2D, threaded regions)

@@ -1427,14 +1427,28 @@ void solve_batch_lanes(State<2>& st, Contacts<2>& c, double inv_h, bool use_bias
 template <int D>
 void solve_wave_range(const Model<D>& model, State<D>& st, Contacts<D>& c, double inv_h,
                       bool use_bias, double shift, double threshold, std::int64_t first,
-                      std::int64_t last, PassLog& log) {
+                      std::int64_t last, PassLog& log, CutLanes lanes) {
   if constexpr (D == 2) {
   for (std::int64_t g = first; g < last; ++g) {
     const std::int64_t single = c.wave_single_batch[g];  // the first batch of one-point ones
-    for (std::int64_t i = c.wave_batch[g]; i < single; ++i)
-      solve_batch<true>(st, c, c.batches[i], inv_h, use_bias, shift, threshold, log);
-    for (std::int64_t i = single; i < c.wave_batch[g + 1]; ++i)
-      solve_batch<false>(st, c, c.batches[i], inv_h, use_bias, shift, threshold, log);
+    for (std::int64_t i = c.wave_batch[g]; i < c.wave_batch[g + 1]; ++i) {
+      WideBatch& B = c.batches[i];
+      const bool two = i < single;
+      if (B.cut == 0 || lanes == CutLanes::All) {  // (a cut's lanes, on one thread, with the rest)
+        if (lanes == CutLanes::Only) continue;
+        if (two)
+          solve_batch<true>(st, c, B, inv_h, use_bias, shift, threshold, log);
+        else
+          solve_batch<false>(st, c, B, inv_h, use_bias, shift, threshold, log);
+        continue;
+      }
+      const unsigned only = cut_lanes_taken(lanes, B.cut);
+      if (only == 0) continue;
+      if (two)
+        solve_batch<true, true>(st, c, B, inv_h, use_bias, shift, threshold, log, only);
+      else
+        solve_batch<false, true>(st, c, B, inv_h, use_bias, shift, threshold, log, only);
+    }
   }
   } else {
   // 3D: a wave's one-point manifolds LANES at a time, then its faces (LANES at a time, or
@@ -1466,9 +1480,9 @@ void solve_wave_range(const Model<D>& model, State<D>& st, Contacts<D>& c, doubl
 template void solve_waves(const Model<2>&, State<2>&, Contacts<2>&, double, bool, double, double);
 template void solve_waves(const Model<3>&, State<3>&, Contacts<3>&, double, bool, double, double);
 template void solve_wave_range(const Model<2>&, State<2>&, Contacts<2>&, double, bool, double,
-                               double, std::int64_t, std::int64_t, PassLog&);
+                               double, std::int64_t, std::int64_t, PassLog&, CutLanes);
 template void solve_wave_range(const Model<3>&, State<3>&, Contacts<3>&, double, bool, double,
-                               double, std::int64_t, std::int64_t, PassLog&);
+                               double, std::int64_t, std::int64_t, PassLog&, CutLanes);
 
 
 }  // namespace rbsim

@@ -109,7 +109,7 @@ namespace {
 // manifolds share no dynamic body, so the order in which their impulses reach the bodies
 // changes only the rounding of the sums.
 template <bool TWO>
-void warm_start_batch(State<2>& st, const WideBatch& B) {
+void warm_start_batch(State<2>& st, const WideBatch& B, unsigned only = 15u) {
   static_assert(LANES == 4, "the gathers below are written for four lanes");
   const Lanes nx = B.nx, ny = B.ny;
   const Lanes tx = ny, ty = -nx;  // t = (n_y, −n_x)
@@ -135,7 +135,8 @@ void warm_start_batch(State<2>& st, const WideBatch& B) {
   const Lanes dvbx = mb * px, dvby = mb * py, dwb = ib * tb;
   Vec2* v = st.body_v.data();
   double* w = st.body_w.data();
-  if (B.writes == ALL_WRITES) {  // every lane's two bodies, as whole vectors
+  const std::uint32_t writes = B.writes & (only | only << LANES);  // (a lane not taken: none)
+  if (writes == ALL_WRITES) {  // every lane's two bodies, as whole vectors
     const int a0 = B.a[0], a1 = B.a[1], a2 = B.a[2], a3 = B.a[3];
     const int b0 = B.b[0], b1 = B.b[1], b2 = B.b[2], b3 = B.b[3];
     Lanes vax, vay, vbx, vby;
@@ -151,11 +152,11 @@ void warm_start_batch(State<2>& st, const WideBatch& B) {
   }
   for (int l = 0; l < LANES; ++l) {
     // a fixed body is not written (see solve_contacts)
-    if (B.writes & (1u << l)) {
+    if (writes & (1u << l)) {
       v[B.a[l]] += Vec2{dvax[l], dvay[l]};
       w[B.a[l]] += dwa[l];
     }
-    if (B.writes & (1u << (LANES + l))) {
+    if (writes & (1u << (LANES + l))) {
       v[B.b[l]] -= Vec2{dvbx[l], dvby[l]};
       w[B.b[l]] -= dwb[l];
     }
@@ -181,23 +182,28 @@ template void warm_start_waves(const Model<3>&, State<3>&, Contacts<3>&);
 
 template <int D>
 void warm_start_range(const Model<D>& model, State<D>& st, Contacts<D>& c, std::int64_t first,
-                      std::int64_t last) {
+                      std::int64_t last, CutLanes lanes) {
   if constexpr (D == 3) {
     warm_start_3d(model, st, c, c.solve_order.data(), first, last);
   } else {
     for (std::int64_t g = first; g < last; ++g) {
       const std::int64_t single = c.wave_single_batch[g];
-      for (std::int64_t i = c.wave_batch[g]; i < single; ++i)
-        warm_start_batch<true>(st, c.batches[i]);
-      for (std::int64_t i = single; i < c.wave_batch[g + 1]; ++i)
-        warm_start_batch<false>(st, c.batches[i]);
+      for (std::int64_t i = c.wave_batch[g]; i < c.wave_batch[g + 1]; ++i) {
+        const WideBatch& B = c.batches[i];
+        const unsigned only = cut_lanes_taken(lanes, B.cut);
+        if (only == 0) continue;
+        if (i < single)
+          warm_start_batch<true>(st, B, only);
+        else
+          warm_start_batch<false>(st, B, only);
+      }
     }
   }
 }
 
 template void warm_start_range(const Model<2>&, State<2>&, Contacts<2>&, std::int64_t,
-                               std::int64_t);
+                               std::int64_t, CutLanes);
 template void warm_start_range(const Model<3>&, State<3>&, Contacts<3>&, std::int64_t,
-                               std::int64_t);
+                               std::int64_t, CutLanes);
 
 }  // namespace rbsim

@@ -264,12 +264,13 @@ void order_by_kind(Contacts<D>& c, std::int32_t n_waves, Kind kind_of, int singl
 // is begun: there are never more units of a type than packing each wave's on their own
 // would make. Up to OPEN_UNITS units of each type are kept open, the oldest closed when
 // another is begun. Segment by segment, each segment's units after the last's
-// (segment_wave: the first unit of each). Each unit is then a wave of its own
-// (finish_units).
+// (segment_wave: the first unit of each; in 2D a cut's manifolds first try the spare
+// lanes of a region's units: below). Each unit is then a wave of its own (finish_units).
 struct Unit {
   std::int8_t type;
   std::int8_t fill;  // lanes filled
   std::int32_t m[LANES];
+  std::uint8_t cut = 0;  // bit l: lane l holds a cut's manifold (2D: see below)
 };
 constexpr int OPEN_UNITS = 8;
 template <int D, int TYPES, class Type>
@@ -286,15 +287,45 @@ std::vector<Unit> schedule_units(const Model<D>& model, Contacts<D>& c, int n_se
   units.reserve(static_cast<std::size_t>(n_man / 2 + 8));
   std::int32_t open[TYPES][OPEN_UNITS];  // each type's open units, oldest first
   int n_open[TYPES] = {};
+  const int regions = static_cast<int>(c.region_count);
+  std::vector<std::int32_t> region_units(static_cast<std::size_t>(regions) + 1, 0);
+  c.cut_lanes = false;
   for (int g = 0; g < n_segments; ++g) {
     const auto first = static_cast<std::int32_t>(units.size());
     c.segment_wave[g] = first;
+    if (g < regions) region_units[g] = first;
+    if (g == regions) region_units[regions] = first;
+    // 2D, a cut between regions 2k and 2k + 1 (regions.cpp): each of its manifolds goes
+    // into a spare lane of region 2k + 1's units where one of its type comes after its
+    // bodies' last units there (and after the cut's manifolds before it that share a
+    // body), else into the cut's own units, as below. Every body's manifolds keep their
+    // order (a region's before the cut's, the cut's in its order), so the passes give the
+    // same result as with the cut's units after the regions; on one thread the cut's
+    // manifolds then fill lanes the region leaves empty (a pyramid's cut, its centre
+    // column, is a chain: one manifold a unit of its own), and on threads the region's
+    // task leaves these lanes (WideBatch::cut) and the cut's pass takes them after.
+    const bool cut = D == 2 && regions > 1 && g >= regions && g < regions + regions / 2;
+    const std::int32_t host_first = cut ? region_units[2 * (g - regions) + 1] : 0;
+    const std::int32_t host_end = cut ? region_units[2 * (g - regions) + 2] : 0;
     for (std::int64_t o = segment_start[g]; o < segment_start[g + 1]; ++o) {
       const std::int32_t m = order[o];
       const int a = c.body_a[m], b = c.body_b[m];
       const bool da = model.is_dynamic(a), db = model.is_dynamic(b);
-      const std::int32_t earliest = std::max({first, da ? next[a] : 0, db ? next[b] : 0});
       const int t = type_of(m);
+      if (cut) {
+        std::int32_t u = std::max({host_first, da ? next[a] : 0, db ? next[b] : 0});
+        while (u < host_end && (units[u].type != t || units[u].fill == LANES)) ++u;
+        if (u < host_end) {
+          Unit& unit = units[u];
+          unit.cut |= static_cast<std::uint8_t>(1u << unit.fill);
+          unit.m[unit.fill++] = m;
+          if (da) next[a] = u + 1;
+          if (db) next[b] = u + 1;
+          c.cut_lanes = true;
+          continue;
+        }
+      }
+      const std::int32_t earliest = std::max({first, da ? next[a] : 0, db ? next[b] : 0});
       std::int32_t* list = open[t];
       int i = 0;
       while (i < n_open[t] && list[i] < earliest) ++i;
@@ -421,6 +452,7 @@ std::int64_t pack_batches_2d(const Model<2>& model, Contacts<2>& c, int n_segmen
       const Unit& unit = units[k];
       WideBatch& w = c.batches[k];
       w.idle = true;
+      w.cut = unit.cut;
       for (int l = 0; l < LANES; ++l) {
         pack_lane(model, c, w, l, unit.m[l]);
         if (unit.m[l] >= 0) w.idle = w.idle && !holds_any(c, unit.m[l]);

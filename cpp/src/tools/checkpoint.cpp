@@ -8,7 +8,9 @@
 namespace rbsim {
 namespace {
 
-// The last byte is the format: D since each manifold keeps the bodies' offset and
+// The last byte is the format: E since a 2D batch may hold the manifolds of a cut between
+// regions in lanes of their own (WideBatch::cut, contacts.cut_lanes); D: each manifold
+// keeps the bodies' offset and
 // rotations it was found at, and no body a reference pose (C: the offset only, each body
 // a reference rotation; B: a solver row, and a batch's lanes, keep the row's friction
 // load and the counts whether any row holds one; A: the contact store keeps each
@@ -19,7 +21,7 @@ namespace {
 // within which its points touch and have friction; 6: the contact store keeps which
 // manifolds touch and the load each body bears; 5 and before: without them; a checkpoint
 // of another format is refused with a message saying so).
-constexpr char MAGIC[8] = {'R', 'B', 'S', 'I', 'M', 'C', 'K', 'D'};
+constexpr char MAGIC[8] = {'R', 'B', 'S', 'I', 'M', 'C', 'K', 'E'};
 
 // Every member of the world that changes while it runs, in one fixed order. A member
 // added to State, Grid or Contacts must be added here too: the static_asserts on their
@@ -57,6 +59,7 @@ void visit(W& w, F&& f) {
   f(c.body_mark), f(c.solve_impulse), f(c.bounce_list), f(c.relax_list), f(c.body_reach);
   f(c.wave_count), f(c.waves_valid), f(c.heavy_on_light), f(c.unit_scale), f(c.wave_order), f(c.manifold_wave), f(c.body_wave);
   f(c.wave_start), f(c.wave_batch), f(c.wave_single), f(c.wave_single_batch), f(c.batches);
+  f(c.cut_lanes);
   f(c.region_count), f(c.body_region), f(c.segment_order), f(c.segment_wave), f(c.segment_shock);
   f(c.wave_idle);  // (3D: made anew in every step, as batches3 and faces3, but sized by the store)
   // (not c.batches3, c.faces3: 3D packs them anew in every step, before any pass reads them;
