@@ -389,12 +389,9 @@ void solve_batch_lanes(State<2>& state, Contacts<2>& contacts, double inv_h, boo
                        double shift, double threshold, const BatchLanes* batches, std::int64_t n,
                        PassLog& log);
 
-// solver/solve.cpp: the pass over waves [first, last) (contacts.batches; 3D: batches3, faces3), listing
-// into `log`: a region of the solve order (regions.cpp, contacts.segment_wave). In 2D the
-// batches hold the impulses: the caller takes them first (take_impulses).
-// 2D: which lanes of the range's batches (WideBatch::cut): all (one thread), all but a
-// cut's (a region's task on threads) or only a cut's (the cut's pass after the regions,
-// over the batches of its host region: waves.cpp, schedule_units).
+// 2D: which lanes of a range's batches a pass takes (WideBatch::cut): all (one thread),
+// all but a cut's (a region's task on threads) or only a cut's (the cut's pass after the
+// regions, over the batches of its host region: waves.cpp, schedule_units).
 enum class CutLanes : std::uint8_t { All, Without, Only };
 // The lanes (bit l: lane l) a pass takes of a batch whose cut's lanes are `cut`: 0 for
 // none (the batch is passed over), 15 for every lane.
@@ -403,6 +400,11 @@ inline unsigned cut_lanes_taken(CutLanes lanes, unsigned cut) {
   if (lanes == CutLanes::All) return every;
   return lanes == CutLanes::Only ? cut : every & ~cut;
 }
+
+// solver/solve.cpp: the pass over waves [first, last) (contacts.batches; 3D: batches3, faces3), listing
+// into `log`: a region of the solve order (regions.cpp, contacts.segment_wave), `lanes` of
+// its batches. In 2D the batches hold the impulses: the caller takes them first
+// (take_impulses).
 template <int D>
 void solve_wave_range(const Model<D>& model, State<D>& state, Contacts<D>& contacts,
                       double inv_h, bool use_bias, double shift, double threshold,
@@ -416,8 +418,8 @@ void solve_waves(const Model<D>& model, State<D>& state, Contacts<D>& contacts, 
                    bool use_bias, double shift, double threshold);
 
 // solver/warm_start.cpp: the warm start of waves [first, last) (2D: the batches' impulses,
-// taken first by the caller), or, in 3D, of solve_order[first, last): a region of the
-// solve order (regions.cpp).
+// taken first by the caller, in `lanes` of the batches), or, in 3D, of
+// solve_order[first, last): a region of the solve order (regions.cpp).
 template <int D>
 void warm_start_range(const Model<D>& model, State<D>& state, Contacts<D>& contacts,
                       std::int64_t first, std::int64_t last, CutLanes lanes = CutLanes::All);

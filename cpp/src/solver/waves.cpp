@@ -293,8 +293,7 @@ std::vector<Unit> schedule_units(const Model<D>& model, Contacts<D>& c, int n_se
   for (int g = 0; g < n_segments; ++g) {
     const auto first = static_cast<std::int32_t>(units.size());
     c.segment_wave[g] = first;
-    if (g < regions) region_units[g] = first;
-    if (g == regions) region_units[regions] = first;
+    if (g <= regions) region_units[g] = first;  // (the regions', and where they end)
     // 2D, a cut between regions 2k and 2k + 1 (regions.cpp): each of its manifolds goes
     // into a spare lane of region 2k + 1's units where one of its type comes after its
     // bodies' last units there (and after the cut's manifolds before it that share a
