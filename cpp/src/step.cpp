@@ -207,12 +207,11 @@ void World<D>::over_segments(bool with_logs, F&& f) {
     PassLog log = logs[g].log();
     f(static_cast<int>(batches), log, st, lanes);
   };
-  // a cut (regions <= g < regions + regions / 2) between regions 2k and 2k + 1: its lanes
-  // in region 2k + 1's batches first
+  // a cut between regions 2k and 2k + 1: its lanes in region 2k + 1's batches first
   const bool cut_lanes = D == 2 && c.cut_lanes;
   auto run = [&](std::int64_t g) {
-    if (cut_lanes && g >= regions && g < regions + regions / 2)
-      run_on(g, state, 2 * (g - regions) + 1, CutLanes::Only);
+    const int host = cut_lanes ? cut_host(regions, static_cast<int>(g)) : -1;
+    if (host >= 0) run_on(g, state, host, CutLanes::Only);
     run_on(g, state, g, CutLanes::All);
   };
   // 2D: a region's pass on its own copy of the velocities (region_state, begin_regions),

@@ -14,6 +14,7 @@
 #include "model.hpp"
 #include "state.hpp"
 #include "types.hpp"
+#include "wide.hpp"
 
 namespace rbsim {
 
@@ -394,11 +395,10 @@ void solve_batch_lanes(State<2>& state, Contacts<2>& contacts, double inv_h, boo
 // regions, over the batches of its host region: waves.cpp, schedule_units).
 enum class CutLanes : std::uint8_t { All, Without, Only };
 // The lanes (bit l: lane l) a pass takes of a batch whose cut's lanes are `cut`: 0 for
-// none (the batch is passed over), 15 for every lane.
+// none (the batch is passed over), ALL_LANES for the whole batch.
 inline unsigned cut_lanes_taken(CutLanes lanes, unsigned cut) {
-  constexpr unsigned every = 15u;  // (LANES = 4)
-  if (lanes == CutLanes::All) return every;
-  return lanes == CutLanes::Only ? cut : every & ~cut;
+  if (lanes == CutLanes::All) return ALL_LANES;
+  return lanes == CutLanes::Only ? cut : ALL_LANES & ~cut;
 }
 
 // solver/solve.cpp: the pass over waves [first, last) (contacts.batches; 3D: batches3, faces3), listing
@@ -446,6 +446,12 @@ void partition_regions(const Model<D>& model, const State<D>& state, Contacts<D>
 // The segments of a partition into `regions` regions: the regions, the cuts between
 // regions 2k and 2k + 1, and one for every other joining manifold.
 inline constexpr int segment_count(int regions) { return regions + regions / 2 + 1; }
+// The region whose batches may hold segment g's manifolds in lanes of their own (2D:
+// waves.cpp, schedule_units): 2k + 1 for the cut between regions 2k and 2k + 1, -1 for a
+// region or the segment of the other joining manifolds.
+inline constexpr int cut_host(int regions, int g) {
+  return regions > 1 && g >= regions && g < regions + regions / 2 ? 2 * (g - regions) + 1 : -1;
+}
 
 // solver/restitution.cpp: keep each point's impulse at the position update (scenes with
 // elastic materials), and the restitution stage itself.

@@ -18,6 +18,7 @@ namespace rbsim {
 
 inline constexpr int LANES = 4;
 inline constexpr std::uint32_t ALL_WRITES = (1u << (2 * LANES)) - 1;
+inline constexpr unsigned ALL_LANES = (1u << LANES) - 1;  // bit l: lane l, every lane
 
 // LANES doubles, one per lane (GCC/Clang vector extension: + − × ÷ and comparisons act
 // lane by lane; on x86-64 with AVX one ymm register).

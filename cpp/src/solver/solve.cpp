@@ -1434,16 +1434,15 @@ void solve_wave_range(const Model<D>& model, State<D>& st, Contacts<D>& c, doubl
     for (std::int64_t i = c.wave_batch[g]; i < c.wave_batch[g + 1]; ++i) {
       WideBatch& B = c.batches[i];
       const bool two = i < single;
-      if (B.cut == 0 || lanes == CutLanes::All) {  // (a cut's lanes, on one thread, with the rest)
-        if (lanes == CutLanes::Only) continue;
+      const unsigned only = cut_lanes_taken(lanes, B.cut);
+      if (only == 0) continue;
+      if (only == ALL_LANES) {  // (one thread: a cut's lanes with the rest)
         if (two)
           solve_batch<true>(st, c, B, inv_h, use_bias, shift, threshold, log);
         else
           solve_batch<false>(st, c, B, inv_h, use_bias, shift, threshold, log);
         continue;
       }
-      const unsigned only = cut_lanes_taken(lanes, B.cut);
-      if (only == 0) continue;
       if (two)
         solve_batch<true, true>(st, c, B, inv_h, use_bias, shift, threshold, log, only);
       else

@@ -109,7 +109,7 @@ namespace {
 // manifolds share no dynamic body, so the order in which their impulses reach the bodies
 // changes only the rounding of the sums.
 template <bool TWO>
-void warm_start_batch(State<2>& st, const WideBatch& B, unsigned only = 15u) {
+void warm_start_batch(State<2>& st, const WideBatch& B, unsigned only = ALL_LANES) {
   static_assert(LANES == 4, "the gathers below are written for four lanes");
   const Lanes nx = B.nx, ny = B.ny;
   const Lanes tx = ny, ty = -nx;  // t = (n_y, −n_x)

@@ -303,9 +303,10 @@ std::vector<Unit> schedule_units(const Model<D>& model, Contacts<D>& c, int n_se
     // manifolds then fill lanes the region leaves empty (a pyramid's cut, its centre
     // column, is a chain: one manifold a unit of its own), and on threads the region's
     // task leaves these lanes (WideBatch::cut) and the cut's pass takes them after.
-    const bool cut = D == 2 && regions > 1 && g >= regions && g < regions + regions / 2;
-    const std::int32_t host_first = cut ? region_units[2 * (g - regions) + 1] : 0;
-    const std::int32_t host_end = cut ? region_units[2 * (g - regions) + 2] : 0;
+    const int host = D == 2 ? cut_host(regions, g) : -1;
+    const bool cut = host >= 0;
+    const std::int32_t host_first = cut ? region_units[host] : 0;
+    const std::int32_t host_end = cut ? region_units[host + 1] : 0;
     for (std::int64_t o = segment_start[g]; o < segment_start[g + 1]; ++o) {
       const std::int32_t m = order[o];
       const int a = c.body_a[m], b = c.body_b[m];
