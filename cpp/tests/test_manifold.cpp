@@ -11,6 +11,7 @@
 #include <type_traits>
 
 #include "check.hpp"
+#include "contact/pair.hpp"
 #include "scene_builder.hpp"
 #include "scene_builder3d.hpp"
 
@@ -448,6 +449,29 @@ TEST(measure_manifolds_of_a_10_box_stack) {
               "carried\n",
               moving / reps, still / reps);
   CHECK(c.count.manifolds == 10 && c.carried[5] == 1);
+}
+
+// The square-root mixing rule takes no root where both coefficients are equal (one
+// material): the result is the root's, to the bit, over coefficients of every size a scene
+// may hold, and the rule is the root's for unequal ones.
+TEST(mixing_equal_coefficients_by_the_root_is_the_roots_result) {
+  double a = 1e-140;
+  int n = 0;
+  while (a < 1e140) {
+    const double r = std::sqrt(a * a);
+    CHECK(std::memcmp(&r, &a, sizeof r) == 0);  // (the identity the rule relies on)
+    const double m = mix(a, a, MixRule::Sqrt);
+    CHECK(std::memcmp(&m, &r, sizeof m) == 0);
+    const double b = std::nextafter(a, 2.0 * a);
+    CHECK(mix(a, b, MixRule::Sqrt) == std::sqrt(a * b));
+    a *= 1.0 + 1.0 / 3.0 + 1e-3 * (n % 7);  // (mantissas of every kind along the way)
+    ++n;
+  }
+  CHECK(n > 1000);
+  for (const double x : {0.0, 0.3, 0.6, 0.8, 1.0, 2.5}) {
+    const double m = mix(x, x, MixRule::Sqrt), r = std::sqrt(x * x);
+    CHECK(std::memcmp(&m, &r, sizeof m) == 0);
+  }
 }
 
 RBSIM_TEST_MAIN

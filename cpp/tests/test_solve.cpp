@@ -208,6 +208,114 @@ TEST(deep_region_in_the_batches_lanes_is_the_region_one_by_one) {
 
 namespace {
 
+// Whether lane l of batch B (of two-point manifolds: `two`) holds manifold m's row
+// (c.solver_row[m]) and bodies, field by field, or, for m < 0, an empty lane (zeros, K 1,
+// body 0, not written). A one-point batch's second point is never read: not compared.
+bool lane_holds(const World<2>& w, const WideBatch& B, bool two, int l, std::int32_t m) {
+  const auto& c = w.contacts;
+  if (m < 0) {
+    const double* zeros[] = {&B.nx[l], &B.ny[l], &B.k01[l], &B.gamma[l], &B.bias_rate[l],
+                             &B.friction[l], &B.load[l], &B.ma[l], &B.mb[l], &B.ia[l],
+                             &B.ib[l], &B.two[l], &B.p0.rna[l], &B.p0.base[l],
+                             two ? &B.p1.rax[l] : &B.p0.rax[l]};
+    bool ok = B.m[l] == -1 && B.live[l] == 0 && B.a[l] == 0 && B.b[l] == 0;
+    for (const double* z : zeros) ok = ok && *z == 0.0;
+    return ok && B.p0.kn[l] == 1.0 && (!two || B.p1.kn[l] == 1.0) && (B.writes >> l & 1u) == 0 &&
+           (B.writes >> (LANES + l) & 1u) == 0;
+  }
+  const SolverRow<2>& r = c.solver_row[m];
+  const int a = c.body_a[m], b = c.body_b[m];
+  bool ok = two == (c.points[m] == 2) && B.m[l] == m && B.live[l] == -1 && B.a[l] == a &&
+            B.b[l] == b;
+  ok = ok && B.nx[l] == r.normal.x && B.ny[l] == r.normal.y && B.k01[l] == r.k01 &&
+       B.gamma[l] == r.gamma && B.bias_rate[l] == r.bias_rate && B.friction[l] == r.friction &&
+       B.load[l] == r.friction_load && B.max_push[l] == r.max_push && B.deep[l] == r.deep &&
+       B.touch[l] == r.touch && B.two[l] == (two ? 1.0 : 0.0);
+  ok = ok && B.ma[l] == w.model.body_inv_mass[a] && B.mb[l] == w.model.body_inv_mass[b] &&
+       B.ia[l] == w.model.body_inv_inertia[a] && B.ib[l] == w.model.body_inv_inertia[b];
+  ok = ok && (B.writes >> l & 1u) == (w.model.is_dynamic(a) ? 1u : 0u) &&
+       (B.writes >> (LANES + l) & 1u) == (w.model.is_dynamic(b) ? 1u : 0u);
+  for (int k = 0; k < (two ? 2 : 1); ++k) {
+    const WidePoint& p = k == 0 ? B.p0 : B.p1;
+    const auto& q = r.point[k];
+    ok = ok && p.rna[l] == q.rna && p.rnb[l] == q.rnb && p.rta[l] == q.rta && p.rtb[l] == q.rtb &&
+         p.kn[l] == q.kn && p.tangent_mass[l] == q.tangent_mass && p.rax[l] == q.ra.x &&
+         p.ray[l] == q.ra.y && p.rbx[l] == q.rb.x && p.rby[l] == q.rb.y && p.base[l] == q.base;
+  }
+  return ok;
+}
+
+// Every lane of every batch: its manifold's row, or empty; every manifold in one lane.
+void check_batches_hold_rows(const World<2>& w) {
+  const auto& c = w.contacts;
+  std::vector<int> seen(static_cast<std::size_t>(c.count.manifolds), 0);
+  for (std::int64_t i = 0; i < c.wave_batch[c.wave_count]; ++i) {
+    const WideBatch& B = c.batches[i];
+    const bool two = i < c.wave_single_batch[i];  // (each batch a wave: find_waves)
+    for (int l = 0; l < LANES; ++l) {
+      CHECK(lane_holds(w, B, two, l, B.m[l]));
+      if (B.m[l] >= 0) ++seen[B.m[l]];
+    }
+  }
+  for (const int n : seen) CHECK(n == 1);
+}
+
+}  // namespace
+
+// The batches are packed from the rows four at a time (waves.cpp, pack_batch): every
+// field of every lane is its manifold's, in a pile of boxes (two points) and balls (one),
+// with rows of distinct values (no field can stand for another) and shapes below unit
+// scale (the rows' own push-out bounds are packed); and again, the graph unchanged, where
+// the rows of the manifolds not carried changed (packed again whole) and the carried ones'
+// base separations and friction loads did.
+TEST(every_lane_of_the_batches_holds_its_manifolds_row) {
+  SceneBuilder s;
+  s.world.model.gravity = {0.0, -10.0};
+  s.ground(-5.0, 5.0);
+  for (int i = 0; i < 5; ++i) {
+    s.box({-2.0 + 0.01 * i, 0.025 + 0.05 * i}, 0.025, 0.025, 1.0);  // two leaning columns
+    s.box({-1.0 - 0.01 * i, 0.025 + 0.05 * i}, 0.025, 0.025, 1.0);
+    s.circle({1.0 + 0.05 * i, 0.02}, 0.02, 0.5);                     // a row of balls
+    s.circle({1.0 + 0.05 * i + 0.025, 0.055}, 0.02, 0.5);            // and one above
+  }
+  World<2>& w = s.finish();
+  rbsim::test::collide(w);
+  auto& c = w.contacts;
+  int ones = 0, twos = 0;
+  for (std::int64_t m = 0; m < c.count.manifolds; ++m) (c.points[m] == 2 ? twos : ones) += 1;
+  CHECK(ones >= 5 && twos >= 8);
+  CHECK(!c.unit_scale);
+  auto distinct_rows = [&c](double salt) {
+    for (std::int64_t m = 0; m < c.count.manifolds; ++m) {
+      double* d = reinterpret_cast<double*>(&c.solver_row[m]);
+      for (int j = 0; j < 32; ++j) d[j] = salt + 100.0 * static_cast<double>(m) + j + 0.5;
+    }
+  };
+  distinct_rows(0.0);
+  partition_regions(w.model, w.state, c);
+  find_waves(w.model, c);
+  check_batches_hold_rows(w);
+  // the same graph a step later: half the manifolds carried
+  for (std::int64_t m = 0; m < c.count.manifolds; ++m) c.carried[m] = m % 2;
+  const std::vector<SolverRow<2>> before(c.solver_row.begin(),
+                                         c.solver_row.begin() + c.count.manifolds);
+  distinct_rows(0.25);
+  for (std::int64_t m = 0; m < c.count.manifolds; ++m) {
+    if (!c.carried[m]) continue;  // a carried row: only these two fields change
+    const double base0 = c.solver_row[m].point[0].base, base1 = c.solver_row[m].point[1].base;
+    const double load = c.solver_row[m].friction_load;
+    c.solver_row[m] = before[m];
+    c.solver_row[m].point[0].base = base0;
+    c.solver_row[m].point[1].base = base1;
+    c.solver_row[m].friction_load = load;
+  }
+  c.count.graph_unchanged = 1;
+  find_waves(w.model, c);
+  check_batches_hold_rows(w);
+}
+
+namespace {
+
 using rbsim::test::about;
 using rbsim::test::Builder3;
 

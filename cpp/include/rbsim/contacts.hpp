@@ -65,6 +65,8 @@ inline constexpr std::int8_t FOUND_CARRIED = -1;
 template <int D>
 struct SolverRow;
 
+// (Its fields, 32 doubles, lie in the order of WideBatch's lane vectors: waves.cpp packs
+// four rows into a batch four doubles at a time.)
 template <>
 struct SolverRow<2> {
   struct Point {

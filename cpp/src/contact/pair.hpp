@@ -20,7 +20,11 @@ using PairOut = std::conditional_t<D == 2, Manifold2, Manifold3>;
 // Combine two shapes' coefficients by the scene's mixing rule.
 inline double mix(double a, double b, MixRule rule) {
   switch (rule) {
-    case MixRule::Sqrt: return std::sqrt(a * b);
+    case MixRule::Sqrt:
+      // one material's (a = b): √(a·a) rounds to a itself in binary floating point where
+      // a² neither overflows nor underflows, so no root is taken (a pile's every pair)
+      if (a == b && a >= 0x1p-500 && a <= 0x1p500) return a;
+      return std::sqrt(a * b);
     case MixRule::Multiply: return a * b;
     case MixRule::Min: return std::min(a, b);
     default: return std::max(a, b);

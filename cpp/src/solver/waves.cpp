@@ -21,7 +21,9 @@
 // are left to the solve of one manifold at a time (pack_waves_3d).
 #include <algorithm>
 #include <array>
+#include <cstddef>
 #include <cstdint>
+#include <iterator>
 #include <utility>
 #include <vector>
 
@@ -36,72 +38,72 @@ namespace C = constants;
 
 namespace {
 
-// Fill lane l of batch w with manifold m's row, or leave it empty (m < 0: zero rows,
-// body 0, never written).
-template <int D>
-void pack_lane(const Model<D>& model, const Contacts<D>& c, WideBatch& w, int l, std::int32_t m) {
-  const std::uint32_t bits = (1u << l) | (1u << (LANES + l));
-  if (m < 0) {
-    w.m[l] = -1;
-    w.live[l] = 0;
-    w.writes &= ~bits;
-    w.a[l] = w.b[l] = 0;
-    w.nx[l] = w.ny[l] = w.k01[l] = w.gamma[l] = w.bias_rate[l] = w.friction[l] = 0.0;
-    w.load[l] = 0.0;
-    w.max_push[l] = w.deep[l] = w.touch[l] = 0.0;
-    w.ma[l] = w.mb[l] = w.ia[l] = w.ib[l] = w.two[l] = 0.0;
-    for (WidePoint* p : {&w.p0, &w.p1}) {
-      p->rna[l] = p->rnb[l] = p->rta[l] = p->rtb[l] = 0.0;
-      p->kn[l] = 1.0;  // no division by zero in an empty lane
-      p->tangent_mass[l] = p->rax[l] = p->ray[l] = p->rbx[l] = p->rby[l] = p->base[l] = 0.0;
-    }
-    return;
+// 2D: batch w from the rows of manifolds ms (−1: an empty lane: zeros, K 1, body 0, never
+// written), all of one point count (`two`). A row (SolverRow<2>, 32 doubles) holds its
+// fields in the order of the batch's lane vectors, so each four consecutive doubles of the
+// four rows are loaded at once and transposed into four lane vectors, instead of a store
+// per field and lane. A one-point batch's second point is written too (never read), and
+// the rows' max_push, deep and touch (not read where every shape is of unit scale).
+void pack_batch(const Model<2>& model, const Contacts<2>& c, WideBatch& w,
+                const std::int32_t (&ms)[LANES], bool two) {
+  using Row = SolverRow<2>;
+  using Pt = Row::Point;
+  static_assert(sizeof(Row) == 32 * sizeof(double) && sizeof(Pt) == 11 * sizeof(double));
+  static_assert(offsetof(Row, normal) == 0 && offsetof(Row, k01) == 16 &&
+                offsetof(Row, gamma) == 24 && offsetof(Row, bias_rate) == 32 &&
+                offsetof(Row, friction) == 40 && offsetof(Row, point) == 48 &&
+                offsetof(Row, max_push) == 224 && offsetof(Row, deep) == 232 &&
+                offsetof(Row, touch) == 240 && offsetof(Row, friction_load) == 248);
+  static_assert(offsetof(Pt, rna) == 0 && offsetof(Pt, rnb) == 8 && offsetof(Pt, rta) == 16 &&
+                offsetof(Pt, rtb) == 24 && offsetof(Pt, kn) == 32 &&
+                offsetof(Pt, tangent_mass) == 40 && offsetof(Pt, ra) == 48 &&
+                offsetof(Pt, rb) == 64 && offsetof(Pt, base) == 80);
+  // an empty lane's row: zeros, but K = 1 (no division by zero)
+  static const Row empty = [] {
+    Row r{};
+    r.point[0].kn = r.point[1].kn = 1.0;
+    return r;
+  }();
+  const double* row[LANES];
+  for (int l = 0; l < LANES; ++l)
+    row[l] = reinterpret_cast<const double*>(ms[l] >= 0 ? &c.solver_row[ms[l]] : &empty);
+  auto part = [&row](int k, Lanes& f0, Lanes& f1, Lanes& f2, Lanes& f3) {
+    gather_quads(row[0] + 4 * k, row[1] + 4 * k, row[2] + 4 * k, row[3] + 4 * k, f0, f1, f2, f3);
+  };
+  WidePoint& p = w.p0;
+  WidePoint& q = w.p1;
+  part(0, w.nx, w.ny, w.k01, w.gamma);
+  part(1, w.bias_rate, w.friction, p.rna, p.rnb);
+  part(2, p.rta, p.rtb, p.kn, p.tangent_mass);
+  part(3, p.rax, p.ray, p.rbx, p.rby);
+  part(4, p.base, q.rna, q.rnb, q.rta);
+  if (two) {
+    part(5, q.rtb, q.kn, q.tangent_mass, q.rax);
+    part(6, q.ray, q.rbx, q.rby, q.base);
   }
-  const SolverRow<2>& row = c.solver_row[m];
-  const int a = c.body_a[m], b = c.body_b[m];
-  w.m[l] = m;
-  w.live[l] = -1;
-  w.a[l] = a;
-  w.b[l] = b;
-  w.nx[l] = row.normal.x;
-  w.ny[l] = row.normal.y;
-  w.k01[l] = row.k01;
-  w.gamma[l] = row.gamma;
-  w.bias_rate[l] = row.bias_rate;
-  w.friction[l] = row.friction;
-  w.load[l] = row.friction_load;
-  if (!c.unit_scale) {  // (else the solve takes the constants: solve_batch)
-    w.max_push[l] = row.max_push;
-    w.deep[l] = row.deep;
-    w.touch[l] = row.touch;
+  part(7, w.max_push, w.deep, w.touch, w.load);
+  const double* im = model.body_inv_mass.data();
+  const double* ii = model.body_inv_inertia.data();
+  std::uint32_t writes = 0;
+  for (int l = 0; l < LANES; ++l) {
+    const std::int32_t m = ms[l];
+    w.m[l] = m;
+    const int a = m >= 0 ? c.body_a[m] : 0, b = m >= 0 ? c.body_b[m] : 0;
+    w.a[l] = a;
+    w.b[l] = b;
+    w.live[l] = m >= 0 ? -1 : 0;
+    w.two[l] = m >= 0 && two ? 1.0 : 0.0;
+    const double ma = m >= 0 ? im[a] : 0.0, mb = m >= 0 ? im[b] : 0.0;
+    const double ia = m >= 0 ? ii[a] : 0.0, ib = m >= 0 ? ii[b] : 0.0;
+    w.ma[l] = ma;
+    w.mb[l] = mb;
+    w.ia[l] = ia;
+    w.ib[l] = ib;
+    // (a static or kinematic body's velocity is not written back: see solve_contacts)
+    if (ma != 0.0 || ia != 0.0) writes |= 1u << l;
+    if (mb != 0.0 || ib != 0.0) writes |= 1u << (LANES + l);
   }
-  w.ma[l] = model.body_inv_mass[a];
-  w.mb[l] = model.body_inv_mass[b];
-  w.ia[l] = model.body_inv_inertia[a];
-  w.ib[l] = model.body_inv_inertia[b];
-  // (a static or kinematic body's velocity is not written back: see solve_contacts)
-  w.writes &= ~bits;
-  if (w.ma[l] != 0.0 || w.ia[l] != 0.0) w.writes |= 1u << l;
-  if (w.mb[l] != 0.0 || w.ib[l] != 0.0) w.writes |= 1u << (LANES + l);
-  const bool two = c.points[m] == 2;
-  w.two[l] = two ? 1.0 : 0.0;
-  // a batch holds manifolds of one point count (find_waves): a one-point batch's second
-  // point is never read, and is not written
-  for (int k = 0; k < (two ? 2 : 1); ++k) {
-    WidePoint& p = k == 0 ? w.p0 : w.p1;
-    const auto& pt = row.point[k];
-    p.rna[l] = pt.rna;
-    p.rnb[l] = pt.rnb;
-    p.rta[l] = pt.rta;
-    p.rtb[l] = pt.rtb;
-    p.kn[l] = pt.kn;
-    p.tangent_mass[l] = pt.tangent_mass;
-    p.rax[l] = pt.ra.x;
-    p.ray[l] = pt.ra.y;
-    p.rbx[l] = pt.rb.x;
-    p.rby[l] = pt.rb.y;
-    p.base[l] = pt.base;
-  }
+  w.writes = writes;
 }
 
 // At least `needed` batches in v. A batch is large (a WideFace3 holds 6.5 kB) and a heap's
@@ -453,10 +455,9 @@ std::int64_t pack_batches_2d(const Model<2>& model, Contacts<2>& c, int n_segmen
       WideBatch& w = c.batches[k];
       w.idle = true;
       w.cut = unit.cut;
-      for (int l = 0; l < LANES; ++l) {
-        pack_lane(model, c, w, l, unit.m[l]);
+      pack_batch(model, c, w, unit.m, unit.type == 0);
+      for (int l = 0; l < LANES; ++l)
         if (unit.m[l] >= 0) w.idle = w.idle && !holds_any(c, unit.m[l]);
-      }
       c.wave_batch[k] = k;
       c.wave_single_batch[k] = unit.type == 0 ? k + 1 : k;
     }
@@ -590,9 +591,9 @@ std::int64_t find_waves(const Model<D>& model, Contacts<D>& c, const InParts* pa
   const std::int64_t n_man = c.count.manifolds;
   if (D == 2 && c.count.graph_unchanged == 1 && c.waves_valid) {
     // last step's manifolds in the same slots and the same solve order (support_order
-    // keeps it): the waves hold, and only the rows that prepare wrote again are packed
-    // again (a carried manifold's row changes in its base separations and friction load
-    // only), unless a manifold's point count changed (it belongs in a batch of the other
+    // keeps it): the waves hold, and only the batches holding a row that prepare wrote
+    // again are packed again (a batch of carried manifolds takes their base separations
+    // and friction loads, all a carried row changes in), unless a manifold's point count changed (it belongs in a batch of the other
     // kind) or more than one in IDLE_SPOILED of the batches packed idle hold an impulse
     // now (a new pile's first steps; in a settled pyramid a few contacts a step start or
     // stop holding one, and packing again every step would cost more than it saves)
@@ -600,21 +601,28 @@ std::int64_t find_waves(const Model<D>& model, Contacts<D>& c, const InParts* pa
     std::int64_t idle = 0, spoiled = 0;  // batches
     for (std::int64_t i = 0; same_kinds && i < c.wave_batch[c.wave_count]; ++i) {
       WideBatch& w = c.batches[i];
-      bool holds = false;
+      bool holds = false, carried = true, two = false;
       for (int l = 0; l < LANES; ++l) {
         const std::int32_t m = w.m[l];
         if (m < 0) continue;
         holds = holds || (w.idle && holds_any(c, m));
-        if (c.carried[m]) {
+        carried = carried && c.carried[m];
+        two = two || w.two[l] != 0.0;
+        same_kinds = same_kinds && (c.points[m] == 2) == (w.two[l] != 0.0);
+      }
+      if (!same_kinds) break;
+      if (carried) {
+        for (int l = 0; l < LANES; ++l) {
+          const std::int32_t m = w.m[l];
+          if (m < 0) continue;
           w.p0.base[l] = c.solver_row[m].point[0].base;
           if (w.two[l] != 0.0) w.p1.base[l] = c.solver_row[m].point[1].base;
           w.load[l] = c.solver_row[m].friction_load;  // (friction_loads: written every step)
-        } else if ((c.points[m] == 2) == (w.two[l] != 0.0)) {
-          if constexpr (D == 2) pack_lane(model, c, w, l, m);
-        } else {
-          same_kinds = false;
-          break;
         }
+      } else if constexpr (D == 2) {
+        std::int32_t ms[LANES];  // (pack_batch writes w.m)
+        std::copy(std::begin(w.m), std::end(w.m), ms);
+        pack_batch(model, c, w, ms, two);
       }
       idle += w.idle;
       spoiled += holds;
