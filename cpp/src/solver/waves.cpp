@@ -593,10 +593,11 @@ std::int64_t find_waves(const Model<D>& model, Contacts<D>& c, const InParts* pa
     // last step's manifolds in the same slots and the same solve order (support_order
     // keeps it): the waves hold, and only the batches holding a row that prepare wrote
     // again are packed again (a batch of carried manifolds takes their base separations
-    // and friction loads, all a carried row changes in), unless a manifold's point count changed (it belongs in a batch of the other
-    // kind) or more than one in IDLE_SPOILED of the batches packed idle hold an impulse
-    // now (a new pile's first steps; in a settled pyramid a few contacts a step start or
-    // stop holding one, and packing again every step would cost more than it saves)
+    // and friction loads, all a carried row changes in), unless a manifold's point count
+    // changed (it belongs in a batch of the other kind) or more than one in IDLE_SPOILED
+    // of the batches packed idle hold an impulse now (a new pile's first steps; in a
+    // settled pyramid a few contacts a step start or stop holding one, and packing again
+    // every step would cost more than it saves)
     bool same_kinds = true;
     std::int64_t idle = 0, spoiled = 0;  // batches
     for (std::int64_t i = 0; same_kinds && i < c.wave_batch[c.wave_count]; ++i) {

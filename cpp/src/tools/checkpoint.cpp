@@ -10,17 +10,17 @@ namespace {
 
 // The last byte is the format: E since a 2D batch may hold the manifolds of a cut between
 // regions in lanes of their own (WideBatch::cut, contacts.cut_lanes); D: each manifold
-// keeps the bodies' offset and
-// rotations it was found at, and no body a reference pose (C: the offset only, each body
-// a reference rotation; B: a solver row, and a batch's lanes, keep the row's friction
-// load and the counts whether any row holds one; A: the contact store keeps each
-// manifold's deepest separation at the step's start and the dynamic overlap limit's list;
-// 9: a 2D batch holds its manifolds' impulses while the passes run, WideBatch::n0 ...; 8:
-// the contact store keeps each hull's plane offsets and vertex spread and no longer the
-// time of impact's room; 7: a solver row, and a 2D batch's lanes, keeps the distance
-// within which its points touch and have friction; 6: the contact store keeps which
-// manifolds touch and the load each body bears; 5 and before: without them; a checkpoint
-// of another format is refused with a message saying so).
+// keeps the bodies' offset and rotations it was found at, and no body a reference pose
+// (C: the offset only, each body a reference rotation; B: a solver row, and a batch's
+// lanes, keep the row's friction load and the counts whether any row holds one; A: the
+// contact store keeps each manifold's deepest separation at the step's start and the
+// dynamic overlap limit's list; 9: a 2D batch holds its manifolds' impulses while the
+// passes run, WideBatch::n0 ...; 8: the contact store keeps each hull's plane offsets and
+// vertex spread and no longer the time of impact's room; 7: a solver row, and a 2D
+// batch's lanes, keeps the distance within which its points touch and have friction; 6:
+// the contact store keeps which manifolds touch and the load each body bears; 5 and
+// before: without them; a checkpoint of another format is refused with a message saying
+// so).
 constexpr char MAGIC[8] = {'R', 'B', 'S', 'I', 'M', 'C', 'K', 'E'};
 
 // Every member of the world that changes while it runs, in one fixed order. A member
